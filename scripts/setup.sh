@@ -1,0 +1,41 @@
+#!/usr/bin/env bash
+# Install what pulseform needs, only if it is missing: Debian packages, then .venv, then the package.
+# Idempotent and quiet when everything is already there. Used by `make demo` and `make test`.
+set -euo pipefail
+here="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+cd "$here"
+
+APT_PACKAGES=(getdp gmsh python3-gmsh python3-dolfinx python3-meshio python3-h5py python3-scipy
+  python3-pytest python3-mpi4py python3-numba python3-matplotlib python3-hypothesis python3-tqdm
+  python3-venv python3-pip python3-setuptools openmpi-bin)
+
+missing=()
+for p in "${APT_PACKAGES[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+
+if [ "${#missing[@]}" -gt 0 ]; then
+  if [ "$(id -u)" -ne 0 ] || ! command -v apt-get >/dev/null 2>&1; then
+    echo "pulseform setup: missing Debian packages: ${missing[*]}" >&2
+    echo "Install them as root, then run this command again:" >&2
+    echo "  apt-get update && apt-get install -y --no-install-recommends ${missing[*]}" >&2
+    exit 1
+  fi
+  echo "pulseform setup: installing Debian packages: ${missing[*]}"
+  export DEBIAN_FRONTEND=noninteractive
+  apt-get update -qq
+  apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+fi
+
+if [ ! -x .venv/bin/python ]; then
+  echo "pulseform setup: creating .venv from /usr/bin/python3 (--system-site-packages)"
+  /usr/bin/python3 -m venv --system-site-packages .venv
+fi
+
+stamp=.venv/.pulseform-installed
+if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ] || ! .venv/bin/python -c "import pulseform.orchestrator" 2>/dev/null; then
+  echo "pulseform setup: pip install -e . (constrained to Debian's numpy)"
+  .venv/bin/python -m pip install -q --no-build-isolation --no-deps --no-index -c constraints.txt -e . \
+    || .venv/bin/python -m pip install -q --no-build-isolation -c constraints.txt -e .
+  touch "$stamp"
+fi

@@ -1,0 +1,1 @@
+"""Explicit elastic-plastic dynamics with soft contact on DOLFINx."""

@@ -1,0 +1,1 @@
+"""GetDP decks and the Python runner that drives the ``getdp`` executable."""
