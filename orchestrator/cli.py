@@ -1,0 +1,117 @@
+"""The ``pulseform`` command line. Only this module prints.
+
+Exit codes: 0 success, 1 a run that started and failed, 2 bad input (case file, overrides, usage).
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+from pathlib import Path
+
+from . import __version__
+
+EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="pulseform",
+        description="Coupled GetDP + DOLFINx simulation of pulsed metal forming.")
+    p.add_argument("--version", action="version", version=f"pulseform {__version__}")
+    sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    run = sub.add_parser("run", help="run a case into a results folder",
+                         description="Run CASE (a folder with case.toml, or a .toml file).")
+    run.add_argument("case", metavar="CASE", help="case folder or case TOML file")
+    run.add_argument("--out", metavar="DIR", type=Path,
+                     help="results folder (default: results/<case name>)")
+    run.add_argument("--set", metavar="KEY.PATH=VALUE", action="append", default=[], dest="overrides",
+                     help="override a case key, e.g. --set time.end=1e-3 --set bodies.left.mesh_size=0.05 "
+                          "(repeatable; validated like the file)")
+    run.add_argument("--resume", action="store_true", help="continue an interrupted run in --out")
+    run.add_argument("--force", action="store_true", help="replace an existing results folder")
+    run.add_argument("--quiet", action="store_true", help="no progress bar, warnings only")
+
+    check = sub.add_parser("check", help="validate a case file without running it",
+                           description="Validate CASE and print the resolved case.")
+    check.add_argument("case", metavar="CASE")
+    check.add_argument("--set", metavar="KEY.PATH=VALUE", action="append", default=[], dest="overrides")
+
+    sub.add_parser("info", help="versions and locations of getdp, gmsh, dolfinx, PETSc, meshio, numpy",
+                   description="Print the versions of the external programs and libraries and where each comes from.")
+    return p
+
+
+def _setup_logging(quiet: bool) -> None:
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setFormatter(logging.Formatter("%(levelname)s: %(message)s"))
+    handler.setLevel(logging.WARNING if quiet else logging.INFO)
+    root = logging.getLogger("pulseform")
+    root.addHandler(handler)
+    root.setLevel(logging.INFO)
+
+
+def _error(msg: str, code: int) -> int:
+    print(f"pulseform: error: {msg}", file=sys.stderr)
+    return code
+
+
+def _cmd_run(args: argparse.Namespace) -> int:
+    from .caseio import CaseError, load_case
+    from .results import ResultsExistError
+
+    try:
+        case, _ = load_case(args.case, args.overrides)
+    except CaseError as exc:
+        return _error(str(exc), EXIT_BAD_INPUT)
+    out = args.out or Path("results") / case.case.name
+    from .runner import RunFailed, run_case  # heavy imports (dolfinx) only when running
+
+    try:
+        metrics = run_case(case, out, force=args.force, resume=args.resume, quiet=args.quiet)
+    except ResultsExistError as exc:
+        return _error(str(exc), EXIT_BAD_INPUT)
+    except RunFailed as exc:
+        return _error(str(exc), EXIT_FAILED)
+    if not args.quiet:
+        print(f"results: {out}")
+        for k in sorted(metrics):
+            print(f"  {k} = {metrics[k]:.6g}")
+    return EXIT_OK
+
+
+def _cmd_check(args: argparse.Namespace) -> int:
+    from .caseio import CaseError, case_to_toml, load_case
+
+    try:
+        case, file = load_case(args.case, args.overrides)
+    except CaseError as exc:
+        return _error(str(exc), EXIT_BAD_INPUT)
+    print(f"# {file}: valid")
+    print(case_to_toml(case), end="")
+    return EXIT_OK
+
+
+def _cmd_info(_: argparse.Namespace) -> int:
+    from .info import collect
+
+    for row in collect():
+        print(f"{row.name:<10} {row.version:<28} {row.location}  [{row.source}]")
+    return EXIT_OK
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the ``pulseform`` console script."""
+    args = _parser().parse_args(argv)
+    _setup_logging(getattr(args, "quiet", False))
+    handlers = {"run": _cmd_run, "check": _cmd_check, "info": _cmd_info}
+    try:
+        return handlers[args.command](args)
+    except KeyboardInterrupt:
+        return _error("interrupted", EXIT_FAILED)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,46 @@
+"""Pressure pulses of the paper: eq. (7) P0 e^(−βt) sin²(ωt) and eq. (8) p0 e^(−t/T)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .case import Box, Load, PulseExp, PulseSin2
+
+
+def pulse_pressure(load: Load, t: float) -> float:
+    """Pressure (Pa) of a pulse at time ``t`` (s); zero outside [t_start, t_end)."""
+    if t < load.t_start or t >= load.t_end:
+        return 0.0
+    tau = t - load.t_start
+    if isinstance(load, PulseSin2):
+        return load.amplitude * math.exp(-load.beta * tau) * math.sin(load.omega * tau) ** 2
+    assert isinstance(load, PulseExp)
+    return load.amplitude * math.exp(-tau / load.decay_time)
+
+
+def pulse_impulse_per_area(load: Load) -> float:
+    """∫ p dt over the pulse window (Pa·s), closed form.
+
+    eq. (7): ∫0^τ P0 e^(−βt) sin²(ωt) dt with sin² = (1 − cos 2ωt)/2;
+    eq. (8): p0 T (1 − e^(−τ/T)).
+    """
+    tau = load.t_end - load.t_start
+    if isinstance(load, PulseSin2):
+        b, w, p0 = load.beta, load.omega, load.amplitude
+        first = tau / 2.0 if b == 0.0 else (1.0 - math.exp(-b * tau)) / (2.0 * b)
+        # ∫ e^(−bt) cos(2wt) dt from 0 to τ
+        den = b * b + 4.0 * w * w
+        second = (b + math.exp(-b * tau) * (2.0 * w * math.sin(2.0 * w * tau)
+                                            - b * math.cos(2.0 * w * tau))) / den
+        return p0 * (first - 0.5 * second)
+    assert isinstance(load, PulseExp)
+    return load.amplitude * load.decay_time * (1.0 - math.exp(-tau / load.decay_time))
+
+
+def box_marker(box: Box):
+    """A DOLFINx-style marker: callable on coordinates of shape (3, N) -> bool array."""
+    def inside(x: np.ndarray) -> np.ndarray:
+        return ((x[0] >= box.xmin) & (x[0] <= box.xmax) & (x[1] >= box.ymin) & (x[1] <= box.ymax))
+    return inside

@@ -1,0 +1,40 @@
+"""Translate a validated :class:`Case` into the explicit DOLFINx solver's objects."""
+
+from __future__ import annotations
+
+from mpi4py import MPI
+
+from pulseform.solvers import dolfinx as mech
+
+from .case import Case, Material
+from .loads import box_marker
+from .shapes import mesh_shape
+
+
+def solver_material(m: Material) -> "mech.Material":
+    """Case material -> solver material (SI units are the same on both sides)."""
+    rate = None
+    if m.rate_law is not None:
+        rate = mech.rate_law_from_case(m.rate_law)
+    return mech.Material(density=m.density, shear_modulus=m.shear_modulus,
+                         bulk_modulus=m.bulk_modulus, yield_stress=m.yield_stress,
+                         hardening_modulus=m.hardening_modulus, rate_law=rate)
+
+
+def build_solver(case: Case, comm: MPI.Comm = MPI.COMM_WORLD) -> "mech.ExplicitSolver":
+    """Mesh every body and assemble the explicit solver for ``case``."""
+    bodies = []
+    for b in case.bodies:
+        mesh = mesh_shape(b.shape, b.mesh_size, comm, name=b.name)
+        fixed = tuple((box_marker(f.where), tuple(f.components)) for f in b.fixed)
+        bodies.append(mech.BodySpec(name=b.name, mesh=mesh, material=solver_material(case.materials[b.material]),
+                                    initial_velocity=tuple(b.initial_velocity), fixed=fixed))
+    pairs = tuple(mech.ContactPairSpec(slave=c.slave, master=c.master, stiffness=c.stiffness, h0=c.h0,
+                                       friction=c.friction, viscosity=c.viscosity, two_pass=c.two_pass)
+                  for c in case.contact)
+    walls = tuple(mech.RigidWallSpec(point=tuple(w.point), normal=tuple(w.normal),
+                                     bodies=tuple(w.bodies) or None) for w in case.walls)
+    mo = case.mechanics
+    bulk = (mo.bulk_viscosity_linear, mo.bulk_viscosity_quadratic) if mo.bulk_viscosity else False
+    return mech.ExplicitSolver(bodies, formulation=mo.formulation, contact_pairs=pairs, rigid_walls=walls,
+                               cfl=case.time.cfl, bulk_viscosity=bulk, thickness=mo.thickness, comm=comm)

@@ -1,0 +1,76 @@
+"""Point probes: values at a material point of a body, recorded into history.csv.
+
+A probe is attached at the start of the run to the node (or, for cell quantities, the cell)
+nearest to its point in the initial configuration, and follows that material point afterwards.
+In a parallel run only the owning rank has the value; the others contribute nothing to a sum
+reduction, so every rank ends up with the same number.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from mpi4py import MPI
+
+from .case import Probe
+
+
+@dataclass
+class AttachedProbe:
+    """A probe bound to a node or cell index of its body on the owning rank."""
+
+    probe: Probe
+    index: int  # local node or cell index, -1 where this rank does not own it
+    columns: tuple[str, ...]
+
+
+def _nearest_global(points: np.ndarray, target: tuple[float, float], n_owned: int,
+                    comm: MPI.Comm) -> int:
+    """Local index of the owned point nearest ``target`` on the rank holding the global nearest, else -1."""
+    d = np.hypot(points[:n_owned, 0] - target[0], points[:n_owned, 1] - target[1])
+    local_best = (float(d.min()) if d.size else np.inf, comm.rank)
+    best = comm.allreduce(local_best, op=MPI.MINLOC)
+    return int(np.argmin(d)) if best[1] == comm.rank and d.size else -1
+
+
+def attach(solver, probes: tuple[Probe, ...], comm: MPI.Comm) -> list[AttachedProbe]:
+    """Bind each probe to its nearest node (or cell centroid for von Mises)."""
+    out = []
+    for p in probes:
+        body = solver.bodies[p.body]
+        if p.quantity == "von_mises":
+            pts = body.cell_centroids()
+            n_owned = body.n_owned_cells
+        else:
+            pts = body.x
+            n_owned = body.n_owned_nodes
+        idx = _nearest_global(pts, p.point, n_owned, comm)
+        if p.quantity in ("velocity", "displacement"):
+            unit = "m_s" if p.quantity == "velocity" else "m"
+            cols = (f"{p.name}_{p.quantity}_x_{unit}", f"{p.name}_{p.quantity}_y_{unit}")
+        else:
+            cols = (f"{p.name}_{p.quantity}_Pa",)
+        out.append(AttachedProbe(p, idx, cols))
+    return out
+
+
+def sample(solver, attached: list[AttachedProbe], comm: MPI.Comm) -> dict[str, float]:
+    """Current values of all probes, one column each (SI units in the names)."""
+    local: list[float] = []
+    for a in attached:
+        body = solver.bodies[a.probe.body]
+        q = a.probe.quantity
+        if a.index < 0:
+            local.extend([0.0] * len(a.columns))
+        elif q == "velocity":
+            local.extend(float(v) for v in body.v[a.index, :2])
+        elif q == "displacement":
+            local.extend(float(v) for v in body.u[a.index, :2])
+        elif q == "von_mises":
+            local.append(float(body.von_mises[a.index]))
+        else:  # contact_pressure at the probe node, summed over the pairs it is a slave of
+            local.append(float(solver.node_contact_pressure(a.probe.body)[a.index]))
+    values = comm.allreduce(np.array(local), op=MPI.SUM) if local else np.zeros(0)
+    cols = [c for a in attached for c in a.columns]
+    return dict(zip(cols, (float(v) for v in values)))
