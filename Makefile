@@ -1,24 +1,21 @@
-# The README's two commands: `make demo` and `make test`. Both install what is missing first.
-PY := .venv/bin/python
-DEMO_CASE ?= cases/bar_impact
-DEMO_OUT ?= results/demo
-
-.PHONY: setup demo test test-slow test-mpi bench clean
+# Convenience targets; the README's two commands are scripts/demo.sh and scripts/test.sh
+# (a fresh Debian machine may not have make).
+.PHONY: setup demo test test-slow test-mpi clean
 
 setup:
 	@bash scripts/setup.sh
 
-demo: setup
-	@.venv/bin/pulseform run $(DEMO_CASE) --out $(DEMO_OUT) --force
+demo:
+	@bash scripts/demo.sh
 
-test: setup
-	@$(PY) -m pytest -q
+test:
+	@bash scripts/test.sh -q
 
-test-slow: setup
-	@$(PY) -m pytest -q -m slow
+test-slow:
+	@bash scripts/test.sh -q -m slow
 
-test-mpi: setup
-	@$(PY) -m pytest -q -m mpi
+test-mpi:
+	@bash scripts/test.sh -q -m mpi
 
 clean:
 	rm -rf results .pytest_cache

@@ -49,7 +49,7 @@ def read_toml(path: Path) -> dict[str, Any]:
         raise CaseError(str(path), "", f"cannot read: {exc}") from None
 
 
-def parse_override(text: str) -> tuple[list[str | int], Any]:
+def parse_override(text: str, source: str = "") -> tuple[list[str | int], Any]:
     """Split ``key.path=value`` into path segments and a TOML-typed value.
 
     ``bodies[0].mesh_size=0.05`` and ``bodies.left.mesh_size=0.05`` (by body name) both work.
@@ -57,18 +57,18 @@ def parse_override(text: str) -> tuple[list[str | int], Any]:
     that is not valid TOML is taken as a string. Nothing is evaluated.
     """
     if "=" not in text:
-        raise CaseError(f"--set {text}", "", "expected key.path=value")
+        raise CaseError(source or f"--set {text}", "", "expected key.path=value")
     key, raw = text.split("=", 1)
     key, raw = key.strip(), raw.strip()
     segments: list[str | int] = []
     for part in key.split("."):
         m = _SEGMENT.match(part)
         if not m:
-            raise CaseError(f"--set {text}", key, "malformed key path (use e.g. time.end or bodies[0].mesh_size)")
+            raise CaseError(source or f"--set {text}", key, "malformed key path (use e.g. time.end or bodies[0].mesh_size)")
         segments.append(m.group(1))
         segments.extend(int(i) for i in re.findall(r"\[(\d+)\]", m.group(2)))
     if not raw:
-        raise CaseError(f"--set {text}", key, "missing value after '='")
+        raise CaseError(source or f"--set {text}", key, "missing value after '='")
     try:
         value = tomllib.loads(f"v = {raw}")["v"]
     except tomllib.TOMLDecodeError:
@@ -133,8 +133,9 @@ def load_case(path: str | Path, overrides: list[str] | tuple[str, ...] = ()) -> 
     file = resolve_case_file(path)
     data = read_toml(file)
     for text in overrides:
-        segments, value = parse_override(text)
-        apply_override(data, segments, value, f"{file} (--set {text})")
+        source = f"{file} (--set {text})"
+        segments, value = parse_override(text, source)
+        apply_override(data, segments, value, source)
     source = f"{file}" + (" (with --set overrides)" if overrides else "")
     try:
         case = from_dict(Case, data)

@@ -1,0 +1,16 @@
+#!/usr/bin/env bash
+# README command 2: install what is missing, then run the default (fast) test tier.
+# Extra arguments go to pytest, e.g. `bash scripts/test.sh -m slow` for the long validations.
+set -euo pipefail
+here="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+bash "$here/scripts/setup.sh"
+cd "$here"
+export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
+set +e
+.venv/bin/python -m pytest "$@"
+rc=$?
+set -e
+if [ "$rc" -eq 5 ]; then
+  echo "pulseform: pytest collected no tests: that is a failure" >&2
+fi
+exit "$rc"
