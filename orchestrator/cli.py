@@ -67,11 +67,11 @@ def _cmd_run(args: argparse.Namespace) -> int:
     except CaseError as exc:
         return _error(str(exc), EXIT_BAD_INPUT)
     out = args.out or Path("results") / case.case.name
-    from .runner import RunFailed, run_case  # heavy imports (dolfinx) only when running
+    from .runner import ResumeError, RunFailed, run_case  # heavy imports (dolfinx) only when running
 
     try:
         metrics = run_case(case, out, force=args.force, resume=args.resume, quiet=args.quiet)
-    except ResultsExistError as exc:
+    except (ResultsExistError, ResumeError) as exc:
         return _error(str(exc), EXIT_BAD_INPUT)
     except RunFailed as exc:
         return _error(str(exc), EXIT_FAILED)

@@ -21,6 +21,10 @@ class RunFailed(RuntimeError):
     """A run started but did not finish; what was computed so far is on disk."""
 
 
+class ResumeError(ValueError):
+    """``--resume`` cannot continue this folder (no checkpoint, or a different case)."""
+
+
 @contextmanager
 def run_log(path: Path) -> Iterator[None]:
     """Send every ``pulseform`` log record of this run to ``path`` (DEBUG and up)."""
@@ -55,6 +59,8 @@ def run_case(case: Case, out: Path, *, force: bool = False, resume: bool = False
     RunFailed
         The solver failed; the log, history so far and partial metrics stay in ``out``.
     """
+    if resume:
+        _check_resumable(case, Path(out))
     results = ResultsFolder(out, force=force, resume=resume) if comm.rank == 0 else None
     comm.Barrier()
     if results is None:
@@ -62,10 +68,10 @@ def run_case(case: Case, out: Path, *, force: bool = False, resume: bool = False
     wall0 = time.perf_counter()
     with run_log(results.log_file) if comm.rank == 0 else _nullcontext():
         log.info("case %s -> %s", case.case.name, results.root)
-        if comm.rank == 0:
+        if comm.rank == 0 and not resume:
             results.write_text("case.toml", case_to_toml(case))
         try:
-            metrics = _dispatch(case, results, quiet=quiet, comm=comm)
+            metrics = _dispatch(case, results, quiet=quiet, resume=resume, comm=comm)
         except Exception as exc:  # solver failures: keep what is on disk, report, re-raise as RunFailed
             log.exception("run failed: %s", exc)
             if comm.rank == 0:
@@ -79,12 +85,24 @@ def run_case(case: Case, out: Path, *, force: bool = False, resume: bool = False
     return metrics
 
 
-def _dispatch(case: Case, results: ResultsFolder, *, quiet: bool, comm: MPI.Comm) -> dict[str, float]:
+def _check_resumable(case: Case, out: Path) -> None:
+    stored = out / "case.toml"
+    if not stored.is_file():
+        raise ResumeError(f"{out}: nothing to resume (no case.toml from an earlier run)")
+    if not any(out.glob("checkpoint*.npz")):
+        raise ResumeError(f"{out}: nothing to resume (no checkpoint written yet)")
+    if stored.read_text() != case_to_toml(case):
+        raise ResumeError(f"{stored}: the case differs from the one this folder was run with; "
+                          "resume needs the same case and --set overrides")
+
+
+def _dispatch(case: Case, results: ResultsFolder, *, quiet: bool, resume: bool,
+              comm: MPI.Comm) -> dict[str, float]:
     if case.case.kind == "mechanics":
         from .mechanics_run import run_mechanics
         from .plots import plot_energies, plot_probes, plot_time_step
 
-        run = run_mechanics(case, results, quiet=quiet, comm=comm)
+        run = run_mechanics(case, results, quiet=quiet, resume=resume, comm=comm)
         if case.output.plots and comm.rank == 0:
             plot_energies(run.history, results.plots)
             plot_time_step(run.history, results.plots)
