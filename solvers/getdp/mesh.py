@@ -1,0 +1,290 @@
+"""EM meshes for the GetDP runner: a small array container, the MSH 2.2 writer, builders.
+
+Physical ids (the contract with ``decks/em_case.pro``):
+
+====================  ==========================================
+1                     air
+2                     shell (transformation to infinity)
+100 + k               coil k (k = 1..), all its turns
+200 + k               massive conductor k (k = 1..)
+11                    axis (a = 0, axisymmetric)
+12                    outer boundary (a = 0)
+13                    boundary with an imposed tangential field
+====================  ==========================================
+
+Element ids written to the MSH file: triangle ``i`` (0-based row of ``triangles``)
+gets id ``i + 1``; boundary lines follow.  GetDP reports these ids, so per-element
+outputs map back to rows of ``triangles``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+AIR, SHELL, AXIS, OUTER, NEUMANN = 1, 2, 11, 12, 13
+
+
+def coil_tag(k: int) -> int:
+    """Physical id of coil ``k`` (1-based)."""
+    return 100 + k
+
+
+def conductor_tag(k: int) -> int:
+    """Physical id of massive conductor ``k`` (1-based)."""
+    return 200 + k
+
+
+@dataclass
+class EMMesh:
+    """A 2D triangle mesh with physical ids (x = r, y = z in axisymmetry)."""
+
+    points: np.ndarray  # (N, 2) node coordinates (m)
+    triangles: np.ndarray  # (M, 3) node indices, 0-based
+    tri_tags: np.ndarray  # (M,) physical id per triangle
+    lines: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=np.int64))
+    line_tags: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+
+    def __post_init__(self):
+        self.points = np.asarray(self.points, dtype=float)[:, :2].copy()
+        self.triangles = np.asarray(self.triangles, dtype=np.int64).reshape(-1, 3)
+        self.tri_tags = np.asarray(self.tri_tags, dtype=np.int64).ravel()
+        self.lines = np.asarray(self.lines, dtype=np.int64).reshape(-1, 2)
+        self.line_tags = np.asarray(self.line_tags, dtype=np.int64).ravel()
+        if len(self.tri_tags) != len(self.triangles):
+            raise ValueError("tri_tags must have one id per triangle")
+        if len(self.line_tags) != len(self.lines):
+            raise ValueError("line_tags must have one id per line")
+        if len(self.triangles) and (self.triangles.min() < 0 or self.triangles.max() >= len(self.points)):
+            raise ValueError("triangle node index out of range")
+
+    @property
+    def n_nodes(self) -> int:
+        return len(self.points)
+
+    def with_points(self, points: np.ndarray) -> "EMMesh":
+        """Same connectivity, moved nodes."""
+        points = np.asarray(points, dtype=float)
+        if points.shape != self.points.shape:
+            raise ValueError(f"points shape {points.shape} != {self.points.shape}")
+        return EMMesh(points, self.triangles, self.tri_tags, self.lines, self.line_tags)
+
+    def areas(self) -> np.ndarray:
+        p = self.points[self.triangles]
+        d1, d2 = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
+        return 0.5 * (d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0])
+
+    def centroids(self) -> np.ndarray:
+        return self.points[self.triangles].mean(axis=1)
+
+    def volumes(self, axisymmetric: bool) -> np.ndarray:
+        """Element volumes: 2 pi r_c A in axisymmetry (exact for straight triangles), A in planar."""
+        a = np.abs(self.areas())
+        return 2 * np.pi * self.centroids()[:, 0] * a if axisymmetric else a
+
+    def region_area(self, tag: int) -> float:
+        return float(np.abs(self.areas()[self.tri_tags == tag]).sum())
+
+    def same_connectivity(self, other: "EMMesh") -> bool:
+        return (
+            self.triangles.shape == other.triangles.shape
+            and self.points.shape == other.points.shape
+            and np.array_equal(self.triangles, other.triangles)
+            and np.array_equal(self.tri_tags, other.tri_tags)
+            and np.array_equal(self.lines, other.lines)
+        )
+
+    def to_dict(self) -> dict:
+        return {k: getattr(self, k).tolist() for k in ("points", "triangles", "tri_tags", "lines", "line_tags")}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "EMMesh":
+        return cls(**{k: np.asarray(v) for k, v in d.items()})
+
+
+def write_msh22(mesh: EMMesh, path: str | Path) -> Path:
+    """Write ``mesh`` as an ASCII MSH 2.2 file (the only format this GetDP reads)."""
+    path = Path(path)
+    n, m, k = mesh.n_nodes, len(mesh.triangles), len(mesh.lines)
+    with open(path, "w") as fh:
+        fh.write("$MeshFormat\n2.2 0 8\n$EndMeshFormat\n")
+        fh.write(f"$Nodes\n{n}\n")
+        ids = np.arange(1, n + 1)
+        np.savetxt(fh, np.column_stack([ids, mesh.points, np.zeros(n)]), fmt=["%d", "%.17g", "%.17g", "%.17g"])
+        fh.write(f"$EndNodes\n$Elements\n{m + k}\n")
+        if m:
+            t = mesh.tri_tags
+            rows = np.column_stack([np.arange(1, m + 1), np.full(m, 2), np.full(m, 2), t, t, mesh.triangles + 1])
+            np.savetxt(fh, rows, fmt="%d")
+        if k:
+            t = mesh.line_tags
+            rows = np.column_stack([np.arange(m + 1, m + k + 1), np.ones(k), np.full(k, 2), t, t, mesh.lines + 1])
+            np.savetxt(fh, rows, fmt="%d")
+        fh.write("$EndElements\n")
+    return path
+
+
+# ----------------------------------------------------------------------------- builders
+def slab_mesh(length: float, h: float, width: float | None = None) -> EMMesh:
+    """Structured 2D planar strip [0, length] x [0, width] (one element row, width = h).
+
+    The whole strip is conductor 1 (id 201); x = 0 is the imposed-field boundary (13),
+    x = length has a = 0 (12).  Used for the step-field diffusion test.
+    """
+    width = h if width is None else width
+    nx = int(round(length / h))
+    if nx < 2 or not np.isclose(nx * h, length, rtol=1e-9):
+        raise ValueError("length must be a multiple of h, with at least two elements")
+    x = np.linspace(0.0, length, nx + 1)
+    pts = np.vstack([np.column_stack([x, np.zeros_like(x)]), np.column_stack([x, np.full_like(x, width)])])
+    i = np.arange(nx)
+    b0, b1, t0, t1 = i, i + 1, i + nx + 1, i + nx + 2
+    tris = np.vstack([np.column_stack([b0, b1, t1]), np.column_stack([b0, t1, t0])])
+    lines = np.array([[0, nx + 1], [nx, 2 * nx + 1]])
+    return EMMesh(pts, tris, np.full(len(tris), conductor_tag(1)), lines, [NEUMANN, OUTER])
+
+
+@dataclass
+class Rect:
+    """An axis-aligned rectangle (x0, y0) - (x1, y1) in the (r, z) or (x, y) plane."""
+
+    x0: float
+    y0: float
+    x1: float
+    y1: float
+
+
+def coil_conductor_mesh(
+    coils: list[list[Rect]],
+    conductors: list[Rect],
+    *,
+    axisymmetric: bool = True,
+    r_domain: float = 0.2,
+    r_shell: float | None = None,
+    h_fine: float = 1e-3,
+    h_coarse: float | None = None,
+    h_conductor: float | None = None,
+) -> EMMesh:
+    """Gmsh mesh of coils (each a list of turn rectangles) and conductor rectangles in air.
+
+    Air fills a (half-)disk of radius ``r_domain`` centred at the origin; with ``r_shell``
+    a shell region (id 2) between ``r_domain`` and ``r_shell`` carries the transformation
+    to infinity.  In axisymmetry only x >= 0 is meshed and x = 0 is the axis (id 11).
+    """
+    import gmsh
+
+    h_coarse = h_coarse or r_domain / 10
+    h_conductor = h_conductor or h_fine
+    gmsh.initialize(readConfigFiles=False)  # owned for the duration of the call
+    gmsh.option.setNumber("General.Terminal", 0)
+    gmsh.model.add("pulseform_em")
+    try:
+        occ = gmsh.model.occ
+        r_out = r_shell or r_domain
+        outer = occ.addDisk(0, 0, 0, r_out, r_out)
+        inner = occ.addDisk(0, 0, 0, r_domain, r_domain) if r_shell else None
+        if axisymmetric:
+            box = occ.addRectangle(0, -2 * r_out, 0, 2 * r_out, 4 * r_out)
+            outer = occ.intersect([(2, outer)], [(2, box)], removeTool=not r_shell)[0][0][1]
+            if r_shell:
+                inner = occ.intersect([(2, inner)], [(2, box)])[0][0][1]
+        rect_tags: list[tuple[str, int, int]] = []  # (kind, index, occ tag)
+        for k, turns in enumerate(coils, start=1):
+            for r in turns:
+                rect_tags.append(("coil", k, occ.addRectangle(r.x0, r.y0, 0, r.x1 - r.x0, r.y1 - r.y0)))
+        for k, r in enumerate(conductors, start=1):
+            rect_tags.append(("cond", k, occ.addRectangle(r.x0, r.y0, 0, r.x1 - r.x0, r.y1 - r.y0)))
+        tools = [(2, t) for _, _, t in rect_tags] + ([(2, inner)] if r_shell else [])
+        out, out_map = occ.fragment([(2, outer)], tools)
+        occ.synchronize()
+        # out_map[0] -> pieces of outer; then one entry per tool
+        groups: dict[int, list[int]] = {}
+        for (kind, k, _), pieces in zip(rect_tags, out_map[1 : 1 + len(rect_tags)]):
+            tag = coil_tag(k) if kind == "coil" else conductor_tag(k)
+            groups.setdefault(tag, []).extend(p[1] for p in pieces)
+        used = {s for v in groups.values() for s in v}
+        inner_pieces = {p[1] for p in out_map[-1]} if r_shell else set()
+        shell_surfs, air_surfs = [], []
+        for _, s in gmsh.model.getEntities(2):
+            if s in used:
+                continue
+            (shell_surfs if (r_shell and s not in inner_pieces) else air_surfs).append(s)
+        for tag, surfs in groups.items():
+            gmsh.model.addPhysicalGroup(2, sorted(set(surfs)), tag)
+        gmsh.model.addPhysicalGroup(2, air_surfs, AIR)
+        if shell_surfs:
+            gmsh.model.addPhysicalGroup(2, shell_surfs, SHELL)
+        axis_curves, outer_curves = [], []
+        tol = 1e-6 * r_out
+        all_surfs = [(2, s) for _, s in gmsh.model.getEntities(2)]
+        for _, c in gmsh.model.getBoundary(all_surfs, combined=True, oriented=False):
+            xmin, _, _, xmax, _, _ = gmsh.model.getBoundingBox(1, abs(c))
+            if axisymmetric and abs(xmin) < tol and abs(xmax) < tol:
+                axis_curves.append(abs(c))
+            else:
+                outer_curves.append(abs(c))
+        if axisymmetric:
+            gmsh.model.addPhysicalGroup(1, sorted(set(axis_curves)), AXIS)
+        gmsh.model.addPhysicalGroup(1, sorted(set(abs(c) for c in outer_curves)), OUTER)
+        # mesh size: fine in and near coils/conductors, coarse far away
+        fine_curves = [abs(c) for _, c in gmsh.model.getBoundary([(2, s) for s in used], oriented=False)]
+        f_dist = gmsh.model.mesh.field.add("Distance")
+        gmsh.model.mesh.field.setNumbers(f_dist, "EdgesList", sorted(set(fine_curves)))
+        gmsh.model.mesh.field.setNumber(f_dist, "NumPointsPerCurve", 200)
+        f_thr = gmsh.model.mesh.field.add("Threshold")
+        gmsh.model.mesh.field.setNumber(f_thr, "InField", f_dist)
+        gmsh.model.mesh.field.setNumber(f_thr, "SizeMin", h_fine)
+        gmsh.model.mesh.field.setNumber(f_thr, "SizeMax", h_coarse)
+        gmsh.model.mesh.field.setNumber(f_thr, "DistMin", 0.0)
+        gmsh.model.mesh.field.setNumber(f_thr, "DistMax", 0.5 * r_domain)
+        fields = [f_thr]
+        for r in conductors:
+            f_c = gmsh.model.mesh.field.add("Box")
+            for name, val in (("VIn", h_conductor), ("VOut", 1e22), ("XMin", r.x0), ("XMax", r.x1),
+                              ("YMin", r.y0), ("YMax", r.y1)):
+                gmsh.model.mesh.field.setNumber(f_c, name, val)
+            fields.append(f_c)
+        f_min = gmsh.model.mesh.field.add("Min")
+        gmsh.model.mesh.field.setNumbers(f_min, "FieldsList", fields)
+        gmsh.model.mesh.field.setAsBackgroundMesh(f_min)
+        gmsh.option.setNumber("Mesh.MeshSizeFromPoints", 0)
+        gmsh.option.setNumber("Mesh.MeshSizeExtendFromBoundary", 0)
+        gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", 0)
+        gmsh.option.setNumber("Mesh.Algorithm", 6)
+        gmsh.model.mesh.generate(2)
+        return _mesh_from_gmsh(gmsh)
+    finally:
+        gmsh.finalize()
+
+
+def _mesh_from_gmsh(gmsh) -> EMMesh:
+    node_tags, coords, _ = gmsh.model.mesh.getNodes()
+    index = np.full(int(node_tags.max()) + 1, -1, dtype=np.int64)
+    index[node_tags.astype(np.int64)] = np.arange(len(node_tags))
+    pts = coords.reshape(-1, 3)[:, :2]
+    tris, ttags, lines, ltags = [], [], [], []
+    for dim, ptag in gmsh.model.getPhysicalGroups():
+        for ent in gmsh.model.getEntitiesForPhysicalGroup(dim, ptag):
+            etypes, _, enodes = gmsh.model.mesh.getElements(dim, ent)
+            for et, en in zip(etypes, enodes):
+                if dim == 2 and et == 2:
+                    c = index[en.astype(np.int64)].reshape(-1, 3)
+                    tris.append(c)
+                    ttags.append(np.full(len(c), ptag))
+                elif dim == 1 and et == 1:
+                    c = index[en.astype(np.int64)].reshape(-1, 2)
+                    lines.append(c)
+                    ltags.append(np.full(len(c), ptag))
+    tri = np.vstack(tris)
+    # drop unused nodes (gmsh may keep a few on removed construction entities)
+    used = np.unique(np.concatenate([tri.ravel()] + [l.ravel() for l in lines]))
+    remap = np.full(len(pts), -1, dtype=np.int64)
+    remap[used] = np.arange(len(used))
+    # orient triangles counter-clockwise
+    tri = remap[tri]
+    p = pts[used]
+    m = EMMesh(p, tri, np.concatenate(ttags), remap[np.vstack(lines)], np.concatenate(ltags))
+    neg = m.areas() < 0
+    m.triangles[neg] = m.triangles[neg][:, [0, 2, 1]]
+    return m

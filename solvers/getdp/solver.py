@@ -1,0 +1,421 @@
+"""The EM participant: model description, serialisable state, one EM step = one getdp run."""
+from __future__ import annotations
+
+import hashlib
+import json
+import shutil
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+
+from .mesh import EMMesh, coil_tag, conductor_tag, write_msh22
+from .runner import RunInfo, run_getdp
+
+DECK_DIR = Path(__file__).resolve().parent / "decks"
+CASE_DECK = DECK_DIR / "em_case.pro"
+RESOLUTION = "EM_Transient"
+
+
+# ----------------------------------------------------------------------------- model
+@dataclass
+class DampedSine:
+    """I(t) = I0 exp(-beta t) sin(omega t) (A)."""
+
+    I0: float
+    beta: float
+    omega: float
+
+
+@dataclass
+class CurrentTable:
+    """I(t) linearly interpolated in (times, values) (s, A)."""
+
+    times: Sequence[float]
+    values: Sequence[float]
+
+    def __post_init__(self):
+        t = np.asarray(self.times, float)
+        v = np.asarray(self.values, float)
+        if t.ndim != 1 or t.shape != v.shape or len(t) < 2 or np.any(np.diff(t) <= 0):
+            raise ValueError("CurrentTable needs >= 2 strictly increasing times and as many values")
+        self.times, self.values = t.tolist(), v.tolist()
+
+
+@dataclass
+class Coil:
+    """A stranded coil: all its turns form physical region 100+k (uniform current density).
+
+    ``waveform`` is used without a circuit; with a circuit it must be None.
+    ``density`` and ``heat_capacity`` (copper defaults) give the adiabatic temperature rise.
+    """
+
+    turns: int
+    sigma: float = 5.8e7
+    waveform: DampedSine | CurrentTable | None = None
+    density: float = 8960.0
+    heat_capacity: float = 385.0
+
+    def __post_init__(self):
+        if isinstance(self.waveform, dict):
+            self.waveform = (CurrentTable if "times" in self.waveform else DampedSine)(**self.waveform)
+
+
+@dataclass
+class Conductor:
+    """A massive conductor (physical region 200+k) with eddy currents."""
+
+    sigma: float
+    name: str = ""
+
+
+@dataclass
+class Circuit:
+    """Capacitor bank C charged to V0, in series with R_ext, L_ext and all coils."""
+
+    C: float
+    V0: float
+    R_ext: float = 0.0
+    L_ext: float = 0.0
+
+
+@dataclass
+class EMModel:
+    """Static description of the EM problem (everything except the mesh and the state).
+
+    ``shell = (R_int, R_ext)`` enables the shell transformation to infinity on region 2,
+    centred at ``shell_centre``.  ``h0_step`` imposes a tangential field step H0 (A/m)
+    on boundary 13 (used by the diffusion verification).
+    """
+
+    axisymmetric: bool
+    coils: list[Coil] = field(default_factory=list)
+    conductors: list[Conductor] = field(default_factory=list)
+    circuit: Circuit | None = None
+    shell: tuple[float, float] | None = None
+    shell_centre: tuple[float, float] = (0.0, 0.0)
+    h0_step: float = 0.0
+
+    def __post_init__(self):
+        self.coils = [c if isinstance(c, Coil) else Coil(**c) for c in self.coils]
+        self.conductors = [c if isinstance(c, Conductor) else Conductor(**c) for c in self.conductors]
+        if isinstance(self.circuit, dict):
+            self.circuit = Circuit(**self.circuit)
+        if self.shell is not None:
+            self.shell = tuple(float(x) for x in self.shell)
+        self.shell_centre = tuple(float(x) for x in self.shell_centre)
+        for c in self.coils:
+            if self.circuit is not None and c.waveform is not None:
+                raise ValueError("with a circuit the coil current is computed: give no waveform")
+            if self.circuit is None and c.waveform is None:
+                raise ValueError("without a circuit every coil needs a waveform")
+        if self.circuit is not None and not self.coils:
+            raise ValueError("a circuit needs at least one coil")
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "EMModel":
+        return cls(**d)
+
+
+# ----------------------------------------------------------------------------- state
+@dataclass
+class EMState:
+    """Everything needed to continue after time ``t`` (JSON-serialisable with to_dict()).
+
+    ``res_path``/``mesh_signature``: the previous run's .res and the connectivity it was
+    computed on (restart path).  ``a_*``: the nodal unknown (r a_phi in axisymmetry,
+    a_z in planar) on the conductor and coil nodes, at material coordinates
+    ``a_points`` on triangles ``a_triangles`` (general path through an Init constraint).
+    """
+
+    t: float = 0.0
+    step_index: int = 0
+    capacitor_voltage: float = 0.0
+    current: float = 0.0
+    coil_heat: list[float] = field(default_factory=list)
+    res_path: str | None = None
+    mesh_signature: str | None = None
+    a_points: list | None = None
+    a_triangles: list | None = None
+    a_values: list | None = None
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "EMState":
+        return cls(**d)
+
+    def save(self, path: str | Path) -> None:
+        Path(path).write_text(json.dumps(self.to_dict()))
+
+    @classmethod
+    def load(cls, path: str | Path) -> "EMState":
+        return cls.from_dict(json.loads(Path(path).read_text()))
+
+
+def mesh_signature(mesh: EMMesh) -> str:
+    h = hashlib.sha1()
+    for arr in (mesh.triangles, mesh.tri_tags, mesh.lines, mesh.line_tags):
+        h.update(np.ascontiguousarray(arr, dtype=np.int64).tobytes())
+    h.update(str(mesh.n_nodes).encode())
+    return h.hexdigest()
+
+
+# ----------------------------------------------------------------------------- results
+@dataclass
+class EMStepResult:
+    """Outputs of one EM step (``n`` implicit sub-steps ending at ``times``).
+
+    Per element of the massive conductors (``elements`` are rows of the mesh's
+    ``triangles``): ``force_density`` (n, n_el, 2) N/m^3 and ``joule_density``
+    (n, n_el) W/m^3 at the element centroid.  Per coil: current, voltage drop
+    (receptor convention), Joule power, force.  Per conductor: force, Joule power.
+    Totals are physical (2 pi included in axisymmetry; per metre in planar).
+    """
+
+    times: np.ndarray
+    dt: float
+    elements: np.ndarray
+    element_tags: np.ndarray
+    force_density: np.ndarray
+    joule_density: np.ndarray
+    coil_current: np.ndarray
+    coil_voltage: np.ndarray
+    coil_power: np.ndarray
+    coil_force: np.ndarray
+    conductor_force: np.ndarray
+    conductor_power: np.ndarray
+    magnetic_energy: np.ndarray
+    capacitor_voltage: np.ndarray | None
+    circuit_current: np.ndarray | None
+    coil_heat: np.ndarray
+    coil_temperature_rise: np.ndarray
+    run: RunInfo | None = None
+    path: str = ""
+
+    @property
+    def force_density_mean(self) -> np.ndarray:
+        """Impulse-consistent force density over the step: mean of the implicit sub-steps."""
+        return self.force_density.mean(axis=0)
+
+    @property
+    def total_conductor_force(self) -> np.ndarray:
+        """(n, 2) sum over all massive conductors."""
+        return self.conductor_force.sum(axis=1)
+
+
+def _read_time_table(path: Path, ncols: int) -> np.ndarray:
+    d = np.loadtxt(path, ndmin=2)
+    return d[:, : 1 + ncols]
+
+
+# ----------------------------------------------------------------------------- solver
+class GetDPSolver:
+    """Drives getdp for the staggered coupling; see the package docstring for the API."""
+
+    def __init__(self, model: EMModel, work_dir: str | Path, *, executable: str = "getdp",
+                 petsc_args: Sequence[str] = (), timeout: float | None = None,
+                 deck: str | Path = CASE_DECK):
+        self.model = model
+        self.work_dir = Path(work_dir).resolve()
+        self.work_dir.mkdir(parents=True, exist_ok=True)
+        self.executable = executable
+        self.petsc_args = list(petsc_args)
+        self.timeout = timeout
+        self.deck = Path(deck).resolve()
+
+    # -- state
+    def initial_state(self, t0: float = 0.0) -> EMState:
+        v0 = self.model.circuit.V0 if self.model.circuit else 0.0
+        return EMState(t=float(t0), capacitor_voltage=v0, current=0.0,
+                       coil_heat=[0.0] * len(self.model.coils))
+
+    # -- one step
+    def step(self, mesh: EMMesh, state: EMState, t_end: float, n_sub: int = 1, *,
+             material_points: np.ndarray | None = None, run_name: str | None = None,
+             force_init_path: bool = False) -> tuple[EMStepResult, EMState]:
+        """Advance from ``state.t`` to ``t_end`` with ``n_sub`` implicit Euler sub-steps.
+
+        ``mesh`` holds the current node positions.  If its connectivity equals that of
+        the previous step, the field continues with ``-restart -res <previous .res>``;
+        otherwise (or with ``force_init_path``) the previous nodal r a_phi is interpolated
+        at ``material_points`` (reference coordinates of the new nodes, default
+        ``mesh.points``) and fed through an Init constraint.
+        """
+        if not t_end > state.t:
+            raise ValueError(f"t_end={t_end} must be after state.t={state.t}")
+        if int(n_sub) != n_sub or n_sub < 1:
+            raise ValueError("n_sub must be a positive integer")
+        model = self.model
+        run_dir = self.work_dir / (run_name or f"step_{state.step_index:05d}")
+        if run_dir.exists():
+            shutil.rmtree(run_dir)
+        run_dir.mkdir(parents=True)
+        out_dir = run_dir / "out"
+        out_dir.mkdir()
+        msh = write_msh22(mesh, run_dir / "mesh.msh")
+        sig = mesh_signature(mesh)
+        numbers = self._numbers(mesh)
+        numbers.update(TimeInit=state.t, TimeFinal=float(t_end), NbSteps=int(n_sub))
+        data_lines = self._table_lines()
+        extra: list[str] = []
+        has_field = state.res_path is not None
+        if has_field and not force_init_path and state.mesh_signature == sig and Path(state.res_path).exists():
+            extra += ["-restart", "-res", str(Path(state.res_path).resolve())]
+        elif has_field and state.a_values is not None:
+            pts = mesh.points if material_points is None else np.asarray(material_points, float)
+            ids, vals = self._interpolate_a(mesh, pts, state)
+            numbers["Flag_InitA"] = 1
+            pairs = [f"{i:d}, {v:.17g}" for i, v in zip(ids, vals)]
+            body = ",\n  ".join(", ".join(pairs[j:j + 8]) for j in range(0, len(pairs), 8))
+            data_lines.append(f"InitA_List() = {{{len(ids)},\n  {body}}};")
+        if model.circuit is not None:
+            numbers["Init_Vc"] = state.capacitor_voltage
+            numbers["Init_I"] = state.current
+        wrapper = run_dir / "run.pro"
+        wrapper.write_text("// generated by pulseform.solvers.getdp for one run\n" + "\n".join(data_lines)
+                           + f'\nInclude "{self.deck}";\n')
+        info = run_getdp(wrapper, msh, run_dir, resolution=RESOLUTION, numbers=numbers,
+                         strings={"OutDir": str(out_dir) + "/"}, extra_args=extra + self.petsc_args,
+                         executable=self.executable, timeout=self.timeout)
+        result = self._read(mesh, out_dir, state, float(t_end), int(n_sub))
+        result.run = info
+        result.path = str(run_dir)
+        new_state = self._next_state(mesh, material_points, out_dir, run_dir, state, result, sig)
+        return result, new_state
+
+    # -- helpers
+    def _numbers(self, mesh: EMMesh) -> dict[str, float]:
+        m = self.model
+        nb = {"Flag_Axi": int(m.axisymmetric), "NbCoils": len(m.coils), "NbConductors": len(m.conductors),
+              "Flag_Circuit": int(m.circuit is not None), "H0_Neu": m.h0_step}
+        if m.shell is not None:
+            nb.update(Flag_Shell=1, Val_Rint=m.shell[0], Val_Rext=m.shell[1],
+                      Val_Cx=m.shell_centre[0], Val_Cy=m.shell_centre[1])
+        for k, c in enumerate(m.coils, start=1):
+            area = mesh.region_area(coil_tag(k))
+            if area <= 0:
+                raise ValueError(f"coil {k}: region {coil_tag(k)} is empty in the mesh")
+            nb[f"Coil_Ns_{k}"] = c.turns
+            nb[f"Coil_Sc_{k}"] = area
+            nb[f"Coil_sigma_{k}"] = c.sigma
+            if isinstance(c.waveform, DampedSine):
+                nb.update({f"Coil_Wave_{k}": 0, f"Coil_I0_{k}": c.waveform.I0,
+                           f"Coil_beta_{k}": c.waveform.beta, f"Coil_omega_{k}": c.waveform.omega})
+            elif isinstance(c.waveform, CurrentTable):
+                nb.update({f"Coil_Wave_{k}": 1, f"Coil_I0_{k}": 1.0})
+        for k, c in enumerate(m.conductors, start=1):
+            if not np.any(mesh.tri_tags == conductor_tag(k)):
+                raise ValueError(f"conductor {k}: region {conductor_tag(k)} is empty in the mesh")
+            nb[f"Cond_sigma_{k}"] = c.sigma
+        if m.circuit is not None:
+            nb.update(C_bank=m.circuit.C, R_ext=m.circuit.R_ext, L_ext=m.circuit.L_ext)
+        return nb
+
+    def _table_lines(self) -> list[str]:
+        lines = []
+        for k, c in enumerate(self.model.coils, start=1):
+            if isinstance(c.waveform, CurrentTable):
+                pairs = [f"{t:.17g}, {v:.17g}" for t, v in zip(c.waveform.times, c.waveform.values)]
+                body = ",\n  ".join(", ".join(pairs[j:j + 8]) for j in range(0, len(pairs), 8))
+                lines.append(f"Coil_Table_{k}() = {{\n  {body}}};")
+        return lines
+
+    def _interpolate_a(self, mesh: EMMesh, material_points: np.ndarray, state: EMState):
+        """Previous nodal unknown at the new coil/conductor nodes, in material coordinates."""
+        import matplotlib.tri as mtri
+
+        old_p = np.asarray(state.a_points, float)
+        old_t = np.asarray(state.a_triangles, np.int64)
+        old_v = np.asarray(state.a_values, float)
+        sel = np.isin(mesh.tri_tags, [coil_tag(k) for k in range(1, len(self.model.coils) + 1)]
+                      + [conductor_tag(k) for k in range(1, len(self.model.conductors) + 1)])
+        nodes = np.unique(mesh.triangles[sel])
+        q = material_points[nodes]
+        tri = mtri.Triangulation(old_p[:, 0], old_p[:, 1], old_t)
+        vals = np.asarray(mtri.LinearTriInterpolator(tri, old_v)(q[:, 0], q[:, 1]).filled(np.nan))
+        miss = np.isnan(vals)
+        if miss.any():  # outside the old conductors (remeshed boundary): nearest old node
+            d2 = ((q[miss, None, :] - old_p[None, :, :]) ** 2).sum(-1)
+            vals[miss] = old_v[np.argmin(d2, axis=1)]
+        return nodes + 1, vals
+
+    def _read(self, mesh: EMMesh, out: Path, state: EMState, t_end: float, n: int) -> EMStepResult:
+        m = self.model
+        nc, nk = len(m.coils), len(m.conductors)
+        dt = (t_end - state.t) / n
+        w = np.loadtxt(out / "W.txt", ndmin=2)
+        times = w[:, 0]
+        if len(times) != n:
+            raise RuntimeError(f"expected {n} sub-steps in {out}, found {len(times)}")
+        cur = np.column_stack([np.loadtxt(out / f"coil_I_{k}.txt", ndmin=2)[:, 1] for k in range(1, nc + 1)]) \
+            if nc else np.zeros((n, 0))
+        us = np.column_stack([np.loadtxt(out / f"coil_U_{k}.txt", ndmin=2)[:, 1] for k in range(1, nc + 1)]) \
+            if nc else np.zeros((n, 0))
+        cp = np.column_stack([np.loadtxt(out / f"coil_P_{k}.txt", ndmin=2)[:, 1] for k in range(1, nc + 1)]) \
+            if nc else np.zeros((n, 0))
+        cf = np.stack([np.loadtxt(out / f"coil_F_{k}.txt", ndmin=2)[:, 1:3] for k in range(1, nc + 1)], axis=1) \
+            if nc else np.zeros((n, 0, 2))
+        kf = np.stack([np.loadtxt(out / f"cond_F_{k}.txt", ndmin=2)[:, 1:3] for k in range(1, nk + 1)], axis=1) \
+            if nk else np.zeros((n, 0, 2))
+        kp = np.column_stack([np.loadtxt(out / f"cond_P_{k}.txt", ndmin=2)[:, 1] for k in range(1, nk + 1)]) \
+            if nk else np.zeros((n, 0))
+        if nk:
+            ef = np.loadtxt(out / "elem_f.txt", ndmin=2)
+            ep = np.loadtxt(out / "elem_p.txt", ndmin=2)
+            n_el = len(ef) // n
+            if n_el * n != len(ef) or len(ep) != len(ef):
+                raise RuntimeError(f"per-element tables in {out} have an unexpected length")
+            ids = ef[:n_el, 1].astype(np.int64)
+            elements = ids - 1
+            if elements.max() >= len(mesh.triangles):
+                raise RuntimeError("per-element output refers to a non-triangle element")
+            force = ef[:, 8:10].reshape(n, n_el, 2)
+            joule = ep[:, 8].reshape(n, n_el)
+            tags = mesh.tri_tags[elements]
+        else:
+            elements = np.zeros(0, np.int64)
+            tags = np.zeros(0, np.int64)
+            force = np.zeros((n, 0, 2))
+            joule = np.zeros((n, 0))
+        vc = ic = None
+        if m.circuit is not None:
+            vc = np.loadtxt(out / "cir_U.txt", ndmin=2)[:, 1]
+            ic = np.loadtxt(out / "cir_I.txt", ndmin=2)[:, 1]
+        heat = np.asarray(state.coil_heat or [0.0] * nc, float) + cp.sum(axis=0) * dt
+        vols = mesh.volumes(m.axisymmetric)
+        mass_cp = np.array([c.density * c.heat_capacity * vols[mesh.tri_tags == coil_tag(k)].sum()
+                            for k, c in enumerate(m.coils, start=1)])
+        for name, arr in (("force density", force), ("coil current", cur), ("energy", w[:, 1])):
+            if not np.all(np.isfinite(arr)):
+                raise RuntimeError(f"non-finite {name} in {out}")
+        return EMStepResult(times=times, dt=dt, elements=elements, element_tags=tags, force_density=force,
+                            joule_density=joule, coil_current=cur, coil_voltage=-us, coil_power=cp,
+                            coil_force=cf, conductor_force=kf, conductor_power=kp, magnetic_energy=w[:, 1],
+                            capacitor_voltage=vc, circuit_current=ic, coil_heat=heat,
+                            coil_temperature_rise=heat / mass_cp if nc else heat)
+
+    def _next_state(self, mesh, material_points, out, run_dir, state, result, sig) -> EMState:
+        m = self.model
+        nodes_file = out / "nodes_a.txt"
+        d = np.loadtxt(nodes_file, skiprows=1, ndmin=2)
+        pts = mesh.points if material_points is None else np.asarray(material_points, float)
+        sel = np.isin(mesh.tri_tags, [coil_tag(k) for k in range(1, len(m.coils) + 1)]
+                      + [conductor_tag(k) for k in range(1, len(m.conductors) + 1)])
+        tri = mesh.triangles[sel]
+        used = np.unique(tri)
+        remap = np.full(mesh.n_nodes, -1, np.int64)
+        remap[used] = np.arange(len(used))
+        vals = np.zeros(mesh.n_nodes)
+        vals[d[:, 0].astype(np.int64) - 1] = np.nan_to_num(d[:, 1], nan=0.0)  # r = 0: r a_phi = 0
+        return EMState(
+            t=float(result.times[-1]), step_index=state.step_index + 1,
+            capacitor_voltage=float(result.capacitor_voltage[-1]) if result.capacitor_voltage is not None else 0.0,
+            current=float(result.circuit_current[-1]) if result.circuit_current is not None else 0.0,
+            coil_heat=result.coil_heat.tolist(), res_path=str(run_dir / "em.res"), mesh_signature=sig,
+            a_points=pts[used].tolist(), a_triangles=remap[tri].tolist(), a_values=vals[used].tolist())
