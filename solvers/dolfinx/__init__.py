@@ -1,1 +1,17 @@
-"""Explicit elastic-plastic dynamics with soft contact on DOLFINx."""
+"""Explicit elastic-plastic dynamics with soft contact on DOLFINx (package
+``pulseform.solvers.dolfinx``).
+
+Public API: :class:`Material` (+ :class:`CowperSymonds`, :class:`JohnsonCook`), :class:`BodySpec`,
+:class:`ContactPairSpec`, :class:`RigidWallSpec`, :class:`ExplicitSolver`, :class:`FieldWriter`,
+:class:`ContactPenetrationError`, and the metrics helpers in :mod:`.analysis`.
+"""
+from .analysis import bar_impact_metrics, contact_stress_metrics, energy_error_rel
+from .body import BodySpec
+from .contact import ContactPairSpec, ContactPenetrationError, RigidWallSpec
+from .material import CowperSymonds, JohnsonCook, Material
+from .output import FieldWriter
+from .solver import ExplicitSolver
+
+__all__ = ["Material", "CowperSymonds", "JohnsonCook", "BodySpec", "ContactPairSpec",
+           "RigidWallSpec", "ContactPenetrationError", "ExplicitSolver", "FieldWriter",
+           "contact_stress_metrics", "energy_error_rel", "bar_impact_metrics"]

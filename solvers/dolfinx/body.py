@@ -1,0 +1,280 @@
+"""A deformable body: DOLFINx mesh and P1 vector space, nodal arrays, lumped mass, boundary segments,
+ghost exchange. Nodal arrays are indexed by the *block* dofs of the P1 vector space (one row per
+node, owned nodes first, then ghosts)."""
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+from typing import Callable, Optional, Sequence
+
+import numpy as np
+import ufl
+from dolfinx import cpp as _cpp
+from dolfinx import fem
+from dolfinx.fem.petsc import assemble_vector
+from petsc4py import PETSc
+from dolfinx import mesh as dmesh
+from dolfinx.la import ScatterMode
+
+from .material import Material
+
+__all__ = ["BodySpec", "Body"]
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class BodySpec:
+    """Description of one body.
+
+    Parameters
+    ----------
+    name : str
+        Unique body name.
+    mesh : dolfinx.mesh.Mesh
+        2D mesh of P1 triangles (x = r, y = z in axisymmetry), m.
+    material : Material
+        Its material.
+    initial_velocity : (float, float)
+        Uniform initial velocity, m/s.
+    fixed : sequence
+        Velocity constraints ``(marker, components)`` or ``(marker, components, value)``:
+        ``marker(x) -> bool array`` over node coordinates of shape (3, N) (initial configuration),
+        ``components`` a tuple of 0/1, ``value`` the prescribed velocity in m/s (float, or callable
+        ``value(t) -> float``; default 0).
+    motion : sequence
+        Prescribed motions ``(marker, func)`` with ``func(X, t) -> x`` mapping reference coordinates
+        (N, 2) to current positions (N, 2) at time t; matched nodes follow it exactly.
+    initial_stress : (float, float, float, float), optional
+        Uniform initial Cauchy stress [xx, yy, zz, xy], Pa.
+    """
+
+    name: str
+    mesh: dmesh.Mesh
+    material: Material
+    initial_velocity: tuple = (0.0, 0.0)
+    fixed: Sequence = ()
+    motion: Sequence = ()
+    initial_stress: Optional[tuple] = None
+
+
+class Body:
+    """Runtime state of a body (created by :class:`~.solver.ExplicitSolver`)."""
+
+    def __init__(self, spec: BodySpec, axisymmetric: bool, thickness: float):
+        if not isinstance(spec.name, str) or not spec.name:
+            raise ValueError("BodySpec.name must be a non-empty string")
+        msh = spec.mesh
+        if msh.topology.dim != 2 or msh.topology.cell_type != dmesh.CellType.triangle:
+            raise ValueError(f"body {spec.name!r}: need a 2D triangle mesh")
+        if msh.geometry.cmap.degree != 1:
+            raise ValueError(f"body {spec.name!r}: need an affine (P1) geometry")
+        self.name = spec.name
+        self.spec = spec
+        self.mesh = msh
+        self.material = spec.material
+        self.comm = msh.comm
+        self.axisymmetric = axisymmetric
+        self.thickness = thickness
+        self.V = fem.VectorFunctionSpace(msh, ("Lagrange", 1))
+        imap = self.V.dofmap.index_map
+        self.n_owned = imap.size_local
+        self.n_local = imap.size_local + imap.num_ghosts
+        self.global_ids = np.asarray(imap.local_to_global(np.arange(self.n_local, dtype=np.int32)),
+                                     dtype=np.int64)
+        n_cells_owned = msh.topology.index_map(2).size_local
+        dofs = self.V.dofmap.list.array.reshape(-1, 3)
+        cells = np.array(dofs[:n_cells_owned], dtype=np.int32, copy=True)
+        X = self.V.tabulate_dof_coordinates()[:, :2].copy()
+        # orient every triangle counter-clockwise
+        xe = X[cells]
+        area2 = ((xe[:, 1, 0] - xe[:, 0, 0]) * (xe[:, 2, 1] - xe[:, 0, 1])
+                 - (xe[:, 2, 0] - xe[:, 0, 0]) * (xe[:, 1, 1] - xe[:, 0, 1]))
+        if np.any(area2 == 0.0):
+            raise ValueError(f"body {spec.name!r}: degenerate cell")
+        neg = area2 < 0
+        cells[neg, 1], cells[neg, 2] = cells[neg, 2].copy(), cells[neg, 1].copy()
+        self.cells = cells
+        self.X0 = X
+        self.x = X.copy()
+        self.v = np.zeros((self.n_local, 2))
+        self.v[:] = np.asarray(spec.initial_velocity, dtype=float)
+        self.a = np.zeros((self.n_local, 2))
+        nc = cells.shape[0]
+        self.cell_stress = np.zeros((nc, 4))
+        if spec.initial_stress is not None:
+            self.cell_stress[:] = np.asarray(spec.initial_stress, dtype=float)
+        self.eps_p = np.zeros(nc)
+        self._buf = fem.Function(self.V)
+        self.mass = self._lumped_mass()
+        if np.any(self.mass <= 0):
+            raise ValueError(f"body {spec.name!r}: non-positive lumped mass (nodes on the axis with "
+                             "no adjacent cell?)")
+        self.segments = self._exterior_segments(dofs)
+        self._constraints = self._build_constraints()
+        self.axis_nodes = (np.flatnonzero(np.abs(X[:, 0]) <= 1e-12 * max(1.0, np.abs(X).max()))
+                           if axisymmetric else np.zeros(0, dtype=np.int64))
+        log.info("body %s: %d owned nodes, %d cells, mass %.6g kg", self.name, self.n_owned, nc,
+                 self.total_mass())
+
+    # ------------------------------------------------------------------ setup helpers
+    def _lumped_mass(self) -> np.ndarray:
+        """Row-sum lumped mass via DOLFINx assembly (r-weighted with 2 pi in axisymmetry), kg."""
+        w = ufl.TestFunction(self.V)
+        xs = ufl.SpatialCoordinate(self.mesh)
+        weight = 2.0 * np.pi * xs[0] if self.axisymmetric else fem.Constant(self.mesh, self.thickness)
+        one = ufl.as_vector((1.0, 1.0))
+        form = fem.form(self.material.density * weight * ufl.inner(one, w) * ufl.dx)
+        vec = assemble_vector(form)
+        vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        vec.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+        with vec.localForm() as loc:
+            m = loc.array.reshape(-1, 2)[:, 0].copy()
+        vec.destroy()
+        return m
+
+    def _exterior_segments(self, dofs: np.ndarray) -> np.ndarray:
+        """Owned exterior facets as (n, 2) node rows, oriented with the body on the left, so that
+        the outward normal of segment a->b is (yb - ya, xa - xb) / length."""
+        msh = self.mesh
+        top = msh.topology
+        top.create_connectivity(1, 2)
+        facets = dmesh.exterior_facet_indices(top).astype(np.int32)
+        f2c = top.connectivity(1, 2)
+        # geometry nodes and P1 dofs share the per-cell (reference) ordering
+        gd = msh.geometry.dofmap.array.reshape(-1, 3)
+        geo2dof = np.full(msh.geometry.x.shape[0], -1, dtype=np.int64)
+        geo2dof[gd.ravel()] = dofs.ravel()
+        fg = _cpp.mesh.entities_to_geometry(msh._mesh, 1, facets, False)
+        segs = geo2dof[fg].astype(np.int32).reshape(-1, 2)
+        cells = np.array([f2c.links(f)[0] for f in facets], dtype=np.int64)
+        cd = dofs[cells] if len(facets) else np.zeros((0, 3), np.int64)
+        third = np.array([[d for d in row if d not in sg][0] for row, sg in zip(cd, segs)],
+                         dtype=np.int64)
+        if len(facets):
+            pa, pb, pc = self.X0[segs[:, 0]], self.X0[segs[:, 1]], self.X0[third]
+            cross = ((pb[:, 0] - pa[:, 0]) * (pc[:, 1] - pa[:, 1])
+                     - (pb[:, 1] - pa[:, 1]) * (pc[:, 0] - pa[:, 0]))
+            flip = cross < 0
+            segs[flip] = segs[flip][:, ::-1]
+        return np.ascontiguousarray(segs)
+
+    def _build_constraints(self):
+        X3 = np.zeros((3, self.n_local))
+        X3[:2] = self.X0.T
+        out = []
+        for entry in self.spec.fixed:
+            if len(entry) == 2:
+                marker, comps = entry
+                value = 0.0
+            elif len(entry) == 3:
+                marker, comps, value = entry
+            else:
+                raise ValueError("fixed entries are (marker, components[, value])")
+            comps = tuple(int(c) for c in comps)
+            if not comps or any(c not in (0, 1) for c in comps):
+                raise ValueError(f"fixed components must be 0/1, got {comps}")
+            nodes = np.flatnonzero(np.asarray(marker(X3), dtype=bool))
+            out.append(("fix", nodes, comps, value))
+        for marker, func in self.spec.motion:
+            nodes = np.flatnonzero(np.asarray(marker(X3), dtype=bool))
+            out.append(("motion", nodes, func, None))
+        return out
+
+    # ------------------------------------------------------------------ runtime helpers
+    def apply_velocity_constraints(self, t_new: float, dt: float) -> None:
+        """Impose the velocity constraints on the half-step velocity for a step ending at t_new."""
+        for kind, nodes, a, b in self._constraints:
+            if nodes.size == 0:
+                continue
+            if kind == "fix":
+                val = b(t_new) if callable(b) else b
+                for c in a:
+                    self.v[nodes, c] = val
+            else:
+                target = np.asarray(a(self.X0[nodes], t_new), dtype=float)
+                self.v[nodes] = (target - self.x[nodes]) / dt
+        if self.axis_nodes.size:
+            self.v[self.axis_nodes, 0] = 0.0
+
+    def constrained_mask(self) -> np.ndarray:
+        """(N, 2) bool: components whose velocity is prescribed."""
+        m = np.zeros((self.n_local, 2), dtype=bool)
+        for kind, nodes, a, _ in self._constraints:
+            if kind == "fix":
+                for c in a:
+                    m[nodes, c] = True
+            else:
+                m[nodes] = True
+        if self.axis_nodes.size:
+            m[self.axis_nodes, 0] = True
+        return m
+
+    def complete_nodal(self, f: np.ndarray) -> np.ndarray:
+        """Sum ghost contributions into owners, then copy owners' totals back to ghosts (in place)."""
+        if self.comm.size == 1:
+            return f
+        arr = self._buf.x.array
+        arr[:] = f.ravel()
+        self._buf.x.scatter_reverse(ScatterMode.add)
+        self._buf.x.scatter_forward()
+        f[:] = arr.reshape(-1, 2)
+        return f
+
+    def total_mass(self) -> float:
+        """Total mass of the body, kg."""
+        return self.comm.allreduce(float(self.mass[: self.n_owned].sum()))
+
+    def tributary_areas(self, segs: np.ndarray, x: np.ndarray) -> np.ndarray:
+        """Per-node tributary boundary area of the given segments at positions x, m^2 (planar:
+        times thickness; axisymmetric: the full 2 pi ring, consistent int N_a 2 pi r ds)."""
+        pa, pb = x[segs[:, 0]], x[segs[:, 1]]
+        ln = np.linalg.norm(pb - pa, axis=1)
+        if self.axisymmetric:
+            wa = 2 * np.pi * ln * (2 * pa[:, 0] + pb[:, 0]) / 6.0
+            wb = 2 * np.pi * ln * (pa[:, 0] + 2 * pb[:, 0]) / 6.0
+        else:
+            wa = wb = 0.5 * ln * self.thickness
+        n = x.shape[0]
+        return (np.bincount(segs[:, 0], weights=wa, minlength=n)
+                + np.bincount(segs[:, 1], weights=wb, minlength=n))
+
+    # ------------------------------------------------------------------ derived fields
+    @property
+    def u(self) -> np.ndarray:
+        """Displacement x - X, m, (N, 2)."""
+        return self.x - self.X0
+
+    @property
+    def von_mises(self) -> np.ndarray:
+        """Von Mises stress per owned cell, Pa."""
+        s = self.cell_stress
+        p = s[:, :3].mean(axis=1)
+        d = s[:, :3] - p[:, None]
+        return np.sqrt(1.5 * ((d ** 2).sum(axis=1) + 2 * s[:, 3] ** 2))
+
+    def cell_volumes(self) -> np.ndarray:
+        """Current cell volumes (planar: area x thickness; axisymmetric: 2 pi r_c area), m^3."""
+        xe = self.x[self.cells]
+        a = 0.5 * ((xe[:, 1, 0] - xe[:, 0, 0]) * (xe[:, 2, 1] - xe[:, 0, 1])
+                   - (xe[:, 2, 0] - xe[:, 0, 0]) * (xe[:, 1, 1] - xe[:, 0, 1]))
+        if self.axisymmetric:
+            return 2 * np.pi * xe[:, :, 0].mean(axis=1) * a
+        return self.thickness * a
+
+    def elastic_energy(self) -> float:
+        """Elastic strain energy of the owned cells, sum of (s:s / 4G + p^2 / 2K) V, J."""
+        s = self.cell_stress
+        G, K = self.material.shear_modulus, self.material.bulk_modulus
+        p = s[:, :3].mean(axis=1)
+        d = s[:, :3] - p[:, None]
+        w = ((d ** 2).sum(axis=1) + 2 * s[:, 3] ** 2) / (4 * G) + p ** 2 / (2 * K)
+        return float(np.dot(w, self.cell_volumes()))
+
+    def sync_mesh_geometry(self) -> None:
+        """Write the current node positions into ``mesh.geometry.x`` (it holds the reference
+        configuration otherwise), e.g. before using DOLFINx forms on the deformed mesh."""
+        gdofs = self.mesh.geometry.dofmap.array.reshape(-1, 3)
+        vd = self.V.dofmap.list.array.reshape(-1, 3)
+        gx = self.mesh.geometry.x
+        gx[gdofs.ravel(), :2] = self.x[vd.ravel()]

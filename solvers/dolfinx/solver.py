@@ -1,0 +1,466 @@
+"""Explicit central-difference solver: updated Lagrangian, lumped mass, soft contact, rigid walls."""
+from __future__ import annotations
+
+import logging
+from typing import Dict, Mapping, Optional, Sequence
+
+import numpy as np
+from mpi4py import MPI
+
+from .body import Body, BodySpec
+from .contact import (ContactPairSpec, ContactPenetrationError, RigidWallSpec, Surface,
+                      soft_contact_pass)
+from .kernels import (MODE_AXISYMMETRIC, MODE_PLANE_STRAIN, MODE_PLANE_STRESS,
+                      element_critical_dt, element_step, pack_parameters)
+from .reference_kernel import element_step_numpy
+
+__all__ = ["ExplicitSolver"]
+
+log = logging.getLogger(__name__)
+
+_MODES = {"plane_stress": MODE_PLANE_STRESS, "plane_strain": MODE_PLANE_STRAIN,
+          "axisymmetric": MODE_AXISYMMETRIC}
+_ACC_KEYS = ("plastic_J", "viscous_J", "contact_dissipated_J", "external_work_J",
+             "wall_dissipated_J")
+
+
+class ExplicitSolver:
+    """Explicit elastic-plastic dynamics of several 2D bodies with soft contact (paper eq. 4-5).
+
+    Central differences with velocities at half steps, row-sum lumped mass, updated Lagrangian with
+    a Jaumann (Hughes-Winget) objective stress update, J2 radial return, bulk viscosity.
+
+    Parameters
+    ----------
+    bodies : sequence of BodySpec
+        The bodies (unique names).
+    formulation : {"plane_stress", "plane_strain", "axisymmetric"}
+        2D model; axisymmetric uses x = r, y = z, and nodes on r = 0 get u_r = 0.
+    contact_pairs : sequence of ContactPairSpec
+        Soft-contact pairs.
+    rigid_walls : sequence of RigidWallSpec
+        Rigid half-space walls.
+    cfl : float
+        Safety factor on the critical time step (0 < cfl <= 1).
+    bulk_viscosity : bool
+        Linear + quadratic bulk viscosity on/off.
+    bulk_linear, bulk_quadratic : float
+        Its coefficients (defaults 0.06 and 1.2).
+    thickness : float
+        Out-of-plane thickness for planar formulations, m.
+    comm : MPI communicator
+        Must be the communicator of every body's mesh.
+    kernel : {"numba", "numpy"}
+        Element kernel: the compiled one, or the vectorised-numpy reference.
+    """
+
+    def __init__(self, bodies: Sequence[BodySpec], formulation: str = "plane_stress",
+                 contact_pairs: Sequence[ContactPairSpec] = (),
+                 rigid_walls: Sequence[RigidWallSpec] = (), cfl: float = 0.5,
+                 bulk_viscosity: bool = True, bulk_linear: float = 0.06,
+                 bulk_quadratic: float = 1.2, thickness: float = 1.0, comm=MPI.COMM_WORLD,
+                 kernel: str = "numba"):
+        if formulation not in _MODES:
+            raise ValueError(f"formulation must be one of {sorted(_MODES)}, got {formulation!r}")
+        if not 0 < cfl <= 1:
+            raise ValueError(f"cfl must be in (0, 1], got {cfl}")
+        if not thickness > 0:
+            raise ValueError("thickness must be > 0")
+        if bulk_linear < 0 or bulk_quadratic < 0:
+            raise ValueError("bulk viscosity coefficients must be >= 0")
+        if kernel not in ("numba", "numpy"):
+            raise ValueError("kernel must be 'numba' or 'numpy'")
+        if not bodies:
+            raise ValueError("need at least one body")
+        self.formulation = formulation
+        self.mode = _MODES[formulation]
+        self.cfl = float(cfl)
+        self.comm = comm
+        self._kernel = element_step if kernel == "numba" else element_step_numpy
+        axi = self.mode == MODE_AXISYMMETRIC
+        self.bodies: Dict[str, Body] = {}
+        for spec in bodies:
+            if spec.name in self.bodies:
+                raise ValueError(f"duplicate body name {spec.name!r}")
+            if spec.mesh.comm.size != comm.size:
+                raise ValueError("mesh communicator size differs from the solver's")
+            self.bodies[spec.name] = Body(spec, axi, thickness)
+        self._prm = {n: pack_parameters(b.material, self.mode, thickness, bulk_linear,
+                                        bulk_quadratic, bulk_viscosity)
+                     for n, b in self.bodies.items()}
+        self._cmask = {n: b.constrained_mask() for n, b in self.bodies.items()}
+        self.contact_pairs = tuple(contact_pairs)
+        self.rigid_walls = tuple(rigid_walls)
+        for cp in self.contact_pairs:
+            for nm in (cp.slave, cp.master):
+                if nm not in self.bodies:
+                    raise ValueError(f"contact pair names unknown body {nm!r}")
+        for w in self.rigid_walls:
+            w.unit_normal()
+            for nm in (w.bodies or ()):
+                if nm not in self.bodies:
+                    raise ValueError(f"rigid wall names unknown body {nm!r}")
+        names = {cp.slave for cp in self.contact_pairs} | {cp.master for cp in self.contact_pairs}
+        self._surf = {n: Surface(self.bodies[n]) for n in sorted(names)}
+        self._trib = {}
+        self.time = 0.0
+        self.step_count = 0
+        self._dt_prev = 0.0
+        self._acc = {k: 0.0 for k in _ACC_KEYS}
+        self._contact_stored = 0.0
+        self._fext = {n: np.zeros((b.n_local, 2)) for n, b in self.bodies.items()}
+        self._contact_out = [None] * len(self.contact_pairs)
+        self._wall_out = [dict() for _ in self.rigid_walls]
+        self._dt_crit = self._initial_dt_crit()
+        # forces at t = 0 (initial stress, contact layers) without changing the state
+        self._compute_forces(0.0, update_state=False)
+        self._E0 = self._stored_energy()
+        log.info("ExplicitSolver: %s, %d bodies, %d contact pairs, %d walls, stable dt %.4g s",
+                 formulation, len(self.bodies), len(self.contact_pairs), len(self.rigid_walls),
+                 self.stable_time_step())
+
+    # ------------------------------------------------------------------ time step
+    def _initial_dt_crit(self) -> float:
+        dmin = np.inf
+        for n, b in self.bodies.items():
+            d = element_critical_dt(b.cells, b.x, self._prm[n])
+            if d < 0:
+                raise ValueError(f"body {n!r}: inverted cell in the initial mesh")
+            dmin = min(dmin, d)
+        return self.comm.allreduce(dmin, op=MPI.MIN)
+
+    def stable_time_step(self) -> float:
+        """Stable step of the current configuration: cfl x smallest element critical step, s.
+
+        The critical step of a triangle is (2 area / longest edge) / c_d, reduced for bulk
+        viscosity as sqrt(1 + xi^2) - xi; it is refreshed by every step as the mesh deforms.
+        """
+        return self.cfl * self._dt_crit
+
+    # ------------------------------------------------------------------ stepping
+    def advance(self, dt: float, n_steps: int = 1,
+                external_forces: Optional[Mapping[str, np.ndarray]] = None) -> None:
+        """Advance ``n_steps`` explicit steps of size ``dt``.
+
+        Parameters
+        ----------
+        dt : float
+            Time step, s. Must not exceed the critical step (CFL 1) of the current mesh.
+        n_steps : int
+            Number of steps.
+        external_forces : dict, optional
+            Body name -> nodal forces (n_local_nodes, 2), N (planar: for the solver's thickness;
+            axisymmetric: total over the 2 pi ring), held constant over the steps. Each row is the
+            complete force on that node; rows of ghost nodes (MPI) are ignored.
+
+        Raises
+        ------
+        ContactPenetrationError
+            A contact node reached h <= 0.
+        RuntimeError
+            ``dt`` exceeds the critical step, or a cell inverted.
+        """
+        if not (np.isfinite(dt) and dt > 0):
+            raise ValueError(f"dt must be a positive number, got {dt!r}")
+        if int(n_steps) != n_steps or n_steps < 1:
+            raise ValueError(f"n_steps must be a positive integer, got {n_steps!r}")
+        fext = {}
+        for n, b in self.bodies.items():
+            f = np.zeros((b.n_local, 2))
+            if external_forces is not None and n in external_forces:
+                arr = np.asarray(external_forces[n], dtype=float)
+                if arr.shape != (b.n_local, 2):
+                    raise ValueError(f"external_forces[{n!r}] must have shape {(b.n_local, 2)}")
+                f[: b.n_owned] = arr[: b.n_owned]
+            fext[n] = f
+        if external_forces is not None:
+            unknown = set(external_forces) - set(self.bodies)
+            if unknown:
+                raise ValueError(f"external_forces for unknown bodies {sorted(unknown)}")
+        for _ in range(int(n_steps)):
+            self._step(dt, fext)
+
+    def _step(self, dt: float, fext: Mapping[str, np.ndarray]) -> None:
+        if dt > self._dt_crit * (1 + 1e-12):
+            raise RuntimeError(f"t={self.time:.6e} s: dt={dt:.4e} s exceeds the critical step "
+                               f"{self._dt_crit:.4e} s of the deformed mesh")
+        dt_avg = 0.5 * (self._dt_prev + dt)
+        t_new = self.time + dt
+        wext = 0.0
+        for n, b in self.bodies.items():
+            b.v += dt_avg * b.a
+            b.apply_velocity_constraints(t_new, dt)
+            no = b.n_owned
+            wext += dt * float(np.sum(b.v[:no] * 0.5 * (self._fext[n][:no] + fext[n][:no])))
+            b.x += dt * b.v
+        self._acc["wall_dissipated_J"] += self._apply_walls()
+        self._acc["external_work_J"] += self.comm.allreduce(wext) if self.comm.size > 1 else wext
+        for n in self.bodies:
+            self._fext[n] = fext[n]
+        self.time = t_new
+        self._compute_forces(dt, update_state=True)
+        self._dt_prev = dt
+        self.step_count += 1
+
+    def _apply_walls(self) -> float:
+        removed = 0.0
+        for iw, w in enumerate(self.rigid_walls):
+            nrm = w.unit_normal()
+            p = np.asarray(w.point, dtype=float)
+            out = {}
+            for n in (w.bodies or self.bodies):
+                b = self.bodies[n]
+                d = (b.x - p) @ nrm
+                hit = np.flatnonzero(d < 0.0)
+                if hit.size:
+                    b.x[hit] -= d[hit, None] * nrm
+                    own = hit[hit < b.n_owned]
+                    ke0 = 0.5 * np.sum(b.mass[own] * np.sum(b.v[own] ** 2, axis=1))
+                    if w.sliding:
+                        b.v[hit] -= (b.v[hit] @ nrm)[:, None] * nrm
+                    else:
+                        b.v[hit] = 0.0
+                    removed += ke0 - 0.5 * np.sum(b.mass[own] * np.sum(b.v[own] ** 2, axis=1))
+                out[n] = hit
+            self._wall_out[iw] = {"hit": out}
+        return self.comm.allreduce(removed) if self.comm.size > 1 else removed
+
+    def _compute_forces(self, dt: float, update_state: bool) -> None:
+        dtc = np.inf
+        ftot = {}
+        for n, b in self.bodies.items():
+            f = np.zeros((b.n_local, 2))
+            acc = np.zeros(3)
+            if update_state:
+                d = self._kernel(b.cells, b.x, b.v, dt, self._prm[n], b.cell_stress, b.eps_p,
+                                 f, acc)
+            else:
+                d = self._kernel(b.cells, b.x, np.zeros_like(b.v), 0.0, self._prm[n],
+                                 b.cell_stress.copy(), b.eps_p.copy(), f, acc)
+            if acc[2] >= 0:
+                e = int(acc[2])
+                raise RuntimeError(f"t={self.time:.6e} s: cell {e} of body {n!r} inverted "
+                                   f"(centroid {b.x[b.cells[e]].mean(axis=0)})")
+            if update_state:
+                self._acc["plastic_J"] += self._sum(acc[0])
+                self._acc["viscous_J"] += self._sum(acc[1])
+            dtc = min(dtc, d)
+            f *= -1.0
+            f[: b.n_owned] += self._fext[n][: b.n_owned]
+            ftot[n] = b.complete_nodal(f)
+        if self.comm.size > 1:
+            dtc = self.comm.allreduce(dtc, op=MPI.MIN)
+        if update_state:
+            self._dt_crit = dtc
+        self._contact(ftot, dt if update_state else 0.0)
+        for n, b in self.bodies.items():
+            f = ftot[n]
+            self._record_wall_pressure(n, b, f)
+            b.a[:] = f / b.mass[:, None]
+            b.a[self._cmask[n]] = 0.0
+
+    def _sum(self, val: float) -> float:
+        return self.comm.allreduce(float(val)) if self.comm.size > 1 else float(val)
+
+    def _contact(self, ftot: Dict[str, np.ndarray], dt: float) -> None:
+        if not self.contact_pairs:
+            return
+        data = {}
+        for n, s in self._surf.items():
+            X = s.gather(self.bodies[n].x)
+            V = s.gather(self.bodies[n].v)
+            data[n] = (X, V, s.areas(X))
+        stored = 0.0
+        for ip, cp in enumerate(self.contact_pairs):
+            passes = [(cp.slave, cp.master)]
+            if cp.two_pass:
+                passes.append((cp.master, cp.slave))
+            wgt = 0.5 if cp.two_pass else 1.0
+            for k, (sn, mn) in enumerate(passes):
+                Xs, Vs, As = data[sn]
+                Xm, Vm, _ = data[mn]
+                res = soft_contact_pass(Xs, Vs, As, Xm, Vm, self._surf[mn].seg, cp, wgt)
+                if res.penetration is not None:
+                    i, h = res.penetration
+                    raise ContactPenetrationError(
+                        f"t={self.time:.6e} s: node {int(self._surf[sn].gids[i])} of body {sn!r} "
+                        f"at ({Xs[i, 0]:.6g}, {Xs[i, 1]:.6g}) m reached h={h:.3e} m <= 0 against "
+                        f"body {mn!r} (contact pair {ip})")
+                self._surf[sn].scatter_add(res.F_slave, ftot[sn])
+                self._surf[mn].scatter_add(res.F_master, ftot[mn])
+                stored += res.stored
+                self._acc["contact_dissipated_J"] += res.dissipation_power * dt
+                if k == 0:
+                    self._contact_out[ip] = (res.pressure, res.gap, Xs)
+        self._contact_stored = stored
+
+    def _record_wall_pressure(self, n: str, b: Body, f: np.ndarray) -> None:
+        for iw, w in enumerate(self.rigid_walls):
+            hit = self._wall_out[iw].get("hit", {}).get(n)
+            if hit is None:
+                continue
+            if n not in self._trib:
+                self._trib[n] = None
+            area = b.tributary_areas(b.segments, b.x)
+            area2 = b.complete_nodal(np.stack([area, area], axis=1))[:, 0]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                p = np.maximum(-(f[hit] @ w.unit_normal()), 0.0) / area2[hit]
+            self._wall_out[iw].setdefault("p", {})[n] = (hit, p)
+
+    # ------------------------------------------------------------------ outputs
+    def contact_pressure(self, pair_index: int):
+        """Contact state of a pair's slave surface at the current time.
+
+        Returns
+        -------
+        gids : (M,) int array
+            Global node ids of the slave surface nodes in contact (h < h0).
+        coords : (M, 2) array
+            Their current positions, m.
+        pressure : (M,) array
+            Normal contact stress k (1/h - 1/h0) plus the viscous term, Pa.
+        gap : (M,) array
+            Distance h to the master surface, m.
+        """
+        out = self._contact_out[pair_index]
+        s = self._surf[self.contact_pairs[pair_index].slave]
+        if out is None:
+            return np.zeros(0, np.int64), np.zeros((0, 2)), np.zeros(0), np.zeros(0)
+        p, h, X = out
+        m = np.isfinite(p)
+        return s.gids[m], X[m], p[m], h[m]
+
+    def contact_pressure_at(self, pair_index: int, point) -> float:
+        """Contact stress (Pa, 0 if out of contact) at the slave surface node nearest ``point``
+        in the *reference* configuration."""
+        cp = self.contact_pairs[pair_index]
+        s = self._surf[cp.slave]
+        i = int(np.argmin(np.linalg.norm(s.X0 - np.asarray(point, float), axis=1)))
+        out = self._contact_out[pair_index]
+        if out is None or not np.isfinite(out[0][i]):
+            return 0.0
+        return float(out[0][i])
+
+    def wall_pressure(self, wall_index: int, body: str):
+        """Wall reaction per unit area on the body's nodes held by the wall in the last step.
+
+        Returns (local node rows, reference coords (M, 2), pressure Pa) on this rank.
+        """
+        hit, p = self._wall_out[wall_index].get("p", {}).get(body, (np.zeros(0, int), np.zeros(0)))
+        return hit, self.bodies[body].X0[hit], p
+
+    def _stored_energy(self) -> float:
+        return self._kinetic() + self._elastic() + self._contact_stored
+
+    def _kinetic(self) -> float:
+        ke = 0.0
+        for b in self.bodies.values():
+            no = b.n_owned
+            vn = b.v[:no] + 0.5 * self._dt_prev * b.a[:no]
+            ke += 0.5 * float(np.sum(b.mass[:no] * np.sum(vn ** 2, axis=1)))
+        return self._sum(ke)
+
+    def _elastic(self) -> float:
+        return self._sum(sum(b.elastic_energy() for b in self.bodies.values()))
+
+    def energies(self) -> Dict[str, float]:
+        """Energy ledger, J: kinetic_J, elastic_J, plastic_J, contact_stored_J,
+        contact_dissipated_J, viscous_J, wall_dissipated_J, external_work_J, balance_error_J
+        (= all stored + dissipated - external work - initial stored energy)."""
+        e = {"kinetic_J": self._kinetic(), "elastic_J": self._elastic(),
+             "contact_stored_J": self._contact_stored}
+        e.update(self._acc)
+        e["balance_error_J"] = (e["kinetic_J"] + e["elastic_J"] + e["contact_stored_J"]
+                                + e["plastic_J"] + e["viscous_J"] + e["contact_dissipated_J"]
+                                + e["wall_dissipated_J"] - e["external_work_J"] - self._E0)
+        return e
+
+    @property
+    def initial_energy(self) -> float:
+        """Stored energy (kinetic + elastic + contact layer) at t = 0, J."""
+        return self._E0
+
+    def pressure_nodal_forces(self, body: str, facet_marker, pressure: float) -> np.ndarray:
+        """Consistent nodal forces of a uniform follower pressure on boundary facets.
+
+        Parameters
+        ----------
+        body : str
+            Body name.
+        facet_marker : callable
+            ``marker(x) -> bool array`` over coordinates (3, N) in the *current* configuration;
+            a facet is loaded when both its vertices are marked.
+        pressure : float
+            Pressure, Pa (positive pushes into the body).
+
+        Returns
+        -------
+        (n_local_nodes, 2) array
+            Nodal forces, N (planar: times thickness; axisymmetric: the full 2 pi ring); every row
+            (ghosts too) holds the complete force of its node.
+        """
+        b = self.bodies[body]
+        segs = b.segments
+        f = np.zeros((b.n_local, 2))
+        if segs.shape[0]:
+            x3 = np.zeros((3, b.n_local))
+            x3[:2] = b.x.T
+            mark = np.asarray(facet_marker(x3), dtype=bool)
+            segs = segs[mark[segs[:, 0]] & mark[segs[:, 1]]]
+        if segs.shape[0]:
+            pa, pb = b.x[segs[:, 0]], b.x[segs[:, 1]]
+            t = pb - pa
+            ln = np.linalg.norm(t, axis=1)
+            nout = np.stack([t[:, 1], -t[:, 0]], axis=1) / ln[:, None]
+            if b.axisymmetric:
+                wa = 2 * np.pi * ln * (2 * pa[:, 0] + pb[:, 0]) / 6.0
+                wb = 2 * np.pi * ln * (pa[:, 0] + 2 * pb[:, 0]) / 6.0
+            else:
+                wa = wb = 0.5 * ln * b.thickness
+            for c in range(2):
+                f[:, c] -= pressure * (np.bincount(segs[:, 0], weights=wa * nout[:, c],
+                                                   minlength=b.n_local)
+                                       + np.bincount(segs[:, 1], weights=wb * nout[:, c],
+                                                     minlength=b.n_local))
+        return b.complete_nodal(f)
+
+    # ------------------------------------------------------------------ restart
+    def state_dict(self) -> Dict[str, np.ndarray]:
+        """Complete solver state as arrays (exact restart with :meth:`load_state_dict`)."""
+        d: Dict[str, np.ndarray] = {
+            "time": np.array(self.time), "step_count": np.array(self.step_count),
+            "dt_prev": np.array(self._dt_prev), "dt_crit": np.array(self._dt_crit),
+            "E0": np.array(self._E0), "contact_stored": np.array(self._contact_stored),
+            "acc": np.array([self._acc[k] for k in _ACC_KEYS])}
+        for n, b in self.bodies.items():
+            for key in ("x", "v", "a", "cell_stress", "eps_p"):
+                d[f"{n}/{key}"] = getattr(b, key).copy()
+            d[f"{n}/fext"] = self._fext[n].copy()
+        for i, out in enumerate(self._contact_out):
+            if out is not None:
+                d[f"contact{i}/p"], d[f"contact{i}/h"], d[f"contact{i}/X"] = (a.copy() for a in out)
+        return d
+
+    def load_state_dict(self, d: Mapping[str, np.ndarray]) -> None:
+        """Restore a state written by :meth:`state_dict` (same meshes and partitioning)."""
+        for n, b in self.bodies.items():
+            for key in ("x", "v", "a", "cell_stress", "eps_p"):
+                arr = np.asarray(d[f"{n}/{key}"])
+                cur = getattr(b, key)
+                if arr.shape != cur.shape:
+                    raise ValueError(f"state for {n}/{key} has shape {arr.shape}, need {cur.shape}")
+                cur[...] = arr
+            self._fext[n] = np.array(d[f"{n}/fext"], dtype=float)
+        self.time = float(d["time"])
+        self.step_count = int(d["step_count"])
+        self._dt_prev = float(d["dt_prev"])
+        self._dt_crit = float(d["dt_crit"])
+        self._E0 = float(d["E0"])
+        self._contact_stored = float(d["contact_stored"])
+        for k, val in zip(_ACC_KEYS, np.asarray(d["acc"])):
+            self._acc[k] = float(val)
+        for i in range(len(self._contact_out)):
+            if f"contact{i}/p" in d:
+                self._contact_out[i] = tuple(np.array(d[f"contact{i}/{k}"]) for k in "phX")
+            else:
+                self._contact_out[i] = None
