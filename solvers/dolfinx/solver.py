@@ -102,7 +102,8 @@ class ExplicitSolver:
                     raise ValueError(f"rigid wall names unknown body {nm!r}")
         names = {cp.slave for cp in self.contact_pairs} | {cp.master for cp in self.contact_pairs}
         self._surf = {n: Surface(self.bodies[n]) for n in sorted(names)}
-        self._trib = {}
+        ext = max(float(np.abs(b.X0).max()) if b.X0.size else 0.0 for b in self.bodies.values())
+        self._wall_tol = 1e-12 * max(self.comm.allreduce(ext, op=MPI.MAX), 1e-300)
         self.time = 0.0
         self.step_count = 0
         self._dt_prev = 0.0
@@ -203,11 +204,13 @@ class ExplicitSolver:
         self.step_count += 1
 
     def _apply_walls(self) -> float:
+        """Put nodes found behind a wall back on it and remove their (normal) velocity; returns the
+        kinetic energy removed (J). Nodes on the wall are remembered for the reaction step."""
         removed = 0.0
         for iw, w in enumerate(self.rigid_walls):
             nrm = w.unit_normal()
             p = np.asarray(w.point, dtype=float)
-            out = {}
+            on = {}
             for n in (w.bodies or self.bodies):
                 b = self.bodies[n]
                 d = (b.x - p) @ nrm
@@ -221,9 +224,30 @@ class ExplicitSolver:
                     else:
                         b.v[hit] = 0.0
                     removed += ke0 - 0.5 * np.sum(b.mass[own] * np.sum(b.v[own] ** 2, axis=1))
-                out[n] = hit
-            self._wall_out[iw] = {"hit": out}
+                on[n] = np.flatnonzero(d <= self._wall_tol)
+            self._wall_out[iw] = {"on": on}
         return self.comm.allreduce(removed) if self.comm.size > 1 else removed
+
+    def _wall_reactions(self, n: str, b: Body, f: np.ndarray) -> None:
+        """Cancel the force of wall nodes pushed into the wall (all of it for a sticking wall, the
+        normal part for a sliding one) and record the reaction per unit area (Pa)."""
+        area = None
+        for iw, w in enumerate(self.rigid_walls):
+            on = self._wall_out[iw].get("on", {}).get(n)
+            if on is None:
+                continue
+            nrm = w.unit_normal()
+            fn = f[on] @ nrm
+            push = fn < 0.0
+            rows = on[push]
+            if w.sliding:
+                f[rows] -= fn[push, None] * nrm
+            else:
+                f[rows] = 0.0
+            if area is None:
+                area = b.tributary_areas(b.segments, b.x)
+                area = b.complete_nodal(np.stack([area, area], axis=1))[:, 0]
+            self._wall_out[iw].setdefault("p", {})[n] = (rows, -fn[push] / area[rows])
 
     def _compute_forces(self, dt: float, update_state: bool) -> None:
         dtc = np.inf
@@ -255,7 +279,7 @@ class ExplicitSolver:
         self._contact(ftot, dt if update_state else 0.0)
         for n, b in self.bodies.items():
             f = ftot[n]
-            self._record_wall_pressure(n, b, f)
+            self._wall_reactions(n, b, f)
             b.a[:] = f / b.mass[:, None]
             b.a[self._cmask[n]] = 0.0
 
@@ -294,19 +318,6 @@ class ExplicitSolver:
                     self._contact_out[ip] = (res.pressure, res.gap, Xs)
         self._contact_stored = stored
 
-    def _record_wall_pressure(self, n: str, b: Body, f: np.ndarray) -> None:
-        for iw, w in enumerate(self.rigid_walls):
-            hit = self._wall_out[iw].get("hit", {}).get(n)
-            if hit is None:
-                continue
-            if n not in self._trib:
-                self._trib[n] = None
-            area = b.tributary_areas(b.segments, b.x)
-            area2 = b.complete_nodal(np.stack([area, area], axis=1))[:, 0]
-            with np.errstate(divide="ignore", invalid="ignore"):
-                p = np.maximum(-(f[hit] @ w.unit_normal()), 0.0) / area2[hit]
-            self._wall_out[iw].setdefault("p", {})[n] = (hit, p)
-
     # ------------------------------------------------------------------ outputs
     def contact_pressure(self, pair_index: int):
         """Contact state of a pair's slave surface at the current time.
@@ -342,7 +353,7 @@ class ExplicitSolver:
         return float(out[0][i])
 
     def wall_pressure(self, wall_index: int, body: str):
-        """Wall reaction per unit area on the body's nodes held by the wall in the last step.
+        """Wall reaction per unit area on the body's nodes pressed on the wall at the current time.
 
         Returns (local node rows, reference coords (M, 2), pressure Pa) on this rank.
         """
