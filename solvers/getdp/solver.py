@@ -86,7 +86,8 @@ class EMModel:
 
     ``shell = (R_int, R_ext)`` enables the shell transformation to infinity on region 2,
     centred at ``shell_centre``.  ``h0_step`` imposes a tangential field step H0 (A/m)
-    on boundary 13 (used by the diffusion verification).
+    on boundary 13 (used by the diffusion verification).  ``probes``: points (x, y) where
+    B is reported every sub-step (avoid x = 0 exactly in axisymmetry: NaN on the axis).
     """
 
     axisymmetric: bool
@@ -96,6 +97,7 @@ class EMModel:
     shell: tuple[float, float] | None = None
     shell_centre: tuple[float, float] = (0.0, 0.0)
     h0_step: float = 0.0
+    probes: list = field(default_factory=list)
 
     def __post_init__(self):
         self.coils = [c if isinstance(c, Coil) else Coil(**c) for c in self.coils]
@@ -105,6 +107,7 @@ class EMModel:
         if self.shell is not None:
             self.shell = tuple(float(x) for x in self.shell)
         self.shell_centre = tuple(float(x) for x in self.shell_centre)
+        self.probes = [tuple(float(x) for x in p) for p in self.probes]
         for c in self.coils:
             if self.circuit is not None and c.waveform is not None:
                 raise ValueError("with a circuit the coil current is computed: give no waveform")
@@ -173,8 +176,9 @@ class EMStepResult:
 
     Per element of the massive conductors (``elements`` are rows of the mesh's
     ``triangles``): ``force_density`` (n, n_el, 2) N/m^3 and ``joule_density``
-    (n, n_el) W/m^3 at the element centroid.  Per coil: current, voltage drop
+    (n, n_el) W/m^3 and ``flux_density`` (n, n_el, 2) T at the element centroid.  Per coil: current, voltage drop
     (receptor convention), Joule power, force.  Per conductor: force, Joule power.
+    ``probe_b`` (n, n_probes, 2): B at the model's probe points.
     Totals are physical (2 pi included in axisymmetry; per metre in planar).
     """
 
@@ -184,6 +188,7 @@ class EMStepResult:
     element_tags: np.ndarray
     force_density: np.ndarray
     joule_density: np.ndarray
+    flux_density: np.ndarray
     coil_current: np.ndarray
     coil_voltage: np.ndarray
     coil_power: np.ndarray
@@ -195,6 +200,7 @@ class EMStepResult:
     circuit_current: np.ndarray | None
     coil_heat: np.ndarray
     coil_temperature_rise: np.ndarray
+    probe_b: np.ndarray
     run: RunInfo | None = None
     path: str = ""
 
@@ -293,7 +299,9 @@ class GetDPSolver:
     def _numbers(self, mesh: EMMesh) -> dict[str, float]:
         m = self.model
         nb = {"Flag_Axi": int(m.axisymmetric), "NbCoils": len(m.coils), "NbConductors": len(m.conductors),
-              "Flag_Circuit": int(m.circuit is not None), "H0_Neu": m.h0_step}
+              "Flag_Circuit": int(m.circuit is not None), "H0_Neu": m.h0_step, "NbProbes": len(m.probes)}
+        for i, (x, y) in enumerate(m.probes, start=1):
+            nb[f"Probe_X_{i}"], nb[f"Probe_Y_{i}"] = x, y
         if m.shell is not None:
             nb.update(Flag_Shell=1, Val_Rint=m.shell[0], Val_Rext=m.shell[1],
                       Val_Cx=m.shell_centre[0], Val_Cy=m.shell_centre[1])
@@ -368,6 +376,7 @@ class GetDPSolver:
         if nk:
             ef = np.loadtxt(out / "elem_f.txt", ndmin=2)
             ep = np.loadtxt(out / "elem_p.txt", ndmin=2)
+            eb = np.loadtxt(out / "elem_b.txt", ndmin=2)
             n_el = len(ef) // n
             if n_el * n != len(ef) or len(ep) != len(ef):
                 raise RuntimeError(f"per-element tables in {out} have an unexpected length")
@@ -377,12 +386,16 @@ class GetDPSolver:
                 raise RuntimeError("per-element output refers to a non-triangle element")
             force = ef[:, 8:10].reshape(n, n_el, 2)
             joule = ep[:, 8].reshape(n, n_el)
+            bfield = eb[:, 8:10].reshape(n, n_el, 2)
             tags = mesh.tri_tags[elements]
         else:
             elements = np.zeros(0, np.int64)
             tags = np.zeros(0, np.int64)
             force = np.zeros((n, 0, 2))
             joule = np.zeros((n, 0))
+            bfield = np.zeros((n, 0, 2))
+        probe_b = np.stack([np.loadtxt(out / f"probe_b_{i}.txt", ndmin=2)[:, -3:-1]
+                            for i in range(1, len(m.probes) + 1)], axis=1) if m.probes else np.zeros((n, 0, 2))
         vc = ic = None
         if m.circuit is not None:
             vc = np.loadtxt(out / "cir_U.txt", ndmin=2)[:, 1]
@@ -395,9 +408,9 @@ class GetDPSolver:
             if not np.all(np.isfinite(arr)):
                 raise RuntimeError(f"non-finite {name} in {out}")
         return EMStepResult(times=times, dt=dt, elements=elements, element_tags=tags, force_density=force,
-                            joule_density=joule, coil_current=cur, coil_voltage=-us, coil_power=cp,
+                            joule_density=joule, flux_density=bfield, coil_current=cur, coil_voltage=-us, coil_power=cp,
                             coil_force=cf, conductor_force=kf, conductor_power=kp, magnetic_energy=w[:, 1],
-                            capacitor_voltage=vc, circuit_current=ic, coil_heat=heat,
+                            capacitor_voltage=vc, circuit_current=ic, coil_heat=heat, probe_b=probe_b,
                             coil_temperature_rise=heat / mass_cp if nc else heat)
 
     def _next_state(self, mesh, material_points, out, run_dir, state, result, sig) -> EMState:
