@@ -51,6 +51,8 @@ def _setup_logging(quiet: bool) -> None:
     root = logging.getLogger("pulseform")
     root.addHandler(handler)
     root.setLevel(logging.INFO)
+    root.propagate = False  # FFCx calls logging.basicConfig(): keep our records off its root handler
+    logging.getLogger().setLevel(logging.WARNING)  # and its JIT compiler chatter off the terminal
 
 
 def _error(msg: str, code: int) -> int:

@@ -6,7 +6,7 @@ from mpi4py import MPI
 
 from pulseform.solvers import dolfinx as mech
 
-from .case import Case, Material
+from .case import Case, CowperSymonds, Material
 from .loads import box_marker
 from .shapes import mesh_shape
 
@@ -14,8 +14,10 @@ from .shapes import mesh_shape
 def solver_material(m: Material) -> "mech.Material":
     """Case material -> solver material (SI units are the same on both sides)."""
     rate = None
-    if m.rate_law is not None:
-        rate = mech.rate_law_from_case(m.rate_law)
+    if isinstance(m.rate_law, CowperSymonds):
+        rate = mech.CowperSymonds(D=m.rate_law.D, p=m.rate_law.q)
+    elif m.rate_law is not None:
+        rate = mech.JohnsonCook(C=m.rate_law.C, eps_rate0=m.rate_law.reference_strain_rate)
     return mech.Material(density=m.density, shear_modulus=m.shear_modulus,
                          bulk_modulus=m.bulk_modulus, yield_stress=m.yield_stress,
                          hardening_modulus=m.hardening_modulus, rate_law=rate)
@@ -35,6 +37,7 @@ def build_solver(case: Case, comm: MPI.Comm = MPI.COMM_WORLD) -> "mech.ExplicitS
     walls = tuple(mech.RigidWallSpec(point=tuple(w.point), normal=tuple(w.normal),
                                      bodies=tuple(w.bodies) or None) for w in case.walls)
     mo = case.mechanics
-    bulk = (mo.bulk_viscosity_linear, mo.bulk_viscosity_quadratic) if mo.bulk_viscosity else False
     return mech.ExplicitSolver(bodies, formulation=mo.formulation, contact_pairs=pairs, rigid_walls=walls,
-                               cfl=case.time.cfl, bulk_viscosity=bulk, thickness=mo.thickness, comm=comm)
+                               cfl=case.time.cfl, bulk_viscosity=mo.bulk_viscosity,
+                               bulk_linear=mo.bulk_viscosity_linear, bulk_quadratic=mo.bulk_viscosity_quadratic,
+                               thickness=mo.thickness, comm=comm)

@@ -23,6 +23,7 @@ class AttachedProbe:
     probe: Probe
     index: int  # local node or cell index, -1 where this rank does not own it
     columns: tuple[str, ...]
+    pair: int = -1  # contact pair whose slave surface holds a contact_pressure probe
 
 
 def _nearest_global(points: np.ndarray, target: tuple[float, float], n_owned: int,
@@ -35,16 +36,26 @@ def _nearest_global(points: np.ndarray, target: tuple[float, float], n_owned: in
 
 
 def attach(solver, probes: tuple[Probe, ...], comm: MPI.Comm) -> list[AttachedProbe]:
-    """Bind each probe to its nearest node (or cell centroid for von Mises)."""
+    """Bind each probe to its nearest node (or cell centroid for von Mises), in the initial configuration.
+
+    A contact-pressure probe reads the first pair whose slave is the probe's body, at the slave
+    surface node nearest the point.
+    """
     out = []
     for p in probes:
         body = solver.bodies[p.body]
+        if p.quantity == "contact_pressure":
+            pairs = [i for i, cp in enumerate(solver.contact_pairs) if cp.slave == p.body]
+            if not pairs:
+                raise ValueError(f"probe {p.name!r}: body {p.body!r} is the slave of no contact pair")
+            out.append(AttachedProbe(p, -1, (f"{p.name}_contact_pressure_Pa",), pairs[0]))
+            continue
         if p.quantity == "von_mises":
-            pts = body.cell_centroids()
-            n_owned = body.n_owned_cells
+            pts = body.X0[body.cells].mean(axis=1)
+            n_owned = len(body.cells)
         else:
-            pts = body.x
-            n_owned = body.n_owned_nodes
+            pts = body.X0
+            n_owned = body.n_owned
         idx = _nearest_global(pts, p.point, n_owned, comm)
         if p.quantity in ("velocity", "displacement"):
             unit = "m_s" if p.quantity == "velocity" else "m"
@@ -61,7 +72,10 @@ def sample(solver, attached: list[AttachedProbe], comm: MPI.Comm) -> dict[str, f
     for a in attached:
         body = solver.bodies[a.probe.body]
         q = a.probe.quantity
-        if a.index < 0:
+        if q == "contact_pressure":  # the same on every rank: count it once
+            value = solver.contact_pressure_at(a.pair, a.probe.point)
+            local.append(value if comm.rank == 0 else 0.0)
+        elif a.index < 0:
             local.extend([0.0] * len(a.columns))
         elif q == "velocity":
             local.extend(float(v) for v in body.v[a.index, :2])
@@ -69,8 +83,6 @@ def sample(solver, attached: list[AttachedProbe], comm: MPI.Comm) -> dict[str, f
             local.extend(float(v) for v in body.u[a.index, :2])
         elif q == "von_mises":
             local.append(float(body.von_mises[a.index]))
-        else:  # contact_pressure at the probe node, summed over the pairs it is a slave of
-            local.append(float(solver.node_contact_pressure(a.probe.body)[a.index]))
     values = comm.allreduce(np.array(local), op=MPI.SUM) if local else np.zeros(0)
     cols = [c for a in attached for c in a.columns]
     return dict(zip(cols, (float(v) for v in values)))

@@ -20,10 +20,9 @@ class Progress:
 
     def __init__(self, end: float, *, quiet: bool = False, desc: str = "") -> None:
         self.end = end
-        self._bar = None if quiet else tqdm(total=1000, desc=desc, unit="‰", leave=True,
+        self._bar = None if quiet else tqdm(total=1000, desc=desc, leave=True, mininterval=0.5,
                                             bar_format="{desc}: {percentage:3.0f}%|{bar}| "
-                                                       "t = {postfix} [{elapsed}<{remaining}]",
-                                            postfix="0 s", mininterval=0.5)
+                                                       "[{elapsed}<{remaining}{postfix}]")
         self._shown = 0
 
     def update_to(self, t: float) -> None:
@@ -32,7 +31,7 @@ class Progress:
             return
         target = min(1000, int(1000 * t / self.end))
         if target > self._shown:
-            self._bar.postfix = f"{t:.4g} s"
+            self._bar.set_postfix_str(f"t = {t:.4g} s", refresh=False)
             self._bar.update(target - self._shown)
             self._shown = target
 
