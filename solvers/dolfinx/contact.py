@@ -115,6 +115,7 @@ class Surface:
         self.own_rows = self.loc_rows[own]
         self.own_pos = self.loc_pos[own]
         self.X0 = self.gather(body.X0)
+        self.M = self.gather(body.mass[:, None])[:, 0]
 
     def gather(self, arr: np.ndarray) -> np.ndarray:
         """Global (Ns, k) array of a nodal (N, k) array, from the owners."""
@@ -152,7 +153,7 @@ class ContactResult:
 
 
 def soft_contact_pass(Xs, Vs, As, Xm, Vm, segm, spec: ContactPairSpec, weight: float = 1.0,
-                      xi_tol: float = 0.02) -> ContactResult:
+                      xi_tol: float = 0.02, Ms=None, Mm=None, dt: float = 0.0) -> ContactResult:
     """Node-to-segment soft contact of slave nodes against master segments.
 
     Parameters
@@ -171,6 +172,12 @@ def soft_contact_pass(Xs, Vs, As, Xm, Vm, segm, spec: ContactPairSpec, weight: f
         Scale of the forces (0.5 per pass for two-pass contact).
     xi_tol : float
         Accepted projection overshoot beyond a segment's ends, in segment lengths.
+    Ms, Mm : (Ns,), (Nm,) arrays, optional
+        Lumped masses of slave and master surface nodes, kg; with ``dt`` > 0 they cap the friction
+        force at what stops the relative sliding within half a step (explicit stability of the
+        regularised law: its viscous slope mu p A / eps would otherwise exceed 2 m / dt).
+    dt : float
+        Time step, s (0: no cap).
 
     Returns
     -------
@@ -230,7 +237,12 @@ def soft_contact_pass(Xs, Vs, As, Xm, Vm, segm, spec: ContactPairSpec, weight: f
     if spec.friction > 0:
         vt = vrel - vn[:, None] * nrm
         vtn = np.sqrt(np.einsum("ij,ij->i", vt, vt) + spec.friction_velocity ** 2)
-        Ft = -(weight * spec.friction * np.maximum(p, 0.0) * A / vtn)[:, None] * vt
+        mag = weight * spec.friction * np.maximum(p, 0.0) * A / vtn
+        if dt > 0 and Ms is not None and Mm is not None:
+            mm = (1 - xc) * Mm[ia] + xc * Mm[ib]
+            meff = Ms[si] * mm / (Ms[si] + mm)
+            mag = np.minimum(mag, 0.5 * meff / dt)
+        Ft = -mag[:, None] * vt
         F += Ft
         diss -= np.sum(np.einsum("ij,ij->i", Ft, vt))
     Fs[si] = F

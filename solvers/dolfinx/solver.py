@@ -303,7 +303,8 @@ class ExplicitSolver:
             for k, (sn, mn) in enumerate(passes):
                 Xs, Vs, As = data[sn]
                 Xm, Vm, _ = data[mn]
-                res = soft_contact_pass(Xs, Vs, As, Xm, Vm, self._surf[mn].seg, cp, wgt)
+                res = soft_contact_pass(Xs, Vs, As, Xm, Vm, self._surf[mn].seg, cp, wgt,
+                                        Ms=self._surf[sn].M, Mm=self._surf[mn].M, dt=dt)
                 if res.penetration is not None:
                     i, h = res.penetration
                     raise ContactPenetrationError(

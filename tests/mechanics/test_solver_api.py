@@ -1,0 +1,113 @@
+"""API behaviour: exact restart, penetration error, field output, follower pressure, validation."""
+import numpy as np
+import pytest
+from dolfinx import mesh as dmesh
+from mpi4py import MPI
+
+from pulseform.solvers.dolfinx import (BodySpec, ContactPairSpec, ContactPenetrationError,
+                                       ExplicitSolver, FieldWriter, Material)
+from pulseform.solvers.dolfinx.verification import PAPER_BAR_MATERIAL as MAT
+
+
+def _two_bars(v=10.0, k=1e8, h0=0.01, friction=0.0, viscosity=0.0, two_pass=False, n=(16, 8),
+              soft=False):
+    comm = MPI.COMM_SELF
+    left = dmesh.create_rectangle(comm, [np.array([0.0, 0.0]), np.array([4.0, 2.0])], list(n))
+    right = dmesh.create_rectangle(comm, [np.array([4.0 + h0, 0.3]), np.array([8.0 + h0, 2.3])],
+                                   list(n))
+    mat = Material(2800.0, 26.5e9, 65.1e9, 0.24e9 if not soft else 1e7, 0.56e9)
+    pair = ContactPairSpec("left", "right", k, h0, friction=friction, viscosity=viscosity,
+                           two_pass=two_pass)
+    return ExplicitSolver([BodySpec("left", left, mat, initial_velocity=(v, 1.0)),
+                           BodySpec("right", right, mat)], formulation="plane_strain",
+                          contact_pairs=(pair,), comm=comm)
+
+
+@pytest.mark.parametrize("opts", [dict(), dict(friction=0.3, viscosity=1e4, two_pass=True,
+                                                 soft=True)])
+def test_restart_is_bitwise(opts):
+    a = _two_bars(**opts)
+    dt = a.stable_time_step()
+    a.advance(dt, 60)
+    state = {k: np.array(v, copy=True) for k, v in a.state_dict().items()}
+    a.advance(dt, 80)
+    b = _two_bars(**opts)
+    b.load_state_dict(state)
+    b.advance(dt, 80)
+    for n in a.bodies:
+        for key in ("x", "v", "a", "cell_stress", "eps_p"):
+            assert np.array_equal(getattr(a.bodies[n], key), getattr(b.bodies[n], key)), key
+    assert a.energies() == b.energies()
+    assert a.time == b.time and a.step_count == b.step_count
+    if opts:
+        assert a.bodies["left"].eps_p.max() > 0 and a.energies()["contact_dissipated_J"] > 0
+
+
+def test_penetration_raises_with_time_node_bodies():
+    """k far too small for 500 m/s: the layer is crossed and the run must stop loudly."""
+    s = _two_bars(v=500.0, k=1e3)
+    dt = s.stable_time_step()
+    with pytest.raises(ContactPenetrationError) as exc:
+        for _ in range(2000):
+            s.advance(dt)
+    msg = str(exc.value)
+    assert "t=" in msg and "'left'" in msg and "'right'" in msg and "node" in msg
+
+
+def test_friction_and_viscosity_dissipate_and_conserve_momentum():
+    s = _two_bars(friction=0.3, viscosity=1e5, two_pass=True)
+    dt = s.stable_time_step()
+    p0 = sum((b.mass[:, None] * b.v).sum(axis=0) for b in s.bodies.values())
+    s.advance(dt, 150)
+    e = s.energies()
+    assert e["contact_dissipated_J"] > 0
+    assert abs(e["balance_error_J"]) < 0.01 * s.initial_energy
+    p = sum((b.mass[:, None] * (b.v + 0.5 * dt * b.a)).sum(axis=0) for b in s.bodies.values())
+    assert np.allclose(p, p0, rtol=0, atol=1e-9 * np.abs(p0).max())
+
+
+def test_pressure_nodal_forces_resultant():
+    """Sum of the consistent nodal forces of a pressure = p x loaded area, pointing inward."""
+    msh = dmesh.create_rectangle(MPI.COMM_SELF, [np.array([1.0, 0.0]), np.array([2.0, 0.5])],
+                                 [8, 4])
+    for form, area in (("plane_strain", 0.5 * 2.0), ("axisymmetric", 2 * np.pi * 1.0 * 0.5)):
+        s = ExplicitSolver([BodySpec("b", msh, MAT)], formulation=form, thickness=2.0,
+                           comm=msh.comm)
+        f = s.pressure_nodal_forces("b", lambda x: np.isclose(x[0], 1.0), 3e6)
+        assert f[:, 0].sum() == pytest.approx(3e6 * area, rel=1e-12)
+        assert abs(f[:, 1].sum()) < 1e-6 * 3e6 * area
+
+
+def test_field_writer(tmp_path):
+    s = _two_bars()
+    s.advance(s.stable_time_step(), 5)
+    w = FieldWriter(s, tmp_path / "fields")
+    w.write(s.time)
+    s.advance(s.stable_time_step(), 5)
+    w.write(s.time)
+    w.close()
+    for n in ("left", "right"):
+        xdmf = tmp_path / f"fields_{n}.xdmf"
+        assert xdmf.exists() and (tmp_path / f"fields_{n}.h5").exists()
+        text = xdmf.read_text()
+        for name in ("displacement", "velocity", "stress", "von_mises", "eps_p"):
+            assert name in text
+
+
+def test_input_validation():
+    msh = dmesh.create_unit_square(MPI.COMM_SELF, 2, 2)
+    with pytest.raises(ValueError):
+        Material(-1.0, 1.0, 1.0, 1.0, 0.0)
+    with pytest.raises(ValueError):
+        ExplicitSolver([BodySpec("a", msh, MAT)], formulation="3d", comm=msh.comm)
+    with pytest.raises(ValueError):
+        ExplicitSolver([BodySpec("a", msh, MAT), BodySpec("a", msh, MAT)], comm=msh.comm)
+    with pytest.raises(ValueError):
+        ContactPairSpec("a", "b", stiffness=-1.0, h0=0.01)
+    s = ExplicitSolver([BodySpec("a", msh, MAT)], comm=msh.comm)
+    with pytest.raises(ValueError):
+        s.advance(-1.0)
+    with pytest.raises(RuntimeError):
+        s.advance(3.0 * s.stable_time_step() / s.cfl)
+    with pytest.raises(ValueError):
+        s.advance(s.stable_time_step(), external_forces={"a": np.zeros((3, 2))})
