@@ -95,9 +95,7 @@ class StaggeredLoop:
         c0 = time.perf_counter()
         step = self.load.load(t0, t1, t0 + 0.5 * (k - 1) * dt, self.mech)
         c1 = time.perf_counter()
-        resultant = np.zeros(2)
-        for f in step.forces.values():
-            resultant += f.sum(axis=0)
+        resultant = self.mech.total_force(step.forces)
         err = ledger_error(resultant[None, :], step.reference_integral) if step.reference_integral is not None else 0.0
         self.mech.advance(dt, k, step.forces)
         c2 = time.perf_counter()
@@ -110,7 +108,7 @@ class StaggeredLoop:
         c.last_values = dict(step.values)
         c.last_resultant = resultant
         return {"force_x_N": float(resultant[0]), "force_y_N": float(resultant[1]),
-                "conservation_error_rel": err, "substeps": float(k), **step.values}
+                "conservation_error_rel": err, "substeps": float(k), "dt_s": dt, **step.values}
 
     def run_until(self, t_stop: float, on_em_step=None) -> None:
         """EM steps until the mechanics reaches ``t_stop`` exactly; ``on_em_step(row)`` after each."""

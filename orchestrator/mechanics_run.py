@@ -1,8 +1,9 @@
-"""Run a mechanics-only case: explicit dynamics with contact and pressure pulses, to a results folder.
+"""Drive a case through the staggered loop into a results folder.
 
-The run stops at output milestones (every ``output.field_interval``): there it writes fields,
-flushes ``history.csv`` and a checkpoint, so ``pulseform run --resume`` continues from the last
-milestone to the same result as an uninterrupted run.
+A mechanics case is the loop with the pressure-pulse load provider and n = 1; the coupled cases
+plug the GetDP load in through the same path. The run stops at output milestones (every
+``output.field_interval``): there it writes fields, flushes ``history.csv`` and a checkpoint, so
+``pulseform run --resume`` continues from the last milestone to the same result.
 """
 
 from __future__ import annotations
@@ -20,8 +21,9 @@ from . import probes as probe_mod
 from .case import Case
 from .checkpoint import CHECKPOINT_NAME, load_checkpoint, save_checkpoint
 from .history import History
-from .loads import box_marker, pulse_pressure
+from .loop import StaggeredLoop
 from .mech_model import build_solver
+from .mech_participants import DolfinxMechanics, PressurePulses
 from .progress import Progress
 from .results import ResultsFolder
 
@@ -29,12 +31,12 @@ log = logging.getLogger(__name__)
 
 
 class NothingToResume(FileNotFoundError):
-    """``--resume`` was asked for but the results folder has no checkpoint."""
+    """``--resume`` was asked for but the results folder has no usable checkpoint."""
 
 
 @dataclass
 class MechanicsRun:
-    """What a finished mechanics run hands back to the runner."""
+    """What a finished run hands back to the runner."""
 
     solver: object
     history: History
@@ -51,85 +53,71 @@ def milestones(end: float, interval: float) -> np.ndarray:
     return times
 
 
-def next_step(stable_dt: float, dt_max: float | None, remaining: float) -> float:
-    """The step (s): stable step capped by ``dt_max``, landing exactly on the next milestone.
-
-    A step that would leave a sliver shorter than half a step before the milestone is split into
-    two equal steps instead.
-    """
-    dt = stable_dt if dt_max is None else min(stable_dt, dt_max)
-    if dt >= remaining * (1.0 - 1e-9):
-        return remaining
-    if dt > 0.5 * remaining:
-        return 0.5 * remaining
-    return dt
-
-
-def external_forces(solver, case: Case, t: float) -> dict[str, np.ndarray] | None:
-    """Nodal forces (N) of every active pressure pulse at time ``t`` (s), summed per body."""
-    forces: dict[str, np.ndarray] = {}
-    for ld in case.loads:
-        p = pulse_pressure(ld, t)
-        if p == 0.0:
-            continue
-        f = solver.pressure_nodal_forces(ld.body, box_marker(ld.surface), p)
-        forces[ld.body] = forces[ld.body] + f if ld.body in forces else f
-    return forces or None
-
-
-class MechanicsDriver:
-    """Time loop of a mechanics-only case writing into ``results``."""
+class CaseDriver:
+    """Participants, loop, history, fields and checkpoints of one case."""
 
     def __init__(self, case: Case, results: ResultsFolder, comm: MPI.Comm) -> None:
         self.case, self.results, self.comm = case, results, comm
         t0 = _time.perf_counter()
         self.solver = build_solver(case, comm)
         self.setup_s = _time.perf_counter() - t0
+        self.mechanics = DolfinxMechanics(self.solver)
+        self.loop = StaggeredLoop(PressurePulses(case.loads), self.mechanics, n=1, dt_max=case.time.dt_max)
         self.probes = probe_mod.attach(self.solver, case.probes, comm)
         self.history = History(results.root / "history.csv")
-        self.loop_s = 0.0
         self.part = 0
-        self.last_dt = 0.0
+        self._since_record = 0
         interval = case.output.field_interval or case.time.end / 20.0
         self.stops = milestones(case.time.end, interval)
 
     # ----------------------------------------------------------------- records
-    def record(self) -> None:
+    def record(self, step_row: dict[str, float] | None = None) -> None:
         """Append the current state to the history."""
         s = self.solver
-        row = {"time_s": s.time, "step": float(s.step_count), "dt_s": self.last_dt}
+        row = {"time_s": s.time, "step": float(s.step_count),
+               "dt_s": step_row["dt_s"] if step_row else 0.0}
         row.update({f"energy_{k}": float(v) for k, v in s.energies().items()})
         row.update(probe_mod.sample(s, self.probes, self.comm))
+        if self.case.loads:
+            for i in range(len(self.case.loads)):
+                row[f"load{i}_pressure_Pa"] = step_row.get(f"load{i}_pressure_Pa", 0.0) if step_row else 0.0
         self.history.record(row)
 
+    def _on_em_step(self, row: dict[str, float]) -> None:
+        self._since_record += 1
+        if self._since_record >= self.case.output.history_every:
+            self._since_record = 0
+            self.record(row)
+
+    def _rank_file(self) -> str:
+        return CHECKPOINT_NAME if self.comm.size == 1 else f"checkpoint.rank{self.comm.rank}.npz"
+
     def checkpoint(self) -> None:
-        """Write history and checkpoint (rank 0 writes; all ranks' states are gathered per rank file)."""
-        arrays = {f"solver/{k}": v for k, v in self.solver.state_dict().items()}
+        """Write the checkpoint (one file per rank) and flush the history."""
+        arrays = {f"solver/{k}": v for k, v in self.mechanics.state_dict().items()}
+        arrays.update({f"loop/{k}": v for k, v in self.loop.counters.state_dict().items()})
         arrays["history/rows"] = np.array(self.history.rows)
-        meta = {"columns": self.history.columns, "part": self.part, "loop_s": self.loop_s,
-                "last_dt": self.last_dt, "ranks": self.comm.size}
-        name = CHECKPOINT_NAME if self.comm.size == 1 else f"checkpoint.rank{self.comm.rank}.npz"
-        save_checkpoint(self.results.root / name, arrays, meta)
+        meta = {"columns": self.history.columns, "part": self.part, "ranks": self.comm.size,
+                "since_record": self._since_record}
+        save_checkpoint(self.results.root / self._rank_file(), arrays, meta)
         if self.comm.rank == 0:
             self.history.flush()
 
     def restore(self) -> None:
         """Continue from the checkpoint in the results folder."""
-        name = CHECKPOINT_NAME if self.comm.size == 1 else f"checkpoint.rank{self.comm.rank}.npz"
-        path = self.results.root / name
+        path = self.results.root / self._rank_file()
         if not path.is_file():
-            raise NothingToResume(f"{self.results.root}: no {name} to resume from")
+            raise NothingToResume(f"{self.results.root}: no {path.name} to resume from")
         arrays, meta = load_checkpoint(path)
         if meta["ranks"] != self.comm.size:
             raise NothingToResume(f"{path}: written by {meta['ranks']} ranks, resuming on {self.comm.size}")
-        self.solver.load_state_dict({k[7:]: v for k, v in arrays.items() if k.startswith("solver/")})
+        self.mechanics.load_state_dict({k[7:]: v for k, v in arrays.items() if k.startswith("solver/")})
+        self.loop.counters.load_state_dict({k[5:]: v for k, v in arrays.items() if k.startswith("loop/")})
         self.history.columns = list(meta["columns"])
         self.history.rows = [list(r) for r in arrays["history/rows"]]
         self.part = int(meta["part"]) + 1
-        self.loop_s = float(meta["loop_s"])
-        self.last_dt = float(meta["last_dt"])
-        log.info("resumed at t = %.6g s, step %d (part %d)", self.solver.time, self.solver.step_count,
-                 self.part)
+        self._since_record = int(meta["since_record"])
+        log.info("resumed at t = %.6g s, step %d (part %d)", self.solver.time, self.solver.step_count, self.part)
 
     # ----------------------------------------------------------------- loop
     def run(self, quiet: bool) -> MechanicsRun:
@@ -143,20 +131,17 @@ class MechanicsDriver:
         try:
             with Progress(case.time.end, quiet=quiet or self.comm.rank != 0, desc=case.case.name) as bar:
                 bar.update_to(s.time)
+
+                def on_step(row: dict[str, float]) -> None:
+                    self._on_em_step(row)
+                    bar.update_to(s.time)
+
                 for stop in self.stops:
                     if s.time >= stop * (1.0 - 1e-12):
                         continue
-                    t0 = _time.perf_counter()
-                    while s.time < stop * (1.0 - 1e-12):
-                        dt = next_step(s.stable_time_step(), case.time.dt_max, stop - s.time)
-                        s.advance(dt, 1, external_forces(s, case, s.time))
-                        self.last_dt = dt
-                        if s.step_count % case.output.history_every == 0:
-                            self.record()
-                        bar.update_to(s.time)
-                    self.loop_s += _time.perf_counter() - t0
+                    self.loop.run_until(stop, on_step)
                     if self.history.rows[-1][0] != s.time:
-                        self.record()
+                        self.record({"dt_s": float("nan")})
                     writer.write(s.time)
                     self.checkpoint()
         except Exception:
@@ -165,9 +150,13 @@ class MechanicsDriver:
             raise
         finally:
             writer.close()
-        log.info("mechanics: %d steps to t = %.4g s in %.2f s", s.step_count, s.time, self.loop_s)
-        metrics = {"mech_steps": float(s.step_count), "end_time_s": float(s.time),
-                   "setup_time_s": self.setup_s, "mech_time_s": self.loop_s}
+        c = self.loop.counters
+        log.info("mechanics: %d steps to t = %.4g s in %.2f s", s.step_count, s.time, c.mech_time_s)
+        metrics = {"mech_steps": float(s.step_count), "em_steps": float(c.em_steps),
+                   "end_time_s": float(s.time), "setup_time_s": self.setup_s,
+                   "mech_time_s": c.mech_time_s, "load_time_s": c.em_time_s}
+        if case.loads:
+            metrics["force_impulse_Ns"] = float(np.linalg.norm(c.impulse))
         metrics.update(mech_metrics(s, case, self.history))
         return MechanicsRun(s, self.history, metrics)
 
@@ -175,7 +164,7 @@ class MechanicsDriver:
 def run_mechanics(case: Case, results: ResultsFolder, *, quiet: bool = False, resume: bool = False,
                   comm: MPI.Comm = MPI.COMM_WORLD) -> MechanicsRun:
     """Integrate ``case`` to ``time.end`` and write history, fields and checkpoints into ``results``."""
-    driver = MechanicsDriver(case, results, comm)
+    driver = CaseDriver(case, results, comm)
     if resume:
         driver.restore()
     return driver.run(quiet)
@@ -197,6 +186,9 @@ def mech_metrics(solver, case: Case, history: History) -> dict[str, float]:
         if p.quantity == "contact_pressure":
             t = history.column("time_s")
             s = history.column(f"{p.name}_contact_pressure_Pa")
-            out.update(mech.contact_stress_metrics(t, s))
+            try:
+                out.update(mech.contact_stress_metrics(t, s))
+            except ValueError as exc:  # no contact, or not ended: say so in the log, report what is known
+                log.warning("contact metrics of probe %s: %s", p.name, exc)
             break
     return out

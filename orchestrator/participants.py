@@ -50,11 +50,22 @@ class Mechanics(Protocol):
     def positions(self) -> dict[str, np.ndarray]:
         """Current node coordinates per body (m)."""
 
+    def total_force(self, forces: dict[str, np.ndarray]) -> np.ndarray:
+        """Resultant (N), shape (2,), of nodal forces: each node counted once over all ranks."""
+
     def state_dict(self) -> dict[str, np.ndarray]:
         """Everything needed to continue exactly."""
 
     def load_state_dict(self, state: dict[str, np.ndarray]) -> None:
         """Restore :meth:`state_dict`."""
+
+
+def plain_total(forces: dict[str, np.ndarray]) -> np.ndarray:
+    """Resultant (N) of nodal forces held entirely on this process."""
+    total = np.zeros(2)
+    for f in forces.values():
+        total += np.asarray(f)[:, :2].sum(axis=0)
+    return total
 
 
 class LoadProvider(Protocol):
@@ -134,6 +145,10 @@ class RigidAxialBody:
     def positions(self) -> dict[str, np.ndarray]:
         """Node coordinates per body (m)."""
         return {self.name: self.x0 + np.array([0.0, self.y])}
+
+    def total_force(self, forces: dict[str, np.ndarray]) -> np.ndarray:
+        """Resultant (N) of the given nodal forces."""
+        return plain_total(forces)
 
     def state_dict(self) -> dict[str, np.ndarray]:
         """Time, counters, position, velocities."""

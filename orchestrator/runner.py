@@ -73,7 +73,7 @@ def run_case(case: Case, out: Path, *, force: bool = False, resume: bool = False
         try:
             metrics = _dispatch(case, results, quiet=quiet, resume=resume, comm=comm)
         except Exception as exc:  # solver failures: keep what is on disk, report, re-raise as RunFailed
-            log.exception("run failed: %s", exc)
+            log.debug("run failed: %s", exc, exc_info=True)  # the traceback goes to run.log only
             if comm.rank == 0:
                 results.write_metrics({"status_ok": 0.0, "wall_time_s": time.perf_counter() - wall0})
             raise RunFailed(f"{case.case.name}: {exc} (partial results and log in {results.root})") from exc

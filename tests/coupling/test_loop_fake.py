@@ -7,7 +7,7 @@ import pytest
 
 from pulseform.orchestrator.loop import StaggeredLoop
 from pulseform.orchestrator.mesh_motion import MeshMover, MeshQualityError, triangle_quality
-from pulseform.orchestrator.participants import AnalyticForce, LoadStep, RigidAxialBody
+from pulseform.orchestrator.participants import AnalyticForce, LoadStep, RigidAxialBody, plain_total
 from pulseform.orchestrator.transfer import cell_force_integral, cell_to_nodal_forces
 
 from .meshes import rect_mesh
@@ -91,6 +91,9 @@ class PrescribedMotion:
 
     def positions(self):
         return {"block": self.x0 + np.array([0.0, self.A * math.sin(self.w * self.time)])}
+
+    def total_force(self, forces):
+        return plain_total(forces)
 
     def state_dict(self):
         return {}
