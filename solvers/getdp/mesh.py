@@ -220,7 +220,8 @@ def coil_conductor_mesh(
         all_surfs = [(2, s) for _, s in gmsh.model.getEntities(2)]
         for _, c in gmsh.model.getBoundary(all_surfs, combined=True, oriented=False):
             xmin, _, _, xmax, _, _ = gmsh.model.getBoundingBox(1, abs(c))
-            if axisymmetric and abs(xmin) < tol and abs(xmax) < tol:
+            xc = occ.getCenterOfMass(1, abs(c))[0]
+            if axisymmetric and abs(xc) < tol and xmax - xmin < 2 * tol + 2e-7:
                 axis_curves.append(abs(c))
             else:
                 outer_curves.append(abs(c))

@@ -175,8 +175,11 @@ class EMStepResult:
     """Outputs of one EM step (``n`` implicit sub-steps ending at ``times``).
 
     Per element of the massive conductors (``elements`` are rows of the mesh's
-    ``triangles``): ``force_density`` (n, n_el, 2) N/m^3 and ``joule_density``
-    (n, n_el) W/m^3 and ``flux_density`` (n, n_el, 2) T at the element centroid.  Per coil: current, voltage drop
+    ``triangles``): ``force_density`` (n, n_el, 2) N/m^3 and ``joule_density`` (n, n_el)
+    W/m^3 are element averages (GetDP's 7-point element integral / element volume
+    2 pi r_c A), so sum(force_density * V) equals the total force: conservative for the
+    mechanical transfer.  ``force_density_centroid`` is j x B at the centroid and
+    ``flux_density`` (n, n_el, 2) B at the centroid.  Per coil: current, voltage drop
     (receptor convention), Joule power, force.  Per conductor: force, Joule power.
     ``probe_b`` (n, n_probes, 2): B at the model's probe points.
     Totals are physical (2 pi included in axisymmetry; per metre in planar).
@@ -187,6 +190,7 @@ class EMStepResult:
     elements: np.ndarray
     element_tags: np.ndarray
     force_density: np.ndarray
+    force_density_centroid: np.ndarray
     joule_density: np.ndarray
     flux_density: np.ndarray
     coil_current: np.ndarray
@@ -298,6 +302,10 @@ class GetDPSolver:
     # -- helpers
     def _numbers(self, mesh: EMMesh) -> dict[str, float]:
         m = self.model
+        if m.axisymmetric and not np.any(mesh.line_tags == 11):
+            raise ValueError("axisymmetric mesh without axis lines (physical 11): a = 0 on the axis is mandatory")
+        if not np.any(np.isin(mesh.line_tags, [11, 12])):
+            raise ValueError("mesh has no Dirichlet boundary (physical 11 or 12)")
         nb = {"Flag_Axi": int(m.axisymmetric), "NbCoils": len(m.coils), "NbConductors": len(m.conductors),
               "Flag_Circuit": int(m.circuit is not None), "H0_Neu": m.h0_step, "NbProbes": len(m.probes)}
         for i, (x, y) in enumerate(m.probes, start=1):
@@ -375,23 +383,29 @@ class GetDPSolver:
             if nk else np.zeros((n, 0))
         if nk:
             ef = np.loadtxt(out / "elem_f.txt", ndmin=2)
-            ep = np.loadtxt(out / "elem_p.txt", ndmin=2)
+            eF = np.loadtxt(out / "elem_F.txt", ndmin=2)
+            eP = np.loadtxt(out / "elem_P.txt", ndmin=2)
             eb = np.loadtxt(out / "elem_b.txt", ndmin=2)
             n_el = len(ef) // n
-            if n_el * n != len(ef) or len(ep) != len(ef):
+            if n_el * n != len(ef) or not len(eF) == len(eP) == len(eb) == len(ef):
                 raise RuntimeError(f"per-element tables in {out} have an unexpected length")
             ids = ef[:n_el, 1].astype(np.int64)
             elements = ids - 1
             if elements.max() >= len(mesh.triangles):
                 raise RuntimeError("per-element output refers to a non-triangle element")
-            force = ef[:, 8:10].reshape(n, n_el, 2)
-            joule = ep[:, 8].reshape(n, n_el)
+            if not np.array_equal(eF[:n_el, 1], ef[:n_el, 1]):
+                raise RuntimeError("per-element tables list elements in different orders")
+            vol = mesh.volumes(m.axisymmetric)[elements]
+            centroid = ef[:, 8:10].reshape(n, n_el, 2)
+            force = eF[:, 8:10].reshape(n, n_el, 2) / vol[None, :, None]
+            joule = eP[:, 8].reshape(n, n_el) / vol[None, :]
             bfield = eb[:, 8:10].reshape(n, n_el, 2)
             tags = mesh.tri_tags[elements]
         else:
             elements = np.zeros(0, np.int64)
             tags = np.zeros(0, np.int64)
             force = np.zeros((n, 0, 2))
+            centroid = np.zeros((n, 0, 2))
             joule = np.zeros((n, 0))
             bfield = np.zeros((n, 0, 2))
         probe_b = np.stack([np.loadtxt(out / f"probe_b_{i}.txt", ndmin=2)[:, -3:-1]
@@ -408,6 +422,7 @@ class GetDPSolver:
             if not np.all(np.isfinite(arr)):
                 raise RuntimeError(f"non-finite {name} in {out}")
         return EMStepResult(times=times, dt=dt, elements=elements, element_tags=tags, force_density=force,
+                            force_density_centroid=centroid,
                             joule_density=joule, flux_density=bfield, coil_current=cur, coil_voltage=-us, coil_power=cp,
                             coil_force=cf, conductor_force=kf, conductor_power=kp, magnetic_energy=w[:, 1],
                             capacitor_voltage=vc, circuit_current=ic, coil_heat=heat, probe_b=probe_b,
