@@ -23,6 +23,9 @@ import numpy as np
 __all__ = ["MODE_PLANE_STRESS", "MODE_PLANE_STRAIN", "MODE_AXISYMMETRIC", "pack_parameters",
            "element_step", "element_critical_dt", "N_PRM"]
 
+# fast-math without 'nnan'/'ninf', so that NaN/inf checks (inverted cells, blow-ups) still work
+_FM = {"contract", "arcp", "reassoc", "nsz"}
+
 MODE_PLANE_STRESS = 0
 MODE_PLANE_STRAIN = 1
 MODE_AXISYMMETRIC = 2
@@ -64,7 +67,7 @@ def pack_parameters(material, mode: int, thickness: float, b1: float, b2: float,
     return prm
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, inline="always", error_model="numpy", fastmath=_FM)
 def _rate_factor(rid, r1, r2, dxx, dyy, dzz, dxy):
     if rid == 0:
         return 1.0
@@ -78,7 +81,7 @@ def _rate_factor(rid, r1, r2, dxx, dyy, dzz, dxy):
     return 1.0
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, inline="always", error_model="numpy", fastmath=_FM)
 def _j2(sxx, syy, szz, sxy, dxx, dyy, dzz, dxy, dt, G, lam, sy, hr):
     """Elastic predictor + radial return. Returns (sxx, syy, szz, sxy, deps_p)."""
     tr = (dxx + dyy + dzz) * dt
@@ -96,7 +99,7 @@ def _j2(sxx, syy, szz, sxy, dxx, dyy, dzz, dxy, dt, G, lam, sy, hr):
     return txx, tyy, tzz, txy, 0.0
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy", fastmath=_FM)
 def element_step(cells, x, v, dt, prm, stress, eps_p, f_int, acc):
     """Fused explicit element update over all ``cells``.
 
@@ -146,6 +149,8 @@ def element_step(cells, x, v, dt, prm, stress, eps_p, f_int, acc):
     dtmin = 1e300
     acc[2] = -1.0
     hdt = 0.5 * dt
+    wp = 0.0
+    wv = 0.0
     for e in range(cells.shape[0]):
         i0 = cells[e, 0]
         i1 = cells[e, 1]
@@ -265,11 +270,11 @@ def element_step(cells, x, v, dt, prm, stress, eps_p, f_int, acc):
         else:
             volm = thick * 0.5 * ta
             vol = thick * 0.5 * tn
-        acc[0] += (sy + hr * dep) * dep * volm
+        wp += (sy + hr * dep) * dep * volm
         if mode == MODE_PLANE_STRESS:
-            acc[1] += -q * (dxx + dyy) * volm * dt
+            wv -= q * (dxx + dyy) * volm * dt
         else:
-            acc[1] += -q * trd * volm * dt
+            wv -= q * trd * volm * dt
         exx = nxx - q
         eyy = nyy - q
         ezz = nzz - q
@@ -292,10 +297,12 @@ def element_step(cells, x, v, dt, prm, stress, eps_p, f_int, acc):
             f_int[i0, 0] += hoop
             f_int[i1, 0] += hoop
             f_int[i2, 0] += hoop
+    acc[0] += wp
+    acc[1] += wv
     return dtmin
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy", fastmath=_FM)
 def element_critical_dt(cells, x, prm):
     """Smallest element critical time step (CFL 1, at rest: linear bulk-viscosity reduction only), s.
 

@@ -20,8 +20,7 @@ log = logging.getLogger(__name__)
 
 _MODES = {"plane_stress": MODE_PLANE_STRESS, "plane_strain": MODE_PLANE_STRAIN,
           "axisymmetric": MODE_AXISYMMETRIC}
-_ACC_KEYS = ("plastic_J", "viscous_J", "contact_dissipated_J", "external_work_J",
-             "wall_dissipated_J")
+_ACC_KEYS = ("plastic_J", "viscous_J", "external_work_J", "wall_dissipated_J")
 
 
 class ExplicitSolver:
@@ -111,11 +110,14 @@ class ExplicitSolver:
         self._contact_stored = 0.0
         self._fext = {n: np.zeros((b.n_local, 2)) for n, b in self.bodies.items()}
         self._contact_out = [None] * len(self.contact_pairs)
+        self._fsurf_prev = {n: np.zeros((len(sf.gids), 2)) for n, sf in self._surf.items()}
+        self._contact_work = 0.0
         self._wall_out = [dict() for _ in self.rigid_walls]
         self._dt_crit = self._initial_dt_crit()
         # forces at t = 0 (initial stress, contact layers) without changing the state
         self._compute_forces(0.0, update_state=False)
         self._E0 = self._stored_energy()
+        self._contact_stored0 = self._contact_stored
         log.info("ExplicitSolver: %s, %d bodies, %d contact pairs, %d walls, stable dt %.4g s",
                  formulation, len(self.bodies), len(self.contact_pairs), len(self.rigid_walls),
                  self.stable_time_step())
@@ -287,13 +289,18 @@ class ExplicitSolver:
         return self.comm.allreduce(float(val)) if self.comm.size > 1 else float(val)
 
     def _contact(self, ftot: Dict[str, np.ndarray], dt: float) -> None:
+        """Add soft-contact forces; the work of all contact forces is integrated with the
+        trapezoidal rule dt v^{n+1/2} . (F^n + F^{n+1}) / 2 (consistent with central differences),
+        and the contact dissipation is that work minus the change of the stored layer energy."""
         if not self.contact_pairs:
             return
         data = {}
+        fsurf = {}
         for n, s in self._surf.items():
             X = s.gather(self.bodies[n].x)
             V = s.gather(self.bodies[n].v)
             data[n] = (X, V, s.areas(X))
+            fsurf[n] = np.zeros_like(X)
         stored = 0.0
         for ip, cp in enumerate(self.contact_pairs):
             passes = [(cp.slave, cp.master)]
@@ -311,15 +318,20 @@ class ExplicitSolver:
                         f"t={self.time:.6e} s: node {int(self._surf[sn].gids[i])} of body {sn!r} "
                         f"at ({Xs[i, 0]:.6g}, {Xs[i, 1]:.6g}) m reached h={h:.3e} m <= 0 against "
                         f"body {mn!r} (contact pair {ip})")
-                self._surf[sn].scatter_add(res.F_slave, ftot[sn])
-                self._surf[mn].scatter_add(res.F_master, ftot[mn])
+                fsurf[sn] += res.F_slave
+                fsurf[mn] += res.F_master
                 stored += res.stored
-                self._acc["contact_dissipated_J"] += res.dissipation_power * dt
                 if k == 0:
                     self._contact_out[ip] = (res.pressure, res.gap, Xs)
+        work = 0.0
+        for n, s in self._surf.items():
+            s.scatter_add(fsurf[n], ftot[n])
+            if dt > 0:
+                work += dt * float(np.sum(data[n][1] * 0.5 * (self._fsurf_prev[n] + fsurf[n])))
+            self._fsurf_prev[n] = fsurf[n]
+        self._contact_work += work
         self._contact_stored = stored
 
-    # ------------------------------------------------------------------ outputs
     def contact_pressure(self, pair_index: int):
         """Contact state of a pair's slave surface at the current time.
 
@@ -382,6 +394,8 @@ class ExplicitSolver:
         e = {"kinetic_J": self._kinetic(), "elastic_J": self._elastic(),
              "contact_stored_J": self._contact_stored}
         e.update(self._acc)
+        e["contact_dissipated_J"] = (-self._contact_work
+                                     - (self._contact_stored - self._contact_stored0))
         e["balance_error_J"] = (e["kinetic_J"] + e["elastic_J"] + e["contact_stored_J"]
                                 + e["plastic_J"] + e["viscous_J"] + e["contact_dissipated_J"]
                                 + e["wall_dissipated_J"] - e["external_work_J"] - self._E0)
@@ -443,7 +457,11 @@ class ExplicitSolver:
             "time": np.array(self.time), "step_count": np.array(self.step_count),
             "dt_prev": np.array(self._dt_prev), "dt_crit": np.array(self._dt_crit),
             "E0": np.array(self._E0), "contact_stored": np.array(self._contact_stored),
-            "acc": np.array([self._acc[k] for k in _ACC_KEYS])}
+            "acc": np.array([self._acc[k] for k in _ACC_KEYS]),
+            "contact_work": np.array(self._contact_work),
+            "contact_stored0": np.array(self._contact_stored0)}
+        for n, f in self._fsurf_prev.items():
+            d[f"{n}/contact_force"] = f.copy()
         for n, b in self.bodies.items():
             for key in ("x", "v", "a", "cell_stress", "eps_p"):
                 d[f"{n}/{key}"] = getattr(b, key).copy()
@@ -471,6 +489,10 @@ class ExplicitSolver:
         self._contact_stored = float(d["contact_stored"])
         for k, val in zip(_ACC_KEYS, np.asarray(d["acc"])):
             self._acc[k] = float(val)
+        self._contact_work = float(d["contact_work"])
+        self._contact_stored0 = float(d["contact_stored0"])
+        for n in self._fsurf_prev:
+            self._fsurf_prev[n] = np.array(d[f"{n}/contact_force"], dtype=float)
         for i in range(len(self._contact_out)):
             if f"contact{i}/p" in d:
                 self._contact_out[i] = tuple(np.array(d[f"contact{i}/{k}"]) for k in "phX")
