@@ -113,10 +113,19 @@ class Body:
 
     name: str = spec(doc="unique body name")
     material: str = spec(doc="key of a [materials.<name>] table")
-    shape: Shape = spec(doc="geometry: rectangle or polygon")
-    mesh_size: float = spec(unit="m", gt=0.0, doc="target element size")
+    shape: Shape | None = spec(None, doc="own geometry (rectangle or polygon); or give region")
+    region: Literal["workpiece"] | None = spec(
+        None, doc="the [geometry] region this body is (its EM and mechanical meshes share nodes)")
+    mesh_size: float | None = spec(None, unit="m", gt=0.0, doc="target element size (with shape)")
     initial_velocity: Vec2 = spec((0.0, 0.0), unit="m/s", doc="uniform initial velocity")
     fixed: tuple[FixedBoundary, ...] = spec((), doc="clamped boundary parts")
+
+    def validate(self, path: str) -> None:
+        if (self.shape is None) == (self.region is None):
+            raise SchemaError(f"{path}.shape", "give exactly one of shape (own geometry) or region "
+                              "(a [geometry] region such as 'workpiece')")
+        if self.shape is not None and self.mesh_size is None:
+            raise SchemaError(f"{path}.mesh_size", "missing required key (a number > 0, in m) for a body with shape")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -192,13 +201,126 @@ def _check_window(t_start: float, t_end: float, path: str) -> None:
 Load = PulseSin2 | PulseExp
 
 
+# --------------------------------------------------------------------------- EM geometry and sources
+@dataclass(frozen=True, kw_only=True)
+class FlatCoilSheet:
+    """Axisymmetric flat spiral coil (coaxial rectangular turns in series) under a sheet.
+
+    The coil's top face is at z = 0, the sheet's lower face at z = ``coil_gap``; the sheet spans
+    0 <= r <= ``sheet_radius``. Air fills a half-disk of radius ``air_radius``; a shell out to
+    ``shell_radius`` maps the open boundary to infinity.
+    """
+
+    type: Literal["flat_coil_sheet"] = spec(doc="geometry kind")
+    turns: int = spec(unit="-", ge=1, doc="number of turns")
+    coil_inner_radius: float = spec(unit="m", gt=0.0, doc="inner radius of the first turn")
+    turn_width: float = spec(unit="m", gt=0.0, doc="radial width of a turn")
+    turn_height: float = spec(unit="m", gt=0.0, doc="axial height of a turn")
+    turn_gap: float = spec(unit="m", ge=0.0, doc="radial insulation gap between turns")
+    coil_gap: float = spec(unit="m", gt=0.0, doc="axial gap between coil and sheet")
+    sheet_radius: float = spec(unit="m", gt=0.0, doc="sheet radius")
+    sheet_thickness: float = spec(unit="m", gt=0.0, doc="sheet thickness")
+    air_radius: float = spec(unit="m", gt=0.0, doc="radius of the meshed air half-disk")
+    shell_radius: float = spec(unit="m", gt=0.0, doc="outer radius of the shell to infinity")
+    mesh_size_sheet: float = spec(unit="m", gt=0.0, doc="element size in the sheet")
+    mesh_size_coil: float = spec(unit="m", gt=0.0, doc="element size in and near the coil")
+    mesh_size_air: float = spec(unit="m", gt=0.0, doc="element size far away in the air")
+
+    def validate(self, path: str) -> None:
+        coil_r = self.coil_inner_radius + self.turns * self.turn_width + (self.turns - 1) * self.turn_gap
+        extent = max(coil_r, self.sheet_radius, self.coil_gap + self.sheet_thickness, self.turn_height)
+        if self.air_radius <= 1.5 * extent:
+            raise SchemaError(f"{path}.air_radius", f"got {self.air_radius:g}; must be > 1.5 × the "
+                              f"coil/sheet extent = {1.5 * extent:g} (m)")
+        if self.shell_radius <= self.air_radius:
+            raise SchemaError(f"{path}.shell_radius", f"got {self.shell_radius:g}; must be > air_radius "
+                              f"= {self.air_radius:g} (m)")
+
+
+@dataclass(frozen=True, kw_only=True)
+class SolenoidTube:
+    """Axisymmetric solenoid (turns stacked along z) inside a tube, for tube expansion.
+
+    Turns occupy r in [coil_inner_radius, coil_inner_radius + turn_width], centred on z = 0;
+    the tube spans r in [tube_inner_radius, tube_inner_radius + tube_thickness],
+    |z| <= tube_length / 2.
+    """
+
+    type: Literal["solenoid_tube"] = spec(doc="geometry kind")
+    turns: int = spec(unit="-", ge=1, doc="number of turns")
+    coil_inner_radius: float = spec(unit="m", gt=0.0, doc="inner radius of the turns")
+    turn_width: float = spec(unit="m", gt=0.0, doc="radial width of a turn")
+    turn_height: float = spec(unit="m", gt=0.0, doc="axial height of a turn")
+    turn_gap: float = spec(unit="m", ge=0.0, doc="axial insulation gap between turns")
+    tube_inner_radius: float = spec(unit="m", gt=0.0, doc="tube inner radius")
+    tube_thickness: float = spec(unit="m", gt=0.0, doc="tube wall thickness")
+    tube_length: float = spec(unit="m", gt=0.0, doc="tube length")
+    air_radius: float = spec(unit="m", gt=0.0, doc="radius of the meshed air half-disk")
+    shell_radius: float = spec(unit="m", gt=0.0, doc="outer radius of the shell to infinity")
+    mesh_size_tube: float = spec(unit="m", gt=0.0, doc="element size in the tube")
+    mesh_size_coil: float = spec(unit="m", gt=0.0, doc="element size in and near the coil")
+    mesh_size_air: float = spec(unit="m", gt=0.0, doc="element size far away in the air")
+
+    def validate(self, path: str) -> None:
+        if self.coil_inner_radius + self.turn_width >= self.tube_inner_radius:
+            raise SchemaError(f"{path}.tube_inner_radius", f"got {self.tube_inner_radius:g}; must be > "
+                              f"coil outer radius = {self.coil_inner_radius + self.turn_width:g} (m)")
+        extent = max(self.tube_inner_radius + self.tube_thickness, self.tube_length / 2,
+                     self.turns * (self.turn_height + self.turn_gap) / 2)
+        if self.air_radius <= 1.5 * extent:
+            raise SchemaError(f"{path}.air_radius", f"got {self.air_radius:g}; must be > 1.5 × the "
+                              f"coil/tube extent = {1.5 * extent:g} (m)")
+        if self.shell_radius <= self.air_radius:
+            raise SchemaError(f"{path}.shell_radius", f"got {self.shell_radius:g}; must be > air_radius "
+                              f"= {self.air_radius:g} (m)")
+
+
+Geometry = FlatCoilSheet | SolenoidTube
+
+
+@dataclass(frozen=True, kw_only=True)
+class CapacitorBank:
+    """Capacitor bank C charged to V0 discharging through R_ext, L_ext and the coil."""
+
+    capacitance: float = spec(unit="F", gt=0.0, doc="bank capacitance C")
+    voltage: float = spec(unit="V", gt=0.0, doc="charging voltage V0")
+    resistance: float = spec(0.0, unit="Ω", ge=0.0, doc="external resistance R_ext")
+    inductance: float = spec(0.0, unit="H", ge=0.0, doc="external inductance L_ext")
+
+
+@dataclass(frozen=True, kw_only=True)
+class DampedSineCurrent:
+    """Prescribed coil current I(t) = I0 e^(−βt) sin(ωt)."""
+
+    amplitude: float = spec(unit="A", gt=0.0, doc="I0")
+    beta: float = spec(unit="1/s", ge=0.0, doc="decay rate β")
+    omega: float = spec(unit="rad/s", gt=0.0, doc="angular frequency ω")
+
+
+@dataclass(frozen=True, kw_only=True)
+class EM:
+    """Electromagnetic model (GetDP): coil, its source, and what to keep."""
+
+    coil_conductivity: float = spec(5.8e7, unit="S/m", gt=0.0, doc="coil conductor (copper)")
+    coil_density: float = spec(8960.0, unit="kg/m^3", gt=0.0, doc="for the coil's adiabatic heating")
+    coil_heat_capacity: float = spec(385.0, unit="J/(kg·K)", gt=0.0, doc="for the coil's adiabatic heating")
+    circuit: CapacitorBank | None = spec(None, doc="capacitor-bank discharge (give this or current)")
+    current: DampedSineCurrent | None = spec(None, doc="prescribed coil current (give this or circuit)")
+    keep_runs: bool = spec(False, doc="keep every getdp run folder (default: the last two)")
+
+    def validate(self, path: str) -> None:
+        if (self.circuit is None) == (self.current is None):
+            raise SchemaError(f"{path}.circuit", "give exactly one of circuit (capacitor bank) or current")
+
+
 # --------------------------------------------------------------------------- run control
 @dataclass(frozen=True, kw_only=True)
 class CaseInfo:
     """What the case is."""
 
     name: str = spec(doc="case name (used in results)")
-    kind: Literal["mechanics"] = spec("mechanics", doc="what runs: 'mechanics' (explicit solver)")
+    kind: Literal["mechanics", "coupled"] = spec(
+        "mechanics", doc="'mechanics': explicit solver with pressure loads; 'coupled': GetDP + explicit solver")
     description: str = spec("", doc="free text")
 
     def validate(self, path: str) -> None:
@@ -268,6 +390,8 @@ class Case:
     walls: tuple[RigidWall, ...] = spec((), doc="[[walls]] rigid half-spaces")
     loads: tuple[Load, ...] = spec((), doc="[[loads]] surface pressure pulses")
     coupling: Coupling = spec(Coupling(), doc="[coupling] table")
+    geometry: Geometry | None = spec(None, doc="[geometry] EM setup (coupled cases)")
+    em: EM | None = spec(None, doc="[em] table (coupled cases)")
     probes: tuple[Probe, ...] = spec((), doc="[[probes]] point histories")
     output: Output = spec(Output(), doc="[output] table")
 
@@ -296,6 +420,7 @@ class Case:
         for i, ld in enumerate(self.loads):
             if ld.body not in names:
                 raise SchemaError(f"loads[{i}].body", f"got {ld.body!r}; allowed: {_choices(names)}")
+        self._validate_coupled()
         probe_names: list[str] = []
         for i, p in enumerate(self.probes):
             if p.body not in names:
@@ -305,6 +430,8 @@ class Case:
             probe_names.append(p.name)
         if self.mechanics.formulation == "axisymmetric":
             for i, b in enumerate(self.bodies):
+                if b.shape is None:
+                    continue
                 xmin = _shape_xmin(b.shape)
                 if xmin < 0.0:
                     raise SchemaError(f"bodies[{i}].shape",
@@ -312,6 +439,23 @@ class Case:
         if self.output.field_interval is not None and self.output.field_interval > self.time.end:
             raise SchemaError("output.field_interval",
                               f"got {self.output.field_interval:g}; must be <= time.end = {self.time.end:g} (s)")
+
+    def _validate_coupled(self) -> None:
+        regions = [b.region for b in self.bodies if b.region is not None]
+        if self.case.kind == "coupled":
+            for key in ("geometry", "em"):
+                if getattr(self, key) is None:
+                    raise SchemaError(key, f"missing required table [{key}] for case.kind = 'coupled'")
+            if "workpiece" not in regions:
+                raise SchemaError("bodies", "a coupled case needs a body with region = 'workpiece'")
+            if self.mechanics.formulation != "axisymmetric":
+                raise SchemaError("mechanics.formulation", f"got {self.mechanics.formulation!r}; the "
+                                  f"{self.geometry.type} geometry is axisymmetric: use 'axisymmetric'")
+        elif regions:
+            i = next(i for i, b in enumerate(self.bodies) if b.region is not None)
+            raise SchemaError(f"bodies[{i}].region", "regions exist only in coupled cases; give a shape")
+        if len(set(regions)) != len(regions):
+            raise SchemaError("bodies", "each geometry region may be used by one body only")
 
     def body(self, name: str) -> Body:
         """The body called ``name``."""

@@ -23,11 +23,15 @@ def solver_material(m: Material) -> "mech.Material":
                          hardening_modulus=m.hardening_modulus, rate_law=rate)
 
 
-def build_solver(case: Case, comm: MPI.Comm = MPI.COMM_WORLD) -> "mech.ExplicitSolver":
-    """Mesh every body and assemble the explicit solver for ``case``."""
+def build_solver(case: Case, comm: MPI.Comm = MPI.COMM_WORLD,
+                 region_meshes: dict | None = None) -> "mech.ExplicitSolver":
+    """Mesh every body (or take its region's mesh, cut from the EM mesh) and build the solver."""
     bodies = []
     for b in case.bodies:
-        mesh = mesh_shape(b.shape, b.mesh_size, comm, name=b.name)
+        if b.region is not None:
+            mesh = (region_meshes or {})[b.region]
+        else:
+            mesh = mesh_shape(b.shape, b.mesh_size, comm, name=b.name)
         fixed = tuple((box_marker(f.where), tuple(f.components)) for f in b.fixed)
         bodies.append(mech.BodySpec(name=b.name, mesh=mesh, material=solver_material(case.materials[b.material]),
                                     initial_velocity=tuple(b.initial_velocity), fixed=fixed))

@@ -55,7 +55,7 @@ def laplacian(x: np.ndarray, cells: np.ndarray) -> sp.csr_matrix:
 
 
 class MeshMover:
-    """Harmonic extension of prescribed boundary/conductor displacements to the remaining nodes.
+    """Harmonic extension of prescribed displacements to the remaining nodes, per component.
 
     Parameters
     ----------
@@ -63,38 +63,45 @@ class MeshMover:
         Reference node coordinates (m).
     cells : ndarray (M, 3)
         Triangles of the whole EM mesh.
-    prescribed : ndarray of int
-        Nodes whose displacement is given at each update (conductors that move, fixed parts).
+    prescribed : ndarray of int, or (ndarray, ndarray)
+        Nodes whose displacement is given at each update (conductors that move, fixed parts);
+        a pair gives separate sets for the x (r) and y (z) components, e.g. axis nodes that may
+        slide along z but not leave r = 0.
     min_quality : float
         Smallest acceptable :func:`triangle_quality` (0 < q ≤ 1).
     """
 
-    def __init__(self, x_ref: np.ndarray, cells: np.ndarray, prescribed: np.ndarray,
-                 min_quality: float = 0.05) -> None:
+    def __init__(self, x_ref: np.ndarray, cells: np.ndarray, prescribed, min_quality: float = 0.05) -> None:
         self.x_ref = np.asarray(x_ref, dtype=float)[:, :2].copy()
         self.cells = np.asarray(cells)
         self.min_quality = min_quality
         n = self.x_ref.shape[0]
-        self.prescribed = np.unique(prescribed)
-        mask = np.ones(n, dtype=bool)
-        mask[self.prescribed] = False
-        self.free = np.flatnonzero(mask)
+        if isinstance(prescribed, tuple):
+            sets = [np.unique(np.asarray(p, dtype=np.int64)) for p in prescribed]
+        else:
+            sets = [np.unique(np.asarray(prescribed, dtype=np.int64))] * 2
         K = laplacian(self.x_ref, self.cells).tocsc()
-        self._k_fp = K[self.free][:, self.prescribed]
-        self._lu = splu(K[self.free][:, self.free].tocsc()) if len(self.free) else None
+        self._parts = []
+        for fixed in sets:
+            mask = np.ones(n, dtype=bool)
+            mask[fixed] = False
+            free = np.flatnonzero(mask)
+            lu = splu(K[free][:, free].tocsc()) if len(free) else None
+            self._parts.append((fixed, free, K[free][:, fixed], lu))
         self.q_ref = triangle_quality(self.x_ref, self.cells)
+        self.last_min_quality = float(self.q_ref.min())
 
-    def displace(self, u_prescribed: np.ndarray) -> np.ndarray:
-        """Displacement (N, 2) of every node, given ``u_prescribed`` (P, 2) on the prescribed nodes."""
+    def displace(self, u_given: np.ndarray) -> np.ndarray:
+        """Displacement (N, 2) of every node; ``u_given`` (N, 2) holds the values on the prescribed
+        nodes of each component (other entries are ignored)."""
         u = np.zeros_like(self.x_ref)
-        u[self.prescribed] = u_prescribed
-        if self._lu is not None:
-            rhs = -(self._k_fp @ u_prescribed)
-            for d in range(2):
-                u[self.free, d] = self._lu.solve(np.ascontiguousarray(rhs[:, d]))
+        for d, (fixed, free, k_fp, lu) in enumerate(self._parts):
+            u[fixed, d] = u_given[fixed, d]
+            if lu is not None:
+                u[free, d] = lu.solve(np.ascontiguousarray(-(k_fp @ u_given[fixed, d])))
         return u
 
-    def moved(self, u_prescribed: np.ndarray) -> np.ndarray:
+    def moved(self, u_given: np.ndarray) -> np.ndarray:
         """Moved coordinates (m), after checking element quality.
 
         Raises
@@ -102,9 +109,10 @@ class MeshMover:
         MeshQualityError
             An element is inverted, or the worst quality is below ``min_quality``.
         """
-        x = self.x_ref + self.displace(u_prescribed)
+        x = self.x_ref + self.displace(u_given)
         q = triangle_quality(x, self.cells)
         worst = int(np.argmin(q))
+        self.last_min_quality = float(q[worst])
         if q[worst] <= 0.0:
             raise MeshQualityError(f"element {worst} inverted (quality {q[worst]:.3g}) at "
                                    f"{x[self.cells[worst]].mean(0)}: remesh needed")

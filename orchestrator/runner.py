@@ -98,17 +98,15 @@ def _check_resumable(case: Case, out: Path) -> None:
 
 def _dispatch(case: Case, results: ResultsFolder, *, quiet: bool, resume: bool,
               comm: MPI.Comm) -> dict[str, float]:
-    if case.case.kind == "mechanics":
-        from .mechanics_run import run_mechanics
-        from .plots import plot_energies, plot_probes, plot_time_step
+    from .driver import run_case_loop
+    from .plots import plot_energies, plot_probes, plot_time_step
 
-        run = run_mechanics(case, results, quiet=quiet, resume=resume, comm=comm)
-        if case.output.plots and comm.rank == 0:
-            plot_energies(run.history, results.plots)
-            plot_time_step(run.history, results.plots)
-            plot_probes(run.history, results.plots)
-        return run.metrics
-    raise NotImplementedError(f"case.kind = {case.case.kind!r} has no driver")
+    run = run_case_loop(case, results, quiet=quiet, resume=resume, comm=comm)
+    if case.output.plots and comm.rank == 0:
+        plot_energies(run.history, results.plots)
+        plot_time_step(run.history, results.plots)
+        plot_probes(run.history, results.plots)
+    return run.metrics
 
 
 @contextmanager

@@ -1,7 +1,7 @@
 """Drive a case through the staggered loop into a results folder.
 
-A mechanics case is the loop with the pressure-pulse load provider and n = 1; the coupled cases
-plug the GetDP load in through the same path. The run stops at output milestones (every
+A mechanics case is the loop with the pressure-pulse load provider and n = 1; a coupled case is
+the same loop with the GetDP eddy-current load and the case's n. The run stops at output milestones (every
 ``output.field_interval``): there it writes fields, flushes ``history.csv`` and a checkpoint, so
 ``pulseform run --resume`` continues from the last milestone to the same result.
 """
@@ -24,6 +24,7 @@ from .history import History
 from .loop import StaggeredLoop
 from .mech_model import build_solver
 from .mech_participants import DolfinxMechanics, PressurePulses
+from .participants import LoadProvider
 from .progress import Progress
 from .results import ResultsFolder
 
@@ -59,11 +60,18 @@ class CaseDriver:
     def __init__(self, case: Case, results: ResultsFolder, comm: MPI.Comm) -> None:
         self.case, self.results, self.comm = case, results, comm
         t0 = _time.perf_counter()
-        self.solver = build_solver(case, comm)
+        if case.case.kind == "coupled":
+            self.solver, load = _coupled_participants(case, results, comm)
+            n = case.coupling.n
+        else:
+            self.solver, load, n = build_solver(case, comm), PressurePulses(case.loads), 1
         self.setup_s = _time.perf_counter() - t0
         self.mechanics = DolfinxMechanics(self.solver)
-        self.loop = StaggeredLoop(PressurePulses(case.loads), self.mechanics, n=1, dt_max=case.time.dt_max)
+        self.load: LoadProvider = load
+        self.loop = StaggeredLoop(load, self.mechanics, n=n, dt_max=case.time.dt_max)
         self.probes = probe_mod.attach(self.solver, case.probes, comm)
+        self.load_columns = LOAD_COLUMNS_COUPLED if case.case.kind == "coupled" else \
+            tuple(f"load{i}_pressure_Pa" for i in range(len(case.loads)))
         self.history = History(results.root / "history.csv")
         self.part = 0
         self._since_record = 0
@@ -78,9 +86,9 @@ class CaseDriver:
                "dt_s": step_row["dt_s"] if step_row else 0.0}
         row.update({f"energy_{k}": float(v) for k, v in s.energies().items()})
         row.update(probe_mod.sample(s, self.probes, self.comm))
-        if self.case.loads:
-            for i in range(len(self.case.loads)):
-                row[f"load{i}_pressure_Pa"] = step_row.get(f"load{i}_pressure_Pa", 0.0) if step_row else 0.0
+        row.update(body_extremes(s, self.comm))
+        for key in self.load_columns:
+            row[key] = step_row.get(key, 0.0) if step_row else 0.0
         self.history.record(row)
 
     def _on_em_step(self, row: dict[str, float]) -> None:
@@ -96,6 +104,7 @@ class CaseDriver:
         """Write the checkpoint (one file per rank) and flush the history."""
         arrays = {f"solver/{k}": v for k, v in self.mechanics.state_dict().items()}
         arrays.update({f"loop/{k}": v for k, v in self.loop.counters.state_dict().items()})
+        arrays.update({f"load/{k}": v for k, v in self.load.state_dict().items()})
         arrays["history/rows"] = np.array(self.history.rows)
         meta = {"columns": self.history.columns, "part": self.part, "ranks": self.comm.size,
                 "since_record": self._since_record}
@@ -113,6 +122,7 @@ class CaseDriver:
             raise NothingToResume(f"{path}: written by {meta['ranks']} ranks, resuming on {self.comm.size}")
         self.mechanics.load_state_dict({k[7:]: v for k, v in arrays.items() if k.startswith("solver/")})
         self.loop.counters.load_state_dict({k[5:]: v for k, v in arrays.items() if k.startswith("loop/")})
+        self.load.load_state_dict({k[5:]: v for k, v in arrays.items() if k.startswith("load/")})
         self.history.columns = list(meta["columns"])
         self.history.rows = [list(r) for r in arrays["history/rows"]]
         self.part = int(meta["part"]) + 1
@@ -155,13 +165,64 @@ class CaseDriver:
         metrics = {"mech_steps": float(s.step_count), "em_steps": float(c.em_steps),
                    "end_time_s": float(s.time), "setup_time_s": self.setup_s,
                    "mech_time_s": c.mech_time_s, "load_time_s": c.em_time_s}
-        if case.loads:
+        if case.loads or case.case.kind == "coupled":
             metrics["force_impulse_Ns"] = float(np.linalg.norm(c.impulse))
+            metrics["force_impulse_z_Ns"] = float(c.impulse[1])
+        if case.case.kind == "coupled":
+            metrics.update(coupled_metrics(self.history, c))
         metrics.update(mech_metrics(s, case, self.history))
         return MechanicsRun(s, self.history, metrics)
 
 
-def run_mechanics(case: Case, results: ResultsFolder, *, quiet: bool = False, resume: bool = False,
+LOAD_COLUMNS_COUPLED = ("force_x_N", "force_y_N", "conservation_error_rel", "coil_current_A", "coil_voltage_V",
+                        "capacitor_voltage_V", "coil_joule_heat_J", "coil_temperature_rise_K",
+                        "magnetic_energy_J", "workpiece_joule_power_W", "getdp_force_z_N",
+                        "em_mesh_min_quality")
+
+
+def _coupled_participants(case: Case, results: ResultsFolder, comm: MPI.Comm):
+    """Mesh the EM setup, cut the workpiece's mechanical mesh from it, build solver and GetDP load."""
+    from .em_participant import GetDPLoad, em_model
+    from .emf_geometry import build_em_geometry
+    from .shared_mesh import conductor_submesh, match_nodes, to_dolfinx
+
+    if comm.size > 1:
+        raise NotImplementedError("coupled runs are serial for now (getdp runs once per EM step)")
+    geometry = build_em_geometry(case.geometry)
+    sub = conductor_submesh(geometry.mesh, geometry.regions["workpiece"])
+    body = next(b.name for b in case.bodies if b.region == "workpiece")
+    solver = build_solver(case, comm, {"workpiece": to_dolfinx(sub, comm)})
+    scale = float(np.abs(geometry.mesh.points).max())
+    body_to_em = match_nodes(solver.bodies[body].X0, geometry.mesh.points, 1e-12 * scale)
+    load = GetDPLoad(geometry, em_model(case, geometry), results.root / "em", body, sub, body_to_em,
+                     keep_runs=case.em.keep_runs)
+    return solver, load
+
+
+def body_extremes(solver, comm: MPI.Comm) -> dict[str, float]:
+    """Per body: largest |u_y| (deflection, m) and largest speed (m/s) over its nodes."""
+    out = {}
+    for name, b in solver.bodies.items():
+        uy = float(np.abs(b.u[: b.n_owned, 1]).max()) if b.n_owned else 0.0
+        sp = float(np.sqrt((b.v[: b.n_owned] ** 2).sum(axis=1)).max()) if b.n_owned else 0.0
+        out[f"{name}_max_uy_m"] = comm.allreduce(uy, op=MPI.MAX)
+        out[f"{name}_max_speed_m_s"] = comm.allreduce(sp, op=MPI.MAX)
+    return out
+
+
+def coupled_metrics(history: History, counters) -> dict[str, float]:
+    """EM figures of a coupled run from its history: current, heat, conservation."""
+    current = history.column("coil_current_A")
+    return {
+        "coil_current_peak_kA": float(np.abs(current).max()) / 1e3,
+        "coil_joule_heat_J": float(history.column("coil_joule_heat_J")[-1]),
+        "coil_temperature_rise_K": float(history.column("coil_temperature_rise_K")[-1]),
+        "conservation_error_rel": float(counters.ledger_max),
+        "em_time_s": float(counters.em_time_s),
+    }
+
+
+def run_case_loop(case: Case, results: ResultsFolder, *, quiet: bool = False, resume: bool = False,
                   comm: MPI.Comm = MPI.COMM_WORLD) -> MechanicsRun:
     """Integrate ``case`` to ``time.end`` and write history, fields and checkpoints into ``results``."""
     driver = CaseDriver(case, results, comm)
@@ -182,6 +243,11 @@ def mech_metrics(solver, case: Case, history: History) -> dict[str, float]:
     }
     local = max((float(np.max(b.von_mises)) for b in solver.bodies.values() if len(b.von_mises)), default=0.0)
     out["von_mises_final_max_MPa"] = solver.comm.allreduce(local, op=MPI.MAX) / 1e6
+    for b in case.bodies:
+        out[f"{b.name}_max_uy_mm"] = float(history.column(f"{b.name}_max_uy_m").max()) * 1e3
+        out[f"{b.name}_max_speed_m_s"] = float(history.column(f"{b.name}_max_speed_m_s").max())
+        if b.region == "workpiece":
+            out["max_deflection_mm"] = out[f"{b.name}_max_uy_mm"]
     for p in case.probes:
         if p.quantity == "contact_pressure":
             t = history.column("time_s")

@@ -1,0 +1,162 @@
+"""The GetDP eddy-current load provider of the staggered loop.
+
+Each EM step [t0, t1]:
+
+1. the EM mesh follows the mechanics: workpiece nodes take the mechanical displacement (the meshes
+   share them), coil, shell and outer boundary stay, axis nodes slide along z, the rest of the air
+   is smoothed harmonically (:class:`~.mesh_motion.MeshMover`); an inverted or degenerate element
+   raises before the mesh reaches GetDP;
+2. getdp runs one implicit-Euler step on the moved mesh, restarting from the previous ``.res``;
+3. the per-element force density f = j × B (N/m³) of the workpiece becomes consistent nodal forces
+   ∫ N_i f 2πr dA on the shared nodes; the ledger compares their sum with Σ f_e V_e.
+
+The returned force is GetDP's end-of-step (implicit Euler) value, held over the n substeps.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import shutil
+from pathlib import Path
+
+import numpy as np
+
+from pulseform.solvers.getdp import Circuit, Coil, Conductor, DampedSine, EMModel, EMState, GetDPSolver
+from pulseform.solvers.getdp.mesh import AXIS as AXIS_TAG
+from pulseform.solvers.getdp.mesh import OUTER as OUTER_TAG
+from pulseform.solvers.getdp.mesh import SHELL as SHELL_TAG
+
+from .case import Case
+from .emf_geometry import EMGeometry
+from .mesh_motion import MeshMover
+from .participants import LoadStep
+from .shared_mesh import ConductorMesh
+from .transfer import cell_force_integral, cell_to_nodal_forces
+
+log = logging.getLogger(__name__)
+
+
+def em_model(case: Case, geometry: EMGeometry) -> EMModel:
+    """The GetDP model of a coupled case: one stranded coil, the workpiece as massive conductor 1."""
+    em, g = case.em, case.geometry
+    wave = None
+    if em.current is not None:
+        wave = DampedSine(I0=em.current.amplitude, beta=em.current.beta, omega=em.current.omega)
+    coil = Coil(turns=g.turns, sigma=em.coil_conductivity, waveform=wave, density=em.coil_density,
+                heat_capacity=em.coil_heat_capacity)
+    work = next(b for b in case.bodies if b.region == "workpiece")
+    sigma = case.materials[work.material].electrical_conductivity
+    if sigma <= 0.0:
+        raise ValueError(f"materials.{work.material}.electrical_conductivity must be > 0 for the workpiece")
+    circuit = None
+    if em.circuit is not None:
+        c = em.circuit
+        circuit = Circuit(C=c.capacitance, V0=c.voltage, R_ext=c.resistance, L_ext=c.inductance)
+    return EMModel(axisymmetric=True, coils=[coil], conductors=[Conductor(sigma=sigma, name=work.name)],
+                   circuit=circuit, shell=(g.air_radius, g.shell_radius))
+
+
+class GetDPLoad:
+    """Load provider: GetDP eddy-current forces on the workpiece body (see the module docstring).
+
+    Parameters
+    ----------
+    geometry : EMGeometry
+        The EM mesh and its regions.
+    model : EMModel
+        The GetDP model.
+    work_dir : Path
+        Folder of the getdp runs (one sub-folder per EM step).
+    body : str
+        Name of the mechanical body that is the workpiece.
+    sub : ConductorMesh
+        The workpiece cut from the EM mesh.
+    body_to_em : ndarray
+        EM node index of each of the body's (local) nodes.
+    keep_runs : bool
+        Keep every run folder (default: only the last two).
+    """
+
+    def __init__(self, geometry: EMGeometry, model: EMModel, work_dir: Path, body: str, sub: ConductorMesh,
+                 body_to_em: np.ndarray, keep_runs: bool = False) -> None:
+        self.geometry, self.body, self.sub, self.body_to_em = geometry, body, sub, body_to_em
+        self.keep_runs = keep_runs
+        self.solver = GetDPSolver(model, work_dir)
+        self.state = self.solver.initial_state(0.0)
+        mesh = geometry.mesh
+        self.x_ref = mesh.points.copy()
+        fixed = np.unique(np.concatenate([
+            mesh.triangles[mesh.tri_tags == geometry.regions["coil"]].ravel(),
+            mesh.triangles[mesh.tri_tags == SHELL_TAG].ravel(),
+            mesh.lines[mesh.line_tags == OUTER_TAG].ravel(),
+            sub.em_nodes]))
+        axis = np.unique(mesh.lines[mesh.line_tags == AXIS_TAG].ravel())
+        self.mover = MeshMover(self.x_ref, mesh.triangles, (np.union1d(fixed, axis), fixed))
+        self.min_quality = float(self.mover.q_ref.min())
+        self._runs: list[Path] = []
+        self._pinned: Path | None = None  # run folder the last checkpoint restarts from
+
+    def load(self, t0: float, t1: float, t_mid: float, mechanics) -> LoadStep:
+        """Move the EM mesh with the workpiece, run one getdp step to ``t1``, return nodal forces (N)."""
+        x_body = mechanics.positions()[self.body]
+        u = np.zeros_like(self.x_ref)
+        u[self.body_to_em] = x_body[:, :2] - self.x_ref[self.body_to_em]
+        x_em = self.mover.moved(u)
+        self.min_quality = min(self.min_quality, float(self.mover.last_min_quality))
+        mesh_k = self.geometry.mesh.with_points(x_em)
+        if abs(self.state.t - t0) > 1e-9 * max(t1, 1e-300):
+            raise RuntimeError(f"EM state at t = {self.state.t:.9g} s, but the step starts at {t0:.9g} s")
+        result, self.state = self.solver.step(mesh_k, self.state, t1, n_sub=1)
+        self._prune(Path(result.path))
+        work_tag = self.geometry.regions["workpiece"]
+        keep = result.element_tags == work_tag
+        rows = result.elements[keep]
+        f = result.force_density[-1][keep]
+        tris = mesh_k.triangles[rows]
+        f_em = cell_to_nodal_forces(x_em, tris, f, axisymmetric=True)
+        forces = {self.body: f_em[self.body_to_em]}
+        integral = cell_force_integral(x_em, tris, f, axisymmetric=True)
+        getdp_total = result.conductor_force[-1, 0]
+        values = {
+            "coil_current_A": float(result.coil_current[-1, 0]),
+            "coil_voltage_V": float(result.coil_voltage[-1, 0]),
+            "capacitor_voltage_V": float(result.capacitor_voltage[-1]) if result.capacitor_voltage is not None else 0.0,
+            "coil_joule_heat_J": float(result.coil_heat[0]),
+            "coil_temperature_rise_K": float(result.coil_temperature_rise[0]),
+            "magnetic_energy_J": float(result.magnetic_energy[-1]),
+            "workpiece_joule_power_W": float(result.conductor_power[-1, 0]),
+            "getdp_force_z_N": float(getdp_total[1]),
+            "em_mesh_min_quality": float(self.mover.last_min_quality),
+        }
+        return LoadStep(forces, integral, values)
+
+    def _prune(self, newest: Path) -> None:
+        """Delete run folders older than the last two, except the one the last checkpoint needs."""
+        self._runs.append(newest)
+        if self.keep_runs:
+            return
+        for old in self._runs[:-2]:
+            if old != self._pinned:
+                shutil.rmtree(old, ignore_errors=True)
+        self._runs = [p for p in self._runs[:-2] if p == self._pinned] + self._runs[-2:]
+
+    def state_dict(self) -> dict[str, np.ndarray]:
+        """EM state (time, circuit, previous .res path, nodal unknown) as a JSON byte array.
+
+        Called when a checkpoint is written: the run folder holding the state's ``.res`` is kept
+        until the next checkpoint, so a resume can restart from it.
+        """
+        if self.state.res_path:
+            self._pinned = Path(self.state.res_path).parent
+        blob = json.dumps({"state": self.state.to_dict(), "runs": [str(p) for p in self._runs],
+                           "min_quality": self.min_quality}).encode()
+        return {"em_state_json": np.frombuffer(blob, dtype=np.uint8)}
+
+    def load_state_dict(self, d: dict[str, np.ndarray]) -> None:
+        """Restore :meth:`state_dict`."""
+        data = json.loads(bytes(d["em_state_json"]).decode())
+        self.state = EMState.from_dict(data["state"])
+        self._runs = [Path(p) for p in data["runs"]]
+        self.min_quality = float(data["min_quality"])
+        self._pinned = Path(self.state.res_path).parent if self.state.res_path else None
