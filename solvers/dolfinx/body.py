@@ -4,8 +4,8 @@ node, owned nodes first, then ghosts)."""
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, field
-from typing import Callable, Optional, Sequence
+from dataclasses import dataclass
+from typing import Optional, Sequence
 
 import numpy as np
 import ufl
@@ -238,6 +238,35 @@ class Body:
         n = x.shape[0]
         return (np.bincount(segs[:, 0], weights=wa, minlength=n)
                 + np.bincount(segs[:, 1], weights=wb, minlength=n))
+
+    def pressure_forces(self, facet_marker, pressure: float) -> np.ndarray:
+        """Consistent nodal forces (N) of a uniform follower pressure (Pa, positive pushes into
+        the body) on the exterior facets whose two vertices satisfy ``facet_marker`` (evaluated on
+        current coordinates (3, N)); complete on every local row (ghosts too)."""
+        b = self
+        segs = b.segments
+        f = np.zeros((b.n_local, 2))
+        if segs.shape[0]:
+            x3 = np.zeros((3, b.n_local))
+            x3[:2] = b.x.T
+            mark = np.asarray(facet_marker(x3), dtype=bool)
+            segs = segs[mark[segs[:, 0]] & mark[segs[:, 1]]]
+        if segs.shape[0]:
+            pa, pb = b.x[segs[:, 0]], b.x[segs[:, 1]]
+            t = pb - pa
+            ln = np.linalg.norm(t, axis=1)
+            nout = np.stack([t[:, 1], -t[:, 0]], axis=1) / ln[:, None]
+            if b.axisymmetric:
+                wa = 2 * np.pi * ln * (2 * pa[:, 0] + pb[:, 0]) / 6.0
+                wb = 2 * np.pi * ln * (pa[:, 0] + 2 * pb[:, 0]) / 6.0
+            else:
+                wa = wb = 0.5 * ln * b.thickness
+            for c in range(2):
+                f[:, c] -= pressure * (np.bincount(segs[:, 0], weights=wa * nout[:, c],
+                                                   minlength=b.n_local)
+                                       + np.bincount(segs[:, 1], weights=wb * nout[:, c],
+                                                     minlength=b.n_local))
+        return b.complete_nodal(f)
 
     # ------------------------------------------------------------------ derived fields
     @property

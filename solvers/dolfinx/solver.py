@@ -425,30 +425,7 @@ class ExplicitSolver:
             Nodal forces, N (planar: times thickness; axisymmetric: the full 2 pi ring); every row
             (ghosts too) holds the complete force of its node.
         """
-        b = self.bodies[body]
-        segs = b.segments
-        f = np.zeros((b.n_local, 2))
-        if segs.shape[0]:
-            x3 = np.zeros((3, b.n_local))
-            x3[:2] = b.x.T
-            mark = np.asarray(facet_marker(x3), dtype=bool)
-            segs = segs[mark[segs[:, 0]] & mark[segs[:, 1]]]
-        if segs.shape[0]:
-            pa, pb = b.x[segs[:, 0]], b.x[segs[:, 1]]
-            t = pb - pa
-            ln = np.linalg.norm(t, axis=1)
-            nout = np.stack([t[:, 1], -t[:, 0]], axis=1) / ln[:, None]
-            if b.axisymmetric:
-                wa = 2 * np.pi * ln * (2 * pa[:, 0] + pb[:, 0]) / 6.0
-                wb = 2 * np.pi * ln * (pa[:, 0] + 2 * pb[:, 0]) / 6.0
-            else:
-                wa = wb = 0.5 * ln * b.thickness
-            for c in range(2):
-                f[:, c] -= pressure * (np.bincount(segs[:, 0], weights=wa * nout[:, c],
-                                                   minlength=b.n_local)
-                                       + np.bincount(segs[:, 1], weights=wb * nout[:, c],
-                                                     minlength=b.n_local))
-        return b.complete_nodal(f)
+        return self.bodies[body].pressure_forces(facet_marker, pressure)
 
     # ------------------------------------------------------------------ restart
     def state_dict(self) -> Dict[str, np.ndarray]:

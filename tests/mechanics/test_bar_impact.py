@@ -5,7 +5,6 @@ References: eq. (6) sigma = rho c v / 2 with the 1D bar speed c = sqrt(E / rho) 
 sqrt(E / (rho (1 - nu^2))) -> 73.9 MPa. The rigid-wall variant (5 m/s) must give the two-body
 plateau, the impact plane being a symmetry plane.
 """
-import numpy as np
 import pytest
 
 from pulseform.solvers.dolfinx.verification import PAPER_BAR_MATERIAL as MAT
