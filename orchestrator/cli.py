@@ -44,15 +44,28 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
+class _ConsoleFilter(logging.Filter):
+    """pulseform's own records from INFO (WARNING with --quiet); other libraries' from WARNING."""
+
+    def __init__(self, quiet: bool) -> None:
+        super().__init__()
+        self.own_level = logging.WARNING if quiet else logging.INFO
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        if record.name == "pulseform" or record.name.startswith("pulseform."):
+            return record.levelno >= self.own_level
+        return record.levelno >= logging.WARNING
+
+
 def _setup_logging(quiet: bool) -> None:
+    """One console handler on the root logger. Installed before dolfinx is imported, it also
+    turns FFCx's ``logging.basicConfig()`` into a no-op, so JIT compiler chatter stays off the
+    terminal (it still reaches run.log)."""
     handler = logging.StreamHandler(sys.stderr)
     handler.setFormatter(logging.Formatter("%(levelname)s: %(message)s"))
-    handler.setLevel(logging.WARNING if quiet else logging.INFO)
-    root = logging.getLogger("pulseform")
-    root.addHandler(handler)
-    root.setLevel(logging.INFO)
-    root.propagate = False  # FFCx calls logging.basicConfig(): keep our records off its root handler
-    logging.getLogger().setLevel(logging.WARNING)  # and its JIT compiler chatter off the terminal
+    handler.addFilter(_ConsoleFilter(quiet))
+    logging.getLogger().addHandler(handler)
+    logging.getLogger("pulseform").setLevel(logging.INFO)
 
 
 def _error(msg: str, code: int) -> int:

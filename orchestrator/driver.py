@@ -20,6 +20,7 @@ from pulseform.solvers import dolfinx as mech
 from . import probes as probe_mod
 from .case import Case
 from .checkpoint import CHECKPOINT_NAME, load_checkpoint, save_checkpoint
+from .em_fields import EMFieldWriter
 from .history import History
 from .loop import StaggeredLoop
 from .mech_model import build_solver
@@ -42,6 +43,8 @@ class MechanicsRun:
     solver: object
     history: History
     metrics: dict[str, float] = field(default_factory=dict)
+    shapes: list = field(default_factory=list)
+    em_snapshot: tuple | None = None
 
 
 def milestones(end: float, interval: float) -> np.ndarray:
@@ -75,6 +78,7 @@ class CaseDriver:
         self.history = History(results.root / "history.csv")
         self.part = 0
         self._since_record = 0
+        self.shapes: list[tuple[float, dict[str, np.ndarray]]] = []  # rank 0: node positions per milestone
         interval = case.output.field_interval or case.time.end / 20.0
         self.stops = milestones(case.time.end, interval)
 
@@ -96,6 +100,13 @@ class CaseDriver:
         if self._since_record >= self.case.output.history_every:
             self._since_record = 0
             self.record(row)
+
+    def _keep_shape(self) -> None:
+        """Gather every body's owned node positions on rank 0 (for the shapes plot)."""
+        local = {n: b.x[: b.n_owned].copy() for n, b in self.solver.bodies.items()}
+        gathered = self.comm.gather(local, root=0)
+        if self.comm.rank == 0:
+            self.shapes.append((self.solver.time, {n: np.vstack([g[n] for g in gathered]) for n in local}))
 
     def _rank_file(self) -> str:
         return CHECKPOINT_NAME if self.comm.size == 1 else f"checkpoint.rank{self.comm.rank}.npz"
@@ -135,9 +146,12 @@ class CaseDriver:
         s, case = self.solver, self.case
         prefix = self.results.fields / (case.case.name + (f"_part{self.part}" if self.part else ""))
         writer = mech.FieldWriter(s, str(prefix))
+        em_writer = EMFieldWriter(self.results.fields / (f"em_part{self.part}" if self.part else "em")) \
+            if hasattr(self.load, "snapshot") and self.comm.rank == 0 else None
         if not self.history.rows:
             self.record()
         writer.write(s.time)
+        self._keep_shape()
         try:
             with Progress(case.time.end, quiet=quiet or self.comm.rank != 0, desc=case.case.name) as bar:
                 bar.update_to(s.time)
@@ -153,6 +167,10 @@ class CaseDriver:
                     if self.history.rows[-1][0] != s.time:
                         self.record({"dt_s": float("nan")})
                     writer.write(s.time)
+                    self._keep_shape()
+                    snap = self.load.snapshot() if em_writer is not None else None
+                    if snap is not None:
+                        em_writer.write(s.time, *snap)
                     self.checkpoint()
         except Exception:
             if self.comm.rank == 0:
@@ -171,7 +189,8 @@ class CaseDriver:
         if case.case.kind == "coupled":
             metrics.update(coupled_metrics(self.history, c))
         metrics.update(mech_metrics(s, case, self.history))
-        return MechanicsRun(s, self.history, metrics)
+        snap = self.load.snapshot() if hasattr(self.load, "snapshot") else None
+        return MechanicsRun(s, self.history, metrics, self.shapes, snap)
 
 
 LOAD_COLUMNS_COUPLED = ("force_x_N", "force_y_N", "conservation_error_rel", "coil_current_A", "coil_voltage_V",

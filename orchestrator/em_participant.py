@@ -96,6 +96,7 @@ class GetDPLoad:
         self.min_quality = float(self.mover.q_ref.min())
         self._runs: list[Path] = []
         self._pinned: Path | None = None  # run folder the last checkpoint restarts from
+        self.last = None  # (moved EM points, EMStepResult) of the latest step
 
     def load(self, t0: float, t1: float, t_mid: float, mechanics) -> LoadStep:
         """Move the EM mesh with the workpiece, run one getdp step to ``t1``, return nodal forces (N)."""
@@ -108,6 +109,7 @@ class GetDPLoad:
         if abs(self.state.t - t0) > 1e-9 * max(t1, 1e-300):
             raise RuntimeError(f"EM state at t = {self.state.t:.9g} s, but the step starts at {t0:.9g} s")
         result, self.state = self.solver.step(mesh_k, self.state, t1, n_sub=1)
+        self.last = (x_em, result)
         self._prune(Path(result.path))
         work_tag = self.geometry.regions["workpiece"]
         keep = result.element_tags == work_tag
@@ -130,6 +132,21 @@ class GetDPLoad:
             "em_mesh_min_quality": float(self.mover.last_min_quality),
         }
         return LoadStep(forces, integral, values)
+
+    def snapshot(self) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]] | None:
+        """The latest step's EM mesh and per-element fields (zero outside the conductors)."""
+        if self.last is None:
+            return None
+        x, r = self.last
+        mesh = self.geometry.mesh
+        m = len(mesh.triangles)
+        f, p, b = np.zeros((m, 3)), np.zeros(m), np.zeros((m, 3))
+        f[r.elements, :2] = r.force_density[-1]
+        p[r.elements] = r.joule_density[-1]
+        b[r.elements, :2] = r.flux_density[-1]
+        data = {"region": mesh.tri_tags.astype(np.int32), "force_density_N_m3": f,
+                "joule_power_density_W_m3": p, "flux_density_T": b}
+        return x, mesh.triangles, data
 
     def _prune(self, newest: Path) -> None:
         """Delete run folders older than the last two, except the one the last checkpoint needs."""

@@ -70,3 +70,53 @@ def plot_time_step(history: History, folder: Path) -> Path:
     ax.set_ylabel("dt [µs]")
     ax.grid(alpha=0.3)
     return _save(fig, folder / "time_step.png")
+
+
+def plot_em_snapshot(points, triangles, data: dict, folder: Path, t: float, box=None) -> Path:
+    """Force-density magnitude (N/m³, log scale) on the moved EM mesh, mesh edges in grey."""
+    import numpy as np
+    from matplotlib.colors import LogNorm
+    from matplotlib.tri import Triangulation
+
+    f = np.linalg.norm(data["force_density_N_m3"][:, :2], axis=1)
+    tri = Triangulation(points[:, 0] * 1e3, points[:, 1] * 1e3, triangles)
+    fig, ax = plt.subplots(figsize=(8, 4))
+    ax.triplot(tri, color="0.8", lw=0.2)
+    pos = f > 0
+    if pos.any():
+        tri_c = Triangulation(points[:, 0] * 1e3, points[:, 1] * 1e3, triangles[pos])
+        pc = ax.tripcolor(tri_c, facecolors=f[pos], norm=LogNorm(vmin=f[pos].max() * 1e-3, vmax=f[pos].max()),
+                          cmap="inferno")
+        fig.colorbar(pc, ax=ax, label="|j × B| [N/m³]")
+    coil = data["region"] // 100 == 1
+    if coil.any():
+        tri_k = Triangulation(points[:, 0] * 1e3, points[:, 1] * 1e3, triangles[coil])
+        ax.tripcolor(tri_k, facecolors=np.ones(coil.sum()), cmap="Greens", vmin=0, vmax=2, alpha=0.6)
+    if box is not None:
+        ax.set_xlim(box[0] * 1e3, box[1] * 1e3)
+        ax.set_ylim(box[2] * 1e3, box[3] * 1e3)
+    ax.set_aspect("equal")
+    ax.set_xlabel("r [mm]")
+    ax.set_ylabel("z [mm]")
+    ax.set_title(f"Lorentz force density, t = {t * 1e6:.1f} µs (coil in green)")
+    return _save(fig, folder / "em_force_density.png")
+
+
+def plot_shapes(shapes: list, folder: Path, axisymmetric: bool) -> Path:
+    """Node positions of every body at each field-output time (mm), coloured by time."""
+    import numpy as np
+
+    fig, ax = plt.subplots(figsize=(8, 4))
+    cmap = plt.get_cmap("viridis")
+    times = [t for t, _ in shapes]
+    tmax = max(times[-1], 1e-300)
+    for t, bodies in shapes:
+        for x in bodies.values():
+            ax.plot(x[:, 0] * 1e3, x[:, 1] * 1e3, ".", ms=1.0, color=cmap(t / tmax))
+    sm = plt.cm.ScalarMappable(cmap=cmap, norm=plt.Normalize(0, tmax * 1e6))
+    fig.colorbar(sm, ax=ax, label="time [µs]")
+    ax.set_xlabel("r [mm]" if axisymmetric else "x [mm]")
+    ax.set_ylabel("z [mm]" if axisymmetric else "y [mm]")
+    ax.set_title("Shapes at the field-output times (axes not to scale)")
+    ax.grid(alpha=0.3)
+    return _save(fig, folder / "shapes.png")

@@ -27,19 +27,19 @@ class ResumeError(ValueError):
 
 @contextmanager
 def run_log(path: Path) -> Iterator[None]:
-    """Send every ``pulseform`` log record of this run to ``path`` (DEBUG and up)."""
+    """Send this run's log records to ``path``: pulseform's from DEBUG, other libraries' as they come."""
     handler = logging.FileHandler(path, mode="a", encoding="utf-8")
     handler.setLevel(logging.DEBUG)
     handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)-7s %(name)s: %(message)s"))
-    root = logging.getLogger("pulseform")
-    old_level = root.level
-    root.setLevel(logging.DEBUG)
-    root.addHandler(handler)
+    own = logging.getLogger("pulseform")
+    old_level = own.level
+    own.setLevel(logging.DEBUG)
+    logging.getLogger().addHandler(handler)
     try:
         yield
     finally:
-        root.removeHandler(handler)
-        root.setLevel(old_level)
+        logging.getLogger().removeHandler(handler)
+        own.setLevel(old_level)
         handler.close()
 
 
@@ -99,14 +99,30 @@ def _check_resumable(case: Case, out: Path) -> None:
 def _dispatch(case: Case, results: ResultsFolder, *, quiet: bool, resume: bool,
               comm: MPI.Comm) -> dict[str, float]:
     from .driver import run_case_loop
-    from .plots import plot_energies, plot_probes, plot_time_step
+    from .plots import plot_em_snapshot, plot_energies, plot_probes, plot_shapes, plot_time_step
 
     run = run_case_loop(case, results, quiet=quiet, resume=resume, comm=comm)
     if case.output.plots and comm.rank == 0:
         plot_energies(run.history, results.plots)
         plot_time_step(run.history, results.plots)
         plot_probes(run.history, results.plots)
+        if run.shapes:
+            plot_shapes(run.shapes, results.plots, case.mechanics.formulation == "axisymmetric")
+        if run.em_snapshot is not None:
+            plot_em_snapshot(*run.em_snapshot, results.plots, run.solver.time, box=_em_plot_box(case))
     return run.metrics
+
+
+def _em_plot_box(case: Case) -> tuple[float, float, float, float] | None:
+    """Region of interest (m) for the EM plot: the coil and workpiece with a margin."""
+    g = case.geometry
+    if g is None:
+        return None
+    if g.type == "flat_coil_sheet":
+        r = 1.15 * g.sheet_radius
+        return (0.0, r, -3 * g.turn_height, g.coil_gap + 0.25 * r)
+    half = 0.6 * max(g.tube_length, g.turns * (g.turn_height + g.turn_gap))
+    return (0.0, 1.5 * (g.tube_inner_radius + g.tube_thickness), -half, half)
 
 
 @contextmanager

@@ -5,5 +5,5 @@ here="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 bash "$here/scripts/setup.sh"
 cd "$here"
 export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
-DEMO_CASE="${DEMO_CASE:-cases/bar_impact}"
+DEMO_CASE="${DEMO_CASE:-cases/emf_sheet_bulge}"
 exec .venv/bin/pulseform run "$DEMO_CASE" --out results/demo --force "$@"
