@@ -87,7 +87,9 @@ class ExplicitSolver:
         self._prm = {n: pack_parameters(b.material, self.mode, thickness, bulk_linear,
                                         bulk_quadratic, bulk_viscosity)
                      for n, b in self.bodies.items()}
-        self._cmask = {n: b.constrained_mask() for n, b in self.bodies.items()}
+        # flat indices of the constrained velocity components (a = 0 there)
+        self._cidx = {n: np.flatnonzero(b.constrained_mask().ravel())
+                      for n, b in self.bodies.items()}
         self.contact_pairs = tuple(contact_pairs)
         self.rigid_walls = tuple(rigid_walls)
         for cp in self.contact_pairs:
@@ -109,6 +111,7 @@ class ExplicitSolver:
         self._acc = {k: 0.0 for k in _ACC_KEYS}
         self._contact_stored = 0.0
         self._fext = {n: np.zeros((b.n_local, 2)) for n, b in self.bodies.items()}
+        self._fext_nonzero = {n: False for n in self.bodies}
         self._contact_out = [None] * len(self.contact_pairs)
         self._fsurf_prev = {n: np.zeros((len(sf.gids), 2)) for n, sf in self._surf.items()}
         self._contact_work = 0.0
@@ -194,12 +197,15 @@ class ExplicitSolver:
             b.v += dt_avg * b.a
             b.apply_velocity_constraints(t_new, dt)
             no = b.n_owned
-            wext += dt * float(np.sum(b.v[:no] * 0.5 * (self._fext[n][:no] + fext[n][:no])))
+            if self._fext[n] is not fext[n] or self._fext_nonzero[n]:
+                wext += dt * float(np.sum(b.v[:no] * 0.5 * (self._fext[n][:no] + fext[n][:no])))
             b.x += dt * b.v
         self._acc["wall_dissipated_J"] += self._apply_walls()
         self._acc["external_work_J"] += self.comm.allreduce(wext) if self.comm.size > 1 else wext
         for n in self.bodies:
-            self._fext[n] = fext[n]
+            if self._fext[n] is not fext[n]:
+                self._fext[n] = fext[n]
+                self._fext_nonzero[n] = bool(np.any(fext[n]))
         self.time = t_new
         self._compute_forces(dt, update_state=True)
         self._dt_prev = dt
@@ -271,8 +277,9 @@ class ExplicitSolver:
                 self._acc["plastic_J"] += self._sum(acc[0])
                 self._acc["viscous_J"] += self._sum(acc[1])
             dtc = min(dtc, d)
-            f *= -1.0
-            f[: b.n_owned] += self._fext[n][: b.n_owned]
+            np.negative(f, out=f)
+            if self._fext_nonzero[n]:
+                f[: b.n_owned] += self._fext[n][: b.n_owned]
             ftot[n] = b.complete_nodal(f)
         if self.comm.size > 1:
             dtc = self.comm.allreduce(dtc, op=MPI.MIN)
@@ -282,8 +289,8 @@ class ExplicitSolver:
         for n, b in self.bodies.items():
             f = ftot[n]
             self._wall_reactions(n, b, f)
-            b.a[:] = f / b.mass[:, None]
-            b.a[self._cmask[n]] = 0.0
+            np.divide(f, b.mass[:, None], out=b.a)
+            b.a.ravel()[self._cidx[n]] = 0.0
 
     def _sum(self, val: float) -> float:
         return self.comm.allreduce(float(val)) if self.comm.size > 1 else float(val)
@@ -458,6 +465,7 @@ class ExplicitSolver:
                     raise ValueError(f"state for {n}/{key} has shape {arr.shape}, need {cur.shape}")
                 cur[...] = arr
             self._fext[n] = np.array(d[f"{n}/fext"], dtype=float)
+            self._fext_nonzero[n] = bool(np.any(self._fext[n]))
         self.time = float(d["time"])
         self.step_count = int(d["step_count"])
         self._dt_prev = float(d["dt_prev"])
