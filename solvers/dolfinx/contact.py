@@ -150,10 +150,12 @@ class ContactResult:
     stored: float
     dissipation_power: float
     penetration: Optional[tuple]
+    active: tuple = (np.zeros(0, np.int64), np.zeros(0, np.int64))
 
 
 def soft_contact_pass(Xs, Vs, As, Xm, Vm, segm, spec: ContactPairSpec, weight: float = 1.0,
-                      xi_tol: float = 0.02, Ms=None, Mm=None, dt: float = 0.0) -> ContactResult:
+                      xi_tol: float = 0.02, Ms=None, Mm=None, dt: float = 0.0,
+                      previous: Optional[tuple] = None) -> ContactResult:
     """Node-to-segment soft contact of slave nodes against master segments.
 
     Parameters
@@ -178,6 +180,10 @@ def soft_contact_pass(Xs, Vs, As, Xm, Vm, segm, spec: ContactPairSpec, weight: f
         regularised law: its viscous slope mu p A / eps would otherwise exceed 2 m / dt).
     dt : float
         Time step, s (0: no cap).
+    previous : (slave indices, segment indices), optional
+        Contacts of the previous step (``ContactResult.active``): a node that was in contact and
+        now lies behind the same segment (it crossed the whole layer within one step) is reported
+        as a penetration too.
 
     Returns
     -------
@@ -187,12 +193,13 @@ def soft_contact_pass(Xs, Vs, As, Xm, Vm, segm, spec: ContactPairSpec, weight: f
         ``(slave index, h)`` of the worst penetrating node or None.
     """
     ns = Xs.shape[0]
+    tunnel = _tunnelled(Xs, Xm, segm, previous, xi_tol)
     Fs = np.zeros((ns, 2))
     Fm = np.zeros((Xm.shape[0], 2))
     pres = np.full(ns, np.nan)
     gap = np.full(ns, np.nan)
-    empty = ContactResult(Fs, Fm, pres, gap, 0.0, 0.0, None)
-    if ns == 0 or segm.shape[0] == 0:
+    empty = ContactResult(Fs, Fm, pres, gap, 0.0, 0.0, tunnel)
+    if ns == 0 or segm.shape[0] == 0 or tunnel is not None:
         return empty
     h0 = spec.h0
     pa = Xm[segm[:, 0]]
@@ -253,4 +260,22 @@ def soft_contact_pass(Xs, Vs, As, Xm, Vm, segm, spec: ContactPairSpec, weight: f
     pres[si] = p
     gap[si] = h
     stored = float(np.sum(weight * A * spec.stiffness * (np.log(h0 / h) - (h0 - h) / h0)))
-    return ContactResult(Fs, Fm, pres, gap, stored, float(diss), None)
+    return ContactResult(Fs, Fm, pres, gap, stored, float(diss), None, (si, mj))
+
+
+def _tunnelled(Xs, Xm, segm, previous, xi_tol):
+    """(slave index, h) of a previously contacting node now behind its previous segment."""
+    if previous is None or len(previous[0]) == 0:
+        return None
+    si, mj = previous
+    pa = Xm[segm[mj, 0]]
+    t = Xm[segm[mj, 1]] - pa
+    L2 = np.einsum("ij,ij->i", t, t)
+    d = Xs[si] - pa
+    xi = np.einsum("ij,ij->i", d, t) / L2
+    h = (d[:, 0] * t[:, 1] - d[:, 1] * t[:, 0]) / np.sqrt(L2)
+    bad = (h <= 0.0) & (xi >= -xi_tol) & (xi <= 1 + xi_tol)
+    if not bad.any():
+        return None
+    k = int(np.flatnonzero(bad)[np.argmin(h[bad])])
+    return int(si[k]), float(h[k])

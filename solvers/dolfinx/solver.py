@@ -12,6 +12,7 @@ from .contact import (ContactPairSpec, ContactPenetrationError, RigidWallSpec, S
                       soft_contact_pass)
 from .kernels import (MODE_AXISYMMETRIC, MODE_PLANE_STRAIN, MODE_PLANE_STRESS,
                       element_critical_dt, element_step, pack_parameters)
+from . import restart
 from .reference_kernel import element_step_numpy
 
 __all__ = ["ExplicitSolver"]
@@ -20,7 +21,7 @@ log = logging.getLogger(__name__)
 
 _MODES = {"plane_stress": MODE_PLANE_STRESS, "plane_strain": MODE_PLANE_STRAIN,
           "axisymmetric": MODE_AXISYMMETRIC}
-_ACC_KEYS = ("plastic_J", "viscous_J", "external_work_J", "wall_dissipated_J")
+_ACC_KEYS = restart._ACC_KEYS
 
 
 class ExplicitSolver:
@@ -115,6 +116,7 @@ class ExplicitSolver:
         self._contact_out = [None] * len(self.contact_pairs)
         self._fsurf_prev = {n: np.zeros((len(sf.gids), 2)) for n, sf in self._surf.items()}
         self._contact_work = 0.0
+        self._active = {}
         self._wall_out = [dict() for _ in self.rigid_walls]
         self._dt_crit = self._initial_dt_crit()
         # forces at t = 0 (initial stress, contact layers) without changing the state
@@ -318,13 +320,15 @@ class ExplicitSolver:
                 Xs, Vs, As = data[sn]
                 Xm, Vm, _ = data[mn]
                 res = soft_contact_pass(Xs, Vs, As, Xm, Vm, self._surf[mn].seg, cp, wgt,
-                                        Ms=self._surf[sn].M, Mm=self._surf[mn].M, dt=dt)
+                                        Ms=self._surf[sn].M, Mm=self._surf[mn].M, dt=dt,
+                                        previous=self._active.get((ip, k)))
                 if res.penetration is not None:
                     i, h = res.penetration
                     raise ContactPenetrationError(
                         f"t={self.time:.6e} s: node {int(self._surf[sn].gids[i])} of body {sn!r} "
                         f"at ({Xs[i, 0]:.6g}, {Xs[i, 1]:.6g}) m reached h={h:.3e} m <= 0 against "
                         f"body {mn!r} (contact pair {ip})")
+                self._active[(ip, k)] = res.active
                 fsurf[sn] += res.F_slave
                 fsurf[mn] += res.F_master
                 stored += res.stored
@@ -437,49 +441,9 @@ class ExplicitSolver:
     # ------------------------------------------------------------------ restart
     def state_dict(self) -> Dict[str, np.ndarray]:
         """Complete solver state as arrays (exact restart with :meth:`load_state_dict`)."""
-        d: Dict[str, np.ndarray] = {
-            "time": np.array(self.time), "step_count": np.array(self.step_count),
-            "dt_prev": np.array(self._dt_prev), "dt_crit": np.array(self._dt_crit),
-            "E0": np.array(self._E0), "contact_stored": np.array(self._contact_stored),
-            "acc": np.array([self._acc[k] for k in _ACC_KEYS]),
-            "contact_work": np.array(self._contact_work),
-            "contact_stored0": np.array(self._contact_stored0)}
-        for n, f in self._fsurf_prev.items():
-            d[f"{n}/contact_force"] = f.copy()
-        for n, b in self.bodies.items():
-            for key in ("x", "v", "a", "cell_stress", "eps_p"):
-                d[f"{n}/{key}"] = getattr(b, key).copy()
-            d[f"{n}/fext"] = self._fext[n].copy()
-        for i, out in enumerate(self._contact_out):
-            if out is not None:
-                d[f"contact{i}/p"], d[f"contact{i}/h"], d[f"contact{i}/X"] = (a.copy() for a in out)
-        return d
+        return restart.state_dict(self)
 
     def load_state_dict(self, d: Mapping[str, np.ndarray]) -> None:
-        """Restore a state written by :meth:`state_dict` (same meshes and partitioning)."""
-        for n, b in self.bodies.items():
-            for key in ("x", "v", "a", "cell_stress", "eps_p"):
-                arr = np.asarray(d[f"{n}/{key}"])
-                cur = getattr(b, key)
-                if arr.shape != cur.shape:
-                    raise ValueError(f"state for {n}/{key} has shape {arr.shape}, need {cur.shape}")
-                cur[...] = arr
-            self._fext[n] = np.array(d[f"{n}/fext"], dtype=float)
-            self._fext_nonzero[n] = bool(np.any(self._fext[n]))
-        self.time = float(d["time"])
-        self.step_count = int(d["step_count"])
-        self._dt_prev = float(d["dt_prev"])
-        self._dt_crit = float(d["dt_crit"])
-        self._E0 = float(d["E0"])
-        self._contact_stored = float(d["contact_stored"])
-        for k, val in zip(_ACC_KEYS, np.asarray(d["acc"])):
-            self._acc[k] = float(val)
-        self._contact_work = float(d["contact_work"])
-        self._contact_stored0 = float(d["contact_stored0"])
-        for n in self._fsurf_prev:
-            self._fsurf_prev[n] = np.array(d[f"{n}/contact_force"], dtype=float)
-        for i in range(len(self._contact_out)):
-            if f"contact{i}/p" in d:
-                self._contact_out[i] = tuple(np.array(d[f"contact{i}/{k}"]) for k in "phX")
-            else:
-                self._contact_out[i] = None
+        """Restore a state written by :meth:`state_dict` (same meshes and partitioning); the
+        continuation is bitwise identical to an uninterrupted run."""
+        restart.load_state_dict(self, d)

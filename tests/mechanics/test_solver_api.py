@@ -144,3 +144,13 @@ def test_axisymmetric_axis_nodes_stay_on_axis():
     assert np.all(b.x[axis, 0] == 0.0)
     assert np.all(np.isfinite(b.cell_stress))
     assert b.u[:, 0].min() < 0      # the cylinder is squeezed
+
+
+def test_tunnelling_through_the_whole_layer_is_detected():
+    """h0 = 0.5 mm and 2000 m/s: a node crosses the layer within one step (dt ~ 1e-5 s); it must
+    still be reported, from the previous step's contact."""
+    s = _two_bars(v=2000.0, k=1e6, h0=5e-4)
+    dt = s.stable_time_step()
+    with pytest.raises(ContactPenetrationError):
+        for _ in range(200):
+            s.advance(dt)

@@ -1,0 +1,70 @@
+"""Exact restart of :class:`~.solver.ExplicitSolver`: the full state as a dict of arrays."""
+from __future__ import annotations
+
+from typing import Dict, Mapping
+
+import numpy as np
+
+__all__ = ["state_dict", "load_state_dict"]
+
+_ACC_KEYS = ("plastic_J", "viscous_J", "external_work_J", "wall_dissipated_J")
+
+
+def state_dict(solver) -> Dict[str, np.ndarray]:
+    """Complete solver state as arrays (exact restart with :meth:`load_state_dict`)."""
+    d: Dict[str, np.ndarray] = {
+        "time": np.array(solver.time), "step_count": np.array(solver.step_count),
+        "dt_prev": np.array(solver._dt_prev), "dt_crit": np.array(solver._dt_crit),
+        "E0": np.array(solver._E0), "contact_stored": np.array(solver._contact_stored),
+        "acc": np.array([solver._acc[k] for k in _ACC_KEYS]),
+        "contact_work": np.array(solver._contact_work),
+        "contact_stored0": np.array(solver._contact_stored0)}
+    for n, f in solver._fsurf_prev.items():
+        d[f"{n}/contact_force"] = f.copy()
+    for (ip, k), (si, mj) in solver._active.items():
+        d[f"active/{ip}/{k}/slave"] = si.copy()
+        d[f"active/{ip}/{k}/segment"] = mj.copy()
+    for n, b in solver.bodies.items():
+        for key in ("x", "v", "a", "cell_stress", "eps_p"):
+            d[f"{n}/{key}"] = getattr(b, key).copy()
+        d[f"{n}/fext"] = solver._fext[n].copy()
+    for i, out in enumerate(solver._contact_out):
+        if out is not None:
+            d[f"contact{i}/p"], d[f"contact{i}/h"], d[f"contact{i}/X"] = (a.copy() for a in out)
+    return d
+
+def load_state_dict(solver, d: Mapping[str, np.ndarray]) -> None:
+    """Restore a state written by :meth:`state_dict` (same meshes and partitioning)."""
+    for n, b in solver.bodies.items():
+        for key in ("x", "v", "a", "cell_stress", "eps_p"):
+            arr = np.asarray(d[f"{n}/{key}"])
+            cur = getattr(b, key)
+            if arr.shape != cur.shape:
+                raise ValueError(f"state for {n}/{key} has shape {arr.shape}, need {cur.shape}")
+            cur[...] = arr
+        solver._fext[n] = np.array(d[f"{n}/fext"], dtype=float)
+        solver._fext_nonzero[n] = bool(np.any(solver._fext[n]))
+    solver.time = float(d["time"])
+    solver.step_count = int(d["step_count"])
+    solver._dt_prev = float(d["dt_prev"])
+    solver._dt_crit = float(d["dt_crit"])
+    solver._E0 = float(d["E0"])
+    solver._contact_stored = float(d["contact_stored"])
+    for k, val in zip(_ACC_KEYS, np.asarray(d["acc"])):
+        solver._acc[k] = float(val)
+    solver._contact_work = float(d["contact_work"])
+    solver._contact_stored0 = float(d["contact_stored0"])
+    for n in solver._fsurf_prev:
+        solver._fsurf_prev[n] = np.array(d[f"{n}/contact_force"], dtype=float)
+    solver._active = {}
+    for key in d:
+        if key.startswith("active/") and key.endswith("/slave"):
+            _, ip, k, _ = key.split("/")
+            solver._active[(int(ip), int(k))] = (
+                np.array(d[key], dtype=np.int64),
+                np.array(d[f"active/{ip}/{k}/segment"], dtype=np.int64))
+    for i in range(len(solver._contact_out)):
+        if f"contact{i}/p" in d:
+            solver._contact_out[i] = tuple(np.array(d[f"contact{i}/{k}"]) for k in "phX")
+        else:
+            solver._contact_out[i] = None
