@@ -87,7 +87,8 @@ class CaseDriver:
         """Append the current state to the history."""
         s = self.solver
         row = {"time_s": s.time, "step": float(s.step_count),
-               "dt_s": step_row["dt_s"] if step_row else 0.0}
+               "dt_s": step_row["dt_s"] if step_row else 0.0,
+               "substeps": step_row.get("substeps", 0.0) if step_row else 0.0}
         row.update({f"energy_{k}": float(v) for k, v in s.energies().items()})
         row.update(probe_mod.sample(s, self.probes, self.comm))
         row.update(body_extremes(s, self.comm))
@@ -219,13 +220,16 @@ def _coupled_participants(case: Case, results: ResultsFolder, comm: MPI.Comm):
 
 
 def body_extremes(solver, comm: MPI.Comm) -> dict[str, float]:
-    """Per body: largest |u_y| (deflection, m) and largest speed (m/s) over its nodes."""
+    """Per body: largest |u_y| (deflection, m), largest speed (m/s) and y-momentum Σ m v_y (N·s;
+    full ring in axisymmetry; velocities as the solver stores them, at the last half step)."""
     out = {}
     for name, b in solver.bodies.items():
-        uy = float(np.abs(b.u[: b.n_owned, 1]).max()) if b.n_owned else 0.0
-        sp = float(np.sqrt((b.v[: b.n_owned] ** 2).sum(axis=1)).max()) if b.n_owned else 0.0
+        own = slice(0, b.n_owned)
+        uy = float(np.abs(b.u[own, 1]).max()) if b.n_owned else 0.0
+        sp = float(np.sqrt((b.v[own] ** 2).sum(axis=1)).max()) if b.n_owned else 0.0
         out[f"{name}_max_uy_m"] = comm.allreduce(uy, op=MPI.MAX)
         out[f"{name}_max_speed_m_s"] = comm.allreduce(sp, op=MPI.MAX)
+        out[f"{name}_momentum_y_Ns"] = comm.allreduce(float(b.mass[own] @ b.v[own, 1]), op=MPI.SUM)
     return out
 
 

@@ -5,8 +5,10 @@ One EM step k covers [t_k, t_k + n·dt_mech]:
 1. ``dt_mech`` is the mechanics' stable step (capped by ``dt_max``); near a milestone the last EM
    step takes ``ceil(remaining / dt_mech)`` equal substeps so that it lands exactly on it.
 2. The load provider computes nodal forces on the *current* geometry for that interval (GetDP: the
-   implicit-Euler value at the step end; pressure and analytic loads: at t0 + (n − 1)·dt/2, the
-   centre of the window over which central differences deliver the held force's impulse).
+   implicit-Euler value at the step end; pressure and analytic loads: at t0 + (n + 1)·dt/2, the
+   centre of the window over which central differences deliver the held force's impulse: a force
+   passed to ``advance`` acts at the ends of the substeps, t0 + dt, ..., t1, and enters the
+   velocity updates that follow them).
 3. The forces are **held** constant over the n mechanical substeps (zero-order hold; no
    interpolation), the conservation ledger |Σ nodal F − ∫ f dV| / |∫ f dV| and the impulse
    Σ F·Δt are updated.
@@ -93,7 +95,7 @@ class StaggeredLoop:
         t0 = self.mech.time
         t1 = t0 + dt * k
         c0 = time.perf_counter()
-        step = self.load.load(t0, t1, t0 + 0.5 * (k - 1) * dt, self.mech)
+        step = self.load.load(t0, t1, t0 + 0.5 * (k + 1) * dt, self.mech)
         c1 = time.perf_counter()
         resultant = self.mech.total_force(step.forces)
         err = ledger_error(resultant[None, :], step.reference_integral) if step.reference_integral is not None else 0.0

@@ -45,7 +45,11 @@ class Mechanics(Protocol):
         """Largest stable step (s), safety factor included."""
 
     def advance(self, dt: float, n_steps: int, forces: dict[str, np.ndarray] | None) -> None:
-        """``n_steps`` steps of ``dt`` (s) with nodal forces held constant."""
+        """``n_steps`` steps of ``dt`` (s) with nodal forces held constant.
+
+        The forces act at the end of each step (they set the acceleration used by the next
+        velocity update), the convention of the explicit DOLFINx solver.
+        """
 
     def positions(self) -> dict[str, np.ndarray]:
         """Current node coordinates per body (m)."""
@@ -75,7 +79,7 @@ class LoadProvider(Protocol):
         """Nodal forces for the EM step [t0, t1] (s) on the mechanics' current geometry.
 
         ``t_mid`` is the centre of the window over which central differences deliver the held
-        force's impulse, t0 + (n − 1)·dt/2; providers with an explicit time law evaluate there
+        force's impulse, t0 + (n + 1)·dt/2; providers with an explicit time law evaluate there
         (second order); GetDP returns its implicit-Euler value at t1.
         """
 
@@ -90,15 +94,16 @@ class RigidAxialBody:
     """A rigid body translating along the axis (y, or z in axisymmetry), with mass and gravity.
 
     For slow EM actuators and levitation, where explicit elasticity would need millions of steps.
-    Central difference with a consistent half-step start, so a constant force is integrated
-    exactly. ``nodes`` are the body's nodes (m); they all move with the body.
+    Variable-step central differences with the same force convention as the explicit solver: the
+    forces given to :meth:`advance` set the acceleration at the end of each step. With
+    ``initial_force`` equal to the force at t = 0, a constant force is integrated exactly.
 
     Parameters
     ----------
     name : str
         Body name (the key of its forces).
     nodes : ndarray (N, 2)
-        Initial node coordinates (m).
+        Initial node coordinates (m); they all move with the body.
     mass : float
         kg (for an axisymmetric body, the whole ring's mass).
     gravity : float
@@ -107,38 +112,33 @@ class RigidAxialBody:
         Initial axial velocity (m/s).
     dt : float
         Time step (s) the loop asks for (the body itself has no stability limit).
+    initial_force : float
+        Axial force (N) acting at t = 0.
     """
 
     def __init__(self, name: str, nodes: np.ndarray, mass: float, *, gravity: float = 0.0,
-                 velocity: float = 0.0, dt: float = 1e-5) -> None:
+                 velocity: float = 0.0, dt: float = 1e-5, initial_force: float = 0.0) -> None:
         if mass <= 0.0:
             raise ValueError(f"mass must be > 0 kg, got {mass}")
         self.name, self.mass, self.gravity, self.dt = name, mass, gravity, dt
         self.x0 = np.asarray(nodes, dtype=float)[:, :2].copy()
         self.time, self.step_count = 0.0, 0
-        self.y, self.v, self._v_half, self._dt_prev = 0.0, velocity, None, 0.0
-        self.work = 0.0
+        self.y, self.v = 0.0, velocity  # v: velocity at the last half step (v^0 before any step)
+        self.a = initial_force / mass - gravity
+        self._dt_prev = 0.0
 
     def stable_time_step(self) -> float:
         """The configured step (s)."""
         return self.dt
 
-    def _accel(self, forces: dict[str, np.ndarray] | None) -> float:
-        fy = float(forces[self.name][:, 1].sum()) if forces and self.name in forces else 0.0
-        return fy / self.mass - self.gravity
-
     def advance(self, dt: float, n_steps: int, forces: dict[str, np.ndarray] | None) -> None:
-        """Central-difference steps with the axial resultant of ``forces`` held constant."""
-        a = self._accel(forces)
-        fy = a * self.mass + self.gravity * self.mass
+        """Central-difference steps; the axial resultant of ``forces`` acts at each step's end."""
+        fy = float(forces[self.name][:, 1].sum()) if forces and self.name in forces else 0.0
         for _ in range(n_steps):
-            # variable-step central difference: v^{n+1/2} = v^{n-1/2} + a (dt_{n-1} + dt_n) / 2
-            v_half = (self.v + 0.5 * dt * a) if self._v_half is None else \
-                self._v_half + 0.5 * (self._dt_prev + dt) * a
-            self.y += dt * v_half
-            self.work += fy * dt * v_half
-            self._v_half, self._dt_prev = v_half, dt
-            self.v = v_half + 0.5 * dt * a  # synchronised velocity at the step end (same a)
+            self.v += 0.5 * (self._dt_prev + dt) * self.a  # v^{n+1/2} = v^{n-1/2} + a_n (dt_{n-1}+dt_n)/2
+            self.y += dt * self.v
+            self.a = fy / self.mass - self.gravity
+            self._dt_prev = dt
             self.time += dt
             self.step_count += 1
 
@@ -151,15 +151,14 @@ class RigidAxialBody:
         return plain_total(forces)
 
     def state_dict(self) -> dict[str, np.ndarray]:
-        """Time, counters, position, velocities."""
-        vh = np.nan if self._v_half is None else self._v_half
-        return {"scalars": np.array([self.time, self.step_count, self.y, self.v, vh, self.work, self._dt_prev])}
+        """Time, counters, position, velocity, acceleration, last step."""
+        return {"scalars": np.array([self.time, self.step_count, self.y, self.v, self.a, self._dt_prev])}
 
     def load_state_dict(self, state: dict[str, np.ndarray]) -> None:
         """Restore :meth:`state_dict`."""
-        t, k, y, v, vh, w, self._dt_prev = state["scalars"]
-        self.time, self.step_count, self.y, self.v, self.work = float(t), int(k), float(y), float(v), float(w)
-        self._v_half = None if np.isnan(vh) else float(vh)
+        t, k, y, v, a, dtp = state["scalars"]
+        self.time, self.step_count, self.y, self.v, self.a, self._dt_prev = \
+            float(t), int(k), float(y), float(v), float(a), float(dtp)
 
 
 class AnalyticForce:

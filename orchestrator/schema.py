@@ -94,6 +94,8 @@ def _type_name(tp: Any) -> str:
         return "a table"
     if _is_union(tp):
         parts = [a for a in get_args(tp) if a is not type(None)]
+        if len(parts) == 1:
+            return _type_name(parts[0])
         if all(dataclasses.is_dataclass(a) for a in parts):
             return "a table with type = " + " | ".join(repr(_tag(a)) for a in parts)
         return " or ".join(_type_name(a) for a in parts)
