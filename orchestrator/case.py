@@ -354,6 +354,9 @@ class Coupling:
     """Staggered EM–mechanics coupling (used by coupled cases)."""
 
     n: int = spec(10, unit="-", ge=1, doc="mechanical steps per EM step (subcycling)")
+    load: Literal["getdp", "pressure"] = spec(
+        "getdp", doc="coupled cases: GetDP eddy-current forces, or the [[loads]] pressure pulses on the "
+                     "same workpiece mesh through the same loop (for comparisons)")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -448,6 +451,11 @@ class Case:
                     raise SchemaError(key, f"missing required table [{key}] for case.kind = 'coupled'")
             if "workpiece" not in regions:
                 raise SchemaError("bodies", "a coupled case needs a body with region = 'workpiece'")
+            if self.coupling.load == "pressure" and not self.loads:
+                raise SchemaError("loads", "coupling.load = 'pressure' needs at least one [[loads]] pulse")
+            if self.coupling.load == "getdp" and self.loads:
+                raise SchemaError("loads", "pressure [[loads]] are used only with coupling.load = 'pressure'; "
+                                  "remove them or set coupling.load = 'pressure'")
             if self.mechanics.formulation != "axisymmetric":
                 raise SchemaError("mechanics.formulation", f"got {self.mechanics.formulation!r}; the "
                                   f"{self.geometry.type} geometry is axisymmetric: use 'axisymmetric'")

@@ -39,6 +39,19 @@ def _parser() -> argparse.ArgumentParser:
     check.add_argument("case", metavar="CASE")
     check.add_argument("--set", metavar="KEY.PATH=VALUE", action="append", default=[], dest="overrides")
 
+    sweep = sub.add_parser("sweep", help="run a case over a grid of parameter values",
+                           description="Run CASE for every combination of the --param values (full grid); "
+                                       "each member is its own `pulseform run` process in OUT/<member>/. "
+                                       "Writes OUT/sweep.csv and OUT/plots/sweep_*.png.")
+    sweep.add_argument("case", metavar="CASE")
+    sweep.add_argument("--param", metavar="KEY.PATH=V1,V2,...", action="append", required=True,
+                       help="a swept key and its values (repeatable: full grid)")
+    sweep.add_argument("--set", metavar="KEY.PATH=VALUE", action="append", default=[], dest="overrides",
+                       help="override applied to every member")
+    sweep.add_argument("--out", metavar="DIR", type=Path, help="sweep folder (default: results/<case>_sweep)")
+    sweep.add_argument("--jobs", type=int, default=1, metavar="N", help="members run at the same time (default 1)")
+    sweep.add_argument("--force", action="store_true", help="replace an existing sweep folder")
+
     sub.add_parser("info", help="versions and locations of getdp, gmsh, dolfinx, PETSc, meshio, numpy",
                    description="Print the versions of the external programs and libraries and where each comes from.")
     return p
@@ -109,6 +122,33 @@ def _cmd_check(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _cmd_sweep(args: argparse.Namespace) -> int:
+    from .caseio import CaseError, load_case
+    from .results import ResultsExistError
+    from .sweep import run_sweep
+
+    if args.jobs < 1:
+        return _error(f"--jobs: got {args.jobs}; must be >= 1", EXIT_BAD_INPUT)
+    try:
+        case, _ = load_case(args.case, args.overrides)
+        out = args.out or Path("results") / f"{case.case.name}_sweep"
+        todo = run_sweep(args.case, args.param, out, jobs=args.jobs, force=args.force, overrides=args.overrides)
+    except (CaseError, ResultsExistError) as exc:
+        return _error(str(exc), EXIT_BAD_INPUT)
+    keys = list(todo[0].values)
+    shown = ("max_deflection_mm", "force_impulse_Ns", "em_time_s", "mech_time_s", "wall_time_s")
+    print("  ".join(f"{k:>14}" for k in keys + ["status", *shown]))
+    for m in todo:
+        status = "ok" if m.returncode == 0 else f"FAILED({m.returncode})"
+        vals = [f"{m.metrics[k]:14.6g}" if k in m.metrics else f"{'-':>14}" for k in shown]
+        print("  ".join([f"{m.values[k]:>14}" for k in keys] + [f"{status:>14}"] + vals))
+    failed = [m for m in todo if m.returncode != 0]
+    for m in failed:
+        print(f"member {m.index} ({' '.join(m.overrides)}): {m.error}", file=sys.stderr)
+    print(f"table: {out / 'sweep.csv'}")
+    return EXIT_FAILED if failed else EXIT_OK
+
+
 def _cmd_info(_: argparse.Namespace) -> int:
     from .info import collect
 
@@ -121,7 +161,7 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``pulseform`` console script."""
     args = _parser().parse_args(argv)
     _setup_logging(getattr(args, "quiet", False))
-    handlers = {"run": _cmd_run, "check": _cmd_check, "info": _cmd_info}
+    handlers = {"run": _cmd_run, "check": _cmd_check, "sweep": _cmd_sweep, "info": _cmd_info}
     try:
         return handlers[args.command](args)
     except KeyboardInterrupt:

@@ -73,8 +73,8 @@ class CaseDriver:
         self.load: LoadProvider = load
         self.loop = StaggeredLoop(load, self.mechanics, n=n, dt_max=case.time.dt_max)
         self.probes = probe_mod.attach(self.solver, case.probes, comm)
-        self.load_columns = LOAD_COLUMNS_COUPLED if case.case.kind == "coupled" else \
-            tuple(f"load{i}_pressure_Pa" for i in range(len(case.loads)))
+        self.load_columns = LOAD_COLUMNS_COUPLED if isinstance(self.load, _GetDPLoad()) else \
+            ("force_x_N", "force_y_N") + tuple(f"load{i}_pressure_Pa" for i in range(len(case.loads)))
         self.history = History(results.root / "history.csv")
         self.part = 0
         self._since_record = 0
@@ -187,7 +187,7 @@ class CaseDriver:
         if case.loads or case.case.kind == "coupled":
             metrics["force_impulse_Ns"] = float(np.linalg.norm(c.impulse))
             metrics["force_impulse_z_Ns"] = float(c.impulse[1])
-        if case.case.kind == "coupled":
+        if isinstance(self.load, _GetDPLoad()):
             metrics.update(coupled_metrics(self.history, c))
         metrics.update(mech_metrics(s, case, self.history))
         snap = self.load.snapshot() if hasattr(self.load, "snapshot") else None
@@ -198,6 +198,12 @@ LOAD_COLUMNS_COUPLED = ("force_x_N", "force_y_N", "conservation_error_rel", "coi
                         "capacitor_voltage_V", "coil_joule_heat_J", "coil_temperature_rise_K",
                         "magnetic_energy_J", "workpiece_joule_power_W", "getdp_force_z_N",
                         "em_mesh_min_quality")
+
+
+def _GetDPLoad():  # noqa: N802 - the class, imported lazily (GetDP modules only for coupled runs)
+    from .em_participant import GetDPLoad
+
+    return GetDPLoad
 
 
 def _coupled_participants(case: Case, results: ResultsFolder, comm: MPI.Comm):
@@ -212,6 +218,8 @@ def _coupled_participants(case: Case, results: ResultsFolder, comm: MPI.Comm):
     sub = conductor_submesh(geometry.mesh, geometry.regions["workpiece"])
     body = next(b.name for b in case.bodies if b.region == "workpiece")
     solver = build_solver(case, comm, {"workpiece": to_dolfinx(sub, comm)})
+    if case.coupling.load == "pressure":  # same workpiece mesh and loop, pressure pulses instead of GetDP
+        return solver, PressurePulses(case.loads)
     scale = float(np.abs(geometry.mesh.points).max())
     body_to_em = match_nodes(solver.bodies[body].X0, geometry.mesh.points, 1e-12 * scale)
     load = GetDPLoad(geometry, em_model(case, geometry), results.root / "em", body, sub, body_to_em,
