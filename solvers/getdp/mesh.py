@@ -103,25 +103,45 @@ class EMMesh:
         return cls(**{k: np.asarray(v) for k, v in d.items()})
 
 
-def write_msh22(mesh: EMMesh, path: str | Path) -> Path:
-    """Write ``mesh`` as an ASCII MSH 2.2 file (the only format this GetDP reads)."""
-    path = Path(path)
-    n, m, k = mesh.n_nodes, len(mesh.triangles), len(mesh.lines)
-    with open(path, "w") as fh:
-        fh.write("$MeshFormat\n2.2 0 8\n$EndMeshFormat\n")
-        fh.write(f"$Nodes\n{n}\n")
-        ids = np.arange(1, n + 1)
-        np.savetxt(fh, np.column_stack([ids, mesh.points, np.zeros(n)]), fmt=["%d", "%.17g", "%.17g", "%.17g"])
-        fh.write(f"$EndNodes\n$Elements\n{m + k}\n")
+_ELEMENT_BLOCKS: dict[tuple, str] = {}
+
+
+def _element_block(mesh: EMMesh) -> str:
+    """The $Elements section, cached per connectivity (moved meshes only rewrite nodes)."""
+    key = (mesh.n_nodes, mesh.triangles.tobytes(), mesh.tri_tags.tobytes(), mesh.lines.tobytes(),
+           mesh.line_tags.tobytes())
+    block = _ELEMENT_BLOCKS.get(key)
+    if block is None:
+        m, k = len(mesh.triangles), len(mesh.lines)
+        parts = [f"$Elements\n{m + k}\n"]
         if m:
             t = mesh.tri_tags
             rows = np.column_stack([np.arange(1, m + 1), np.full(m, 2), np.full(m, 2), t, t, mesh.triangles + 1])
-            np.savetxt(fh, rows, fmt="%d")
+            parts.append(("%d %d %d %d %d %d %d %d\n" * m) % tuple(rows.ravel().tolist()))
         if k:
             t = mesh.line_tags
-            rows = np.column_stack([np.arange(m + 1, m + k + 1), np.ones(k), np.full(k, 2), t, t, mesh.lines + 1])
-            np.savetxt(fh, rows, fmt="%d")
-        fh.write("$EndElements\n")
+            rows = np.column_stack([np.arange(m + 1, m + k + 1), np.ones(k, np.int64), np.full(k, 2), t, t,
+                                    mesh.lines + 1])
+            parts.append(("%d %d %d %d %d %d %d\n" * k) % tuple(rows.ravel().tolist()))
+        parts.append("$EndElements\n")
+        block = "".join(parts)
+        if len(_ELEMENT_BLOCKS) > 8:
+            _ELEMENT_BLOCKS.clear()
+        _ELEMENT_BLOCKS[key] = block
+    return block
+
+
+def write_msh22(mesh: EMMesh, path: str | Path) -> Path:
+    """Write ``mesh`` as an ASCII MSH 2.2 file (the only format this GetDP reads)."""
+    path = Path(path)
+    n = mesh.n_nodes
+    rows = np.column_stack([np.arange(1, n + 1), mesh.points]).ravel().tolist()
+    with open(path, "w") as fh:
+        fh.write("$MeshFormat\n2.2 0 8\n$EndMeshFormat\n")
+        fh.write(f"$Nodes\n{n}\n")
+        fh.write(("%d %.17g %.17g 0\n" * n) % tuple(rows))
+        fh.write("$EndNodes\n")
+        fh.write(_element_block(mesh))
     return path
 
 

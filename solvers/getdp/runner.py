@@ -25,12 +25,9 @@ FAST_MPI_ENV = {
     "HWLOC_COMPONENTS": "-pci,-opencl,-gl,-cuda,-nvml",
 }
 
-_ERROR_PATTERNS = [
-    re.compile(r"^Error\s*:", re.M),
-    re.compile(r"diverg", re.I),
-    re.compile(r"did not converge|not converged|no convergence", re.I),
-    re.compile(r"Segmentation|Abort|MPI_ABORT|signal \d+", re.I),
-]
+_ERROR_PATTERN = re.compile(
+    r"^(?:Error|Critical)\s*:|diverg|did not converge|not converged|no convergence|Segmentation|MPI_ABORT"
+    r"|\bAbort", re.M | re.I)
 _WARNING_PATTERN = re.compile(r"^Warning\s*:.*$", re.M)
 
 
@@ -86,11 +83,12 @@ def log_tail(path: Path, n_lines: int = 25) -> str:
 def scan_log(text: str) -> tuple[list[str], list[str]]:
     """(errors, warnings) found in a getdp log."""
     errors = []
-    for pat in _ERROR_PATTERNS:
-        for m in pat.finditer(text):
-            line_start = text.rfind("\n", 0, m.start()) + 1
-            line_end = text.find("\n", m.end())
-            errors.append(text[line_start: line_end if line_end >= 0 else len(text)].strip())
+    for m in _ERROR_PATTERN.finditer(text):
+        start = text.rfind("\n", 0, m.start()) + 1
+        end = text.find("\n", m.end())
+        line = text[start: end if end >= 0 else len(text)].strip()
+        if not errors or errors[-1] != line:
+            errors.append(line)
     warnings = [m.group(0).strip() for m in _WARNING_PATTERN.finditer(text)]
     return errors, warnings
 
@@ -151,6 +149,7 @@ def run_getdp(
             raise GetDPError(f"could not start getdp: {err}", log_path=log_path, run_dir=run_dir) from None
     wall = time.perf_counter() - t0
     text = log_path.read_text(errors="replace")
+    text = text[text.find("\n") + 1:]  # skip the argv line written above
     if proc.returncode < 0:
         try:
             sig = signal.Signals(-proc.returncode).name

