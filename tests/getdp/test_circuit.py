@@ -70,3 +70,35 @@ def test_energy_balance_with_disk(work):
           f"coil Joule {res.coil_heat[0]:.1f} J, of {e0:.0f} J")
     assert rel.max() < 0.01
     assert np.sum(res.conductor_power) * res.dt > 0.01 * e0   # the disk really takes energy
+
+
+@pytest.mark.getdp
+@needs_getdp
+def test_two_coils_in_series_and_coil_heating(work):
+    """Two coils in series with the bank: one current, the loop voltage closes (Kirchhoff).
+
+    Reference for the temperature: adiabatic heating dT = Q / (rho c V) with V = sum 2 pi r_c A
+    over the coil's triangles; Q = sum of the coil's Joule power over the sub-steps times dt.
+    """
+    coils = [ten_turn_coil(0.020, -0.01), ten_turn_coil(0.020, +0.01)]
+    mesh = coil_conductor_mesh(coils, [], r_domain=0.06, r_shell=0.075, h_fine=1e-3, h_coarse=1e-2)
+    model = EMModel(True, coils=[Coil(10), Coil(10, sigma=3.0e7)], circuit=Circuit(C, V0, R_EXT, L_EXT),
+                    shell=(0.06, 0.075))
+    solver = GetDPSolver(model, work)
+    res, state = solver.step(mesh, solver.initial_state(), 20e-6, 100)
+    i = res.coil_current
+    assert np.abs(i[:, 0] - i[:, 1]).max() < 1e-9 * np.abs(i).max()
+    np.testing.assert_allclose(res.circuit_current, i[:, 0], rtol=1e-9)
+    di = np.diff(np.concatenate([[0.0], i[:, 0]])) / res.dt
+    loop = res.capacitor_voltage - (res.coil_voltage.sum(axis=1) + R_EXT * i[:, 0] + L_EXT * di)
+    assert np.abs(loop).max() < 1e-6 * V0
+    # the second coil (lower conductivity) heats more
+    assert res.coil_heat[1] > 1.5 * res.coil_heat[0]
+    for k in range(2):
+        sel = mesh.tri_tags == 101 + k
+        vol = mesh.volumes(True)[sel].sum()
+        q = res.coil_power[:, k].sum() * res.dt
+        assert res.coil_heat[k] == pytest.approx(q, rel=1e-12)
+        assert res.coil_temperature_rise[k] == pytest.approx(q / (8960.0 * 385.0 * vol), rel=1e-12)
+    assert state.coil_heat == pytest.approx(list(res.coil_heat))
+    print(f"\ntwo coils: I peak {np.abs(i).max() / 1e3:.2f} kA, heat {res.coil_heat} J, dT {res.coil_temperature_rise} K")
