@@ -189,6 +189,7 @@ class CaseDriver:
             metrics["force_impulse_z_Ns"] = float(c.impulse[1])
         if isinstance(self.load, _GetDPLoad()):
             metrics.update(coupled_metrics(self.history, c))
+            metrics.update({f"em_{k}": v for k, v in self.load.timers.items()})
         metrics.update(mech_metrics(s, case, self.history))
         snap = self.load.snapshot() if hasattr(self.load, "snapshot") else None
         return MechanicsRun(s, self.history, metrics, self.shapes, snap)
@@ -228,13 +229,15 @@ def _coupled_participants(case: Case, results: ResultsFolder, comm: MPI.Comm):
 
 
 def body_extremes(solver, comm: MPI.Comm) -> dict[str, float]:
-    """Per body: largest |u_y| (deflection, m), largest speed (m/s) and y-momentum Σ m v_y (N·s;
+    """Per body: largest |u_x| and |u_y| (m), largest speed (m/s) and y-momentum Σ m v_y (N·s;
     full ring in axisymmetry; velocities as the solver stores them, at the last half step)."""
     out = {}
     for name, b in solver.bodies.items():
         own = slice(0, b.n_owned)
+        ux = float(np.abs(b.u[own, 0]).max()) if b.n_owned else 0.0
         uy = float(np.abs(b.u[own, 1]).max()) if b.n_owned else 0.0
         sp = float(np.sqrt((b.v[own] ** 2).sum(axis=1)).max()) if b.n_owned else 0.0
+        out[f"{name}_max_ux_m"] = comm.allreduce(ux, op=MPI.MAX)
         out[f"{name}_max_uy_m"] = comm.allreduce(uy, op=MPI.MAX)
         out[f"{name}_max_speed_m_s"] = comm.allreduce(sp, op=MPI.MAX)
         out[f"{name}_momentum_y_Ns"] = comm.allreduce(float(b.mass[own] @ b.v[own, 1]), op=MPI.SUM)
@@ -275,10 +278,14 @@ def mech_metrics(solver, case: Case, history: History) -> dict[str, float]:
     local = max((float(np.max(b.von_mises)) for b in solver.bodies.values() if len(b.von_mises)), default=0.0)
     out["von_mises_final_max_MPa"] = solver.comm.allreduce(local, op=MPI.MAX) / 1e6
     for b in case.bodies:
+        out[f"{b.name}_max_ux_mm"] = float(history.column(f"{b.name}_max_ux_m").max()) * 1e3
         out[f"{b.name}_max_uy_mm"] = float(history.column(f"{b.name}_max_uy_m").max()) * 1e3
         out[f"{b.name}_max_speed_m_s"] = float(history.column(f"{b.name}_max_speed_m_s").max())
-        if b.region == "workpiece":
-            out["max_deflection_mm"] = out[f"{b.name}_max_uy_mm"]
+        if b.region == "workpiece" and case.geometry is not None:
+            if case.geometry.type == "flat_coil_sheet":
+                out["max_deflection_mm"] = out[f"{b.name}_max_uy_mm"]
+            else:
+                out["max_radial_displacement_mm"] = out[f"{b.name}_max_ux_mm"]
     for p in case.probes:
         if p.quantity == "contact_pressure":
             t = history.column("time_s")

@@ -18,6 +18,7 @@ from __future__ import annotations
 import json
 import logging
 import shutil
+import time
 from pathlib import Path
 
 import numpy as np
@@ -97,9 +98,11 @@ class GetDPLoad:
         self._runs: list[Path] = []
         self._pinned: Path | None = None  # run folder the last checkpoint restarts from
         self.last = None  # (moved EM points, EMStepResult) of the latest step
+        self.timers = {"getdp_process_s": 0.0, "getdp_io_s": 0.0, "mesh_motion_s": 0.0, "transfer_s": 0.0}
 
     def load(self, t0: float, t1: float, t_mid: float, mechanics) -> LoadStep:
         """Move the EM mesh with the workpiece, run one getdp step to ``t1``, return nodal forces (N)."""
+        c0 = time.perf_counter()
         x_body = mechanics.positions()[self.body]
         u = np.zeros_like(self.x_ref)
         u[self.body_to_em] = x_body[:, :2] - self.x_ref[self.body_to_em]
@@ -108,9 +111,11 @@ class GetDPLoad:
         mesh_k = self.geometry.mesh.with_points(x_em)
         if abs(self.state.t - t0) > 1e-9 * max(t1, 1e-300):
             raise RuntimeError(f"EM state at t = {self.state.t:.9g} s, but the step starts at {t0:.9g} s")
+        c1 = time.perf_counter()
         result, self.state = self.solver.step(mesh_k, self.state, t1, n_sub=1)
         self.last = (x_em, result)
         self._prune(Path(result.path))
+        c2 = time.perf_counter()
         work_tag = self.geometry.regions["workpiece"]
         keep = result.element_tags == work_tag
         rows = result.elements[keep]
@@ -120,6 +125,12 @@ class GetDPLoad:
         forces = {self.body: f_em[self.body_to_em]}
         integral = cell_force_integral(x_em, tris, f, axisymmetric=True)
         getdp_total = result.conductor_force[-1, 0]
+        c3 = time.perf_counter()
+        process = result.run.wall_time if result.run is not None else 0.0
+        self.timers["mesh_motion_s"] += c1 - c0
+        self.timers["getdp_process_s"] += process
+        self.timers["getdp_io_s"] += (c2 - c1) - process
+        self.timers["transfer_s"] += c3 - c2
         values = {
             "coil_current_A": float(result.coil_current[-1, 0]),
             "coil_voltage_V": float(result.coil_voltage[-1, 0]),
