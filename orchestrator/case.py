@@ -357,6 +357,17 @@ class Coupling:
     load: Literal["getdp", "pressure"] = spec(
         "getdp", doc="coupled cases: GetDP eddy-current forces, or the [[loads]] pressure pulses on the "
                      "same workpiece mesh through the same loop (for comparisons)")
+    adaptive: bool = spec(False, doc="adapt n from the change of the force resultant between EM steps")
+    n_min: int = spec(1, unit="-", ge=1, doc="smallest n when adaptive")
+    n_max: int = spec(1000, unit="-", ge=1, doc="largest n when adaptive")
+    adapt_tol: float = spec(0.05, unit="-", gt=0.0, doc="relative resultant change that halves n (a quarter doubles it)")
+    iterate: bool = spec(False, doc="repeat each EM step on its end geometry until force and motion settle")
+    iterate_tol: float = spec(1e-3, unit="-", gt=0.0, doc="relative change that ends the iterations")
+    iterate_max: int = spec(10, unit="-", ge=1, doc="most iterations per EM step")
+
+    def validate(self, path: str) -> None:
+        if not self.n_min <= self.n <= self.n_max:
+            raise SchemaError(f"{path}.n", f"got {self.n}; must lie in [n_min, n_max] = [{self.n_min}, {self.n_max}]")
 
 
 @dataclass(frozen=True, kw_only=True)

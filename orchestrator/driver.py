@@ -22,7 +22,7 @@ from .case import Case
 from .checkpoint import CHECKPOINT_NAME, load_checkpoint, save_checkpoint
 from .em_fields import EMFieldWriter
 from .history import History
-from .loop import StaggeredLoop
+from .loop import LoopOptions, StaggeredLoop
 from .mech_model import build_solver
 from .mech_participants import DolfinxMechanics, PressurePulses
 from .participants import LoadProvider
@@ -63,15 +63,18 @@ class CaseDriver:
     def __init__(self, case: Case, results: ResultsFolder, comm: MPI.Comm) -> None:
         self.case, self.results, self.comm = case, results, comm
         t0 = _time.perf_counter()
+        cp = case.coupling
         if case.case.kind == "coupled":
             self.solver, load = _coupled_participants(case, results, comm)
-            n = case.coupling.n
+            options = LoopOptions(n=cp.n, adaptive=cp.adaptive, n_min=cp.n_min, n_max=cp.n_max,
+                                  adapt_tol=cp.adapt_tol, iterate=cp.iterate, iterate_tol=cp.iterate_tol,
+                                  iterate_max=cp.iterate_max)
         else:
-            self.solver, load, n = build_solver(case, comm), PressurePulses(case.loads), 1
+            self.solver, load, options = build_solver(case, comm), PressurePulses(case.loads), LoopOptions(n=1, n_max=1)
         self.setup_s = _time.perf_counter() - t0
         self.mechanics = DolfinxMechanics(self.solver)
         self.load: LoadProvider = load
-        self.loop = StaggeredLoop(load, self.mechanics, n=n, dt_max=case.time.dt_max)
+        self.loop = StaggeredLoop(load, self.mechanics, options, dt_max=case.time.dt_max)
         self.probes = probe_mod.attach(self.solver, case.probes, comm)
         self.load_columns = LOAD_COLUMNS_COUPLED if isinstance(self.load, _GetDPLoad()) else \
             ("force_x_N", "force_y_N") + tuple(f"load{i}_pressure_Pa" for i in range(len(case.loads)))
@@ -88,7 +91,8 @@ class CaseDriver:
         s = self.solver
         row = {"time_s": s.time, "step": float(s.step_count),
                "dt_s": step_row["dt_s"] if step_row else 0.0,
-               "substeps": step_row.get("substeps", 0.0) if step_row else 0.0}
+               "substeps": step_row.get("substeps", 0.0) if step_row else 0.0,
+               "iterations": step_row.get("iterations", 0.0) if step_row else 0.0}
         row.update({f"energy_{k}": float(v) for k, v in s.energies().items()})
         row.update(probe_mod.sample(s, self.probes, self.comm))
         row.update(body_extremes(s, self.comm))
@@ -181,7 +185,10 @@ class CaseDriver:
             writer.close()
         c = self.loop.counters
         log.info("mechanics: %d steps to t = %.4g s in %.2f s", s.step_count, s.time, c.mech_time_s)
-        metrics = {"mech_steps": float(s.step_count), "em_steps": float(c.em_steps),
+        metrics = {"mech_steps": float(s.step_count), "em_steps": float(c.em_steps), "n_final": float(c.n),
+                   "coupling_iterations_total": float(c.iterations),
+                   "coupling_iterations_max": float(c.iterations_max),
+                   "coupling_unconverged_steps": float(c.unconverged),
                    "end_time_s": float(s.time), "setup_time_s": self.setup_s,
                    "mech_time_s": c.mech_time_s, "load_time_s": c.em_time_s}
         if case.loads or case.case.kind == "coupled":

@@ -161,6 +161,8 @@ class GetDPLoad:
 
     def _prune(self, newest: Path) -> None:
         """Delete run folders older than the last two, except the one the last checkpoint needs."""
+        if newest in self._runs:  # a repeated (iterated) step reuses its folder
+            return
         self._runs.append(newest)
         if self.keep_runs:
             return

@@ -69,3 +69,22 @@ def test_fast_mpi_env_only_in_child(work, tmp_path):
     assert "OMPI_MCA_ess_singleton_isolated=1" in env
     assert "OMPI_MCA_ess_singleton_isolated" not in os.environ
     assert info.argv[0] == str(fake) and os.path.isabs(info.argv[1])
+
+
+def test_scan_log_finds_errors_divergence_and_warnings():
+    from pulseform.solvers.getdp.runner import scan_log
+    errors, warnings = scan_log("Info    : ok\nWarning : odd value\nKSP did not converge (DIVERGED_ITS)\n"
+                                "Error   : out of memory\n")
+    assert errors == ["KSP did not converge (DIVERGED_ITS)", "Error   : out of memory"]
+    assert warnings == ["Warning : odd value"]
+    assert scan_log("Info    : Theta Time = 1e-06 s\nE n d   P r o c e s s i n g\n") == ([], [])
+
+
+def test_warnings_are_returned(work, tmp_path):
+    fake = tmp_path / "fake_getdp"
+    fake.write_text("#!/bin/sh\necho 'Warning : something odd'\nexit 0\n")
+    fake.chmod(fake.stat().st_mode | stat.S_IEXEC)
+    mesh = tmp_path / "m.msh"
+    write_msh22(slab_mesh(1e-3, 1e-4), mesh)
+    info = run_getdp(tmp_path / "x.pro", mesh, work, resolution="R", executable=str(fake))
+    assert info.warnings == ["Warning : something odd"]
