@@ -4,6 +4,7 @@ from __future__ import annotations
 import hashlib
 import json
 import shutil
+import warnings
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Sequence
@@ -268,10 +269,14 @@ class GetDPSolver:
         """Advance from ``state.t`` to ``t_end`` with ``n_sub`` implicit Euler sub-steps.
 
         ``mesh`` holds the current node positions.  If its connectivity equals that of
-        the previous step, the field continues with ``-restart -res <previous .res>``;
-        otherwise (or with ``force_init_path``) the previous nodal r a_phi is interpolated
-        at ``material_points`` (reference coordinates of the new nodes, default
-        ``mesh.points``) and fed through an Init constraint.
+        the previous step (and, when ``material_points`` is given, the coil/conductor nodes
+        are the same material points as before), the field continues with
+        ``-restart -res <previous .res>``: values travel with the nodes, right for
+        Lagrangian conductor nodes.  Otherwise (or with ``force_init_path``) the previous
+        nodal r a_phi is interpolated at ``material_points`` (reference coordinates of the
+        new nodes; default ``mesh.points``, i.e. spatial) and fed through an Init
+        constraint.  Pass ``material_points`` at every step or at none: they are stored
+        in the state as the frame of the next interpolation.
         """
         if not t_end > state.t:
             raise ValueError(f"t_end={t_end} must be after state.t={state.t}")
@@ -291,10 +296,17 @@ class GetDPSolver:
         data_lines = self._table_lines()
         extra: list[str] = []
         has_field = state.res_path is not None
-        if has_field and not force_init_path and state.mesh_signature == sig and Path(state.res_path).exists():
+        pts = mesh.points if material_points is None else np.asarray(material_points, float)
+        if pts.shape != mesh.points.shape:
+            raise ValueError(f"material_points shape {pts.shape} != mesh points {mesh.points.shape}")
+        restart = (has_field and not force_init_path and state.mesh_signature == sig
+                   and Path(state.res_path).exists()
+                   and (material_points is None or self._nodes_are_material(mesh, pts, state)))
+        if restart:
             extra += ["-restart", "-res", str(Path(state.res_path).resolve())]
-        elif has_field and state.a_values is not None:
-            pts = mesh.points if material_points is None else np.asarray(material_points, float)
+        elif has_field:
+            if state.a_values is None:
+                raise ValueError("state has a field but no nodal values to carry to a new mesh")
             ids, vals = self._interpolate_a(mesh, pts, state)
             numbers["Flag_InitA"] = 1
             pairs = [f"{i:d}, {v:.17g}" for i, v in zip(ids, vals)]
@@ -309,6 +321,8 @@ class GetDPSolver:
         info = run_getdp(wrapper, msh, run_dir, resolution=RESOLUTION, numbers=numbers,
                          strings={"OutDir": str(out_dir) + "/"}, extra_args=extra + self.petsc_args,
                          executable=self.executable, timeout=self.timeout)
+        for w in info.warnings:
+            warnings.warn(f"getdp ({run_dir.name}): {w}", RuntimeWarning, stacklevel=2)
         result = self._read(mesh, out_dir, state, float(t_end), int(n_sub))
         result.run = info
         result.path = str(run_dir)
@@ -359,10 +373,33 @@ class GetDPSolver:
         lines = []
         for k, c in enumerate(self.model.coils, start=1):
             if isinstance(c.waveform, CurrentTable):
-                pairs = [f"{t:.17g}, {v:.17g}" for t, v in zip(c.waveform.times, c.waveform.values)]
+                # hold the last value beyond the table (GetDP would extrapolate the last segment)
+                times = list(c.waveform.times) + [c.waveform.times[-1] + 1e3]
+                values = list(c.waveform.values) + [c.waveform.values[-1]]
+                pairs = [f"{t:.17g}, {v:.17g}" for t, v in zip(times, values)]
                 body = ",\n  ".join(", ".join(pairs[j:j + 8]) for j in range(0, len(pairs), 8))
                 lines.append(f"Coil_Table_{k}() = {{\n  {body}}};")
         return lines
+
+    def _cs_nodes(self, mesh: EMMesh) -> tuple[np.ndarray, np.ndarray]:
+        """(triangles, sorted unique nodes) of the coil and conductor regions."""
+        m = self.model
+        sel = np.isin(mesh.tri_tags, [coil_tag(k) for k in range(1, len(m.coils) + 1)]
+                      + [conductor_tag(k) for k in range(1, len(m.conductors) + 1)])
+        tri = mesh.triangles[sel]
+        return tri, np.unique(tri)
+
+    def _nodes_are_material(self, mesh: EMMesh, material_points: np.ndarray, state: EMState) -> bool:
+        """True if the coil/conductor nodes keep their material identity since the last step
+        (restart carries values by node, which is right only for Lagrangian nodes)."""
+        if state.a_points is None:
+            return True
+        _, nodes = self._cs_nodes(mesh)
+        old = np.asarray(state.a_points, float)
+        if old.shape != (len(nodes), 2):
+            return False
+        scale = max(float(np.abs(old).max()), 1e-30)
+        return bool(np.abs(material_points[nodes] - old).max() <= 1e-12 * scale)
 
     def _interpolate_a(self, mesh: EMMesh, material_points: np.ndarray, state: EMState):
         """Previous nodal unknown at the new coil/conductor nodes, in material coordinates."""
@@ -371,9 +408,7 @@ class GetDPSolver:
         old_p = np.asarray(state.a_points, float)
         old_t = np.asarray(state.a_triangles, np.int64)
         old_v = np.asarray(state.a_values, float)
-        sel = np.isin(mesh.tri_tags, [coil_tag(k) for k in range(1, len(self.model.coils) + 1)]
-                      + [conductor_tag(k) for k in range(1, len(self.model.conductors) + 1)])
-        nodes = np.unique(mesh.triangles[sel])
+        _, nodes = self._cs_nodes(mesh)
         q = material_points[nodes]
         tri = mtri.Triangulation(old_p[:, 0], old_p[:, 1], old_t)
         vals = np.asarray(mtri.LinearTriInterpolator(tri, old_v)(q[:, 0], q[:, 1]).filled(np.nan))
@@ -455,10 +490,7 @@ class GetDPSolver:
         nodes_file = out / "nodes_a.txt"
         d = np.loadtxt(nodes_file, skiprows=1, ndmin=2)
         pts = mesh.points if material_points is None else np.asarray(material_points, float)
-        sel = np.isin(mesh.tri_tags, [coil_tag(k) for k in range(1, len(m.coils) + 1)]
-                      + [conductor_tag(k) for k in range(1, len(m.conductors) + 1)])
-        tri = mesh.triangles[sel]
-        used = np.unique(tri)
+        tri, used = self._cs_nodes(mesh)
         remap = np.full(mesh.n_nodes, -1, np.int64)
         remap[used] = np.arange(len(used))
         vals = np.zeros(mesh.n_nodes)
