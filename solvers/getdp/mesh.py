@@ -95,6 +95,18 @@ class EMMesh:
             and np.array_equal(self.lines, other.lines)
         )
 
+    @classmethod
+    def from_meshio(cls, mesh) -> "EMMesh":
+        """From a meshio mesh with ``gmsh:physical`` cell data (triangles and lines)."""
+        pts = np.asarray(mesh.points)[:, :2]
+        phys = mesh.cell_data_dict.get("gmsh:physical", {})
+        tri = mesh.get_cells_type("triangle")
+        if not len(tri) or "triangle" not in phys:
+            raise ValueError("meshio mesh needs triangles with gmsh:physical tags")
+        lines = mesh.get_cells_type("line")
+        ltags = phys.get("line", np.zeros(len(lines), dtype=np.int64))
+        return cls(pts, tri, phys["triangle"], lines, ltags)
+
     def to_dict(self) -> dict:
         return {k: getattr(self, k).tolist() for k in ("points", "triangles", "tri_tags", "lines", "line_tags")}
 

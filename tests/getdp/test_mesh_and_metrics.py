@@ -21,6 +21,8 @@ def test_msh22_round_trip_with_meshio(tmp_path):
     phys = back.cell_data_dict["gmsh:physical"]["triangle"]
     np.testing.assert_array_equal(phys, m.tri_tags)
     assert set(np.unique(m.tri_tags)) == {1, 2, 101, 201}
+    again = EMMesh.from_meshio(back)
+    assert again.same_connectivity(m) and np.array_equal(again.points, m.points)
     assert set(np.unique(m.line_tags)) == {11, 12}
     assert np.all(m.areas() > 0)
     # coil region area = 10 turns of 2 mm x 2 mm
