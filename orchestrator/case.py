@@ -172,6 +172,10 @@ class PulseSin2:
     omega: float = spec(unit="rad/s", gt=0.0, doc="angular frequency ω")
     t_start: float = spec(0.0, unit="s", ge=0.0, doc="pulse start")
     t_end: float = spec(unit="s", gt=0.0, doc="pulse end (pressure is zero afterwards)")
+    trigger: Literal["time", "rest"] = spec(
+        "time", doc="'rest': start (with the same window length) once the previous pulse has ended and "
+                    "the loaded body's max speed is below rest_speed")
+    rest_speed: float = spec(0.5, unit="m/s", gt=0.0, doc="speed below which the body counts as at rest")
 
     def validate(self, path: str) -> None:
         _check_window(self.t_start, self.t_end, path)
@@ -188,6 +192,10 @@ class PulseExp:
     decay_time: float = spec(unit="s", gt=0.0, doc="T")
     t_start: float = spec(0.0, unit="s", ge=0.0, doc="pulse start")
     t_end: float = spec(unit="s", gt=0.0, doc="pulse end (pressure is zero afterwards)")
+    trigger: Literal["time", "rest"] = spec(
+        "time", doc="'rest': start (with the same window length) once the previous pulse has ended and "
+                    "the loaded body's max speed is below rest_speed")
+    rest_speed: float = spec(0.5, unit="m/s", gt=0.0, doc="speed below which the body counts as at rest")
 
     def validate(self, path: str) -> None:
         _check_window(self.t_start, self.t_end, path)
@@ -347,6 +355,9 @@ class Mechanics:
     bulk_viscosity: bool = spec(True, doc="linear + quadratic artificial bulk viscosity")
     bulk_viscosity_linear: float = spec(0.06, unit="-", ge=0.0, doc="linear coefficient")
     bulk_viscosity_quadratic: float = spec(1.2, unit="-", ge=0.0, doc="quadratic coefficient")
+    mass_damping: float = spec(0.0, unit="1/s", ge=0.0,
+                               doc="mass-proportional damping α: force −α m v on every node (dynamic relaxation)")
+    mass_damping_until: float = spec(math.inf, unit="s", gt=0.0, doc="damping acts for t < this time")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -408,6 +419,7 @@ class Case:
     em: EM | None = spec(None, doc="[em] table (coupled cases)")
     probes: tuple[Probe, ...] = spec((), doc="[[probes]] point histories")
     output: Output = spec(Output(), doc="[output] table")
+    analysis: tuple[str, ...] = spec((), doc="case-specific analyses (extra history columns, metrics, plots)")
 
     def validate(self, path: str) -> None:
         if not self.materials:
@@ -435,6 +447,14 @@ class Case:
             if ld.body not in names:
                 raise SchemaError(f"loads[{i}].body", f"got {ld.body!r}; allowed: {_choices(names)}")
         self._validate_coupled()
+        from .analyses import REGISTRY  # light: no solver imports
+
+        for i, name in enumerate(self.analysis):
+            if name not in REGISTRY:
+                raise SchemaError(f"analysis[{i}]", f"got {name!r}; allowed: {_choices(sorted(REGISTRY))}")
+        for i, ld in enumerate(self.loads):
+            if ld.trigger == "rest" and i == 0:
+                raise SchemaError(f"loads[{i}].trigger", "the first pulse cannot wait for rest; use 'time'")
         probe_names: list[str] = []
         for i, p in enumerate(self.probes):
             if p.body not in names:

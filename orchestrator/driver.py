@@ -21,6 +21,7 @@ from . import probes as probe_mod
 from .case import Case
 from .checkpoint import CHECKPOINT_NAME, load_checkpoint, save_checkpoint
 from .em_fields import EMFieldWriter
+from .analyses import create as create_analysis
 from .history import History
 from .loop import LoopOptions, StaggeredLoop
 from .mech_model import build_solver
@@ -45,6 +46,7 @@ class MechanicsRun:
     metrics: dict[str, float] = field(default_factory=dict)
     shapes: list = field(default_factory=list)
     em_snapshot: tuple | None = None
+    analyses: list = field(default_factory=list)
 
 
 def milestones(end: float, interval: float) -> np.ndarray:
@@ -70,12 +72,15 @@ class CaseDriver:
                                   adapt_tol=cp.adapt_tol, iterate=cp.iterate, iterate_tol=cp.iterate_tol,
                                   iterate_max=cp.iterate_max)
         else:
-            self.solver, load, options = build_solver(case, comm), PressurePulses(case.loads), LoopOptions(n=1, n_max=1)
+            mo = case.mechanics
+            self.solver, options = build_solver(case, comm), LoopOptions(n=1, n_max=1)
+            load = PressurePulses(case.loads, mo.mass_damping, mo.mass_damping_until)
         self.setup_s = _time.perf_counter() - t0
         self.mechanics = DolfinxMechanics(self.solver)
         self.load: LoadProvider = load
         self.loop = StaggeredLoop(load, self.mechanics, options, dt_max=case.time.dt_max)
         self.probes = probe_mod.attach(self.solver, case.probes, comm)
+        self.analyses = [create_analysis(name, case) for name in case.analysis]
         self.load_columns = LOAD_COLUMNS_COUPLED if isinstance(self.load, _GetDPLoad()) else \
             ("force_x_N", "force_y_N") + tuple(f"load{i}_pressure_Pa" for i in range(len(case.loads)))
         self.history = History(results.root / "history.csv")
@@ -96,6 +101,8 @@ class CaseDriver:
         row.update({f"energy_{k}": float(v) for k, v in s.energies().items()})
         row.update(probe_mod.sample(s, self.probes, self.comm))
         row.update(body_extremes(s, self.comm))
+        for a in self.analyses:
+            row.update(a.record(s))
         for key in self.load_columns:
             row[key] = step_row.get(key, 0.0) if step_row else 0.0
         self.history.record(row)
@@ -198,8 +205,13 @@ class CaseDriver:
             metrics.update(coupled_metrics(self.history, c))
             metrics.update({f"em_{k}": v for k, v in self.load.timers.items()})
         metrics.update(mech_metrics(s, case, self.history))
+        if isinstance(self.load, PressurePulses) and case.loads:
+            for i, t in enumerate(self.load.start_times()):
+                metrics[f"load{i}_start_time_s"] = float(t)
+        for a in self.analyses:
+            metrics.update(a.metrics(s, self.history))
         snap = self.load.snapshot() if hasattr(self.load, "snapshot") else None
-        return MechanicsRun(s, self.history, metrics, self.shapes, snap)
+        return MechanicsRun(s, self.history, metrics, self.shapes, snap, self.analyses)
 
 
 LOAD_COLUMNS_COUPLED = ("force_x_N", "force_y_N", "conservation_error_rel", "coil_current_A", "coil_voltage_V",
@@ -227,7 +239,7 @@ def _coupled_participants(case: Case, results: ResultsFolder, comm: MPI.Comm):
     body = next(b.name for b in case.bodies if b.region == "workpiece")
     solver = build_solver(case, comm, {"workpiece": to_dolfinx(sub, comm)})
     if case.coupling.load == "pressure":  # same workpiece mesh and loop, pressure pulses instead of GetDP
-        return solver, PressurePulses(case.loads)
+        return solver, PressurePulses(case.loads, case.mechanics.mass_damping, case.mechanics.mass_damping_until)
     scale = float(np.abs(geometry.mesh.points).max())
     body_to_em = match_nodes(solver.bodies[body].X0, geometry.mesh.points, 1e-12 * scale)
     load = GetDPLoad(geometry, em_model(case, geometry), results.root / "em", body, sub, body_to_em,

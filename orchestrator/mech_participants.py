@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+from mpi4py import MPI
 
 from .case import Load
 from .loads import box_marker, pulse_pressure
@@ -54,31 +55,63 @@ class DolfinxMechanics:
 
 
 class PressurePulses:
-    """Load provider of the paper's pressure pulses (eq. 7, 8) as follower surface tractions.
+    """Load provider of the paper's pressure pulses (eq. 7, 8) as follower surface tractions, plus
+    optional mass-proportional damping.
 
     Each pulse is evaluated at ``t_mid`` (the centre of the held force's impulse window) and turned
-    into consistent nodal forces on the loaded facets of the current configuration.
+    into consistent nodal forces on the loaded facets of the current configuration. A pulse with
+    ``trigger = "rest"`` keeps its window length but starts at the first EM step after the
+    previous pulse's end at which the loaded body's largest nodal speed is below ``rest_speed``.
+    Damping adds −α m v (v: the solver's last half-step velocity) while t < ``damping_until``.
     """
 
-    def __init__(self, loads: tuple[Load, ...]) -> None:
+    def __init__(self, loads: tuple[Load, ...], damping: float = 0.0, damping_until: float = float("inf")) -> None:
         self.loads = loads
+        self.damping, self.damping_until = damping, damping_until
+        self.offsets = np.array([0.0 if ld.trigger == "time" else np.nan for ld in loads])
+
+    def _shift(self, i: int, t0: float, mechanics: DolfinxMechanics) -> float:
+        """Time shift of pulse i; fixes it when a rest-triggered pulse fires."""
+        if not np.isnan(self.offsets[i]):
+            return float(self.offsets[i])
+        prev = self.loads[i - 1]
+        prev_shift = self.offsets[i - 1]
+        if np.isnan(prev_shift) or t0 < prev.t_end + prev_shift:
+            return np.nan
+        body = mechanics.solver.bodies[self.loads[i].body]
+        local = float(np.sqrt((body.v[: body.n_owned] ** 2).sum(axis=1)).max()) if body.n_owned else 0.0
+        speed = mechanics.solver.comm.allreduce(local, op=MPI.MAX)
+        if speed < self.loads[i].rest_speed:
+            self.offsets[i] = t0 - self.loads[i].t_start
+        return float(self.offsets[i])
 
     def load(self, t0: float, t1: float, t_mid: float, mechanics: DolfinxMechanics) -> LoadStep:
         """Nodal forces (N) per body for the step [t0, t1] (s)."""
         forces: dict[str, np.ndarray] = {}
         values: dict[str, float] = {}
         for i, ld in enumerate(self.loads):
-            p = pulse_pressure(ld, t_mid)
+            shift = self._shift(i, t0, mechanics)
+            p = 0.0 if np.isnan(shift) else pulse_pressure(ld, t_mid - shift)
             values[f"load{i}_pressure_Pa"] = p
             if p == 0.0:
                 continue
             f = mechanics.solver.pressure_nodal_forces(ld.body, box_marker(ld.surface), p)
             forces[ld.body] = forces[ld.body] + f if ld.body in forces else f
+        if self.damping > 0.0 and t_mid < self.damping_until:
+            for name, b in mechanics.solver.bodies.items():
+                f = -self.damping * b.mass[:, None] * b.v
+                forces[name] = forces[name] + f if name in forces else f
         return LoadStep(forces, None, values)
 
+    def start_times(self) -> list[float]:
+        """Actual start time (s) of each pulse (nan: not started)."""
+        return [ld.t_start + off for ld, off in zip(self.loads, self.offsets)]
+
     def state_dict(self) -> dict[str, np.ndarray]:
-        """Stateless (time laws only)."""
-        return {}
+        """The trigger shifts of the pulses."""
+        return {"offsets": self.offsets.copy()}
 
     def load_state_dict(self, state: dict[str, np.ndarray]) -> None:
-        """Stateless."""
+        """Restore :meth:`state_dict`."""
+        if "offsets" in state:
+            self.offsets = np.array(state["offsets"], dtype=float)

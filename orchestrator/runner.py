@@ -108,6 +108,8 @@ def _dispatch(case: Case, results: ResultsFolder, *, quiet: bool, resume: bool,
         plot_probes(run.history, results.plots)
         if run.shapes:
             plot_shapes(run.shapes, results.plots, case.mechanics.formulation == "axisymmetric")
+        for analysis in run.analyses:
+            analysis.plots(run.history, run.shapes, results.plots)
         if run.em_snapshot is not None:
             plot_em_snapshot(*run.em_snapshot, results.plots, run.solver.time, box=_em_plot_box(case))
     return run.metrics

@@ -1,0 +1,26 @@
+"""Case-specific analyses: extra history columns, metrics and plots, chosen by ``analysis = [...]``.
+
+An analysis is a class with
+
+* ``__init__(self, case)``,
+* ``record(self, solver) -> dict[str, float]``: columns added to every history row (SI units in names),
+* ``metrics(self, solver, history) -> dict[str, float]``: added to ``metrics.json``,
+* ``plots(self, history, shapes, folder) -> None``: PNGs into ``plots/``.
+
+Register it in :data:`REGISTRY` by name (the module is imported lazily, so validating a case file
+does not import the solvers).
+"""
+
+from __future__ import annotations
+
+import importlib
+
+REGISTRY: dict[str, str] = {
+    # name: "module:Class" inside pulseform.orchestrator.analyses
+}
+
+
+def create(name: str, case):
+    """Instantiate the analysis called ``name`` for ``case``."""
+    module, cls = REGISTRY[name].split(":")
+    return getattr(importlib.import_module(f"{__name__}.{module}"), cls)(case)
