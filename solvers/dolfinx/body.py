@@ -225,16 +225,25 @@ class Body:
         """Total mass of the body, kg."""
         return self.comm.allreduce(float(self.mass[: self.n_owned].sum()))
 
-    def tributary_areas(self, segs: np.ndarray, x: np.ndarray) -> np.ndarray:
-        """Per-node tributary boundary area of the given segments at positions x, m^2 (planar:
-        times thickness; axisymmetric: the full 2 pi ring, consistent int N_a 2 pi r ds)."""
+    def segment_weights(self, segs: np.ndarray, x: np.ndarray):
+        """Per-segment end-node areas (wa, wb), m^2 (planar: half length x thickness;
+        axisymmetric: the consistent int N_a 2 pi r ds), and outward unit normals (S, 2)."""
         pa, pb = x[segs[:, 0]], x[segs[:, 1]]
-        ln = np.linalg.norm(pb - pa, axis=1)
+        t = pb - pa
+        ln = np.linalg.norm(t, axis=1)
         if self.axisymmetric:
             wa = 2 * np.pi * ln * (2 * pa[:, 0] + pb[:, 0]) / 6.0
             wb = 2 * np.pi * ln * (pa[:, 0] + 2 * pb[:, 0]) / 6.0
         else:
             wa = wb = 0.5 * ln * self.thickness
+        with np.errstate(invalid="ignore", divide="ignore"):
+            nrm = np.stack([t[:, 1], -t[:, 0]], axis=1) / ln[:, None]
+        return wa, wb, nrm
+
+    def tributary_areas(self, segs: np.ndarray, x: np.ndarray) -> np.ndarray:
+        """Per-node tributary boundary area of the given segments at positions x, m^2 (planar:
+        times thickness; axisymmetric: the full 2 pi ring, consistent int N_a 2 pi r ds)."""
+        wa, wb, _ = self.segment_weights(segs, x)
         n = x.shape[0]
         return (np.bincount(segs[:, 0], weights=wa, minlength=n)
                 + np.bincount(segs[:, 1], weights=wb, minlength=n))

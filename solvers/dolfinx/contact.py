@@ -14,7 +14,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 __all__ = ["ContactPairSpec", "RigidWallSpec", "ContactPenetrationError", "Surface",
-           "soft_contact_pass", "ContactResult"]
+           "SlaveGeometry", "soft_contact_pass", "ContactResult"]
 
 log = logging.getLogger(__name__)
 
@@ -138,6 +138,33 @@ class Surface:
         """Tributary areas of the surface nodes at positions X (Ns, 2), m^2."""
         return self.body.tributary_areas(self.seg, X)
 
+    def geometry(self, X: np.ndarray) -> "SlaveGeometry":
+        """Segment data for contact areas at positions X (see :class:`SlaveGeometry`)."""
+        wa, wb, nrm = self.body.segment_weights(self.seg, X)
+        return SlaveGeometry(self.seg, wa, wb, nrm)
+
+
+@dataclass
+class SlaveGeometry:
+    """Slave-surface segments (S, 2), their end-node areas wa, wb (m^2) and outward normals."""
+
+    seg: np.ndarray
+    wa: np.ndarray
+    wb: np.ndarray
+    nrm: np.ndarray
+
+    def contact_areas(self, nodes: np.ndarray, normals: np.ndarray, n_nodes: int) -> np.ndarray:
+        """Contact area of each of ``nodes`` whose master normal is ``normals``: the adjacent
+        segment areas projected on the contact plane, sum of w max(0, -n_seg . n_master), m^2.
+        A corner node thus gets no area from a side segment perpendicular to the contact."""
+        nm = np.zeros((n_nodes, 2))
+        nm[nodes] = normals
+        ca = np.maximum(0.0, -np.einsum("ij,ij->i", self.nrm, nm[self.seg[:, 0]])) * self.wa
+        cb = np.maximum(0.0, -np.einsum("ij,ij->i", self.nrm, nm[self.seg[:, 1]])) * self.wb
+        A = (np.bincount(self.seg[:, 0], weights=ca, minlength=n_nodes)
+             + np.bincount(self.seg[:, 1], weights=cb, minlength=n_nodes))
+        return A[nodes]
+
 
 @dataclass
 class ContactResult:
@@ -153,7 +180,8 @@ class ContactResult:
     active: tuple = (np.zeros(0, np.int64), np.zeros(0, np.int64))
 
 
-def soft_contact_pass(Xs, Vs, As, Xm, Vm, segm, spec: ContactPairSpec, weight: float = 1.0,
+def soft_contact_pass(Xs, Vs, geo: SlaveGeometry, Xm, Vm, segm, spec: ContactPairSpec,
+                      weight: float = 1.0,
                       xi_tol: float = 0.02, Ms=None, Mm=None, dt: float = 0.0,
                       previous: Optional[tuple] = None) -> ContactResult:
     """Node-to-segment soft contact of slave nodes against master segments.
@@ -162,8 +190,9 @@ def soft_contact_pass(Xs, Vs, As, Xm, Vm, segm, spec: ContactPairSpec, weight: f
     ----------
     Xs, Vs : (Ns, 2) arrays
         Slave node positions (m) and velocities (m/s).
-    As : (Ns,) array
-        Slave tributary areas, m^2.
+    geo : SlaveGeometry
+        Slave segments, areas and normals; a node's contact area is its adjacent segment areas
+        projected on the contact plane (:meth:`SlaveGeometry.contact_areas`).
     Xm, Vm : (Nm, 2) arrays
         Master surface node positions and velocities.
     segm : (S, 2) int array
@@ -238,7 +267,7 @@ def soft_contact_pass(Xs, Vs, As, Xm, Vm, segm, spec: ContactPairSpec, weight: f
     p_el = spec.stiffness * (1.0 / h - 1.0 / h0)
     p_v = -spec.viscosity * np.abs(vn) * vn
     p = p_el + p_v
-    A = As[si]
+    A = geo.contact_areas(si, nrm, ns)
     F = (weight * p * A)[:, None] * nrm
     diss = -np.sum(weight * p_v * A * vn)
     if spec.friction > 0:

@@ -308,7 +308,7 @@ class ExplicitSolver:
         for n, s in self._surf.items():
             X = s.gather(self.bodies[n].x)
             V = s.gather(self.bodies[n].v)
-            data[n] = (X, V, s.areas(X))
+            data[n] = (X, V, s.geometry(X))
             fsurf[n] = np.zeros_like(X)
         stored = 0.0
         for ip, cp in enumerate(self.contact_pairs):
@@ -317,9 +317,9 @@ class ExplicitSolver:
                 passes.append((cp.master, cp.slave))
             wgt = 0.5 if cp.two_pass else 1.0
             for k, (sn, mn) in enumerate(passes):
-                Xs, Vs, As = data[sn]
+                Xs, Vs, geo = data[sn]
                 Xm, Vm, _ = data[mn]
-                res = soft_contact_pass(Xs, Vs, As, Xm, Vm, self._surf[mn].seg, cp, wgt,
+                res = soft_contact_pass(Xs, Vs, geo, Xm, Vm, self._surf[mn].seg, cp, wgt,
                                         Ms=self._surf[sn].M, Mm=self._surf[mn].M, dt=dt,
                                         previous=self._active.get((ip, k)))
                 if res.penetration is not None:
