@@ -3,8 +3,9 @@
 Reference: consistency of two independent outputs -- GetDP's Gauss-integrated total force
 (7-point rule, 2 pi r included) and the per-element force density j x B evaluated at the element
 centroid times the element volume 2 pi r_c A.  Also checked: the element-averaged densities
-(what the coupling receives) add up to the totals to round-off.  Setup as in
-SOLVER_NOTES (5-turn coil, 20 kA e^(-1e4 t) sin(1e5 t), 1 mm Al disk of radius 60 mm 1 mm above).
+(what the coupling receives) add up to the totals to round-off.  Setup like SOLVER_NOTES's
+(5-turn coil, 20 kA e^(-1e4 t) sin(1e5 t), 1 mm Al disk of radius 60 mm 1 mm above; turn sections
+3 mm x 2 mm chosen here).
 """
 import numpy as np
 import pytest
