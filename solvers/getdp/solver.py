@@ -284,6 +284,8 @@ class GetDPSolver:
             raise ValueError("n_sub must be a positive integer")
         model = self.model
         run_dir = self.work_dir / (run_name or f"step_{state.step_index:05d}")
+        if state.res_path is not None and Path(state.res_path).resolve().parent == run_dir.resolve():
+            raise ValueError(f"run folder {run_dir} holds the previous step's restart data: use another run_name")
         if run_dir.exists():
             shutil.rmtree(run_dir)
         run_dir.mkdir(parents=True)

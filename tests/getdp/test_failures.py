@@ -88,3 +88,22 @@ def test_warnings_are_returned(work, tmp_path):
     write_msh22(slab_mesh(1e-3, 1e-4), mesh)
     info = run_getdp(tmp_path / "x.pro", mesh, work, resolution="R", executable=str(fake))
     assert info.warnings == ["Warning : something odd"]
+
+
+def test_bad_inputs_are_rejected(work):
+    from pulseform.solvers.getdp import Coil, DampedSine, EMMesh, EMState
+    with pytest.raises(ValueError):
+        EMModel(True, coils=[Coil(5)])                       # no waveform and no circuit
+    solver = slab_solver(work)
+    state = solver.initial_state()
+    mesh = slab_mesh(1e-3, 1e-4)
+    with pytest.raises(ValueError):
+        solver.step(mesh, state, 0.0, 1)                    # t_end not after state.t
+    with pytest.raises(ValueError):
+        solver.step(mesh, state, 1e-6, 0)
+    axi = GetDPSolver(EMModel(True, conductors=[Conductor(3.5e7)]), work)
+    with pytest.raises(ValueError, match="axis"):
+        axi.step(mesh, axi.initial_state(), 1e-6, 1)        # axisymmetric mesh without axis lines
+    # a run may not overwrite the folder holding the previous step's .res
+    with pytest.raises(ValueError, match="restart data"):
+        solver.step(mesh, EMState(t=1e-6, res_path=str(work / "r" / "em.res")), 2e-6, 1, run_name="r")
