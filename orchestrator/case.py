@@ -315,6 +315,9 @@ class EM:
     circuit: CapacitorBank | None = spec(None, doc="capacitor-bank discharge (give this or current)")
     current: DampedSineCurrent | None = spec(None, doc="prescribed coil current (give this or circuit)")
     keep_runs: bool = spec(False, doc="keep every getdp run folder (default: the last two)")
+    remesh_quality: float = spec(0.3, unit="-", gt=0.0, lt=1.0,
+                                 doc="remesh the air when the worst element quality 4√3A/Σl² falls below this "
+                                     "fraction of the fresh mesh's worst")
 
     def validate(self, path: str) -> None:
         if (self.circuit is None) == (self.current is None):

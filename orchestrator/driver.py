@@ -217,7 +217,7 @@ class CaseDriver:
 LOAD_COLUMNS_COUPLED = ("force_x_N", "force_y_N", "conservation_error_rel", "coil_current_A", "coil_voltage_V",
                         "capacitor_voltage_V", "coil_joule_heat_J", "coil_temperature_rise_K",
                         "magnetic_energy_J", "workpiece_joule_power_W", "getdp_force_z_N",
-                        "em_mesh_min_quality")
+                        "em_mesh_min_quality", "em_remeshes")
 
 
 def _GetDPLoad():  # noqa: N802 - the class, imported lazily (GetDP modules only for coupled runs)
@@ -242,8 +242,10 @@ def _coupled_participants(case: Case, results: ResultsFolder, comm: MPI.Comm):
         return solver, PressurePulses(case.loads, case.mechanics.mass_damping, case.mechanics.mass_damping_until)
     scale = float(np.abs(geometry.mesh.points).max())
     body_to_em = match_nodes(solver.bodies[body].X0, geometry.mesh.points, 1e-12 * scale)
+    g = case.geometry
     load = GetDPLoad(geometry, em_model(case, geometry), results.root / "em", body, sub, body_to_em,
-                     keep_runs=case.em.keep_runs)
+                     keep_runs=case.em.keep_runs, remesh_quality=case.em.remesh_quality,
+                     sizes=(g.mesh_size_coil, g.mesh_size_air))
     return solver, load
 
 

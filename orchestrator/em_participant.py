@@ -23,14 +23,14 @@ from pathlib import Path
 
 import numpy as np
 
-from pulseform.solvers.getdp import Circuit, Coil, Conductor, DampedSine, EMModel, EMState, GetDPSolver
+from pulseform.solvers.getdp import Circuit, Coil, Conductor, DampedSine, EMMesh, EMModel, EMState, GetDPSolver
 from pulseform.solvers.getdp.mesh import AXIS as AXIS_TAG
 from pulseform.solvers.getdp.mesh import OUTER as OUTER_TAG
 from pulseform.solvers.getdp.mesh import SHELL as SHELL_TAG
 
 from .case import Case
 from .emf_geometry import EMGeometry
-from .mesh_motion import MeshMover
+from .mesh_motion import MeshMover, MeshQualityError
 from .participants import LoadStep
 from .shared_mesh import ConductorMesh
 from .transfer import cell_force_integral, cell_to_nodal_forces
@@ -77,42 +77,88 @@ class GetDPLoad:
         EM node index of each of the body's (local) nodes.
     keep_runs : bool
         Keep every run folder (default: only the last two).
+    remesh_quality : float
+        Remesh the air when the worst element quality (:func:`~.mesh_motion.triangle_quality`) falls
+        below this fraction of the worst quality of the freshly made mesh.
+    sizes : (float, float)
+        Element sizes (m) near the coil and far in the air, for remeshing.
     """
 
     def __init__(self, geometry: EMGeometry, model: EMModel, work_dir: Path, body: str, sub: ConductorMesh,
-                 body_to_em: np.ndarray, keep_runs: bool = False) -> None:
+                 body_to_em: np.ndarray, keep_runs: bool = False, remesh_quality: float = 0.3,
+                 sizes: tuple[float, float] = (1e-3, 0.02)) -> None:
         self.geometry, self.body, self.sub, self.body_to_em = geometry, body, sub, body_to_em
-        self.keep_runs = keep_runs
+        self.keep_runs, self.remesh_quality, self.sizes = keep_runs, remesh_quality, sizes
         self.solver = GetDPSolver(model, work_dir)
         self.state = self.solver.initial_state(0.0)
-        mesh = geometry.mesh
-        self.x_ref = mesh.points.copy()
-        fixed = np.unique(np.concatenate([
-            mesh.triangles[mesh.tri_tags == geometry.regions["coil"]].ravel(),
-            mesh.triangles[mesh.tri_tags == SHELL_TAG].ravel(),
-            mesh.lines[mesh.line_tags == OUTER_TAG].ravel(),
-            sub.em_nodes]))
-        axis = np.unique(mesh.lines[mesh.line_tags == AXIS_TAG].ravel())
-        self.mover = MeshMover(self.x_ref, mesh.triangles, (np.union1d(fixed, axis), fixed))
+        self.body_X0 = geometry.mesh.points[body_to_em].copy()  # the workpiece's material coordinates
+        self.material = geometry.mesh.points.copy()  # material coordinates of every EM node
+        self.remeshes = 0
+        self._set_mesh(geometry.mesh)
         self.min_quality = float(self.mover.q_ref.min())
         self._runs: list[Path] = []
         self._pinned: Path | None = None  # run folder the last checkpoint restarts from
         self.last = None  # (moved EM points, EMStepResult) of the latest step
         self.timers = {"getdp_process_s": 0.0, "getdp_io_s": 0.0, "mesh_motion_s": 0.0, "transfer_s": 0.0}
 
+    def _set_mesh(self, mesh) -> None:
+        """Use ``mesh`` (current configuration) as the reference of the mesh motion."""
+        self.geometry = EMGeometry(mesh, self.geometry.regions, self.geometry.turns)
+        self.x_ref = mesh.points.copy()
+        fixed = np.unique(np.concatenate([
+            mesh.triangles[mesh.tri_tags == self.geometry.regions["coil"]].ravel(),
+            mesh.triangles[mesh.tri_tags == SHELL_TAG].ravel(),
+            mesh.lines[mesh.line_tags == OUTER_TAG].ravel(),
+            self.body_to_em]))
+        axis = np.unique(mesh.lines[mesh.line_tags == AXIS_TAG].ravel())
+        self.mover = MeshMover(self.x_ref, mesh.triangles, (np.union1d(fixed, axis), fixed))
+        self.mover.min_quality = self.remesh_quality * float(self.mover.q_ref.min())
+
+    def _remesh(self, x_body: np.ndarray) -> None:
+        """Mesh air, coil and shell again around the workpiece's current shape (see :mod:`.remesh`)."""
+        from .remesh import remesh_around
+
+        g = self.solver.model
+        cur = np.zeros_like(self.x_ref)
+        cur[self.body_to_em] = x_body[:, :2]
+        work_points = cur[self.sub.em_nodes]
+        mesh, work_index = remesh_around(work_points, self.sub.cells, self.geometry.regions["workpiece"],
+                                         self.geometry.regions["coil"], self.geometry.turns, g.shell[0], g.shell[1],
+                                         *self.sizes)
+        sub_pos = np.searchsorted(self.sub.em_nodes, self.body_to_em)
+        self.body_to_em = work_index[sub_pos]
+        rows = np.flatnonzero(mesh.tri_tags == self.geometry.regions["workpiece"])
+        self.sub = ConductorMesh(rows, work_index, work_points, self.sub.cells)
+        self.material = mesh.points.copy()
+        self.material[self.body_to_em] = self.body_X0
+        self._set_mesh(mesh)
+        self.remeshes += 1
+
     def load(self, t0: float, t1: float, t_mid: float, mechanics) -> LoadStep:
-        """Move the EM mesh with the workpiece, run one getdp step to ``t1``, return nodal forces (N)."""
+        """Move the EM mesh with the workpiece, run one getdp step to ``t1``, return nodal forces (N).
+
+        When the moved mesh's worst element falls below ``remesh_quality`` (or inverts), the air
+        is remeshed around the workpiece and the EM state is carried in material coordinates.
+        """
         c0 = time.perf_counter()
         x_body = mechanics.positions()[self.body]
         u = np.zeros_like(self.x_ref)
         u[self.body_to_em] = x_body[:, :2] - self.x_ref[self.body_to_em]
-        x_em = self.mover.moved(u)
+        try:
+            x_em = self.mover.moved(u)  # checks quality: a degenerate or inverted element never reaches GetDP
+        except MeshQualityError as exc:
+            log.info("t = %.6g s: %s: remeshing the air around the workpiece", t0, exc)
+            self._remesh(x_body)
+            x_em = self.mover.moved(np.zeros_like(self.x_ref))
         self.min_quality = min(self.min_quality, float(self.mover.last_min_quality))
         mesh_k = self.geometry.mesh.with_points(x_em)
         if abs(self.state.t - t0) > 1e-9 * max(t1, 1e-300):
             raise RuntimeError(f"EM state at t = {self.state.t:.9g} s, but the step starts at {t0:.9g} s")
         c1 = time.perf_counter()
-        result, self.state = self.solver.step(mesh_k, self.state, t1, n_sub=1)
+        # after a remesh, keep carrying the state through the Init path: a -restart from the .res of an
+        # Init-path run gave garbage fields near the axis (GetDP 3.2.0; seen in tests, see the issue notes)
+        result, self.state = self.solver.step(mesh_k, self.state, t1, n_sub=1, material_points=self.material,
+                                              force_init_path=self.remeshes > 0)
         self.last = (x_em, result)
         self._prune(Path(result.path))
         c2 = time.perf_counter()
@@ -141,6 +187,7 @@ class GetDPLoad:
             "workpiece_joule_power_W": float(result.conductor_power[-1, 0]),
             "getdp_force_z_N": float(getdp_total[1]),
             "em_mesh_min_quality": float(self.mover.last_min_quality),
+            "em_remeshes": float(self.remeshes),
         }
         return LoadStep(forces, integral, values)
 
@@ -180,8 +227,13 @@ class GetDPLoad:
         if self.state.res_path:
             self._pinned = Path(self.state.res_path).parent
         blob = json.dumps({"state": self.state.to_dict(), "runs": [str(p) for p in self._runs],
-                           "min_quality": self.min_quality}).encode()
-        return {"em_state_json": np.frombuffer(blob, dtype=np.uint8)}
+                           "min_quality": self.min_quality, "remeshes": self.remeshes}).encode()
+        m = self.geometry.mesh
+        return {"em_state_json": np.frombuffer(blob, dtype=np.uint8), "mesh_points": m.points.copy(),
+                "mesh_triangles": m.triangles.copy(), "mesh_tri_tags": m.tri_tags.copy(), "mesh_lines": m.lines.copy(),
+                "mesh_line_tags": m.line_tags.copy(), "material": self.material.copy(),
+                "body_to_em": self.body_to_em.copy(), "sub_rows": self.sub.rows.copy(),
+                "sub_em_nodes": self.sub.em_nodes.copy(), "sub_points": self.sub.points.copy()}
 
     def load_state_dict(self, d: dict[str, np.ndarray]) -> None:
         """Restore :meth:`state_dict`."""
@@ -189,4 +241,14 @@ class GetDPLoad:
         self.state = EMState.from_dict(data["state"])
         self._runs = [Path(p) for p in data["runs"]]
         self.min_quality = float(data["min_quality"])
+        self.remeshes = int(data.get("remeshes", 0))
+        if "mesh_points" in d and (self.remeshes or not np.array_equal(d["mesh_triangles"], self.geometry.mesh.triangles)):
+            mesh = EMMesh(d["mesh_points"], d["mesh_triangles"], d["mesh_tri_tags"], d["mesh_lines"],
+                          d["mesh_line_tags"])
+            self.body_to_em = np.array(d["body_to_em"])
+            self.sub = ConductorMesh(np.array(d["sub_rows"]), np.array(d["sub_em_nodes"]), np.array(d["sub_points"]),
+                                     self.sub.cells)
+            self._set_mesh(mesh)
+        if "material" in d:
+            self.material = np.array(d["material"])
         self._pinned = Path(self.state.res_path).parent if self.state.res_path else None

@@ -69,6 +69,7 @@ class PressurePulses:
         self.loads = loads
         self.damping, self.damping_until = damping, damping_until
         self.offsets = np.array([0.0 if ld.trigger == "time" else np.nan for ld in loads])
+        self._masks: dict[int, np.ndarray] = {}
 
     def _shift(self, i: int, t0: float, mechanics: DolfinxMechanics) -> float:
         """Time shift of pulse i; fixes it when a rest-triggered pulse fires."""
@@ -95,13 +96,29 @@ class PressurePulses:
             values[f"load{i}_pressure_Pa"] = p
             if p == 0.0:
                 continue
-            f = mechanics.solver.pressure_nodal_forces(ld.body, box_marker(ld.surface), p)
+            f = mechanics.solver.pressure_nodal_forces(ld.body, self._material_marker(i, mechanics), p)
             forces[ld.body] = forces[ld.body] + f if ld.body in forces else f
         if self.damping > 0.0 and t_mid < self.damping_until:
             for name, b in mechanics.solver.bodies.items():
                 f = -self.damping * b.mass[:, None] * b.v
                 forces[name] = forces[name] + f if name in forces else f
         return LoadStep(forces, None, values)
+
+    def _material_marker(self, i: int, mechanics: DolfinxMechanics):
+        """Facet marker of pulse i on the body's *initial* configuration (material surface): the
+        box picks the same facets however far the body has moved (e.g. a blank's upper face drawn
+        into a die). Cached per pulse; falls back to current coordinates for bodies without X0."""
+        if i not in self._masks:
+            ld = self.loads[i]
+            body = mechanics.solver.bodies[ld.body]
+            X0 = getattr(body, "X0", None)
+            if X0 is None:
+                return box_marker(ld.surface)
+            x3 = np.zeros((3, X0.shape[0]))
+            x3[:2] = X0.T
+            self._masks[i] = np.asarray(box_marker(ld.surface)(x3), dtype=bool)
+        mask = self._masks[i]
+        return lambda x: mask
 
     def start_times(self) -> list[float]:
         """Actual start time (s) of each pulse (nan: not started)."""

@@ -17,6 +17,8 @@ import importlib
 
 REGISTRY: dict[str, str] = {
     # name: "module:Class" inside pulseform.orchestrator.analyses
+    "corner_fill": "corner_fill:CornerFill",
+    "tube_press_fit": "tube_press_fit:TubePressFit",
 }
 
 

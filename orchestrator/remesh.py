@@ -1,0 +1,153 @@
+"""Remesh the EM domain around a deformed workpiece, keeping the workpiece's own (mechanical) mesh.
+
+When the harmonically smoothed air mesh degrades, the air, coil and shell are meshed again with gmsh
+around the workpiece's *current* boundary polygon; the workpiece keeps its triangles and nodes (they
+are the mechanical mesh's), so the shared-node transfer stays exact. Every boundary segment of the
+polygon is a transfinite line with its two end nodes only, so gmsh puts no node on it that the
+workpiece does not have, and the two meshes are stitched by coordinates.
+"""
+
+from __future__ import annotations
+
+import logging
+
+import gmsh
+import numpy as np
+from scipy.spatial import cKDTree
+
+from pulseform.solvers.getdp import EMMesh
+from pulseform.solvers.getdp.mesh import AIR, AXIS, OUTER, SHELL, Rect
+
+from .transfer import boundary_facets, triangle_areas
+
+log = logging.getLogger(__name__)
+
+
+def boundary_loop(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
+    """Node indices of the (single) boundary loop of a triangle mesh, counter-clockwise."""
+    edges = boundary_facets(cells, points)
+    nxt = {int(a): int(b) for a, b in edges}
+    if len(nxt) != len(edges):
+        raise ValueError("the workpiece boundary is not a simple loop")
+    start = int(edges[0, 0])
+    loop = [start]
+    while True:
+        n = nxt[loop[-1]]
+        if n == start:
+            break
+        loop.append(n)
+        if len(loop) > len(edges):
+            raise ValueError("the workpiece boundary is not a single closed loop")
+    if len(loop) != len(edges):
+        raise ValueError("the workpiece has holes or several parts; remeshing supports one simple loop")
+    return np.array(loop)
+
+
+def remesh_around(work_points: np.ndarray, work_cells: np.ndarray, work_tag: int, coil_tag: int,
+                  turns: list[Rect], r_domain: float, r_shell: float, h_coil: float, h_air: float) -> tuple[EMMesh, np.ndarray]:
+    """New axisymmetric EM mesh around the workpiece (points in m, its current configuration).
+
+    Returns
+    -------
+    (EMMesh, ndarray)
+        The mesh, and for each workpiece node (row of ``work_points``) its node index in the mesh.
+    """
+    loop = boundary_loop(work_points, work_cells)
+    seg = np.linalg.norm(work_points[np.roll(loop, -1)] - work_points[loop], axis=1)
+    gmsh.initialize(readConfigFiles=False)
+    gmsh.option.setNumber("General.Terminal", 0)
+    gmsh.model.add("pulseform_remesh")
+    try:
+        occ = gmsh.model.occ
+        outer = occ.addDisk(0, 0, 0, r_shell, r_shell)
+        inner = occ.addDisk(0, 0, 0, r_domain, r_domain)
+        box = occ.addRectangle(0, -2 * r_shell, 0, 2 * r_shell, 4 * r_shell)
+        outer = occ.intersect([(2, outer)], [(2, box)], removeTool=False)[0][0][1]
+        inner = occ.intersect([(2, inner)], [(2, box)])[0][0][1]
+        pts = [occ.addPoint(x, y, 0.0, float(h)) for (x, y), h in zip(work_points[loop], seg)]
+        lines = [occ.addLine(pts[i], pts[(i + 1) % len(pts)]) for i in range(len(pts))]
+        work = occ.addPlaneSurface([occ.addCurveLoop(lines)])
+        coil = [occ.addRectangle(r.x0, r.y0, 0, r.x1 - r.x0, r.y1 - r.y0) for r in turns]
+        tools = [(2, work)] + [(2, c) for c in coil] + [(2, inner)]
+        _, out_map = occ.fragment([(2, outer)], tools)
+        occ.synchronize()
+        work_surfs = {p[1] for p in out_map[1]}
+        coil_surfs = {p[1] for m in out_map[2:2 + len(coil)] for p in m}
+        inner_surfs = {p[1] for p in out_map[-1]}
+        air, shell = [], []
+        for _, s in gmsh.model.getEntities(2):
+            if s in work_surfs or s in coil_surfs:
+                continue
+            (air if s in inner_surfs else shell).append(s)
+        gmsh.model.addPhysicalGroup(2, sorted(coil_surfs), coil_tag)
+        gmsh.model.addPhysicalGroup(2, air, AIR)
+        gmsh.model.addPhysicalGroup(2, shell, SHELL)
+        tol = 1e-6 * r_shell  # OCC bounding boxes carry its tolerance (~1e-7)
+        axis, rim = [], []
+        everything = [(2, s) for _, s in gmsh.model.getEntities(2)]
+        for _, c in gmsh.model.getBoundary(everything, combined=True, oriented=False):
+            x0, _, _, x1, _, _ = gmsh.model.getBoundingBox(1, abs(c))
+            (axis if abs(x0) < tol and abs(x1) < tol else rim).append(abs(c))
+        gmsh.model.addPhysicalGroup(1, sorted(set(axis)), AXIS)
+        gmsh.model.addPhysicalGroup(1, sorted(set(rim)), OUTER)
+        work_curves = {abs(c) for _, c in gmsh.model.getBoundary([(2, s) for s in work_surfs], oriented=False)}
+        for c in work_curves:
+            gmsh.model.mesh.setTransfiniteCurve(c, 2)
+        f_dist = gmsh.model.mesh.field.add("Distance")
+        coil_curves = {abs(c) for _, c in gmsh.model.getBoundary([(2, s) for s in coil_surfs], oriented=False)}
+        gmsh.model.mesh.field.setNumbers(f_dist, "EdgesList", sorted(coil_curves | work_curves))
+        gmsh.model.mesh.field.setNumber(f_dist, "NumPointsPerCurve", 50)
+        f_thr = gmsh.model.mesh.field.add("Threshold")
+        for k, v in (("InField", f_dist), ("SizeMin", min(h_coil, float(seg.max()))), ("SizeMax", h_air),
+                     ("DistMin", 0.0), ("DistMax", 0.5 * r_domain)):
+            gmsh.model.mesh.field.setNumber(f_thr, k, v)
+        gmsh.model.mesh.field.setAsBackgroundMesh(f_thr)
+        gmsh.option.setNumber("Mesh.MeshSizeFromPoints", 0)
+        gmsh.option.setNumber("Mesh.MeshSizeExtendFromBoundary", 0)
+        gmsh.option.setNumber("Mesh.Algorithm", 6)
+        gmsh.model.mesh.generate(2)
+        result = _collect(work_points, work_cells, work_tag)
+    finally:
+        gmsh.finalize()
+    return result
+
+
+def _collect(work_points: np.ndarray, work_cells: np.ndarray, work_tag: int) -> tuple[EMMesh, np.ndarray]:
+    """gmsh's air/coil/shell triangles and lines, stitched to the workpiece triangles by coordinates."""
+    tags, coords, _ = gmsh.model.mesh.getNodes()
+    index = np.full(int(tags.max()) + 1, -1, dtype=np.int64)
+    index[tags.astype(np.int64)] = np.arange(len(tags))
+    pts = coords.reshape(-1, 3)[:, :2]
+    tris, ttags, lines, ltags = [], [], [], []
+    for dim, ptag in gmsh.model.getPhysicalGroups():
+        for ent in gmsh.model.getEntitiesForPhysicalGroup(dim, ptag):
+            types, _, nodes = gmsh.model.mesh.getElements(dim, ent)
+            for et, en in zip(types, nodes):
+                if dim == 2 and et == 2:
+                    tris.append(index[en.astype(np.int64)].reshape(-1, 3))
+                    ttags.append(np.full(len(tris[-1]), ptag))
+                elif dim == 1 and et == 1:
+                    lines.append(index[en.astype(np.int64)].reshape(-1, 2))
+                    ltags.append(np.full(len(lines[-1]), ptag))
+    tri = np.vstack(tris)
+    used = np.unique(np.concatenate([tri.ravel()] + [ln.ravel() for ln in lines]))
+    # workpiece nodes: the boundary ones coincide with gmsh nodes, the interior ones are new
+    scale = float(np.abs(pts).max())
+    dist, hit = cKDTree(pts[used]).query(work_points)
+    on_gmsh = dist <= 1e-9 * scale
+    n_g = len(used)
+    remap = np.full(len(pts), -1, dtype=np.int64)
+    remap[used] = np.arange(n_g)
+    work_index = np.empty(len(work_points), dtype=np.int64)
+    work_index[on_gmsh] = hit[on_gmsh]
+    extra = np.flatnonzero(~on_gmsh)
+    work_index[extra] = n_g + np.arange(len(extra))
+    points = np.vstack([pts[used], work_points[extra]])
+    points[work_index[on_gmsh]] = work_points[on_gmsh]  # exactly the workpiece's coordinates
+    triangles = np.vstack([remap[tri], work_index[work_cells]])
+    tri_tags = np.concatenate(ttags + [np.full(len(work_cells), work_tag)])
+    mesh = EMMesh(points, triangles, tri_tags, remap[np.vstack(lines)], np.concatenate(ltags))
+    neg = triangle_areas(mesh.points, mesh.triangles) < 0
+    mesh.triangles[neg] = mesh.triangles[neg][:, [0, 2, 1]]
+    log.info("EM remesh: %d nodes, %d triangles (%d in the workpiece)", len(points), len(triangles), len(work_cells))
+    return mesh, work_index
