@@ -116,6 +116,12 @@ class Surface:
         self.own_pos = self.loc_pos[own]
         self.X0 = self.gather(body.X0)
         self.M = self.gather(body.mass[:, None])[:, 0]
+        # partition-independent rank of each segment (by its reference midpoint), used to break
+        # ties between equally distant candidate segments identically in serial and parallel
+        mid = 0.5 * (self.X0[self.seg[:, 0]] + self.X0[self.seg[:, 1]])
+        order = np.lexsort((mid[:, 1], mid[:, 0]))
+        self.seg_key = np.empty(len(order), dtype=np.int64)
+        self.seg_key[order] = np.arange(len(order))
 
     def gather(self, arr: np.ndarray) -> np.ndarray:
         """Global (Ns, k) array of a nodal (N, k) array, from the owners."""
@@ -183,7 +189,8 @@ class ContactResult:
 def soft_contact_pass(Xs, Vs, geo: SlaveGeometry, Xm, Vm, segm, spec: ContactPairSpec,
                       weight: float = 1.0,
                       xi_tol: float = 0.02, Ms=None, Mm=None, dt: float = 0.0,
-                      previous: Optional[tuple] = None) -> ContactResult:
+                      previous: Optional[tuple] = None,
+                      seg_key: Optional[np.ndarray] = None) -> ContactResult:
     """Node-to-segment soft contact of slave nodes against master segments.
 
     Parameters
@@ -213,6 +220,9 @@ def soft_contact_pass(Xs, Vs, geo: SlaveGeometry, Xm, Vm, segm, spec: ContactPai
         Contacts of the previous step (``ContactResult.active``): a node that was in contact and
         now lies behind the same segment (it crossed the whole layer within one step) is reported
         as a penetration too.
+    seg_key : (S,) int array, optional
+        Canonical order of the master segments: among candidates whose |h| agree to 1e-9 h0
+        (a node facing a shared vertex), the lowest key wins, whatever the storage order.
 
     Returns
     -------
@@ -252,7 +262,9 @@ def soft_contact_pass(Xs, Vs, geo: SlaveGeometry, Xm, Vm, segm, spec: ContactPai
     if not ok.any():
         return empty
     si, mj, xi, nrm, h = si[ok], mj[ok], xi[ok], nrm[ok], h[ok]
-    order = np.lexsort((np.abs(h), si))
+    hq = np.round(np.abs(h) / (1e-9 * h0))
+    key = seg_key[mj] if seg_key is not None else mj
+    order = np.lexsort((key, hq, si))
     first = order[np.unique(si[order], return_index=True)[1]]
     si, mj, xi, nrm, h = si[first], mj[first], xi[first], nrm[first], h[first]
     bad = h <= 0.0

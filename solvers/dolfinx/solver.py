@@ -321,7 +321,8 @@ class ExplicitSolver:
                 Xm, Vm, _ = data[mn]
                 res = soft_contact_pass(Xs, Vs, geo, Xm, Vm, self._surf[mn].seg, cp, wgt,
                                         Ms=self._surf[sn].M, Mm=self._surf[mn].M, dt=dt,
-                                        previous=self._active.get((ip, k)))
+                                        previous=self._active.get((ip, k)),
+                                        seg_key=self._surf[mn].seg_key)
                 if res.penetration is not None:
                     i, h = res.penetration
                     raise ContactPenetrationError(
