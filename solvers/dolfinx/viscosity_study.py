@@ -2,8 +2,9 @@
 viscous contact stress -nu |v_n| v_n acting on the pair's relative normal velocity.
 
 Run: ``python -m pulseform.solvers.dolfinx.viscosity_study OUT_DIR [--nx 40 --ny 20]``; writes
-``viscosity_study.png`` and ``viscosity_study.json`` (per nu: plateau, std, duration, and the
-short-wave amplitude = rms of the stress minus its 0.1 ms running mean over the plateau window).
+``viscosity_study.png`` and ``viscosity_study.json`` (per nu: plateau, std, duration, the
+short-wave amplitude = rms of the stress minus its 0.1 ms running mean over the plateau window,
+first peak, minimum, contact dissipation).
 """
 from __future__ import annotations
 
@@ -51,6 +52,7 @@ def run_study(out_dir, nus: Sequence[float] = (0.0, 1e4, 1e6), nx: int = 40,
             t1 = 1e-3 * (m["contact_start_ms"] + 0.75 * m["contact_duration_ms"])
             m["short_wave_rms_MPa"] = short_wave_rms(r["t"], r["stress"], t0, t1) / 1e6
         m["peak_MPa"] = float(r["stress"].max() / 1e6)
+        m["min_MPa"] = float(r["stress"].min() / 1e6)   # < 0: viscous pull while separating
         m["contact_dissipated_J"] = r["energies"][-1]["contact_dissipated_J"]
         res[f"{nu:g}"] = m
         curves[nu] = (r["t"], r["stress"])

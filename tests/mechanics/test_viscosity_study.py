@@ -1,6 +1,8 @@
 """The paper's contact-viscosity study (nu = 0, 1e4, 1e6), run and checked against what we
-report in docs/mechanics.md (the paper: 1e4 reduces the short-wave variation, 1e6 is
-"unacceptable"; see the note for what this implementation does)."""
+report in docs/mechanics.md. The paper: 1e4 reduces the short-wave variation, 1e6 is
+"unacceptable". Here (nu on the pair's relative normal velocity) 1e4 reduces it a little and 1e6
+damps it strongly without changing plateau or duration (on a 80x40 mesh a small adhesive pull
+appears at release, as the term also opposes separation)."""
 import json
 
 import pytest
@@ -22,6 +24,7 @@ def test_viscosity_study(tmp_path):
     # nu = 1e6: strong damping of the short-wave oscillation and of the first peak ...
     assert r6["short_wave_rms_MPa"] < 0.25 * r0["short_wave_rms_MPa"]
     assert r6["peak_MPa"] < r0["peak_MPa"]
-    # ... but the explicit (lagged) viscous force runs near its stability limit: the contact
-    # forces do net positive work (negative "dissipation"), the sign of a non-physical term
-    assert r6["contact_dissipated_J"] < 0 < r4["contact_dissipated_J"]
+    # the term dissipates (more with nu), and the energy ledger still closes
+    assert 0 < r4["contact_dissipated_J"] < r6["contact_dissipated_J"]
+    for r in (r0, r4, r6):
+        assert r["energy_error_rel"] < 0.01
