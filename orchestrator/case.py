@@ -361,6 +361,7 @@ class Mechanics:
     mass_damping: float = spec(0.0, unit="1/s", ge=0.0,
                                doc="mass-proportional damping α: force −α m v on every node (dynamic relaxation)")
     mass_damping_until: float = spec(math.inf, unit="s", gt=0.0, doc="damping acts for t < this time")
+    mass_damping_from: float = spec(0.0, unit="s", ge=0.0, doc="damping acts for t >= this time (final relaxation)")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -368,6 +369,8 @@ class Coupling:
     """Staggered EM–mechanics coupling (used by coupled cases)."""
 
     n: int = spec(10, unit="-", ge=1, doc="mechanical steps per EM step (subcycling)")
+    em_substeps: int = spec(1, unit="-", ge=1,
+                            doc="implicit-Euler sub-steps inside each EM step (one getdp run; mean force is held)")
     load: Literal["getdp", "pressure"] = spec(
         "getdp", doc="coupled cases: GetDP eddy-current forces, or the [[loads]] pressure pulses on the "
                      "same workpiece mesh through the same loop (for comparisons)")

@@ -74,7 +74,7 @@ class CaseDriver:
         else:
             mo = case.mechanics
             self.solver, options = build_solver(case, comm), LoopOptions(n=1, n_max=1)
-            load = PressurePulses(case.loads, mo.mass_damping, mo.mass_damping_until)
+            load = PressurePulses(case.loads, mo.mass_damping, mo.mass_damping_until, mo.mass_damping_from)
         self.setup_s = _time.perf_counter() - t0
         self.mechanics = DolfinxMechanics(self.solver)
         self.load: LoadProvider = load
@@ -214,7 +214,8 @@ class CaseDriver:
         return MechanicsRun(s, self.history, metrics, self.shapes, snap, self.analyses)
 
 
-LOAD_COLUMNS_COUPLED = ("force_x_N", "force_y_N", "conservation_error_rel", "coil_current_A", "coil_voltage_V",
+LOAD_COLUMNS_COUPLED = ("force_x_N", "force_y_N", "conservation_error_rel", "coil_current_A",
+                        "coil_current_abs_max_A", "coil_voltage_V",
                         "capacitor_voltage_V", "coil_joule_heat_J", "coil_temperature_rise_K",
                         "magnetic_energy_J", "workpiece_joule_power_W", "getdp_force_z_N",
                         "em_mesh_min_quality", "em_remeshes")
@@ -239,13 +240,14 @@ def _coupled_participants(case: Case, results: ResultsFolder, comm: MPI.Comm):
     body = next(b.name for b in case.bodies if b.region == "workpiece")
     solver = build_solver(case, comm, {"workpiece": to_dolfinx(sub, comm)})
     if case.coupling.load == "pressure":  # same workpiece mesh and loop, pressure pulses instead of GetDP
-        return solver, PressurePulses(case.loads, case.mechanics.mass_damping, case.mechanics.mass_damping_until)
+        return solver, PressurePulses(case.loads, case.mechanics.mass_damping, case.mechanics.mass_damping_until,
+                                      case.mechanics.mass_damping_from)
     scale = float(np.abs(geometry.mesh.points).max())
     body_to_em = match_nodes(solver.bodies[body].X0, geometry.mesh.points, 1e-12 * scale)
     g = case.geometry
     load = GetDPLoad(geometry, em_model(case, geometry), results.root / "em", body, sub, body_to_em,
                      keep_runs=case.em.keep_runs, remesh_quality=case.em.remesh_quality,
-                     sizes=(g.mesh_size_coil, g.mesh_size_air))
+                     sizes=(g.mesh_size_coil, g.mesh_size_air), em_substeps=case.coupling.em_substeps)
     return solver, load
 
 
@@ -267,7 +269,7 @@ def body_extremes(solver, comm: MPI.Comm) -> dict[str, float]:
 
 def coupled_metrics(history: History, counters) -> dict[str, float]:
     """EM figures of a coupled run from its history: current, heat, conservation."""
-    current = history.column("coil_current_A")
+    current = history.column("coil_current_abs_max_A")
     return {
         "coil_current_peak_kA": float(np.abs(current).max()) / 1e3,
         "coil_joule_heat_J": float(history.column("coil_joule_heat_J")[-1]),

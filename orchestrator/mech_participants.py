@@ -62,12 +62,14 @@ class PressurePulses:
     into consistent nodal forces on the loaded facets of the current configuration. A pulse with
     ``trigger = "rest"`` keeps its window length but starts at the first EM step after the
     previous pulse's end at which the loaded body's largest nodal speed is below ``rest_speed``.
-    Damping adds −α m v (v: the solver's last half-step velocity) while t < ``damping_until``.
+    Damping adds −α m v (v: the solver's last half-step velocity) while
+    ``damping_from`` <= t < ``damping_until``.
     """
 
-    def __init__(self, loads: tuple[Load, ...], damping: float = 0.0, damping_until: float = float("inf")) -> None:
+    def __init__(self, loads: tuple[Load, ...], damping: float = 0.0, damping_until: float = float("inf"),
+                 damping_from: float = 0.0) -> None:
         self.loads = loads
-        self.damping, self.damping_until = damping, damping_until
+        self.damping, self.damping_until, self.damping_from = damping, damping_until, damping_from
         self.offsets = np.array([0.0 if ld.trigger == "time" else np.nan for ld in loads])
         self._masks: dict[int, np.ndarray] = {}
 
@@ -98,7 +100,7 @@ class PressurePulses:
                 continue
             f = mechanics.solver.pressure_nodal_forces(ld.body, self._material_marker(i, mechanics), p)
             forces[ld.body] = forces[ld.body] + f if ld.body in forces else f
-        if self.damping > 0.0 and t_mid < self.damping_until:
+        if self.damping > 0.0 and self.damping_from <= t_mid < self.damping_until:
             for name, b in mechanics.solver.bodies.items():
                 f = -self.damping * b.mass[:, None] * b.v
                 forces[name] = forces[name] + f if name in forces else f
