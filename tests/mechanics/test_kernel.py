@@ -12,7 +12,7 @@ from pulseform.solvers.dolfinx.kernels import (MODE_AXISYMMETRIC, MODE_PLANE_STR
                                                MODE_PLANE_STRESS)
 from pulseform.solvers.dolfinx.reference_kernel import element_step_numpy
 
-from conftest import distorted_square
+from mech_helpers import distorted_square
 
 STEEL = Material(7800.0, 80e9, 170e9, 300e6, 1e9)
 ALL = lambda x: np.full(x.shape[1], True)  # noqa: E731

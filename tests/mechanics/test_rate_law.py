@@ -9,7 +9,7 @@ import pytest
 from pulseform.solvers.dolfinx import (BodySpec, CowperSymonds, ExplicitSolver, JohnsonCook,
                                        Material)
 
-from conftest import distorted_square
+from mech_helpers import distorted_square
 
 ALL = lambda x: np.full(x.shape[1], True)  # noqa: E731
 R = 200.0   # 1/s

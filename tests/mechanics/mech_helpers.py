@@ -1,6 +1,5 @@
 """Shared helpers of the mechanics tests."""
 import numpy as np
-import pytest
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
@@ -9,7 +8,6 @@ def distorted_square(n: int = 6, amp: float = 0.25, seed: int = 3, origin=(0.0, 
     """Unit-ish square mesh of P1 triangles with interior nodes moved randomly (amp x spacing)."""
     msh = dmesh.create_unit_square(MPI.COMM_SELF, n, n)
     x = msh.geometry.x
-    rng = np.random.default_rng(seed)
     interior = (x[:, 0] > 1e-12) & (x[:, 0] < 1 - 1e-12) & (x[:, 1] > 1e-12) & (x[:, 1] < 1 - 1e-12)
     # perturb by a deterministic function of the coordinates, so that every node moves once
     pert = amp / n * np.stack([np.sin(12.9898 * x[:, 0] + 78.233 * x[:, 1] + seed),
@@ -17,8 +15,3 @@ def distorted_square(n: int = 6, amp: float = 0.25, seed: int = 3, origin=(0.0, 
     x[interior, :2] += pert[interior]
     x[:, :2] = np.asarray(origin) + size * x[:, :2]
     return msh
-
-
-@pytest.fixture
-def square():
-    return distorted_square()
