@@ -183,7 +183,8 @@ class EMStepResult:
     W/m^3 are element averages (GetDP's 7-point element integral / element volume
     2 pi r_c A), so sum(force_density * V) equals the total force: conservative for the
     mechanical transfer.  ``force_density_centroid`` is j x B at the centroid and
-    ``flux_density`` (n, n_el, 2) B at the centroid.  Per coil: current, voltage drop
+    ``flux_density`` (n, n_el, 2) B at the centroid.  With ``element_output="last"`` these
+    element arrays have one row (the last sub-step), with ``"none"`` no elements.  Per coil: current, voltage drop
     (receptor convention), Joule power, force.  Per conductor: force, Joule power.
     ``probe_b`` (n, n_probes, 2): B at the model's probe points.
     Totals are physical (2 pi included in axisymmetry; per metre in planar).
@@ -215,6 +216,8 @@ class EMStepResult:
     @property
     def force_density_mean(self) -> np.ndarray:
         """Impulse-consistent force density over the step: mean of the implicit sub-steps."""
+        if self.force_density.shape[0] != len(self.times):
+            raise ValueError("force_density_mean needs element_output='all'")
         return self.force_density.mean(axis=0)
 
     @property
@@ -265,7 +268,7 @@ class GetDPSolver:
     # -- one step
     def step(self, mesh: EMMesh, state: EMState, t_end: float, n_sub: int = 1, *,
              material_points: np.ndarray | None = None, run_name: str | None = None,
-             force_init_path: bool = False) -> tuple[EMStepResult, EMState]:
+             force_init_path: bool = False, element_output: str = "all") -> tuple[EMStepResult, EMState]:
         """Advance from ``state.t`` to ``t_end`` with ``n_sub`` implicit Euler sub-steps.
 
         ``mesh`` holds the current node positions.  If its connectivity equals that of
@@ -277,7 +280,14 @@ class GetDPSolver:
         new nodes; default ``mesh.points``, i.e. spatial) and fed through an Init
         constraint.  Pass ``material_points`` at every step or at none: they are stored
         in the state as the frame of the next interpolation.
+
+        ``element_output``: per-element tables at ``"all"`` sub-steps (default), only the
+        ``"last"`` one (the element arrays then have one row), or ``"none"`` (zero
+        elements) -- they cost about as much as the solve on long runs.
         """
+        n_elem_rows = {"all": int(n_sub), "last": 1, "none": 0}.get(element_output)
+        if n_elem_rows is None:
+            raise ValueError("element_output must be 'all', 'last' or 'none'")
         if not t_end > state.t:
             raise ValueError(f"t_end={t_end} must be after state.t={state.t}")
         if int(n_sub) != n_sub or n_sub < 1:
@@ -294,7 +304,8 @@ class GetDPSolver:
         msh = write_msh22(mesh, run_dir / "mesh.msh")
         sig = mesh_signature(mesh)
         numbers = self._numbers(mesh)
-        numbers.update(TimeInit=state.t, TimeFinal=float(t_end), NbSteps=int(n_sub))
+        numbers.update(TimeInit=state.t, TimeFinal=float(t_end), NbSteps=int(n_sub),
+                       Flag_ElemOut={"all": 1, "last": 2, "none": 0}[element_output])
         data_lines = self._table_lines()
         extra: list[str] = []
         has_field = state.res_path is not None
@@ -325,7 +336,7 @@ class GetDPSolver:
                          executable=self.executable, timeout=self.timeout)
         for w in info.warnings:
             warnings.warn(f"getdp ({run_dir.name}): {w}", RuntimeWarning, stacklevel=2)
-        result = self._read(mesh, out_dir, state, float(t_end), int(n_sub))
+        result = self._read(mesh, out_dir, state, float(t_end), int(n_sub), n_elem_rows)
         result.run = info
         result.path = str(run_dir)
         new_state = self._next_state(mesh, material_points, out_dir, run_dir, state, result, sig)
@@ -420,7 +431,8 @@ class GetDPSolver:
             vals[miss] = old_v[np.argmin(d2, axis=1)]
         return nodes + 1, vals
 
-    def _read(self, mesh: EMMesh, out: Path, state: EMState, t_end: float, n: int) -> EMStepResult:
+    def _read(self, mesh: EMMesh, out: Path, state: EMState, t_end: float, n: int,
+              n_rows: int) -> EMStepResult:
         m = self.model
         nc, nk = len(m.coils), len(m.conductors)
         dt = (t_end - state.t) / n
@@ -440,13 +452,13 @@ class GetDPSolver:
             if nk else np.zeros((n, 0, 2))
         kp = np.column_stack([np.loadtxt(out / f"cond_P_{k}.txt", ndmin=2)[:, 1] for k in range(1, nk + 1)]) \
             if nk else np.zeros((n, 0))
-        if nk:
+        if nk and n_rows:
             ef = np.loadtxt(out / "elem_f.txt", ndmin=2)
             eF = np.loadtxt(out / "elem_F.txt", ndmin=2)
             eP = np.loadtxt(out / "elem_P.txt", ndmin=2)
             eb = np.loadtxt(out / "elem_b.txt", ndmin=2)
-            n_el = len(ef) // n
-            if n_el * n != len(ef) or not len(eF) == len(eP) == len(eb) == len(ef):
+            n_el = len(ef) // n_rows
+            if n_el * n_rows != len(ef) or not len(eF) == len(eP) == len(eb) == len(ef):
                 raise RuntimeError(f"per-element tables in {out} have an unexpected length")
             ids = ef[:n_el, 1].astype(np.int64)
             elements = ids - 1
@@ -455,18 +467,18 @@ class GetDPSolver:
             if not np.array_equal(eF[:n_el, 1], ef[:n_el, 1]):
                 raise RuntimeError("per-element tables list elements in different orders")
             vol = _element_volumes(mesh, elements, m.axisymmetric)
-            centroid = ef[:, 8:10].reshape(n, n_el, 2)
-            force = eF[:, 8:10].reshape(n, n_el, 2) / vol[None, :, None]
-            joule = eP[:, 8].reshape(n, n_el) / vol[None, :]
-            bfield = eb[:, 8:10].reshape(n, n_el, 2)
+            centroid = ef[:, 8:10].reshape(n_rows, n_el, 2)
+            force = eF[:, 8:10].reshape(n_rows, n_el, 2) / vol[None, :, None]
+            joule = eP[:, 8].reshape(n_rows, n_el) / vol[None, :]
+            bfield = eb[:, 8:10].reshape(n_rows, n_el, 2)
             tags = mesh.tri_tags[elements]
         else:
             elements = np.zeros(0, np.int64)
             tags = np.zeros(0, np.int64)
-            force = np.zeros((n, 0, 2))
-            centroid = np.zeros((n, 0, 2))
-            joule = np.zeros((n, 0))
-            bfield = np.zeros((n, 0, 2))
+            force = np.zeros((n_rows, 0, 2))
+            centroid = np.zeros((n_rows, 0, 2))
+            joule = np.zeros((n_rows, 0))
+            bfield = np.zeros((n_rows, 0, 2))
         probe_b = np.stack([np.loadtxt(out / f"probe_b_{i}.txt", ndmin=2)[:, -3:-1]
                             for i in range(1, len(m.probes) + 1)], axis=1) if m.probes else np.zeros((n, 0, 2))
         vc = ic = None

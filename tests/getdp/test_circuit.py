@@ -59,7 +59,7 @@ def test_energy_balance_with_disk(work):
     model = EMModel(True, coils=[Coil(10)], conductors=[Conductor(3.5e7)], circuit=Circuit(C, V0, R_EXT, L_EXT),
                     shell=(0.1, 0.125))
     solver = GetDPSolver(model, work)
-    res, _ = solver.step(mesh, solver.initial_state(), T_END, 2000)
+    res, _ = solver.step(mesh, solver.initial_state(), T_END, 2000, element_output="last")
     i = res.coil_current[:, 0]
     joule = np.cumsum((res.coil_power[:, 0] + res.conductor_power.sum(axis=1) + R_EXT * i ** 2) * res.dt)
     e0 = 0.5 * C * V0 ** 2
@@ -70,6 +70,10 @@ def test_energy_balance_with_disk(work):
           f"coil Joule {res.coil_heat[0]:.1f} J, of {e0:.0f} J")
     assert rel.max() < 0.01
     assert np.sum(res.conductor_power) * res.dt > 0.01 * e0   # the disk really takes energy
+    # element_output="last": one row of element data, consistent with the last sub-step's totals
+    vol = mesh.volumes(True)[res.elements]
+    assert res.force_density.shape[0] == 1
+    assert np.allclose(res.force_density[0].T @ vol, res.conductor_force[-1, 0], rtol=1e-9)
 
 
 @pytest.mark.getdp

@@ -28,7 +28,7 @@ def test_energy_error_first_order_in_dt(work):
     errs = []
     ns = [1000, 2000, 4000]
     for n in ns:
-        res, _ = solver.step(mesh, solver.initial_state(), 100e-6, n, run_name=f"n{n}")
+        res, _ = solver.step(mesh, solver.initial_state(), 100e-6, n, run_name=f"n{n}", element_output="none")
         i = res.coil_current[:, 0]
         joule = np.cumsum((res.coil_power[:, 0] + res.conductor_power.sum(axis=1) + R_EXT * i ** 2) * res.dt)
         total = 0.5 * C * res.capacitor_voltage ** 2 + res.magnetic_energy + 0.5 * L_EXT * i ** 2 + joule
