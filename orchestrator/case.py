@@ -11,7 +11,13 @@ import math
 from dataclasses import dataclass
 from typing import Literal
 
+from .case_em import EM, CapacitorBank, DampedSineCurrent, FlatCoilSheet, Geometry, SolenoidTube
 from .schema import SchemaError, spec
+
+__all__ = ["Box", "Rectangle", "Polygon", "Shape", "CowperSymonds", "JohnsonCook", "Material", "FixedBoundary",
+           "Body", "ContactPair", "RigidWall", "PulseSin2", "PulseExp", "Load", "CaseInfo", "TimeControl",
+           "Mechanics", "Coupling", "Probe", "Output", "Case", "EM", "CapacitorBank", "DampedSineCurrent",
+           "FlatCoilSheet", "Geometry", "SolenoidTube"]
 
 Vec2 = tuple[float, float]
 
@@ -161,15 +167,12 @@ class RigidWall:
 
 # --------------------------------------------------------------------------- loads
 @dataclass(frozen=True, kw_only=True)
-class PulseSin2:
-    """Pressure pulse, paper eq. (7): P = P0 e^(−βt) sin²(ωt), t measured from ``t_start``."""
+class _PulseWindow:
+    """What every pressure pulse has: where it acts and when."""
 
-    type: Literal["pulse_sin2"] = spec(doc="load kind")
     body: str = spec(doc="loaded body")
     surface: Box = spec(doc="box selecting the loaded boundary facets")
-    amplitude: float = spec(unit="Pa", gt=0.0, doc="P0")
-    beta: float = spec(unit="1/s", ge=0.0, doc="decay rate β")
-    omega: float = spec(unit="rad/s", gt=0.0, doc="angular frequency ω")
+    amplitude: float = spec(unit="Pa", gt=0.0, doc="peak pressure scale (P0 or p0)")
     t_start: float = spec(0.0, unit="s", ge=0.0, doc="pulse start")
     t_end: float = spec(unit="s", gt=0.0, doc="pulse end (pressure is zero afterwards)")
     trigger: Literal["time", "rest"] = spec(
@@ -182,23 +185,20 @@ class PulseSin2:
 
 
 @dataclass(frozen=True, kw_only=True)
-class PulseExp:
+class PulseSin2(_PulseWindow):
+    """Pressure pulse, paper eq. (7): P = P0 e^(−βt) sin²(ωt), t measured from ``t_start``."""
+
+    type: Literal["pulse_sin2"] = spec(doc="load kind")
+    beta: float = spec(unit="1/s", ge=0.0, doc="decay rate β")
+    omega: float = spec(unit="rad/s", gt=0.0, doc="angular frequency ω")
+
+
+@dataclass(frozen=True, kw_only=True)
+class PulseExp(_PulseWindow):
     """Pressure pulse, paper eq. (8): p = p0 e^(−t/T), t measured from ``t_start``."""
 
     type: Literal["pulse_exp"] = spec(doc="load kind")
-    body: str = spec(doc="loaded body")
-    surface: Box = spec(doc="box selecting the loaded boundary facets")
-    amplitude: float = spec(unit="Pa", gt=0.0, doc="p0")
     decay_time: float = spec(unit="s", gt=0.0, doc="T")
-    t_start: float = spec(0.0, unit="s", ge=0.0, doc="pulse start")
-    t_end: float = spec(unit="s", gt=0.0, doc="pulse end (pressure is zero afterwards)")
-    trigger: Literal["time", "rest"] = spec(
-        "time", doc="'rest': start (with the same window length) once the previous pulse has ended and "
-                    "the loaded body's max speed is below rest_speed")
-    rest_speed: float = spec(0.5, unit="m/s", gt=0.0, doc="speed below which the body counts as at rest")
-
-    def validate(self, path: str) -> None:
-        _check_window(self.t_start, self.t_end, path)
 
 
 def _check_window(t_start: float, t_end: float, path: str) -> None:
@@ -207,121 +207,6 @@ def _check_window(t_start: float, t_end: float, path: str) -> None:
 
 
 Load = PulseSin2 | PulseExp
-
-
-# --------------------------------------------------------------------------- EM geometry and sources
-@dataclass(frozen=True, kw_only=True)
-class FlatCoilSheet:
-    """Axisymmetric flat spiral coil (coaxial rectangular turns in series) under a sheet.
-
-    The coil's top face is at z = 0, the sheet's lower face at z = ``coil_gap``; the sheet spans
-    0 <= r <= ``sheet_radius``. Air fills a half-disk of radius ``air_radius``; a shell out to
-    ``shell_radius`` maps the open boundary to infinity.
-    """
-
-    type: Literal["flat_coil_sheet"] = spec(doc="geometry kind")
-    turns: int = spec(unit="-", ge=1, doc="number of turns")
-    coil_inner_radius: float = spec(unit="m", gt=0.0, doc="inner radius of the first turn")
-    turn_width: float = spec(unit="m", gt=0.0, doc="radial width of a turn")
-    turn_height: float = spec(unit="m", gt=0.0, doc="axial height of a turn")
-    turn_gap: float = spec(unit="m", ge=0.0, doc="radial insulation gap between turns")
-    coil_gap: float = spec(unit="m", gt=0.0, doc="axial gap between coil and sheet")
-    sheet_radius: float = spec(unit="m", gt=0.0, doc="sheet radius")
-    sheet_thickness: float = spec(unit="m", gt=0.0, doc="sheet thickness")
-    air_radius: float = spec(unit="m", gt=0.0, doc="radius of the meshed air half-disk")
-    shell_radius: float = spec(unit="m", gt=0.0, doc="outer radius of the shell to infinity")
-    mesh_size_sheet: float = spec(unit="m", gt=0.0, doc="element size in the sheet")
-    mesh_size_coil: float = spec(unit="m", gt=0.0, doc="element size in and near the coil")
-    mesh_size_air: float = spec(unit="m", gt=0.0, doc="element size far away in the air")
-
-    def validate(self, path: str) -> None:
-        coil_r = self.coil_inner_radius + self.turns * self.turn_width + (self.turns - 1) * self.turn_gap
-        extent = max(coil_r, self.sheet_radius, self.coil_gap + self.sheet_thickness, self.turn_height)
-        if self.air_radius <= 1.5 * extent:
-            raise SchemaError(f"{path}.air_radius", f"got {self.air_radius:g}; must be > 1.5 × the "
-                              f"coil/sheet extent = {1.5 * extent:g} (m)")
-        if self.shell_radius <= self.air_radius:
-            raise SchemaError(f"{path}.shell_radius", f"got {self.shell_radius:g}; must be > air_radius "
-                              f"= {self.air_radius:g} (m)")
-
-
-@dataclass(frozen=True, kw_only=True)
-class SolenoidTube:
-    """Axisymmetric solenoid (turns stacked along z) inside a tube, for tube expansion.
-
-    Turns occupy r in [coil_inner_radius, coil_inner_radius + turn_width], centred on z = 0;
-    the tube spans r in [tube_inner_radius, tube_inner_radius + tube_thickness],
-    |z| <= tube_length / 2.
-    """
-
-    type: Literal["solenoid_tube"] = spec(doc="geometry kind")
-    turns: int = spec(unit="-", ge=1, doc="number of turns")
-    coil_inner_radius: float = spec(unit="m", gt=0.0, doc="inner radius of the turns")
-    turn_width: float = spec(unit="m", gt=0.0, doc="radial width of a turn")
-    turn_height: float = spec(unit="m", gt=0.0, doc="axial height of a turn")
-    turn_gap: float = spec(unit="m", ge=0.0, doc="axial insulation gap between turns")
-    tube_inner_radius: float = spec(unit="m", gt=0.0, doc="tube inner radius")
-    tube_thickness: float = spec(unit="m", gt=0.0, doc="tube wall thickness")
-    tube_length: float = spec(unit="m", gt=0.0, doc="tube length")
-    air_radius: float = spec(unit="m", gt=0.0, doc="radius of the meshed air half-disk")
-    shell_radius: float = spec(unit="m", gt=0.0, doc="outer radius of the shell to infinity")
-    mesh_size_tube: float = spec(unit="m", gt=0.0, doc="element size in the tube")
-    mesh_size_coil: float = spec(unit="m", gt=0.0, doc="element size in and near the coil")
-    mesh_size_air: float = spec(unit="m", gt=0.0, doc="element size far away in the air")
-
-    def validate(self, path: str) -> None:
-        if self.coil_inner_radius + self.turn_width >= self.tube_inner_radius:
-            raise SchemaError(f"{path}.tube_inner_radius", f"got {self.tube_inner_radius:g}; must be > "
-                              f"coil outer radius = {self.coil_inner_radius + self.turn_width:g} (m)")
-        extent = max(self.tube_inner_radius + self.tube_thickness, self.tube_length / 2,
-                     self.turns * (self.turn_height + self.turn_gap) / 2)
-        if self.air_radius <= 1.5 * extent:
-            raise SchemaError(f"{path}.air_radius", f"got {self.air_radius:g}; must be > 1.5 × the "
-                              f"coil/tube extent = {1.5 * extent:g} (m)")
-        if self.shell_radius <= self.air_radius:
-            raise SchemaError(f"{path}.shell_radius", f"got {self.shell_radius:g}; must be > air_radius "
-                              f"= {self.air_radius:g} (m)")
-
-
-Geometry = FlatCoilSheet | SolenoidTube
-
-
-@dataclass(frozen=True, kw_only=True)
-class CapacitorBank:
-    """Capacitor bank C charged to V0 discharging through R_ext, L_ext and the coil."""
-
-    capacitance: float = spec(unit="F", gt=0.0, doc="bank capacitance C")
-    voltage: float = spec(unit="V", gt=0.0, doc="charging voltage V0")
-    resistance: float = spec(0.0, unit="Ω", ge=0.0, doc="external resistance R_ext")
-    inductance: float = spec(0.0, unit="H", ge=0.0, doc="external inductance L_ext")
-
-
-@dataclass(frozen=True, kw_only=True)
-class DampedSineCurrent:
-    """Prescribed coil current I(t) = I0 e^(−βt) sin(ωt)."""
-
-    amplitude: float = spec(unit="A", gt=0.0, doc="I0")
-    beta: float = spec(unit="1/s", ge=0.0, doc="decay rate β")
-    omega: float = spec(unit="rad/s", gt=0.0, doc="angular frequency ω")
-
-
-@dataclass(frozen=True, kw_only=True)
-class EM:
-    """Electromagnetic model (GetDP): coil, its source, and what to keep."""
-
-    coil_conductivity: float = spec(5.8e7, unit="S/m", gt=0.0, doc="coil conductor (copper)")
-    coil_density: float = spec(8960.0, unit="kg/m^3", gt=0.0, doc="for the coil's adiabatic heating")
-    coil_heat_capacity: float = spec(385.0, unit="J/(kg·K)", gt=0.0, doc="for the coil's adiabatic heating")
-    circuit: CapacitorBank | None = spec(None, doc="capacitor-bank discharge (give this or current)")
-    current: DampedSineCurrent | None = spec(None, doc="prescribed coil current (give this or circuit)")
-    keep_runs: bool = spec(False, doc="keep every getdp run folder (default: the last two)")
-    remesh_quality: float = spec(0.3, unit="-", gt=0.0, lt=1.0,
-                                 doc="remesh the air when the worst element quality 4√3A/Σl² falls below this "
-                                     "fraction of the fresh mesh's worst")
-
-    def validate(self, path: str) -> None:
-        if (self.circuit is None) == (self.current is None):
-            raise SchemaError(f"{path}.circuit", "give exactly one of circuit (capacitor bank) or current")
 
 
 # --------------------------------------------------------------------------- run control

@@ -1,0 +1,121 @@
+"""Case-file model of the coupled cases: EM geometries and sources (SI units, validated)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+from .schema import SchemaError, spec
+
+@dataclass(frozen=True, kw_only=True)
+class FlatCoilSheet:
+    """Axisymmetric flat spiral coil (coaxial rectangular turns in series) under a sheet.
+
+    The coil's top face is at z = 0, the sheet's lower face at z = ``coil_gap``; the sheet spans
+    0 <= r <= ``sheet_radius``. Air fills a half-disk of radius ``air_radius``; a shell out to
+    ``shell_radius`` maps the open boundary to infinity.
+    """
+
+    type: Literal["flat_coil_sheet"] = spec(doc="geometry kind")
+    turns: int = spec(unit="-", ge=1, doc="number of turns")
+    coil_inner_radius: float = spec(unit="m", gt=0.0, doc="inner radius of the first turn")
+    turn_width: float = spec(unit="m", gt=0.0, doc="radial width of a turn")
+    turn_height: float = spec(unit="m", gt=0.0, doc="axial height of a turn")
+    turn_gap: float = spec(unit="m", ge=0.0, doc="radial insulation gap between turns")
+    coil_gap: float = spec(unit="m", gt=0.0, doc="axial gap between coil and sheet")
+    sheet_radius: float = spec(unit="m", gt=0.0, doc="sheet radius")
+    sheet_thickness: float = spec(unit="m", gt=0.0, doc="sheet thickness")
+    air_radius: float = spec(unit="m", gt=0.0, doc="radius of the meshed air half-disk")
+    shell_radius: float = spec(unit="m", gt=0.0, doc="outer radius of the shell to infinity")
+    mesh_size_sheet: float = spec(unit="m", gt=0.0, doc="element size in the sheet")
+    mesh_size_coil: float = spec(unit="m", gt=0.0, doc="element size in and near the coil")
+    mesh_size_air: float = spec(unit="m", gt=0.0, doc="element size far away in the air")
+
+    def validate(self, path: str) -> None:
+        coil_r = self.coil_inner_radius + self.turns * self.turn_width + (self.turns - 1) * self.turn_gap
+        extent = max(coil_r, self.sheet_radius, self.coil_gap + self.sheet_thickness, self.turn_height)
+        if self.air_radius <= 1.5 * extent:
+            raise SchemaError(f"{path}.air_radius", f"got {self.air_radius:g}; must be > 1.5 × the "
+                              f"coil/sheet extent = {1.5 * extent:g} (m)")
+        if self.shell_radius <= self.air_radius:
+            raise SchemaError(f"{path}.shell_radius", f"got {self.shell_radius:g}; must be > air_radius "
+                              f"= {self.air_radius:g} (m)")
+
+
+@dataclass(frozen=True, kw_only=True)
+class SolenoidTube:
+    """Axisymmetric solenoid (turns stacked along z) inside a tube, for tube expansion.
+
+    Turns occupy r in [coil_inner_radius, coil_inner_radius + turn_width], centred on z = 0;
+    the tube spans r in [tube_inner_radius, tube_inner_radius + tube_thickness],
+    |z| <= tube_length / 2.
+    """
+
+    type: Literal["solenoid_tube"] = spec(doc="geometry kind")
+    turns: int = spec(unit="-", ge=1, doc="number of turns")
+    coil_inner_radius: float = spec(unit="m", gt=0.0, doc="inner radius of the turns")
+    turn_width: float = spec(unit="m", gt=0.0, doc="radial width of a turn")
+    turn_height: float = spec(unit="m", gt=0.0, doc="axial height of a turn")
+    turn_gap: float = spec(unit="m", ge=0.0, doc="axial insulation gap between turns")
+    tube_inner_radius: float = spec(unit="m", gt=0.0, doc="tube inner radius")
+    tube_thickness: float = spec(unit="m", gt=0.0, doc="tube wall thickness")
+    tube_length: float = spec(unit="m", gt=0.0, doc="tube length")
+    air_radius: float = spec(unit="m", gt=0.0, doc="radius of the meshed air half-disk")
+    shell_radius: float = spec(unit="m", gt=0.0, doc="outer radius of the shell to infinity")
+    mesh_size_tube: float = spec(unit="m", gt=0.0, doc="element size in the tube")
+    mesh_size_coil: float = spec(unit="m", gt=0.0, doc="element size in and near the coil")
+    mesh_size_air: float = spec(unit="m", gt=0.0, doc="element size far away in the air")
+
+    def validate(self, path: str) -> None:
+        if self.coil_inner_radius + self.turn_width >= self.tube_inner_radius:
+            raise SchemaError(f"{path}.tube_inner_radius", f"got {self.tube_inner_radius:g}; must be > "
+                              f"coil outer radius = {self.coil_inner_radius + self.turn_width:g} (m)")
+        extent = max(self.tube_inner_radius + self.tube_thickness, self.tube_length / 2,
+                     self.turns * (self.turn_height + self.turn_gap) / 2)
+        if self.air_radius <= 1.5 * extent:
+            raise SchemaError(f"{path}.air_radius", f"got {self.air_radius:g}; must be > 1.5 × the "
+                              f"coil/tube extent = {1.5 * extent:g} (m)")
+        if self.shell_radius <= self.air_radius:
+            raise SchemaError(f"{path}.shell_radius", f"got {self.shell_radius:g}; must be > air_radius "
+                              f"= {self.air_radius:g} (m)")
+
+
+Geometry = FlatCoilSheet | SolenoidTube
+
+
+@dataclass(frozen=True, kw_only=True)
+class CapacitorBank:
+    """Capacitor bank C charged to V0 discharging through R_ext, L_ext and the coil."""
+
+    capacitance: float = spec(unit="F", gt=0.0, doc="bank capacitance C")
+    voltage: float = spec(unit="V", gt=0.0, doc="charging voltage V0")
+    resistance: float = spec(0.0, unit="Ω", ge=0.0, doc="external resistance R_ext")
+    inductance: float = spec(0.0, unit="H", ge=0.0, doc="external inductance L_ext")
+
+
+@dataclass(frozen=True, kw_only=True)
+class DampedSineCurrent:
+    """Prescribed coil current I(t) = I0 e^(−βt) sin(ωt)."""
+
+    amplitude: float = spec(unit="A", gt=0.0, doc="I0")
+    beta: float = spec(unit="1/s", ge=0.0, doc="decay rate β")
+    omega: float = spec(unit="rad/s", gt=0.0, doc="angular frequency ω")
+
+
+@dataclass(frozen=True, kw_only=True)
+class EM:
+    """Electromagnetic model (GetDP): coil, its source, and what to keep."""
+
+    coil_conductivity: float = spec(5.8e7, unit="S/m", gt=0.0, doc="coil conductor (copper)")
+    coil_density: float = spec(8960.0, unit="kg/m^3", gt=0.0, doc="for the coil's adiabatic heating")
+    coil_heat_capacity: float = spec(385.0, unit="J/(kg·K)", gt=0.0, doc="for the coil's adiabatic heating")
+    circuit: CapacitorBank | None = spec(None, doc="capacitor-bank discharge (give this or current)")
+    current: DampedSineCurrent | None = spec(None, doc="prescribed coil current (give this or circuit)")
+    keep_runs: bool = spec(False, doc="keep every getdp run folder (default: the last two)")
+    remesh_quality: float = spec(0.3, unit="-", gt=0.0, lt=1.0,
+                                 doc="remesh the air when the worst element quality 4√3A/Σl² falls below this "
+                                     "fraction of the fresh mesh's worst")
+
+    def validate(self, path: str) -> None:
+        if (self.circuit is None) == (self.current is None):
+            raise SchemaError(f"{path}.circuit", "give exactly one of circuit (capacitor bank) or current")
