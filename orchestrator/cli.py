@@ -51,6 +51,39 @@ def _parser() -> argparse.ArgumentParser:
     sweep.add_argument("--out", metavar="DIR", type=Path, help="sweep folder (default: results/<case>_sweep)")
     sweep.add_argument("--jobs", type=int, default=1, metavar="N", help="members run at the same time (default 1)")
     sweep.add_argument("--force", action="store_true", help="replace an existing sweep folder")
+    sweep.add_argument("--mpi", action="store_true",
+                       help="run the members through mpi4py.futures (start under mpirun -n N: one manager, "
+                            "N-1 workers; or a single process that spawns --jobs workers)")
+
+    val = sub.add_parser("validate", help="run the validation registry and write a report",
+                         description="Run the validation entries of a suite (each: a case or set-up, a quantity, "
+                                     "a reference with provenance, a tolerance); write OUT/report.md, "
+                                     "OUT/report.json and OUT/plots/*.png. Exit 1 if any entry fails.")
+    val.add_argument("--suite", choices=("fast", "full"), default="fast", help="fast (CI, default) or full")
+    val.add_argument("--out", metavar="DIR", type=Path, help="report folder (default: results/validation_<suite>)")
+    val.add_argument("--only", metavar="PREFIX", action="append", default=[],
+                     help="only entries whose name starts with PREFIX (repeatable)")
+    val.add_argument("--reference-root", metavar="DIR", type=Path,
+                     help="folder holding cases/<case>/reference/ (default: the repository)")
+    val.add_argument("--list", action="store_true", help="list the suite's entries and exit")
+    val.add_argument("--force", action="store_true", help="replace an existing report folder")
+
+    cmp_ = sub.add_parser("compare", help="coupled GetDP load vs the pressure-pulse approximation",
+                          description="Run CASE coupled, fit (or take from the case) an eq. (7)/(8) pressure pulse, "
+                                      "run it through the same loop on the same mesh, and compare final shapes, "
+                                      "speeds, die stresses, impulse and wall time. Writes OUT/compare.json and "
+                                      "OUT/plots/. Exit 1 if a --fail-if condition holds.")
+    cmp_.add_argument("case", metavar="CASE")
+    cmp_.add_argument("--out", metavar="DIR", type=Path, help="folder (default: results/<case>_compare)")
+    cmp_.add_argument("--set", metavar="KEY.PATH=VALUE", action="append", default=[], dest="overrides",
+                      help="override applied to both runs")
+    cmp_.add_argument("--pulse", choices=("sin2", "exp"), default="sin2",
+                      help="fitted pulse: eq. (7) P0 e^-bt sin^2(wt) (default) or eq. (8) p0 e^-t/T")
+    cmp_.add_argument("--pressure-case", metavar="FILE",
+                      help="take the pressure pulses from this case's [[loads]] instead of fitting them")
+    cmp_.add_argument("--fail-if", metavar="METRIC>TOL", action="append", default=[], dest="fail_if",
+                      help="e.g. 'shape_distance_max_mm>0.05' or 'impulse_rel_diff>0.01' (repeatable; > or <)")
+    cmp_.add_argument("--force", action="store_true", help="replace an existing folder")
 
     sub.add_parser("info", help="versions and locations of getdp, gmsh, dolfinx, PETSc, meshio, numpy",
                    description="Print the versions of the external programs and libraries and where each comes from.")
@@ -132,7 +165,8 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     try:
         case, _ = load_case(args.case, args.overrides)
         out = args.out or Path("results") / f"{case.case.name}_sweep"
-        todo = run_sweep(args.case, args.param, out, jobs=args.jobs, force=args.force, overrides=args.overrides)
+        todo = run_sweep(args.case, args.param, out, jobs=args.jobs, force=args.force, overrides=args.overrides,
+                         mpi=args.mpi)
     except (CaseError, ResultsExistError) as exc:
         return _error(str(exc), EXIT_BAD_INPUT)
     keys = list(todo[0].values)
@@ -149,6 +183,65 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     return EXIT_FAILED if failed else EXIT_OK
 
 
+def _cmd_validate(args: argparse.Namespace) -> int:
+    from .results import ResultsExistError
+    from .validate import SelectionError, run_validation, select
+
+    try:
+        entries = select(args.suite, args.only)
+    except SelectionError as exc:
+        return _error(str(exc), EXIT_BAD_INPUT)
+    if args.list:
+        for e in entries:
+            print(f"{e.name:<48} {e.quantity} [{e.unit}]  tol {e.tolerance:g}  ref {e.reference.describe()}")
+        return EXIT_OK
+    if args.reference_root is not None and not args.reference_root.is_dir():
+        return _error(f"--reference-root: {args.reference_root} is not a folder", EXIT_BAD_INPUT)
+    out = args.out or Path("results") / f"validation_{args.suite}"
+    kw = {} if args.reference_root is None else {"reference_root": args.reference_root.resolve()}
+    try:
+        outcomes = run_validation(entries, out, force=args.force, **kw)
+    except ResultsExistError as exc:
+        return _error(str(exc), EXIT_BAD_INPUT)
+    for o in outcomes:
+        err = "-" if o.error is None else f"{o.error:.3g}"
+        print(f"{'pass' if o.passed else 'FAIL':<5} {o.entry.name:<48} error {err:<10} tol {o.entry.tolerance:g}"
+              + (f"  ({o.message})" if o.message and not o.passed else ""))
+    failed = [o for o in outcomes if not o.passed]
+    print(f"report: {out / 'report.md'} ({len(outcomes) - len(failed)}/{len(outcomes)} passed)")
+    return EXIT_FAILED if failed else EXIT_OK
+
+
+def _cmd_compare(args: argparse.Namespace) -> int:
+    from .caseio import CaseError, load_case
+    from .compare import CompareError, parse_conditions, run_compare
+    from .results import ResultsExistError
+
+    try:
+        conditions = parse_conditions(args.fail_if)
+        case, _ = load_case(args.case, args.overrides)
+        out = args.out or Path("results") / f"{case.case.name}_compare"
+        report = run_compare(args.case, out, overrides=args.overrides, pulse=args.pulse,
+                             pressure_case=args.pressure_case, force=args.force)
+    except (CaseError, ResultsExistError, CompareError) as exc:
+        return _error(str(exc), EXIT_BAD_INPUT if not getattr(exc, "run_failed", False) else EXIT_FAILED)
+    for k in ("shape_distance_max_mm", "max_speed_coupled_m_s", "max_speed_pressure_m_s", "impulse_coupled_Ns",
+              "impulse_pressure_Ns", "impulse_rel_diff", "die_von_mises_max_coupled_MPa",
+              "die_von_mises_max_pressure_MPa", "wall_time_coupled_s", "wall_time_pressure_s"):
+        if k in report["metrics"]:
+            print(f"  {k} = {report['metrics'][k]:.6g}")
+    print(f"pulse: {report['pulse']['description']}")
+    tripped = [c.text for c in conditions if c.holds(report["metrics"])]
+    missing = [c.metric for c in conditions if c.metric not in report["metrics"]]
+    print(f"report: {out / 'compare.json'}")
+    if missing:
+        return _error(f"--fail-if: unknown metric {', '.join(missing)}; known: "
+                      + ", ".join(sorted(report["metrics"])), EXIT_BAD_INPUT)
+    for t in tripped:
+        print(f"pulseform: compare: --fail-if {t} holds", file=sys.stderr)
+    return EXIT_FAILED if tripped else EXIT_OK
+
+
 def _cmd_info(_: argparse.Namespace) -> int:
     from .info import collect
 
@@ -161,7 +254,8 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``pulseform`` console script."""
     args = _parser().parse_args(argv)
     _setup_logging(getattr(args, "quiet", False))
-    handlers = {"run": _cmd_run, "check": _cmd_check, "sweep": _cmd_sweep, "info": _cmd_info}
+    handlers = {"run": _cmd_run, "check": _cmd_check, "sweep": _cmd_sweep, "info": _cmd_info,
+                "validate": _cmd_validate, "compare": _cmd_compare}
     try:
         return handlers[args.command](args)
     except KeyboardInterrupt:

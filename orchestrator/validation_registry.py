@@ -1,0 +1,300 @@
+"""The validation registry: which run, which quantity, against which reference, with which tolerance.
+
+An :class:`Entry` names a case (or a verification set-up), the quantity, its reference and a
+tolerance. References are either :class:`Analytic` (a closed-form value or function, with its
+source) or :class:`CsvCurve` (a curve ``cases/<case>/reference/<file>`` whose ``# key: value``
+header gives its provenance: ``source``, ``figure``, ``units``, ``obtained``). Entries share
+*runs* (one solver run feeds several quantities): :data:`RUNS` maps a run key to a function
+``work_dir -> RunOutput`` that does the expensive part once per ``pulseform validate``.
+
+Add an entry with :func:`register`; ``suites`` says whether it belongs to ``fast`` (the CI tier,
+a minute or so here) and/or ``full``.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import subprocess
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+PROVENANCE_KEYS = ("source", "figure", "units", "obtained")
+MU0 = 4e-7 * math.pi
+
+
+class ReferenceError_(ValueError):
+    """A reference file is missing, malformed or lacks provenance (message names the file)."""
+
+
+@dataclass
+class RunOutput:
+    """What one verification run hands to its entries: scalars and named curves (x, y)."""
+
+    scalars: dict[str, float] = field(default_factory=dict)
+    curves: dict[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
+    labels: dict[str, tuple[str, str]] = field(default_factory=dict)  # curve -> (x label, y label)
+    wall_time_s: float = 0.0
+
+
+@dataclass(frozen=True)
+class Analytic:
+    """A closed-form reference: a scalar ``value`` or a function ``function(x) -> y``."""
+
+    formula: str
+    source: str
+    value: float | None = None
+    function: Callable[[np.ndarray], np.ndarray] | None = None
+    from_run: Callable[[RunOutput], float] | None = None  # a balance whose other side the run reports
+
+    def describe(self) -> str:
+        return self.formula
+
+
+@dataclass(frozen=True)
+class CsvCurve:
+    """A reference curve stored as ``cases/<case>/reference/<file>`` (two named columns)."""
+
+    case: str
+    file: str
+
+    def path(self, root: Path) -> Path:
+        return root / "cases" / self.case / "reference" / self.file
+
+    def describe(self) -> str:
+        return f"cases/{self.case}/reference/{self.file}"
+
+    def load(self, root: Path) -> tuple[np.ndarray, np.ndarray, dict[str, str], list[str]]:
+        """(x, y, provenance, column names); raises :class:`ReferenceError_` naming what is wrong."""
+        p = self.path(root)
+        if not p.is_file():
+            raise ReferenceError_(f"{p}: reference file not found")
+        prov: dict[str, str] = {}
+        rows: list[list[str]] = []
+        for line in p.read_text().splitlines():
+            if line.startswith("#"):
+                key, _, val = line[1:].partition(":")
+                prov[key.strip()] = val.strip()
+            elif line.strip():
+                rows.append(next(csv.reader([line])))
+        missing = [k for k in PROVENANCE_KEYS if not prov.get(k)]
+        if missing:
+            raise ReferenceError_(f"{p}: provenance header lacks {', '.join('# ' + k + ':' for k in missing)}")
+        if len(rows) < 3 or len(rows[0]) < 2:
+            raise ReferenceError_(f"{p}: expected a header row of two column names and >= 2 data rows")
+        try:
+            data = np.array([[float(v) for v in r[:2]] for r in rows[1:]])
+        except ValueError as exc:
+            raise ReferenceError_(f"{p}: non-numeric data ({exc})") from None
+        if np.any(np.diff(data[:, 0]) < 0):
+            raise ReferenceError_(f"{p}: the first column must be increasing")
+        return data[:, 0], data[:, 1], prov, rows[0][:2]
+
+
+@dataclass(frozen=True)
+class Entry:
+    """One validated quantity.
+
+    ``kind``: ``"scalar"`` compares ``computed(out)`` with the reference's value (for a curve
+    reference: ``metric`` applied to the reference curve, the same function that made the computed
+    value); ``"curve"`` compares the run's curve ``curve`` with the reference curve at the
+    computed abscissae, error = max |Δy| / max |y_ref|. ``error`` is relative (``rel``) or absolute.
+    """
+
+    name: str
+    case: str
+    quantity: str
+    unit: str
+    run: str
+    reference: Analytic | CsvCurve
+    tolerance: float
+    kind: str = "scalar"
+    computed: Callable[[RunOutput], float] | None = None
+    metric: Callable[[np.ndarray, np.ndarray], float] | None = None
+    curve: str | None = None
+    error: str = "rel"
+    suites: tuple[str, ...] = ("fast", "full")
+    note: str = ""
+
+
+REGISTRY: dict[str, Entry] = {}
+RUNS: dict[str, Callable[[Path], RunOutput]] = {}
+
+
+def register(entry: Entry) -> Entry:
+    if entry.name in REGISTRY:
+        raise ValueError(f"validation entry {entry.name!r} registered twice")
+    if entry.run not in RUNS:
+        raise ValueError(f"validation entry {entry.name!r}: unknown run {entry.run!r}")
+    REGISTRY[entry.name] = entry
+    return entry
+
+
+def run(key: str) -> Callable[[Callable[[Path], RunOutput]], Callable[[Path], RunOutput]]:
+    def deco(fn):
+        RUNS[key] = fn
+        return fn
+    return deco
+
+
+# ============================================================================ runs
+def _bar_run(work: Path, formulation: str, nx: int, ny: int) -> RunOutput:
+    from pulseform.solvers.dolfinx.verification import bar_impact
+
+    r = bar_impact(nx=nx, ny=ny, formulation=formulation)
+    out = RunOutput(scalars={k: float(v) for k, v in r["metrics"].items()})
+    out.curves["contact_stress"] = (np.asarray(r["t"]), np.asarray(r["stress"]))
+    out.labels["contact_stress"] = ("time (s)", "contact stress (Pa)")
+    return out
+
+
+@run("bar_impact_plane_stress_40x20")
+def _bar_ps(work: Path) -> RunOutput:
+    return _bar_run(work, "plane_stress", 40, 20)
+
+
+@run("bar_impact_plane_strain_80x40")
+def _bar_pe(work: Path) -> RunOutput:
+    return _bar_run(work, "plane_strain", 80, 40)
+
+
+DIFF_SIGMA, DIFF_H0, DIFF_T, DIFF_LEN = 3.5e7, 1e5, 20e-6, 4e-3
+
+
+def _diffusion_run(work: Path, h: float, steps: int) -> RunOutput:
+    from pulseform.solvers.getdp import Conductor, EMModel, GetDPSolver, slab_mesh
+
+    mesh = slab_mesh(DIFF_LEN, h)
+    solver = GetDPSolver(EMModel(False, conductors=[Conductor(DIFF_SIGMA)], h0_step=DIFF_H0), work)
+    res, _ = solver.step(mesh, solver.initial_state(), DIFF_T, steps, run_name="diffusion")
+    x = mesh.points[mesh.triangles[res.elements]][:, :, 0].mean(axis=1)
+    hy = res.flux_density[-1][:, 1] / MU0
+    order = np.argsort(x)
+    area = np.abs(mesh.areas()[res.elements])
+    pressure = float((res.force_density[-1][:, 0] * area).sum() / h)
+    out = RunOutput(scalars={"magnetic_pressure_Pa": pressure})
+    out.curves["H"] = (x[order], hy[order])
+    out.labels["H"] = ("depth x (m)", "H_y (A/m)")
+    return out
+
+
+@run("getdp_diffusion_h0.05mm")
+def _diff_fast(work: Path) -> RunOutput:
+    return _diffusion_run(work, 0.05e-3, 100)
+
+
+@run("getdp_diffusion_h0.0125mm")
+def _diff_full(work: Path) -> RunOutput:
+    return _diffusion_run(work, 0.0125e-3, 400)
+
+
+def _coupled_free_sheet(work: Path, end: float) -> RunOutput:
+    exe = str(Path(sys.executable).with_name("pulseform"))
+    out_dir = work / "run"
+    argv = [exe, "run", str(REPO / "cases/emf_sheet_bulge"), "--out", str(out_dir), "--force", "--quiet",
+            "--set", f"time.end={end}", "--set", f"output.field_interval={end / 2}",
+            "--set", "bodies.sheet.fixed=[]", "--set", "output.plots=false"]
+    r = subprocess.run(argv, capture_output=True, text=True)
+    if r.returncode != 0:
+        lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
+        raise RuntimeError(f"pulseform run failed ({r.returncode}): {lines[-1] if lines else ''}")
+    m = json.loads((out_dir / "metrics.json").read_text())
+    h = np.genfromtxt(out_dir / "history.csv", delimiter=",", names=True)
+    # impulse central differences delivered: the force set at the end of substep s enters the next
+    # velocity update with weight (dt_s + dt_{s+1}) / 2 (see tests/coupling/test_coupled_getdp.py)
+    forces, dts = [], []
+    for row in h[1:]:
+        k = int(row["substeps"])
+        forces += [row["force_y_N"]] * k
+        dts += [row["dt_s"]] * k
+    f, d = np.array(forces), np.array(dts)
+    delivered = float(np.sum(f[:-1] * 0.5 * (d[:-1] + d[1:])))
+    out = RunOutput(scalars={"momentum_y_Ns": float(h["sheet_momentum_y_Ns"][-1]), "impulse_delivered_Ns": delivered,
+                             "conservation_error_rel": float(m["conservation_error_rel"])})
+    out.curves["momentum"] = (h["time_s"], h["sheet_momentum_y_Ns"])
+    out.labels["momentum"] = ("time (s)", "sheet momentum z (N s)")
+    return out
+
+
+@run("emf_free_sheet_4us")
+def _coupled_fast(work: Path) -> RunOutput:
+    return _coupled_free_sheet(work, 4e-6)
+
+
+@run("emf_free_sheet_10us")
+def _coupled_full(work: Path) -> RunOutput:
+    return _coupled_free_sheet(work, 10e-6)
+
+
+# ============================================================================ entries
+def _plateau(t: np.ndarray, s: np.ndarray) -> float:
+    from pulseform.solvers.dolfinx.analysis import contact_stress_metrics
+
+    return contact_stress_metrics(t, s)["contact_stress_plateau_MPa"]
+
+
+def _duration(t: np.ndarray, s: np.ndarray) -> float:
+    from pulseform.solvers.dolfinx.analysis import contact_stress_metrics
+
+    return contact_stress_metrics(t, s)["contact_duration_ms"]
+
+
+_BAR_CSV = CsvCurve("bar_impact", "contact_stress_1d_bar.csv")
+_PAPER4 = "paper sec. 4, eq. (6): 1D bar, c = sqrt(E/rho)"
+
+
+def _bar_entries(run_key: str, suites: tuple[str, ...], label: str, plateau_ref) -> None:
+    register(Entry(f"bar_impact.{label}.plateau", "bar_impact", f"contact stress plateau ({label})", "MPa", run_key,
+                   plateau_ref, 0.03, kind="scalar", metric=_plateau, curve="contact_stress", suites=suites,
+                   note="mean over the middle half of the contact episode at the middle of the contact surface"))
+    register(Entry(f"bar_impact.{label}.duration", "bar_impact", f"contact duration ({label})", "ms", run_key,
+                   _BAR_CSV, 0.04, kind="scalar", metric=_duration, curve="contact_stress", suites=suites,
+                   note="first to last sample with stress > 0 (soft contact, h0 = 0.01 m)"))
+
+
+_bar_entries("bar_impact_plane_stress_40x20", ("fast", "full"), "plane_stress", _BAR_CSV)
+_RHO, _G, _K = 2800.0, 26.5e9, 65.1e9
+_E, _NU = 9 * _K * _G / (3 * _K + _G), (3 * _K - 2 * _G) / (2 * (3 * _K + _G))
+_bar_entries("bar_impact_plane_strain_80x40", ("full",), "plane_strain",
+             Analytic("rho c v / 2, c = sqrt(E / (rho (1 - nu^2))) (plane-strain bar)",
+                      _PAPER4 + " with the plane-strain modulus E/(1-nu^2) (SOLVER_NOTES)",
+                      value=_RHO * math.sqrt(_E / (_RHO * (1 - _NU ** 2))) * 10.0 / 2 / 1e6))
+
+
+def _erfc_profile(x: np.ndarray) -> np.ndarray:
+    from scipy.special import erfc
+
+    return DIFF_H0 * erfc(np.asarray(x) / (2 * math.sqrt(DIFF_T / (MU0 * DIFF_SIGMA))))
+
+
+_ERFC = Analytic("H0 erfc(x / (2 sqrt(t / (mu0 sigma)))), t = 20 us", "Carslaw & Jaeger, step field on a "
+                 "conducting half-space (1D diffusion); H0 = 1e5 A/m, sigma = 3.5e7 S/m", function=_erfc_profile)
+_PRESSURE = Analytic("B0^2 / (2 mu0)", "Ampere + Lorentz on a half-space: int J x B dx = mu0 H0^2 / 2",
+                     value=MU0 * DIFF_H0 ** 2 / 2)
+for _key, _suites, _tol in (("getdp_diffusion_h0.05mm", ("fast",), 0.02), ("getdp_diffusion_h0.0125mm", ("full",), 0.01)):
+    _tag = _key.split("_")[-1]
+    register(Entry(f"getdp_diffusion.{_tag}.H_profile", "getdp_diffusion", f"H_y(x) at 20 us ({_tag})", "A/m", _key,
+                   _ERFC, _tol, kind="curve", curve="H", suites=_suites,
+                   note="element-centroid values of the planar slab (slab_mesh, 4 mm); error = max|dH| / H0"))
+    register(Entry(f"getdp_diffusion.{_tag}.pressure", "getdp_diffusion", f"magnetic pressure ({_tag})", "Pa", _key,
+                   _PRESSURE, 0.01, computed=lambda o: o.scalars["magnetic_pressure_Pa"], suites=_suites))
+
+for _key, _suites in (("emf_free_sheet_4us", ("fast",)), ("emf_free_sheet_10us", ("full",))):
+    _tag = _key.split("_")[-1]
+    register(Entry(f"emf_sheet_bulge.free.{_tag}.momentum", "emf_sheet_bulge", f"free-sheet momentum ({_tag})", "N s",
+                   _key, Analytic("sum over substeps of F_s (dt_s + dt_s+1) / 2 (impulse of the held forces)",
+                                  "Newton's second law on a free body (internal forces cancel)",
+                                  from_run=lambda o: o.scalars["impulse_delivered_Ns"]),
+                   1e-9, computed=lambda o: o.scalars["momentum_y_Ns"], curve="momentum", suites=_suites,
+                   note="the reference value comes from the same run's force history"))
+    register(Entry(f"emf_sheet_bulge.free.{_tag}.ledger", "emf_sheet_bulge", f"force-transfer ledger ({_tag})", "-",
+                   _key, Analytic("sum of nodal forces == sum f_e V_e of GetDP's elements", "conservative transfer on "
+                                  "shared nodes (ARCHITECTURE: conservation ledger)", value=0.0),
+                   1e-10, computed=lambda o: o.scalars["conservation_error_rel"], error="abs", suites=_suites))
+
