@@ -50,7 +50,7 @@ def _clock() -> tuple[float, float]:
 def bench(n_nodes: float, steps: int, work: Path) -> tuple[int, float, float, float, float]:
     """(nodes, wall (a), wall (b), CPU (a), CPU (b)) per EM step."""
     mesh = mesh_with_about(n_nodes)
-    solver = GetDPSolver(MODEL, work / f"n{int(n_nodes)}", keep_runs=2)
+    solver = GetDPSolver(MODEL, work / f"n{int(n_nodes)}", keep_runs=2)   # old runs deleted in a thread
     # (a) one process, many steps
     w0, c0 = _clock()
     solver.step(mesh, solver.initial_state(), steps * DT, steps, run_name="continuous")
@@ -58,7 +58,7 @@ def bench(n_nodes: float, steps: int, work: Path) -> tuple[int, float, float, fl
     # (b) one process per step, restart from the previous .res
     state = solver.initial_state()
     for k in range(steps):
-        _, state = solver.step(mesh, state, (k + 1) * DT, 1, run_name=f"step_{k % 2}")
+        _, state = solver.step(mesh, state, (k + 1) * DT, 1, run_name=f"step_{k}")
     w2, c2 = _clock()
     return mesh.n_nodes, (w1 - w0) / steps, (w2 - w1) / steps, (c1 - c0) / steps, (c2 - c1) / steps
 

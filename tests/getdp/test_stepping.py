@@ -117,3 +117,19 @@ def test_moved_nodes_material_coordinates(work):
           f"Init (spatial) {fc:.3f} N")
     assert abs(fb / fa - 1) < 1e-9
     assert abs(fc / fa - 1) > 1e-4
+
+
+@pytest.mark.getdp
+@needs_getdp
+def test_keep_runs_prunes_old_folders(work):
+    import time
+    mesh, model, _ = mesh_and_models()
+    solver = GetDPSolver(model, work, keep_runs=2)
+    state = solver.initial_state()
+    for k in range(4):
+        res, state = solver.step(mesh, state, (k + 1) * 1e-6, 1)
+    deadline = time.time() + 10
+    while time.time() < deadline and len(list(work.iterdir())) > 2:
+        time.sleep(0.05)
+    assert sorted(p.name for p in work.iterdir()) == ["step_00002", "step_00003"]
+    assert "-restart" in res.run.argv
