@@ -162,6 +162,14 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
 
     if args.jobs < 1:
         return _error(f"--jobs: got {args.jobs}; must be >= 1", EXIT_BAD_INPUT)
+    if args.mpi:
+        from mpi4py import MPI
+
+        if MPI.COMM_WORLD.Get_rank() > 0:  # mpirun -n N: ranks > 0 are the sweep's workers
+            from .sweep import serve_mpi_workers
+
+            serve_mpi_workers()
+            return EXIT_OK
     try:
         case, _ = load_case(args.case, args.overrides)
         out = args.out or Path("results") / f"{case.case.name}_sweep"

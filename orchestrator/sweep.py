@@ -36,6 +36,7 @@ class Member:
     returncode: int | None = None
     error: str = ""
     metrics: dict[str, float] = field(default_factory=dict)
+    worker: str = ""
 
     @property
     def overrides(self) -> list[str]:
@@ -91,14 +92,35 @@ def _slug(v: str) -> str:
     return re.sub(r"[^A-Za-z0-9.+-]+", "", v) or "x"
 
 
+def _child_env() -> dict[str, str]:
+    """The member's environment without the parent's Open MPI job variables: under mpirun, a
+    child ``pulseform run`` would otherwise try to join the sweep's MPI job instead of running as
+    its own singleton."""
+    import os
+
+    return {k: v for k, v in os.environ.items()
+            if not (k.startswith(("OMPI_", "PMIX_", "PMI_")) and k not in _KEEP_OMPI)}
+
+
+_KEEP_OMPI = ("OMPI_ALLOW_RUN_AS_ROOT", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM")
+
+
+def _worker_id() -> str:
+    import os
+    import socket
+
+    return f"{socket.gethostname()}:{os.getpid()}"
+
+
 def run_member(case: str, member: Member, extra: list[str]) -> Member:
     """Run one member as its own ``pulseform run`` process; fill in status and metrics."""
     exe = str(Path(sys.executable).with_name("pulseform"))
     argv = [exe, "run", case, "--out", str(member.out), "--quiet", "--force", *extra]
     for s in member.overrides:
         argv += ["--set", s]
-    r = subprocess.run(argv, capture_output=True, text=True)
+    r = subprocess.run(argv, capture_output=True, text=True, env=_child_env())
     member.returncode = r.returncode
+    member.worker = _worker_id()
     if r.returncode != 0:
         lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
         member.error = lines[-1] if lines else f"exit code {r.returncode}"
@@ -110,11 +132,15 @@ def run_member(case: str, member: Member, extra: list[str]) -> Member:
 
 
 def run_sweep(case: str, params: list[str], out: Path, *, jobs: int = 1, force: bool = False,
-              overrides: list[str] | None = None) -> list[Member]:
+              overrides: list[str] | None = None, mpi: bool = False) -> list[Member]:
     """Run the full grid of ``params`` on ``case`` into ``out``; returns the members with results.
 
     Every member's overrides are validated first (a bad value makes that member fail alone with
-    the validation message).
+    the validation message). With ``mpi``, members go to an ``mpi4py.futures.MPIPoolExecutor``:
+    under ``mpirun -n N python -m mpi4py.futures -m pulseform.orchestrator sweep ... --mpi`` (or
+    ``mpirun -n N pulseform sweep ... --mpi``) its N - 1 worker ranks, on any node of the
+    allocation, each start the member's ``pulseform run`` process; in a plain single process it
+    spawns ``jobs`` workers.
     """
     grid = parse_params(params)
     for key, values in grid.items():
@@ -130,18 +156,52 @@ def run_sweep(case: str, params: list[str], out: Path, *, jobs: int = 1, force: 
             m.returncode, m.error = 2, str(exc)
             log.warning("sweep member %d rejected: %s", m.index, exc)
     extra = [a for s in (overrides or []) for a in ("--set", s)]
-    with ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
-        list(pool.map(lambda m: run_member(case, m, extra), runnable))
+    if mpi:
+        _run_mpi(case, runnable, extra, jobs)
+    else:
+        with ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
+            list(pool.map(lambda m: run_member(case, m, extra), runnable))
     write_table(todo, grid, results.root / "sweep.csv")
     plot_sweep(todo, grid, results.plots)
     return todo
 
 
+def _run_mpi(case: str, runnable: list[Member], extra: list[str], jobs: int) -> None:
+    """Members through ``mpi4py.futures``; each worker returns its filled-in member.
+
+    Under ``mpirun -n N`` (world size > 1) this is rank 0's side of an ``MPICommExecutor`` whose
+    other ranks run :func:`serve_mpi_workers`; alone, an ``MPIPoolExecutor`` spawns ``jobs`` workers.
+    """
+    from mpi4py import MPI
+    from mpi4py.futures import MPICommExecutor, MPIPoolExecutor
+
+    world = MPI.COMM_WORLD.Get_size()
+    if world > 1:
+        log.info("sweep through mpi4py.futures: %d worker ranks", world - 1)
+        ctx = MPICommExecutor(MPI.COMM_WORLD, root=0)
+    else:
+        log.info("sweep through mpi4py.futures: %d spawned workers", jobs)
+        ctx = MPIPoolExecutor(max_workers=max(1, jobs))
+    with ctx as pool:
+        done = list(pool.map(run_member, [case] * len(runnable), runnable, [extra] * len(runnable)))
+    for m, d in zip(runnable, done):
+        m.returncode, m.error, m.metrics, m.worker = d.returncode, d.error, d.metrics, d.worker
+
+
+def serve_mpi_workers() -> None:
+    """Ranks > 0 of ``mpirun -n N pulseform sweep ... --mpi``: run members sent by rank 0 until it is done."""
+    from mpi4py import MPI
+    from mpi4py.futures import MPICommExecutor
+
+    with MPICommExecutor(MPI.COMM_WORLD, root=0) as pool:
+        assert pool is None  # only the root gets an executor
+
+
 def write_table(todo: list[Member], grid: dict[str, list[str]], path: Path) -> None:
     """``sweep.csv``: parameters, exit code, error, then every metric any member reported."""
     keys = sorted({k for m in todo for k in m.metrics})
-    header = list(grid) + ["returncode", "error"] + keys
-    rows = [[m.values[k] for k in grid] + [m.returncode, m.error] + [m.metrics.get(k, "") for k in keys]
+    header = list(grid) + ["returncode", "error", "worker"] + keys
+    rows = [[m.values[k] for k in grid] + [m.returncode, m.error, m.worker] + [m.metrics.get(k, "") for k in keys]
             for m in todo]
     write_csv(path, header, rows)
 
