@@ -6,10 +6,13 @@ whose slave is the blank). Definitions (documented in docs/cases.md):
 * cavity profile: the die's exterior segments (initial configuration) whose outward normal points
   upwards (n_y > 0.1) and that lie below the flange top (y < y_max - 1e-6): the groove walls, the
   rounded apex and the lower part of the entry fillet;
-* ``fill_fraction``: the length fraction of the cavity profile whose segment midpoints are within
-  ``FILL_GAP_FACTOR`` x h0 of the blank's boundary (current configuration, point-to-segment
-  distance), i.e. touched by the blank; ``fill_fraction`` is the value at the end of the run,
-  ``fill_fraction_max`` the largest value over time; ``unfilled_length_mm`` the untouched length.
+* touched: a cavity-profile segment whose midpoint is within ``FILL_GAP_FACTOR`` x h0 of the
+  blank's boundary (current configuration, point-to-segment distance);
+  ``contact_fraction``: length fraction of the profile touched *now* (it flickers while the formed
+  blank rings elastically on the die); ``fill_fraction``: length fraction touched at some recorded
+  time so far (how far the blank has been formed into the die, insensitive to the ringing);
+  ``unfilled_length_mm``: the profile length never touched. ``--resume`` restarts the "so far"
+  record at the resume time (the history before it is not re-read).
 * die stress: von Mises = sqrt(3 J2) per die cell, maximum over the die; the paper plots J2(sigma)
   (its figures' unit is MPa, so we report sqrt(J2) = von Mises / sqrt(3) beside it).
 * blank speed: largest nodal speed of the blank.
@@ -44,6 +47,7 @@ class CornerFill:
         self.pair = next(i for i, c in enumerate(case.contact) if c.slave == "blank" and c.master == "die")
         self.h0 = case.contact[self.pair].h0
         self._profile = None
+        self._ever = None  # per profile segment: touched at some recorded time so far
 
     # ------------------------------------------------------------------ geometry
     def _setup(self, solver) -> None:
@@ -78,6 +82,7 @@ class CornerFill:
     # ------------------------------------------------------------------ hooks
     def record(self, solver) -> dict[str, float]:
         touched = self.touched(solver)
+        self._ever = touched if self._ever is None else (self._ever | touched)
         die, blank = solver.bodies["die"], solver.bodies["blank"]
         vm = float(die.von_mises.max()) if len(die.cells) else 0.0
         _, _, p, _ = solver.contact_pressure(self.pair)
@@ -85,8 +90,9 @@ class CornerFill:
         ke = solver.energies()
         ratio = ke["kinetic_J"] / max(ke["elastic_J"] + ke["plastic_J"], 1e-300)
         return {
-            "fill_fraction": float(self._profile_len0[touched].sum() / self._profile_len0.sum()),
-            "unfilled_length_m": float(self._profile_len0[~touched].sum()),
+            "fill_fraction": float(self._profile_len0[self._ever].sum() / self._profile_len0.sum()),
+            "contact_fraction": float(self._profile_len0[touched].sum() / self._profile_len0.sum()),
+            "unfilled_length_m": float(self._profile_len0[~self._ever].sum()),
             "die_von_mises_max_Pa": vm,
             "die_sqrt_J2_max_Pa": vm / np.sqrt(3.0),
             "blank_speed_max_m_s": speed,
@@ -107,12 +113,13 @@ class CornerFill:
 
     def metrics(self, solver, history) -> dict[str, float]:
         ff = history.column("fill_fraction")
+        cf = history.column("contact_fraction")
         vm = history.column("die_von_mises_max_Pa")
         sp = history.column("blank_speed_max_m_s")
         cp = history.column("die_contact_pressure_max_Pa")
         out = {
             "fill_fraction": float(ff[-1]),
-            "fill_fraction_max": float(ff.max()),
+            "contact_fraction_final": float(cf[-1]),
             "unfilled_length_mm": float(history.column("unfilled_length_m")[-1]) * 1e3,
             "apex_gap_final_mm": float(history.column("blank_apex_gap_m")[-1]) * 1e3,
             "die_mises_max_MPa": float(vm.max()) / 1e6,
@@ -150,6 +157,7 @@ class CornerFill:
             out[f"pulse{k}_die_mises_max_MPa"] = float(history.column("die_von_mises_max_Pa")[m].max()) / 1e6
             out[f"pulse{k}_blank_speed_max_m_s"] = float(history.column("blank_speed_max_m_s")[m].max())
             out[f"pulse{k}_fill_fraction_end"] = float(history.column("fill_fraction")[m][-1])
+            out[f"pulse{k}_contact_fraction_end"] = float(history.column("contact_fraction")[m][-1])
             out[f"pulse{k}_start_time_s"] = a
         return out
 
@@ -168,8 +176,10 @@ class CornerFill:
         ax[0].legend()
         ax[1].plot(t, history.column("blank_speed_max_m_s"))
         ax[1].set_ylabel("blank max speed (m/s)")
-        ax[2].plot(t, history.column("fill_fraction"))
-        ax[2].set_ylabel("fill fraction")
+        ax[2].plot(t, history.column("fill_fraction"), label="fill (touched so far)")
+        ax[2].plot(t, history.column("contact_fraction"), lw=0.8, label="in contact now")
+        ax[2].set_ylabel("fraction of die profile")
+        ax[2].legend()
         ax[2].set_xlabel("time (µs)")
         for a, _ in self._windows(history):
             for x in ax:

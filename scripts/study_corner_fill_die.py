@@ -1,0 +1,97 @@
+"""Die profile of the corner-filling cases (half model, symmetry plane x = 0), as case-file points.
+
+    python scripts/study_corner_fill_die.py [--depth 0.02] [--radius 0.003] ...
+
+prints the counter-clockwise polygon of the steel die: a 130-degree V groove (walls at 25 degrees to
+the horizontal) of depth D below the flange, its apex rounded with radius R (the corner to fill), the
+entry edge rounded with radius Re, a flat flange out to x_end, and a die block of thickness T below the
+apex. The flange top lies at y = -gap (the blank's lower face is y = 0). Paste the output into
+``[[bodies]] shape.points`` of cases/corner_fill*/case.toml.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+
+
+def die_polygon(depth=0.02, radius=0.003, entry_radius=0.005, x_end=0.145, thickness=0.02, gap=1.5e-4,
+                angle_deg=130.0, arc_step=5e-4, bottom_half_width=0.0):
+    """Counter-clockwise (x, y) vertices (m) of the half die.
+
+    bottom_half_width = 0: a V groove whose included angle is ``angle_deg`` (walls at
+    (180 - angle)/2 to the horizontal), apex rounded with ``radius``.
+    bottom_half_width > 0: a trapezoidal groove, flat bottom out to x = bottom_half_width (the
+    corner's vertex), walls making ``angle_deg`` with the bottom (inclined 180 - angle to the
+    horizontal), bottom-wall corner rounded with ``radius``.
+    """
+    if bottom_half_width > 0.0:
+        return _trapezoid(depth, radius, entry_radius, x_end, thickness, gap, angle_deg, arc_step,
+                          bottom_half_width)
+    a = math.radians((180.0 - angle_deg) / 2.0)  # wall inclination to the horizontal (25 deg)
+    yf = -gap
+    w = depth / math.tan(a)                      # half width of the groove at the flange level
+    yb = yf - depth - thickness
+    pts = [(0.0, yb), (x_end, yb), (x_end, yf)]
+    # entry fillet: flange tangent point -> wall tangent point, centre below the flange
+    tlen = entry_radius * math.tan(a / 2.0)
+    cx, cy = w + tlen, yf - entry_radius
+    n = _n(entry_radius, a, arc_step)
+    for i in range(n + 1):
+        phi = math.pi / 2 + a * i / n
+        pts.append((cx + entry_radius * math.cos(phi), cy + entry_radius * math.sin(phi)))
+    # apex arc tangent to both walls, centre on the symmetry line
+    yc = yf - depth + radius / math.cos(a)
+    n = _n(radius, a, arc_step)
+    for i in range(n + 1):
+        phi = -math.pi / 2 + a - (a * i / n)  # from the wall tangent point (-65 deg) down to -90 deg
+        pts.append((radius * math.cos(phi) if i < n else 0.0, yc + radius * math.sin(phi)))
+    return [(round(x, 7), round(y, 7)) for x, y in pts]
+
+
+def _n(radius, angle, step):
+    """Arc segments: about ``step`` long (no die cells much smaller than the blank's: they would set
+    the explicit time step), at least 2."""
+    return max(2, int(math.ceil(radius * angle / step)))
+
+
+def _trapezoid(depth, radius, entry_radius, x_end, thickness, gap, angle_deg, arc_step, xc):
+    a = math.radians(180.0 - angle_deg)  # wall inclination to the horizontal (50 deg for 130)
+    yf = -gap
+    w = xc + depth / math.tan(a)
+    yb = yf - depth - thickness
+    pts = [(0.0, yb), (x_end, yb), (x_end, yf)]
+    tlen = entry_radius * math.tan(a / 2.0)
+    cx, cy = w + tlen, yf - entry_radius
+    n = _n(entry_radius, a, arc_step)
+    for i in range(n + 1):
+        phi = math.pi / 2 + a * i / n
+        pts.append((cx + entry_radius * math.cos(phi), cy + entry_radius * math.sin(phi)))
+    # bottom corner: centre above the bottom, tangent to bottom and wall
+    tl = radius * math.tan(a / 2.0)
+    ccx, ccy = xc - tl, yf - depth + radius
+    n = _n(radius, a, arc_step)
+    for i in range(n + 1):
+        phi = -math.pi / 2 + a * (1 - i / n)  # wall tangent point -> bottom tangent point
+        pts.append((ccx + radius * math.cos(phi), ccy + radius * math.sin(phi)))
+    pts.append((0.0, yf - depth))
+    return [(round(x, 7), round(y, 7)) for x, y in pts]
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--depth", type=float, default=0.02)
+    ap.add_argument("--radius", type=float, default=0.003)
+    ap.add_argument("--entry-radius", type=float, default=0.005)
+    ap.add_argument("--x-end", type=float, default=0.145)
+    ap.add_argument("--thickness", type=float, default=0.02)
+    ap.add_argument("--gap", type=float, default=1.5e-4)
+    ap.add_argument("--bottom-half-width", type=float, default=0.0)
+    args = ap.parse_args()
+    pts = die_polygon(args.depth, args.radius, args.entry_radius, args.x_end, args.thickness, args.gap,
+                      bottom_half_width=args.bottom_half_width)
+    print("points = [" + ", ".join(f"[{x:.7g}, {y:.7g}]" for x, y in pts) + "]")
+
+
+if __name__ == "__main__":
+    main()
