@@ -185,6 +185,20 @@ class ExplicitSolver:
             unknown = set(external_forces) - set(self.bodies)
             if unknown:
                 raise ValueError(f"external_forces for unknown bodies {sorted(unknown)}")
+        # the forces act from the current time on: a^n must already include them. The estimate
+        # v^n = v^{n-1/2} + dt/2 a^n then changes; its kinetic energy change is work of the switch.
+        for n, b in self.bodies.items():
+            delta = fext[n] - self._fext[n]
+            if self.comm.allreduce(bool(np.any(delta)), op=MPI.LOR):
+                delta = b.complete_nodal(delta)
+                no = b.n_owned
+                ke_old = np.sum(b.mass[:no, None] * (b.v[:no] + 0.5 * self._dt_prev * b.a[:no]) ** 2)
+                b.a += delta / b.mass[:, None]
+                b.a.ravel()[self._cidx[n]] = 0.0
+                ke_new = np.sum(b.mass[:no, None] * (b.v[:no] + 0.5 * self._dt_prev * b.a[:no]) ** 2)
+                self._acc["external_work_J"] += self._sum(0.5 * (ke_new - ke_old))
+            self._fext[n] = fext[n]
+            self._fext_nonzero[n] = bool(np.any(fext[n]))
         for _ in range(int(n_steps)):
             self._step(dt, fext)
 
@@ -199,15 +213,11 @@ class ExplicitSolver:
             b.v += dt_avg * b.a
             b.apply_velocity_constraints(t_new, dt)
             no = b.n_owned
-            if self._fext[n] is not fext[n] or self._fext_nonzero[n]:
-                wext += dt * float(np.sum(b.v[:no] * 0.5 * (self._fext[n][:no] + fext[n][:no])))
+            if self._fext_nonzero[n]:
+                wext += dt * float(np.sum(b.v[:no] * fext[n][:no]))
             b.x += dt * b.v
         self._acc["wall_dissipated_J"] += self._apply_walls()
         self._acc["external_work_J"] += self.comm.allreduce(wext) if self.comm.size > 1 else wext
-        for n in self.bodies:
-            if self._fext[n] is not fext[n]:
-                self._fext[n] = fext[n]
-                self._fext_nonzero[n] = bool(np.any(fext[n]))
         self.time = t_new
         self._compute_forces(dt, update_state=True)
         self._dt_prev = dt
