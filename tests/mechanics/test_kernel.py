@@ -135,3 +135,31 @@ def test_numba_cache_works_from_another_directory(tmp_path):
     assert r.returncode == 0, r.stderr
     # 2A / longest edge = 1 / sqrt(2); c = sqrt((1 + 4/3) / 1)
     assert float(r.stdout.strip()) == pytest.approx(1 / math.sqrt(2) / math.sqrt(7 / 3), rel=1e-12)
+
+
+@pytest.mark.parametrize("mode", [MODE_PLANE_STRESS, MODE_PLANE_STRAIN, MODE_AXISYMMETRIC])
+def test_return_lands_on_the_yield_surface(mode):
+    """After a plastic step every yielding cell satisfies sigma_vm = sigma_0 + A eps_p (and
+    sigma_zz = 0 in plane stress: the secant iteration on d_zz converged)."""
+    formulation = {0: "plane_stress", 1: "plane_strain", 2: "axisymmetric"}[mode]
+    s = _body(formulation)
+    b = s.bodies["b"]
+    rng = np.random.default_rng(1)
+    v = rng.normal(scale=50.0, size=b.v.shape)
+    dt = 0.3 * s.stable_time_step()
+    st = np.zeros_like(b.cell_stress)
+    st[:, :2] = rng.normal(scale=250e6, size=(len(st), 2))
+    st[:, 3] = rng.normal(scale=100e6, size=len(st))
+    ep = np.full(len(st), 0.02)
+    prm = pack_parameters(STEEL, mode, 1.0, 0.06, 1.2, False)
+    element_step(b.cells, b.x + dt * v, v, dt, prm, st, ep, np.zeros_like(v), np.zeros(3))
+    p = st[:, :3].mean(axis=1)
+    d = st[:, :3] - p[:, None]
+    vm = np.sqrt(1.5 * ((d ** 2).sum(axis=1) + 2 * st[:, 3] ** 2))
+    yielded = ep > 0.02
+    assert yielded.sum() > 10
+    sy = STEEL.yield_stress + STEEL.hardening_modulus * ep[yielded]
+    assert np.allclose(vm[yielded], sy, rtol=1e-9)
+    assert np.all(vm[~yielded] <= (STEEL.yield_stress + STEEL.hardening_modulus * 0.02) * (1 + 1e-12))
+    if mode == MODE_PLANE_STRESS:
+        assert np.all(st[:, 2] == 0.0)
