@@ -108,6 +108,7 @@ def run_getdp(
     verbosity: int = 3,
     log_name: str = "getdp.log",
     allowed_warnings: tuple[str, ...] = (),
+    reuse_pre: bool = False,
 ) -> RunInfo:
     """Run ``getdp deck -msh mesh -name run_dir/name -setnumber ... -solve resolution``.
 
@@ -132,7 +133,9 @@ def run_getdp(
     for key, val in (strings or {}).items():
         argv += ["-setstring", key, str(val)]
     argv += list(extra_args)
-    argv += ["-solve", resolution, "-v", str(int(verbosity))]
+    # -cal: processing only, with the pre-processing data (dof numbering) already in
+    # run_dir/<name>.pre (copied from a run on the same connectivity)
+    argv += (["-cal"] if reuse_pre else ["-solve", resolution]) + ["-v", str(int(verbosity))]
     env = dict(os.environ)
     env.update(FAST_MPI_ENV)
     t0 = time.perf_counter()

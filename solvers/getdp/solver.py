@@ -151,6 +151,7 @@ class EMState:
     a_points: list | None = None
     a_triangles: list | None = None
     a_values: list | None = None
+    pre_path: str | None = None
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -262,12 +263,14 @@ class GetDPSolver:
     ``work_dir`` receives one folder per run (``run_name`` or ``step_<index>``) with the mesh,
     the generated ``run.pro``, ``getdp.log``, ``em.res`` and the output tables.  ``keep_runs``
     (default: keep all) deletes older run folders made by this object, keeping the last N.
-    ``petsc_args`` go on getdp's command line (default: LU with UMFPACK).
+    ``petsc_args`` go on getdp's command line (default: LU with UMFPACK).  ``reuse_pre``:
+    restarts on the same connectivity copy the previous run's ``.pre`` (dof numbering) and
+    run ``getdp -cal``, skipping pre-processing (same results, checked in the tests).
     """
 
     def __init__(self, model: EMModel, work_dir: str | Path, *, executable: str = "getdp",
                  petsc_args: Sequence[str] = DEFAULT_PETSC_ARGS, timeout: float | None = None,
-                 deck: str | Path = CASE_DECK, keep_runs: int | None = None):
+                 deck: str | Path = CASE_DECK, keep_runs: int | None = None, reuse_pre: bool = True):
         self.model = model
         self.work_dir = Path(work_dir).resolve()
         self.work_dir.mkdir(parents=True, exist_ok=True)
@@ -278,6 +281,7 @@ class GetDPSolver:
         if keep_runs is not None and keep_runs < 1:
             raise ValueError("keep_runs must be >= 1 (the last run holds the restart .res)")
         self.keep_runs = keep_runs
+        self.reuse_pre = reuse_pre
         self._runs: list[Path] = []
 
     # -- state
@@ -336,8 +340,12 @@ class GetDPSolver:
         restart = (has_field and not force_init_path and state.mesh_signature == sig
                    and Path(state.res_path).exists()
                    and (material_points is None or self._nodes_are_material(mesh, pts, state)))
+        reuse_pre = False
         if restart:
             extra += ["-restart", "-res", str(Path(state.res_path).resolve())]
+            if self.reuse_pre and state.pre_path and Path(state.pre_path).exists():
+                shutil.copyfile(state.pre_path, run_dir / "em.pre")   # same dofs: skip pre-processing
+                reuse_pre = True
         elif has_field:
             if state.a_values is None:
                 raise ValueError("state has a field but no nodal values to carry to a new mesh")
@@ -354,13 +362,15 @@ class GetDPSolver:
                            + f'\nInclude "{self.deck}";\n')
         info = run_getdp(wrapper, msh, run_dir, resolution=RESOLUTION, numbers=numbers,
                          strings={"OutDir": str(out_dir) + "/"}, extra_args=extra + self.petsc_args,
-                         executable=self.executable, timeout=self.timeout)
+                         executable=self.executable, timeout=self.timeout, reuse_pre=reuse_pre)
         for w in info.warnings:
             warnings.warn(f"getdp ({run_dir.name}): {w}", RuntimeWarning, stacklevel=2)
         result = self._read(mesh, out_dir, state, float(t_end), int(n_sub), n_elem_rows)
         result.run = info
         result.path = str(run_dir)
         new_state = self._next_state(mesh, material_points, out_dir, run_dir, state, result, sig)
+        # the .pre of a run without the Init list is reusable by later restarts on this connectivity
+        new_state.pre_path = str(run_dir / "em.pre") if "Flag_InitA" not in numbers else None
         if self.keep_runs is not None:  # bound the disk use of long runs; never the newest runs
             if run_dir in self._runs:
                 self._runs.remove(run_dir)

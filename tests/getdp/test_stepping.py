@@ -48,6 +48,7 @@ def test_restart_and_init_paths_reproduce_continuous_run(work, kind):
             results[path].append(res)
         if path == "restart":
             assert "-restart" in results[path][-1].run.argv
+            assert "-cal" in results[path][-1].run.argv      # pre-processing reused
         else:
             assert "-restart" not in results[path][-1].run.argv
         f = np.concatenate([r.force_density for r in results[path]])
@@ -111,7 +112,7 @@ def test_moved_nodes_material_coordinates(work):
     a, _ = solver.step(moved, st1, 5e-6, 1, run_name="restart")
     b, _ = solver.step(moved, st1, 5e-6, 1, run_name="init", material_points=mesh.points, force_init_path=True)
     c, _ = solver.step(moved, st1, 5e-6, 1, run_name="spatial", force_init_path=True)
-    assert "-restart" in a.run.argv and "-restart" not in b.run.argv
+    assert "-restart" in a.run.argv and "-cal" in a.run.argv and "-restart" not in b.run.argv
     fa, fb, fc = (r.conductor_force[-1, 0, 1] for r in (a, b, c))
     print(f"\nF_z after lifting the disk 50 um: restart {fa:.3f} N, Init (material) {fb:.3f} N, "
           f"Init (spatial) {fc:.3f} N")
