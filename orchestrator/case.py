@@ -179,6 +179,9 @@ class _PulseWindow:
         "time", doc="'rest': start (with the same window length) once the previous pulse has ended and "
                     "the loaded body's max speed is below rest_speed")
     rest_speed: float = spec(0.5, unit="m/s", gt=0.0, doc="speed below which the body counts as at rest")
+    rest_damping: float = spec(0.0, unit="1/s", ge=0.0,
+                               doc="mass damping α on every body while this 'rest' pulse waits (after the previous "
+                                   "window): dynamic relaxation standing in for the time between discharges")
 
     def validate(self, path: str) -> None:
         _check_window(self.t_start, self.t_end, path)

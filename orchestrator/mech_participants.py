@@ -63,7 +63,8 @@ class PressurePulses:
     ``trigger = "rest"`` keeps its window length but starts at the first EM step after the
     previous pulse's end at which the loaded body's largest nodal speed is below ``rest_speed``.
     Damping adds −α m v (v: the solver's last half-step velocity) while
-    ``damping_from`` <= t < ``damping_until``.
+    ``damping_from`` <= t < ``damping_until``, plus a pulse's ``rest_damping`` while that pulse waits
+    for rest (dynamic relaxation between discharges).
     """
 
     def __init__(self, loads: tuple[Load, ...], damping: float = 0.0, damping_until: float = float("inf"),
@@ -92,19 +93,28 @@ class PressurePulses:
         """Nodal forces (N) per body for the step [t0, t1] (s)."""
         forces: dict[str, np.ndarray] = {}
         values: dict[str, float] = {}
+        relax = 0.0
         for i, ld in enumerate(self.loads):
             shift = self._shift(i, t0, mechanics)
+            if np.isnan(shift) and ld.rest_damping > 0.0 and self._waiting(i, t0):
+                relax = max(relax, ld.rest_damping)
             p = 0.0 if np.isnan(shift) else pulse_pressure(ld, t_mid - shift)
             values[f"load{i}_pressure_Pa"] = p
             if p == 0.0:
                 continue
             f = mechanics.solver.pressure_nodal_forces(ld.body, self._material_marker(i, mechanics), p)
             forces[ld.body] = forces[ld.body] + f if ld.body in forces else f
-        if self.damping > 0.0 and self.damping_from <= t_mid < self.damping_until:
+        alpha = relax + (self.damping if self.damping_from <= t_mid < self.damping_until else 0.0)
+        if alpha > 0.0:
             for name, b in mechanics.solver.bodies.items():
-                f = -self.damping * b.mass[:, None] * b.v
+                f = -alpha * b.mass[:, None] * b.v
                 forces[name] = forces[name] + f if name in forces else f
         return LoadStep(forces, None, values)
+
+    def _waiting(self, i: int, t0: float) -> bool:
+        """Pulse i waits for rest: the previous pulse has started and its window is over."""
+        prev_shift = self.offsets[i - 1] if i > 0 else np.nan
+        return not np.isnan(prev_shift) and t0 >= self.loads[i - 1].t_end + prev_shift
 
     def _material_marker(self, i: int, mechanics: DolfinxMechanics):
         """Facet marker of pulse i on the body's *initial* configuration (material surface): the
