@@ -80,7 +80,48 @@ class SolenoidTube:
                               f"= {self.air_radius:g} (m)")
 
 
-Geometry = FlatCoilSheet | SolenoidTube
+@dataclass(frozen=True, kw_only=True)
+class DeckRegions:
+    """Physical-group names of the user's mesh for each role (renumbered to the runner's ids)."""
+
+    air: str = spec(doc="air (physical surface)")
+    coil: str = spec(doc="the stranded coil, all its turns (physical surface)")
+    workpiece: str = spec(doc="the workpiece, a massive conductor (physical surface)")
+    axis: str = spec(doc="the symmetry axis r = 0, a = 0 (physical curve)")
+    outer: str = spec(doc="the outer boundary, a = 0 (physical curve)")
+    shell: str | None = spec(None, doc="shell transformation to infinity (physical surface)")
+
+
+@dataclass(frozen=True, kw_only=True)
+class UserDeck:
+    """A user's own EM deck: a Gmsh .geo (meshed by the runner) or .msh, and a GetDP .pro that
+    honours the deck contract (docs/workflow.md). Axisymmetric, one coil, the workpiece."""
+
+    type: Literal["user_deck"] = spec(doc="geometry kind")
+    mesh: str = spec(doc=".geo (meshed with gmsh, MSH 2.2) or .msh, relative to the case folder")
+    pro: str = spec(doc="GetDP .pro deck, relative to the case folder")
+    allow_outside: bool = spec(False, doc="allow mesh/pro paths outside the case folder")
+    regions: DeckRegions = spec(doc="physical-group names of the roles")
+    turns: int = spec(unit="-", ge=1, doc="number of turns of the coil region")
+    shell_inner_radius: float | None = spec(None, unit="m", gt=0.0, doc="shell transformation: inner radius")
+    shell_outer_radius: float | None = spec(None, unit="m", gt=0.0, doc="shell transformation: outer radius")
+    parameters: dict[str, float] | None = spec(None, doc="numbers passed with -setnumber to gmsh (.geo) and getdp")
+
+    def validate(self, path: str) -> None:
+        if not self.mesh.endswith((".geo", ".msh")):
+            raise SchemaError(f"{path}.mesh", f"got {self.mesh!r}; must be a .geo or .msh file")
+        if not self.pro.endswith(".pro"):
+            raise SchemaError(f"{path}.pro", f"got {self.pro!r}; must be a .pro file")
+        if (self.shell_inner_radius is None) != (self.shell_outer_radius is None) or \
+                (self.regions.shell is None) != (self.shell_inner_radius is None):
+            raise SchemaError(f"{path}.shell_inner_radius", "give regions.shell, shell_inner_radius and "
+                              "shell_outer_radius together (or none of them)")
+        if self.shell_inner_radius is not None and self.shell_outer_radius <= self.shell_inner_radius:
+            raise SchemaError(f"{path}.shell_outer_radius", f"got {self.shell_outer_radius:g}; must be > "
+                              f"shell_inner_radius = {self.shell_inner_radius:g} (m)")
+
+
+Geometry = FlatCoilSheet | SolenoidTube | UserDeck
 
 
 @dataclass(frozen=True, kw_only=True)

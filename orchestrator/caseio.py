@@ -137,6 +137,9 @@ def load_case(path: str | Path, overrides: list[str] | tuple[str, ...] = ()) -> 
         segments, value = parse_override(text, source)
         apply_override(data, segments, value, source)
     source = f"{file}" + (" (with --set overrides)" if overrides else "")
+    from .user_deck import resolve_deck_paths  # a user's own .geo/.msh + .pro: paths from the case folder
+
+    resolve_deck_paths(data, file, source)
     try:
         case = from_dict(Case, data)
     except SchemaError as exc:

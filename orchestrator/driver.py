@@ -235,7 +235,13 @@ def _coupled_participants(case: Case, results: ResultsFolder, comm: MPI.Comm):
 
     if comm.size > 1:
         raise NotImplementedError("coupled runs are serial for now (getdp runs once per EM step)")
-    geometry = build_em_geometry(case.geometry)
+    user_deck = case.geometry.type == "user_deck"  # a user's own .geo/.msh + .pro (orchestrator/user_deck.py)
+    if user_deck:
+        from .user_deck import build_user_geometry
+
+        geometry = build_user_geometry(case.geometry, results.root / "em_mesh")
+    else:
+        geometry = build_em_geometry(case.geometry)
     sub = conductor_submesh(geometry.mesh, geometry.regions["workpiece"])
     body = next(b.name for b in case.bodies if b.region == "workpiece")
     solver = build_solver(case, comm, {"workpiece": to_dolfinx(sub, comm)})
@@ -245,6 +251,11 @@ def _coupled_participants(case: Case, results: ResultsFolder, comm: MPI.Comm):
     scale = float(np.abs(geometry.mesh.points).max())
     body_to_em = match_nodes(solver.bodies[body].X0, geometry.mesh.points, 1e-12 * scale)
     g = case.geometry
+    if user_deck:
+        from .user_deck import user_deck_load
+
+        return solver, user_deck_load(case, geometry, results.root / "em", body, sub, body_to_em,
+                                      case.coupling.em_substeps)
     load = GetDPLoad(geometry, em_model(case, geometry), results.root / "em", body, sub, body_to_em,
                      keep_runs=case.em.keep_runs, remesh_quality=case.em.remesh_quality,
                      sizes=(g.mesh_size_coil, g.mesh_size_air), em_substeps=case.coupling.em_substeps)
@@ -307,7 +318,7 @@ def mech_metrics(solver, case: Case, history: History) -> dict[str, float]:
         if b.region == "workpiece" and case.geometry is not None:
             if case.geometry.type == "flat_coil_sheet":
                 out["max_deflection_mm"] = out[f"{b.name}_max_uy_mm"]
-            else:
+            elif case.geometry.type == "solenoid_tube":
                 out["max_radial_displacement_mm"] = out[f"{b.name}_max_ux_mm"]
     for p in case.probes:
         if p.quantity == "contact_pressure":

@@ -123,6 +123,8 @@ def _em_plot_box(case: Case) -> tuple[float, float, float, float] | None:
     if g.type == "flat_coil_sheet":
         r = 1.15 * g.sheet_radius
         return (0.0, r, -3 * g.turn_height, g.coil_gap + 0.25 * r)
+    if g.type != "solenoid_tube":  # a user deck: the whole mesh
+        return None
     half = 0.6 * max(g.tube_length, g.turns * (g.turn_height + g.turn_gap))
     return (0.0, 1.5 * (g.tube_inner_radius + g.tube_thickness), -half, half)
 
