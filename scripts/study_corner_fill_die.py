@@ -46,7 +46,16 @@ def die_polygon(depth=0.02, radius=0.003, entry_radius=0.005, x_end=0.145, thick
     for i in range(n + 1):
         phi = -math.pi / 2 + a - (a * i / n)  # from the wall tangent point (-65 deg) down to -90 deg
         pts.append((radius * math.cos(phi) if i < n else 0.0, yc + radius * math.sin(phi)))
+    pts.append((0.0, yc - radius - SIDE_STEP))
     return [(round(x, 7), round(y, 7)) for x, y in pts]
+
+
+SIDE_STEP = 1e-3
+"""An extra vertex on the symmetry side, 1 mm below the cavity: the blank's symmetry-line node moves
+down the extension of that side, and the contact search accepts projections up to 2 % of a segment
+beyond its end; with a long side segment (4 mm on coarse meshes) the node, 0.07 mm above the bottom,
+was taken as lying on the side's extension (h = 0, a spurious penetration). A 1 mm segment keeps
+that zone at 0.02 mm, below the gaps the contact layer leaves."""
 
 
 def _n(radius, angle, step):
@@ -75,6 +84,7 @@ def _trapezoid(depth, radius, entry_radius, x_end, thickness, gap, angle_deg, ar
         phi = -math.pi / 2 + a * (1 - i / n)  # wall tangent point -> bottom tangent point
         pts.append((ccx + radius * math.cos(phi), ccy + radius * math.sin(phi)))
     pts.append((0.0, yf - depth))
+    pts.append((0.0, yf - depth - SIDE_STEP))
     return [(round(x, 7), round(y, 7)) for x, y in pts]
 
 
