@@ -1,7 +1,8 @@
 """Throughput of the explicit elastic-plastic step: element-updates per second
 (elements x steps / loop time) on a ~100k-element P1 plastic block impacting a rigid wall, for the
-compiled (numba) kernel and the plain vectorised-numpy reference kernel (gather + einsum +
-np.bincount), timed in the same run, with their ratio.
+compiled (numba) kernel and the plain vectorised-numpy reference kernel (gather, element-wise
+array arithmetic, np.bincount scatter; same algorithm), timed in the same run in alternating
+rounds (the machine is shared), with their ratio.
 
 Usage: .venv/bin/python bench/mech_throughput.py [--n 224] [--steps 60]
 """
@@ -19,6 +20,7 @@ from pulseform.solvers.dolfinx.kernels import element_step
 from pulseform.solvers.dolfinx.reference_kernel import element_step_numpy
 
 
+
 def build(n: int, kernel: str) -> ExplicitSolver:
     # 0.1 m block at 200 m/s onto a rigid wall: yields within a few steps (Al, paper section 5)
     msh = dmesh.create_rectangle(MPI.COMM_SELF, [np.array([0.0, 0.0]), np.array([0.1, 0.1])],
@@ -30,27 +32,27 @@ def build(n: int, kernel: str) -> ExplicitSolver:
                           kernel=kernel)
 
 
-def time_solver(s: ExplicitSolver, steps: int) -> float:
+def time_steps(s: ExplicitSolver, steps: int) -> float:
+    """Wall time per step of ``steps`` explicit steps, s."""
     dt = s.stable_time_step()
-    s.advance(dt, 2)                         # warm-up (JIT, caches)
     t0 = time.perf_counter()
     s.advance(dt, steps)
-    return time.perf_counter() - t0
+    return (time.perf_counter() - t0) / steps
 
 
 def time_kernel(kern, s: ExplicitSolver, reps: int) -> float:
+    """Wall time per call of the element kernel alone on the solver's current state, s."""
     b = s.bodies["block"]
     prm = s._prm["block"]
     dt = s.stable_time_step()
     st, ep = b.cell_stress.copy(), b.eps_p.copy()
     f = np.zeros_like(b.v)
     acc = np.zeros(3)
-    kern(b.cells, b.x, b.v, dt, prm, st, ep, f, acc)
     t0 = time.perf_counter()
     for _ in range(reps):
         f[:] = 0.0
         kern(b.cells, b.x, b.v, dt, prm, st, ep, f, acc)
-    return time.perf_counter() - t0
+    return (time.perf_counter() - t0) / reps
 
 
 def main() -> None:
@@ -61,24 +63,27 @@ def main() -> None:
     s_nb = build(a.n, "numba")
     s_np = build(a.n, "numpy")
     ne = s_nb.bodies["block"].cells.shape[0]
-    t_nb = time_solver(s_nb, a.steps)
-    t_np = time_solver(s_np, a.steps)
+    for sv in (s_nb, s_np):                   # warm-up (JIT, caches)
+        sv.advance(sv.stable_time_step(), 2)
+    # the machine is shared: alternate the two in rounds and keep each one's best round
+    rounds = 5
+    per = max(a.steps // rounds, 1)
+    t_nb, t_np, k_nb, k_np = [], [], [], []
+    for _ in range(rounds):
+        t_nb.append(time_steps(s_nb, per))
+        t_np.append(time_steps(s_np, max(per // 4, 1)))
+        k_nb.append(time_kernel(element_step, s_nb, 4))
+        k_np.append(time_kernel(element_step_numpy, s_nb, 2))
     eps = s_nb.bodies["block"].eps_p
-    # the two solvers ran the same steps: same state up to round-off
-    dx = np.abs(s_nb.bodies["block"].x - s_np.bodies["block"].x).max()
-    k_nb = time_kernel(element_step, s_nb, a.steps)
-    k_np = time_kernel(element_step_numpy, s_nb, a.steps)
-    r_step = t_np / t_nb
-    r_kern = k_np / k_nb
-    print(f"block impact: {ne} P1 cells, {a.steps} steps, plastic cells {np.count_nonzero(eps)}"
-          f" (max eps_p {eps.max():.3e}), max |x_numba - x_numpy| {dx:.2e} m")
-    print(f"full explicit step  numba: {ne * a.steps / t_nb / 1e6:8.2f} M element-updates/s"
-          f"  ({t_nb / a.steps * 1e3:.2f} ms/step)")
-    print(f"full explicit step  numpy: {ne * a.steps / t_np / 1e6:8.2f} M element-updates/s"
-          f"  ({t_np / a.steps * 1e3:.2f} ms/step)")
-    print(f"element kernel only numba: {ne * a.steps / k_nb / 1e6:8.2f} M/s, "
-          f"numpy: {ne * a.steps / k_np / 1e6:8.2f} M/s")
-    print(f"ratio numba / numpy: full step {r_step:.2f}x, kernel only {r_kern:.2f}x (target >= 4x)")
+    print(f"block impact: {ne} P1 cells, plastic cells {np.count_nonzero(eps)} "
+          f"(max eps_p {eps.max():.3e}) after {s_nb.step_count} steps; {rounds} alternating rounds,"
+          f" best round shown (median in brackets)")
+    for label, tb, tp in (("full explicit step", t_nb, t_np), ("element kernel only", k_nb, k_np)):
+        print(f"{label:20s} numba: {ne / min(tb) / 1e6:7.2f} M element-updates/s "
+              f"[{ne / np.median(tb) / 1e6:.2f}]   numpy: {ne / min(tp) / 1e6:6.2f} M/s "
+              f"[{ne / np.median(tp) / 1e6:.2f}]   ratio {min(tp) / min(tb):5.2f}x "
+              f"[{np.median(tp) / np.median(tb):.2f}x]")
+    print("target: ratio >= 4x")
 
 
 if __name__ == "__main__":

@@ -1,4 +1,5 @@
-"""Plain vectorised-numpy version of :func:`.kernels.element_step` (gather + einsum + bincount).
+"""Plain vectorised-numpy version of :func:`.kernels.element_step` (gather, element-wise array
+arithmetic — faster here than einsum over the small axes — and np.bincount scatter).
 
 Same algorithm as the compiled kernel; it exists as a cross-check and as the benchmark baseline.
 Only rate-independent materials are supported here.
@@ -15,18 +16,29 @@ __all__ = ["element_step_numpy"]
 
 def _j2(s, d, dt, G, lam, sy, hr):
     """Vectorised predictor + radial return; s, d: (n, 4) [xx, yy, zz, xy]."""
-    tr = d[:, :3].sum(axis=1) * dt
+    tr = (d[:, 0] + d[:, 1] + d[:, 2]) * dt
     t = s + 2.0 * G * dt * d
     t[:, :3] += (lam * tr)[:, None]
-    p = t[:, :3].mean(axis=1)
+    p = (t[:, 0] + t[:, 1] + t[:, 2]) / 3.0
     dev = t.copy()
     dev[:, :3] -= p[:, None]
-    q = np.sqrt(1.5 * (np.einsum("ij,ij->i", dev[:, :3], dev[:, :3]) + 2.0 * dev[:, 3] ** 2))
+    q = np.sqrt(1.5 * (dev[:, 0] ** 2 + dev[:, 1] ** 2 + dev[:, 2] ** 2 + 2.0 * dev[:, 3] ** 2))
     dep = np.where(q > sy, (q - sy) / (3.0 * G + hr), 0.0)
     fac = np.where(q > sy, 1.0 - 3.0 * G * dep / np.where(q > 0, q, 1.0), 1.0)
     out = dev * fac[:, None]
     out[:, :3] += p[:, None]
     return out, dep
+
+
+def _grads(X):
+    """Twice the area (n,) and area-scaled shape-function gradients gx, gy (3, n) of the
+    triangles X (2, 3, n)."""
+    x0, x1, x2 = X[0]
+    y0, y1, y2 = X[1]
+    ta = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0)
+    gx = np.stack([y1 - y2, y2 - y0, y0 - y1])
+    gy = np.stack([x2 - x1, x0 - x2, x1 - x0])
+    return ta, gx, gy
 
 
 def element_step_numpy(cells, x, v, dt, prm, stress, eps_p, f_int, acc):
@@ -38,38 +50,33 @@ def element_step_numpy(cells, x, v, dt, prm, stress, eps_p, f_int, acc):
     mode = int(prm[P_MODE])
     c = np.sqrt((K + 4.0 * G / 3.0) / rho)
     n = cells.shape[0]
-    xe = x[cells]                      # (n, 3, 2) gather
-    ve = v[cells]
-    xm = xe - 0.5 * dt * ve
+    ct = np.ascontiguousarray(cells.T)                  # (3, n)
+    X = np.ascontiguousarray(x.T)[:, ct]                # (2, 3, n) gather, contiguous per node
+    V = np.ascontiguousarray(v.T)[:, ct]
+    XM = X - 0.5 * dt * V
     acc[2] = -1.0
-
-    def grads(xc):
-        ta = ((xc[:, 1, 0] - xc[:, 0, 0]) * (xc[:, 2, 1] - xc[:, 0, 1])
-              - (xc[:, 2, 0] - xc[:, 0, 0]) * (xc[:, 1, 1] - xc[:, 0, 1]))
-        g = np.empty((xc.shape[0], 3, 2))
-        g[:, 0, 0] = xc[:, 1, 1] - xc[:, 2, 1]
-        g[:, 1, 0] = xc[:, 2, 1] - xc[:, 0, 1]
-        g[:, 2, 0] = xc[:, 0, 1] - xc[:, 1, 1]
-        g[:, 0, 1] = xc[:, 2, 0] - xc[:, 1, 0]
-        g[:, 1, 1] = xc[:, 0, 0] - xc[:, 2, 0]
-        g[:, 2, 1] = xc[:, 1, 0] - xc[:, 0, 0]
-        return ta, g
-
-    ta, gm = grads(xm)
-    tn, gn = grads(xe)
+    ta, gmx, gmy = _grads(XM)
+    tn, gnx, gny = _grads(X)
     bad = (ta <= 0) | (tn <= 0)
     if bad.any():
         acc[2] = float(np.flatnonzero(bad)[0])
     ta = np.where(bad, 1.0, ta)
     tn = np.where(bad, 1.0, tn)
-    L = np.einsum("nai,naj->nij", ve, gm) / ta[:, None, None]    # L[i, j] = d v_i / d x_j
+    inv = 1.0 / ta
+    vx, vy = V[0], V[1]
+    # L[i, j] = d v_i / d x_j = sum_a v_ai g_aj / (2 area)
+    lxx = (vx[0] * gmx[0] + vx[1] * gmx[1] + vx[2] * gmx[2]) * inv
+    lxy = (vx[0] * gmy[0] + vx[1] * gmy[1] + vx[2] * gmy[2]) * inv
+    lyx = (vy[0] * gmx[0] + vy[1] * gmx[1] + vy[2] * gmx[2]) * inv
+    lyy = (vy[0] * gmy[0] + vy[1] * gmy[1] + vy[2] * gmy[2]) * inv
     d = np.empty((n, 4))
-    d[:, 0] = L[:, 0, 0]
-    d[:, 1] = L[:, 1, 1]
-    d[:, 3] = 0.5 * (L[:, 0, 1] + L[:, 1, 0])
-    w = 0.5 * (L[:, 0, 1] - L[:, 1, 0])
+    d[:, 0] = lxx
+    d[:, 1] = lyy
+    d[:, 3] = 0.5 * (lxy + lyx)
+    w = 0.5 * (lxy - lyx)
+    rm = (XM[0, 0] + XM[0, 1] + XM[0, 2]) / 3.0
     if mode == MODE_AXISYMMETRIC:
-        d[:, 2] = ve[:, :, 0].sum(axis=1) / xm[:, :, 0].sum(axis=1)
+        d[:, 2] = (vx[0] + vx[1] + vx[2]) / (3.0 * rm)
     elif mode == MODE_PLANE_STRAIN:
         d[:, 2] = 0.0
     else:
@@ -109,10 +116,12 @@ def element_step_numpy(cells, x, v, dt, prm, stress, eps_p, f_int, acc):
         new[:, 2] = 0.0
     stress[:] = new
     eps_p += dep
-    le = tn / np.sqrt(np.max(np.stack([((xe[:, 1] - xe[:, 0]) ** 2).sum(1),
-                                         ((xe[:, 2] - xe[:, 1]) ** 2).sum(1),
-                                         ((xe[:, 0] - xe[:, 2]) ** 2).sum(1)]), axis=0))
-    trd = d[:, :3].sum(axis=1)
+    x0, x1, x2 = X[0]
+    y0, y1, y2 = X[1]
+    l2 = np.maximum(np.maximum((x1 - x0) ** 2 + (y1 - y0) ** 2, (x2 - x1) ** 2 + (y2 - y1) ** 2),
+                    (x0 - x2) ** 2 + (y0 - y2) ** 2)
+    le = tn / np.sqrt(l2)
+    trd = d[:, 0] + d[:, 1] + d[:, 2]
     q = np.zeros(n)
     xi = np.zeros(n)
     if prm[P_BULK] > 0:
@@ -122,26 +131,26 @@ def element_step_numpy(cells, x, v, dt, prm, stress, eps_p, f_int, acc):
         xi = b1 + b2 * b2 * le / c * (-comp)
     dte = le / c * (np.sqrt(1 + xi * xi) - xi)
     if mode == MODE_AXISYMMETRIC:
-        volm = 2 * np.pi * xm[:, :, 0].mean(axis=1) * 0.5 * ta
-        vol = 2 * np.pi * xe[:, :, 0].mean(axis=1) * 0.5 * tn
+        volm = 2 * np.pi * rm * 0.5 * ta
+        rc = (x0 + x1 + x2) / 3.0
+        vol = 2 * np.pi * rc * 0.5 * tn
     else:
         volm = prm[P_THICK] * 0.5 * ta
         vol = prm[P_THICK] * 0.5 * tn
     acc[0] += np.sum((sy + hr * dep) * dep * volm)
     tr_work = d[:, 0] + d[:, 1] if mode == MODE_PLANE_STRESS else trd
     acc[1] += np.sum(-q * tr_work * volm * dt)
-    e = new.copy()
-    e[:, :3] -= q[:, None]
-    sig = np.empty((n, 2, 2))
-    sig[:, 0, 0], sig[:, 1, 1] = e[:, 0], e[:, 1]
-    sig[:, 0, 1] = sig[:, 1, 0] = e[:, 3]
-    fe = np.einsum("nij,naj->nai", sig, gn) * (vol / tn)[:, None, None]
+    exx, eyy, ezz, exy = new[:, 0] - q, new[:, 1] - q, new[:, 2] - q, new[:, 3]
+    sc = vol / tn
+    fx = (exx * gnx + exy * gny) * sc                   # (3, n)
+    fy = (exy * gnx + eyy * gny) * sc
     if mode == MODE_AXISYMMETRIC:
-        fe[:, :, 0] += (2 * np.pi * 0.5 * tn * e[:, 2] / 3.0)[:, None]
+        fx += 2 * np.pi * 0.5 * tn * ezz / 3.0
     if bad.any():
-        fe[bad] = 0.0
+        fx[:, bad] = 0.0
+        fy[:, bad] = 0.0
     nn_ = f_int.shape[0]
-    flat = cells.ravel()
-    f_int[:, 0] += np.bincount(flat, weights=fe[:, :, 0].ravel(), minlength=nn_)
-    f_int[:, 1] += np.bincount(flat, weights=fe[:, :, 1].ravel(), minlength=nn_)
+    flat = ct.ravel()
+    f_int[:, 0] += np.bincount(flat, weights=fx.ravel(), minlength=nn_)
+    f_int[:, 1] += np.bincount(flat, weights=fy.ravel(), minlength=nn_)
     return float(np.min(np.where(bad, np.inf, dte))) if n else 1e300
