@@ -24,11 +24,14 @@ Stepping API (staggered coupling)
 ---------------------------------
 ::
 
-    solver = GetDPSolver(model, work_dir)            # work_dir: one sub-folder per run
+    solver = GetDPSolver(model, work_dir, executable="getdp", petsc_args=DEFAULT_PETSC_ARGS,
+                         timeout=None, keep_runs=None, reuse_pre=True)   # one sub-folder per run
     state = solver.initial_state(t0=0.0)             # EMState, JSON-able (to_dict / save / load)
     for k in range(n_em_steps):
         mesh_k = mesh0.with_points(current_positions)   # same connectivity, moved nodes
-        result, state = solver.step(mesh_k, state, t_end=t_k + dt_em, n_sub=1)
+        result, state = solver.step(mesh_k, state, t_end=t_k + dt_em, n_sub=1,
+                                    material_points=reference_positions,  # optional, see below
+                                    run_name=None, force_init_path=False, element_output="all")
         result.elements             # rows of mesh_k.triangles in the massive conductors
         result.force_density        # (n_sub, n_el, 2) N/m^3 = j x B at element centroids
         result.force_density_mean   # (n_el, 2) impulse-consistent mean over the sub-steps
@@ -37,13 +40,19 @@ Stepping API (staggered coupling)
         result.coil_current, result.coil_voltage, result.capacitor_voltage, result.coil_heat,
         result.coil_temperature_rise, result.magnetic_energy
 
-Same connectivity as the previous step: the field continues with ``-restart -res <prev .res>``.
+Same connectivity as the previous step: the field continues with ``-restart -res <prev .res>``
+(and ``getdp -cal`` with the previous ``.pre``); with ``material_points`` given, only if the
+coil/conductor nodes are the same material points as before (Lagrangian nodes).
 A new mesh (different connectivity) or ``force_init_path=True``: the previous nodal unknown
 (r a_phi) of coils and conductors is interpolated in *material* coordinates (pass
 ``material_points``, the reference position of every new node; default ``mesh.points``) and
 fed through an ``Init`` constraint.  The circuit state (capacitor voltage, current) is carried
 in :class:`EMState` and enters through ``Init`` constraints.  Both paths reproduce a continuous
 run to round-off on a fixed mesh (tests/getdp/test_stepping.py).
+
+Failures raise :class:`GetDPError` (message ends with the log tail; the run folder stays);
+getdp warnings become ``RuntimeWarning``.  ``element_output="last"``/``"none"`` skips the
+per-element tables on long runs.
 
 Conventions: GetDP frame (x, y) = (r, z) in axisymmetry; a positive coil current flows along
 +z of that frame (-e_phi); forces are unaffected.  Coil voltage is the drop in the current's
@@ -53,11 +62,12 @@ scalar potential): exact for closed rings in axisymmetry; in planar they are sho
 from .mesh import EMMesh, Rect, coil_conductor_mesh, coil_tag, conductor_tag, slab_mesh, write_msh22
 from .metrics import em_metrics
 from .runner import FAST_MPI_ENV, GetDPError, RunInfo, find_getdp, run_getdp
-from .solver import (Circuit, Coil, Conductor, CurrentTable, DampedSine, EMModel, EMState, EMStepResult,
-                     GetDPSolver)
+from .solver import (DEFAULT_PETSC_ARGS, Circuit, Coil, Conductor, CurrentTable, DampedSine, EMModel, EMState,
+                     EMStepResult, GetDPSolver)
 
 __all__ = [
     "EMMesh", "Rect", "coil_conductor_mesh", "coil_tag", "conductor_tag", "slab_mesh", "write_msh22",
     "em_metrics", "FAST_MPI_ENV", "GetDPError", "RunInfo", "find_getdp", "run_getdp", "Circuit", "Coil",
     "Conductor", "CurrentTable", "DampedSine", "EMModel", "EMState", "EMStepResult", "GetDPSolver",
+    "DEFAULT_PETSC_ARGS",
 ]
