@@ -70,3 +70,13 @@ def test_em_metrics():
     assert m["coil_temperature_rise_K"] == pytest.approx(0.7)
     with pytest.raises(ValueError):
         em_metrics([])
+
+
+def test_package_imports_neither_orchestrator_nor_dolfinx():
+    import subprocess
+    import sys
+    code = ("import sys, pulseform.solvers.getdp; "
+            "print([m for m in sys.modules if m.startswith(('pulseform.orchestrator', 'pulseform.solvers.dolfinx',"
+            " 'dolfinx'))])")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]"
