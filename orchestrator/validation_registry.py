@@ -206,15 +206,17 @@ def _coupled_free_sheet(work: Path, end: float) -> RunOutput:
         raise RuntimeError(f"pulseform run failed ({r.returncode}): {lines[-1] if lines else ''}")
     m = json.loads((out_dir / "metrics.json").read_text())
     h = np.genfromtxt(out_dir / "history.csv", delimiter=",", names=True)
-    # impulse central differences delivered: the force set at the end of substep s enters the next
-    # velocity update with weight (dt_s + dt_{s+1}) / 2 (see tests/coupling/test_coupled_getdp.py)
+    # impulse central differences delivered: the force held over substep s acts from that substep on
+    # (no lag since the solver change 98cfbf8) and enters the half-step velocity with weight
+    # (dt_{s-1} + dt_s) / 2, the first one with dt_0 / 2 (tests/mechanics/test_solver_api.py)
     forces, dts = [], []
     for row in h[1:]:
         k = int(row["substeps"])
         forces += [row["force_y_N"]] * k
         dts += [row["dt_s"]] * k
     f, d = np.array(forces), np.array(dts)
-    delivered = float(np.sum(f[:-1] * 0.5 * (d[:-1] + d[1:])))
+    weights = np.concatenate([[0.5 * d[0]], 0.5 * (d[:-1] + d[1:])])
+    delivered = float(np.sum(f * weights))
     out = RunOutput(scalars={"momentum_y_Ns": float(h["sheet_momentum_y_Ns"][-1]), "impulse_delivered_Ns": delivered,
                              "conservation_error_rel": float(m["conservation_error_rel"])})
     out.curves["momentum"] = (h["time_s"], h["sheet_momentum_y_Ns"])
@@ -288,7 +290,7 @@ for _key, _suites, _tol in (("getdp_diffusion_h0.05mm", ("fast",), 0.02), ("getd
 for _key, _suites in (("emf_free_sheet_4us", ("fast",)), ("emf_free_sheet_10us", ("full",))):
     _tag = _key.split("_")[-1]
     register(Entry(f"emf_sheet_bulge.free.{_tag}.momentum", "emf_sheet_bulge", f"free-sheet momentum ({_tag})", "N s",
-                   _key, Analytic("sum over substeps of F_s (dt_s + dt_s+1) / 2 (impulse of the held forces)",
+                   _key, Analytic("sum over substeps of F_s (dt_s-1 + dt_s) / 2, first dt_0 / 2 (impulse of the held forces)",
                                   "Newton's second law on a free body (internal forces cancel)",
                                   from_run=lambda o: o.scalars["impulse_delivered_Ns"]),
                    1e-9, computed=lambda o: o.scalars["momentum_y_Ns"], curve="momentum", suites=_suites,

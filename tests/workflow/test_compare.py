@@ -1,0 +1,102 @@
+"""`pulseform compare`: coupled GetDP load vs the fitted eq. (7) pressure pulse, and --fail-if.
+
+Coarse and short (cases/emf_sheet_bulge for 4 µs: 10 EM steps). The physics checks compare the two
+runs with each other: the fitted pulse reproduces the coupled run's pressure history, so its
+impulse over the same window must agree with the coupled impulse to the fit's accuracy.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from pulseform.orchestrator.compare import (CompareError, exp_pulse, fit_pulse, parse_conditions, shape_distance,
+                                            sin2_pulse)
+
+from wf_helpers import REPO, one_line_error, pulseform
+
+SHORT = ["--set", "time.end=4e-6", "--set", "output.field_interval=2e-6"]
+
+
+def test_fit_recovers_eq7_and_eq8():
+    """Synthetic histories made with known parameters (the reference) are fitted back."""
+    t = np.linspace(1e-6, 60e-6, 40)
+    par = fit_pulse(t, sin2_pulse(t, 12e6, 2.1e4, 9.5e4), "sin2")
+    assert par["amplitude"] == pytest.approx(12e6, rel=1e-4)
+    assert par["beta"] == pytest.approx(2.1e4, rel=1e-3) and par["omega"] == pytest.approx(9.5e4, rel=1e-4)
+    par = fit_pulse(t, exp_pulse(t, 50e6, 20e-6), "exp")
+    assert par["amplitude"] == pytest.approx(50e6, rel=1e-4) and par["decay_time"] == pytest.approx(20e-6, rel=1e-4)
+
+
+def test_shape_distance_of_a_translation():
+    """Same material points moved by (3, 4) mm more in one run: the distance is exactly 5 mm."""
+    rng = np.random.default_rng(1)
+    x = rng.random((50, 2))
+    u = 1e-3 * rng.random((50, 2))
+    perm = rng.permutation(50)
+    d = shape_distance(x, u, x[perm], u[perm] + np.array([3e-3, 4e-3]))
+    assert d == pytest.approx(5e-3, rel=1e-12)
+
+
+def test_conditions_parse_and_reject():
+    c = parse_conditions(["impulse_rel_diff>0.05", "max_speed_coupled_m_s<=1"])
+    assert c[0].holds({"impulse_rel_diff": 0.06}) and not c[0].holds({"impulse_rel_diff": 0.05})
+    assert c[1].holds({"max_speed_coupled_m_s": 1.0}) and not c[1].holds({})
+    with pytest.raises(CompareError, match="impulse"):
+        parse_conditions(["impulse~3"])
+
+
+@pytest.fixture(scope="module")
+def compared(tmp_path_factory):
+    out = tmp_path_factory.mktemp("cmp") / "c"
+    r = pulseform("compare", str(REPO / "cases/emf_sheet_bulge"), "--out", str(out), *SHORT,
+                  "--fail-if", "shape_distance_max_mm>1000")
+    print(r.stdout)
+    assert r.returncode == 0, r.stdout + r.stderr[-3000:]
+    return out, json.loads((out / "compare.json").read_text())
+
+
+@pytest.mark.getdp
+def test_compare_writes_the_named_differences(compared):
+    out, rep = compared
+    m = rep["metrics"]
+    for key in ("shape_distance_max_mm", "max_speed_coupled_m_s", "max_speed_pressure_m_s", "impulse_coupled_Ns",
+                "impulse_pressure_Ns", "impulse_rel_diff", "wall_time_coupled_s", "wall_time_pressure_s"):
+        assert key in m and math.isfinite(m[key]), key
+    assert rep["dies"] == []  # this case has no die: no die stresses are reported
+    p = rep["pulse"]
+    assert p["source"] == "fitted to the coupled run" and p["amplitude"] > 0 and p["omega"] > 0
+    assert p["fit_residual_rel"] < 0.05
+    # the fitted pulse carries the coupled impulse (same window, same history) to a few per cent
+    assert m["impulse_rel_diff"] < 0.05
+    assert m["shape_distance_max_mm"] > 0  # different loads: the shapes differ
+    for name in ("compare_pressure.png", "compare_shapes.png", "compare_histories.png"):
+        assert (out / "plots" / name).stat().st_size > 5000
+    # both runs went through the same loop on the same workpiece mesh
+    assert (out / "pressure" / "case.toml").read_text().count('load = "pressure"') == 1
+
+
+@pytest.mark.getdp
+def test_fail_if_trips_when_exceeded(compared, tmp_path):
+    """Threshold at half the measured impulse difference: exceeded, so exit 1 naming the condition."""
+    _, rep = compared
+    tol = 0.5 * rep["metrics"]["impulse_rel_diff"]
+    r = pulseform("compare", str(REPO / "cases/emf_sheet_bulge"), "--out", str(tmp_path / "c2"), *SHORT,
+                  "--fail-if", f"impulse_rel_diff>{tol:.6g}")
+    assert r.returncode == 1, r.stdout + r.stderr[-3000:]
+    assert f"impulse_rel_diff>{tol:.6g} holds" in r.stderr
+    assert json.loads((tmp_path / "c2" / "compare.json").read_text())["metrics"]["impulse_rel_diff"] > tol
+
+
+def test_compare_rejects_a_mechanics_case(tmp_path):
+    r = pulseform("compare", str(REPO / "cases/bar_impact"), "--out", str(tmp_path / "x"))
+    assert r.returncode == 2 and "coupled" in one_line_error(r)
+
+
+def test_bad_fail_if_is_bad_input(tmp_path):
+    r = pulseform("compare", str(REPO / "cases/emf_sheet_bulge"), "--out", str(tmp_path / "x"),
+                  "--fail-if", "impulse_rel_diff=3")
+    assert r.returncode == 2 and "--fail-if" in one_line_error(r)

@@ -1,0 +1,24 @@
+"""Helpers of the workflow tests: run the ``pulseform`` console script as users do."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[2]
+EXE = str(Path(sys.executable).with_name("pulseform"))
+
+
+def pulseform(*args: str, timeout: float = 600, env: dict | None = None) -> subprocess.CompletedProcess:
+    return subprocess.run([EXE, *args], capture_output=True, text=True, timeout=timeout,
+                          env=None if env is None else dict(os.environ, **env))
+
+
+def one_line_error(r: subprocess.CompletedProcess) -> str:
+    """The CLI's error line; fails if the output holds a traceback."""
+    assert "Traceback" not in r.stderr, r.stderr[-2000:]
+    lines = [ln for ln in r.stderr.splitlines() if ln.startswith("pulseform: error:")]
+    assert len(lines) == 1, r.stderr[-2000:]
+    return lines[0]
