@@ -18,6 +18,9 @@ __all__ = ["ContactPairSpec", "RigidWallSpec", "ContactPenetrationError", "Surfa
 
 log = logging.getLogger(__name__)
 
+#: candidate master segments examined per slave node (nearest midpoints within the search radius)
+_N_CANDIDATES = 8
+
 
 class ContactPenetrationError(RuntimeError):
     """A contact node reached h <= 0 (the soft-contact layer was crossed)."""
@@ -245,13 +248,23 @@ def soft_contact_pass(Xs, Vs, geo: SlaveGeometry, Xm, Vm, segm, spec: ContactPai
     pb = Xm[segm[:, 1]]
     t = pb - pa
     ln = np.linalg.norm(t, axis=1)
-    tree = cKDTree(0.5 * (pa + pb))
-    lists = tree.query_ball_point(Xs, 0.5 * ln.max() * (1 + xi_tol) + h0)
-    lens = np.fromiter((len(c) for c in lists), dtype=np.int64, count=ns)
-    if lens.sum() == 0:
+    radius = 0.5 * ln.max() * (1 + xi_tol) + h0
+    # slave nodes near the master surface's bounding box, then the nearest segment midpoints
+    lo = np.minimum(pa, pb).min(axis=0) - radius
+    hi = np.maximum(pa, pb).max(axis=0) + radius
+    near = np.flatnonzero(np.all((Xs >= lo) & (Xs <= hi), axis=1))
+    if near.size == 0:
         return empty
-    si = np.repeat(np.arange(ns), lens)
-    mj = np.fromiter((j for c in lists for j in c), dtype=np.int64, count=int(lens.sum()))
+    nseg = segm.shape[0]
+    kq = min(_N_CANDIDATES, nseg)
+    tree = cKDTree(0.5 * (pa + pb))
+    dist, idx = tree.query(Xs[near], k=kq, distance_upper_bound=radius)
+    idx = np.asarray(idx).reshape(near.size, kq)
+    found = idx < nseg
+    if not found.any():
+        return empty
+    si = np.repeat(near, kq).reshape(near.size, kq)[found]
+    mj = idx[found].astype(np.int64)
     d = Xs[si] - pa[mj]
     tt = t[mj]
     L = ln[mj]
