@@ -243,6 +243,30 @@ def _discard(path: Path) -> None:
     threading.Thread(target=shutil.rmtree, args=(trash, True), daemon=True).start()
 
 
+def _element_table(path: Path, ncomp: int, n_blocks: int) -> tuple[np.ndarray, np.ndarray]:
+    """Read ``n_blocks`` appended getdp ElementTable blocks (count, then "id v1 .. vncomp" rows).
+
+    Returns (element ids of the first block, values (n_blocks, count, ncomp)); every block
+    must list the same elements in the same order.
+    """
+    tok = np.fromstring(Path(path).read_text(), sep=" ")   # C parser, accepts nan/inf
+    pos, ids, blocks = 0, None, []
+    for _ in range(n_blocks):
+        if pos >= tok.size:
+            raise RuntimeError(f"{path}: fewer than {n_blocks} element blocks")
+        count = int(tok[pos])
+        rows = tok[pos + 1: pos + 1 + count * (1 + ncomp)].reshape(count, 1 + ncomp)
+        pos += 1 + count * (1 + ncomp)
+        if ids is None:
+            ids = rows[:, 0].astype(np.int64)
+        elif not np.array_equal(rows[:, 0].astype(np.int64), ids):
+            raise RuntimeError(f"{path}: element order changed between sub-steps")
+        blocks.append(rows[:, 1:])
+    if pos != tok.size:
+        raise RuntimeError(f"{path}: unexpected trailing data")
+    return ids, np.stack(blocks)
+
+
 def _table(path: Path) -> np.ndarray:
     """Read a whitespace table written by getdp (np.loadtxt: the fastest reader measured here)."""
     return np.loadtxt(path, ndmin=2)
@@ -484,24 +508,20 @@ class GetDPSolver:
         kp = np.column_stack([_table(out / f"cond_P_{k}.txt")[:, 1] for k in range(1, nk + 1)]) \
             if nk else np.zeros((n, 0))
         if nk and n_rows:
-            ef = _table(out / "elem_f.txt")
-            eF = _table(out / "elem_F.txt")
-            eP = _table(out / "elem_P.txt")
-            eb = _table(out / "elem_b.txt")
-            n_el = len(ef) // n_rows
-            if n_el * n_rows != len(ef) or not len(eF) == len(eP) == len(eb) == len(ef):
-                raise RuntimeError(f"per-element tables in {out} have an unexpected length")
-            ids = ef[:n_el, 1].astype(np.int64)
+            ids, ef = _element_table(out / "elem_f.txt", 3, n_rows)
+            ids_F, eF = _element_table(out / "elem_F.txt", 3, n_rows)
+            ids_P, eP = _element_table(out / "elem_P.txt", 1, n_rows)
+            ids_b, eb = _element_table(out / "elem_b.txt", 3, n_rows)
+            if not (np.array_equal(ids, ids_F) and np.array_equal(ids, ids_P) and np.array_equal(ids, ids_b)):
+                raise RuntimeError("per-element tables list elements in different orders")
             elements = ids - 1
             if elements.max() >= len(mesh.triangles):
                 raise RuntimeError("per-element output refers to a non-triangle element")
-            if not np.array_equal(eF[:n_el, 1], ef[:n_el, 1]):
-                raise RuntimeError("per-element tables list elements in different orders")
             vol = _element_volumes(mesh, elements, m.axisymmetric)
-            centroid = ef[:, 8:10].reshape(n_rows, n_el, 2)
-            force = eF[:, 8:10].reshape(n_rows, n_el, 2) / vol[None, :, None]
-            joule = eP[:, 8].reshape(n_rows, n_el) / vol[None, :]
-            bfield = eb[:, 8:10].reshape(n_rows, n_el, 2)
+            centroid = ef[:, :, :2]
+            force = eF[:, :, :2] / vol[None, :, None]
+            joule = eP[:, :, 0] / vol[None, :]
+            bfield = eb[:, :, :2]
             tags = mesh.tri_tags[elements]
         else:
             elements = np.zeros(0, np.int64)
