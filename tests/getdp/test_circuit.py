@@ -54,8 +54,9 @@ def test_rlc_discharge_vs_analytic(work):
 @needs_getdp
 def test_energy_balance_with_disk(work):
     disk = Rect(0.0, 0.0035, 0.06, 0.0045)   # 1 mm Al disk, 1 mm above the coil
-    mesh = coil_conductor_mesh([ten_turn_coil()], [disk], r_domain=0.1, r_shell=0.125, h_fine=1e-3,
-                               h_coarse=1.5e-2, h_conductor=1e-3)
+    # coarse mesh: the balance is a property of the discrete system; only dt sets its error
+    mesh = coil_conductor_mesh([ten_turn_coil()], [disk], r_domain=0.1, r_shell=0.125, h_fine=2e-3,
+                               h_coarse=2.5e-2, h_conductor=1e-3)
     model = EMModel(True, coils=[Coil(10)], conductors=[Conductor(3.5e7)], circuit=Circuit(C, V0, R_EXT, L_EXT),
                     shell=(0.1, 0.125))
     solver = GetDPSolver(model, work)
