@@ -239,7 +239,7 @@ def _coupled_participants(case: Case, results: ResultsFolder, comm: MPI.Comm):
     if user_deck:
         from .user_deck import build_user_geometry
 
-        geometry = build_user_geometry(case.geometry, results.root / "em_mesh")
+        geometry = build_user_geometry(case, results.root / "em_mesh", results.root / "em")
     else:
         geometry = build_em_geometry(case.geometry)
     sub = conductor_submesh(geometry.mesh, geometry.regions["workpiece"])

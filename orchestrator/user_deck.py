@@ -143,12 +143,15 @@ def read_deck_mesh(path: Path, regions) -> "EMMesh":  # noqa: F821
     return mesh
 
 
-def build_user_geometry(g, work: Path):
-    """The EM geometry of a user deck (no turn rectangles: user meshes are not remeshed)."""
+def build_user_geometry(case, work: Path, em_dir: Path):
+    """The EM geometry of a user deck (no turn rectangles: user meshes are not remeshed), after the
+    deck passed the contract check (one tiny getdp step in ``em_dir/contract_check``)."""
     from .emf_geometry import EMGeometry
 
+    g = case.geometry
     mesh = read_deck_mesh(mesh_file(g, work), g.regions)
     log.info("user EM mesh (%s): %d nodes, %d triangles", Path(g.mesh).name, mesh.n_nodes, len(mesh.triangles))
+    check_contract(make_solver(case, user_em_model(case), Path(em_dir)), mesh, Path(em_dir) / "contract_check")
     return EMGeometry(mesh, {"coil": ROLE_IDS["coil"], "workpiece": ROLE_IDS["workpiece"]}, [])
 
 
@@ -272,7 +275,8 @@ def check_contract(solver, mesh, work: Path) -> None:
 
 
 def user_deck_load(case, geometry, work_dir: Path, body: str, sub, body_to_em, em_substeps: int):
-    """The load provider of a user-deck case: GetDPLoad on the user's deck, after the contract check."""
+    """The load provider of a user-deck case: GetDPLoad on the user's deck (checked by
+    :func:`build_user_geometry`)."""
     from .em_participant import GetDPLoad
 
     class UserDeckLoad(GetDPLoad):
@@ -285,7 +289,6 @@ def user_deck_load(case, geometry, work_dir: Path, body: str, sub, body_to_em, e
 
     model = user_em_model(case)
     solver = make_solver(case, model, Path(work_dir))
-    check_contract(solver, geometry.mesh, Path(work_dir) / "contract_check")
     load = UserDeckLoad(geometry, model, work_dir, body, sub, body_to_em, keep_runs=case.em.keep_runs,
                         remesh_quality=case.em.remesh_quality, sizes=(1.0, 1.0), em_substeps=em_substeps)
     load.solver = solver

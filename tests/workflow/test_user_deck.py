@@ -1,0 +1,99 @@
+"""Users' own decks (cases/user_deck_sheet_bulge): the example runs end to end and matches the
+built-in equivalent case (cases/emf_sheet_bulge: same geometry, bank and loop) within 1 %, a deck
+that breaks the contract fails with one line naming what is missing, deck paths stay inside the
+case folder."""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import pytest
+
+from wf_helpers import REPO, one_line_error, pulseform
+
+CASE = REPO / "cases/user_deck_sheet_bulge"
+SHORT = ["--quiet", "--set", "time.end=4e-6", "--set", "output.field_interval=2e-6"]
+MATCH = ["--quiet", "--set", "time.end=6e-6", "--set", "output.field_interval=3e-6"]
+
+
+@pytest.mark.getdp
+def test_user_deck_matches_the_builtin_case(tmp_path):
+    """Reference: the built-in case run by the same command (issue 7: within 1 % on the main metric,
+    the force impulse the deck's GetDP run delivers; the peak current and the sheet's speed too)."""
+    ru = pulseform("run", str(CASE), "--out", str(tmp_path / "user"), *MATCH)
+    assert ru.returncode == 0, ru.stderr[-3000:]
+    rb = pulseform("run", str(REPO / "cases/emf_sheet_bulge"), "--out", str(tmp_path / "builtin"), *MATCH)
+    assert rb.returncode == 0, rb.stderr[-3000:]
+    mu = json.loads((tmp_path / "user/metrics.json").read_text())
+    mb = json.loads((tmp_path / "builtin/metrics.json").read_text())
+    for key in ("force_impulse_Ns", "coil_current_peak_kA", "sheet_max_speed_m_s"):
+        print(f"{key}: user deck {mu[key]:.6g}, built-in {mb[key]:.6g} ({100 * (mu[key] / mb[key] - 1):+.3f} %)")
+        assert mu[key] == pytest.approx(mb[key], rel=0.01), key
+    assert mu["conservation_error_rel"] < 1e-10 and mu["em_steps"] == mb["em_steps"]
+    # the runner meshed the user's .geo and checked the contract before the run
+    assert (tmp_path / "user/em_mesh/sheet_bulge.msh").is_file()
+    assert (tmp_path / "user/em/contract_check/out/elem_f.txt").is_file()
+
+
+def _broken_copy(tmp_path, edit_lib):
+    """A copy of the example whose deck includes its own (edited) copy of the library."""
+    case = tmp_path / "case"
+    shutil.copytree(CASE, case, ignore=shutil.ignore_patterns("reference"))
+    lib = (REPO / "solvers/getdp/decks/Lib_PulsedForming.pro").read_text()
+    (case / "Lib_local.pro").write_text(edit_lib(lib))
+    pro = case / "sheet_bulge.pro"
+    text = pro.read_text()
+    assert "Include PulseformLib;" in text
+    pro.write_text(text.replace("Include PulseformLib;", 'Include "Lib_local.pro";'))
+    return case
+
+
+@pytest.mark.getdp
+def test_deck_without_an_output_table_names_it(tmp_path):
+    def drop_elem_b(lib):
+        lines = [ln for ln in lib.splitlines() if '"elem_b.txt"' not in ln]
+        assert len(lines) == len(lib.splitlines()) - 1
+        return "\n".join(lines)
+
+    case = _broken_copy(tmp_path, drop_elem_b)
+    r = pulseform("run", str(case), "--out", str(tmp_path / "out"), *SHORT)
+    assert r.returncode == 1
+    line = one_line_error(r)
+    assert "breaks the deck contract" in line and "elem_b.txt" in line and "EM_Elem" in line
+    assert "elem_f.txt" not in line  # only what is missing is named
+
+
+@pytest.mark.getdp
+def test_deck_without_the_resolution_names_it(tmp_path):
+    case = _broken_copy(tmp_path, lambda lib: lib.replace("{ Name EM_Transient;", "{ Name MyTransient;"))
+    r = pulseform("run", str(case), "--out", str(tmp_path / "out"), *SHORT)
+    assert r.returncode == 1
+    line = one_line_error(r)
+    assert "EM_Transient" in line and "sheet_bulge.pro" in line
+
+
+def test_unknown_group_name_is_named(tmp_path):
+    r = pulseform("run", str(CASE), "--out", str(tmp_path / "out"), *SHORT, "--set", "geometry.regions.coil=COILS")
+    assert r.returncode == 1
+    line = one_line_error(r)
+    assert "geometry.regions.coil" in line and "'COILS'" in line and "COIL" in line
+
+
+def test_deck_paths_stay_inside_the_case_folder(tmp_path):
+    r = pulseform("check", str(CASE), "--set", "geometry.pro=../emf_sheet_bulge/case.pro")
+    assert r.returncode == 2 and "outside the case folder" in one_line_error(r) and "geometry.pro" in r.stderr
+    outside = tmp_path / "mine.pro"
+    outside.write_text("// a deck elsewhere\n")
+    r = pulseform("check", str(CASE), "--set", f"geometry.pro={outside}")
+    assert r.returncode == 2 and "allow_outside" in one_line_error(r)
+    r = pulseform("check", str(CASE), "--set", f"geometry.pro={outside}", "--set", "geometry.allow_outside=true")
+    assert r.returncode == 0, r.stderr
+    r = pulseform("check", str(CASE), "--set", "geometry.mesh=missing.geo")
+    assert r.returncode == 2 and "file not found" in one_line_error(r)
+
+
+def test_paths_resolve_from_the_case_folder_not_the_cwd(tmp_path):
+    r = pulseform("check", str(CASE), cwd=tmp_path)
+    assert r.returncode == 0
+    assert f'pro = "{CASE / "sheet_bulge.pro"}"' in r.stdout
