@@ -392,7 +392,7 @@ class GetDPSolver:
         result = self._read(mesh, out_dir, state, float(t_end), int(n_sub), n_elem_rows)
         result.run = info
         result.path = str(run_dir)
-        new_state = self._next_state(mesh, material_points, out_dir, run_dir, state, result, sig)
+        new_state = self._next_state(mesh, material_points, out_dir, run_dir, state, result, sig, float(t_end))
         # the .pre of a run without the Init list is reusable by later restarts on this connectivity
         new_state.pre_path = str(run_dir / "em.pre") if "Flag_InitA" not in numbers else None
         if self.keep_runs is not None:  # bound the disk use of long runs; never the newest runs
@@ -495,6 +495,8 @@ class GetDPSolver:
         times = w[:, 0]
         if len(times) != n:
             raise RuntimeError(f"expected {n} sub-steps in {out}, found {len(times)}")
+        if abs(times[-1] - t_end) > 1e-6 * dt:
+            raise RuntimeError(f"last sub-step at t = {times[-1]!r}, expected {t_end!r}")
         cur = np.column_stack([_table(out / f"coil_I_{k}.txt")[:, 1] for k in range(1, nc + 1)]) \
             if nc else np.zeros((n, 0))
         us = np.column_stack([_table(out / f"coil_U_{k}.txt")[:, 1] for k in range(1, nc + 1)]) \
@@ -550,7 +552,7 @@ class GetDPSolver:
                             capacitor_voltage=vc, circuit_current=ic, coil_heat=heat, probe_b=probe_b,
                             coil_temperature_rise=heat / mass_cp if nc else heat)
 
-    def _next_state(self, mesh, material_points, out, run_dir, state, result, sig) -> EMState:
+    def _next_state(self, mesh, material_points, out, run_dir, state, result, sig, t_end) -> EMState:
         m = self.model
         nodes_file = out / "nodes_a.txt"
         d = np.loadtxt(nodes_file, skiprows=1, ndmin=2)
@@ -561,7 +563,7 @@ class GetDPSolver:
         vals = np.zeros(mesh.n_nodes)
         vals[d[:, 0].astype(np.int64) - 1] = np.nan_to_num(d[:, 1], nan=0.0)  # r = 0: r a_phi = 0
         return EMState(
-            t=float(result.times[-1]), step_index=state.step_index + 1,
+            t=t_end, step_index=state.step_index + 1,
             capacitor_voltage=float(result.capacitor_voltage[-1]) if result.capacitor_voltage is not None else 0.0,
             current=float(result.circuit_current[-1]) if result.circuit_current is not None else 0.0,
             coil_heat=result.coil_heat.tolist(), res_path=str(run_dir / "em.res"), mesh_signature=sig,
