@@ -153,6 +153,8 @@ def _plot(e: Entry, run: RunOutput, ref_curve, folder: Path) -> str:
     xc, yc = run.curves[e.curve]
     fig, ax = plt.subplots(figsize=(6, 3.4))
     ax.plot(xc, yc, "-", lw=1.2, label="computed")
+    if ref_curve is None and f"{e.curve}_reference" in run.curves:  # a balance's other side, from the run
+        ref_curve = run.curves[f"{e.curve}_reference"]
     if ref_curve is not None:
         ax.plot(ref_curve[0], ref_curve[1], "--", lw=1.5, label="reference")
     elif isinstance(e.reference, Analytic) and e.reference.value is not None and e.kind == "scalar" \

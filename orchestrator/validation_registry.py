@@ -209,17 +209,20 @@ def _coupled_free_sheet(work: Path, end: float) -> RunOutput:
     # impulse central differences delivered: the force held over substep s acts from that substep on
     # (no lag since the solver change 98cfbf8) and enters the half-step velocity with weight
     # (dt_{s-1} + dt_s) / 2, the first one with dt_0 / 2 (tests/mechanics/test_solver_api.py)
-    forces, dts = [], []
+    forces, dts, ends = [], [], [0]
     for row in h[1:]:
         k = int(row["substeps"])
         forces += [row["force_y_N"]] * k
         dts += [row["dt_s"]] * k
+        ends.append(len(forces))
     f, d = np.array(forces), np.array(dts)
     weights = np.concatenate([[0.5 * d[0]], 0.5 * (d[:-1] + d[1:])])
-    delivered = float(np.sum(f * weights))
+    cumulative = np.concatenate([[0.0], np.cumsum(f * weights)])
+    delivered = float(cumulative[-1])
     out = RunOutput(scalars={"momentum_y_Ns": float(h["sheet_momentum_y_Ns"][-1]), "impulse_delivered_Ns": delivered,
                              "conservation_error_rel": float(m["conservation_error_rel"])})
     out.curves["momentum"] = (h["time_s"], h["sheet_momentum_y_Ns"])
+    out.curves["momentum_reference"] = (h["time_s"], cumulative[np.array(ends)])  # impulse up to each row
     out.labels["momentum"] = ("time (s)", "sheet momentum z (N s)")
     return out
 
