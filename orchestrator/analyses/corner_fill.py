@@ -135,7 +135,23 @@ class CornerFill:
             "blank_plastic_strain_max": float(solver.bodies["blank"].eps_p.max()),
         }
         out.update(self._per_pulse(history))
+        out.update(self._quasi_static(history))
         return out
+
+    def _quasi_static(self, history) -> dict[str, float]:
+        """Preforming check (cases with mass damping): the largest kinetic / (elastic + plastic)
+        energy ratio while the damping acts and the first pulse's pressure is >= 10 % of its
+        amplitude (the ratio is meaningless at the very start, where nothing is deformed yet)."""
+        mo = self.case.mechanics
+        if mo.mass_damping <= 0.0 or not self.case.loads or "load0_pressure_Pa" not in history.columns:
+            return {}
+        t = history.column("time_s")
+        p = history.column("load0_pressure_Pa")
+        m = (t >= mo.mass_damping_from) & (t < mo.mass_damping_until) & (p >= 0.1 * self.case.loads[0].amplitude)
+        if not m.any():
+            return {}
+        r = history.column("kinetic_to_deformation_ratio")[m]
+        return {"preform_kinetic_ratio_max": float(r.max()), "preform_kinetic_ratio_mean": float(r.mean())}
 
     def _windows(self, history) -> list[tuple[float, float]]:
         """(start, end) time (s) of each pulse phase: from a pulse's first non-zero pressure to the

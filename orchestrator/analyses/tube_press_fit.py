@@ -92,13 +92,15 @@ class TubePressFit:
 
         tau = history.column("time_s") / self.t_star
         fig, ax = plt.subplots(2, 1, figsize=(7, 7), sharex=True)
-        ui = history.column("inner_outer_ur_m") / self.R0
+        gap0 = self.R2 - self.R1  # clearance + h0: shifted so that touching curves mean contact
+        ui = (history.column("inner_outer_ur_m") - gap0) / self.R0
         uo = history.column("outer_inner_ur_m") / self.R0
-        ax[0].plot(tau, ui, ":", label="inner tube, outer surface")
+        ax[0].plot(tau, ui, ":", label="inner tube, outer surface (minus the initial gap)")
         ax[0].plot(tau, uo, "-", lw=0.8, label="outer tube, inner surface")
         closed = history.column("contact_closed_fraction") > 0.5
         ax[0].plot(tau[closed], uo[closed], ".", ms=2, color="k", label="in contact (joint motion)")
-        ax[0].axhline(self.clearance / self.R0, color="0.6", lw=0.6, ls="--", label="clearance / R0")
+        ax[0].text(0.98, 0.02, "ΔR of the inner tube's outer surface = plotted + (c + h0) / R0", ha="right",
+                   transform=ax[0].transAxes, fontsize=7)
         ax[0].set_ylabel("ΔR / R0")
         ax[0].legend(fontsize=8)
         ax[0].set_title(f"Press fit, clearance {100 * self.clearance / self.R0:.2f} % of R0 (cf. paper Fig. 6)")

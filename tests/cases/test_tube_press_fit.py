@@ -1,0 +1,97 @@
+"""Pulsed tube press fitting, paper sec. 6 / Figures 6-7 (cases/tube_press_fit).
+
+References (paper sec. 6): with a small clearance (the Figure 6 example: 0.006 R0) both tubes unload
+from about the same point and a residual contact pressure remains; the residual pressure falls as
+the clearance grows, and beyond a critical clearance ("should not be more than 3 % of the inner
+tube internal radius") the tubes unload from different points and no pressure is left.
+"Near zero" here: below 2 % of the zero-clearance value (scripts/study_tube_press_fit.py).
+Default tier: 0.5 mm cells instead of 0.25 mm.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from .helpers import REPO, TUBE_COARSE, run_many, tube_clearance
+
+VANISH = 0.02
+
+
+@pytest.fixture(scope="module")
+def small_and_large(tmp_path_factory):
+    root = tmp_path_factory.mktemp("tube")
+    return run_many({"c0.6": ("cases/tube_press_fit", TUBE_COARSE),  # the case file's own 0.006 R0
+                     "c0": ("cases/tube_press_fit", [*TUBE_COARSE, *tube_clearance(0.0)]),
+                     "c6": ("cases/tube_press_fit", [*TUBE_COARSE, *tube_clearance(6.0)])}, root)
+
+
+def test_case_geometry_is_the_papers():
+    import tomllib
+
+    case = tomllib.loads((REPO / "cases/tube_press_fit/case.toml").read_text())
+    inner, outer = case["bodies"]
+    h0 = case["contact"][0]["h0"]
+    r0 = inner["shape"]["origin"][0]
+    assert 2 * (r0 + inner["shape"]["width"]) == pytest.approx(0.025)          # OD 25 mm
+    assert inner["shape"]["width"] == pytest.approx(0.002)                      # wall 2 mm
+    assert 2 * (outer["shape"]["origin"][0] + outer["shape"]["width"]) == pytest.approx(0.050)  # OD 50 mm
+    clearance = outer["shape"]["origin"][0] - h0 - (r0 + inner["shape"]["width"])
+    assert clearance / r0 == pytest.approx(0.006, rel=1e-3)                     # Figure 6's example
+
+
+def test_residual_pressure_positive_at_small_clearance_and_gone_at_6_percent(small_and_large):
+    m = small_and_large
+    p0, p06, p6 = (m[k]["residual_contact_pressure_MPa"] for k in ("c0", "c0.6", "c6"))
+    assert p0 > 1.0 and p06 > 1.0                         # MPa: a tight joint
+    assert p6 < p06 and p6 < VANISH * p0                  # near zero beyond the critical clearance
+    for r in m.values():
+        assert r["final_kinetic_to_elastic"] < 1e-3       # relaxed: the vibration has decayed
+        assert r["energy_error_rel"] < 0.02
+        assert math.isfinite(r["max_radial_displacement_inner_mm"])
+        assert (Path(r["_out"]) / "plots" / "press_fit_displacements.png").is_file()
+    # a larger clearance lets the inner tube fly further before it is stopped (mm)
+    assert m["c6"]["max_radial_displacement_inner_mm"] > m["c0.6"]["max_radial_displacement_inner_mm"] \
+        > m["c0"]["max_radial_displacement_inner_mm"]
+
+
+@pytest.fixture(scope="module")
+def sweep(tmp_path_factory):
+    """Full sweep 0 ... 6 % of R0 on the case's own mesh (two runs at a time)."""
+    cs = (0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0)
+    root = tmp_path_factory.mktemp("tube_sweep")
+    m = {}
+    for part in (cs[:4], cs[4:]):
+        for pair in (part[:2], part[2:]):
+            m.update(run_many({c: ("cases/tube_press_fit", tube_clearance(c)) for c in pair}, root))
+    return cs, np.array([m[c]["residual_contact_pressure_MPa"] for c in cs])
+
+
+@pytest.mark.slow
+def test_clearance_sweep_critical_clearance_a_few_percent(sweep):
+    """Positive residual pressure up to a critical clearance of a few % of R0, none beyond
+    (paper: 3 %; ours lies between 3 and 4 % on the 1 % sweep grid, docs/cases.md)."""
+    import sys
+
+    sys.path.insert(0, str(REPO / "scripts"))
+    from study_tube_press_fit import critical_clearance
+
+    cs, p = sweep
+    assert p[0] > 1.0
+    lo, hi = critical_clearance([{"clearance_percent": c, "ok": 1, "residual_contact_pressure_MPa": v}
+                                 for c, v in zip(cs, p)])
+    assert 1.0 <= lo < hi <= 6.0, (lo, hi)
+    assert np.all(p[np.array(cs) <= lo] > VANISH * p[0]), p
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="known difference from the paper (docs/cases.md): below the critical "
+                   "clearance our residual pressure is not monotonic (10.2, 11.2, 6.4, 3.6, 9.9 MPa at 0, 0.5, 1, "
+                   "2, 3 %): it is a few-micrometre interference set by the permanent expansions of both tubes, "
+                   "which the ringing before the relaxation shifts")
+def test_clearance_sweep_residual_pressure_falls_monotonically(sweep):
+    cs, p = sweep
+    assert np.all(np.diff(p) <= 0.05 * p[0]), p
