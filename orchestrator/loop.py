@@ -5,10 +5,9 @@ One EM step k covers [t_k, t_k + n·dt_mech]:
 1. ``dt_mech`` is the mechanics' stable step (capped by ``dt_max``); near a milestone the last EM
    step takes ``ceil(remaining / dt_mech)`` equal substeps so that it lands exactly on it.
 2. The load provider computes nodal forces on the *current* geometry for that interval (GetDP: the
-   implicit-Euler value at the step end; pressure and analytic loads: at t0 + (n + 1)·dt/2, the
-   centre of the window over which central differences deliver the held force's impulse: a force
-   passed to ``advance`` acts at the ends of the substeps, t0 + dt, ..., t1, and enters the
-   velocity updates that follow them).
+   mean of its implicit sub-steps; pressure and analytic loads: at t0 + (n − 1)·dt/2, the centre of
+   the window over which central differences deliver the held force's impulse: a force passed to
+   ``advance`` acts from the current time on, i.e. in the velocity updates at t0, ..., t1 − dt).
 3. The forces are **held** constant over the n mechanical substeps (zero-order hold; no
    interpolation), the conservation ledger |Σ nodal F − ∫ f dV| / |∫ f dV| and the impulse
    Σ F·Δt are updated.
@@ -139,7 +138,7 @@ class StaggeredLoop:
         dt, k = self.substeps(t_stop)
         t0 = self.mech.time
         t1 = t0 + dt * k
-        t_mid = t0 + 0.5 * (k + 1) * dt
+        t_mid = t0 + 0.5 * (k - 1) * dt
         c = self.counters
         saved = (self.mech.state_dict(), self.load.state_dict()) if self.options.iterate else None
         c0 = time.perf_counter()

@@ -47,8 +47,8 @@ class Mechanics(Protocol):
     def advance(self, dt: float, n_steps: int, forces: dict[str, np.ndarray] | None) -> None:
         """``n_steps`` steps of ``dt`` (s) with nodal forces held constant.
 
-        The forces act at the end of each step (they set the acceleration used by the next
-        velocity update), the convention of the explicit DOLFINx solver.
+        The forces act from the current time on: the acceleration of the first velocity update
+        already includes them (the convention of the explicit DOLFINx solver).
         """
 
     def positions(self) -> dict[str, np.ndarray]:
@@ -79,8 +79,8 @@ class LoadProvider(Protocol):
         """Nodal forces for the EM step [t0, t1] (s) on the mechanics' current geometry.
 
         ``t_mid`` is the centre of the window over which central differences deliver the held
-        force's impulse, t0 + (n + 1)·dt/2; providers with an explicit time law evaluate there
-        (second order); GetDP returns its implicit-Euler value at t1.
+        force's impulse, t0 + (n − 1)·dt/2; providers with an explicit time law evaluate there
+        (second order); GetDP returns the mean of its implicit-Euler sub-steps.
         """
 
     def state_dict(self) -> dict[str, np.ndarray]:
@@ -95,8 +95,8 @@ class RigidAxialBody:
 
     For slow EM actuators and levitation, where explicit elasticity would need millions of steps.
     Variable-step central differences with the same force convention as the explicit solver: the
-    forces given to :meth:`advance` set the acceleration at the end of each step. With
-    ``initial_force`` equal to the force at t = 0, a constant force is integrated exactly.
+    forces given to :meth:`advance` act from the current time on (the first velocity update
+    already uses them), so a constant force is integrated exactly.
 
     Parameters
     ----------
@@ -112,19 +112,17 @@ class RigidAxialBody:
         Initial axial velocity (m/s).
     dt : float
         Time step (s) the loop asks for (the body itself has no stability limit).
-    initial_force : float
-        Axial force (N) acting at t = 0.
     """
 
     def __init__(self, name: str, nodes: np.ndarray, mass: float, *, gravity: float = 0.0,
-                 velocity: float = 0.0, dt: float = 1e-5, initial_force: float = 0.0) -> None:
+                 velocity: float = 0.0, dt: float = 1e-5) -> None:
         if mass <= 0.0:
             raise ValueError(f"mass must be > 0 kg, got {mass}")
         self.name, self.mass, self.gravity, self.dt = name, mass, gravity, dt
         self.x0 = np.asarray(nodes, dtype=float)[:, :2].copy()
         self.time, self.step_count = 0.0, 0
         self.y, self.v = 0.0, velocity  # v: velocity at the last half step (v^0 before any step)
-        self.a = initial_force / mass - gravity
+        self.a = -gravity
         self._dt_prev = 0.0
 
     def stable_time_step(self) -> float:
@@ -132,12 +130,12 @@ class RigidAxialBody:
         return self.dt
 
     def advance(self, dt: float, n_steps: int, forces: dict[str, np.ndarray] | None) -> None:
-        """Central-difference steps; the axial resultant of ``forces`` acts at each step's end."""
+        """Central-difference steps with the axial resultant of ``forces`` acting from now on."""
         fy = float(forces[self.name][:, 1].sum()) if forces and self.name in forces else 0.0
+        self.a = fy / self.mass - self.gravity
         for _ in range(n_steps):
             self.v += 0.5 * (self._dt_prev + dt) * self.a  # v^{n+1/2} = v^{n-1/2} + a_n (dt_{n-1}+dt_n)/2
             self.y += dt * self.v
-            self.a = fy / self.mass - self.gravity
             self._dt_prev = dt
             self.time += dt
             self.step_count += 1

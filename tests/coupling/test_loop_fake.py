@@ -19,7 +19,7 @@ NODES = np.array([[0.0, 0.0], [1.0, 0.0], [0.5, 1.0]])
 def test_constant_force_and_gravity_exact(n):
     """y(t) = v0 t + ½ (F/m − g) t²: central difference with a half-step start is exact."""
     m, g, F, v0, T = 2.5, 9.81, 40.0, -0.3, 0.0137
-    body = RigidAxialBody("slug", NODES, m, gravity=g, velocity=v0, dt=1.7e-4, initial_force=F)
+    body = RigidAxialBody("slug", NODES, m, gravity=g, velocity=v0, dt=1.7e-4)
     loop = StaggeredLoop(AnalyticForce("slug", 3, lambda t: F), body, n)
     loop.run_until(T)
     a = F / m - g

@@ -101,7 +101,7 @@ def test_kill9_then_resume_gives_same_metrics(tmp_path, coarse_run):
     assert r.returncode == 0, r.stderr[-2000:]
     got = json.loads(metrics_path.read_text())
     ref = json.loads((tmp_path / "ref" / "metrics.json").read_text())
-    physics = [k for k in ref if not k.endswith("time_s") or k == "end_time_s"]
+    physics = [k for k in ref if not k.endswith("_s") or k == "end_time_s"]  # wall-clock timings differ
     for k in physics:
         assert got[k] == pytest.approx(ref[k], rel=1e-12, abs=1e-300), k
     assert "resumed at" in (out / "run.log").read_text()
