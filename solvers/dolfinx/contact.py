@@ -277,7 +277,13 @@ def soft_contact_pass(Xs, Vs, geo: SlaveGeometry, Xm, Vm, segm, spec: ContactPai
     si, mj, xi, nrm, h = si[ok], mj[ok], xi[ok], nrm[ok], h[ok]
     hq = np.round(np.abs(h) / (1e-9 * h0))
     key = seg_key[mj] if seg_key is not None else mj
-    order = np.lexsort((key, hq, si))
+    # the segment the node projects onto (least overshoot beyond the segment's ends, in m) wins over
+    # one it only reaches through the xi_tol tolerance: a corner node beside the end of a master
+    # segment lies on that segment's extended line (h = 0 there) although its true distance is the
+    # gap to the neighbouring segment
+    over = np.maximum(np.maximum(-xi, xi - 1.0), 0.0) * L[ok]
+    oq = np.round(over / (1e-9 * h0))
+    order = np.lexsort((key, hq, oq, si))
     first = order[np.unique(si[order], return_index=True)[1]]
     si, mj, xi, nrm, h = si[first], mj[first], xi[first], nrm[first], h[first]
     bad = h <= 0.0
