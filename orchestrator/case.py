@@ -159,6 +159,8 @@ class RigidWall:
     point: Vec2 = spec(unit="m", doc="a point on the wall")
     normal: Vec2 = spec(unit="-", doc="normal pointing into the allowed side")
     bodies: tuple[str, ...] = spec((), doc="bodies it acts on (empty = all)")
+    sliding: bool = spec(False, doc="frictionless: remove only the normal velocity (false: the paper's "
+                                    "rule v = 0, which also sticks the face tangentially)")
 
     def validate(self, path: str) -> None:
         if math.hypot(*self.normal) == 0.0:
@@ -282,8 +284,8 @@ class Probe:
     name: str = spec(doc="column prefix in history.csv")
     body: str = spec(doc="body the point belongs to")
     point: Vec2 = spec(unit="m", doc="initial (material) position")
-    quantity: Literal["contact_pressure", "von_mises", "velocity", "displacement"] = spec(
-        doc="recorded quantity (Pa, Pa, m/s, m)")
+    quantity: Literal["contact_pressure", "wall_pressure", "von_mises", "velocity", "displacement"] = spec(
+        doc="recorded quantity (Pa, Pa, Pa, m/s, m); wall_pressure: reaction per area of the first wall")
 
 
 @dataclass(frozen=True, kw_only=True)

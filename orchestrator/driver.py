@@ -321,9 +321,9 @@ def mech_metrics(solver, case: Case, history: History) -> dict[str, float]:
             elif case.geometry.type == "solenoid_tube":
                 out["max_radial_displacement_mm"] = out[f"{b.name}_max_ux_mm"]
     for p in case.probes:
-        if p.quantity == "contact_pressure":
+        if p.quantity in ("contact_pressure", "wall_pressure"):
             t = history.column("time_s")
-            s = history.column(f"{p.name}_contact_pressure_Pa")
+            s = history.column(f"{p.name}_{p.quantity}_Pa")
             try:
                 out.update(mech.contact_stress_metrics(t, s))
             except ValueError as exc:  # no contact, or not ended: say so in the log, report what is known

@@ -39,7 +39,7 @@ def build_solver(case: Case, comm: MPI.Comm = MPI.COMM_WORLD,
                                        friction=c.friction, viscosity=c.viscosity, two_pass=c.two_pass)
                   for c in case.contact)
     walls = tuple(mech.RigidWallSpec(point=tuple(w.point), normal=tuple(w.normal),
-                                     bodies=tuple(w.bodies) or None) for w in case.walls)
+                                     bodies=tuple(w.bodies) or None, sliding=w.sliding) for w in case.walls)
     mo = case.mechanics
     return mech.ExplicitSolver(bodies, formulation=mo.formulation, contact_pairs=pairs, rigid_walls=walls,
                                cfl=case.time.cfl, bulk_viscosity=mo.bulk_viscosity,

@@ -57,6 +57,8 @@ def attach(solver, probes: tuple[Probe, ...], comm: MPI.Comm) -> list[AttachedPr
             pts = body.X0
             n_owned = body.n_owned
         idx = _nearest_global(pts, p.point, n_owned, comm)
+        if p.quantity == "wall_pressure" and not solver.rigid_walls:
+            raise ValueError(f"probe {p.name!r}: wall_pressure needs a [[walls]] entry")
         if p.quantity in ("velocity", "displacement"):
             unit = "m_s" if p.quantity == "velocity" else "m"
             cols = (f"{p.name}_{p.quantity}_x_{unit}", f"{p.name}_{p.quantity}_y_{unit}")
@@ -83,6 +85,10 @@ def sample(solver, attached: list[AttachedProbe], comm: MPI.Comm) -> dict[str, f
             local.extend(float(v) for v in body.u[a.index, :2])
         elif q == "von_mises":
             local.append(float(body.von_mises[a.index]))
+        elif q == "wall_pressure":
+            rows, _, p = solver.wall_pressure(0, a.probe.body)
+            hit = np.flatnonzero(np.asarray(rows) == a.index)
+            local.append(float(p[hit[0]]) if hit.size else 0.0)
     values = comm.allreduce(np.array(local), op=MPI.SUM) if local else np.zeros(0)
     cols = [c for a in attached for c in a.columns]
     return dict(zip(cols, (float(v) for v in values)))

@@ -139,19 +139,31 @@ class CornerFill:
         return out
 
     def _quasi_static(self, history) -> dict[str, float]:
-        """Preforming check (cases with mass damping): the largest kinetic / (elastic + plastic)
-        energy ratio while the damping acts and the first pulse's pressure is >= 10 % of its
-        amplitude (the ratio is meaningless at the very start, where nothing is deformed yet)."""
+        """Preforming check (cases with mass damping and a first, slowly ramped pulse): the kinetic /
+        (elastic + plastic) energy ratio while the damping acts,
+
+        * ``preform_kinetic_ratio_top_max``: largest ratio while the preform pressure is >= 90 % of
+          its amplitude (the top of the ramp, where the preformed shape is set);
+        * ``preform_kinetic_ratio_max``: largest ratio while it is >= 10 % (includes the start of
+          the ramp, where the slack blank moves with hardly any internal energy: large ratios);
+        * ``preform_kinetic_ratio_end``: at the end of the damping window.
+        Milestone rows (load columns 0 there) are skipped."""
         mo = self.case.mechanics
         if mo.mass_damping <= 0.0 or not self.case.loads or "load0_pressure_Pa" not in history.columns:
             return {}
         t = history.column("time_s")
         p = history.column("load0_pressure_Pa")
-        m = (t >= mo.mass_damping_from) & (t < mo.mass_damping_until) & (p >= 0.1 * self.case.loads[0].amplitude)
-        if not m.any():
-            return {}
-        r = history.column("kinetic_to_deformation_ratio")[m]
-        return {"preform_kinetic_ratio_max": float(r.max()), "preform_kinetic_ratio_mean": float(r.mean())}
+        r = history.column("kinetic_to_deformation_ratio")
+        amp = self.case.loads[0].amplitude
+        damped = (t >= mo.mass_damping_from) & (t < mo.mass_damping_until)
+        out = {}
+        for name, frac in (("preform_kinetic_ratio_top_max", 0.9), ("preform_kinetic_ratio_max", 0.1)):
+            m = damped & (p >= frac * amp)
+            if m.any():
+                out[name] = float(r[m].max())
+        if damped.any():
+            out["preform_kinetic_ratio_end"] = float(r[np.flatnonzero(damped)[-1]])
+        return out
 
     def _windows(self, history) -> list[tuple[float, float]]:
         """(start, end) time (s) of each pulse phase: from a pulse's first non-zero pressure to the
