@@ -10,6 +10,8 @@ import shutil
 
 import pytest
 
+from pulseform.orchestrator.caseio import load_case
+
 from wf_helpers import REPO, one_line_error, pulseform
 
 CASE = REPO / "cases/user_deck_sheet_bulge"
@@ -21,7 +23,9 @@ MATCH = ["--quiet", "--set", "time.end=6e-6", "--set", "output.field_interval=3e
 def test_user_deck_matches_the_builtin_case(tmp_path):
     """Reference: the built-in case run by the same command (issue 7: within 1 % on the main metric,
     the force impulse the deck's GetDP run delivers; the peak current and the sheet's speed too)."""
-    ru = pulseform("run", str(CASE), "--out", str(tmp_path / "user"), *MATCH)
+    builtin, _ = load_case(REPO / "cases/emf_sheet_bulge")  # same loop settings as the built-in case
+    loop = ["--set", f"coupling.n={builtin.coupling.n}", "--set", f"coupling.em_substeps={builtin.coupling.em_substeps}"]
+    ru = pulseform("run", str(CASE), "--out", str(tmp_path / "user"), *MATCH, *loop)
     assert ru.returncode == 0, ru.stderr[-3000:]
     rb = pulseform("run", str(REPO / "cases/emf_sheet_bulge"), "--out", str(tmp_path / "builtin"), *MATCH)
     assert rb.returncode == 0, rb.stderr[-3000:]
