@@ -35,8 +35,8 @@ def test_die_profile_is_the_documented_130_degree_groove():
     assert flange - y[(x == 0.0) & (y > y.min())].max() == pytest.approx(0.02, rel=1e-6)  # depth below the flange
     # the straight wall between the two arcs: its angle with the flat bottom is 130 degrees
     d = np.diff(pts, axis=0)
-    seg_len = np.hypot(d[:, 0], d[:, 1])
-    wall = d[np.argmax(seg_len * (np.abs(d[:, 1]) > 0.01))]
+    inside = (pts[:-1, 0] > 0) & (pts[1:, 0] > 0) & (pts[:-1, 0] < 0.145) & (pts[1:, 0] < 0.145)
+    wall = d[np.argmax(np.hypot(d[:, 0], d[:, 1]) * inside)]  # the longest segment inside the groove
     angle_to_horizontal = math.degrees(math.atan2(abs(wall[1]), abs(wall[0])))
     assert 180.0 - angle_to_horizontal == pytest.approx(130.0, abs=1e-3)
 
