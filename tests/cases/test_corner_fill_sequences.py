@@ -40,9 +40,10 @@ def test_four_pulses_lower_die_load_and_blank_speed(runs):
     assert multi["blank_rms_speed_max_m_s"] < single["blank_rms_speed_max_m_s"]
 
 
-MULTI_FILL_XFAIL = "MULTI_FILL_XFAIL"
-
-
+@pytest.mark.xfail(strict=True, reason="known difference (docs/cases.md): our four pulses leave the corner "
+                   "unfilled (fill 0.980 with die cells 4 mm, 0.936 with 2 mm; single 25 MPa from flat: 0.980 / "
+                   "0.958): after three pulses the blank lies close to the die and the 25 MPa step has too short "
+                   "a run-up to wrap the 130-degree corner")
 def test_four_pulses_end_filled(runs):
     assert runs["multi"]["fill_fraction"] >= FILLED
 

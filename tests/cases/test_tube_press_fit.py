@@ -4,7 +4,8 @@ References (paper sec. 6): with a small clearance (the Figure 6 example: 0.006 R
 from about the same point and a residual contact pressure remains; the residual pressure falls as
 the clearance grows, and beyond a critical clearance ("should not be more than 3 % of the inner
 tube internal radius") the tubes unload from different points and no pressure is left.
-"Near zero" here: below 2 % of the zero-clearance value (scripts/study_tube_press_fit.py).
+"Near zero" here: below 2 % of the value at small clearance (scripts/study_tube_press_fit.py uses
+the zero-clearance value).
 Default tier: 0.5 mm cells instead of 0.25 mm.
 """
 
@@ -25,7 +26,6 @@ VANISH = 0.02
 def small_and_large(tmp_path_factory):
     root = tmp_path_factory.mktemp("tube")
     return run_many({"c0.6": ("cases/tube_press_fit", TUBE_COARSE),  # the case file's own 0.006 R0
-                     "c0": ("cases/tube_press_fit", [*TUBE_COARSE, *tube_clearance(0.0)]),
                      "c6": ("cases/tube_press_fit", [*TUBE_COARSE, *tube_clearance(6.0)])}, root)
 
 
@@ -45,17 +45,16 @@ def test_case_geometry_is_the_papers():
 
 def test_residual_pressure_positive_at_small_clearance_and_gone_at_6_percent(small_and_large):
     m = small_and_large
-    p0, p06, p6 = (m[k]["residual_contact_pressure_MPa"] for k in ("c0", "c0.6", "c6"))
-    assert p0 > 1.0 and p06 > 1.0                         # MPa: a tight joint
-    assert p6 < p06 and p6 < VANISH * p0                  # near zero beyond the critical clearance
+    p06, p6 = (m[k]["residual_contact_pressure_MPa"] for k in ("c0.6", "c6"))
+    assert p06 > 1.0                                      # MPa: a tight joint
+    assert p6 < VANISH * p06                              # near zero beyond the critical clearance
     for r in m.values():
         assert r["final_kinetic_to_elastic"] < 1e-3       # relaxed: the vibration has decayed
         assert r["energy_error_rel"] < 0.02
         assert math.isfinite(r["max_radial_displacement_inner_mm"])
         assert (Path(r["_out"]) / "plots" / "press_fit_displacements.png").is_file()
     # a larger clearance lets the inner tube fly further before it is stopped (mm)
-    assert m["c6"]["max_radial_displacement_inner_mm"] > m["c0.6"]["max_radial_displacement_inner_mm"] \
-        > m["c0"]["max_radial_displacement_inner_mm"]
+    assert m["c6"]["max_radial_displacement_inner_mm"] > m["c0.6"]["max_radial_displacement_inner_mm"]
 
 
 @pytest.fixture(scope="module")
