@@ -52,8 +52,8 @@ def _parser() -> argparse.ArgumentParser:
     sweep.add_argument("--jobs", type=int, default=1, metavar="N", help="members run at the same time (default 1)")
     sweep.add_argument("--force", action="store_true", help="replace an existing sweep folder")
     sweep.add_argument("--mpi", action="store_true",
-                       help="run the members through mpi4py.futures (start under mpirun -n N: one manager, "
-                            "N-1 workers; or a single process that spawns --jobs workers)")
+                       help="run the members through mpi4py.futures: start under mpirun -n N (N >= 2): rank 0 "
+                            "manages, ranks 1..N-1 run the members")
 
     val = sub.add_parser("validate", help="run the validation registry and write a report",
                          description="Run the validation entries of a suite (each: a case or set-up, a quantity, "
@@ -165,6 +165,10 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     if args.mpi:
         from mpi4py import MPI
 
+        if MPI.COMM_WORLD.Get_size() < 2:
+            return _error("--mpi: start the sweep under mpirun with at least 2 ranks (rank 0 manages, the "
+                          "others run members), e.g. mpirun -n 3 pulseform sweep CASE --mpi --param ...; "
+                          "without mpirun use --jobs N", EXIT_BAD_INPUT)
         if MPI.COMM_WORLD.Get_rank() > 0:  # mpirun -n N: ranks > 0 are the sweep's workers
             from .sweep import serve_mpi_workers
 

@@ -136,11 +136,9 @@ def run_sweep(case: str, params: list[str], out: Path, *, jobs: int = 1, force: 
     """Run the full grid of ``params`` on ``case`` into ``out``; returns the members with results.
 
     Every member's overrides are validated first (a bad value makes that member fail alone with
-    the validation message). With ``mpi``, members go to an ``mpi4py.futures.MPIPoolExecutor``:
-    under ``mpirun -n N python -m mpi4py.futures -m pulseform.orchestrator sweep ... --mpi`` (or
-    ``mpirun -n N pulseform sweep ... --mpi``) its N - 1 worker ranks, on any node of the
-    allocation, each start the member's ``pulseform run`` process; in a plain single process it
-    spawns ``jobs`` workers.
+    the validation message). With ``mpi`` (under ``mpirun -n N pulseform sweep ... --mpi``), members
+    go to an ``mpi4py.futures.MPICommExecutor``: its N - 1 worker ranks, on any node of the
+    allocation, each start the member's ``pulseform run`` process.
     """
     grid = parse_params(params)
     for key, values in grid.items():
@@ -157,7 +155,7 @@ def run_sweep(case: str, params: list[str], out: Path, *, jobs: int = 1, force: 
             log.warning("sweep member %d rejected: %s", m.index, exc)
     extra = [a for s in (overrides or []) for a in ("--set", s)]
     if mpi:
-        _run_mpi(case, runnable, extra, jobs)
+        _run_mpi(case, runnable, extra)
     else:
         with ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
             list(pool.map(lambda m: run_member(case, m, extra), runnable))
@@ -166,23 +164,19 @@ def run_sweep(case: str, params: list[str], out: Path, *, jobs: int = 1, force: 
     return todo
 
 
-def _run_mpi(case: str, runnable: list[Member], extra: list[str], jobs: int) -> None:
-    """Members through ``mpi4py.futures``; each worker returns its filled-in member.
-
-    Under ``mpirun -n N`` (world size > 1) this is rank 0's side of an ``MPICommExecutor`` whose
-    other ranks run :func:`serve_mpi_workers`; alone, an ``MPIPoolExecutor`` spawns ``jobs`` workers.
-    """
+def _run_mpi(case: str, runnable: list[Member], extra: list[str]) -> None:
+    """Members through ``mpi4py.futures``: rank 0's side of an ``MPICommExecutor`` whose other ranks
+    run :func:`serve_mpi_workers` (``mpirun -n N pulseform sweep ... --mpi``, N >= 2). Each worker
+    returns its filled-in member. (``MPIPoolExecutor``'s dynamic spawning is not used: Open MPI 4.1
+    singletons here fail MPI_Comm_spawn.)"""
     from mpi4py import MPI
-    from mpi4py.futures import MPICommExecutor, MPIPoolExecutor
+    from mpi4py.futures import MPICommExecutor
 
     world = MPI.COMM_WORLD.Get_size()
-    if world > 1:
-        log.info("sweep through mpi4py.futures: %d worker ranks", world - 1)
-        ctx = MPICommExecutor(MPI.COMM_WORLD, root=0)
-    else:
-        log.info("sweep through mpi4py.futures: %d spawned workers", jobs)
-        ctx = MPIPoolExecutor(max_workers=max(1, jobs))
-    with ctx as pool:
+    if world < 2:
+        raise ValueError("sweep --mpi needs mpirun with at least 2 ranks")
+    log.info("sweep through mpi4py.futures: %d worker ranks", world - 1)
+    with MPICommExecutor(MPI.COMM_WORLD, root=0) as pool:
         done = list(pool.map(run_member, [case] * len(runnable), runnable, [extra] * len(runnable)))
     for m, d in zip(runnable, done):
         m.returncode, m.error, m.metrics, m.worker = d.returncode, d.error, d.metrics, d.worker

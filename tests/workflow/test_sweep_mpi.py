@@ -37,3 +37,13 @@ def test_sweep_through_mpi4py_futures(tmp_path):
     assert float(rows["0.4"]["mech_steps"]) > float(rows["0.5"]["mech_steps"])
     assert r.stdout.count("sweep.csv") == 1  # only rank 0 reports
     assert "Traceback" not in r.stderr
+
+
+def test_mpi_without_mpirun_is_bad_input(tmp_path):
+    """One rank cannot manage and work: a one-line hint to start under mpirun (or use --jobs)."""
+    from wf_helpers import one_line_error, pulseform
+
+    r = pulseform("sweep", str(REPO / "cases/bar_impact"), "--mpi", "--out", str(tmp_path / "sw"),
+                  "--param", "time.cfl=0.5")
+    assert r.returncode == 2 and "mpirun" in one_line_error(r)
+    assert not (tmp_path / "sw").exists()
