@@ -134,6 +134,35 @@ def fit_pulse(t: np.ndarray, p: np.ndarray, kind: str = "sin2") -> dict[str, flo
     return out
 
 
+def circuit_shape(t: np.ndarray, vc: np.ndarray, current: np.ndarray) -> tuple[float, float]:
+    """(α, ω_d) of the bank's discharge from the coupled run's (capacitor voltage, current) samples.
+
+    A series RLC circuit is a linear 2-state system: consecutive samples obey x_{k+1} = A x_k for a
+    fixed step; A is fitted by least squares and its eigenvalues exp((−α ± iω_d) dt) give α and ω_d.
+    This works on any window, also one that ends before the current's first peak."""
+    x = np.vstack([vc, current])
+    steps = np.diff(t)
+    dt = float(np.median(steps)) if len(steps) else 0.0
+    pairs = np.flatnonzero(np.abs(steps - dt) <= 1e-3 * dt)  # steps of the common length only
+    if len(pairs) < 2:  # (output milestones shorten the step that reaches them)
+        raise CompareError("compare: fewer than 2 equal EM steps; cannot identify the discharge")
+    scale = np.abs(x).max(axis=1, keepdims=True)
+    xs = x / np.where(scale > 0, scale, 1.0)
+    a, *_ = np.linalg.lstsq(xs[:, pairs].T, xs[:, pairs + 1].T, rcond=None)
+    mu = np.linalg.eigvals(a.T).astype(complex)
+    lam = np.log(mu[np.argmax(np.abs(mu.imag))]) / dt
+    return float(-lam.real), float(abs(lam.imag))
+
+
+def fit_pulse_shaped(t: np.ndarray, p: np.ndarray, beta: float, omega: float) -> dict[str, float]:
+    """Eq. (7) with β and ω given (from the current: F ∝ I² ⇒ β = 2α, ω = ω_d); P0 by linear least squares."""
+    basis = sin2_pulse(t, 1.0, beta, omega)
+    p0 = float(basis @ p / (basis @ basis))
+    res = p - p0 * basis
+    return {"amplitude": p0, "beta": beta, "omega": omega,
+            "fit_residual_rel": float(np.sqrt(np.mean(res ** 2)) / np.max(np.abs(p)))}
+
+
 def _inline(v) -> str:
     """A TOML inline literal (numbers, strings, booleans, tables, arrays)."""
     if isinstance(v, bool):
@@ -228,14 +257,14 @@ def run_compare(case_path: str, out: Path, *, overrides: list[str] | None = None
         # each history row holds the force held over the EM step that ends there (the mean of GetDP's
         # sub-steps): it belongs at the step's mid-time; the first row is t = 0 before any step
         t_mid = 0.5 * (t[1:] + t[:-1])
-        par = fit_pulse(t_mid, p_hist[1:], pulse)
+        par = _fit(case, hc, t, t_mid, p_hist[1:], pulse)
         load = {"type": "pulse_sin2" if pulse == "sin2" else "pulse_exp", "body": work.name, "surface": box,
                 "amplitude": par["amplitude"], "t_end": case.time.end}
         if pulse == "sin2":
             load.update(beta=par["beta"], omega=par["omega"])
             desc = (f"eq. (7) fitted: P0 = {par['amplitude'] / 1e6:.4g} MPa, beta = {par['beta']:.4g} 1/s, "
                     f"omega = {par['omega']:.4g} rad/s on {area * 1e4:.4g} cm^2 (fit residual "
-                    f"{100 * par['fit_residual_rel']:.2g} % of the peak)")
+                    f"{100 * par['fit_residual_rel']:.2g} % of the peak; {par['fit_method']})")
         else:
             load.update(decay_time=par["decay_time"])
             desc = (f"eq. (8) fitted: p0 = {par['amplitude'] / 1e6:.4g} MPa, T = {par['decay_time']:.4g} s on "
@@ -292,6 +321,32 @@ def run_compare(case_path: str, out: Path, *, overrides: list[str] | None = None
     except Exception as exc:  # plots never decide the result
         log.warning("compare plots failed: %s", exc)
     return report
+
+
+def _fit(case: Case, hc, t, t_mid, p, pulse: str) -> dict[str, float]:
+    """The pulse parameters. eq. (8): free least-squares fit. eq. (7): β and ω from the current
+    (F ∝ I²: β = 2α, ω = ω_d; α, ω_d of the prescribed current, or identified from the circuit's
+    history), P0 by least squares; when the window holds the force's first peak, a free
+    3-parameter fit started there is kept if it fits better with ω within a factor 2."""
+    if pulse != "sin2":
+        return {**fit_pulse(t_mid, p, pulse), "fit_method": "eq. (8) least squares (p0, T)"}
+    em = case.em
+    if em.current is not None:
+        alpha, omega_d, how = em.current.beta, em.current.omega, "the prescribed current"
+    else:
+        alpha, omega_d = circuit_shape(t[1:], hc["capacitor_voltage_V"][1:], hc["coil_current_A"][1:])
+        how = "the circuit's (V_C, I) history"
+    par = fit_pulse_shaped(t_mid, p, 2 * alpha, omega_d)
+    par["fit_method"] = f"beta = 2 alpha, omega = omega_d from {how}; P0 by least squares"
+    if 0 < int(np.argmax(p)) < len(p) - 1:  # the first force peak lies inside the window
+        try:
+            free = fit_pulse(t_mid, p, "sin2")
+        except CompareError:
+            free = None
+        if free and free["fit_residual_rel"] < par["fit_residual_rel"] and 0.5 < free["omega"] / omega_d < 2:
+            par = {**free, "fit_method": "free least squares (P0, beta, omega) started from the current's shape"}
+    par["current_alpha"], par["current_omega_d"] = alpha, omega_d
+    return par
 
 
 def _given_loads(path: str) -> list[dict]:
