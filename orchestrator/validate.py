@@ -156,7 +156,12 @@ def _plot(e: Entry, run: RunOutput, ref_curve, folder: Path) -> str:
     if ref_curve is None and f"{e.curve}_reference" in run.curves:  # a balance's other side, from the run
         ref_curve = run.curves[f"{e.curve}_reference"]
     if ref_curve is not None:
-        ax.plot(ref_curve[0], ref_curve[1], "--", lw=1.5, label="reference")
+        rx, ry = ref_curve
+        label = "reference"
+        if e.align_onset and (yc > 0).any() and (ry > 0).any():
+            shift = float(xc[np.argmax(yc > 0)] - rx[np.argmax(ry > 0)])
+            rx, label = rx + shift, f"reference (shifted by {shift:.4g})"
+        ax.plot(rx, ry, "--", lw=1.5, label=label)
     elif isinstance(e.reference, Analytic) and e.reference.value is not None and e.kind == "scalar" \
             and e.metric is None and e.error == "rel":
         ax.axhline(e.reference.value, ls="--", color="k", label="reference")
