@@ -43,7 +43,7 @@ def plot_probes(history: History, folder: Path, references: dict[str, float] | N
     references = references or {}
     t = history.column("time_s") * 1e3
     paths = []
-    skip = ("time_s", "step", "dt_s")
+    skip = ("time_s", "step", "dt_s", "substeps", "iterations", "em_remeshes", "coil_current_abs_max_A")
     for c in history.columns:
         if c in skip or c.startswith("energy_"):
             continue
