@@ -242,8 +242,14 @@ def run_compare(case_path: str, out: Path, *, overrides: list[str] | None = None
                            f"(got kind {case.case.kind!r}, load {case.coupling.load!r})")
     work = next(b for b in case.bodies if b.region == "workpiece")
     dies = [b.name for b in case.bodies if b.region is None]
-    box, area, comp = loaded_surface(case)
     given = _given_loads(pressure_case) if pressure_case else None
+    try:
+        box, area, comp = loaded_surface(case)
+    except CompareError:
+        if given is None:
+            raise CompareError(f"{case_path}: geometry type {case.geometry.type!r} has no known loaded surface "
+                               "to fit a pulse on; give the pulses with --pressure-case FILE") from None
+        box, area, comp = None, 1.0, 1  # given pulses: histories shown as force (N) along z
     results = ResultsFolder(out, force=force)
     root = results.root
 

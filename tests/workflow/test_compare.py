@@ -151,3 +151,25 @@ h0 = 5e-5
     assert rep["dies"] == ["die"]
     assert m["die_von_mises_max_coupled_MPa"] > 0 and m["die_von_mises_max_pressure_MPa"] > 0
     assert math.isfinite(m["die_von_mises_rel_diff"])
+
+
+def test_user_deck_without_pressure_case_is_bad_input(tmp_path):
+    r = pulseform("compare", str(REPO / "cases/user_deck_sheet_bulge"), "--out", str(tmp_path / "x"), *SHORT)
+    assert r.returncode == 2 and "--pressure-case" in one_line_error(r)
+    assert not (tmp_path / "x").exists()
+
+
+@pytest.mark.slow
+@pytest.mark.getdp
+def test_user_deck_with_given_pulses(tmp_path):
+    """Pulses given in a file (not fitted): the run uses exactly them."""
+    loads = tmp_path / "loads.toml"
+    loads.write_text('[[loads]]\ntype = "pulse_sin2"\nbody = "sheet"\n'
+                     'surface = { xmin = 0.01, xmax = 0.034, ymin = 1.499e-3, ymax = 1.501e-3 }\n'
+                     'amplitude = 8.7e6\nbeta = 8.9e3\nomega = 9.3e4\nt_end = 4e-6\n')
+    r = pulseform("compare", str(REPO / "cases/user_deck_sheet_bulge"), "--out", str(tmp_path / "c"), *SHORT,
+                  "--pressure-case", str(loads))
+    assert r.returncode == 0, r.stderr[-3000:]
+    rep = json.loads((tmp_path / "c" / "compare.json").read_text())
+    assert rep["pulse"]["source"].startswith("given") and rep["pulse"]["loads"][0]["amplitude"] == 8.7e6
+    assert "amplitude = 8700000.0" in (tmp_path / "c" / "pressure" / "case.toml").read_text()
