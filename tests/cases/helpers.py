@@ -19,7 +19,8 @@ TUBE_COARSE = ["--set", "bodies.inner.mesh_size=5e-4", "--set", "bodies.outer.me
 
 
 def run_many(jobs: dict[str, tuple[str, list[str]]], root: Path) -> dict[str, dict]:
-    """Run ``{label: (case folder, extra args)}`` concurrently; metrics.json per label (asserts exit 0)."""
+    """Run ``{label: (case folder, extra args)}`` concurrently (label: a folder name under ``root``);
+    metrics.json per label (asserts exit 0)."""
     procs = {}
     for label, (case, extra) in jobs.items():
         out = root / label

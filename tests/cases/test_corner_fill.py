@@ -93,10 +93,10 @@ def test_p0_sweep_fill_grows_with_pressure(tmp_path):
     amps = (5, 10, 15, 20, 25, 30, 35)
     m = {}
     for pair in (amps[:4], amps[4:]):
-        m.update(run_many({p: ("cases/corner_fill", [*CORNER_COARSE, "--set", f"loads[0].amplitude={p}e6"])
+        m.update(run_many({f"p{p}": ("cases/corner_fill", [*CORNER_COARSE, "--set", f"loads[0].amplitude={p}e6"])
                            for p in pair}, tmp_path))
-    fill = [m[p]["fill_fraction"] for p in amps]
-    speed = [m[p]["blank_rms_speed_max_m_s"] for p in amps]
+    fill = [m[f"p{p}"]["fill_fraction"] for p in amps]
+    speed = [m[f"p{p}"]["blank_rms_speed_max_m_s"] for p in amps]
     assert all(b >= a - 1e-9 for a, b in zip(fill, fill[1:])), fill
     assert all(b > a for a, b in zip(speed, speed[1:])), speed
     assert [f >= FILLED for f in fill] == [False] * 5 + [True] * 2, fill

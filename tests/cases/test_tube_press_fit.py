@@ -59,14 +59,14 @@ def test_residual_pressure_positive_at_small_clearance_and_gone_at_6_percent(sma
 
 @pytest.fixture(scope="module")
 def sweep(tmp_path_factory):
-    """Full sweep 0 ... 6 % of R0 on the case's own mesh (two runs at a time)."""
+    """Full sweep 0 ... 6 % of R0 on the case's own mesh (two runs at a time; labels are folder names)."""
     cs = (0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0)
     root = tmp_path_factory.mktemp("tube_sweep")
     m = {}
     for part in (cs[:4], cs[4:]):
         for pair in (part[:2], part[2:]):
-            m.update(run_many({c: ("cases/tube_press_fit", tube_clearance(c)) for c in pair}, root))
-    return cs, np.array([m[c]["residual_contact_pressure_MPa"] for c in cs])
+            m.update(run_many({f"c{c:g}": ("cases/tube_press_fit", tube_clearance(c)) for c in pair}, root))
+    return cs, np.array([m[f"c{c:g}"]["residual_contact_pressure_MPa"] for c in cs])
 
 
 @pytest.mark.slow
