@@ -8,6 +8,7 @@ entries fail with the error in the report; nothing stops the other runs.
 
 from __future__ import annotations
 
+import hashlib
 import logging
 import time
 import traceback
@@ -96,6 +97,7 @@ def _evaluate(e: Entry, run: RunOutput | Exception, root: Path, plots: Path) -> 
         if isinstance(e.reference, CsvCurve):
             x, y, o.provenance, _ = e.reference.load(root)
             o.provenance["file"] = e.reference.describe()
+            o.provenance["sha256"] = hashlib.sha256(e.reference.path(root).read_bytes()).hexdigest()
             ref_curve = (x, y)
         else:
             o.provenance = {"source": e.reference.source, "formula": e.reference.formula}
@@ -182,8 +184,10 @@ def _fmt(v: float | None) -> str:
 
 def _write_report(outcomes: list[Outcome], runs: dict, root: Path) -> None:
     n_ok = sum(o.passed for o in outcomes)
+    env = _environment()
     lines = ["# pulseform validation report", "",
              f"{n_ok} of {len(outcomes)} passed" + ("" if n_ok == len(outcomes) else " — FAILED"), "",
+             "Environment: " + ", ".join(f"{k} {v}" for k, v in env.items()), "",
              "| case | quantity | reference | reference value | computed | error | tolerance | pass |",
              "|---|---|---|---|---|---|---|---|"]
     for o in outcomes:
@@ -210,7 +214,22 @@ def _write_report(outcomes: list[Outcome], runs: dict, root: Path) -> None:
         "passed": n_ok == len(outcomes), "n_entries": len(outcomes), "n_passed": n_ok,
         "entries": [o.row() for o in outcomes],
         "runs": {k: ({"wall_time_s": v.wall_time_s} if isinstance(v, RunOutput) else {"error": str(v)})
-                 for k, v in runs.items()}})
+                 for k, v in runs.items()},
+        "environment": env})
+
+
+def _environment() -> dict[str, str]:
+    """Versions of pulseform and the programs it ran (as ``pulseform info``), next to the results."""
+    from . import __version__
+
+    env = {"pulseform": __version__}
+    try:
+        from .info import collect
+
+        env.update({c.name: c.version for c in collect()})
+    except Exception as exc:  # never lose a report over a version query
+        env["error"] = str(exc)
+    return env
 
 
 def _clean(v):
