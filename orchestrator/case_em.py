@@ -7,6 +7,15 @@ from typing import Literal
 
 from .schema import SchemaError, spec
 
+def _check_open_boundary(path: str, extent: float, air: float, shell: float, what: str) -> None:
+    """The air half-disk must hold the setup with margin (1.5 × its extent); the shell lies outside it."""
+    if air <= 1.5 * extent:
+        raise SchemaError(f"{path}.air_radius", f"got {air:g}; must be > 1.5 × the {what} extent = "
+                          f"{1.5 * extent:g} (m)")
+    if shell <= air:
+        raise SchemaError(f"{path}.shell_radius", f"got {shell:g}; must be > air_radius = {air:g} (m)")
+
+
 @dataclass(frozen=True, kw_only=True)
 class FlatCoilSheet:
     """Axisymmetric flat spiral coil (coaxial rectangular turns in series) under a sheet.
@@ -34,12 +43,7 @@ class FlatCoilSheet:
     def validate(self, path: str) -> None:
         coil_r = self.coil_inner_radius + self.turns * self.turn_width + (self.turns - 1) * self.turn_gap
         extent = max(coil_r, self.sheet_radius, self.coil_gap + self.sheet_thickness, self.turn_height)
-        if self.air_radius <= 1.5 * extent:
-            raise SchemaError(f"{path}.air_radius", f"got {self.air_radius:g}; must be > 1.5 × the "
-                              f"coil/sheet extent = {1.5 * extent:g} (m)")
-        if self.shell_radius <= self.air_radius:
-            raise SchemaError(f"{path}.shell_radius", f"got {self.shell_radius:g}; must be > air_radius "
-                              f"= {self.air_radius:g} (m)")
+        _check_open_boundary(path, extent, self.air_radius, self.shell_radius, "coil/sheet")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -72,12 +76,7 @@ class SolenoidTube:
                               f"coil outer radius = {self.coil_inner_radius + self.turn_width:g} (m)")
         extent = max(self.tube_inner_radius + self.tube_thickness, self.tube_length / 2,
                      self.turns * (self.turn_height + self.turn_gap) / 2)
-        if self.air_radius <= 1.5 * extent:
-            raise SchemaError(f"{path}.air_radius", f"got {self.air_radius:g}; must be > 1.5 × the "
-                              f"coil/tube extent = {1.5 * extent:g} (m)")
-        if self.shell_radius <= self.air_radius:
-            raise SchemaError(f"{path}.shell_radius", f"got {self.shell_radius:g}; must be > air_radius "
-                              f"= {self.air_radius:g} (m)")
+        _check_open_boundary(path, extent, self.air_radius, self.shell_radius, "coil/tube")
 
 
 @dataclass(frozen=True, kw_only=True)
