@@ -42,8 +42,11 @@ from .transfer import cell_force_integral, cell_to_nodal_forces
 log = logging.getLogger(__name__)
 
 
-def em_model(case: Case, geometry: EMGeometry) -> EMModel:
-    """The GetDP model of a coupled case: one stranded coil, the workpiece as massive conductor 1."""
+def em_model(case: Case, shell: tuple[float, float] | None) -> EMModel:
+    """The GetDP model of a coupled case: one stranded coil, the workpiece as massive conductor 1.
+
+    ``shell``: inner and outer radius (m) of the shell transformation to infinity, or None.
+    """
     em, g = case.em, case.geometry
     wave = None
     if em.current is not None:
@@ -59,7 +62,7 @@ def em_model(case: Case, geometry: EMGeometry) -> EMModel:
         c = em.circuit
         circuit = Circuit(C=c.capacitance, V0=c.voltage, R_ext=c.resistance, L_ext=c.inductance)
     return EMModel(axisymmetric=True, coils=[coil], conductors=[Conductor(sigma=sigma, name=work.name)],
-                   circuit=circuit, shell=(g.air_radius, g.shell_radius))
+                   circuit=circuit, shell=shell)
 
 
 class GetDPLoad:

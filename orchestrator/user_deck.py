@@ -158,25 +158,11 @@ def build_user_geometry(case, work: Path, em_dir: Path):
 # ----------------------------------------------------------------------------- getdp
 def user_em_model(case):
     """EMModel of a user-deck case: one stranded coil, the workpiece as massive conductor 1."""
-    from pulseform.solvers.getdp import Circuit, Coil, Conductor, DampedSine, EMModel
+    from .em_participant import em_model
 
-    em, g = case.em, case.geometry
-    wave = None
-    if em.current is not None:
-        wave = DampedSine(I0=em.current.amplitude, beta=em.current.beta, omega=em.current.omega)
-    coil = Coil(turns=g.turns, sigma=em.coil_conductivity, waveform=wave, density=em.coil_density,
-                heat_capacity=em.coil_heat_capacity)
-    work = next(b for b in case.bodies if b.region == "workpiece")
-    sigma = case.materials[work.material].electrical_conductivity
-    if sigma <= 0.0:
-        raise ValueError(f"materials.{work.material}.electrical_conductivity must be > 0 for the workpiece")
-    circuit = None
-    if em.circuit is not None:
-        c = em.circuit
-        circuit = Circuit(C=c.capacitance, V0=c.voltage, R_ext=c.resistance, L_ext=c.inductance)
+    g = case.geometry
     shell = None if g.shell_inner_radius is None else (g.shell_inner_radius, g.shell_outer_radius)
-    return EMModel(axisymmetric=True, coils=[coil], conductors=[Conductor(sigma=sigma, name=work.name)],
-                   circuit=circuit, shell=shell)
+    return em_model(case, shell)
 
 
 def _solver_class():
