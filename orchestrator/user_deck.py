@@ -165,37 +165,17 @@ def user_em_model(case):
     return em_model(case, shell)
 
 
-def _solver_class():
+def make_solver(case, model, work_dir: Path):
+    """A GetDPSolver on the user's deck: role ids, the case's parameters and ``PulseformLib``."""
     from pulseform.solvers.getdp import GetDPSolver
     from pulseform.solvers.getdp.solver import DECK_DIR
 
-    class UserDeckSolver(GetDPSolver):
-        """GetDPSolver on a user's deck: adds the role ids, the case's parameters and PulseformLib."""
-
-        def __init__(self, model, work_dir, *, deck, parameters: dict[str, float], has_shell: bool, **kw):
-            super().__init__(model, work_dir, deck=deck, **kw)
-            self.parameters = dict(parameters)
-            self.has_shell = has_shell
-
-        def _numbers(self, mesh):
-            nb = super()._numbers(mesh)
-            for role, name in ROLE_NUMBERS.items():
-                if role != "shell" or self.has_shell:
-                    nb[name] = ROLE_IDS[role]
-            nb.update({k: float(v) for k, v in self.parameters.items()})
-            return nb
-
-        def _table_lines(self):
-            lib = (DECK_DIR / "Lib_PulsedForming.pro").resolve()
-            return [f'PulseformLib = "{lib}";'] + super()._table_lines()
-
-    return UserDeckSolver
-
-
-def make_solver(case, model, work_dir: Path):
     g = case.geometry
-    return _solver_class()(model, work_dir, deck=g.pro, parameters=g.parameters or {},
-                           has_shell=g.regions.shell is not None)
+    numbers = {name: ROLE_IDS[role] for role, name in ROLE_NUMBERS.items()
+               if role != "shell" or g.regions.shell is not None}
+    numbers.update({k: float(v) for k, v in (g.parameters or {}).items()})
+    lib = (DECK_DIR / "Lib_PulsedForming.pro").resolve()
+    return GetDPSolver(model, work_dir, deck=g.pro, extra_numbers=numbers, preamble=[f'PulseformLib = "{lib}";'])
 
 
 #: output tables the contract requires after one step (k = 1: one coil, one conductor)

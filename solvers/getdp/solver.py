@@ -290,12 +290,18 @@ class GetDPSolver:
     ``petsc_args`` go on getdp's command line (default: LU with UMFPACK).  ``reuse_pre``:
     restarts on the same connectivity copy the previous run's ``.pre`` (dof numbering) and
     run ``getdp -cal``, skipping pre-processing (same results, checked in the tests).
+    ``extra_numbers`` are passed with ``-setnumber`` on top of the model's (a user deck's own
+    parameters and physical ids); ``preamble`` lines go into ``run.pro`` before the deck is
+    included (e.g. a string constant naming the library file).
     """
 
     def __init__(self, model: EMModel, work_dir: str | Path, *, executable: str = "getdp",
                  petsc_args: Sequence[str] = DEFAULT_PETSC_ARGS, timeout: float | None = None,
-                 deck: str | Path = CASE_DECK, keep_runs: int | None = None, reuse_pre: bool = True):
+                 deck: str | Path = CASE_DECK, keep_runs: int | None = None, reuse_pre: bool = True,
+                 extra_numbers: dict[str, float] | None = None, preamble: Sequence[str] = ()):
         self.model = model
+        self.extra_numbers = {k: float(v) for k, v in (extra_numbers or {}).items()}
+        self.preamble = list(preamble)
         self.work_dir = Path(work_dir).resolve()
         self.work_dir.mkdir(parents=True, exist_ok=True)
         self.executable = executable
@@ -353,9 +359,10 @@ class GetDPSolver:
         msh = write_msh22(mesh, run_dir / "mesh.msh")
         sig = mesh_signature(mesh)
         numbers = self._numbers(mesh)
+        numbers.update(self.extra_numbers)
         numbers.update(TimeInit=state.t, TimeFinal=float(t_end), NbSteps=int(n_sub),
                        Flag_ElemOut={"all": 1, "last": 2, "none": 0}[element_output])
-        data_lines = self._table_lines()
+        data_lines = self.preamble + self._table_lines()
         extra: list[str] = []
         has_field = state.res_path is not None
         pts = mesh.points if material_points is None else np.asarray(material_points, float)
