@@ -88,6 +88,8 @@ class ResultsFolder:
 
     def __init__(self, root: Path, *, force: bool = False, resume: bool = False) -> None:
         self.root = Path(root)
+        if self.root.exists() and not self.root.is_dir():
+            raise ResultsExistError(f"{self.root}: exists and is not a folder; choose another --out")
         if self.root.exists() and any(self.root.iterdir()):
             if resume:
                 pass

@@ -24,6 +24,12 @@ def test_existing_results_need_force(tmp_path):
     assert not (tmp_path / "r" / "x.txt").exists()
 
 
+def test_out_is_a_file(tmp_path):
+    (tmp_path / "f").write_text("x")
+    with pytest.raises(ResultsExistError, match="not a folder"):
+        ResultsFolder(tmp_path / "f", force=True)
+
+
 def test_atomic_write_leaves_no_temp_and_replaces(tmp_path):
     p = tmp_path / "a.txt"
     atomic_write_text(p, "old")
