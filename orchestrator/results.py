@@ -98,9 +98,12 @@ class ResultsFolder:
             else:
                 raise ResultsExistError(
                     f"{self.root}: results folder exists; use --force to replace it or --resume to continue")
-        self.root.mkdir(parents=True, exist_ok=True)
-        self.fields.mkdir(exist_ok=True)
-        self.plots.mkdir(exist_ok=True)
+        try:
+            self.root.mkdir(parents=True, exist_ok=True)
+            self.fields.mkdir(exist_ok=True)
+            self.plots.mkdir(exist_ok=True)
+        except OSError as exc:
+            raise ResultsExistError(f"{self.root}: cannot create the results folder ({exc.strerror})") from None
 
     @property
     def fields(self) -> Path:
