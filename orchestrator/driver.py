@@ -86,6 +86,7 @@ class CaseDriver:
         self.history = History(results.root / "history.csv")
         self.part = 0
         self._since_record = 0
+        self._last_row: dict[str, float] | None = None
         self.shapes: list[tuple[float, dict[str, np.ndarray]]] = []  # rank 0: node positions per milestone
         interval = case.output.field_interval or case.time.end / 20.0
         self.stops = milestones(case.time.end, interval)
@@ -108,6 +109,7 @@ class CaseDriver:
         self.history.record(row)
 
     def _on_em_step(self, row: dict[str, float]) -> None:
+        self._last_row = row
         self._since_record += 1
         if self._since_record >= self.case.output.history_every:
             self._since_record = 0
@@ -177,7 +179,7 @@ class CaseDriver:
                         continue
                     self.loop.run_until(stop, on_step)
                     if self.history.rows[-1][0] != s.time:
-                        self.record({"dt_s": float("nan")})
+                        self.record(self._last_row)  # the values of the step that reached the milestone
                     writer.write(s.time)
                     self._keep_shape()
                     snap = self.load.snapshot() if em_writer is not None else None
