@@ -6,6 +6,8 @@ markers ``<!-- case-reference:start -->`` and ``<!-- case-reference:end -->``, k
 
 from __future__ import annotations
 
+import sys
+
 from .case import Case
 from .schema import reference_rows
 
@@ -22,4 +24,4 @@ def case_reference_markdown() -> str:
 
 
 if __name__ == "__main__":  # pragma: no cover
-    print(case_reference_markdown(), end="")
+    sys.stdout.write(case_reference_markdown())

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 import logging
 from pathlib import Path
 from typing import Dict, Sequence
@@ -81,7 +82,7 @@ def main() -> None:
     ap.add_argument("--ny", type=int, default=20)
     a = ap.parse_args()
     logging.basicConfig(level=logging.INFO)
-    print(json.dumps(run_study(a.out_dir, nx=a.nx, ny=a.ny), indent=2))
+    sys.stdout.write(json.dumps(run_study(a.out_dir, nx=a.nx, ny=a.ny), indent=2) + "\n")
 
 
 if __name__ == "__main__":

@@ -1,0 +1,218 @@
+"""The EM participant's data: model description, serialisable state, results of one EM step."""
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+
+from .mesh import EMMesh
+from .runner import RunInfo
+
+
+# ----------------------------------------------------------------------------- model
+@dataclass
+class DampedSine:
+    """I(t) = I0 exp(-beta t) sin(omega t) (A)."""
+
+    I0: float
+    beta: float
+    omega: float
+
+
+@dataclass
+class CurrentTable:
+    """I(t) linearly interpolated in (times, values) (s, A)."""
+
+    times: Sequence[float]
+    values: Sequence[float]
+
+    def __post_init__(self):
+        t = np.asarray(self.times, float)
+        v = np.asarray(self.values, float)
+        if t.ndim != 1 or t.shape != v.shape or len(t) < 2 or np.any(np.diff(t) <= 0):
+            raise ValueError("CurrentTable needs >= 2 strictly increasing times and as many values")
+        self.times, self.values = t.tolist(), v.tolist()
+
+
+@dataclass
+class Coil:
+    """A stranded coil: all its turns form physical region 100+k (uniform current density).
+
+    ``waveform`` is used without a circuit; with a circuit it must be None.
+    ``density`` and ``heat_capacity`` (copper defaults) give the adiabatic temperature rise.
+    """
+
+    turns: int
+    sigma: float = 5.8e7
+    waveform: DampedSine | CurrentTable | None = None
+    density: float = 8960.0
+    heat_capacity: float = 385.0
+
+    def __post_init__(self):
+        if isinstance(self.waveform, dict):
+            self.waveform = (CurrentTable if "times" in self.waveform else DampedSine)(**self.waveform)
+
+
+@dataclass
+class Conductor:
+    """A massive conductor (physical region 200+k) with eddy currents."""
+
+    sigma: float
+    name: str = ""
+
+
+@dataclass
+class Circuit:
+    """Capacitor bank C charged to V0, in series with R_ext, L_ext and all coils."""
+
+    C: float
+    V0: float
+    R_ext: float = 0.0
+    L_ext: float = 0.0
+
+
+@dataclass
+class EMModel:
+    """Static description of the EM problem (everything except the mesh and the state).
+
+    ``shell = (R_int, R_ext)`` enables the shell transformation to infinity on region 2,
+    centred at ``shell_centre``.  ``h0_step`` imposes a tangential field step H0 (A/m)
+    on boundary 13 (used by the diffusion verification).  ``probes``: points (x, y) where
+    B is reported every sub-step (avoid x = 0 exactly in axisymmetry: NaN on the axis).
+    """
+
+    axisymmetric: bool
+    coils: list[Coil] = field(default_factory=list)
+    conductors: list[Conductor] = field(default_factory=list)
+    circuit: Circuit | None = None
+    shell: tuple[float, float] | None = None
+    shell_centre: tuple[float, float] = (0.0, 0.0)
+    h0_step: float = 0.0
+    probes: list = field(default_factory=list)
+
+    def __post_init__(self):
+        self.coils = [c if isinstance(c, Coil) else Coil(**c) for c in self.coils]
+        self.conductors = [c if isinstance(c, Conductor) else Conductor(**c) for c in self.conductors]
+        if isinstance(self.circuit, dict):
+            self.circuit = Circuit(**self.circuit)
+        if self.shell is not None:
+            self.shell = tuple(float(x) for x in self.shell)
+        self.shell_centre = tuple(float(x) for x in self.shell_centre)
+        self.probes = [tuple(float(x) for x in p) for p in self.probes]
+        for c in self.coils:
+            if self.circuit is not None and c.waveform is not None:
+                raise ValueError("with a circuit the coil current is computed: give no waveform")
+            if self.circuit is None and c.waveform is None:
+                raise ValueError("without a circuit every coil needs a waveform")
+        if self.circuit is not None and not self.coils:
+            raise ValueError("a circuit needs at least one coil")
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "EMModel":
+        return cls(**d)
+
+
+# ----------------------------------------------------------------------------- state
+@dataclass
+class EMState:
+    """Everything needed to continue after time ``t`` (JSON-serialisable with to_dict()).
+
+    ``res_path``/``mesh_signature``: the previous run's .res and the connectivity it was
+    computed on (restart path).  ``a_*``: the nodal unknown (r a_phi in axisymmetry,
+    a_z in planar) on the conductor and coil nodes, at material coordinates
+    ``a_points`` on triangles ``a_triangles`` (general path through an Init constraint).
+    """
+
+    t: float = 0.0
+    step_index: int = 0
+    capacitor_voltage: float = 0.0
+    current: float = 0.0
+    coil_heat: list[float] = field(default_factory=list)
+    res_path: str | None = None
+    mesh_signature: str | None = None
+    a_points: list | None = None
+    a_triangles: list | None = None
+    a_values: list | None = None
+    pre_path: str | None = None
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "EMState":
+        return cls(**d)
+
+    def save(self, path: str | Path) -> None:
+        Path(path).write_text(json.dumps(self.to_dict()))
+
+    @classmethod
+    def load(cls, path: str | Path) -> "EMState":
+        return cls.from_dict(json.loads(Path(path).read_text()))
+
+
+def mesh_signature(mesh: EMMesh) -> str:
+    h = hashlib.sha1()
+    for arr in (mesh.triangles, mesh.tri_tags, mesh.lines, mesh.line_tags):
+        h.update(np.ascontiguousarray(arr, dtype=np.int64).tobytes())
+    h.update(str(mesh.n_nodes).encode())
+    return h.hexdigest()
+
+
+# ----------------------------------------------------------------------------- results
+@dataclass
+class EMStepResult:
+    """Outputs of one EM step (``n`` implicit sub-steps ending at ``times``).
+
+    Per element of the massive conductors (``elements`` are rows of the mesh's
+    ``triangles``): ``force_density`` (n, n_el, 2) N/m^3 and ``joule_density`` (n, n_el)
+    W/m^3 are element averages (GetDP's 7-point element integral / element volume
+    2 pi r_c A), so sum(force_density * V) equals the total force: conservative for the
+    mechanical transfer.  ``force_density_centroid`` is j x B at the centroid and
+    ``flux_density`` (n, n_el, 2) B at the centroid.  With ``element_output="last"`` these
+    element arrays have one row (the last sub-step), with ``"none"`` no elements.  Per coil: current, voltage drop
+    (receptor convention), Joule power, force.  Per conductor: force, Joule power.
+    ``probe_b`` (n, n_probes, 2): B at the model's probe points.
+    Totals are physical (2 pi included in axisymmetry; per metre in planar).
+    """
+
+    times: np.ndarray
+    dt: float
+    elements: np.ndarray
+    element_tags: np.ndarray
+    force_density: np.ndarray
+    force_density_centroid: np.ndarray
+    joule_density: np.ndarray
+    flux_density: np.ndarray
+    coil_current: np.ndarray
+    coil_voltage: np.ndarray
+    coil_power: np.ndarray
+    coil_force: np.ndarray
+    conductor_force: np.ndarray
+    conductor_power: np.ndarray
+    magnetic_energy: np.ndarray
+    capacitor_voltage: np.ndarray | None
+    circuit_current: np.ndarray | None
+    coil_heat: np.ndarray
+    coil_temperature_rise: np.ndarray
+    probe_b: np.ndarray
+    run: RunInfo | None = None
+    path: str = ""
+
+    @property
+    def force_density_mean(self) -> np.ndarray:
+        """Impulse-consistent force density over the step: mean of the implicit sub-steps."""
+        if self.force_density.shape[0] != len(self.times):
+            raise ValueError("force_density_mean needs element_output='all'")
+        return self.force_density.mean(axis=0)
+
+    @property
+    def total_conductor_force(self) -> np.ndarray:
+        """(n, 2) sum over all massive conductors."""
+        return self.conductor_force.sum(axis=1)
