@@ -14,9 +14,10 @@ Layout
                 :func:`coil_conductor_mesh` (gmsh) and :func:`slab_mesh`.
 ``runner.py``   :func:`run_getdp` (argv, cwd=run_dir, one log, return code, log scan),
                 :class:`GetDPError`, :data:`FAST_MPI_ENV`.
-``solver.py``   :class:`EMModel` (+ :class:`Coil`, :class:`Conductor`, :class:`Circuit`,
+``model.py``    :class:`EMModel` (+ :class:`Coil`, :class:`Conductor`, :class:`Circuit`,
                 :class:`DampedSine`, :class:`CurrentTable`), :class:`EMState`,
-                :class:`EMStepResult`, :class:`GetDPSolver`.
+                :class:`EMStepResult`.
+``solver.py``   :class:`GetDPSolver` (one EM step = one getdp run).
 ``metrics.py``  :func:`em_metrics` -> ``coil_current_peak_kA``, ``force_impulse_Ns``,
                 ``coil_joule_heat_J``, ``coil_temperature_rise_K``.
 
