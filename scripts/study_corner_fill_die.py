@@ -31,15 +31,7 @@ def die_polygon(depth=0.02, radius=0.003, entry_radius=0.005, x_end=0.145, thick
     a = math.radians((180.0 - angle_deg) / 2.0)  # wall inclination to the horizontal (25 deg)
     yf = -gap
     w = depth / math.tan(a)                      # half width of the groove at the flange level
-    yb = yf - depth - thickness
-    pts = [(0.0, yb), (x_end, yb), (x_end, yf)]
-    # entry fillet: flange tangent point -> wall tangent point, centre below the flange
-    tlen = entry_radius * math.tan(a / 2.0)
-    cx, cy = w + tlen, yf - entry_radius
-    n = _n(entry_radius, a, arc_step)
-    for i in range(n + 1):
-        phi = math.pi / 2 + a * i / n
-        pts.append((cx + entry_radius * math.cos(phi), cy + entry_radius * math.sin(phi)))
+    pts = _base_and_entry(a, w, yf, depth, thickness, x_end, entry_radius, arc_step)
     # apex arc tangent to both walls, centre on the symmetry line
     yc = yf - depth + radius / math.cos(a)
     n = _n(radius, a, arc_step)
@@ -64,10 +56,10 @@ def _n(radius, angle, step):
     return max(2, int(math.ceil(radius * angle / step)))
 
 
-def _trapezoid(depth, radius, entry_radius, x_end, thickness, gap, angle_deg, arc_step, xc):
-    a = math.radians(180.0 - angle_deg)  # wall inclination to the horizontal (50 deg for 130)
-    yf = -gap
-    w = xc + depth / math.tan(a)
+def _base_and_entry(a, w, yf, depth, thickness, x_end, entry_radius, arc_step):
+    """Base, outer side and flange corner of the die, then the entry fillet (flange tangent point ->
+    wall tangent point, centre below the flange) of a groove whose walls are inclined ``a`` to the
+    horizontal and reach the flange level at x = ``w``."""
     yb = yf - depth - thickness
     pts = [(0.0, yb), (x_end, yb), (x_end, yf)]
     tlen = entry_radius * math.tan(a / 2.0)
@@ -76,6 +68,14 @@ def _trapezoid(depth, radius, entry_radius, x_end, thickness, gap, angle_deg, ar
     for i in range(n + 1):
         phi = math.pi / 2 + a * i / n
         pts.append((cx + entry_radius * math.cos(phi), cy + entry_radius * math.sin(phi)))
+    return pts
+
+
+def _trapezoid(depth, radius, entry_radius, x_end, thickness, gap, angle_deg, arc_step, xc):
+    a = math.radians(180.0 - angle_deg)  # wall inclination to the horizontal (50 deg for 130)
+    yf = -gap
+    w = xc + depth / math.tan(a)
+    pts = _base_and_entry(a, w, yf, depth, thickness, x_end, entry_radius, arc_step)
     # bottom corner: centre above the bottom, tangent to bottom and wall
     tl = radius * math.tan(a / 2.0)
     ccx, ccy = xc - tl, yf - depth + radius
