@@ -152,6 +152,9 @@ class EM:
     circuit: CapacitorBank | None = spec(None, doc="capacitor-bank discharge (give this or current)")
     current: DampedSineCurrent | None = spec(None, doc="prescribed coil current (give this or circuit)")
     keep_runs: bool = spec(False, doc="keep every getdp run folder (default: the last two)")
+    time_theta: float = spec(1.0, unit="-", ge=0.5, le=1.0,
+                             doc="θ of GetDP's θ-scheme: 1 = implicit Euler (first order, damps the bank's "
+                                 "ringing by (ω dt)²/2 per step); 0.5 = Crank–Nicolson (second order, undamped)")
     remesh_quality: float = spec(0.3, unit="-", gt=0.0, lt=1.0,
                                  doc="remesh the air when the worst element quality 4√3A/Σl² falls below this "
                                      "fraction of the fresh mesh's worst")

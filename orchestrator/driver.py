@@ -260,7 +260,8 @@ def _coupled_participants(case: Case, results: ResultsFolder, comm: MPI.Comm):
                                       case.coupling.em_substeps)
     load = GetDPLoad(geometry, em_model(case, (g.air_radius, g.shell_radius)), results.root / "em", body, sub, body_to_em,
                      keep_runs=case.em.keep_runs, remesh_quality=case.em.remesh_quality,
-                     sizes=(g.mesh_size_coil, g.mesh_size_air), em_substeps=case.coupling.em_substeps)
+                     sizes=(g.mesh_size_coil, g.mesh_size_air), em_substeps=case.coupling.em_substeps,
+                     theta=case.em.time_theta)
     return solver, load
 
 

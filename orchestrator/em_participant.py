@@ -89,6 +89,8 @@ class GetDPLoad:
         below this fraction of the worst quality of the freshly made mesh.
     sizes : (float, float)
         Element sizes (m) near the coil and far in the air, for remeshing.
+    theta : float
+        θ of GetDP's θ time scheme (1: implicit Euler).
     em_substeps : int
         Implicit-Euler sub-steps inside each EM step (one getdp run, frozen geometry); the force
         handed to the mechanics is their mean, so the EM step's impulse is kept.
@@ -96,11 +98,12 @@ class GetDPLoad:
 
     def __init__(self, geometry: EMGeometry, model: EMModel, work_dir: Path, body: str, sub: ConductorMesh,
                  body_to_em: np.ndarray, keep_runs: bool = False, remesh_quality: float = 0.3,
-                 sizes: tuple[float, float] = (1e-3, 0.02), em_substeps: int = 1) -> None:
+                 sizes: tuple[float, float] = (1e-3, 0.02), em_substeps: int = 1,
+                 theta: float = 1.0) -> None:
         self.geometry, self.body, self.sub, self.body_to_em = geometry, body, sub, body_to_em
         self.keep_runs, self.remesh_quality, self.sizes = keep_runs, remesh_quality, sizes
         self.em_substeps = em_substeps
-        self.solver = GetDPSolver(model, work_dir)
+        self.solver = GetDPSolver(model, work_dir, extra_numbers={"TimeTheta": theta})
         self.state = self.solver.initial_state(0.0)
         self.body_X0 = geometry.mesh.points[body_to_em].copy()  # the workpiece's material coordinates
         self.material = geometry.mesh.points.copy()  # material coordinates of every EM node
