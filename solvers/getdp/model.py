@@ -128,6 +128,11 @@ class EMState:
     computed on (restart path).  ``a_*``: the nodal unknown (r a_phi in axisymmetry,
     a_z in planar) on the conductor and coil nodes, at material coordinates
     ``a_points`` on triangles ``a_triangles`` (general path through an Init constraint).
+    BDF2 history (``time_scheme="bdf2"``, see :mod:`.bdf2`): ``dt_prev`` (s) the last step,
+    ``a_prev_values`` the nodal unknown at its start (on ``a_points``), the circuit state then
+    (``capacitor_voltage_prev`` V, ``current_prev`` A), and the values at ``t`` that open the
+    next step's trapezoid means: ``coil_power`` (W per coil), ``force_density`` (N/m^3 per
+    conductor element) at element centroids ``force_points`` (material coordinates).
     """
 
     t: float = 0.0
@@ -141,6 +146,14 @@ class EMState:
     a_triangles: list | None = None
     a_values: list | None = None
     pre_path: str | None = None
+    # BDF2 history (time_scheme="bdf2"): the step before, on the same nodes / in the same frame
+    dt_prev: float | None = None
+    a_prev_values: list | None = None
+    capacitor_voltage_prev: float = 0.0
+    current_prev: float = 0.0
+    coil_power: list | None = None
+    force_density: list | None = None
+    force_points: list | None = None
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -178,7 +191,8 @@ class EMStepResult:
     ``flux_density`` (n, n_el, 2) B at the centroid.  With ``element_output="last"`` these
     element arrays have one row (the last sub-step), with ``"none"`` no elements.  Per coil: current, voltage drop
     (receptor convention), Joule power, force.  Per conductor: force, Joule power.
-    ``probe_b`` (n, n_probes, 2): B at the model's probe points.
+    ``probe_b`` (n, n_probes, 2): B at the model's probe points.  ``force_density_start``
+    (n_el, 2): with BDF2, the force density at the step's start (zero at a start from rest).
     Totals are physical (2 pi included in axisymmetry; per metre in planar).
     """
 
@@ -204,12 +218,22 @@ class EMStepResult:
     probe_b: np.ndarray
     run: RunInfo | None = None
     path: str = ""
+    force_density_start: np.ndarray | None = None
 
     @property
     def force_density_mean(self) -> np.ndarray:
-        """Impulse-consistent force density over the step: mean of the implicit sub-steps."""
+        """Impulse-consistent force density over the step (N/m^3, per element).
+
+        Implicit Euler: the mean of the sub-step values (its values are first-order, the
+        rectangle rule matches).  BDF2 (``force_density_start`` = f at the step's start on
+        the same elements): the trapezoid mean, second order like the scheme.
+        """
         if self.force_density.shape[0] != len(self.times):
             raise ValueError("force_density_mean needs element_output='all'")
+        if self.force_density_start is not None:
+            from .bdf2 import trapezoid_mean
+
+            return trapezoid_mean(self.force_density_start, self.force_density)
         return self.force_density.mean(axis=0)
 
     @property

@@ -10,6 +10,7 @@ from typing import Sequence
 
 import numpy as np
 
+from .bdf2 import bdf2_coefficients, match_rows, trapezoid_mean
 from .mesh import EMMesh, coil_tag, conductor_tag, write_msh22
 from .model import (Circuit, Coil, Conductor, CurrentTable, DampedSine, EMModel, EMState, EMStepResult,  # noqa: F401
                     mesh_signature)
@@ -21,6 +22,9 @@ DECK_DIR = Path(__file__).resolve().parent / "decks"
 DEFAULT_PETSC_ARGS = ("-ksp_type", "preonly", "-pc_type", "lu", "-pc_factor_mat_solver_type", "umfpack")
 CASE_DECK = DECK_DIR / "em_case.pro"
 RESOLUTION = "EM_Transient"
+#: time schemes of :class:`GetDPSolver`: GetDP's theta-scheme loop (theta from the ``TimeTheta``
+#: number, 1 = implicit Euler), or BDF2 as one shifted implicit-Euler step per run (:mod:`.bdf2`)
+TIME_SCHEMES = ("euler", "bdf2")
 
 
 def _discard(path: Path) -> None:
@@ -86,15 +90,23 @@ class GetDPSolver:
     run ``getdp -cal``, skipping pre-processing (same results, checked in the tests).
     ``extra_numbers`` are passed with ``-setnumber`` on top of the model's (a user deck's own
     parameters and physical ids); ``preamble`` lines go into ``run.pro`` before the deck is
-    included (e.g. a string constant naming the library file).
+    included (e.g. a string constant naming the library file).  ``time_scheme``: ``"euler"``
+    (GetDP's theta loop, implicit Euler unless ``extra_numbers`` sets ``TimeTheta``) or
+    ``"bdf2"`` (second order, one sub-step per run, always the Init path; see :mod:`.bdf2`).
     """
 
     def __init__(self, model: EMModel, work_dir: str | Path, *, executable: str = "getdp",
                  petsc_args: Sequence[str] = DEFAULT_PETSC_ARGS, timeout: float | None = None,
                  deck: str | Path = CASE_DECK, keep_runs: int | None = None, reuse_pre: bool = True,
-                 extra_numbers: dict[str, float] | None = None, preamble: Sequence[str] = ()):
+                 extra_numbers: dict[str, float] | None = None, preamble: Sequence[str] = (),
+                 time_scheme: str = "euler"):
         self.model = model
         self.extra_numbers = {k: float(v) for k, v in (extra_numbers or {}).items()}
+        if time_scheme not in TIME_SCHEMES:
+            raise ValueError(f"time_scheme must be one of {TIME_SCHEMES}, got {time_scheme!r}")
+        if time_scheme == "bdf2" and self.extra_numbers.get("TimeTheta", 1.0) != 1.0:
+            raise ValueError("time_scheme='bdf2' runs implicit-Euler steps: TimeTheta must be 1")
+        self.time_scheme = time_scheme
         self.preamble = list(preamble)
         self.work_dir = Path(work_dir).resolve()
         self.work_dir.mkdir(parents=True, exist_ok=True)
@@ -118,7 +130,7 @@ class GetDPSolver:
     def step(self, mesh: EMMesh, state: EMState, t_end: float, n_sub: int = 1, *,
              material_points: np.ndarray | None = None, run_name: str | None = None,
              force_init_path: bool = False, element_output: str = "all") -> tuple[EMStepResult, EMState]:
-        """Advance from ``state.t`` to ``t_end`` with ``n_sub`` implicit Euler sub-steps.
+        """Advance from ``state.t`` to ``t_end`` with ``n_sub`` implicit Euler sub-steps (BDF2: one step).
 
         ``mesh`` holds the current node positions.  If its connectivity equals that of
         the previous step (and, when ``material_points`` is given, the coil/conductor nodes
@@ -141,6 +153,10 @@ class GetDPSolver:
             raise ValueError(f"t_end={t_end} must be after state.t={state.t}")
         if int(n_sub) != n_sub or n_sub < 1:
             raise ValueError("n_sub must be a positive integer")
+        bdf2 = self.time_scheme == "bdf2"
+        if bdf2 and n_sub != 1:
+            raise ValueError("time_scheme='bdf2' takes one step per getdp run: n_sub (em_substeps) must be 1")
+        t_init = state.t
         model = self.model
         run_dir = self.work_dir / (run_name or f"step_{state.step_index:05d}")
         if state.res_path is not None and Path(state.res_path).resolve().parent == run_dir.resolve():
@@ -154,18 +170,18 @@ class GetDPSolver:
         sig = mesh_signature(mesh)
         numbers = self._numbers(mesh)
         numbers.update(self.extra_numbers)
-        numbers.update(TimeInit=state.t, TimeFinal=float(t_end), NbSteps=int(n_sub),
-                       Flag_ElemOut={"all": 1, "last": 2, "none": 0}[element_output])
+        numbers.update(Flag_ElemOut={"all": 1, "last": 2, "none": 0}[element_output])
         data_lines = self.preamble + self._table_lines()
         extra: list[str] = []
         has_field = state.res_path is not None
         pts = mesh.points if material_points is None else np.asarray(material_points, float)
         if pts.shape != mesh.points.shape:
             raise ValueError(f"material_points shape {pts.shape} != mesh points {mesh.points.shape}")
-        restart = (has_field and not force_init_path and state.mesh_signature == sig
+        restart = (has_field and not force_init_path and not bdf2 and state.mesh_signature == sig
                    and Path(state.res_path).exists()
                    and (material_points is None or self._nodes_are_material(mesh, pts, state)))
         reuse_pre = False
+        init_vc, init_i, a_prev = state.capacitor_voltage, state.current, None
         if restart:
             extra += ["-restart", "-res", str(Path(state.res_path).resolve())]
             if self.reuse_pre and state.pre_path and Path(state.pre_path).exists():
@@ -174,14 +190,27 @@ class GetDPSolver:
         elif has_field:
             if state.a_values is None:
                 raise ValueError("state has a field but no nodal values to carry to a new mesh")
-            ids, vals = self._interpolate_a(mesh, pts, state)
+            if numbers.get("TimeTheta", 1.0) != 1.0:
+                raise ValueError("TimeTheta < 1 needs the whole previous solution (air field, every circuit "
+                                 "unknown); the Init path carries only coil/conductor nodes: use BDF2")
+            ids, vals = self._interpolate_a(mesh, pts, state, state.a_values)
+            a_prev = vals
+            if bdf2:  # one implicit-Euler step of gamma*dt from x_tilde ends at t_end (see .bdf2)
+                hist = state.a_prev_values is not None and state.dt_prev
+                gamma, c1, c2 = bdf2_coefficients(float(t_end) - state.t, state.dt_prev if hist else None)
+                t_init = float(t_end) - gamma * (float(t_end) - state.t)
+                if hist:
+                    vals = c1 * vals - c2 * self._interpolate_a(mesh, pts, state, state.a_prev_values)[1]
+                    init_vc = c1 * state.capacitor_voltage - c2 * state.capacitor_voltage_prev
+                    init_i = c1 * state.current - c2 * state.current_prev
             numbers["Flag_InitA"] = 1
             pairs = [f"{i:d}, {v:.17g}" for i, v in zip(ids, vals)]
             body = ",\n  ".join(", ".join(pairs[j:j + 8]) for j in range(0, len(pairs), 8))
             data_lines.append(f"InitA_List() = {{{len(ids)},\n  {body}}};")
+        numbers.update(TimeInit=t_init, TimeFinal=float(t_end), NbSteps=int(n_sub))
         if model.circuit is not None:
-            numbers["Init_Vc"] = state.capacitor_voltage
-            numbers["Init_I"] = state.current
+            numbers["Init_Vc"] = init_vc
+            numbers["Init_I"] = init_i
         wrapper = run_dir / "run.pro"
         wrapper.write_text("// generated by pulseform.solvers.getdp for one run\n" + "\n".join(data_lines)
                            + f'\nInclude "{self.deck}";\n')
@@ -190,10 +219,15 @@ class GetDPSolver:
                          executable=self.executable, timeout=self.timeout, reuse_pre=reuse_pre)
         for w in info.warnings:
             warnings.warn(f"getdp ({run_dir.name}): {w}", RuntimeWarning, stacklevel=2)
-        result = self._read(mesh, out_dir, state, float(t_end), int(n_sub), n_elem_rows)
+        power_start = None
+        if bdf2:
+            power_start = np.asarray(state.coil_power if state.coil_power is not None else [0.0] * len(model.coils))
+        result = self._read(mesh, out_dir, state, float(t_end), int(n_sub), n_elem_rows, power_start)
         result.run = info
         result.path = str(run_dir)
         new_state = self._next_state(mesh, material_points, out_dir, run_dir, state, result, sig, float(t_end))
+        if bdf2:
+            self._bdf2_history(mesh, pts, state, result, new_state, a_prev)
         # the .pre of a run without the Init list is reusable by later restarts on this connectivity
         new_state.pre_path = str(run_dir / "em.pre") if "Flag_InitA" not in numbers else None
         if self.keep_runs is not None:  # bound the disk use of long runs; never the newest runs
@@ -205,6 +239,29 @@ class GetDPSolver:
         return result, new_state
 
     # -- helpers
+    def _bdf2_history(self, mesh: EMMesh, pts: np.ndarray, state: EMState, result: EMStepResult,
+                      new_state: EMState, a_prev: np.ndarray | None) -> None:
+        """Fill the BDF2 history of ``new_state`` and the start value of ``result``'s force mean."""
+        new_state.dt_prev = float(result.times[-1] - state.t)
+        new_state.a_prev_values = (np.zeros(len(new_state.a_values)) if a_prev is None else a_prev).tolist()
+        new_state.capacitor_voltage_prev, new_state.current_prev = state.capacitor_voltage, state.current
+        new_state.coil_power = result.coil_power[-1].tolist()
+        if len(result.elements) == 0:
+            return
+        centroids = pts[mesh.triangles[result.elements]].mean(axis=1)
+        new_state.force_density = result.force_density[-1].tolist()
+        new_state.force_points = centroids.tolist()
+        if state.res_path is None:   # from rest: no current, no force at the start
+            result.force_density_start = np.zeros_like(result.force_density[-1])
+        elif state.force_density is not None:
+            scale = max(float(np.abs(centroids).max()), 1e-30)
+            idx = match_rows(centroids, np.asarray(state.force_points, float), 1e-9 * scale)
+            if idx is not None:
+                result.force_density_start = np.asarray(state.force_density, float)[idx]
+        if result.force_density_start is None:
+            warnings.warn("BDF2: no force density at the step's start on these elements; "
+                          "force_density_mean falls back to the end value", RuntimeWarning, stacklevel=3)
+
     def _numbers(self, mesh: EMMesh) -> dict[str, float]:
         m = self.model
         if m.axisymmetric and not np.any(mesh.line_tags == 11):
@@ -270,14 +327,16 @@ class GetDPSolver:
         scale = max(float(np.abs(old).max()), 1e-30)
         return bool(np.abs(material_points[nodes] - old).max() <= 1e-12 * scale)
 
-    def _interpolate_a(self, mesh: EMMesh, material_points: np.ndarray, state: EMState):
-        """Previous nodal unknown at the new coil/conductor nodes, in material coordinates."""
+    def _interpolate_a(self, mesh: EMMesh, material_points: np.ndarray, state: EMState, values):
+        """Nodal ``values`` (on ``state.a_points``) at the new coil/conductor nodes, in material coordinates."""
         import matplotlib.tri as mtri
 
         old_p = np.asarray(state.a_points, float)
         old_t = np.asarray(state.a_triangles, np.int64)
-        old_v = np.asarray(state.a_values, float)
+        old_v = np.asarray(values, float)
         _, nodes = self._cs_nodes(mesh)
+        if self._nodes_are_material(mesh, material_points, state):   # same material nodes: no interpolation
+            return nodes + 1, old_v.copy()
         q = material_points[nodes]
         tri = mtri.Triangulation(old_p[:, 0], old_p[:, 1], old_t)
         vals = np.asarray(mtri.LinearTriInterpolator(tri, old_v)(q[:, 0], q[:, 1]).filled(np.nan))
@@ -288,7 +347,7 @@ class GetDPSolver:
         return nodes + 1, vals
 
     def _read(self, mesh: EMMesh, out: Path, state: EMState, t_end: float, n: int,
-              n_rows: int) -> EMStepResult:
+              n_rows: int, power_start: np.ndarray | None = None) -> EMStepResult:
         m = self.model
         nc, nk = len(m.coils), len(m.conductors)
         dt = (t_end - state.t) / n
@@ -339,7 +398,9 @@ class GetDPSolver:
         if m.circuit is not None:
             vc = _table(out / "cir_U.txt")[:, 1]
             ic = _table(out / "cir_I.txt")[:, 1]
-        heat = np.asarray(state.coil_heat or [0.0] * nc, float) + cp.sum(axis=0) * dt
+        # Joule heat over the step: rectangle rule (implicit Euler) or trapezoid (BDF2, from power_start)
+        q = cp.sum(axis=0) * dt if power_start is None else trapezoid_mean(power_start, cp) * n * dt
+        heat = np.asarray(state.coil_heat or [0.0] * nc, float) + q
         mass_cp = np.array([c.density * c.heat_capacity
                             * _element_volumes(mesh, np.flatnonzero(mesh.tri_tags == coil_tag(k)), m.axisymmetric).sum()
                             for k, c in enumerate(m.coils, start=1)])
