@@ -6,13 +6,23 @@ whose slave is the blank). Definitions (documented in docs/cases.md):
 * cavity profile: the die's exterior segments (initial configuration) whose outward normal points
   upwards (n_y > 0.1) and that lie below the flange top (y < y_max - 1e-6): the groove walls, the
   rounded apex and the lower part of the entry fillet;
-* touched: a cavity-profile segment whose midpoint is within ``FILL_GAP_FACTOR`` x h0 of the
-  blank's boundary (current configuration, point-to-segment distance);
+* touched: a point of the cavity profile within ``FILL_GAP_FACTOR`` x h0 of the blank's boundary
+  (current configuration, point-to-segment distance). The profile is sampled every
+  ``FILL_SAMPLE_SPACING`` of arc length (material points of the die's profile segments, moving with
+  the die), so the measure does not depend on the die's mesh;
   ``contact_fraction``: length fraction of the profile touched *now* (it flickers while the formed
   blank rings elastically on the die); ``fill_fraction``: length fraction touched at some recorded
   time so far (how far the blank has been formed into the die, insensitive to the ringing);
-  ``unfilled_length_mm``: the profile length never touched. ``--resume`` restarts the "so far"
-  record at the resume time (the history before it is not re-read).
+  ``unfilled_length_mm``: the profile length never touched. The "so far" record is restart state
+  (kept in ``solver.analysis_state``, which the checkpoint saves: ``--resume`` continues it).
+  ``fill_fraction_segments``: the former measure (a die segment counts as touched when its
+  midpoint is), kept for comparison: it depends on the die's mesh (4 mm die segments count a
+  whole 4 mm as touched when their midpoint is).
+* corner: the middle of the rounded corner between the flat bottom and the wall (the profile
+  points inclined between 1 and 49 degrees within 5 mm of the bottom); ``corner_gap_m`` is the
+  distance from it to the blank (``corner_gap_min_mm``: its minimum over time: the corner counts as
+  reached when it is <= 2 h0), ``blank_corner_kinetic_J`` the kinetic energy of the blank's nodes
+  within ``CORNER_RADIUS`` of it (the momentum that wraps the blank into the corner).
 * die stress: von Mises = sqrt(3 J2) per die cell, maximum over the die; the paper plots J2(sigma)
   (its figures' unit is MPa, so we report sqrt(J2) = von Mises / sqrt(3) beside it).
 * blank speed: largest nodal speed of the blank (``blank_speed_max_m_s``; it spikes for a few
@@ -29,6 +39,25 @@ from __future__ import annotations
 import numpy as np
 
 FILL_GAP_FACTOR = 2.0  # a profile point counts as touched when the blank is within 2 h0 of it
+FILL_SAMPLE_SPACING = 1.0e-4  # m: arc-length spacing of the profile samples (h0 of the case)
+CORNER_RADIUS = 1.0e-2  # m: blank nodes this close to the corner count for its kinetic energy
+STATE_KEY = "corner_fill/ever"  # restart state in solver.analysis_state (samples)
+STATE_KEY_SEGMENTS = "corner_fill/ever_segments"  # (profile segments, the former measure)
+
+
+def _saved_mask(solver, key: str, n: int) -> np.ndarray:
+    """The boolean record ``key`` of ``solver.analysis_state`` (restored from a checkpoint), or all False."""
+    saved = getattr(solver, "analysis_state", {}).get(key)
+    return np.asarray(saved, dtype=bool).copy() if saved is not None and len(saved) == n else np.zeros(n, dtype=bool)
+
+
+def _segment_distances(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Distance (m) of each point p (P, 2) to each of its own K segments a-b (P, K, 2): (P, K)."""
+    t = b - a
+    L2 = np.maximum((t ** 2).sum(axis=2), 1e-300)
+    xi = np.clip(((p[:, None, :] - a) * t).sum(axis=2) / L2, 0.0, 1.0)
+    q = a + xi[..., None] * t
+    return np.sqrt(((p[:, None, :] - q) ** 2).sum(axis=2))
 
 
 def _point_segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -49,7 +78,7 @@ class CornerFill:
         self.pair = next(i for i, c in enumerate(case.contact) if c.slave == "blank" and c.master == "die")
         self.h0 = case.contact[self.pair].h0
         self._profile = None
-        self._ever = None  # per profile segment: touched at some recorded time so far
+        self._ever = None  # per profile sample: touched at some recorded time so far (restart state)
 
     # ------------------------------------------------------------------ geometry
     def _setup(self, solver) -> None:
@@ -68,33 +97,106 @@ class CornerFill:
         self._profile_len0 = ln[keep]
         mids = 0.5 * (pa + pb)[keep]
         self.profile_x0 = mids[:, 0]
+        # samples: FILL_SAMPLE_SPACING apart along each profile segment, weight = their arc length
+        n = np.maximum(1, np.ceil(self._profile_len0 / FILL_SAMPLE_SPACING).astype(int))
+        self._sample_seg = np.repeat(np.arange(len(n)), n)
+        self._sample_xi = np.concatenate([(np.arange(k) + 0.5) / k for k in n])
+        self._sample_w = (self._profile_len0 / n)[self._sample_seg]
+        self._corner = self._find_corner(X)
         blank = solver.bodies["blank"]
         self._blank_segs = blank.segments
+        self._blank_seg_len_max = float(np.linalg.norm(blank.X0[self._blank_segs[:, 1]]
+                                                       - blank.X0[self._blank_segs[:, 0]], axis=1).max())
+
+    def _sample_points(self, x: np.ndarray) -> np.ndarray:
+        """Profile samples (S, 2), m, for die node positions x."""
+        a, b = x[self._profile[self._sample_seg, 0]], x[self._profile[self._sample_seg, 1]]
+        return a + self._sample_xi[:, None] * (b - a)
+
+    def _find_corner(self, X0: np.ndarray) -> int | None:
+        """Index of the sample in the middle of the rounded corner between the flat bottom and the
+        wall (inclination 1-49 degrees, within 5 mm of the bottom); None if the profile has none."""
+        p = self._sample_points(X0)
+        t = X0[self._profile[:, 1]] - X0[self._profile[:, 0]]
+        ang = np.degrees(np.arctan2(np.abs(t[:, 1]), np.abs(t[:, 0])))[self._sample_seg]
+        arc = np.flatnonzero((ang > 1.0) & (ang < 49.0) & (p[:, 1] < p[:, 1].min() + 5e-3))
+        return int(arc[len(arc) // 2]) if len(arc) else None
+
+    def _blank_distance(self, p: np.ndarray, blank) -> np.ndarray:
+        """Distance (m) from points p (P, 2) to the blank's boundary, exact where it is below
+        FILL_GAP_FACTOR h0 (segments are searched among the nearest midpoints), else >= that bound."""
+        from scipy.spatial import cKDTree
+
+        bs = self._blank_segs
+        a, b = blank.x[bs[:, 0]], blank.x[bs[:, 1]]
+        bound = FILL_GAP_FACTOR * self.h0 + 0.5 * self._blank_seg_len_max * 1.5  # stretch allowance
+        k = min(8, len(bs))
+        dist, idx = cKDTree(0.5 * (a + b)).query(p, k=k, distance_upper_bound=bound)
+        idx = np.atleast_2d(idx.reshape(len(p), -1))
+        found = idx < len(bs)
+        out = np.full(len(p), np.inf)
+        rows = np.flatnonzero(found.any(axis=1))
+        if len(rows):
+            j = np.where(found[rows], idx[rows], 0)
+            d = _segment_distances(p[rows], a[j], b[j])
+            out[rows] = np.where(found[rows], d, np.inf).min(axis=1)
+        return out
 
     def touched(self, solver) -> np.ndarray:
-        """Per cavity-profile segment: is the blank within FILL_GAP_FACTOR h0 of its midpoint."""
+        """Per profile sample: is the blank within FILL_GAP_FACTOR h0 of it."""
         if self._profile is None:
             self._setup(solver)
+        p = self._sample_points(solver.bodies["die"].x)
+        return self._blank_distance(p, solver.bodies["blank"]) <= FILL_GAP_FACTOR * self.h0
+
+    def _touched_segments(self, solver) -> np.ndarray:
+        """The former measure: per profile segment, is the blank within FILL_GAP_FACTOR h0 of its midpoint."""
         die, blank = solver.bodies["die"], solver.bodies["blank"]
         mid = 0.5 * (die.x[self._profile[:, 0]] + die.x[self._profile[:, 1]])
         bs = self._blank_segs
         dist = _point_segment_distance(mid, blank.x[bs[:, 0]], blank.x[bs[:, 1]])
         return dist <= FILL_GAP_FACTOR * self.h0
 
+    def _corner_state(self, solver) -> tuple[float, float]:
+        """(gap m from the corner point to the blank, kinetic energy J of the blank near it)."""
+        if self._corner is None:
+            return float("nan"), float("nan")
+        die, blank = solver.bodies["die"], solver.bodies["blank"]
+        c = self._sample_points(die.x)[self._corner][None]
+        bs = self._blank_segs
+        gap = float(_point_segment_distance(c, blank.x[bs[:, 0]], blank.x[bs[:, 1]])[0])
+        no = blank.n_owned
+        near = np.linalg.norm(blank.x[:no] - c, axis=1) < CORNER_RADIUS
+        ke = 0.5 * float((blank.mass[:no][near] * (blank.v[:no][near] ** 2).sum(axis=1)).sum())
+        return gap, ke
+
     # ------------------------------------------------------------------ hooks
     def record(self, solver) -> dict[str, float]:
         touched = self.touched(solver)
-        self._ever = touched if self._ever is None else (self._ever | touched)
+        if self._ever is None:  # a fresh run, or the first record after --resume (checkpointed state)
+            self._ever = _saved_mask(solver, STATE_KEY, len(touched))
+            self._ever_segments = _saved_mask(solver, STATE_KEY_SEGMENTS, len(self._profile))
+        self._ever = self._ever | touched
+        self._ever_segments = self._ever_segments | self._touched_segments(solver)
+        if not hasattr(solver, "analysis_state"):
+            solver.analysis_state = {}
+        solver.analysis_state[STATE_KEY] = self._ever
+        solver.analysis_state[STATE_KEY_SEGMENTS] = self._ever_segments
         die, blank = solver.bodies["die"], solver.bodies["blank"]
         vm = float(die.von_mises.max()) if len(die.cells) else 0.0
         _, _, p, _ = solver.contact_pressure(self.pair)
         speed = float(np.sqrt((blank.v[: blank.n_owned] ** 2).sum(axis=1)).max())
         ke = solver.energies()
         ratio = ke["kinetic_J"] / max(ke["elastic_J"] + ke["plastic_J"], 1e-300)
+        w = self._sample_w
+        gap, corner_ke = self._corner_state(solver)
         return {
-            "fill_fraction": float(self._profile_len0[self._ever].sum() / self._profile_len0.sum()),
-            "contact_fraction": float(self._profile_len0[touched].sum() / self._profile_len0.sum()),
-            "unfilled_length_m": float(self._profile_len0[~self._ever].sum()),
+            "fill_fraction": float(w[self._ever].sum() / w.sum()),
+            "contact_fraction": float(w[touched].sum() / w.sum()),
+            "unfilled_length_m": float(w[~self._ever].sum()),
+            "fill_fraction_segments": float(self._profile_len0[self._ever_segments].sum() / self._profile_len0.sum()),
+            "corner_gap_m": gap,
+            "blank_corner_kinetic_J": corner_ke,
             "die_von_mises_max_Pa": vm,
             "die_sqrt_J2_max_Pa": vm / np.sqrt(3.0),
             "blank_speed_max_m_s": speed,
@@ -123,6 +225,9 @@ class CornerFill:
         cp = history.column("die_contact_pressure_max_Pa")
         out = {
             "fill_fraction": float(ff[-1]),
+            "fill_fraction_segments": float(history.column("fill_fraction_segments")[-1]),
+            "corner_gap_min_mm": float(np.nanmin(history.column("corner_gap_m"))) * 1e3,
+            "blank_corner_kinetic_max_J": float(np.nanmax(history.column("blank_corner_kinetic_J"))),
             "contact_fraction_final": float(cf[-1]),
             "unfilled_length_mm": float(history.column("unfilled_length_m")[-1]) * 1e3,
             "apex_gap_final_mm": float(history.column("blank_apex_gap_m")[-1]) * 1e3,
@@ -191,6 +296,8 @@ class CornerFill:
             out[f"pulse{k}_blank_speed_max_m_s"] = float(history.column("blank_speed_max_m_s")[m].max())
             out[f"pulse{k}_blank_rms_speed_max_m_s"] = float(history.column("blank_rms_speed_m_s")[m].max())
             out[f"pulse{k}_fill_fraction_end"] = float(history.column("fill_fraction")[m][-1])
+            out[f"pulse{k}_corner_gap_min_mm"] = float(np.nanmin(history.column("corner_gap_m")[m])) * 1e3
+            out[f"pulse{k}_corner_kinetic_max_J"] = float(np.nanmax(history.column("blank_corner_kinetic_J")[m]))
             out[f"pulse{k}_contact_fraction_end"] = float(history.column("contact_fraction")[m][-1])
             out[f"pulse{k}_start_time_s"] = a
         return out

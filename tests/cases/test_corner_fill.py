@@ -100,3 +100,41 @@ def test_p0_sweep_fill_grows_with_pressure(tmp_path):
     assert all(b >= a - 1e-9 for a, b in zip(fill, fill[1:])), fill
     assert all(b > a for a, b in zip(speed, speed[1:])), speed
     assert [f >= FILLED for f in fill] == [False] * 5 + [True] * 2, fill
+
+
+def test_touched_so_far_survives_kill_and_resume(tmp_path):
+    """The fill fraction is a "touched at some time so far" record: a run killed after its first
+    checkpoint and resumed must report the same fill metrics as the uninterrupted run (the record
+    travels in the checkpoint, orchestrator/mech_participants.py). Very coarse meshes (blank 1 mm,
+    die 4 mm) and 160 us; the checkpoint at 120 us is taken after the blank has struck the bottom
+    and rebounded, so that what was touched before it is not all touched again afterwards (checked
+    on the uninterrupted run: fill so far > contact now there)."""
+    import json
+    import signal
+    import subprocess
+    import time
+
+    from .helpers import EXE
+
+    args = [EXE, "run", str(REPO / "cases/corner_fill"), "--quiet", "--set", "bodies.die.mesh_size=4e-3",
+            "--set", "bodies.blank.mesh_size=1e-3", "--set", "time.end=1.6e-4", "--set", "output.field_interval=1.2e-4",
+            "--set", "output.plots=false"]
+    ref, out = tmp_path / "ref", tmp_path / "killed"
+    subprocess.run([*args, "--out", str(ref)], check=True, capture_output=True)
+    h = np.genfromtxt(ref / "history.csv", delimiter=",", names=True)
+    at = np.argmin(np.abs(h["time_s"] - 1.2e-4))
+    assert h["fill_fraction"][at] > h["contact_fraction"][at] + 0.05, (h["fill_fraction"][at], h["contact_fraction"][at])
+    proc = subprocess.Popen([*args, "--out", str(out)], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.time() + 300
+    while not (out / "checkpoint.npz").exists() and proc.poll() is None and time.time() < deadline:
+        time.sleep(0.005)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    if (out / "metrics.json").exists():
+        pytest.skip("the run finished before it could be killed")
+    r = subprocess.run([*args, "--out", str(out), "--resume"], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr[-2000:]
+    got, want = (json.loads((d / "metrics.json").read_text()) for d in (out, ref))
+    for k in ("fill_fraction", "unfilled_length_mm", "fill_fraction_segments", "corner_gap_min_mm"):
+        assert got[k] == pytest.approx(want[k], rel=1e-12, abs=1e-15), k
+    assert "resumed at" in (out / "run.log").read_text()
