@@ -11,13 +11,14 @@ import math
 from dataclasses import dataclass
 from typing import Literal
 
-from .case_em import EM, CapacitorBank, DampedSineCurrent, FlatCoilSheet, Geometry, SolenoidTube
+from .case_em import (EM, CapacitorBank, DampedSineCurrent, FlatCoilSheet, Geometry, OuterTube, PlanarCoilBlankDie,
+                      SheetDie, SolenoidTube)
 from .schema import SchemaError, spec
 
 __all__ = ["Box", "Rectangle", "Polygon", "Shape", "CowperSymonds", "JohnsonCook", "Material", "FixedBoundary",
            "Body", "ContactPair", "RigidWall", "PulseSin2", "PulseExp", "Load", "CaseInfo", "TimeControl",
            "Mechanics", "Coupling", "Probe", "Output", "Case", "EM", "CapacitorBank", "DampedSineCurrent",
-           "FlatCoilSheet", "Geometry", "SolenoidTube"]
+           "FlatCoilSheet", "Geometry", "SolenoidTube", "SheetDie", "OuterTube", "PlanarCoilBlankDie"]
 
 Vec2 = tuple[float, float]
 
@@ -120,8 +121,8 @@ class Body:
     name: str = spec(doc="unique body name")
     material: str = spec(doc="key of a [materials.<name>] table")
     shape: Shape | None = spec(None, doc="own geometry (rectangle or polygon); or give region")
-    region: Literal["workpiece"] | None = spec(
-        None, doc="the [geometry] region this body is (its EM and mechanical meshes share nodes)")
+    region: Literal["workpiece", "die", "outer_tube"] | None = spec(
+        None, doc="the [geometry] conductor region this body is (its EM and mechanical meshes share nodes)")
     mesh_size: float | None = spec(None, unit="m", gt=0.0, doc="target element size (with shape)")
     initial_velocity: Vec2 = spec((0.0, 0.0), unit="m/s", doc="uniform initial velocity")
     fixed: tuple[FixedBoundary, ...] = spec((), doc="clamped boundary parts")
@@ -378,14 +379,29 @@ class Case:
                     raise SchemaError(key, f"missing required table [{key}] for case.kind = 'coupled'")
             if "workpiece" not in regions:
                 raise SchemaError("bodies", "a coupled case needs a body with region = 'workpiece'")
+            roles = self.geometry.conductor_roles()
+            for i, b in enumerate(self.bodies):
+                if b.region is not None and b.region not in roles:
+                    raise SchemaError(f"bodies[{i}].region", f"got {b.region!r}; the {self.geometry.type} geometry "
+                                      f"has the conductor regions {_choices(roles)}")
+            for role in roles:
+                if role not in regions:
+                    raise SchemaError("bodies", f"the geometry's conductor region {role!r} needs a body with "
+                                      f"region = {role!r} (its material gives the conductivity)")
             if self.coupling.load == "pressure" and not self.loads:
                 raise SchemaError("loads", "coupling.load = 'pressure' needs at least one [[loads]] pulse")
             if self.coupling.load == "getdp" and self.loads:
                 raise SchemaError("loads", "pressure [[loads]] are used only with coupling.load = 'pressure'; "
                                   "remove them or set coupling.load = 'pressure'")
-            if self.mechanics.formulation != "axisymmetric":
+            if self.geometry.planar and self.mechanics.formulation == "axisymmetric":
+                raise SchemaError("mechanics.formulation", f"got 'axisymmetric'; the {self.geometry.type} "
+                                  "geometry is planar: use 'plane_strain' or 'plane_stress'")
+            if not self.geometry.planar and self.mechanics.formulation != "axisymmetric":
                 raise SchemaError("mechanics.formulation", f"got {self.mechanics.formulation!r}; the "
                                   f"{self.geometry.type} geometry is axisymmetric: use 'axisymmetric'")
+            if self.geometry.planar and self.em.circuit is not None:
+                raise SchemaError("em.circuit", "planar geometries are per metre of depth: give a prescribed "
+                                  "em.current (a capacitor bank would need the coil's length)")
         elif regions:
             i = next(i for i, b in enumerate(self.bodies) if b.region is not None)
             raise SchemaError(f"bodies[{i}].region", "regions exist only in coupled cases; give a shape")

@@ -16,6 +16,55 @@ def _check_open_boundary(path: str, extent: float, air: float, shell: float, wha
         raise SchemaError(f"{path}.shell_radius", f"got {shell:g}; must be > air_radius = {air:g} (m)")
 
 
+def _polygon_area(points) -> float:
+    """Signed area (m²) of a polygon; > 0 when counter-clockwise."""
+    return 0.5 * sum(x0 * y1 - x1 * y0 for (x0, y0), (x1, y1) in zip(points, list(points[1:]) + list(points[:1])))
+
+
+@dataclass(frozen=True, kw_only=True)
+class SheetDie:
+    """A conducting die above the sheet: a block with a cylindrical cavity on the axis.
+
+    The die's lower face lies ``gap`` above the sheet's upper face; the block spans
+    0 <= r <= ``outer_radius`` and ``height`` upwards, the cavity 0 <= r <= ``cavity_radius``
+    and ``cavity_depth`` into it; the cavity edge is rounded with ``entry_radius``.
+    The die is EM region ``die`` (massive conductor 2) and may be a mechanical body.
+    """
+
+    cavity_radius: float = spec(unit="m", gt=0.0, doc="radius of the cavity the sheet bulges into")
+    cavity_depth: float = spec(unit="m", gt=0.0, doc="depth of the cavity (closed by the die's top)")
+    outer_radius: float = spec(unit="m", gt=0.0, doc="outer radius of the die block")
+    height: float = spec(unit="m", gt=0.0, doc="height of the die block")
+    gap: float = spec(unit="m", gt=0.0, doc="axial gap between the sheet's upper face and the die (> 0: the two "
+                                          "bodies must not share nodes)")
+    entry_radius: float = spec(0.0, unit="m", ge=0.0, doc="fillet radius of the cavity edge")
+    mesh_size: float = spec(unit="m", gt=0.0, doc="element size in the die")
+
+    def validate(self, path: str) -> None:
+        if self.cavity_depth >= self.height:
+            raise SchemaError(f"{path}.cavity_depth", f"got {self.cavity_depth:g}; must be < height = "
+                              f"{self.height:g} (m)")
+        if self.cavity_radius + self.entry_radius >= self.outer_radius:
+            raise SchemaError(f"{path}.outer_radius", f"got {self.outer_radius:g}; must be > cavity_radius + "
+                              f"entry_radius = {self.cavity_radius + self.entry_radius:g} (m)")
+        if self.entry_radius >= self.cavity_depth:
+            raise SchemaError(f"{path}.entry_radius", f"got {self.entry_radius:g}; must be < cavity_depth = "
+                              f"{self.cavity_depth:g} (m)")
+
+
+@dataclass(frozen=True, kw_only=True)
+class OuterTube:
+    """A second, coaxial tube around the first (tube-into-tube press fit), centred on z = 0.
+
+    EM region ``outer_tube`` (massive conductor 2); may be a mechanical body.
+    """
+
+    inner_radius: float = spec(unit="m", gt=0.0, doc="inner radius")
+    thickness: float = spec(unit="m", gt=0.0, doc="wall thickness")
+    length: float = spec(unit="m", gt=0.0, doc="length")
+    mesh_size: float = spec(unit="m", gt=0.0, doc="element size in the outer tube")
+
+
 @dataclass(frozen=True, kw_only=True)
 class FlatCoilSheet:
     """Axisymmetric flat spiral coil (coaxial rectangular turns in series) under a sheet.
@@ -39,11 +88,21 @@ class FlatCoilSheet:
     mesh_size_sheet: float = spec(unit="m", gt=0.0, doc="element size in the sheet")
     mesh_size_coil: float = spec(unit="m", gt=0.0, doc="element size in and near the coil")
     mesh_size_air: float = spec(unit="m", gt=0.0, doc="element size far away in the air")
+    die: SheetDie | None = spec(None, doc="[geometry.die] optional conducting die above the sheet")
+
+    planar = False
+
+    def conductor_roles(self) -> tuple[str, ...]:
+        """EM conductor regions, in conductor order (201, 202, ...)."""
+        return ("workpiece", "die") if self.die is not None else ("workpiece",)
 
     def validate(self, path: str) -> None:
         coil_r = self.coil_inner_radius + self.turns * self.turn_width + (self.turns - 1) * self.turn_gap
-        extent = max(coil_r, self.sheet_radius, self.coil_gap + self.sheet_thickness, self.turn_height)
-        _check_open_boundary(path, extent, self.air_radius, self.shell_radius, "coil/sheet")
+        top = self.coil_gap + self.sheet_thickness
+        extent = max(coil_r, self.sheet_radius, top, self.turn_height)
+        if self.die is not None:
+            extent = max(extent, self.die.outer_radius, top + self.die.gap + self.die.height)
+        _check_open_boundary(path, extent, self.air_radius, self.shell_radius, "coil/sheet/die")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -69,6 +128,13 @@ class SolenoidTube:
     mesh_size_tube: float = spec(unit="m", gt=0.0, doc="element size in the tube")
     mesh_size_coil: float = spec(unit="m", gt=0.0, doc="element size in and near the coil")
     mesh_size_air: float = spec(unit="m", gt=0.0, doc="element size far away in the air")
+    outer_tube: OuterTube | None = spec(None, doc="[geometry.outer_tube] optional second tube (press fit)")
+
+    planar = False
+
+    def conductor_roles(self) -> tuple[str, ...]:
+        """EM conductor regions, in conductor order (201, 202, ...)."""
+        return ("workpiece", "outer_tube") if self.outer_tube is not None else ("workpiece",)
 
     def validate(self, path: str) -> None:
         if self.coil_inner_radius + self.turn_width >= self.tube_inner_radius:
@@ -76,7 +142,62 @@ class SolenoidTube:
                               f"coil outer radius = {self.coil_inner_radius + self.turn_width:g} (m)")
         extent = max(self.tube_inner_radius + self.tube_thickness, self.tube_length / 2,
                      self.turns * (self.turn_height + self.turn_gap) / 2)
+        o = self.outer_tube
+        if o is not None:
+            if o.inner_radius <= self.tube_inner_radius + self.tube_thickness:
+                raise SchemaError(f"{path}.outer_tube.inner_radius", f"got {o.inner_radius:g}; must be > the inner "
+                                  f"tube's outer radius = {self.tube_inner_radius + self.tube_thickness:g} (m)")
+            extent = max(extent, o.inner_radius + o.thickness, o.length / 2)
         _check_open_boundary(path, extent, self.air_radius, self.shell_radius, "coil/tube")
+
+
+@dataclass(frozen=True, kw_only=True)
+class PlanarCoilBlankDie:
+    """Plane-strain half model (x >= 0, symmetry plane x = 0): a blank over a die, a flat coil above.
+
+    The blank spans 0 <= x <= ``blank_half_width``, 0 <= y <= ``blank_thickness``; the coil's
+    rectangular turns lie ``coil_gap`` above the blank, the first from x = ``coil_inner_x``.
+    Currents are mirrored with opposite sign about x = 0 (a = 0 there), as in the cut through a
+    flat spiral coil. The die is a polygon below the blank (counter-clockwise vertices, m), EM
+    region ``die``. Fields and forces are per metre of depth (z); the mechanics' ``thickness``
+    scales them.
+    """
+
+    type: Literal["planar_coil_blank_die"] = spec(doc="geometry kind")
+    turns: int = spec(unit="-", ge=1, doc="number of turns in the half model")
+    coil_inner_x: float = spec(unit="m", ge=0.0, doc="x of the first turn's inner edge")
+    turn_width: float = spec(unit="m", gt=0.0, doc="width (x) of a turn")
+    turn_height: float = spec(unit="m", gt=0.0, doc="height (y) of a turn")
+    turn_gap: float = spec(unit="m", ge=0.0, doc="insulation gap between turns (x)")
+    coil_gap: float = spec(unit="m", gt=0.0, doc="gap between the blank's upper face and the coil")
+    blank_half_width: float = spec(unit="m", gt=0.0, doc="half width of the blank")
+    blank_thickness: float = spec(unit="m", gt=0.0, doc="blank thickness")
+    die: tuple[tuple[float, float], ...] | None = spec(
+        None, unit="m", doc="die polygon: vertices (x, y), counter-clockwise, below the blank (y < 0)")
+    air_radius: float = spec(unit="m", gt=0.0, doc="radius of the meshed air half-disk")
+    shell_radius: float = spec(unit="m", gt=0.0, doc="outer radius of the shell to infinity")
+    mesh_size_blank: float = spec(unit="m", gt=0.0, doc="element size in the blank")
+    mesh_size_die: float = spec(1e-3, unit="m", gt=0.0, doc="element size in the die")
+    mesh_size_coil: float = spec(unit="m", gt=0.0, doc="element size in and near the coil")
+    mesh_size_air: float = spec(unit="m", gt=0.0, doc="element size far away in the air")
+
+    planar = True
+
+    def conductor_roles(self) -> tuple[str, ...]:
+        """EM conductor regions, in conductor order (201, 202, ...)."""
+        return ("workpiece", "die") if self.die is not None else ("workpiece",)
+
+    def validate(self, path: str) -> None:
+        top = self.blank_thickness + self.coil_gap + self.turn_height
+        coil_x = self.coil_inner_x + self.turns * self.turn_width + (self.turns - 1) * self.turn_gap
+        extent = max(self.blank_half_width, coil_x, top)
+        if self.die is not None:
+            if len(self.die) < 3 or _polygon_area(self.die) <= 0.0:
+                raise SchemaError(f"{path}.die", "need >= 3 vertices, counter-clockwise with positive area")
+            if max(y for _, y in self.die) >= 0.0 or min(x for x, _ in self.die) < 0.0:
+                raise SchemaError(f"{path}.die", "the die must lie below the blank (y < 0) in x >= 0")
+            extent = max(extent, max(abs(x) for x, _ in self.die), max(abs(y) for _, y in self.die))
+        _check_open_boundary(path, extent, self.air_radius, self.shell_radius, "coil/blank/die")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -106,6 +227,12 @@ class UserDeck:
     shell_outer_radius: float | None = spec(None, unit="m", gt=0.0, doc="shell transformation: outer radius")
     parameters: dict[str, float] | None = spec(None, doc="numbers passed with -setnumber to gmsh (.geo) and getdp")
 
+    planar = False
+
+    def conductor_roles(self) -> tuple[str, ...]:
+        """EM conductor regions, in conductor order (201, ...)."""
+        return ("workpiece",)
+
     def validate(self, path: str) -> None:
         if not self.mesh.endswith((".geo", ".msh")):
             raise SchemaError(f"{path}.mesh", f"got {self.mesh!r}; must be a .geo or .msh file")
@@ -120,7 +247,7 @@ class UserDeck:
                               f"shell_inner_radius = {self.shell_inner_radius:g} (m)")
 
 
-Geometry = FlatCoilSheet | SolenoidTube | UserDeck
+Geometry = FlatCoilSheet | SolenoidTube | PlanarCoilBlankDie | UserDeck
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -230,8 +230,8 @@ def _GetDPLoad():  # noqa: N802 - the class, imported lazily (GetDP modules only
 
 
 def _coupled_participants(case: Case, results: ResultsFolder, comm: MPI.Comm):
-    """Mesh the EM setup, cut the workpiece's mechanical mesh from it, build solver and GetDP load."""
-    from .em_participant import GetDPLoad, em_model
+    """Mesh the EM setup, cut the conductor bodies' mechanical meshes from it, build solver and GetDP load."""
+    from .em_participant import ConductorBody, GetDPLoad, em_model
     from .emf_geometry import build_em_geometry
     from .shared_mesh import conductor_submesh, match_nodes, to_dolfinx
 
@@ -244,24 +244,27 @@ def _coupled_participants(case: Case, results: ResultsFolder, comm: MPI.Comm):
         geometry = build_user_geometry(case, results.root / "em_mesh", results.root / "em")
     else:
         geometry = build_em_geometry(case.geometry)
-    sub = conductor_submesh(geometry.mesh, geometry.regions["workpiece"])
-    body = next(b.name for b in case.bodies if b.region == "workpiece")
-    solver = build_solver(case, comm, {"workpiece": to_dolfinx(sub, comm)})
-    if case.coupling.load == "pressure":  # same workpiece mesh and loop, pressure pulses instead of GetDP
+    roles = geometry.conductor_roles()
+    subs = {role: conductor_submesh(geometry.mesh, geometry.regions[role]) for role in roles}
+    solver = build_solver(case, comm, {role: to_dolfinx(sub, comm) for role, sub in subs.items()})
+    if case.coupling.load == "pressure":  # same meshes and loop, pressure pulses instead of GetDP
         return solver, PressurePulses(case.loads, case.mechanics.mass_damping, case.mechanics.mass_damping_until,
                                       case.mechanics.mass_damping_from)
     scale = float(np.abs(geometry.mesh.points).max())
-    body_to_em = match_nodes(solver.bodies[body].X0, geometry.mesh.points, 1e-12 * scale)
+    bodies = []
+    for role in roles:
+        name = next(b.name for b in case.bodies if b.region == role)
+        bodies.append(ConductorBody(name, geometry.regions[role], subs[role],
+                                    match_nodes(solver.bodies[name].X0, geometry.mesh.points, 1e-12 * scale)))
     g = case.geometry
     if user_deck:
         from .user_deck import user_deck_load
 
-        return solver, user_deck_load(case, geometry, results.root / "em", body, sub, body_to_em,
-                                      case.coupling.em_substeps)
-    load = GetDPLoad(geometry, em_model(case, (g.air_radius, g.shell_radius)), results.root / "em", body, sub, body_to_em,
+        return solver, user_deck_load(case, geometry, results.root / "em", bodies, case.coupling.em_substeps)
+    load = GetDPLoad(geometry, em_model(case, (g.air_radius, g.shell_radius)), results.root / "em", bodies,
                      keep_runs=case.em.keep_runs, remesh_quality=case.em.remesh_quality,
                      sizes=(g.mesh_size_coil, g.mesh_size_air), em_substeps=case.coupling.em_substeps,
-                     theta=case.em.time_theta)
+                     theta=case.em.time_theta, depth=case.mechanics.thickness)
     return solver, load
 
 

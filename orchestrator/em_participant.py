@@ -2,14 +2,15 @@
 
 Each EM step [t0, t1]:
 
-1. the EM mesh follows the mechanics: workpiece nodes take the mechanical displacement (the meshes
-   share them), coil, shell and outer boundary stay, axis nodes slide along z, the rest of the air
-   is smoothed harmonically (:class:`~.mesh_motion.MeshMover`); an inverted or degenerate element
+1. the EM mesh follows the mechanics: the nodes of every conductor body (workpiece, die, outer
+   tube) take the mechanical displacement (the meshes share them), coil, shell and outer boundary
+   stay, axis (or symmetry-plane) nodes slide along it, the rest of the air is smoothed harmonically (:class:`~.mesh_motion.MeshMover`); an inverted or degenerate element
    raises before the mesh reaches GetDP;
 2. getdp runs the EM step on the moved mesh (``em_substeps`` implicit-Euler sub-steps in one
    process, geometry frozen), restarting from the previous ``.res``;
-3. the per-element force density f = j × B (N/m³) of the workpiece becomes consistent nodal forces
-   ∫ N_i f 2πr dA on the shared nodes; the ledger compares their sum with Σ f_e V_e.
+3. the per-element force density f = j × B (N/m³) of the conductors becomes consistent nodal forces
+   ∫ N_i f 2πr dA (planar: ∫ N_i f dA × the mechanics' thickness) on the shared nodes; the ledger
+   compares their sum with Σ f_e V_e.
 
 The returned force is the mean of GetDP's sub-step values (implicit Euler), held over the n
 mechanical substeps. Implicit Euler is first order and damps the bank's LC ringing by about
@@ -23,6 +24,7 @@ import json
 import logging
 import shutil
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -43,7 +45,8 @@ log = logging.getLogger(__name__)
 
 
 def em_model(case: Case, shell: tuple[float, float] | None) -> EMModel:
-    """The GetDP model of a coupled case: one stranded coil, the workpiece as massive conductor 1.
+    """The GetDP model of a coupled case: one stranded coil, the conductor bodies as massive
+    conductors 1, 2, ... in the geometry's conductor order (workpiece first).
 
     ``shell``: inner and outer radius (m) of the shell transformation to infinity, or None.
     """
@@ -53,20 +56,44 @@ def em_model(case: Case, shell: tuple[float, float] | None) -> EMModel:
         wave = DampedSine(I0=em.current.amplitude, beta=em.current.beta, omega=em.current.omega)
     coil = Coil(turns=g.turns, sigma=em.coil_conductivity, waveform=wave, density=em.coil_density,
                 heat_capacity=em.coil_heat_capacity)
-    work = next(b for b in case.bodies if b.region == "workpiece")
-    sigma = case.materials[work.material].electrical_conductivity
-    if sigma <= 0.0:
-        raise ValueError(f"materials.{work.material}.electrical_conductivity must be > 0 for the workpiece")
+    conductors = []
+    for role in g.conductor_roles():
+        body = next(b for b in case.bodies if b.region == role)
+        sigma = case.materials[body.material].electrical_conductivity
+        if sigma <= 0.0:
+            raise ValueError(f"materials.{body.material}.electrical_conductivity must be > 0 for the {role}")
+        conductors.append(Conductor(sigma=sigma, name=body.name))
     circuit = None
     if em.circuit is not None:
         c = em.circuit
         circuit = Circuit(C=c.capacitance, V0=c.voltage, R_ext=c.resistance, L_ext=c.inductance)
-    return EMModel(axisymmetric=True, coils=[coil], conductors=[Conductor(sigma=sigma, name=work.name)],
-                   circuit=circuit, shell=shell)
+    return EMModel(axisymmetric=not g.planar, coils=[coil], conductors=conductors, circuit=circuit, shell=shell)
+
+
+@dataclass
+class ConductorBody:
+    """A mechanical body that is an EM conductor region (shared nodes).
+
+    Attributes
+    ----------
+    name : str
+        The mechanical body's name.
+    tag : int
+        Its EM physical id (201, 202, ...).
+    sub : ConductorMesh
+        The region cut from the EM mesh (its mechanical mesh).
+    body_to_em : ndarray
+        EM node index of each of the body's (local) nodes.
+    """
+
+    name: str
+    tag: int
+    sub: ConductorMesh
+    body_to_em: np.ndarray
 
 
 class GetDPLoad:
-    """Load provider: GetDP eddy-current forces on the workpiece body (see the module docstring).
+    """Load provider: GetDP eddy-current forces on the conductor bodies (see the module docstring).
 
     Parameters
     ----------
@@ -76,12 +103,8 @@ class GetDPLoad:
         The GetDP model.
     work_dir : Path
         Folder of the getdp runs (one sub-folder per EM step).
-    body : str
-        Name of the mechanical body that is the workpiece.
-    sub : ConductorMesh
-        The workpiece cut from the EM mesh.
-    body_to_em : ndarray
-        EM node index of each of the body's (local) nodes.
+    bodies : list of ConductorBody
+        The mechanical bodies that are EM conductors (the workpiece first).
     keep_runs : bool
         Keep every run folder (default: only the last two).
     remesh_quality : float
@@ -89,23 +112,27 @@ class GetDPLoad:
         below this fraction of the worst quality of the freshly made mesh.
     sizes : (float, float)
         Element sizes (m) near the coil and far in the air, for remeshing.
+    em_substeps : int
+        Implicit sub-steps inside each EM step (one getdp run, frozen geometry); the force
+        handed to the mechanics is their mean, so the EM step's impulse is kept.
     theta : float
         θ of GetDP's θ time scheme (1: implicit Euler).
-    em_substeps : int
-        Implicit-Euler sub-steps inside each EM step (one getdp run, frozen geometry); the force
-        handed to the mechanics is their mean, so the EM step's impulse is kept.
+    depth : float
+        Planar geometries: the mechanics' thickness (m) that multiplies GetDP's per-metre forces.
     """
 
-    def __init__(self, geometry: EMGeometry, model: EMModel, work_dir: Path, body: str, sub: ConductorMesh,
-                 body_to_em: np.ndarray, keep_runs: bool = False, remesh_quality: float = 0.3,
-                 sizes: tuple[float, float] = (1e-3, 0.02), em_substeps: int = 1,
-                 theta: float = 1.0) -> None:
-        self.geometry, self.body, self.sub, self.body_to_em = geometry, body, sub, body_to_em
+    def __init__(self, geometry: EMGeometry, model: EMModel, work_dir: Path, bodies: list[ConductorBody],
+                 keep_runs: bool = False, remesh_quality: float = 0.3, sizes: tuple[float, float] = (1e-3, 0.02),
+                 em_substeps: int = 1, theta: float = 1.0, depth: float = 1.0) -> None:
+        self.geometry, self.bodies = geometry, list(bodies)
         self.keep_runs, self.remesh_quality, self.sizes = keep_runs, remesh_quality, sizes
         self.em_substeps = em_substeps
+        self.axisymmetric = not geometry.planar
+        self.scale = 1.0 if self.axisymmetric else float(depth)
         self.solver = GetDPSolver(model, work_dir, extra_numbers={"TimeTheta": theta})
         self.state = self.solver.initial_state(0.0)
-        self.body_X0 = geometry.mesh.points[body_to_em].copy()  # the workpiece's material coordinates
+        # the bodies' material coordinates
+        self.X0 = {b.name: geometry.mesh.points[b.body_to_em].copy() for b in self.bodies}
         self.material = geometry.mesh.points.copy()  # material coordinates of every EM node
         self.remeshes = 0
         self._set_mesh(geometry.mesh)
@@ -115,54 +142,61 @@ class GetDPLoad:
         self.last = None  # (moved EM points, EMStepResult) of the latest step
         self.timers = {"getdp_process_s": 0.0, "getdp_io_s": 0.0, "mesh_motion_s": 0.0, "transfer_s": 0.0}
 
+    @property
+    def tags(self) -> np.ndarray:
+        """EM physical ids of the conductor bodies."""
+        return np.array([b.tag for b in self.bodies])
+
     def _set_mesh(self, mesh) -> None:
         """Use ``mesh`` (current configuration) as the reference of the mesh motion."""
-        self.geometry = EMGeometry(mesh, self.geometry.regions, self.geometry.turns)
+        self.geometry = EMGeometry(mesh, self.geometry.regions, self.geometry.turns, self.geometry.planar)
         self.x_ref = mesh.points.copy()
         fixed = np.unique(np.concatenate([
             mesh.triangles[mesh.tri_tags == self.geometry.regions["coil"]].ravel(),
             mesh.triangles[mesh.tri_tags == SHELL_TAG].ravel(),
-            mesh.lines[mesh.line_tags == OUTER_TAG].ravel(),
-            self.body_to_em]))
-        axis = np.unique(mesh.lines[mesh.line_tags == AXIS_TAG].ravel())
+            mesh.lines[mesh.line_tags == OUTER_TAG].ravel()] + [b.body_to_em for b in self.bodies]))
+        axis = np.unique(mesh.lines[mesh.line_tags == AXIS_TAG].ravel())  # slide along the axis/symmetry line
         self.mover = MeshMover(self.x_ref, mesh.triangles, (np.union1d(fixed, axis), fixed))
         self.mover.min_quality = self.remesh_quality * float(self.mover.q_ref.min())
 
-    def _remesh(self, x_body: np.ndarray) -> None:
-        """Mesh air, coil and shell again around the workpiece's current shape (see :mod:`.remesh`)."""
+    def _remesh(self, positions: dict[str, np.ndarray]) -> None:
+        """Mesh air, coil and shell again around the bodies' current shapes (see :mod:`.remesh`)."""
         from .remesh import remesh_around
 
+        parts = []
+        for b in self.bodies:
+            cur = np.zeros_like(self.x_ref)
+            cur[b.body_to_em] = positions[b.name][:, :2]
+            parts.append((cur[b.sub.em_nodes], b.sub.cells, b.tag))
         g = self.solver.model
-        cur = np.zeros_like(self.x_ref)
-        cur[self.body_to_em] = x_body[:, :2]
-        work_points = cur[self.sub.em_nodes]
-        mesh, work_index = remesh_around(work_points, self.sub.cells, self.geometry.regions["workpiece"],
-                                         self.geometry.regions["coil"], self.geometry.turns, g.shell[0], g.shell[1],
-                                         *self.sizes)
-        sub_pos = np.searchsorted(self.sub.em_nodes, self.body_to_em)
-        self.body_to_em = work_index[sub_pos]
-        rows = np.flatnonzero(mesh.tri_tags == self.geometry.regions["workpiece"])
-        self.sub = ConductorMesh(rows, work_index, work_points, self.sub.cells)
+        mesh, indices = remesh_around(parts, self.geometry.regions["coil"], self.geometry.turns, g.shell[0],
+                                      g.shell[1], *self.sizes)
         self.material = mesh.points.copy()
-        self.material[self.body_to_em] = self.body_X0
+        for b, (pts, _, _), index in zip(self.bodies, parts, indices):
+            local = np.full(len(self.x_ref), -1, dtype=np.int64)  # old EM node -> row of the submesh
+            local[b.sub.em_nodes] = np.arange(len(b.sub.em_nodes))
+            b.body_to_em = index[local[b.body_to_em]]
+            b.sub = ConductorMesh(np.flatnonzero(mesh.tri_tags == b.tag), index, pts, b.sub.cells)
+            self.material[b.body_to_em] = self.X0[b.name]
         self._set_mesh(mesh)
         self.remeshes += 1
 
     def load(self, t0: float, t1: float, t_mid: float, mechanics) -> LoadStep:
-        """Move the EM mesh with the workpiece, run one getdp step to ``t1``, return nodal forces (N).
+        """Move the EM mesh with the bodies, run one getdp step to ``t1``, return nodal forces (N).
 
         When the moved mesh's worst element falls below ``remesh_quality`` (or inverts), the air
-        is remeshed around the workpiece and the EM state is carried in material coordinates.
+        is remeshed around the bodies and the EM state is carried in material coordinates.
         """
         c0 = time.perf_counter()
-        x_body = mechanics.positions()[self.body]
+        positions = mechanics.positions()
         u = np.zeros_like(self.x_ref)
-        u[self.body_to_em] = x_body[:, :2] - self.x_ref[self.body_to_em]
+        for b in self.bodies:
+            u[b.body_to_em] = positions[b.name][:, :2] - self.x_ref[b.body_to_em]
         try:
             x_em = self.mover.moved(u)  # checks quality: a degenerate or inverted element never reaches GetDP
         except MeshQualityError as exc:
-            log.info("t = %.6g s: %s: remeshing the air around the workpiece", t0, exc)
-            self._remesh(x_body)
+            log.info("t = %.6g s: %s: remeshing the air around the conductors", t0, exc)
+            self._remesh(positions)
             x_em = self.mover.moved(np.zeros_like(self.x_ref))
         self.min_quality = min(self.min_quality, float(self.mover.last_min_quality))
         mesh_k = self.geometry.mesh.with_points(x_em)
@@ -177,14 +211,12 @@ class GetDPLoad:
         self.last = (x_em, result)
         self._prune(Path(result.path))
         c2 = time.perf_counter()
-        work_tag = self.geometry.regions["workpiece"]
-        keep = result.element_tags == work_tag
-        rows = result.elements[keep]
-        f = result.force_density_mean[keep]  # impulse-consistent mean over the implicit sub-steps
-        tris = mesh_k.triangles[rows]
-        f_em = cell_to_nodal_forces(x_em, tris, f, axisymmetric=True)
-        forces = {self.body: f_em[self.body_to_em]}
-        integral = cell_force_integral(x_em, tris, f, axisymmetric=True)
+        keep = np.isin(result.element_tags, self.tags)
+        f = result.force_density_mean[keep]  # impulse-consistent mean over the sub-steps
+        tris = mesh_k.triangles[result.elements[keep]]
+        f_em = self.scale * cell_to_nodal_forces(x_em, tris, f, axisymmetric=self.axisymmetric)
+        forces = {b.name: f_em[b.body_to_em] for b in self.bodies}
+        integral = self.scale * cell_force_integral(x_em, tris, f, axisymmetric=self.axisymmetric)
         getdp_total = result.conductor_force[-1, 0]
         c3 = time.perf_counter()
         process = result.run.wall_time if result.run is not None else 0.0
@@ -192,7 +224,11 @@ class GetDPLoad:
         self.timers["getdp_process_s"] += process
         self.timers["getdp_io_s"] += (c2 - c1) - process
         self.timers["transfer_s"] += c3 - c2
-        values = {
+        return LoadStep(forces, integral, self._values(result, getdp_total))
+
+    def _values(self, result, getdp_total: np.ndarray) -> dict[str, float]:
+        """History values of an EM step (circuit, energies, the workpiece's GetDP force)."""
+        return {
             "coil_current_A": float(result.coil_current[-1, 0]),
             "coil_current_abs_max_A": float(np.abs(result.coil_current[:, 0]).max()),
             "coil_voltage_V": float(result.coil_voltage[-1, 0]),
@@ -201,11 +237,10 @@ class GetDPLoad:
             "coil_temperature_rise_K": float(result.coil_temperature_rise[0]),
             "magnetic_energy_J": float(result.magnetic_energy[-1]),
             "workpiece_joule_power_W": float(result.conductor_power[-1, 0]),
-            "getdp_force_z_N": float(getdp_total[1]),
+            "getdp_force_z_N": float(self.scale * getdp_total[1]),
             "em_mesh_min_quality": float(self.mover.last_min_quality),
             "em_remeshes": float(self.remeshes),
         }
-        return LoadStep(forces, integral, values)
 
     def snapshot(self) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]] | None:
         """The latest step's EM mesh and per-element fields (zero outside the conductors)."""
@@ -245,11 +280,13 @@ class GetDPLoad:
         blob = json.dumps({"state": self.state.to_dict(), "runs": [str(p) for p in self._runs],
                            "min_quality": self.min_quality, "remeshes": self.remeshes}).encode()
         m = self.geometry.mesh
-        return {"em_state_json": np.frombuffer(blob, dtype=np.uint8), "mesh_points": m.points.copy(),
-                "mesh_triangles": m.triangles.copy(), "mesh_tri_tags": m.tri_tags.copy(), "mesh_lines": m.lines.copy(),
-                "mesh_line_tags": m.line_tags.copy(), "material": self.material.copy(),
-                "body_to_em": self.body_to_em.copy(), "sub_rows": self.sub.rows.copy(),
-                "sub_em_nodes": self.sub.em_nodes.copy(), "sub_points": self.sub.points.copy()}
+        d = {"em_state_json": np.frombuffer(blob, dtype=np.uint8), "mesh_points": m.points.copy(),
+             "mesh_triangles": m.triangles.copy(), "mesh_tri_tags": m.tri_tags.copy(), "mesh_lines": m.lines.copy(),
+             "mesh_line_tags": m.line_tags.copy(), "material": self.material.copy()}
+        for i, b in enumerate(self.bodies):
+            d.update({f"body_to_em_{i}": b.body_to_em.copy(), f"sub_rows_{i}": b.sub.rows.copy(),
+                      f"sub_em_nodes_{i}": b.sub.em_nodes.copy(), f"sub_points_{i}": b.sub.points.copy()})
+        return d
 
     def load_state_dict(self, d: dict[str, np.ndarray]) -> None:
         """Restore :meth:`state_dict`."""
@@ -261,9 +298,10 @@ class GetDPLoad:
         if "mesh_points" in d and (self.remeshes or not np.array_equal(d["mesh_triangles"], self.geometry.mesh.triangles)):
             mesh = EMMesh(d["mesh_points"], d["mesh_triangles"], d["mesh_tri_tags"], d["mesh_lines"],
                           d["mesh_line_tags"])
-            self.body_to_em = np.array(d["body_to_em"])
-            self.sub = ConductorMesh(np.array(d["sub_rows"]), np.array(d["sub_em_nodes"]), np.array(d["sub_points"]),
-                                     self.sub.cells)
+            for i, b in enumerate(self.bodies):
+                b.body_to_em = np.array(d[f"body_to_em_{i}"])
+                b.sub = ConductorMesh(np.array(d[f"sub_rows_{i}"]), np.array(d[f"sub_em_nodes_{i}"]),
+                                      np.array(d[f"sub_points_{i}"]), b.sub.cells)
             self._set_mesh(mesh)
         if "material" in d:
             self.material = np.array(d["material"])

@@ -1,9 +1,10 @@
 """EM geometries of the coupled cases, meshed with gmsh into one EM mesh with named regions.
 
-The workpiece is massive conductor 1 (physical id 201), the coil is stranded coil 1 (101, all its
-turns in series), air 1, shell 2, axis 11, outer boundary 12 (the ids of
-:mod:`pulseform.solvers.getdp.mesh`). The mechanical mesh of the workpiece is cut from this mesh
-(:mod:`.shared_mesh`), so both share its nodes and the force transfer is exact.
+The workpiece is massive conductor 1 (physical id 201), a die or outer tube massive conductor 2
+(202), the coil is stranded coil 1 (101, all its turns in series), air 1, shell 2, axis (or
+symmetry plane) 11, outer boundary 12 (the ids of :mod:`pulseform.solvers.getdp.mesh`). The
+mechanical mesh of every conductor body is cut from this mesh (:mod:`.shared_mesh`), so both share
+its nodes and the force transfer is exact.
 """
 
 from __future__ import annotations
@@ -11,20 +12,30 @@ from __future__ import annotations
 import logging
 from dataclasses import dataclass
 
+import numpy as np
+
 from pulseform.solvers.getdp import EMMesh, Rect, coil_conductor_mesh, coil_tag, conductor_tag
 
-from .case import FlatCoilSheet, Geometry, SolenoidTube
+from .case import FlatCoilSheet, Geometry, PlanarCoilBlankDie, SolenoidTube
 
 log = logging.getLogger(__name__)
 
 
 @dataclass
 class EMGeometry:
-    """The meshed EM setup: mesh, region ids by role, turn rectangles."""
+    """The meshed EM setup: mesh, region ids by role (coil and conductors), turn rectangles.
+
+    ``planar``: a plane half model (a_z, per metre of depth) instead of an axisymmetric one.
+    """
 
     mesh: EMMesh
     regions: dict[str, int]
     turns: list[Rect]
+    planar: bool = False
+
+    def conductor_roles(self) -> list[str]:
+        """The conductor roles, in conductor order (physical ids 201, 202, ...)."""
+        return sorted((r for r in self.regions if r != "coil"), key=self.regions.__getitem__)
 
 
 def flat_coil_turns(g: FlatCoilSheet) -> list[Rect]:
@@ -44,20 +55,59 @@ def solenoid_turns(g: SolenoidTube) -> list[Rect]:
                  z0 + k * pitch + g.turn_height) for k in range(g.turns)]
 
 
+def planar_turns(g: PlanarCoilBlankDie) -> list[Rect]:
+    """Turn cross-sections (m) of the planar half model's coil, side by side above the blank."""
+    y0 = g.blank_thickness + g.coil_gap
+    return [Rect(g.coil_inner_x + k * (g.turn_width + g.turn_gap), y0,
+                 g.coil_inner_x + k * (g.turn_width + g.turn_gap) + g.turn_width, y0 + g.turn_height)
+            for k in range(g.turns)]
+
+
+def sheet_die_polygon(g: FlatCoilSheet, segments: int = 8) -> np.ndarray:
+    """Counter-clockwise (r, z) outline (m) of the die above the sheet: block minus the cavity,
+    the cavity edge rounded with ``entry_radius`` (``segments`` chords)."""
+    d = g.die
+    z = g.coil_gap + g.sheet_thickness + d.gap  # the die's lower face
+    rc, re = d.cavity_radius, d.entry_radius
+    pts = [(rc + re, z), (d.outer_radius, z), (d.outer_radius, z + d.height), (0.0, z + d.height),
+           (0.0, z + d.cavity_depth), (rc, z + d.cavity_depth), (rc, z + re)]
+    if re > 0.0:  # quarter arc from (rc, z + re) down to (rc + re, z), centre (rc + re, z + re)
+        a = np.linspace(np.pi, 1.5 * np.pi, segments + 1)[1:-1]
+        pts += [(rc + re + re * np.cos(t), z + re + re * np.sin(t)) for t in a]
+    return np.array(pts)
+
+
 def build_em_geometry(g: Geometry) -> EMGeometry:
-    """Mesh the EM setup ``g`` (axisymmetric, r = x, z = y)."""
+    """Mesh the EM setup ``g`` (axisymmetric: r = x, z = y; planar: half model x >= 0)."""
+    conductors, sizes = [], []
     if isinstance(g, FlatCoilSheet):
         turns = flat_coil_turns(g)
-        work = Rect(0.0, g.coil_gap, g.sheet_radius, g.coil_gap + g.sheet_thickness)
-        h_work = g.mesh_size_sheet
-    else:
-        assert isinstance(g, SolenoidTube)
+        conductors.append(Rect(0.0, g.coil_gap, g.sheet_radius, g.coil_gap + g.sheet_thickness))
+        sizes.append(g.mesh_size_sheet)
+        if g.die is not None:
+            conductors.append(sheet_die_polygon(g))
+            sizes.append(g.die.mesh_size)
+    elif isinstance(g, SolenoidTube):
         turns = solenoid_turns(g)
-        work = Rect(g.tube_inner_radius, -0.5 * g.tube_length, g.tube_inner_radius + g.tube_thickness,
-                    0.5 * g.tube_length)
-        h_work = g.mesh_size_tube
-    mesh = coil_conductor_mesh([turns], [work], axisymmetric=True, r_domain=g.air_radius,
+        conductors.append(Rect(g.tube_inner_radius, -0.5 * g.tube_length, g.tube_inner_radius + g.tube_thickness,
+                               0.5 * g.tube_length))
+        sizes.append(g.mesh_size_tube)
+        o = g.outer_tube
+        if o is not None:
+            conductors.append(Rect(o.inner_radius, -0.5 * o.length, o.inner_radius + o.thickness, 0.5 * o.length))
+            sizes.append(o.mesh_size)
+    else:
+        assert isinstance(g, PlanarCoilBlankDie)
+        turns = planar_turns(g)
+        conductors.append(Rect(0.0, 0.0, g.blank_half_width, g.blank_thickness))
+        sizes.append(g.mesh_size_blank)
+        if g.die is not None:
+            conductors.append(np.array(g.die, dtype=float))
+            sizes.append(g.mesh_size_die)
+    mesh = coil_conductor_mesh([turns], conductors, axisymmetric=not g.planar, half=True, r_domain=g.air_radius,
                                r_shell=g.shell_radius, h_fine=g.mesh_size_coil, h_coarse=g.mesh_size_air,
-                               h_conductor=h_work)
+                               h_conductor=sizes)
     log.info("EM mesh (%s): %d nodes, %d triangles", g.type, mesh.n_nodes, len(mesh.triangles))
-    return EMGeometry(mesh, {"coil": coil_tag(1), "workpiece": conductor_tag(1)}, turns)
+    regions = {"coil": coil_tag(1)}
+    regions.update({role: conductor_tag(k) for k, role in enumerate(g.conductor_roles(), start=1)})
+    return EMGeometry(mesh, regions, turns, planar=g.planar)

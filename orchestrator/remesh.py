@@ -1,10 +1,10 @@
 """Remesh the EM domain around a deformed workpiece, keeping the workpiece's own (mechanical) mesh.
 
 When the harmonically smoothed air mesh degrades, the air, coil and shell are meshed again with gmsh
-around the workpiece's *current* boundary polygon; the workpiece keeps its triangles and nodes (they
-are the mechanical mesh's), so the shared-node transfer stays exact. Every boundary segment of the
-polygon is a transfinite line with its two end nodes only, so gmsh puts no node on it that the
-workpiece does not have, and the two meshes are stitched by coordinates.
+around the conductor bodies' *current* boundary polygons; each body keeps its triangles and nodes
+(they are the mechanical mesh's), so the shared-node transfer stays exact. Every boundary segment
+of a polygon is a transfinite line with its two end nodes only, so gmsh puts no node on it that the
+body does not have, and the meshes are stitched by coordinates.
 """
 
 from __future__ import annotations
@@ -43,17 +43,28 @@ def boundary_loop(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
     return np.array(loop)
 
 
-def remesh_around(work_points: np.ndarray, work_cells: np.ndarray, work_tag: int, coil_tag: int,
-                  turns: list[Rect], r_domain: float, r_shell: float, h_coil: float, h_air: float) -> tuple[EMMesh, np.ndarray]:
-    """New axisymmetric EM mesh around the workpiece (points in m, its current configuration).
+def remesh_around(parts: list[tuple[np.ndarray, np.ndarray, int]], coil_tag: int, turns: list[Rect],
+                  r_domain: float, r_shell: float, h_coil: float, h_air: float) -> tuple[EMMesh, list[np.ndarray]]:
+    """New half-disk EM mesh (x >= 0) around conductor bodies in their current configuration.
+
+    Parameters
+    ----------
+    parts : list of (points, cells, tag)
+        Each conductor body: its node coordinates (m), triangles, and physical id.
+    coil_tag, turns : int, list of Rect
+        The coil's physical id and turn rectangles (m).
+    r_domain, r_shell : float
+        Radii (m) of the air half-disk and of the shell's outer boundary.
+    h_coil, h_air : float
+        Element sizes (m) near the coil and the bodies, and far in the air.
 
     Returns
     -------
-    (EMMesh, ndarray)
-        The mesh, and for each workpiece node (row of ``work_points``) its node index in the mesh.
+    (EMMesh, list of ndarray)
+        The mesh, and per part, for each of its nodes (row of its ``points``) the node index in the mesh.
     """
-    loop = boundary_loop(work_points, work_cells)
-    seg = np.linalg.norm(work_points[np.roll(loop, -1)] - work_points[loop], axis=1)
+    loops = [boundary_loop(pts, cells) for pts, cells, _ in parts]
+    segs = [np.linalg.norm(pts[np.roll(lp, -1)] - pts[lp], axis=1) for (pts, _, _), lp in zip(parts, loops)]
     gmsh.initialize(readConfigFiles=False)
     gmsh.option.setNumber("General.Terminal", 0)
     gmsh.model.add("pulseform_remesh")
@@ -64,15 +75,18 @@ def remesh_around(work_points: np.ndarray, work_cells: np.ndarray, work_tag: int
         box = occ.addRectangle(0, -2 * r_shell, 0, 2 * r_shell, 4 * r_shell)
         outer = occ.intersect([(2, outer)], [(2, box)], removeTool=False)[0][0][1]
         inner = occ.intersect([(2, inner)], [(2, box)])[0][0][1]
-        pts = [occ.addPoint(x, y, 0.0, float(h)) for (x, y), h in zip(work_points[loop], seg)]
-        lines = [occ.addLine(pts[i], pts[(i + 1) % len(pts)]) for i in range(len(pts))]
-        work = occ.addPlaneSurface([occ.addCurveLoop(lines)])
+        bodies = []
+        for (pts_all, _, _), lp, seg in zip(parts, loops, segs):
+            pts = [occ.addPoint(x, y, 0.0, float(h)) for (x, y), h in zip(pts_all[lp], seg)]
+            lines = [occ.addLine(pts[i], pts[(i + 1) % len(pts)]) for i in range(len(pts))]
+            bodies.append(occ.addPlaneSurface([occ.addCurveLoop(lines)]))
         coil = [occ.addRectangle(r.x0, r.y0, 0, r.x1 - r.x0, r.y1 - r.y0) for r in turns]
-        tools = [(2, work)] + [(2, c) for c in coil] + [(2, inner)]
+        tools = [(2, w) for w in bodies] + [(2, c) for c in coil] + [(2, inner)]
         _, out_map = occ.fragment([(2, outer)], tools)
         occ.synchronize()
-        work_surfs = {p[1] for p in out_map[1]}
-        coil_surfs = {p[1] for m in out_map[2:2 + len(coil)] for p in m}
+        nb = len(bodies)
+        work_surfs = {p[1] for m in out_map[1:1 + nb] for p in m}
+        coil_surfs = {p[1] for m in out_map[1 + nb:1 + nb + len(coil)] for p in m}
         inner_surfs = {p[1] for p in out_map[-1]}
         air, shell = [], []
         for _, s in gmsh.model.getEntities(2):
@@ -98,7 +112,8 @@ def remesh_around(work_points: np.ndarray, work_cells: np.ndarray, work_tag: int
         gmsh.model.mesh.field.setNumbers(f_dist, "EdgesList", sorted(coil_curves | work_curves))
         gmsh.model.mesh.field.setNumber(f_dist, "NumPointsPerCurve", 50)
         f_thr = gmsh.model.mesh.field.add("Threshold")
-        for k, v in (("InField", f_dist), ("SizeMin", min(h_coil, float(seg.max()))), ("SizeMax", h_air),
+        h_min = min(h_coil, min(float(sg.max()) for sg in segs))
+        for k, v in (("InField", f_dist), ("SizeMin", h_min), ("SizeMax", h_air),
                      ("DistMin", 0.0), ("DistMax", 0.5 * r_domain)):
             gmsh.model.mesh.field.setNumber(f_thr, k, v)
         gmsh.model.mesh.field.setAsBackgroundMesh(f_thr)
@@ -106,14 +121,14 @@ def remesh_around(work_points: np.ndarray, work_cells: np.ndarray, work_tag: int
         gmsh.option.setNumber("Mesh.MeshSizeExtendFromBoundary", 0)
         gmsh.option.setNumber("Mesh.Algorithm", 6)
         gmsh.model.mesh.generate(2)
-        result = _collect(work_points, work_cells, work_tag)
+        result = _collect(parts)
     finally:
         gmsh.finalize()
     return result
 
 
-def _collect(work_points: np.ndarray, work_cells: np.ndarray, work_tag: int) -> tuple[EMMesh, np.ndarray]:
-    """gmsh's air/coil/shell triangles and lines, stitched to the workpiece triangles by coordinates."""
+def _collect(parts: list[tuple[np.ndarray, np.ndarray, int]]) -> tuple[EMMesh, list[np.ndarray]]:
+    """gmsh's air/coil/shell triangles and lines, stitched to the bodies' triangles by coordinates."""
     tags, coords, _ = gmsh.model.mesh.getNodes()
     index = np.full(int(tags.max()) + 1, -1, dtype=np.int64)
     index[tags.astype(np.int64)] = np.arange(len(tags))
@@ -131,23 +146,30 @@ def _collect(work_points: np.ndarray, work_cells: np.ndarray, work_tag: int) -> 
                     ltags.append(np.full(len(lines[-1]), ptag))
     tri = np.vstack(tris)
     used = np.unique(np.concatenate([tri.ravel()] + [ln.ravel() for ln in lines]))
-    # workpiece nodes: the boundary ones coincide with gmsh nodes, the interior ones are new
     scale = float(np.abs(pts).max())
-    dist, hit = cKDTree(pts[used]).query(work_points)
-    on_gmsh = dist <= 1e-9 * scale
-    n_g = len(used)
+    tree = cKDTree(pts[used])
     remap = np.full(len(pts), -1, dtype=np.int64)
-    remap[used] = np.arange(n_g)
-    work_index = np.empty(len(work_points), dtype=np.int64)
-    work_index[on_gmsh] = hit[on_gmsh]
-    extra = np.flatnonzero(~on_gmsh)
-    work_index[extra] = n_g + np.arange(len(extra))
-    points = np.vstack([pts[used], work_points[extra]])
-    points[work_index[on_gmsh]] = work_points[on_gmsh]  # exactly the workpiece's coordinates
-    triangles = np.vstack([remap[tri], work_index[work_cells]])
-    tri_tags = np.concatenate(ttags + [np.full(len(work_cells), work_tag)])
-    mesh = EMMesh(points, triangles, tri_tags, remap[np.vstack(lines)], np.concatenate(ltags))
+    remap[used] = np.arange(len(used))
+    points, n = [pts[used]], len(used)
+    indices, body_tris, body_tags = [], [], []
+    for work_points, work_cells, work_tag in parts:
+        # a body's boundary nodes coincide with gmsh nodes, its interior nodes are new
+        dist, hit = tree.query(work_points)
+        on_gmsh = dist <= 1e-9 * scale
+        work_index = np.empty(len(work_points), dtype=np.int64)
+        work_index[on_gmsh] = hit[on_gmsh]
+        extra = np.flatnonzero(~on_gmsh)
+        work_index[extra] = n + np.arange(len(extra))
+        n += len(extra)
+        points.append(work_points[extra])
+        points[0][work_index[on_gmsh]] = work_points[on_gmsh]  # exactly the body's coordinates
+        indices.append(work_index)
+        body_tris.append(work_index[work_cells])
+        body_tags.append(np.full(len(work_cells), work_tag))
+    mesh = EMMesh(np.vstack(points), np.vstack([remap[tri]] + body_tris), np.concatenate(ttags + body_tags),
+                  remap[np.vstack(lines)], np.concatenate(ltags))
     neg = triangle_areas(mesh.points, mesh.triangles) < 0
     mesh.triangles[neg] = mesh.triangles[neg][:, [0, 2, 1]]
-    log.info("EM remesh: %d nodes, %d triangles (%d in the workpiece)", len(points), len(triangles), len(work_cells))
-    return mesh, work_index
+    log.info("EM remesh: %d nodes, %d triangles (%d in the conductor bodies)", len(mesh.points), len(mesh.triangles),
+             sum(len(c) for _, c, _ in parts))
+    return mesh, indices

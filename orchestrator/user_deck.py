@@ -173,6 +173,7 @@ def make_solver(case, model, work_dir: Path):
     g = case.geometry
     numbers = {name: ROLE_IDS[role] for role, name in ROLE_NUMBERS.items()
                if role != "shell" or g.regions.shell is not None}
+    numbers["TimeTheta"] = case.em.time_theta  # the library's θ-scheme (a deck may ignore it)
     numbers.update({k: float(v) for k, v in (g.parameters or {}).items()})
     lib = (DECK_DIR / "Lib_PulsedForming.pro").resolve()
     return GetDPSolver(model, work_dir, deck=g.pro, extra_numbers=numbers, preamble=[f'PulseformLib = "{lib}";'])
@@ -237,7 +238,7 @@ def check_contract(solver, mesh, work: Path) -> None:
     log.info("deck %s passed the contract check", deck)
 
 
-def user_deck_load(case, geometry, work_dir: Path, body: str, sub, body_to_em, em_substeps: int):
+def user_deck_load(case, geometry, work_dir: Path, bodies, em_substeps: int):
     """The load provider of a user-deck case: GetDPLoad on the user's deck (checked by
     :func:`build_user_geometry`)."""
     from .em_participant import GetDPLoad
@@ -245,15 +246,16 @@ def user_deck_load(case, geometry, work_dir: Path, body: str, sub, body_to_em, e
     class UserDeckLoad(GetDPLoad):
         """GetDPLoad whose solver runs the user's deck; user meshes are moved, never remeshed."""
 
-        def _remesh(self, x_body):
+        def _remesh(self, positions):
             raise DeckContractError("the EM mesh of a user deck degraded beyond em.remesh_quality and user meshes "
                                     "are not remeshed: refine the .geo around the workpiece, lower "
                                     "em.remesh_quality or shorten time.end")
 
     model = user_em_model(case)
     solver = make_solver(case, model, Path(work_dir))
-    load = UserDeckLoad(geometry, model, work_dir, body, sub, body_to_em, keep_runs=case.em.keep_runs,
-                        remesh_quality=case.em.remesh_quality, sizes=(1.0, 1.0), em_substeps=em_substeps)
+    load = UserDeckLoad(geometry, model, work_dir, bodies, keep_runs=case.em.keep_runs,
+                        remesh_quality=case.em.remesh_quality, sizes=(1.0, 1.0), em_substeps=em_substeps,
+                        theta=case.em.time_theta)
     load.solver = solver
     load.state = solver.initial_state(0.0)
     return load

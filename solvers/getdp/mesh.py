@@ -187,27 +187,52 @@ class Rect:
     y1: float
 
 
+def _bbox(shape: "Rect | np.ndarray") -> tuple[float, float, float, float]:
+    """(x0, y0, x1, y1) of a rectangle or a polygon (m)."""
+    if isinstance(shape, Rect):
+        return shape.x0, shape.y0, shape.x1, shape.y1
+    p = np.asarray(shape, dtype=float)
+    return float(p[:, 0].min()), float(p[:, 1].min()), float(p[:, 0].max()), float(p[:, 1].max())
+
+
+def _add_shape(occ, shape: "Rect | np.ndarray") -> int:
+    """An OCC surface for a rectangle or a simple polygon (vertices (x, y) in m, either orientation)."""
+    if isinstance(shape, Rect):
+        return occ.addRectangle(shape.x0, shape.y0, 0, shape.x1 - shape.x0, shape.y1 - shape.y0)
+    p = np.asarray(shape, dtype=float)
+    if p.ndim != 2 or p.shape[1] != 2 or len(p) < 3:
+        raise ValueError("a conductor polygon needs at least 3 vertices (x, y)")
+    pts = [occ.addPoint(float(x), float(y), 0.0) for x, y in p]
+    lines = [occ.addLine(pts[i], pts[(i + 1) % len(pts)]) for i in range(len(pts))]
+    return occ.addPlaneSurface([occ.addCurveLoop(lines)])
+
+
 def coil_conductor_mesh(
     coils: list[list[Rect]],
-    conductors: list[Rect],
+    conductors: "list[Rect | np.ndarray]",
     *,
     axisymmetric: bool = True,
+    half: bool | None = None,
     r_domain: float = 0.2,
     r_shell: float | None = None,
     h_fine: float = 1e-3,
     h_coarse: float | None = None,
-    h_conductor: float | None = None,
+    h_conductor: float | list[float] | None = None,
 ) -> EMMesh:
-    """Gmsh mesh of coils (each a list of turn rectangles) and conductor rectangles in air.
+    """Gmsh mesh of coils (each a list of turn rectangles) and conductors in air.
 
+    A conductor is a :class:`Rect` or a simple polygon (array of vertices (x, y), m).
     Air fills a (half-)disk of radius ``r_domain`` centred at the origin; with ``r_shell``
     a shell region (id 2) between ``r_domain`` and ``r_shell`` carries the transformation
-    to infinity.  In axisymmetry only x >= 0 is meshed and x = 0 is the axis (id 11).
+    to infinity.  With ``half`` (default: ``axisymmetric``) only x >= 0 is meshed and x = 0
+    is line 11 with a = 0: the axis in axisymmetry, an antisymmetry plane of a_z in a planar
+    half model (currents mirrored with opposite sign).
     """
     import gmsh
 
     h_coarse = h_coarse or r_domain / 10
     h_conductor = h_conductor or h_fine
+    half = axisymmetric if half is None else half
     gmsh.initialize(readConfigFiles=False)  # owned for the duration of the call
     gmsh.option.setNumber("General.Terminal", 0)
     gmsh.model.add("pulseform_em")
@@ -216,7 +241,7 @@ def coil_conductor_mesh(
         r_out = r_shell or r_domain
         outer = occ.addDisk(0, 0, 0, r_out, r_out)
         inner = occ.addDisk(0, 0, 0, r_domain, r_domain) if r_shell else None
-        if axisymmetric:
+        if half:
             box = occ.addRectangle(0, -2 * r_out, 0, 2 * r_out, 4 * r_out)
             outer = occ.intersect([(2, outer)], [(2, box)], removeTool=not r_shell)[0][0][1]
             if r_shell:
@@ -226,7 +251,7 @@ def coil_conductor_mesh(
             for r in turns:
                 rect_tags.append(("coil", k, occ.addRectangle(r.x0, r.y0, 0, r.x1 - r.x0, r.y1 - r.y0)))
         for k, r in enumerate(conductors, start=1):
-            rect_tags.append(("cond", k, occ.addRectangle(r.x0, r.y0, 0, r.x1 - r.x0, r.y1 - r.y0)))
+            rect_tags.append(("cond", k, _add_shape(occ, r)))
         tools = [(2, t) for _, _, t in rect_tags] + ([(2, inner)] if r_shell else [])
         out, out_map = occ.fragment([(2, outer)], tools)
         occ.synchronize()
@@ -253,11 +278,11 @@ def coil_conductor_mesh(
         for _, c in gmsh.model.getBoundary(all_surfs, combined=True, oriented=False):
             xmin, _, _, xmax, _, _ = gmsh.model.getBoundingBox(1, abs(c))
             xc = occ.getCenterOfMass(1, abs(c))[0]
-            if axisymmetric and abs(xc) < tol and xmax - xmin < 2 * tol + 2e-7:
+            if half and abs(xc) < tol and xmax - xmin < 2 * tol + 2e-7:
                 axis_curves.append(abs(c))
             else:
                 outer_curves.append(abs(c))
-        if axisymmetric:
+        if half:
             gmsh.model.addPhysicalGroup(1, sorted(set(axis_curves)), AXIS)
         gmsh.model.addPhysicalGroup(1, sorted(set(abs(c) for c in outer_curves)), OUTER)
         # mesh size: fine in and near coils/conductors, coarse far away
@@ -272,10 +297,12 @@ def coil_conductor_mesh(
         gmsh.model.mesh.field.setNumber(f_thr, "DistMin", 0.0)
         gmsh.model.mesh.field.setNumber(f_thr, "DistMax", 0.5 * r_domain)
         fields = [f_thr]
-        for r in conductors:
+        h_cond = h_conductor if isinstance(h_conductor, (list, tuple)) else [h_conductor] * len(conductors)
+        for r, h_c in zip(conductors, h_cond):
+            x0, y0, x1, y1 = _bbox(r)
             f_c = gmsh.model.mesh.field.add("Box")
-            for name, val in (("VIn", h_conductor), ("VOut", 1e22), ("XMin", r.x0), ("XMax", r.x1),
-                              ("YMin", r.y0), ("YMax", r.y1)):
+            for name, val in (("VIn", h_c), ("VOut", 1e22), ("XMin", x0), ("XMax", x1),
+                              ("YMin", y0), ("YMax", y1)):
                 gmsh.model.mesh.field.setNumber(f_c, name, val)
             fields.append(f_c)
         f_min = gmsh.model.mesh.field.add("Min")
