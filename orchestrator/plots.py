@@ -15,18 +15,29 @@ from .history import History  # noqa: E402
 log = logging.getLogger(__name__)
 
 
-def _save(fig, path: Path) -> Path:
+DPI = 100
+
+
+def _save(fig, path: Path, close: bool = True) -> Path:
+    """Write ``fig`` atomically; fixed margins (no ``bbox_inches="tight"``, which draws twice)."""
     tmp = path.with_name(f".{path.stem}.tmp.png")
-    fig.savefig(tmp, dpi=110, bbox_inches="tight")
-    plt.close(fig)
+    fig.savefig(tmp, dpi=DPI, pil_kwargs={"compress_level": 1})   # fast zlib level: encoding dominated
+    if close:
+        plt.close(fig)
     tmp.replace(path)
     return path
+
+
+def _figure(height: float = 4.0):
+    fig, ax = plt.subplots(figsize=(7, height))
+    fig.subplots_adjust(left=0.13, right=0.97, bottom=0.13, top=0.91)
+    return fig, ax
 
 
 def plot_energies(history: History, folder: Path) -> Path:
     """Energy ledger vs time (ms, J)."""
     t = history.column("time_s") * 1e3
-    fig, ax = plt.subplots(figsize=(7, 4))
+    fig, ax = _figure()
     for c in history.columns:
         if c.startswith("energy_"):
             ax.plot(t, history.column(c), label=c.removeprefix("energy_").removesuffix("_J"))
@@ -44,27 +55,35 @@ def plot_probes(history: History, folder: Path, references: dict[str, float] | N
     t = history.column("time_s") * 1e3
     paths = []
     skip = ("time_s", "step", "dt_s", "substeps", "iterations", "em_remeshes", "coil_current_abs_max_A")
-    for c in history.columns:
-        if c in skip or c.startswith("energy_"):
-            continue
-        y = history.column(c)
-        scale, unit = (1e-6, "MPa") if c.endswith("_Pa") else (1.0, c.rsplit("_", 1)[-1])
-        fig, ax = plt.subplots(figsize=(7, 4))
-        ax.plot(t, y * scale, lw=1.0, label="computed")
-        if c in references:
-            ax.axhline(references[c] * scale, color="k", ls="--", label="reference")
-            ax.legend()
-        ax.set_xlabel("time [ms]")
-        ax.set_ylabel(f"{c} [{unit}]")
-        ax.grid(alpha=0.3)
-        paths.append(_save(fig, folder / f"{c}.png"))
+    fig, ax = _figure()   # one figure, its line updated per column (rebuilding axes costs more than drawing)
+    (line,) = ax.plot(t, t, lw=1.0, label="computed")
+    ax.set_xlabel("time [ms]")
+    ax.grid(alpha=0.3)
+    try:
+        for c in history.columns:
+            if c in skip or c.startswith("energy_"):
+                continue
+            y = history.column(c)
+            scale, unit = (1e-6, "MPa") if c.endswith("_Pa") else (1.0, c.rsplit("_", 1)[-1])
+            line.set_ydata(y * scale)
+            extra = []
+            if c in references:
+                extra = [ax.axhline(references[c] * scale, color="k", ls="--", label="reference"), ax.legend()]
+            ax.relim()
+            ax.autoscale_view()
+            ax.set_ylabel(f"{c} [{unit}]")
+            paths.append(_save(fig, folder / f"{c}.png", close=False))
+            for artist in extra:
+                artist.remove()
+    finally:
+        plt.close(fig)
     return paths
 
 
 def plot_time_step(history: History, folder: Path) -> Path:
     """Mechanical time step vs time (µs)."""
     t = history.column("time_s") * 1e3
-    fig, ax = plt.subplots(figsize=(7, 3))
+    fig, ax = _figure(3.0)
     ax.plot(t[1:], history.column("dt_s")[1:] * 1e6)
     ax.set_xlabel("time [ms]")
     ax.set_ylabel("dt [µs]")

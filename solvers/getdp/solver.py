@@ -308,12 +308,20 @@ class GetDPSolver:
         return lines
 
     def _cs_nodes(self, mesh: EMMesh) -> tuple[np.ndarray, np.ndarray]:
-        """(triangles, sorted unique nodes) of the coil and conductor regions."""
+        """(triangles, sorted unique nodes) of the coil and conductor regions.
+
+        Cached for the last connectivity (moved meshes share their triangle arrays).
+        """
+        cached = getattr(self, "_cs_cache", None)
+        if cached is not None and cached[0] is mesh.triangles and cached[1] is mesh.tri_tags:
+            return cached[2], cached[3]
         m = self.model
         sel = np.isin(mesh.tri_tags, [coil_tag(k) for k in range(1, len(m.coils) + 1)]
                       + [conductor_tag(k) for k in range(1, len(m.conductors) + 1)])
         tri = mesh.triangles[sel]
-        return tri, np.unique(tri)
+        nodes = np.unique(tri)
+        self._cs_cache = (mesh.triangles, mesh.tri_tags, tri, nodes)
+        return tri, nodes
 
     def _nodes_are_material(self, mesh: EMMesh, material_points: np.ndarray, state: EMState) -> bool:
         """True if the coil/conductor nodes keep their material identity since the last step
