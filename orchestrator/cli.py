@@ -135,7 +135,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
     except (ResultsExistError, ResumeError) as exc:
         return _error(str(exc), EXIT_BAD_INPUT)
     except RunFailed as exc:
-        return _error(str(exc), EXIT_FAILED)
+        from .user_deck import DeckContractError
+
+        # a user deck that breaks the contract is bad input, found before the first step
+        return _error(str(exc), EXIT_BAD_INPUT if isinstance(exc.__cause__, DeckContractError) else EXIT_FAILED)
     if not args.quiet:
         print(f"results: {out}")
         for k in sorted(metrics):
@@ -150,6 +153,14 @@ def _cmd_check(args: argparse.Namespace) -> int:
         case, file = load_case(args.case, args.overrides)
     except CaseError as exc:
         return _error(str(exc), EXIT_BAD_INPUT)
+    if case.geometry is not None and case.geometry.type == "user_deck":
+        from .user_deck import DeckContractError, check_user_deck
+
+        try:  # mesh the deck, map its groups and run one tiny getdp step (in a temporary folder)
+            check_user_deck(case)
+        except DeckContractError as exc:
+            return _error(str(exc), EXIT_BAD_INPUT)
+        print(f"# {case.geometry.pro}: honours the deck contract")
     print(f"# {file}: valid")
     print(case_to_toml(case), end="")
     return EXIT_OK

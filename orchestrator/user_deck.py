@@ -155,6 +155,17 @@ def build_user_geometry(case, work: Path, em_dir: Path):
     return EMGeometry(mesh, {"coil": ROLE_IDS["coil"], "workpiece": ROLE_IDS["workpiece"]}, [])
 
 
+def check_user_deck(case) -> None:
+    """``pulseform check`` of a user deck: mesh it, map its groups to roles and run the contract
+    check in a temporary folder, which is removed when the deck passes and kept (the error names its
+    getdp log) when it does not. Raises :class:`DeckContractError` naming what is wrong."""
+    import tempfile
+
+    tmp = Path(tempfile.mkdtemp(prefix="pulseform_check_"))
+    build_user_geometry(case, tmp / "em_mesh", tmp / "em")
+    shutil.rmtree(tmp, ignore_errors=True)
+
+
 # ----------------------------------------------------------------------------- getdp
 def user_em_model(case):
     """EMModel of a user-deck case: one stranded coil, the workpiece as massive conductor 1."""
@@ -211,7 +222,7 @@ def check_contract(solver, mesh, work: Path) -> None:
     if solver.model.circuit is not None:
         numbers.update(Init_Vc=solver.model.circuit.V0, Init_I=0.0)
     wrapper = work / "run.pro"
-    wrapper.write_text("// pulseform: deck contract check\n" + "\n".join(solver._table_lines())
+    wrapper.write_text("// pulseform: deck contract check\n" + "\n".join(solver.preamble + solver._table_lines())
                        + f'\nInclude "{deck}";\n')
     try:
         run_getdp(wrapper, msh, work, resolution=RESOLUTION, numbers=numbers, strings={"OutDir": str(out) + "/"},

@@ -61,25 +61,26 @@ def test_deck_without_an_output_table_names_it(tmp_path):
         return "\n".join(lines)
 
     case = _broken_copy(tmp_path, drop_elem_b)
-    r = pulseform("run", str(case), "--out", str(tmp_path / "out"), *SHORT)
-    assert r.returncode == 1
-    line = one_line_error(r)
-    assert "breaks the deck contract" in line and "elem_b.txt" in line and "EM_Elem" in line
-    assert "elem_f.txt" not in line  # only what is missing is named
+    for argv in (["check", str(case)], ["run", str(case), "--out", str(tmp_path / "out"), *SHORT]):
+        r = pulseform(*argv)
+        assert r.returncode == 2, argv  # bad input, found before the first step (check: without running)
+        line = one_line_error(r)
+        assert "breaks the deck contract" in line and "elem_b.txt" in line and "EM_Elem" in line
+        assert "elem_f.txt" not in line  # only what is missing is named
 
 
 @pytest.mark.getdp
 def test_deck_without_the_resolution_names_it(tmp_path):
     case = _broken_copy(tmp_path, lambda lib: lib.replace("{ Name EM_Transient;", "{ Name MyTransient;"))
-    r = pulseform("run", str(case), "--out", str(tmp_path / "out"), *SHORT)
-    assert r.returncode == 1
+    r = pulseform("check", str(case))
+    assert r.returncode == 2
     line = one_line_error(r)
     assert "EM_Transient" in line and "sheet_bulge.pro" in line
 
 
 def test_unknown_group_name_is_named(tmp_path):
     r = pulseform("run", str(CASE), "--out", str(tmp_path / "out"), *SHORT, "--set", "geometry.regions.coil=COILS")
-    assert r.returncode == 1
+    assert r.returncode == 2
     line = one_line_error(r)
     assert "geometry.regions.coil" in line and "'COILS'" in line and "COIL" in line
 
@@ -87,8 +88,9 @@ def test_unknown_group_name_is_named(tmp_path):
 def test_deck_paths_stay_inside_the_case_folder(tmp_path):
     r = pulseform("check", str(CASE), "--set", "geometry.pro=../emf_sheet_bulge/case.pro")
     assert r.returncode == 2 and "outside the case folder" in one_line_error(r) and "geometry.pro" in r.stderr
-    outside = tmp_path / "mine.pro"
-    outside.write_text("// a deck elsewhere\n")
+    outside = tmp_path / "mine.pro"  # a working deck elsewhere (check runs its contract step)
+    outside.write_text((CASE / "sheet_bulge.pro").read_text())
+    shutil.copy(CASE / "sheet_bulge_common.pro", tmp_path)
     r = pulseform("check", str(CASE), "--set", f"geometry.pro={outside}")
     assert r.returncode == 2 and "allow_outside" in one_line_error(r)
     r = pulseform("check", str(CASE), "--set", f"geometry.pro={outside}", "--set", "geometry.allow_outside=true")
