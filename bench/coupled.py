@@ -2,7 +2,10 @@
 transfer/orchestration, then the same case driven by an eq. (7) pressure pulse of equal impulse
 through the identical loop, and the difference in max deflection.
 
-Run: .venv/bin/python bench/coupled.py [--out DIR]
+Run: .venv/bin/python bench/coupled.py [--out DIR] [--set key=value ...] [--profile] [--no-pressure]
+``--set`` goes to both runs (e.g. ``--set coupling.n=20 --set coupling.em_substeps=1``);
+``--profile`` runs the coupled case under cProfile (slower; the split is then not the target's)
+and prints the largest cumulative entries.
 Targets (issue 5): demo < 60 s on this 2-core machine; orchestration overhead (all but getdp and
 the mechanical steps) < 10 % of the wall time.
 """
@@ -22,8 +25,10 @@ EXE = str(Path(sys.executable).with_name("pulseform"))
 sys.path.insert(0, str(REPO))
 
 
-def run(out: Path, *sets: str) -> dict:
+def run(out: Path, *sets: str, profile: Path | None = None) -> dict:
     argv = [EXE, "run", str(REPO / "cases/emf_sheet_bulge"), "--out", str(out), "--force", "--quiet"]
+    if profile is not None:
+        argv = [sys.executable, "-m", "cProfile", "-o", str(profile), "-m", "pulseform.orchestrator"] + argv[1:]
     for s in sets:
         argv += ["--set", s]
     t0 = time.perf_counter()
@@ -36,9 +41,15 @@ def run(out: Path, *sets: str) -> dict:
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--out", type=Path, default=REPO / "results" / "bench_coupled")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="case override for both runs")
+    p.add_argument("--profile", action="store_true", help="cProfile the coupled run, print the top entries")
+    p.add_argument("--no-pressure", action="store_true", help="skip the equal-impulse pressure run")
     args = p.parse_args()
 
-    m = run(args.out / "coupled")
+    prof = args.out / "coupled.prof" if args.profile else None
+    if prof is not None:
+        args.out.mkdir(parents=True, exist_ok=True)
+    m = run(args.out / "coupled", *args.set, profile=prof)
     wall = m["process_wall_s"]
     parts = {
         "getdp processes": m["em_getdp_process_s"],
@@ -59,6 +70,12 @@ def main() -> None:
           f"{100 * overhead / wall:.1f} % of wall (target < 10 %)")
     print(f"  per EM step: getdp process {1e3 * m['em_getdp_process_s'] / m['em_steps']:.1f} ms, "
           f"other EM work {1e3 * (m['em_time_s'] - m['em_getdp_process_s']) / m['em_steps']:.1f} ms")
+    if prof is not None:
+        import pstats
+
+        pstats.Stats(str(prof)).sort_stats("cumulative").print_stats(r"pulseform|orchestrator|solvers", 30)
+    if args.no_pressure:
+        return
 
     # equal-impulse pressure pulse, eq. (7), uniform on the sheet's lower face over the coil
     from pulseform.orchestrator.caseio import load_case
@@ -80,7 +97,7 @@ def main() -> None:
     p0 = m["force_impulse_z_Ns"] / (area * pulse_impulse_per_area(unit))
     load = (f'{{type = "pulse_sin2", body = "sheet", surface = {{xmin = {r1}, xmax = {r2}, ymin = {zface - 1e-6}, '
             f'ymax = {zface + 1e-6}}}, amplitude = {p0:.6g}, beta = 1e4, omega = {omega:.6g}, t_end = {case.time.end}}}')
-    mp = run(args.out / "pressure", "coupling.load=pressure", f"loads=[{load}]")
+    mp = run(args.out / "pressure", *args.set, "coupling.load=pressure", f"loads=[{load}]")
     d_c, d_p = m["max_deflection_mm"], mp["max_deflection_mm"]
     print(f"equal-impulse pressure pulse eq. (7): P0 = {p0 / 1e6:.2f} MPa, omega = {omega:.4g} rad/s on "
           f"{r1 * 1e3:.0f}-{r2 * 1e3:.0f} mm; impulse {mp['force_impulse_z_Ns']:.4f} vs coupled "

@@ -26,7 +26,8 @@ Stepping API (staggered coupling)
 ::
 
     solver = GetDPSolver(model, work_dir, executable="getdp", petsc_args=DEFAULT_PETSC_ARGS,
-                         timeout=None, keep_runs=None, reuse_pre=True)   # one sub-folder per run
+                         timeout=None, keep_runs=None, reuse_pre=True,   # one sub-folder per run
+                         time_scheme="euler")   # or "bdf2": second order, n_sub = 1 (see .bdf2)
     state = solver.initial_state(t0=0.0)             # EMState, JSON-able (to_dict / save / load)
     for k in range(n_em_steps):
         mesh_k = mesh0.with_points(current_positions)   # same connectivity, moved nodes
