@@ -207,6 +207,7 @@ class DeckRegions:
     air: str = spec(doc="air (physical surface)")
     coil: str = spec(doc="the stranded coil, all its turns (physical surface)")
     workpiece: str = spec(doc="the workpiece, a massive conductor (physical surface)")
+    die: str | None = spec(None, doc="a die, massive conductor 2 (physical surface); needs a body with region = 'die'")
     axis: str = spec(doc="the symmetry axis r = 0, a = 0 (physical curve)")
     outer: str = spec(doc="the outer boundary, a = 0 (physical curve)")
     shell: str | None = spec(None, doc="shell transformation to infinity (physical surface)")
@@ -215,7 +216,7 @@ class DeckRegions:
 @dataclass(frozen=True, kw_only=True)
 class UserDeck:
     """A user's own EM deck: a Gmsh .geo (meshed by the runner) or .msh, and a GetDP .pro that
-    honours the deck contract (docs/workflow.md). Axisymmetric, one coil, the workpiece."""
+    honours the deck contract (docs/workflow.md). Axisymmetric, one coil, the workpiece, optionally a die."""
 
     type: Literal["user_deck"] = spec(doc="geometry kind")
     mesh: str = spec(doc=".geo (meshed with gmsh, MSH 2.2) or .msh, relative to the case folder")
@@ -230,8 +231,8 @@ class UserDeck:
     planar = False
 
     def conductor_roles(self) -> tuple[str, ...]:
-        """EM conductor regions, in conductor order (201, ...)."""
-        return ("workpiece",)
+        """EM conductor regions, in conductor order (201, 202)."""
+        return ("workpiece", "die") if self.regions.die is not None else ("workpiece",)
 
     def validate(self, path: str) -> None:
         if not self.mesh.endswith((".geo", ".msh")):

@@ -6,8 +6,8 @@ The runner
    ``allow_outside = true``) when the case is loaded;
 2. meshes a ``.geo`` with ``gmsh -2 -format msh22 -setnumber <parameters>`` (or reads the ``.msh``);
 3. renumbers the physical groups named in ``[geometry.regions]`` to the runner's ids (1 air, 2 shell,
-   101 coil, 201 workpiece, 11 axis, 12 outer) and tells the deck these ids with ``-setnumber
-   Phys_Air, Phys_Shell, Phys_Coil_1, Phys_Cond_1, Phys_Axis, Phys_Outer``;
+   101 coil, 201 workpiece, 202 die, 11 axis, 12 outer) and tells the deck these ids with
+   ``-setnumber Phys_Air, Phys_Shell, Phys_Coil_1, Phys_Cond_1, Phys_Cond_2, Phys_Axis, Phys_Outer``;
 4. runs getdp on the deck exactly like the built-in ``em_case.pro`` (every number of the library's
    ``DefineConstant`` list with ``-setnumber``, ``OutDir`` with ``-setstring``, resolution
    ``EM_Transient``), with the string ``PulseformLib`` (absolute path of ``Lib_PulsedForming.pro``)
@@ -33,10 +33,11 @@ from .caseio import CaseError
 log = logging.getLogger(__name__)
 
 #: role -> the runner's physical id, and the -setnumber name the deck receives it under
-ROLE_IDS = {"air": 1, "shell": 2, "coil": 101, "workpiece": 201, "axis": 11, "outer": 12}
+ROLE_IDS = {"air": 1, "shell": 2, "coil": 101, "workpiece": 201, "die": 202, "axis": 11, "outer": 12}
 ROLE_NUMBERS = {"air": "Phys_Air", "shell": "Phys_Shell", "coil": "Phys_Coil_1", "workpiece": "Phys_Cond_1",
-                "axis": "Phys_Axis", "outer": "Phys_Outer"}
-SURFACE_ROLES, CURVE_ROLES = ("air", "shell", "coil", "workpiece"), ("axis", "outer")
+                "die": "Phys_Cond_2", "axis": "Phys_Axis", "outer": "Phys_Outer"}
+SURFACE_ROLES, CURVE_ROLES = ("air", "shell", "coil", "workpiece", "die"), ("axis", "outer")
+OPTIONAL_ROLES = ("shell", "die")
 
 
 class DeckContractError(RuntimeError):
@@ -152,7 +153,7 @@ def build_user_geometry(case, work: Path, em_dir: Path):
     mesh = read_deck_mesh(mesh_file(g, work), g.regions)
     log.info("user EM mesh (%s): %d nodes, %d triangles", Path(g.mesh).name, mesh.n_nodes, len(mesh.triangles))
     check_contract(make_solver(case, user_em_model(case), Path(em_dir)), mesh, Path(em_dir) / "contract_check")
-    return EMGeometry(mesh, {"coil": ROLE_IDS["coil"], "workpiece": ROLE_IDS["workpiece"]}, [])
+    return EMGeometry(mesh, {role: ROLE_IDS[role] for role in ("coil",) + g.conductor_roles()}, [])
 
 
 def check_user_deck(case) -> None:
@@ -168,7 +169,7 @@ def check_user_deck(case) -> None:
 
 # ----------------------------------------------------------------------------- getdp
 def user_em_model(case):
-    """EMModel of a user-deck case: one stranded coil, the workpiece as massive conductor 1."""
+    """EMModel of a user-deck case: one stranded coil, the workpiece as massive conductor 1 (a die 2)."""
     from .em_participant import em_model
 
     g = case.geometry
@@ -183,7 +184,7 @@ def make_solver(case, model, work_dir: Path):
 
     g = case.geometry
     numbers = {name: ROLE_IDS[role] for role, name in ROLE_NUMBERS.items()
-               if role != "shell" or g.regions.shell is not None}
+               if role not in OPTIONAL_ROLES or getattr(g.regions, role) is not None}
     numbers["TimeTheta"] = case.em.time_theta  # the library's θ-scheme (a deck may ignore it)
     numbers.update({k: float(v) for k, v in (g.parameters or {}).items()})
     lib = (DECK_DIR / "Lib_PulsedForming.pro").resolve()
@@ -239,6 +240,9 @@ def check_contract(solver, mesh, work: Path) -> None:
     need = dict(REQUIRED_TABLES)
     if solver.model.circuit is not None:
         need.update(CIRCUIT_TABLES)
+    for k in range(2, len(solver.model.conductors) + 1):  # a die: massive conductor 2
+        need.update({f"cond_P_{k}.txt": f"EM_Step: Print[P[Cond_{k}], OnGlobal]",
+                     f"cond_F_{k}.txt": f"EM_Step: Print[F[Cond_{k}], OnGlobal]"})
     missing = [f for f in need if not (out / f).is_file()]
     if missing:
         raise DeckContractError(f"deck {deck} breaks the deck contract: after one step OutDir lacks "

@@ -40,6 +40,26 @@ def test_user_deck_matches_the_builtin_case(tmp_path):
     assert (tmp_path / "user/em/contract_check/out/elem_f.txt").is_file()
 
 
+@pytest.mark.getdp
+def test_user_deck_with_a_die_matches_the_builtin_case(tmp_path):
+    """The deck's optional die mapped to the role die (massive conductor 2, a mechanical body):
+    within 1 % of cases/emf_sheet_die (issue 7's criterion), and the contract check saw the die's
+    tables."""
+    builtin, _ = load_case(REPO / "cases/emf_sheet_die")
+    loop = ["--set", f"coupling.n={builtin.coupling.n}", "--set", f"coupling.em_substeps={builtin.coupling.em_substeps}"]
+    ru = pulseform("run", str(CASE / "with_die.toml"), "--out", str(tmp_path / "user"), *MATCH, *loop)
+    assert ru.returncode == 0, ru.stderr[-3000:]
+    rb = pulseform("run", str(REPO / "cases/emf_sheet_die"), "--out", str(tmp_path / "builtin"), *MATCH)
+    assert rb.returncode == 0, rb.stderr[-3000:]
+    mu = json.loads((tmp_path / "user/metrics.json").read_text())
+    mb = json.loads((tmp_path / "builtin/metrics.json").read_text())
+    for key in ("force_impulse_Ns", "coil_current_peak_kA", "sheet_max_speed_m_s"):
+        print(f"{key}: user deck {mu[key]:.6g}, built-in {mb[key]:.6g} ({100 * (mu[key] / mb[key] - 1):+.3f} %)")
+        assert mu[key] == pytest.approx(mb[key], rel=0.01), key
+    assert mu["conservation_error_rel"] < 1e-10
+    assert (tmp_path / "user/em/contract_check/out/cond_F_2.txt").is_file()
+
+
 def _broken_copy(tmp_path, edit_lib):
     """A copy of the example whose deck includes its own (edited) copy of the library."""
     case = tmp_path / "case"
