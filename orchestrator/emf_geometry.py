@@ -63,10 +63,13 @@ def planar_turns(g: PlanarCoilBlankDie) -> list[Rect]:
             for k in range(g.turns)]
 
 
-def sheet_die_polygon(g: FlatCoilSheet, segments: int = 8) -> np.ndarray:
+def sheet_die_polygon(g: FlatCoilSheet, segments: int | None = None) -> np.ndarray:
     """Counter-clockwise (r, z) outline (m) of the die above the sheet: block minus the cavity,
-    the cavity edge rounded with ``entry_radius`` (``segments`` chords)."""
+    the cavity edge rounded with ``entry_radius`` (``segments`` chords; default: chords of about half
+    the die's element size, so the fillet does not make elements, and the stable step, smaller)."""
     d = g.die
+    if segments is None:
+        segments = max(2, int(np.ceil(0.5 * np.pi * d.entry_radius / (0.5 * d.mesh_size))))
     z = g.coil_gap + g.sheet_thickness + d.gap  # the die's lower face
     rc, re = d.cavity_radius, d.entry_radius
     pts = [(rc + re, z), (d.outer_radius, z), (d.outer_radius, z + d.height), (0.0, z + d.height),

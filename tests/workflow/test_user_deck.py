@@ -19,15 +19,14 @@ SHORT = ["--quiet", "--set", "time.end=4e-6", "--set", "output.field_interval=2e
 MATCH = ["--quiet", "--set", "time.end=6e-6", "--set", "output.field_interval=3e-6"]
 
 
-@pytest.mark.getdp
-def test_user_deck_matches_the_builtin_case(tmp_path):
-    """Reference: the built-in case run by the same command (issue 7: within 1 % on the main metric,
-    the force impulse the deck's GetDP run delivers; the peak current and the sheet's speed too)."""
-    builtin, _ = load_case(REPO / "cases/emf_sheet_bulge")  # same loop settings as the built-in case
+def _match_builtin(tmp_path, deck_case, builtin_case) -> dict:
+    """Run a user-deck case and its built-in equivalent with the same loop settings; compare the
+    force impulse (the main metric), the peak current and the sheet's speed within 1 % (issue 7)."""
+    builtin, _ = load_case(builtin_case)
     loop = ["--set", f"coupling.n={builtin.coupling.n}", "--set", f"coupling.em_substeps={builtin.coupling.em_substeps}"]
-    ru = pulseform("run", str(CASE), "--out", str(tmp_path / "user"), *MATCH, *loop)
+    ru = pulseform("run", str(deck_case), "--out", str(tmp_path / "user"), *MATCH, *loop)
     assert ru.returncode == 0, ru.stderr[-3000:]
-    rb = pulseform("run", str(REPO / "cases/emf_sheet_bulge"), "--out", str(tmp_path / "builtin"), *MATCH)
+    rb = pulseform("run", str(builtin_case), "--out", str(tmp_path / "builtin"), *MATCH)
     assert rb.returncode == 0, rb.stderr[-3000:]
     mu = json.loads((tmp_path / "user/metrics.json").read_text())
     mb = json.loads((tmp_path / "builtin/metrics.json").read_text())
@@ -35,6 +34,13 @@ def test_user_deck_matches_the_builtin_case(tmp_path):
         print(f"{key}: user deck {mu[key]:.6g}, built-in {mb[key]:.6g} ({100 * (mu[key] / mb[key] - 1):+.3f} %)")
         assert mu[key] == pytest.approx(mb[key], rel=0.01), key
     assert mu["conservation_error_rel"] < 1e-10 and mu["em_steps"] == mb["em_steps"]
+    return mu
+
+
+@pytest.mark.getdp
+def test_user_deck_matches_the_builtin_case(tmp_path):
+    """Reference: the built-in case run by the same command (cases/emf_sheet_bulge)."""
+    _match_builtin(tmp_path, CASE, REPO / "cases/emf_sheet_bulge")
     # the runner meshed the user's .geo and checked the contract before the run
     assert (tmp_path / "user/em_mesh/sheet_bulge.msh").is_file()
     assert (tmp_path / "user/em/contract_check/out/elem_f.txt").is_file()
@@ -42,21 +48,9 @@ def test_user_deck_matches_the_builtin_case(tmp_path):
 
 @pytest.mark.getdp
 def test_user_deck_with_a_die_matches_the_builtin_case(tmp_path):
-    """The deck's optional die mapped to the role die (massive conductor 2, a mechanical body):
-    within 1 % of cases/emf_sheet_die (issue 7's criterion), and the contract check saw the die's
-    tables."""
-    builtin, _ = load_case(REPO / "cases/emf_sheet_die")
-    loop = ["--set", f"coupling.n={builtin.coupling.n}", "--set", f"coupling.em_substeps={builtin.coupling.em_substeps}"]
-    ru = pulseform("run", str(CASE / "with_die.toml"), "--out", str(tmp_path / "user"), *MATCH, *loop)
-    assert ru.returncode == 0, ru.stderr[-3000:]
-    rb = pulseform("run", str(REPO / "cases/emf_sheet_die"), "--out", str(tmp_path / "builtin"), *MATCH)
-    assert rb.returncode == 0, rb.stderr[-3000:]
-    mu = json.loads((tmp_path / "user/metrics.json").read_text())
-    mb = json.loads((tmp_path / "builtin/metrics.json").read_text())
-    for key in ("force_impulse_Ns", "coil_current_peak_kA", "sheet_max_speed_m_s"):
-        print(f"{key}: user deck {mu[key]:.6g}, built-in {mb[key]:.6g} ({100 * (mu[key] / mb[key] - 1):+.3f} %)")
-        assert mu[key] == pytest.approx(mb[key], rel=0.01), key
-    assert mu["conservation_error_rel"] < 1e-10
+    """The deck's optional die mapped to the role die (massive conductor 2, a mechanical body)
+    against cases/emf_sheet_die; the contract check saw the die's tables."""
+    _match_builtin(tmp_path, CASE / "with_die.toml", REPO / "cases/emf_sheet_die")
     assert (tmp_path / "user/em/contract_check/out/cond_F_2.txt").is_file()
 
 
