@@ -105,6 +105,16 @@ class Entry:
     reference: ``metric`` applied to the reference curve, the same function that made the computed
     value); ``"curve"`` compares the run's curve ``curve`` with the reference curve at the
     computed abscissae, error = max |Δy| / max |y_ref|. ``error`` is relative (``rel``) or absolute.
+
+    ``compare`` (scalar entries): ``"equal"`` passes when |computed − reference| <= tolerance;
+    ``"below"`` / ``"above"`` test a claim that the computed value is lower / higher than the
+    reference by at least the tolerance: the signed error (computed − reference, relative or
+    absolute) must be <= −tolerance / >= +tolerance. ``reference_run``: the run whose output the
+    reference's ``from_run`` reads (default: the entry's own run), e.g. "the four pulses load the
+    die less than the single pulse". ``known_deviation``: why our result is known to differ from
+    the reference (docs/cases.md); such an entry is expected to fail its comparison and is reported
+    as "known deviation (xfail)"; if it passes, it is reported as XPASS and fails the suite
+    (strict: the registry must then be updated).
     """
 
     name: str
@@ -122,6 +132,9 @@ class Entry:
     suites: tuple[str, ...] = ("fast", "full")
     note: str = ""
     align_onset: bool = False  # plot only: shift the reference curve to the computed curve's first y > 0
+    compare: str = "equal"  # "equal" | "below" | "above"
+    reference_run: str | None = None
+    known_deviation: str = ""
 
 
 REGISTRY: dict[str, Entry] = {}
@@ -131,8 +144,11 @@ RUNS: dict[str, Callable[[Path], RunOutput]] = {}
 def register(entry: Entry) -> Entry:
     if entry.name in REGISTRY:
         raise ValueError(f"validation entry {entry.name!r} registered twice")
-    if entry.run not in RUNS:
-        raise ValueError(f"validation entry {entry.name!r}: unknown run {entry.run!r}")
+    for key in (entry.run, entry.reference_run):
+        if key is not None and key not in RUNS:
+            raise ValueError(f"validation entry {entry.name!r}: unknown run {key!r}")
+    if entry.compare not in ("equal", "below", "above"):
+        raise ValueError(f"validation entry {entry.name!r}: compare must be equal, below or above")
     REGISTRY[entry.name] = entry
     return entry
 
@@ -165,11 +181,11 @@ def _bar_pe(work: Path) -> RunOutput:
     return _bar_run(work, "plane_strain", 80, 40)
 
 
-def run_case_cli(case: str, work: Path, sets: list[str]) -> tuple[dict[str, float], np.ndarray]:
-    """``pulseform run cases/<case>`` into ``work/run`` (the user's path: case file, CLI, results folder);
-    returns (metrics, history)."""
+def run_case_cli(case: str, work: Path, sets: list[str], folder: str = "run") -> tuple[dict[str, float], np.ndarray]:
+    """``pulseform run cases/<case>`` into ``work/<folder>`` (the user's path: case file, CLI, results
+    folder); returns (metrics, history)."""
     exe = str(Path(sys.executable).with_name("pulseform"))
-    out_dir = work / "run"
+    out_dir = work / folder
     argv = [exe, "run", str(REPO / "cases" / case), "--out", str(out_dir), "--force", "--quiet",
             "--set", "output.plots=false"]
     for s in sets:
@@ -346,3 +362,123 @@ register(Entry("corner_fill.P0_30MPa.fill_fraction", "corner_fill", "fill fracti
                         "(P0* between 25 and 30 MPa); cases/corner_fill/reference/paper.md", value=1.0),
                1e-3, computed=lambda out: out.scalars["fill_fraction"], error="abs", suites=("full",),
                note="pulseform run cases/corner_fill (die depth chosen so that P0* lies in 25-30 MPa, docs/cases.md)"))
+
+
+# --------------------------------------------------------------------------- paper sec. 5 and 6: the other claims
+# (full suite; case meshes; docs/cases.md gives the figures and the explanations of the known deviations)
+@run("case_corner_fill_multipulse")
+def _corner_fill_multi(work: Path) -> RunOutput:
+    m, _ = run_case_cli("corner_fill_multipulse", work, [])
+    return RunOutput(scalars={k: float(v) for k, v in m.items() if v is not None})
+
+
+@run("case_corner_fill_restrike")
+def _corner_fill_restrike(work: Path) -> RunOutput:
+    m, _ = run_case_cli("corner_fill_restrike", work, [])
+    return RunOutput(scalars={k: float(v) for k, v in m.items() if v is not None})
+
+
+_FILLED = Analytic("1 (the die cavity is filled)", "", value=1.0)
+_SEC5 = "paper sec. 5, last paragraph (Fig. 4 vs Fig. 3): "
+_CONCL2 = "paper sec. 7, conclusion 2: "
+# "significantly lower" / "substantially reduce": read as lower by at least 10 % (more than the 2-4 %
+# our verification entries accept as agreement), fixed before the comparison was run
+_LOWER = 0.10
+_VM_CAPPED = ("the die yields (sigma_0 = 620 MPa) under every loading from P0 = 10 MPa on, so its von Mises "
+              "maximum is capped near 620-660 MPa and hardly separates the loadings; the contact stress and the "
+              "die's plastic strain do (docs/cases.md)")
+
+
+def _vs_single(key: str, why: str) -> Analytic:
+    return Analytic(f"{key} of the single 30 MPa pulse (run case_corner_fill_30MPa)", why,
+                    from_run=lambda o: o.scalars[key])
+
+
+def _corner_entries(tag: str, run_key: str, paper: str, fill_known: str, vm_known: str) -> None:
+    case = f"corner_fill_{tag}"
+    register(Entry(f"{case}.fill_fraction", case, "fill fraction of the die profile", "-", run_key,
+                   Analytic(_FILLED.formula, paper + "the blank ends filled; cases/" + case + "/reference/paper.md",
+                            value=1.0), 1e-3, computed=lambda o: o.scalars["fill_fraction"], error="abs",
+                   suites=("full",), known_deviation=fill_known,
+                   note="profile sampled every 0.1 mm, touched within 2 h0 at some time (analyses/corner_fill.py)"))
+    for key, label, claim, known in (
+            ("die_mises_max_MPa", "die von Mises max", "maximum J2(sigma) of the die", vm_known),
+            ("die_contact_pressure_max_MPa", "die contact stress max", "contact stresses on the die surface", ""),
+            ("blank_speed_max_m_s", "blank max speed", "impact velocity of the blank", "")):
+        if tag == "restrike" and key == "blank_speed_max_m_s":
+            continue  # conclusion 2 speaks of the die's contact stresses only
+        register(Entry(f"{case}.{key}_vs_single", case, f"{label}, relative to the single 30 MPa pulse", "-", run_key,
+                       _vs_single(key, paper + f"{claim} lower than with the single pulse that fills"),
+                       _LOWER, computed=lambda o, k=key: o.scalars[k], compare="below",
+                       reference_run="case_corner_fill_30MPa", suites=("full",), known_deviation=known,
+                       note="lower by >= 10 % ('significantly'), same die mesh as the single pulse"))
+
+
+_corner_entries("multipulse", "case_corner_fill_multipulse", _SEC5 + "four pulses 5, 10, 15, 25 MPa: ",
+                "the last (25 MPa) pulse starts from a blank already lying on the die: the material bridging the "
+                "130-degree corner gets too little momentum to wrap its 2 mm radius (corner gap 0.5-0.7 mm "
+                "remains), and a static 25 MPa cannot bend it there (docs/cases.md)", _VM_CAPPED)
+_corner_entries("restrike", "case_corner_fill_restrike", _CONCL2 + "static preforming + pulsed restrike: ",
+                "", _VM_CAPPED)
+
+
+def _tube_clearances() -> tuple[float, ...]:
+    return (0.0, 0.5, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0)
+
+
+@run("case_tube_press_fit_sweep")
+def _tube_sweep(work: Path) -> RunOutput:
+    """The case file (clearance 0.006 R0, Figure 6) and the clearance sweep 0 .. 6 % of R0 (Figure 7)."""
+    from .analyses.tube_press_fit import critical_clearance
+
+    r0, r1, r_out, h0 = 0.0105, 0.0125, 0.025, 5.0e-5
+    m, _ = run_case_cli("tube_press_fit", work, [], folder="c_case")
+    out = RunOutput(scalars={"residual_case_MPa": m["residual_contact_pressure_MPa"]})
+    cs, ps = [], []
+    for c in _tube_clearances():
+        r2 = r1 + c / 100.0 * r0 + h0
+        mc, _ = run_case_cli("tube_press_fit", work, [f"bodies.outer.shape.origin=[{r2:.9g}, 0.0]",
+                                                      f"bodies.outer.shape.width={r_out - r2:.9g}"], folder=f"c_{c:g}")
+        cs.append(c)
+        ps.append(mc["residual_contact_pressure_MPa"])
+    lo, hi = critical_clearance(list(zip(cs, ps)))
+    p = np.array(ps)
+    below = np.array(cs) <= lo
+    out.scalars.update({"residual_largest_MPa": float(p[-1]), "residual_zero_clearance_MPa": float(p[0]),
+                        "critical_clearance_percent": 0.5 * (lo + hi),
+                        "residual_largest_rise_rel": float(np.max(np.diff(p[below]), initial=0.0) / p[0])})
+    out.curves["residual"] = (np.array(cs), p)
+    out.labels["residual"] = ("initial radial clearance / R0 (%)", "residual contact pressure (MPa)")
+    return out
+
+
+_SEC6 = "paper sec. 6 (Figs. 6-7): "
+register(Entry("tube_press_fit.residual_small_clearance", "tube_press_fit",
+               "residual contact pressure at clearance 0.006 R0 (Figure 6's example)", "MPa", "case_tube_press_fit_sweep",
+               Analytic("0 (no joint); the claim: above it by >= 1 % of the yield stress (3 MPa)", _SEC6 + "small "
+                        "clearance: both tubes unload from about the same point, a residual contact pressure remains; "
+                        "'positive' read as >= 1 % of sigma_s0 = 300 MPa", value=0.0), 3.0,
+               computed=lambda o: o.scalars["residual_case_MPa"], compare="above",
+               error="abs", suites=("full",), curve="residual"))
+register(Entry("tube_press_fit.residual_6_percent", "tube_press_fit",
+               "residual contact pressure at 6 % R0, relative to zero clearance", "-", "case_tube_press_fit_sweep",
+               Analytic("0", _SEC6 + "beyond the critical clearance no residual pressure ('near zero': < 2 % of the "
+                        "zero-clearance value, analyses/tube_press_fit.VANISH)", value=0.0), 0.02,
+               computed=lambda o: o.scalars["residual_largest_MPa"] / o.scalars["residual_zero_clearance_MPa"],
+               error="abs", suites=("full",), curve="residual"))
+register(Entry("tube_press_fit.critical_clearance", "tube_press_fit", "critical clearance (middle of the sweep "
+               "bracket)", "% of R0", "case_tube_press_fit_sweep",
+               Analytic("3 % of R0", _SEC6 + "'the initial radial clearance should not be more than 3 % of the inner "
+                        "tube internal radius'", value=3.0), 1.0,
+               computed=lambda o: o.scalars["critical_clearance_percent"], error="abs", suites=("full",),
+               curve="residual", note="tolerance = the sweep's 1 % grid spacing above 1 %"))
+register(Entry("tube_press_fit.residual_falls_with_clearance", "tube_press_fit", "largest rise of the residual "
+               "pressure from one sweep point to the next (below the critical clearance), relative to zero clearance",
+               "-", "case_tube_press_fit_sweep",
+               Analytic("0 (falls monotonically)", _SEC6 + "Fig. 7 and text: 'the larger is the initial clearance ... "
+                        "the smaller is technological pressure'; a rise of up to 5 % of p(0) counted as flat", value=0.0),
+               0.05, computed=lambda o: o.scalars["residual_largest_rise_rel"], error="abs", suites=("full",),
+               curve="residual",
+               known_deviation="below the critical clearance our residual pressure is an interference of a few "
+               "micrometres left by the impact dynamics (plastic flow ends by ~70 us, before any damping); it dips at "
+               "2 % and peaks again at 3 % on both meshes (0.25 and 0.5 mm cells), docs/cases.md"))

@@ -23,7 +23,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 CASE = ROOT / "cases" / "tube_press_fit"
 R0, R1, R_OUT, H0 = 0.0105, 0.0125, 0.025, 5.0e-5
-VANISH = 0.02  # "near zero": below 2 % of the residual pressure at zero clearance
+from pulseform.orchestrator.analyses.tube_press_fit import VANISH  # noqa: E402
+from pulseform.orchestrator.analyses.tube_press_fit import critical_clearance as _critical  # noqa: E402
 
 
 def outer_sets(c_percent: float) -> list[str]:
@@ -47,16 +48,8 @@ def run_one(out: Path, c: float, extra: list[str]) -> dict:
 
 def critical_clearance(rows: list[dict]) -> tuple[float, float]:
     """(last clearance with pressure, first clearance without), % of R0: the critical clearance lies
-    between them. "Without": residual below VANISH x its zero-clearance value, and every larger
-    clearance of the sweep too. (nan, nan) if the pressure never vanishes."""
-    pts = sorted((r["clearance_percent"], r["residual_contact_pressure_MPa"]) for r in rows if r.get("ok"))
-    if not pts:
-        return float("nan"), float("nan")
-    limit = VANISH * pts[0][1]
-    for k in range(1, len(pts)):
-        if all(p <= limit for _, p in pts[k:]):
-            return pts[k - 1][0], pts[k][0]
-    return float("nan"), float("nan")
+    between them (``orchestrator/analyses/tube_press_fit.critical_clearance``)."""
+    return _critical([(r["clearance_percent"], r["residual_contact_pressure_MPa"]) for r in rows if r.get("ok")])
 
 
 def plots(out: Path, rows: list[dict]) -> None:

@@ -20,6 +20,31 @@ from __future__ import annotations
 import numpy as np
 
 
+VANISH = 0.02  # "near zero": below 2 % of the residual pressure at zero (the smallest) clearance
+
+
+def critical_clearance(points: list[tuple[float, float]]) -> tuple[float, float]:
+    """Bracket of the critical clearance from a sweep: (last clearance with residual pressure,
+    first clearance from which on it stays below ``VANISH`` x the smallest clearance's value).
+
+    Parameters
+    ----------
+    points : (clearance, residual contact pressure) pairs, any clearance unit, pressure in any unit.
+
+    Returns
+    -------
+    (low, high) in the clearance unit; (nan, nan) if the pressure never vanishes.
+    """
+    pts = sorted(points)
+    if not pts:
+        return float("nan"), float("nan")
+    limit = VANISH * pts[0][1]
+    for k in range(1, len(pts)):
+        if all(p <= limit for _, p in pts[k:]):
+            return pts[k - 1][0], pts[k][0]
+    return float("nan"), float("nan")
+
+
 class TubePressFit:
     """History columns, metrics and plots of the press-fitting case."""
 

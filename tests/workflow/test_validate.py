@@ -93,3 +93,54 @@ def test_reference_without_provenance_fails(tmp_path):
 def test_unknown_selection_is_bad_input(tmp_path):
     r = pulseform("validate", "--only", "no_such_entry", "--out", str(tmp_path / "v"))
     assert r.returncode == 2 and "no_such_entry" in one_line_error(r)
+
+
+def _fake_entries(monkeypatch):
+    """Two cheap fake runs (no solver): 'measured' reports x = 0.9, 'baseline' x = 1.0."""
+    from pulseform.orchestrator.validation_registry import Analytic, Entry, RunOutput
+
+    monkeypatch.setitem(RUNS, "fake_measured", lambda work: RunOutput(scalars={"x": 0.9}))
+    monkeypatch.setitem(RUNS, "fake_baseline", lambda work: RunOutput(scalars={"x": 1.0}))
+    x = lambda o: o.scalars["x"]  # noqa: E731
+    lower = Entry("fake.lower", "fake", "x below the baseline by >= 5 %", "-", "fake_measured",
+                  Analytic("x of the baseline run", "test", from_run=x), 0.05, computed=x, compare="below",
+                  reference_run="fake_baseline")
+    known = Entry("fake.known", "fake", "x equals 1 (a claim we do not reproduce)", "-", "fake_measured",
+                  Analytic("1", "test", value=1.0), 1e-3, computed=x, error="abs", known_deviation="x stays at 0.9")
+    flipped = Entry("fake.flipped", "fake", "x equals 0.9 but registered as a known deviation", "-", "fake_measured",
+                    Analytic("0.9", "test", value=0.9), 1e-3, computed=x, error="abs", known_deviation="stale")
+    return lower, known, flipped
+
+
+def test_bounds_and_known_deviations(tmp_path, monkeypatch):
+    """A "below" claim against another run's value passes with the signed error -0.1 <= -0.05; a known
+    deviation whose comparison fails is reported as "known deviation (xfail)" and does not fail the
+    suite; one whose comparison passes (the result changed) is XPASS and fails it (strict)."""
+    from pulseform.orchestrator.validate import run_validation
+
+    lower, known, flipped = _fake_entries(monkeypatch)
+    out = run_validation([lower, known], tmp_path / "ok")
+    assert [o.status for o in out] == ["pass", "known deviation (xfail)"] and all(o.passed for o in out)
+    assert out[0].error == pytest.approx(-0.1) and out[0].reference == pytest.approx(1.0)
+    rep = json.loads((tmp_path / "ok" / "report.json").read_text())
+    assert rep["passed"] and rep["n_known_deviations"] == 1
+    assert rep["entries"][1]["status"] == "known deviation (xfail)" and rep["entries"][1]["pass"] is True
+    md = (tmp_path / "ok" / "report.md").read_text()
+    assert "| known deviation (xfail) |" in md and "x stays at 0.9" in md and "error <= -0.05" in md
+    out = run_validation([lower, known, flipped], tmp_path / "xpass")
+    assert out[2].status.startswith("XPASS") and not out[2].passed
+    rep = json.loads((tmp_path / "xpass" / "report.json").read_text())
+    assert not rep["passed"] and "FAILED" in (tmp_path / "xpass" / "report.md").read_text()
+
+
+def test_a_failed_run_is_never_a_known_deviation(tmp_path, monkeypatch):
+    from pulseform.orchestrator.validate import run_validation
+
+    _, known, _ = _fake_entries(monkeypatch)
+
+    def broken(work):
+        raise RuntimeError("solver blew up")
+
+    monkeypatch.setitem(RUNS, "fake_measured", broken)
+    (o,) = run_validation([known], tmp_path / "v")
+    assert o.status == "FAIL" and not o.passed and "solver blew up" in o.message
