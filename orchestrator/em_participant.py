@@ -171,6 +171,7 @@ class GetDPLoad:
         g = self.solver.model
         mesh, indices = remesh_around(parts, self.geometry.regions["coil"], self.geometry.turns, g.shell[0],
                                       g.shell[1], *self.sizes)
+        mesh.names = dict(self.geometry.mesh.names)
         self.material = mesh.points.copy()
         for b, (pts, _, _), index in zip(self.bodies, parts, indices):
             local = np.full(len(self.x_ref), -1, dtype=np.int64)  # old EM node -> row of the submesh

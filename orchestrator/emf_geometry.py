@@ -107,10 +107,11 @@ def build_em_geometry(g: Geometry) -> EMGeometry:
         if g.die is not None:
             conductors.append(np.array(g.die, dtype=float))
             sizes.append(g.mesh_size_die)
-    mesh = coil_conductor_mesh([turns], conductors, axisymmetric=not g.planar, half=True, r_domain=g.air_radius,
-                               r_shell=g.shell_radius, h_fine=g.mesh_size_coil, h_coarse=g.mesh_size_air,
-                               h_conductor=sizes)
-    log.info("EM mesh (%s): %d nodes, %d triangles", g.type, mesh.n_nodes, len(mesh.triangles))
     regions = {"coil": coil_tag(1)}
     regions.update({role: conductor_tag(k) for k, role in enumerate(g.conductor_roles(), start=1)})
+    mesh = coil_conductor_mesh([turns], conductors, axisymmetric=not g.planar, half=True, r_domain=g.air_radius,
+                               r_shell=g.shell_radius, h_fine=g.mesh_size_coil, h_coarse=g.mesh_size_air,
+                               h_conductor=sizes, names={tag: role for role, tag in regions.items()})
+    log.info("EM mesh (%s): %d nodes, %d triangles, groups %s", g.type, mesh.n_nodes, len(mesh.triangles),
+             ", ".join(f"{n} ({t})" for t, n in sorted(mesh.names.items())))
     return EMGeometry(mesh, regions, turns, planar=g.planar)

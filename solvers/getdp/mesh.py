@@ -26,6 +26,14 @@ import numpy as np
 AIR, SHELL, AXIS, OUTER, NEUMANN = 1, 2, 11, 12, 13
 
 
+def default_name(tag: int) -> str:
+    """Name of a physical id: air, shell, axis, outer, neumann, coil_k, conductor_k."""
+    fixed = {AIR: "air", SHELL: "shell", AXIS: "axis", OUTER: "outer", NEUMANN: "neumann"}
+    if tag in fixed:
+        return fixed[tag]
+    return f"coil_{tag - 100}" if 100 < tag < 200 else f"conductor_{tag - 200}"
+
+
 def coil_tag(k: int) -> int:
     """Physical id of coil ``k`` (1-based)."""
     return 100 + k
@@ -45,6 +53,7 @@ class EMMesh:
     tri_tags: np.ndarray  # (M,) physical id per triangle
     lines: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=np.int64))
     line_tags: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    names: dict[int, str] = field(default_factory=dict)  # physical id -> name (written as $PhysicalNames)
 
     def __post_init__(self):
         self.points = np.asarray(self.points, dtype=float)[:, :2].copy()
@@ -68,7 +77,7 @@ class EMMesh:
         points = np.asarray(points, dtype=float)
         if points.shape != self.points.shape:
             raise ValueError(f"points shape {points.shape} != {self.points.shape}")
-        return EMMesh(points, self.triangles, self.tri_tags, self.lines, self.line_tags)
+        return EMMesh(points, self.triangles, self.tri_tags, self.lines, self.line_tags, self.names)
 
     def areas(self) -> np.ndarray:
         p = self.points[self.triangles]
@@ -108,11 +117,14 @@ class EMMesh:
         return cls(pts, tri, phys["triangle"], lines, ltags)
 
     def to_dict(self) -> dict:
-        return {k: getattr(self, k).tolist() for k in ("points", "triangles", "tri_tags", "lines", "line_tags")}
+        d = {k: getattr(self, k).tolist() for k in ("points", "triangles", "tri_tags", "lines", "line_tags")}
+        d["names"] = {str(k): v for k, v in self.names.items()}
+        return d
 
     @classmethod
     def from_dict(cls, d: dict) -> "EMMesh":
-        return cls(**{k: np.asarray(v) for k, v in d.items()})
+        names = {int(k): v for k, v in d.get("names", {}).items()}
+        return cls(**{k: np.asarray(v) for k, v in d.items() if k != "names"}, names=names)
 
 
 _ELEMENT_BLOCKS: dict[tuple, str] = {}
@@ -150,6 +162,11 @@ def write_msh22(mesh: EMMesh, path: str | Path) -> Path:
     rows = np.column_stack([np.arange(1, n + 1), mesh.points]).ravel().tolist()
     with open(path, "w") as fh:
         fh.write("$MeshFormat\n2.2 0 8\n$EndMeshFormat\n")
+        if mesh.names:
+            dims = {int(t): 2 for t in np.unique(mesh.tri_tags)} | {int(t): 1 for t in np.unique(mesh.line_tags)}
+            named = [(dims[t], t, n) for t, n in sorted(mesh.names.items()) if t in dims]
+            fh.write(f"$PhysicalNames\n{len(named)}\n" + "".join(f'{d} {t} "{n}"\n' for d, t, n in named)
+                     + "$EndPhysicalNames\n")
         fh.write(f"$Nodes\n{n}\n")
         fh.write(("%d %.17g %.17g 0\n" * n) % tuple(rows))
         fh.write("$EndNodes\n")
@@ -218,6 +235,7 @@ def coil_conductor_mesh(
     h_fine: float = 1e-3,
     h_coarse: float | None = None,
     h_conductor: float | list[float] | None = None,
+    names: dict[int, str] | None = None,
 ) -> EMMesh:
     """Gmsh mesh of coils (each a list of turn rectangles) and conductors in air.
 
@@ -226,7 +244,9 @@ def coil_conductor_mesh(
     a shell region (id 2) between ``r_domain`` and ``r_shell`` carries the transformation
     to infinity.  With ``half`` (default: ``axisymmetric``) only x >= 0 is meshed and x = 0
     is line 11 with a = 0: the axis in axisymmetry, an antisymmetry plane of a_z in a planar
-    half model (currents mirrored with opposite sign).
+    half model (currents mirrored with opposite sign). Physical groups are named (``names``
+    overrides :func:`default_name` for coil and conductor ids) in gmsh and in the mesh's
+    ``$PhysicalNames``.
     """
     import gmsh
 
@@ -269,9 +289,12 @@ def coil_conductor_mesh(
             (shell_surfs if (r_shell and s not in inner_pieces) else air_surfs).append(s)
         for tag, surfs in groups.items():
             gmsh.model.addPhysicalGroup(2, sorted(set(surfs)), tag)
+            gmsh.model.setPhysicalName(2, tag, (names or {}).get(tag, default_name(tag)))
         gmsh.model.addPhysicalGroup(2, air_surfs, AIR)
+        gmsh.model.setPhysicalName(2, AIR, "air")
         if shell_surfs:
             gmsh.model.addPhysicalGroup(2, shell_surfs, SHELL)
+            gmsh.model.setPhysicalName(2, SHELL, "shell")
         axis_curves, outer_curves = [], []
         tol = 1e-6 * r_out
         all_surfs = [(2, s) for _, s in gmsh.model.getEntities(2)]
@@ -284,7 +307,9 @@ def coil_conductor_mesh(
                 outer_curves.append(abs(c))
         if half:
             gmsh.model.addPhysicalGroup(1, sorted(set(axis_curves)), AXIS)
+            gmsh.model.setPhysicalName(1, AXIS, "axis" if axisymmetric else "symmetry")
         gmsh.model.addPhysicalGroup(1, sorted(set(abs(c) for c in outer_curves)), OUTER)
+        gmsh.model.setPhysicalName(1, OUTER, "outer")
         # mesh size: fine in and near coils/conductors, coarse far away
         fine_curves = [abs(c) for _, c in gmsh.model.getBoundary([(2, s) for s in used], oriented=False)]
         f_dist = gmsh.model.mesh.field.add("Distance")
@@ -344,7 +369,9 @@ def _mesh_from_gmsh(gmsh) -> EMMesh:
     # orient triangles counter-clockwise
     tri = remap[tri]
     p = pts[used]
-    m = EMMesh(p, tri, np.concatenate(ttags), remap[np.vstack(lines)], np.concatenate(ltags))
+    names = {int(t): gmsh.model.getPhysicalName(d, t) for d, t in gmsh.model.getPhysicalGroups()}
+    m = EMMesh(p, tri, np.concatenate(ttags), remap[np.vstack(lines)], np.concatenate(ltags),
+               {t: n for t, n in names.items() if n})
     neg = m.areas() < 0
     m.triangles[neg] = m.triangles[neg][:, [0, 2, 1]]
     return m

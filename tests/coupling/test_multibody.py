@@ -173,3 +173,17 @@ def test_planar_forces_scale_with_the_depth(tmp_path):
     assert b["force_impulse_Ns"] == pytest.approx(2.5 * a["force_impulse_Ns"], rel=1e-9)
     assert b["blank_max_uy_mm"] == pytest.approx(a["blank_max_uy_mm"], rel=1e-9)
     assert a["force_impulse_z_Ns"] < 0.0  # the blank is pushed away from the coil, into the die
+
+
+def test_physical_groups_are_named(tmp_path, sheet_die):
+    """One gmsh model per case with named groups; the names reach the MSH file GetDP reads."""
+    from pulseform.solvers.getdp.mesh import write_msh22
+
+    assert sheet_die.mesh.names == {1: "air", 2: "shell", 11: "axis", 12: "outer", 101: "coil", 201: "workpiece",
+                                    202: "die"}
+    text = write_msh22(sheet_die.mesh.with_points(sheet_die.mesh.points), tmp_path / "m.msh").read_text()
+    block = text[text.index("$PhysicalNames"):text.index("$EndPhysicalNames")]
+    assert '2 202 "die"' in block and '1 11 "axis"' in block and block.splitlines()[1] == "7"
+    import meshio
+
+    assert set(meshio.read(tmp_path / "m.msh").field_data) == set(sheet_die.mesh.names.values())
