@@ -204,7 +204,7 @@ class GetDPSolver:
                     init_vc = c1 * state.capacitor_voltage - c2 * state.capacitor_voltage_prev
                     init_i = c1 * state.current - c2 * state.current_prev
             numbers["Flag_InitA"] = 1
-            pairs = [f"{i:d}, {v:.17g}" for i, v in zip(ids, vals)]
+            pairs = [f"{i}, {v!r}" for i, v in zip(ids.tolist(), vals.tolist())]   # repr: exact round trip
             body = ",\n  ".join(", ".join(pairs[j:j + 8]) for j in range(0, len(pairs), 8))
             data_lines.append(f"InitA_List() = {{{len(ids)},\n  {body}}};")
         numbers.update(TimeInit=t_init, TimeFinal=float(t_end), NbSteps=int(n_sub))
