@@ -187,3 +187,37 @@ def test_physical_groups_are_named(tmp_path, sheet_die):
     import meshio
 
     assert set(meshio.read(tmp_path / "m.msh").field_data) == set(sheet_die.mesh.names.values())
+
+
+@pytest.mark.getdp
+def test_kill9_then_resume_with_two_bodies(tmp_path):
+    """emf_sheet_die with both bodies free: kill -9 after the first checkpoint, resume, and every
+    physics metric equals an uninterrupted run's (issue 5: <= 1e-12 relative). (Remeshing is not
+    forced here: the worst element of this mesh does not move, so the quality threshold cannot
+    trigger it; the two-body remesh itself is checked by the test above.)"""
+    import signal
+    import time
+
+    extra = ["--set", "time.end=3e-6", "--set", "output.field_interval=1e-6", "--set", "bodies.sheet.fixed=[]",
+             "--set", "bodies.die.fixed=[]"]
+    args = lambda out: [EXE, "run", str(REPO / "cases/emf_sheet_die"), "--out", str(out), "--quiet", *extra]  # noqa: E731
+    ref = subprocess.run(args(tmp_path / "ref"), capture_output=True, text=True)
+    assert ref.returncode == 0, ref.stderr[-3000:]
+    out = tmp_path / "killed"
+    proc = subprocess.Popen(args(out), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.time() + 300
+    while not (out / "checkpoint.npz").exists() and proc.poll() is None and time.time() < deadline:
+        time.sleep(0.005)
+    time.sleep(0.3)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    if (out / "metrics.json").exists():
+        pytest.skip("the run finished before it could be killed")
+    r = subprocess.run(args(out) + ["--resume"], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr[-3000:]
+    got = json.loads((out / "metrics.json").read_text())
+    want = json.loads((tmp_path / "ref/metrics.json").read_text())
+    for k, v in want.items():
+        if k.endswith("_s") and k != "end_time_s":
+            continue
+        assert got[k] == pytest.approx(v, rel=1e-12, abs=1e-300), k
