@@ -399,6 +399,9 @@ class Case:
             if not self.geometry.planar and self.mechanics.formulation != "axisymmetric":
                 raise SchemaError("mechanics.formulation", f"got {self.mechanics.formulation!r}; the "
                                   f"{self.geometry.type} geometry is axisymmetric: use 'axisymmetric'")
+            if self.em.time_scheme == "bdf2" and self.coupling.em_substeps != 1:
+                raise SchemaError("coupling.em_substeps", f"got {self.coupling.em_substeps}; em.time_scheme = "
+                                  "'bdf2' takes one step per getdp run: use 1 (and a smaller coupling.n)")
             if self.geometry.planar and self.em.circuit is not None:
                 raise SchemaError("em.circuit", "planar geometries are per metre of depth: give a prescribed "
                                   "em.current (a capacitor bank would need the coil's length)")
