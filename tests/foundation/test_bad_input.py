@@ -101,6 +101,30 @@ BAD_OVERRIDES = [
 ]
 
 
+#: coupled cases with several conductor bodies: (name, case, --set values, key named in the error)
+BAD_COUPLED = [
+    ("die_gap_zero", "emf_sheet_die", ["geometry.die.gap=0"], "geometry.die.gap"),
+    ("die_fillet_too_big", "emf_sheet_die", ["geometry.die.entry_radius=0.003"], "geometry.die.entry_radius"),
+    ("die_body_missing", "emf_sheet_die", ["bodies.die.region='outer_tube'"], "bodies[1].region"),
+    ("collar_overlaps_tube", "emf_tube_press_fit", ["geometry.outer_tube.inner_radius=0.018"],
+     "geometry.outer_tube.inner_radius"),
+    ("planar_axisymmetric", "emf_corner_fill", ["mechanics.formulation='axisymmetric'"], "mechanics.formulation"),
+    ("planar_die_above_blank", "emf_corner_fill", ["geometry.die=[[0, 0], [0.1, 0], [0.1, 0.01]]"], "geometry.die"),
+    ("bdf2_with_substeps", "emf_sheet_bulge", ["em.time_scheme='bdf2'", "coupling.em_substeps=5"],
+     "coupling.em_substeps"),
+    ("time_scheme_unknown", "emf_sheet_bulge", ["em.time_scheme='rk4'"], "em.time_scheme"),
+]
+
+
+@pytest.mark.parametrize("name,case,sets,key", BAD_COUPLED, ids=[b[0] for b in BAD_COUPLED])
+def test_bad_coupled_override(capsys, name, case, sets, key):
+    args = ["check", str(REPO / "cases" / case)]
+    for s in sets:
+        args += ["--set", s]
+    rc = main(args)
+    _assert_one_line_error(capsys, rc, key, "case.toml")
+
+
 def _write(tmp_path: Path, data: dict, name: str = "case.toml") -> Path:
     p = tmp_path / name
     p.write_text(tomli_w.dumps(data))
