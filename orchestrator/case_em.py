@@ -281,18 +281,13 @@ class EM:
     current: DampedSineCurrent | None = spec(None, doc="prescribed coil current (give this or circuit)")
     keep_runs: bool = spec(False, doc="keep every getdp run folder (default: the last two)")
     time_scheme: Literal["euler", "bdf2"] = spec(
-        "euler", doc="EM time scheme: 'euler' (GetDP's θ-scheme, θ = time_theta; sub-steps allowed) or 'bdf2' "
-                     "(second order, one implicit step per getdp run from a shifted state: coupling.em_substeps = 1)")
-    time_theta: float = spec(1.0, unit="-", ge=0.5, le=1.0,
-                             doc="θ of GetDP's θ-scheme: 1 = implicit Euler (first order, damps the bank's "
-                                 "ringing by (ω dt)²/2 per step); 0.5 = Crank–Nicolson (second order, undamped)")
+        "euler", doc="EM time scheme: 'euler' (implicit Euler, first order: damps the bank's ringing by "
+                     "(ω dt)²/2 per step; sub-steps allowed) or 'bdf2' (second order, one step per getdp run "
+                     "from a shifted state: coupling.em_substeps = 1; docs/coupling.md)")
     remesh_quality: float = spec(0.3, unit="-", gt=0.0, lt=1.0,
                                  doc="remesh the air when the worst element quality 4√3A/Σl² falls below this "
                                      "fraction of the fresh mesh's worst")
 
     def validate(self, path: str) -> None:
-        if self.time_scheme == "bdf2" and self.time_theta != 1.0:
-            raise SchemaError(f"{path}.time_theta", f"got {self.time_theta:g}; time_scheme = 'bdf2' runs "
-                              "implicit steps: leave time_theta = 1")
         if (self.circuit is None) == (self.current is None):
             raise SchemaError(f"{path}.circuit", "give exactly one of circuit (capacitor bank) or current")

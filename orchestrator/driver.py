@@ -264,7 +264,7 @@ def _coupled_participants(case: Case, results: ResultsFolder, comm: MPI.Comm):
     load = GetDPLoad(geometry, em_model(case, (g.air_radius, g.shell_radius)), results.root / "em", bodies,
                      keep_runs=case.em.keep_runs, remesh_quality=case.em.remesh_quality,
                      sizes=(g.mesh_size_coil, g.mesh_size_air), em_substeps=case.coupling.em_substeps,
-                     theta=case.em.time_theta, depth=case.mechanics.thickness, time_scheme=case.em.time_scheme)
+                     depth=case.mechanics.thickness, time_scheme=case.em.time_scheme)
     return solver, load
 
 

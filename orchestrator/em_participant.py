@@ -115,8 +115,6 @@ class GetDPLoad:
     em_substeps : int
         Implicit sub-steps inside each EM step (one getdp run, frozen geometry); the force
         handed to the mechanics is their mean, so the EM step's impulse is kept.
-    theta : float
-        θ of GetDP's θ time scheme (1: implicit Euler).
     time_scheme : {"euler", "bdf2"}
         See :class:`~pulseform.solvers.getdp.GetDPSolver`.
     depth : float
@@ -125,13 +123,13 @@ class GetDPLoad:
 
     def __init__(self, geometry: EMGeometry, model: EMModel, work_dir: Path, bodies: list[ConductorBody],
                  keep_runs: bool = False, remesh_quality: float = 0.3, sizes: tuple[float, float] = (1e-3, 0.02),
-                 em_substeps: int = 1, theta: float = 1.0, depth: float = 1.0, time_scheme: str = "euler") -> None:
+                 em_substeps: int = 1, depth: float = 1.0, time_scheme: str = "euler") -> None:
         self.geometry, self.bodies = geometry, list(bodies)
         self.keep_runs, self.remesh_quality, self.sizes = keep_runs, remesh_quality, sizes
         self.em_substeps = em_substeps
         self.axisymmetric = not geometry.planar
         self.scale = 1.0 if self.axisymmetric else float(depth)
-        self.solver = GetDPSolver(model, work_dir, extra_numbers={"TimeTheta": theta}, time_scheme=time_scheme)
+        self.solver = GetDPSolver(model, work_dir, time_scheme=time_scheme)
         self.state = self.solver.initial_state(0.0)
         # the bodies' material coordinates
         self.X0 = {b.name: geometry.mesh.points[b.body_to_em].copy() for b in self.bodies}

@@ -185,10 +185,10 @@ def make_solver(case, model, work_dir: Path):
     g = case.geometry
     numbers = {name: ROLE_IDS[role] for role, name in ROLE_NUMBERS.items()
                if role not in OPTIONAL_ROLES or getattr(g.regions, role) is not None}
-    numbers["TimeTheta"] = case.em.time_theta  # the library's θ-scheme (a deck may ignore it)
     numbers.update({k: float(v) for k, v in (g.parameters or {}).items()})
     lib = (DECK_DIR / "Lib_PulsedForming.pro").resolve()
-    return GetDPSolver(model, work_dir, deck=g.pro, extra_numbers=numbers, preamble=[f'PulseformLib = "{lib}";'])
+    return GetDPSolver(model, work_dir, deck=g.pro, extra_numbers=numbers, preamble=[f'PulseformLib = "{lib}";'],
+                       time_scheme=case.em.time_scheme)
 
 
 #: output tables the contract requires after one step (k = 1: one coil, one conductor)
@@ -270,7 +270,7 @@ def user_deck_load(case, geometry, work_dir: Path, bodies, em_substeps: int):
     solver = make_solver(case, model, Path(work_dir))
     load = UserDeckLoad(geometry, model, work_dir, bodies, keep_runs=case.em.keep_runs,
                         remesh_quality=case.em.remesh_quality, sizes=(1.0, 1.0), em_substeps=em_substeps,
-                        theta=case.em.time_theta)
+                        time_scheme=case.em.time_scheme)
     load.solver = solver
     load.state = solver.initial_state(0.0)
     return load

@@ -23,7 +23,8 @@ def _match_builtin(tmp_path, deck_case, builtin_case) -> dict:
     """Run a user-deck case and its built-in equivalent with the same loop settings; compare the
     force impulse (the main metric), the peak current and the sheet's speed within 1 % (issue 7)."""
     builtin, _ = load_case(builtin_case)
-    loop = ["--set", f"coupling.n={builtin.coupling.n}", "--set", f"coupling.em_substeps={builtin.coupling.em_substeps}"]
+    loop = ["--set", f"coupling.n={builtin.coupling.n}", "--set", f"coupling.em_substeps={builtin.coupling.em_substeps}",
+            "--set", f"em.time_scheme='{builtin.em.time_scheme}'"]
     ru = pulseform("run", str(deck_case), "--out", str(tmp_path / "user"), *MATCH, *loop)
     assert ru.returncode == 0, ru.stderr[-3000:]
     rb = pulseform("run", str(builtin_case), "--out", str(tmp_path / "builtin"), *MATCH)
