@@ -126,7 +126,7 @@ def test_bounds_and_known_deviations(tmp_path, monkeypatch):
     assert rep["passed"] and rep["n_known_deviations"] == 1
     assert rep["entries"][1]["status"] == "known deviation (xfail)" and rep["entries"][1]["pass"] is True
     md = (tmp_path / "ok" / "report.md").read_text()
-    assert "| known deviation (xfail) |" in md and "x stays at 0.9" in md and "error <= -0.05" in md
+    assert "| known deviation (xfail) |" in md and "x stays at 0.9" in md and "known deviation (xfail); error" in md and "error <= -0.05" in md
     out = run_validation([lower, known, flipped], tmp_path / "xpass")
     assert out[2].status.startswith("XPASS") and not out[2].passed
     rep = json.loads((tmp_path / "xpass" / "report.json").read_text())
