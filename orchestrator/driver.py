@@ -213,6 +213,8 @@ class CaseDriver:
         for a in self.analyses:
             metrics.update(a.metrics(s, self.history))
         snap = self.load.snapshot() if hasattr(self.load, "snapshot") else None
+        if hasattr(self.load, "close"):
+            self.load.close()  # old getdp run folders are deleted in the background: wait for them
         return MechanicsRun(s, self.history, metrics, self.shapes, snap, self.analyses)
 
 

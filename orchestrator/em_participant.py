@@ -23,6 +23,7 @@ from __future__ import annotations
 import json
 import logging
 import shutil
+import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -139,6 +140,7 @@ class GetDPLoad:
         self.min_quality = float(self.mover.q_ref.min())
         self._runs: list[Path] = []
         self._pinned: Path | None = None  # run folder the last checkpoint restarts from
+        self._deleting: list[threading.Thread] = []  # background deletions of old run folders
         self.last = None  # (moved EM points, EMStepResult) of the latest step
         self.timers = {"getdp_process_s": 0.0, "getdp_io_s": 0.0, "mesh_motion_s": 0.0, "transfer_s": 0.0}
 
@@ -267,8 +269,28 @@ class GetDPLoad:
             return
         for old in self._runs[:-2]:
             if old != self._pinned:
-                shutil.rmtree(old, ignore_errors=True)
+                self._discard(old)
         self._runs = [p for p in self._runs[:-2] if p == self._pinned] + self._runs[-2:]
+
+    def _discard(self, path: Path) -> None:
+        """Delete a run folder off the critical path: rename it, remove it in a thread (the next getdp
+        run overlaps the deletion); :meth:`close` waits for the deletions."""
+        trash = path.with_name(f".trash_{path.name}")
+        try:
+            path.rename(trash)
+        except OSError:
+            shutil.rmtree(path, ignore_errors=True)
+            return
+        self._deleting = [t for t in self._deleting if t.is_alive()]
+        thread = threading.Thread(target=shutil.rmtree, args=(trash, True), daemon=True)
+        thread.start()
+        self._deleting.append(thread)
+
+    def close(self) -> None:
+        """Wait until the old run folders are deleted (call once the run is over)."""
+        for thread in self._deleting:
+            thread.join()
+        self._deleting = []
 
     def state_dict(self) -> dict[str, np.ndarray]:
         """EM state (time, circuit, previous .res path, nodal unknown) as a JSON byte array.
