@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import json
 import logging
-import shutil
 import threading
 import time
 from dataclasses import dataclass
@@ -34,6 +33,7 @@ from pulseform.solvers.getdp import Circuit, Coil, Conductor, DampedSine, EMMesh
 from pulseform.solvers.getdp.mesh import AXIS as AXIS_TAG
 from pulseform.solvers.getdp.mesh import OUTER as OUTER_TAG
 from pulseform.solvers.getdp.mesh import SHELL as SHELL_TAG
+from pulseform.solvers.getdp.solver import discard_folder
 
 from .case import Case
 from .emf_geometry import EMGeometry
@@ -273,18 +273,12 @@ class GetDPLoad:
         self._runs = [p for p in self._runs[:-2] if p == self._pinned] + self._runs[-2:]
 
     def _discard(self, path: Path) -> None:
-        """Delete a run folder off the critical path: rename it, remove it in a thread (the next getdp
-        run overlaps the deletion); :meth:`close` waits for the deletions."""
-        trash = path.with_name(f".trash_{path.name}")
-        try:
-            path.rename(trash)
-        except OSError:
-            shutil.rmtree(path, ignore_errors=True)
-            return
+        """Delete a run folder in a background thread (the next getdp run overlaps the deletion);
+        :meth:`close` waits for the deletions."""
         self._deleting = [t for t in self._deleting if t.is_alive()]
-        thread = threading.Thread(target=shutil.rmtree, args=(trash, True), daemon=True)
-        thread.start()
-        self._deleting.append(thread)
+        thread = discard_folder(path)
+        if thread is not None:
+            self._deleting.append(thread)
 
     def close(self) -> None:
         """Wait until the old run folders are deleted (call once the run is over)."""

@@ -27,18 +27,23 @@ RESOLUTION = "EM_Transient"
 TIME_SCHEMES = ("euler", "bdf2")
 
 
-def _discard(path: Path) -> None:
-    """Delete a run folder off the critical path: rename it, remove it in a daemon thread."""
+def discard_folder(path: Path) -> threading.Thread | None:
+    """Delete a run folder off the critical path: rename it, remove it in a daemon thread.
+
+    Returns the thread (join it to wait for the deletion), or None when the folder is gone already
+    or could not be renamed (then it was deleted synchronously)."""
     path = Path(path)
     if not path.exists():
-        return
+        return None
     trash = path.with_name(f".trash_{path.name}_{uuid.uuid4().hex[:8]}")
     try:
         path.rename(trash)
     except OSError:
         shutil.rmtree(path, ignore_errors=True)
-        return
-    threading.Thread(target=shutil.rmtree, args=(trash, True), daemon=True).start()
+        return None
+    thread = threading.Thread(target=shutil.rmtree, args=(trash, True), daemon=True)
+    thread.start()
+    return thread
 
 
 def _element_table(path: Path, ncomp: int, n_blocks: int) -> tuple[np.ndarray, np.ndarray]:
@@ -235,7 +240,7 @@ class GetDPSolver:
                 self._runs.remove(run_dir)
             self._runs.append(run_dir)
             while len(self._runs) > self.keep_runs:
-                _discard(self._runs.pop(0))
+                discard_folder(self._runs.pop(0))
         return result, new_state
 
     # -- helpers
