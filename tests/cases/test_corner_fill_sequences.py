@@ -11,9 +11,12 @@ are in the slow tier even on the coarse die mesh.
 
 from __future__ import annotations
 
+from pathlib import Path
+
+import numpy as np
 import pytest
 
-from .helpers import CORNER_COARSE, run_many
+from .helpers import CORNER_COARSE, REPO, run_many
 
 FILLED = 0.999
 
@@ -41,21 +44,40 @@ def test_four_pulses_lower_die_load_and_blank_speed(runs):
 
 
 @pytest.mark.xfail(strict=True, reason="known difference (docs/cases.md): our four pulses leave the corner "
-                   "unfilled (fill 0.980 with die cells 4 mm, 0.936 with 2 mm; single 25 MPa from flat: 0.980 / "
-                   "0.958): after three pulses the blank lies close to the die and the 25 MPa step has too short "
-                   "a run-up to wrap the 130-degree corner")
+                   "unfilled (fill 0.955, 4.0 mm untouched, with die cells 4 mm; corner gap min 0.59 mm > 2 h0): the "
+                   "last 25 MPa pulse starts from a blank resting 2.4 mm from the corner and gives the material there "
+                   "144 J of kinetic energy (a single 25 MPa pulse from flat: 592 J, gap 0.53 mm; 30 MPa: 1102 J, fills)")
 def test_four_pulses_end_filled(runs):
     assert runs["multi"]["fill_fraction"] >= FILLED
 
 
-def test_preform_is_quasi_static_at_the_top_of_the_ramp(runs):
-    """Kinetic / (elastic + plastic) energy while the preform pressure is >= 90 % of P_pre (where the
-    preformed shape is set): below the common 5 % guideline for quasi-static explicit analyses
-    (measured 0.049 on this mesh: a narrow margin, docs/cases.md), and the preformed blank is at rest
-    when the damping ends."""
-    rs = runs["restrike"]
-    assert rs["preform_kinetic_ratio_top_max"] < 5e-2
-    assert rs["preform_kinetic_ratio_end"] < 1e-4
+def test_preform_ends_at_rest(runs):
+    """The restrike fires on a preformed blank at rest: kinetic / (elastic + plastic) energy at the end
+    of the damped preform below 1e-4 (dynamic relaxation converged)."""
+    assert runs["restrike"]["preform_kinetic_ratio_end"] < 1e-4
+
+
+@pytest.mark.xfail(strict=True, reason="known shortfall (docs/cases.md): on the case mesh the 8 ms preform moves "
+                   "blank nodes by up to 0.79 mm against the 4 ms one and fills 0.359 vs 0.315 of the profile: the "
+                   "damped 4 ms preform still lags its load (the damping force is a sizeable part of the pressure)")
+def test_preform_is_quasi_static_by_ramp_rate(runs, tmp_path):
+    """Quasi-static means the preformed shape does not depend on how fast the pressure is ramped:
+    the same preform over 8 ms instead of 4 ms must move no blank node by more than 2 h0 = 0.2 mm
+    (the fill measure's resolution) and change the preform's fill fraction by less than 0.01.
+    Criterion fixed before the 8 ms run was made (scripts/study_corner_fill_preform.py)."""
+    import sys
+
+    sys.path.insert(0, str(REPO / "scripts"))
+    from study_corner_fill_preform import FILL_TOL, SHAPE_TOL, blank_at, run_preform, summary
+
+    base = Path(runs["restrike"]["_out"])
+    slow = run_preform(tmp_path, 8e-3, CORNER_COARSE)
+    X0, u0 = blank_at(base, 4e-3)
+    X1, u1 = blank_at(slow)
+    assert np.abs(X1 - X0).max() < 1e-12  # the same blank mesh
+    shift = float(np.linalg.norm(u1 - u0, axis=1).max())
+    fill0, fill1 = summary(base, 4e-3)["fill_fraction"], summary(slow)["fill_fraction"]
+    assert shift <= SHAPE_TOL and abs(fill1 - fill0) < FILL_TOL, (shift, fill0, fill1)
 
 
 @pytest.mark.xfail(strict=True, reason="known shortfall (docs/cases.md): over the whole ramp (p >= 10 % of "
