@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .case import Case, FlatCoilSheet, SolenoidTube
+from .case import Case, FlatCoilSheet, PlanarCoilBlankDie, SolenoidTube
 from .caseio import CaseError, load_case, read_toml, resolve_case_file
 from .results import ResultsFolder
 from .validate import write_json
@@ -73,20 +73,26 @@ def parse_conditions(texts: list[str]) -> list[Condition]:
 
 
 # --------------------------------------------------------------------------- loaded surface
-def loaded_surface(case: Case) -> tuple[dict[str, float], float, int]:
+def loaded_surface(case: Case) -> tuple[dict[str, float], float, int, float]:
     """(Box of the workpiece face towards the coil over the coil's extent, its area (m²), force
-    component that pushes on it: 1 = z for a sheet, 0 = r for a tube)."""
+    component that pushes on it: 1 = z for a sheet, 0 = r for a tube, 1 = y for a planar blank,
+    and the sign that makes that force component a positive pressure)."""
     g = case.geometry
     eps = 1e-6 * max(getattr(g, "air_radius", 1.0), 1e-3)
     if isinstance(g, FlatCoilSheet):
         r1 = g.coil_inner_radius
         r2 = min(g.coil_inner_radius + g.turns * g.turn_width + (g.turns - 1) * g.turn_gap, g.sheet_radius)
         z = g.coil_gap
-        return {"xmin": r1, "xmax": r2, "ymin": z - eps, "ymax": z + eps}, math.pi * (r2 ** 2 - r1 ** 2), 1
+        return {"xmin": r1, "xmax": r2, "ymin": z - eps, "ymax": z + eps}, math.pi * (r2 ** 2 - r1 ** 2), 1, 1.0
     if isinstance(g, SolenoidTube):
         half = 0.5 * min(g.turns * (g.turn_height + g.turn_gap) - g.turn_gap, g.tube_length)
         r = g.tube_inner_radius
-        return {"xmin": r - eps, "xmax": r + eps, "ymin": -half, "ymax": half}, 2 * math.pi * r * 2 * half, 0
+        return {"xmin": r - eps, "xmax": r + eps, "ymin": -half, "ymax": half}, 2 * math.pi * r * 2 * half, 0, 1.0
+    if isinstance(g, PlanarCoilBlankDie):  # the blank's upper face under the coil, pushed down (−y)
+        x1 = g.coil_inner_x
+        x2 = min(g.coil_inner_x + g.turns * g.turn_width + (g.turns - 1) * g.turn_gap, g.blank_half_width)
+        y = g.blank_thickness
+        return {"xmin": x1, "xmax": x2, "ymin": y - eps, "ymax": y + eps}, (x2 - x1) * case.mechanics.thickness, 1, -1.0
     raise CompareError(f"compare: geometry type {getattr(g, 'type', None)!r} has no known loaded surface")
 
 
@@ -241,15 +247,15 @@ def run_compare(case_path: str, out: Path, *, overrides: list[str] | None = None
         raise CompareError(f"{case_path}: compare needs a coupled case with coupling.load = 'getdp' "
                            f"(got kind {case.case.kind!r}, load {case.coupling.load!r})")
     work = next(b for b in case.bodies if b.region == "workpiece")
-    dies = [b.name for b in case.bodies if b.region is None]
+    dies = [b.name for b in case.bodies if b.region != "workpiece"]  # own shapes, or the EM die/collar
     given = _given_loads(pressure_case) if pressure_case else None
     try:
-        box, area, comp = loaded_surface(case)
+        box, area, comp, sign = loaded_surface(case)
     except CompareError:
         if given is None:
             raise CompareError(f"{case_path}: geometry type {case.geometry.type!r} has no known loaded surface "
                                "to fit a pulse on; give the pulses with --pressure-case FILE") from None
-        box, area, comp = None, 1.0, 1  # given pulses: histories shown as force (N) along z
+        box, area, comp, sign = None, 1.0, 1, 1.0  # given pulses: histories shown as force (N) along z
     results = ResultsFolder(out, force=force)
     root = results.root
 
@@ -258,7 +264,7 @@ def run_compare(case_path: str, out: Path, *, overrides: list[str] | None = None
     hc = _history(root / "coupled")
     t = hc["time_s"]
     force_col = hc["force_y_N" if comp == 1 else "force_x_N"]
-    p_hist = force_col / area
+    p_hist = sign * force_col / area
     if given is None:
         # each history row holds the force held over the EM step that ends there (the mean of GetDP's
         # sub-steps): it belongs at the step's mid-time; the first row is t = 0 before any step
@@ -323,7 +329,7 @@ def run_compare(case_path: str, out: Path, *, overrides: list[str] | None = None
               "coupled_metrics": mc, "pressure_metrics": mp}
     write_json(root / "compare.json", report)
     try:
-        _plots(root, hc, hp, comp, area, loads, (xc, uc), (xp, up), work.name, case)
+        _plots(root, hc, hp, comp, sign * area, loads, (xc, uc), (xp, up), work.name, case)
     except Exception as exc:  # plots never decide the result
         log.warning("compare plots failed: %s", exc)
     return report

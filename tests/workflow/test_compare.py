@@ -173,3 +173,19 @@ def test_user_deck_with_given_pulses(tmp_path):
     rep = json.loads((tmp_path / "c" / "compare.json").read_text())
     assert rep["pulse"]["source"].startswith("given") and rep["pulse"]["loads"][0]["amplitude"] == 8.7e6
     assert "amplitude = 8700000.0" in (tmp_path / "c" / "pressure" / "case.toml").read_text()
+
+
+@pytest.mark.getdp
+def test_compare_on_the_planar_corner_fill(tmp_path):
+    """cases/emf_corner_fill (plane strain, coil above the blank, conducting die as an EM body):
+    the blank's upper face under the coil is the loaded surface, pushed down (−y); the fitted eq. (7)
+    pulse carries the coupled impulse to a few per cent over the same window, and the die (an EM
+    conductor region, not its own shape) is among the compared dies."""
+    out = tmp_path / "c"
+    r = pulseform("compare", str(REPO / "cases/emf_corner_fill"), "--out", str(out), *SHORT,
+                  "--set", "geometry.mesh_size_air=0.08", "--set", "geometry.mesh_size_coil=3e-3")
+    assert r.returncode == 0, r.stderr[-3000:]
+    rep = json.loads((out / "compare.json").read_text())
+    assert rep["dies"] == ["die"] and rep["pulse"]["amplitude"] > 0
+    assert rep["metrics"]["impulse_rel_diff"] < 0.05
+    assert "die_von_mises_max_coupled_MPa" in rep["metrics"]
