@@ -101,25 +101,30 @@ class _Moved:
         return self._p
 
 
-def test_two_remeshes_keep_every_body_on_its_own_nodes(tmp_path, sheet_die):
-    """Remesh twice around a bulged sheet and a shifted die: each body's mechanical nodes are EM
-    nodes at exactly their positions, with their own triangles (regression: the second remesh
-    used to look the nodes up in an unsorted index)."""
-    m = sheet_die.mesh
+@pytest.mark.parametrize("planar", [False, True], ids=["axisymmetric", "planar"])
+def test_two_remeshes_keep_every_body_on_its_own_nodes(tmp_path, sheet_die, planar):
+    """Remesh twice around a bulged sheet (blank) and a shifted die: each body's mechanical nodes
+    are EM nodes at exactly their positions, with their own triangles (regression: the second remesh
+    used to look the nodes up in an unsorted index). Planar: the blank sags into the groove."""
+    geo = build_em_geometry(PLANAR) if planar else sheet_die
+    m = geo.mesh
     bodies = []
     for role, name in (("workpiece", "sheet"), ("die", "die")):
-        sub = conductor_submesh(m, sheet_die.regions[role])
+        sub = conductor_submesh(m, geo.regions[role])
         perm = np.random.default_rng(1).permutation(len(sub.em_nodes))  # mechanical node order differs
-        bodies.append(ConductorBody(name, sheet_die.regions[role], sub, sub.em_nodes[perm]))
-    model = EMModel(axisymmetric=True, coils=[Coil(turns=3, waveform={"I0": 1.0, "beta": 0.0, "omega": 1.0})],
-                    conductors=[Conductor(sigma=1e7), Conductor(sigma=1e6)], shell=(0.1, 0.13))
-    load = GetDPLoad(sheet_die, model, tmp_path, bodies, sizes=(2e-3, 0.02))
+        bodies.append(ConductorBody(name, geo.regions[role], sub, sub.em_nodes[perm]))
+    wave = {"I0": 1.0, "beta": 0.0, "omega": 1.0}
+    shell = (0.25, 0.3) if planar else (0.1, 0.13)
+    model = EMModel(axisymmetric=not planar, coils=[Coil(turns=3, waveform=wave)],
+                    conductors=[Conductor(sigma=1e7), Conductor(sigma=1e6)], shell=shell)
+    load = GetDPLoad(geo, model, tmp_path, bodies, sizes=(3e-3, 0.05) if planar else (2e-3, 0.02))
     X = {b.name: m.points[b.body_to_em].copy() for b in bodies}
+    width, sign = (0.07, -1.0) if planar else (40e-3, 1.0)  # planar: the sag stays over the groove
     for amp in (0.3e-3, 0.6e-3):
         pos = {}
-        r = X["sheet"][:, 0]
-        pos["sheet"] = X["sheet"] + np.stack([0 * r, amp * np.cos(0.5 * math.pi * r / 40e-3) ** 2], axis=1)
-        pos["die"] = X["die"] + np.array([0.0, 0.5 * amp])
+        r = np.minimum(X["sheet"][:, 0] / width, 1.0)
+        pos["sheet"] = X["sheet"] + np.stack([0 * r, sign * amp * np.cos(0.5 * math.pi * r) ** 2], axis=1)
+        pos["die"] = X["die"] + np.array([0.0, sign * 0.25 * amp])
         load._remesh(pos)
         mesh = load.geometry.mesh
         for b in load.bodies:
