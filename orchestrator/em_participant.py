@@ -4,18 +4,21 @@ Each EM step [t0, t1]:
 
 1. the EM mesh follows the mechanics: the nodes of every conductor body (workpiece, die, outer
    tube) take the mechanical displacement (the meshes share them), coil, shell and outer boundary
-   stay, axis (or symmetry-plane) nodes slide along it, the rest of the air is smoothed harmonically (:class:`~.mesh_motion.MeshMover`); an inverted or degenerate element
-   raises before the mesh reaches GetDP;
-2. getdp runs the EM step on the moved mesh (``em_substeps`` implicit-Euler sub-steps in one
-   process, geometry frozen), restarting from the previous ``.res``;
+   stay, axis (or symmetry-plane) nodes slide along it, the rest of the air is smoothed
+   harmonically (:class:`~.mesh_motion.MeshMover`); an inverted or degenerate element raises
+   before the mesh reaches GetDP;
+2. getdp runs the EM step on the moved mesh (geometry frozen): one BDF2 step from a shifted Init
+   state (``time_scheme = "bdf2"``), or ``em_substeps`` implicit-Euler sub-steps restarting from
+   the previous ``.res`` (``"euler"``);
 3. the per-element force density f = j × B (N/m³) of the conductors becomes consistent nodal forces
    ∫ N_i f 2πr dA (planar: ∫ N_i f dA × the mechanics' thickness) on the shared nodes; the ledger
    compares their sum with Σ f_e V_e.
 
-The returned force is the mean of GetDP's sub-step values (implicit Euler), held over the n
-mechanical substeps. Implicit Euler is first order and damps the bank's LC ringing by about
-(ω dt)²/2 per step, so the EM time step, not the hold, dominates the error at large n: sub-steps
-cut it at the price of a few ms each instead of a getdp start.
+The returned force is the impulse-consistent mean over the EM step (BDF2: trapezoid of the start
+and end values; implicit Euler: the mean of the sub-steps), held over the n mechanical substeps.
+Implicit Euler is first order and damps the bank's LC ringing by about (ω dt)²/2 per step, so
+there the EM time step, not the hold, dominates the error at large n; BDF2 is second order
+(docs/coupling.md).
 """
 
 from __future__ import annotations
