@@ -16,7 +16,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from pulseform.solvers.getdp import EMMesh
-from pulseform.solvers.getdp.mesh import AIR, AXIS, OUTER, SHELL, Rect
+from pulseform.solvers.getdp.mesh import AIR, AXIS, OUTER, SHELL, Rect, gmsh_physical_elements
 
 from .transfer import boundary_facets, triangle_areas
 
@@ -129,23 +129,7 @@ def remesh_around(parts: list[tuple[np.ndarray, np.ndarray, int]], coil_tag: int
 
 def _collect(parts: list[tuple[np.ndarray, np.ndarray, int]]) -> tuple[EMMesh, list[np.ndarray]]:
     """gmsh's air/coil/shell triangles and lines, stitched to the bodies' triangles by coordinates."""
-    tags, coords, _ = gmsh.model.mesh.getNodes()
-    index = np.full(int(tags.max()) + 1, -1, dtype=np.int64)
-    index[tags.astype(np.int64)] = np.arange(len(tags))
-    pts = coords.reshape(-1, 3)[:, :2]
-    tris, ttags, lines, ltags = [], [], [], []
-    for dim, ptag in gmsh.model.getPhysicalGroups():
-        for ent in gmsh.model.getEntitiesForPhysicalGroup(dim, ptag):
-            types, _, nodes = gmsh.model.mesh.getElements(dim, ent)
-            for et, en in zip(types, nodes):
-                if dim == 2 and et == 2:
-                    tris.append(index[en.astype(np.int64)].reshape(-1, 3))
-                    ttags.append(np.full(len(tris[-1]), ptag))
-                elif dim == 1 and et == 1:
-                    lines.append(index[en.astype(np.int64)].reshape(-1, 2))
-                    ltags.append(np.full(len(lines[-1]), ptag))
-    tri = np.vstack(tris)
-    used = np.unique(np.concatenate([tri.ravel()] + [ln.ravel() for ln in lines]))
+    pts, tri, ttags, lines, ltags, used = gmsh_physical_elements(gmsh)
     scale = float(np.abs(pts).max())
     tree = cKDTree(pts[used])
     remap = np.full(len(pts), -1, dtype=np.int64)
@@ -166,8 +150,8 @@ def _collect(parts: list[tuple[np.ndarray, np.ndarray, int]]) -> tuple[EMMesh, l
         indices.append(work_index)
         body_tris.append(work_index[work_cells])
         body_tags.append(np.full(len(work_cells), work_tag))
-    mesh = EMMesh(np.vstack(points), np.vstack([remap[tri]] + body_tris), np.concatenate(ttags + body_tags),
-                  remap[np.vstack(lines)], np.concatenate(ltags))
+    mesh = EMMesh(np.vstack(points), np.vstack([remap[tri]] + body_tris), np.concatenate([ttags] + body_tags),
+                  remap[lines], ltags)
     neg = triangle_areas(mesh.points, mesh.triangles) < 0
     mesh.triangles[neg] = mesh.triangles[neg][:, [0, 2, 1]]
     log.info("EM remesh: %d nodes, %d triangles (%d in the conductor bodies)", len(mesh.points), len(mesh.triangles),

@@ -343,35 +343,39 @@ def coil_conductor_mesh(
         gmsh.finalize()
 
 
-def _mesh_from_gmsh(gmsh) -> EMMesh:
+def gmsh_physical_elements(gmsh) -> tuple[np.ndarray, ...]:
+    """The current gmsh model's nodes and the triangles and lines of its physical groups.
+
+    Returns
+    -------
+    (points, triangles, tri_tags, lines, line_tags, used)
+        All node coordinates (x, y) in m, elements as 0-based rows of ``points`` with their
+        physical ids, and ``used``: the sorted nodes the elements reference (gmsh may keep a few
+        nodes on removed construction entities).
+    """
     node_tags, coords, _ = gmsh.model.mesh.getNodes()
     index = np.full(int(node_tags.max()) + 1, -1, dtype=np.int64)
     index[node_tags.astype(np.int64)] = np.arange(len(node_tags))
-    pts = coords.reshape(-1, 3)[:, :2]
     tris, ttags, lines, ltags = [], [], [], []
     for dim, ptag in gmsh.model.getPhysicalGroups():
         for ent in gmsh.model.getEntitiesForPhysicalGroup(dim, ptag):
             etypes, _, enodes = gmsh.model.mesh.getElements(dim, ent)
             for et, en in zip(etypes, enodes):
-                if dim == 2 and et == 2:
-                    c = index[en.astype(np.int64)].reshape(-1, 3)
-                    tris.append(c)
-                    ttags.append(np.full(len(c), ptag))
-                elif dim == 1 and et == 1:
-                    c = index[en.astype(np.int64)].reshape(-1, 2)
-                    lines.append(c)
-                    ltags.append(np.full(len(c), ptag))
-    tri = np.vstack(tris)
-    # drop unused nodes (gmsh may keep a few on removed construction entities)
-    used = np.unique(np.concatenate([tri.ravel()] + [l.ravel() for l in lines]))
+                if (dim, et) in ((2, 2), (1, 1)):
+                    c = index[en.astype(np.int64)].reshape(-1, dim + 1)
+                    (tris if dim == 2 else lines).append(c)
+                    (ttags if dim == 2 else ltags).append(np.full(len(c), ptag))
+    tri, line = np.vstack(tris), np.vstack(lines)
+    used = np.unique(np.concatenate([tri.ravel(), line.ravel()]))
+    return coords.reshape(-1, 3)[:, :2], tri, np.concatenate(ttags), line, np.concatenate(ltags), used
+
+
+def _mesh_from_gmsh(gmsh) -> EMMesh:
+    pts, tri, ttags, lines, ltags, used = gmsh_physical_elements(gmsh)
     remap = np.full(len(pts), -1, dtype=np.int64)
     remap[used] = np.arange(len(used))
-    # orient triangles counter-clockwise
-    tri = remap[tri]
-    p = pts[used]
     names = {int(t): gmsh.model.getPhysicalName(d, t) for d, t in gmsh.model.getPhysicalGroups()}
-    m = EMMesh(p, tri, np.concatenate(ttags), remap[np.vstack(lines)], np.concatenate(ltags),
-               {t: n for t, n in names.items() if n})
-    neg = m.areas() < 0
+    m = EMMesh(pts[used], remap[tri], ttags, remap[lines], ltags, {t: n for t, n in names.items() if n})
+    neg = m.areas() < 0  # orient triangles counter-clockwise
     m.triangles[neg] = m.triangles[neg][:, [0, 2, 1]]
     return m
