@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal
+from operator import attrgetter
+from typing import ClassVar, Literal
 
 from .schema import SchemaError, spec
 
@@ -19,6 +20,20 @@ def _check_open_boundary(path: str, extent: float, air: float, shell: float, wha
 def _polygon_area(points) -> float:
     """Signed area (m²) of a polygon; > 0 when counter-clockwise."""
     return 0.5 * sum(x0 * y1 - x1 * y0 for (x0, y0), (x1, y1) in zip(points, list(points[1:]) + list(points[:1])))
+
+
+class _ConductorRoles:
+    """The EM conductor roles of a geometry: the workpiece, and a second conductor when the geometry
+    has one (``_second``: its role and the attribute path that holds it, None when absent)."""
+
+    planar: ClassVar[bool] = False
+    _second: ClassVar[tuple[str, str] | None] = None
+
+    def conductor_roles(self) -> tuple[str, ...]:
+        """EM conductor regions, in conductor order (201, 202)."""
+        if self._second is not None and attrgetter(self._second[1])(self) is not None:
+            return ("workpiece", self._second[0])
+        return ("workpiece",)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -66,7 +81,7 @@ class OuterTube:
 
 
 @dataclass(frozen=True, kw_only=True)
-class FlatCoilSheet:
+class FlatCoilSheet(_ConductorRoles):
     """Axisymmetric flat spiral coil (coaxial rectangular turns in series) under a sheet.
 
     The coil's top face is at z = 0, the sheet's lower face at z = ``coil_gap``; the sheet spans
@@ -90,11 +105,7 @@ class FlatCoilSheet:
     mesh_size_air: float = spec(unit="m", gt=0.0, doc="element size far away in the air")
     die: SheetDie | None = spec(None, doc="[geometry.die] optional conducting die above the sheet")
 
-    planar = False
-
-    def conductor_roles(self) -> tuple[str, ...]:
-        """EM conductor regions, in conductor order (201, 202, ...)."""
-        return ("workpiece", "die") if self.die is not None else ("workpiece",)
+    _second: ClassVar[tuple[str, str]] = ("die", "die")
 
     def validate(self, path: str) -> None:
         coil_r = self.coil_inner_radius + self.turns * self.turn_width + (self.turns - 1) * self.turn_gap
@@ -106,7 +117,7 @@ class FlatCoilSheet:
 
 
 @dataclass(frozen=True, kw_only=True)
-class SolenoidTube:
+class SolenoidTube(_ConductorRoles):
     """Axisymmetric solenoid (turns stacked along z) inside a tube, for tube expansion.
 
     Turns occupy r in [coil_inner_radius, coil_inner_radius + turn_width], centred on z = 0;
@@ -130,11 +141,7 @@ class SolenoidTube:
     mesh_size_air: float = spec(unit="m", gt=0.0, doc="element size far away in the air")
     outer_tube: OuterTube | None = spec(None, doc="[geometry.outer_tube] optional second tube (press fit)")
 
-    planar = False
-
-    def conductor_roles(self) -> tuple[str, ...]:
-        """EM conductor regions, in conductor order (201, 202, ...)."""
-        return ("workpiece", "outer_tube") if self.outer_tube is not None else ("workpiece",)
+    _second: ClassVar[tuple[str, str]] = ("outer_tube", "outer_tube")
 
     def validate(self, path: str) -> None:
         if self.coil_inner_radius + self.turn_width >= self.tube_inner_radius:
@@ -152,7 +159,7 @@ class SolenoidTube:
 
 
 @dataclass(frozen=True, kw_only=True)
-class PlanarCoilBlankDie:
+class PlanarCoilBlankDie(_ConductorRoles):
     """Plane-strain half model (x >= 0, symmetry plane x = 0): a blank over a die, a flat coil above.
 
     The blank spans 0 <= x <= ``blank_half_width``, 0 <= y <= ``blank_thickness``; the coil's
@@ -181,11 +188,8 @@ class PlanarCoilBlankDie:
     mesh_size_coil: float = spec(unit="m", gt=0.0, doc="element size in and near the coil")
     mesh_size_air: float = spec(unit="m", gt=0.0, doc="element size far away in the air")
 
-    planar = True
-
-    def conductor_roles(self) -> tuple[str, ...]:
-        """EM conductor regions, in conductor order (201, 202, ...)."""
-        return ("workpiece", "die") if self.die is not None else ("workpiece",)
+    planar: ClassVar[bool] = True
+    _second: ClassVar[tuple[str, str]] = ("die", "die")
 
     def validate(self, path: str) -> None:
         top = self.blank_thickness + self.coil_gap + self.turn_height
@@ -214,7 +218,7 @@ class DeckRegions:
 
 
 @dataclass(frozen=True, kw_only=True)
-class UserDeck:
+class UserDeck(_ConductorRoles):
     """A user's own EM deck: a Gmsh .geo (meshed by the runner) or .msh, and a GetDP .pro that
     honours the deck contract (docs/workflow.md). Axisymmetric, one coil, the workpiece, optionally a die."""
 
@@ -228,11 +232,7 @@ class UserDeck:
     shell_outer_radius: float | None = spec(None, unit="m", gt=0.0, doc="shell transformation: outer radius")
     parameters: dict[str, float] | None = spec(None, doc="numbers passed with -setnumber to gmsh (.geo) and getdp")
 
-    planar = False
-
-    def conductor_roles(self) -> tuple[str, ...]:
-        """EM conductor regions, in conductor order (201, 202)."""
-        return ("workpiece", "die") if self.regions.die is not None else ("workpiece",)
+    _second: ClassVar[tuple[str, str]] = ("die", "regions.die")
 
     def validate(self, path: str) -> None:
         if not self.mesh.endswith((".geo", ".msh")):
