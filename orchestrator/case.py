@@ -253,6 +253,10 @@ class Mechanics:
                                doc="mass-proportional damping α: force −α m v on every node (dynamic relaxation)")
     mass_damping_until: float = spec(math.inf, unit="s", gt=0.0, doc="damping acts for t < this time")
     mass_damping_from: float = spec(0.0, unit="s", ge=0.0, doc="damping acts for t >= this time (final relaxation)")
+    kinetic_damping_until: float = spec(
+        0.0, unit="s", ge=0.0,
+        doc="kinetic damping (dynamic relaxation) for t < this time: a body's velocities are set to zero "
+            "whenever its kinetic energy has passed a peak (quasi-static loading; 0: off)")
 
 
 @dataclass(frozen=True, kw_only=True)

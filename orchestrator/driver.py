@@ -72,9 +72,8 @@ class CaseDriver:
                                   adapt_tol=cp.adapt_tol, iterate=cp.iterate, iterate_tol=cp.iterate_tol,
                                   iterate_max=cp.iterate_max)
         else:
-            mo = case.mechanics
             self.solver, options = build_solver(case, comm), LoopOptions(n=1, n_max=1)
-            load = PressurePulses(case.loads, mo.mass_damping, mo.mass_damping_until, mo.mass_damping_from)
+            load = _pressure_pulses(case)
         self.setup_s = _time.perf_counter() - t0
         self.mechanics = DolfinxMechanics(self.solver)
         self.load: LoadProvider = load
@@ -231,6 +230,13 @@ def _GetDPLoad():  # noqa: N802 - the class, imported lazily (GetDP modules only
     return GetDPLoad
 
 
+def _pressure_pulses(case: Case) -> PressurePulses:
+    """The case's pressure pulses with its damping options."""
+    mo = case.mechanics
+    return PressurePulses(case.loads, mo.mass_damping, mo.mass_damping_until, mo.mass_damping_from,
+                          mo.kinetic_damping_until)
+
+
 def _coupled_participants(case: Case, results: ResultsFolder, comm: MPI.Comm):
     """Mesh the EM setup, cut the conductor bodies' mechanical meshes from it, build solver and GetDP load."""
     from .em_participant import ConductorBody, GetDPLoad, em_model
@@ -250,8 +256,7 @@ def _coupled_participants(case: Case, results: ResultsFolder, comm: MPI.Comm):
     subs = {role: conductor_submesh(geometry.mesh, geometry.regions[role]) for role in roles}
     solver = build_solver(case, comm, {role: to_dolfinx(sub, comm) for role, sub in subs.items()})
     if case.coupling.load == "pressure":  # same meshes and loop, pressure pulses instead of GetDP
-        return solver, PressurePulses(case.loads, case.mechanics.mass_damping, case.mechanics.mass_damping_until,
-                                      case.mechanics.mass_damping_from)
+        return solver, _pressure_pulses(case)
     scale = float(np.abs(geometry.mesh.points).max())
     bodies = []
     for role in roles:

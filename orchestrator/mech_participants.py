@@ -73,13 +73,15 @@ class PressurePulses:
     previous pulse's end at which the loaded body's largest nodal speed is below ``rest_speed``.
     Damping adds −α m v (v: the solver's last half-step velocity) while
     ``damping_from`` <= t < ``damping_until``, plus a pulse's ``rest_damping`` while that pulse waits
-    for rest (dynamic relaxation between discharges).
+    for rest (dynamic relaxation between discharges). For t < ``kinetic_until`` the solver's
+    kinetic damping is on (velocities zeroed at each peak of a body's kinetic energy).
     """
 
     def __init__(self, loads: tuple[Load, ...], damping: float = 0.0, damping_until: float = float("inf"),
-                 damping_from: float = 0.0) -> None:
+                 damping_from: float = 0.0, kinetic_until: float = 0.0) -> None:
         self.loads = loads
         self.damping, self.damping_until, self.damping_from = damping, damping_until, damping_from
+        self.kinetic_until = kinetic_until
         self.offsets = np.array([0.0 if ld.trigger == "time" else np.nan for ld in loads])
         self._masks: dict[int, np.ndarray] = {}
 
@@ -113,6 +115,7 @@ class PressurePulses:
                 continue
             f = mechanics.solver.pressure_nodal_forces(ld.body, self._material_marker(i, mechanics), p)
             forces[ld.body] = forces[ld.body] + f if ld.body in forces else f
+        mechanics.solver.kinetic_damping = t_mid < self.kinetic_until
         alpha = relax + (self.damping if self.damping_from <= t_mid < self.damping_until else 0.0)
         if alpha > 0.0:
             for name, b in mechanics.solver.bodies.items():

@@ -153,9 +153,7 @@ class CornerFill:
         """The former measure: per profile segment, is the blank within FILL_GAP_FACTOR h0 of its midpoint."""
         die, blank = solver.bodies["die"], solver.bodies["blank"]
         mid = 0.5 * (die.x[self._profile[:, 0]] + die.x[self._profile[:, 1]])
-        bs = self._blank_segs
-        dist = _point_segment_distance(mid, blank.x[bs[:, 0]], blank.x[bs[:, 1]])
-        return dist <= FILL_GAP_FACTOR * self.h0
+        return self._blank_distance(mid, blank) <= FILL_GAP_FACTOR * self.h0
 
     def _corner_state(self, solver) -> tuple[float, float]:
         """(gap m from the corner point to the blank, kinetic energy J of the blank near it)."""
@@ -244,8 +242,9 @@ class CornerFill:
         return out
 
     def _quasi_static(self, history) -> dict[str, float]:
-        """Preforming check (cases with mass damping and a first, slowly ramped pulse): the kinetic /
-        (elastic + plastic) energy ratio while the damping acts,
+        """Preforming check (cases with kinetic or mass damping and a first, slowly ramped pulse): the
+        kinetic / (elastic + plastic) energy ratio while the damping acts (the kinetic damping window
+        when there is one),
 
         * ``preform_kinetic_ratio_top_max``: largest ratio while the preform pressure is >= 90 % of
           its amplitude (the top of the ramp, where the preformed shape is set);
@@ -254,13 +253,17 @@ class CornerFill:
         * ``preform_kinetic_ratio_end``: at the end of the damping window.
         Milestone rows (load columns 0 there) are skipped."""
         mo = self.case.mechanics
-        if mo.mass_damping <= 0.0 or not self.case.loads or "load0_pressure_Pa" not in history.columns:
+        if (mo.mass_damping <= 0.0 and mo.kinetic_damping_until <= 0.0) or not self.case.loads \
+                or "load0_pressure_Pa" not in history.columns:
             return {}
         t = history.column("time_s")
         p = history.column("load0_pressure_Pa")
         r = history.column("kinetic_to_deformation_ratio")
         amp = self.case.loads[0].amplitude
-        damped = (t >= mo.mass_damping_from) & (t < mo.mass_damping_until)
+        if mo.kinetic_damping_until > 0.0:
+            damped = t < mo.kinetic_damping_until
+        else:
+            damped = (t >= mo.mass_damping_from) & (t < mo.mass_damping_until)
         out = {}
         for name, frac in (("preform_kinetic_ratio_top_max", 0.9), ("preform_kinetic_ratio_max", 0.1)):
             m = damped & (p >= frac * amp)

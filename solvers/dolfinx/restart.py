@@ -7,7 +7,7 @@ import numpy as np
 
 __all__ = ["state_dict", "load_state_dict"]
 
-_ACC_KEYS = ("plastic_J", "viscous_J", "external_work_J", "wall_dissipated_J")
+_ACC_KEYS = ("plastic_J", "viscous_J", "external_work_J", "wall_dissipated_J", "kinetic_damping_J")
 
 
 def state_dict(solver) -> Dict[str, np.ndarray]:
@@ -18,7 +18,8 @@ def state_dict(solver) -> Dict[str, np.ndarray]:
         "E0": np.array(solver._E0), "contact_stored": np.array(solver._contact_stored),
         "acc": np.array([solver._acc[k] for k in _ACC_KEYS]),
         "contact_work": np.array(solver._contact_work),
-        "contact_stored0": np.array(solver._contact_stored0)}
+        "contact_stored0": np.array(solver._contact_stored0),
+        "kinetic_damping_ke": np.array([solver._ke_half[n] for n in solver.bodies])}
     for n, f in solver._fsurf_prev.items():
         d[f"{n}/contact_force"] = f.copy()
     for (ip, k), (si, mj) in solver._active.items():
@@ -54,6 +55,8 @@ def load_state_dict(solver, d: Mapping[str, np.ndarray]) -> None:
         solver._acc[k] = float(val)
     solver._contact_work = float(d["contact_work"])
     solver._contact_stored0 = float(d["contact_stored0"])
+    ke = np.asarray(d.get("kinetic_damping_ke", np.zeros(len(solver.bodies))))
+    solver._ke_half = {n: float(v) for n, v in zip(solver.bodies, ke)}
     for n in solver._fsurf_prev:
         solver._fsurf_prev[n] = np.array(d[f"{n}/contact_force"], dtype=float)
     solver._active = {}

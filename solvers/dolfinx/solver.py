@@ -113,6 +113,8 @@ class ExplicitSolver:
         self._contact_stored = 0.0
         self._fext = {n: np.zeros((b.n_local, 2)) for n, b in self.bodies.items()}
         self._fext_nonzero = {n: False for n in self.bodies}
+        self.kinetic_damping = False
+        self._ke_half = {n: 0.0 for n in self.bodies}
         self._contact_out = [None] * len(self.contact_pairs)
         self._fsurf_prev = {n: np.zeros((len(sf.gids), 2)) for n, sf in self._surf.items()}
         self._contact_work = 0.0
@@ -212,6 +214,8 @@ class ExplicitSolver:
         for n, b in self.bodies.items():
             b.v += dt_avg * b.a
             b.apply_velocity_constraints(t_new, dt)
+            if self.kinetic_damping:
+                self._acc["kinetic_damping_J"] += self._kinetic_peak(n, b, t_new, dt)
             no = b.n_owned
             if self._fext_nonzero[n]:
                 wext += dt * float(np.sum(b.v[:no] * fext[n][:no]))
@@ -222,6 +226,20 @@ class ExplicitSolver:
         self._compute_forces(dt, update_state=True)
         self._dt_prev = dt
         self.step_count += 1
+
+    def _kinetic_peak(self, n: str, b: Body, t_new: float, dt: float) -> float:
+        """Kinetic damping (dynamic relaxation): once the body's half-step kinetic energy has
+        passed a peak, set its velocities to zero (prescribed ones excepted); returns the kinetic
+        energy removed (J)."""
+        no = b.n_owned
+        ke = self._sum(0.5 * float(np.sum(b.mass[:no, None] * b.v[:no] ** 2)))
+        if ke >= self._ke_half[n]:
+            self._ke_half[n] = ke
+            return 0.0
+        b.v[...] = 0.0
+        b.apply_velocity_constraints(t_new, dt)
+        self._ke_half[n] = 0.0
+        return ke - self._sum(0.5 * float(np.sum(b.mass[:no, None] * b.v[:no] ** 2)))
 
     def _apply_walls(self) -> float:
         """Put nodes found behind a wall back on it and remove their (normal) velocity; returns the
@@ -411,7 +429,8 @@ class ExplicitSolver:
 
     def energies(self) -> Dict[str, float]:
         """Energy ledger, J: kinetic_J, elastic_J, plastic_J, contact_stored_J,
-        contact_dissipated_J, viscous_J, wall_dissipated_J, external_work_J, balance_error_J
+        contact_dissipated_J, viscous_J, wall_dissipated_J, kinetic_damping_J (removed by kinetic
+        damping), external_work_J, balance_error_J
         (= all stored + dissipated - external work - initial stored energy)."""
         e = {"kinetic_J": self._kinetic(), "elastic_J": self._elastic(),
              "contact_stored_J": self._contact_stored}
@@ -420,7 +439,8 @@ class ExplicitSolver:
                                      - (self._contact_stored - self._contact_stored0))
         e["balance_error_J"] = (e["kinetic_J"] + e["elastic_J"] + e["contact_stored_J"]
                                 + e["plastic_J"] + e["viscous_J"] + e["contact_dissipated_J"]
-                                + e["wall_dissipated_J"] - e["external_work_J"] - self._E0)
+                                + e["wall_dissipated_J"] + e["kinetic_damping_J"] - e["external_work_J"]
+                                - self._E0)
         return e
 
     @property

@@ -1,4 +1,5 @@
-"""Pressure pulses that wait for rest, and mass-proportional damping forces (fake solver)."""
+"""Pressure pulses that wait for rest, mass-proportional damping forces and the kinetic damping
+window (fake solver)."""
 
 from types import SimpleNamespace
 
@@ -44,3 +45,11 @@ def test_mass_damping_force_until_time():
     f = pp.load(0.0, 1e-6, 0.5e-6, mech).forces["blank"]
     assert f[0, 1] == pytest.approx(-50.0 * 2.0 * 2.0) and f[1, 1] == 0.0
     assert pp.load(2e-3, 2.1e-3, 2.05e-3, mech).forces == {}
+
+
+def test_kinetic_damping_switched_on_until_time():
+    pp = PressurePulses((), kinetic_until=1e-3)
+    mech = _fake(2.0)
+    assert pp.load(0.0, 1e-6, 0.5e-6, mech).forces == {} and mech.solver.kinetic_damping is True
+    pp.load(2e-3, 2.1e-3, 2.05e-3, mech)
+    assert mech.solver.kinetic_damping is False
