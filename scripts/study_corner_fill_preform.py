@@ -4,8 +4,8 @@
                                                           [--baseline RESULTS@TIME] [--reuse]
 
 Runs only the preforming stage of ``cases/corner_fill_restrike`` (pressure P_pre sin^2(pi t / T),
-mass damping alpha until T, ``time.end = T``: the restrike never fires) once per preform duration T,
-into OUT/T_<T>/, and compares the preformed blanks at rest (the final field output) node by node
+its damping (kinetic, or mass-proportional alpha) until T, ``time.end = T``: the restrike never
+fires) once per preform duration T, into OUT/T_<T>/, and compares the preformed blanks at rest (the final field output) node by node
 with the first duration's (the meshes are identical: same case, same mesh sizes). ``--baseline
 RESULTS@TIME`` takes the first shape instead from an existing ``corner_fill_restrike`` results
 folder at the end of its preform (TIME = its preform duration; the restrike fires only after it).
@@ -40,7 +40,8 @@ def run_preform(out: Path, duration: float, extra: list[str], reuse: bool = Fals
     if reuse and (folder / "metrics.json").is_file():
         return folder
     sets = [f"loads[0].omega={np.pi / duration:.9g}", f"loads[0].t_end={duration:.9g}",
-            f"mechanics.mass_damping_until={duration:.9g}", f"time.end={duration:.9g}",
+            f"mechanics.mass_damping_until={duration:.9g}", f"mechanics.kinetic_damping_until={duration:.9g}",
+            f"time.end={duration:.9g}",
             f"output.field_interval={duration / 20:.9g}"]
     cmd = [str(ROOT / ".venv" / "bin" / "pulseform"), "run", str(CASE), "--out", str(folder), "--force", "--quiet",
            *[x for s in sets for x in ("--set", s)], *extra]
