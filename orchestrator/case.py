@@ -397,6 +397,8 @@ class Case:
             if self.coupling.load == "getdp" and self.loads:
                 raise SchemaError("loads", "pressure [[loads]] are used only with coupling.load = 'pressure'; "
                                   "remove them or set coupling.load = 'pressure'")
+            if self.coupling.load == "getdp":
+                _refuse_damping(self.mechanics)
             if self.geometry.planar and self.mechanics.formulation == "axisymmetric":
                 raise SchemaError("mechanics.formulation", f"got 'axisymmetric'; the {self.geometry.type} "
                                   "geometry is planar: use 'plane_strain' or 'plane_stress'")
@@ -418,6 +420,14 @@ class Case:
     def body(self, name: str) -> Body:
         """The body called ``name``."""
         return next(b for b in self.bodies if b.name == name)
+
+
+def _refuse_damping(mo: Mechanics) -> None:
+    """Damping acts through the pressure-pulse load provider; a GetDP-coupled run has none."""
+    for key in ("mass_damping", "kinetic_damping_until"):
+        if getattr(mo, key) > 0.0:
+            raise SchemaError(f"mechanics.{key}", "damping acts with pressure loads only (case.kind = 'mechanics' "
+                              "or coupling.load = 'pressure'); a GetDP-coupled run would ignore it: remove it")
 
 
 def _shape_xmin(shape: Shape) -> float:

@@ -5,10 +5,11 @@
 
 Runs only the preforming stage of ``cases/corner_fill_restrike`` (pressure P_pre sin^2(pi t / T),
 its damping (kinetic, or mass-proportional alpha) until T, ``time.end = T``: the restrike never
-fires) once per preform duration T, into OUT/T_<T>/, and compares the preformed blanks at rest (the final field output) node by node
-with the first duration's (the meshes are identical: same case, same mesh sizes). ``--baseline
-RESULTS@TIME`` takes the first shape instead from an existing ``corner_fill_restrike`` results
-folder at the end of its preform (TIME = its preform duration; the restrike fires only after it).
+fires) once per preform duration T, into OUT/T_<T>/, and compares the preformed blanks at rest
+(the final field output) node by node with the first duration's (the meshes are identical: same
+case, same mesh sizes). ``--baseline RESULTS@TIME`` takes the first shape instead from an existing
+``corner_fill_restrike`` results folder at the end of its preform (TIME = its preform duration; the
+restrike fires only after it).
 
 Criterion, fixed before the runs: the preform is quasi-static when doubling its duration moves no
 blank node by more than 2 h0 = 0.2 mm (the resolution of the fill measure: a profile point counts as

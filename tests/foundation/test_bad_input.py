@@ -113,6 +113,9 @@ BAD_COUPLED = [
     ("bdf2_with_substeps", "emf_sheet_bulge", ["em.time_scheme='bdf2'", "coupling.em_substeps=5"],
      "coupling.em_substeps"),
     ("time_scheme_unknown", "emf_sheet_bulge", ["em.time_scheme='rk4'"], "em.time_scheme"),
+    ("damping_with_getdp", "emf_sheet_bulge", ["mechanics.mass_damping=1e4"], "mechanics.mass_damping"),
+    ("kinetic_damping_with_getdp", "emf_sheet_bulge", ["mechanics.kinetic_damping_until=1e-5"],
+     "mechanics.kinetic_damping_until"),
 ]
 
 
