@@ -1,4 +1,5 @@
-"""``mpirun -n 2`` gives the same bar-impact metrics as a serial run (to 1e-10 relative)."""
+"""``mpirun -n 2`` gives the same bar-impact and kinetic-damping metrics as a serial run (to 1e-10
+relative)."""
 import json
 import os
 import shutil
