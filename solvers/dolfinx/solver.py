@@ -52,6 +52,13 @@ class ExplicitSolver:
         Must be the communicator of every body's mesh.
     kernel : {"numba", "numpy"}
         Element kernel: the compiled one, or the vectorised-numpy reference.
+
+    Attributes
+    ----------
+    kinetic_damping : bool
+        Kinetic damping (dynamic relaxation) on/off, default off; may be switched between steps.
+        When on, a body's velocities are set to zero at each peak of its kinetic energy; the
+        removed energy is ``energies()["kinetic_damping_J"]``.
     """
 
     def __init__(self, bodies: Sequence[BodySpec], formulation: str = "plane_stress",
