@@ -29,6 +29,9 @@ whose slave is the blank). Definitions (documented in docs/cases.md):
   steps when the blank strikes the die, single nodes are thrown by the contact layer) and the
   mass-weighted rms speed sqrt(2 KE / m) (``blank_rms_speed_max_m_s``, the blank's flight speed).
 * contact pressure on the die: largest soft-contact stress of the blank -> die pair.
+* how much of the die yields: ``die_yielded_volume_fraction``, the volume fraction of die cells
+  with plastic strain > 0 at the end (plastic strain only grows: every cell that ever yielded),
+  beside ``die_plastic_strain_max`` (the von Mises peak is capped near the die's yield stress).
 
 Maxima over time are taken over the history rows (every ``output.history_every`` steps).
 Serial runs only (the geometry queries use this rank's nodes).
@@ -68,6 +71,12 @@ def _point_segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.n
     xi = np.clip((d * t[None]).sum(axis=2) / L2[None], 0.0, 1.0)
     q = a[None] + xi[..., None] * t[None]
     return np.sqrt(((p[:, None, :] - q) ** 2).sum(axis=2)).min(axis=1)
+
+
+def _yielded_fraction(body) -> float:
+    """Volume fraction of the body's cells that have yielded (plastic strain > 0) at some time."""
+    vol = body.cell_volumes()
+    return float(vol[body.eps_p > 0.0].sum() / vol.sum()) if len(vol) else 0.0
 
 
 class CornerFill:
@@ -235,6 +244,7 @@ class CornerFill:
             "blank_rms_speed_max_m_s": float(history.column("blank_rms_speed_m_s").max()),
             "die_contact_pressure_max_MPa": float(cp.max()) / 1e6,
             "die_plastic_strain_max": float(solver.bodies["die"].eps_p.max()),
+            "die_yielded_volume_fraction": _yielded_fraction(solver.bodies["die"]),
             "blank_plastic_strain_max": float(solver.bodies["blank"].eps_p.max()),
         }
         out.update(self._per_pulse(history))

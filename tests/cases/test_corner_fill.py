@@ -15,7 +15,7 @@ import sys
 import numpy as np
 import pytest
 
-from pulseform.orchestrator.analyses.corner_fill import _point_segment_distance
+from pulseform.orchestrator.analyses.corner_fill import _point_segment_distance, _yielded_fraction
 
 from .helpers import CORNER_COARSE, REPO, run_many
 
@@ -48,6 +48,19 @@ def test_point_segment_distance():
     assert _point_segment_distance(p, a, b) == pytest.approx([0.3, 1.0, 0.5])
 
 
+def test_yielded_volume_fraction():
+    """Volume-weighted: two unit right triangles and one twice as large (thickness 1), the large one yielded."""
+    from types import SimpleNamespace
+
+    x = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [2.0, 0.0], [2.0, 2.0]])
+    cells = np.array([[0, 1, 2], [1, 3, 2], [1, 3, 4]])  # areas 0.5, 0.5, 1.0
+    from pulseform.solvers.dolfinx.body import Body
+
+    body = SimpleNamespace(x=x, cells=cells, axisymmetric=False, thickness=1.0, eps_p=np.array([0.0, 0.0, 1e-3]))
+    body.cell_volumes = lambda: Body.cell_volumes(body)
+    assert _yielded_fraction(body) == pytest.approx(0.5)
+
+
 @pytest.fixture(scope="module")
 def single(tmp_path_factory):
     root = tmp_path_factory.mktemp("corner")
@@ -71,6 +84,7 @@ def test_corner_fill_metrics_and_figures(single):
             assert k in m and np.isfinite(m[k]), k
         assert m["status_ok"] == 1.0
         assert m["energy_error_rel"] < 0.02  # energy ledger closes (J)
+        assert 0.0 <= m["die_yielded_volume_fraction"] <= 1.0
         plots = {p.name for p in (Path(m["_out"]) / "plots").glob("*.png")}
         assert {"corner_fill_history.png", "corner_fill_shapes.png"} <= plots
     # the stronger pulse throws the blank faster (m/s)
