@@ -81,8 +81,8 @@ def test_preform_is_quasi_static_by_ramp_rate(runs, tmp_path):
 
 @pytest.mark.xfail(strict=True, reason="known shortfall (docs/cases.md): early in the ramp (p >= 10 % of P_pre) "
                    "the slack blank falls 20 mm onto the die bottom faster than the load would hold it (up to 52 m/s "
-                   "with the 4 ms preform), kinetic / internal reaches ~10; the 8 ms preform gives 0.13. The shape it "
-                   "is left in does not depend on that fall (test_preform_is_quasi_static_by_ramp_rate)")
+                   "with the 4 ms preform), kinetic / internal reaches ~10; 8 / 16 ms preforms give 0.13 / 0.051. "
+                   "The shape it is left in does not depend on that fall (test_preform_is_quasi_static_by_ramp_rate)")
 def test_preform_is_quasi_static_over_the_whole_ramp(runs):
     assert runs["restrike"]["preform_kinetic_ratio_max"] < 1e-2
 
