@@ -16,8 +16,9 @@ A_IN, B_OUT, H = 0.1, 0.2, 0.02
 P0 = 100e6
 
 
-def _cylinder() -> ExplicitSolver:
-    msh = dmesh.create_rectangle(MPI.COMM_SELF, [np.array([A_IN, 0.0]), np.array([B_OUT, H])], [20, 4])
+def cylinder(comm=MPI.COMM_SELF) -> ExplicitSolver:
+    """The elastic thick cylinder (20 x 4 cells, u_z = 0 on both ends); also used by mpi_bar_metrics.py."""
+    msh = dmesh.create_rectangle(comm, [np.array([A_IN, 0.0]), np.array([B_OUT, H])], [20, 4])
     ends = lambda x: (np.isclose(x[1], 0.0) | np.isclose(x[1], H))  # noqa: E731
     return ExplicitSolver([BodySpec("tube", msh, MAT, fixed=((ends, (1,)),))],
                           formulation="axisymmetric", comm=msh.comm)
@@ -30,8 +31,9 @@ def _lame_u(r: float) -> float:
     return (1 + nu) / E * ((1 - 2 * nu) * al * r + bl / r)
 
 
-def _run(s: ExplicitSolver, n_steps: int) -> np.ndarray:
-    """Step pressure P0 from t = 0, held; returns u_r(a) after each 10-step block (m)."""
+def step_load(s: ExplicitSolver, n_steps: int) -> list[np.ndarray]:
+    """Step pressure P0 from t = 0, held; returns u_r of this rank's nodes on r = a after each
+    10-step block (m)."""
     b = s.bodies["tube"]
     ia = np.flatnonzero(np.isclose(b.X0[:, 0], A_IN))
     inner = lambda x: x[0] < A_IN + 1e-3  # noqa: E731
@@ -39,14 +41,19 @@ def _run(s: ExplicitSolver, n_steps: int) -> np.ndarray:
     out = []
     for _ in range(n_steps // 10):
         s.advance(dt, 10, external_forces={"tube": s.pressure_nodal_forces("tube", inner, P0)})
-        out.append(b.u[ia, 0].mean())
-    return np.array(out)
+        out.append(b.u[ia, 0].copy())
+    return out
+
+
+def _run(s: ExplicitSolver, n_steps: int) -> np.ndarray:
+    """u_r(a) (m), mean over the inner surface, after each 10-step block (serial)."""
+    return np.array([u.mean() for u in step_load(s, n_steps)])
 
 
 def test_kinetic_damping_relaxes_a_step_load_to_lames_static_solution():
     ref = _lame_u(A_IN)
-    free = _run(_cylinder(), 2000)
-    s = _cylinder()
+    free = _run(cylinder(), 2000)
+    s = cylinder()
     s.kinetic_damping = True
     relaxed = _run(s, 2000)
     e = s.energies()
@@ -67,12 +74,12 @@ def test_kinetic_damping_relaxes_a_step_load_to_lames_static_solution():
 
 
 def test_kinetic_damping_restarts_bitwise():
-    a = _cylinder()
+    a = cylinder()
     a.kinetic_damping = True
     _run(a, 300)
     state = {k: np.array(v, copy=True) for k, v in a.state_dict().items()}
     _run(a, 300)
-    b = _cylinder()
+    b = cylinder()
     b.kinetic_damping = True
     b.load_state_dict(state)
     _run(b, 300)
