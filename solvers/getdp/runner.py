@@ -25,6 +25,29 @@ FAST_MPI_ENV = {
     "HWLOC_COMPONENTS": "-pci,-opencl,-gl,-cuda,-nvml",
 }
 
+#: ``prctl`` option that sends the child a signal when the thread that started it dies
+_PR_SET_PDEATHSIG = 1
+
+
+def child_preexec() -> None:
+    """``preexec_fn`` of every external program (getdp, gmsh): it must never outlive pulseform.
+
+    In the child, between fork and exec: ask the kernel for SIGKILL when the parent dies
+    (``PR_SET_PDEATHSIG``; kept across exec), exit at once if the parent is already gone, and
+    ignore SIGINT so that a Ctrl-C in the terminal (sent to the whole process group) lets the
+    running step finish: pulseform itself then stops at its next safe point, and a SIGKILL of
+    pulseform still ends the child through the death signal.
+    """
+    import ctypes
+
+    parent = os.getppid()
+    libc = ctypes.CDLL(None, use_errno=True)
+    libc.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+    if os.getppid() != parent:  # the parent died before the death signal was armed
+        os._exit(1)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
 _ERROR_PATTERN = re.compile(
     r"^(?:Error|Critical)\s*:|diverg|did not converge|not converged|no convergence|Segmentation|MPI_ABORT"
     r"|\bAbort", re.M | re.I)
@@ -144,9 +167,10 @@ def run_getdp(
         log.flush()
         try:
             proc = subprocess.run(argv, cwd=run_dir, stdout=log, stderr=subprocess.STDOUT, env=env,
-                                  timeout=timeout, check=False)
+                                  timeout=timeout, check=False, preexec_fn=child_preexec)
         except subprocess.TimeoutExpired:
-            raise GetDPError(f"getdp timed out after {timeout} s", log_path=log_path, run_dir=run_dir,
+            raise GetDPError(f"getdp exceeded its time limit of {timeout:g} s and "
+                             "was stopped", log_path=log_path, run_dir=run_dir,
                              log_tail=log_tail(log_path)) from None
         except OSError as err:
             raise GetDPError(f"could not start getdp: {err}", log_path=log_path, run_dir=run_dir) from None
