@@ -8,12 +8,13 @@ the README's case-file reference is generated from these declarations
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass
 from typing import Literal
 
 from .case_em import (EM, CapacitorBank, DampedSineCurrent, FlatCoilSheet, Geometry, OuterTube, PlanarCoilBlankDie,
                       SheetDie, SolenoidTube)
-from .schema import SchemaError, spec
+from .schema import SchemaError, shorten, spec
 
 __all__ = ["Box", "Rectangle", "Polygon", "Shape", "CowperSymonds", "JohnsonCook", "Material", "FixedBoundary",
            "Body", "ContactPair", "RigidWall", "PulseSin2", "PulseExp", "Load", "CaseInfo", "TimeControl",
@@ -21,6 +22,7 @@ __all__ = ["Box", "Rectangle", "Polygon", "Shape", "CowperSymonds", "JohnsonCook
            "FlatCoilSheet", "Geometry", "SolenoidTube", "SheetDie", "OuterTube", "PlanarCoilBlankDie"]
 
 Vec2 = tuple[float, float]
+_NAME = re.compile(r"[A-Za-z0-9._-]{1,100}")
 
 
 # --------------------------------------------------------------------------- geometry primitives
@@ -220,7 +222,7 @@ Load = PulseSin2 | PulseExp
 class CaseInfo:
     """What the case is."""
 
-    name: str = spec(doc="case name (used in results)")
+    name: str = spec(doc="case name: 1 to 100 letters, digits, '.', '_', '-' (default results folder results/<name>)")
     kind: Literal["mechanics", "coupled"] = spec(
         "mechanics", doc="'mechanics': explicit solver with pressure loads; 'coupled': GetDP + explicit solver")
     description: str = spec("", doc="free text")
@@ -228,6 +230,9 @@ class CaseInfo:
     def validate(self, path: str) -> None:
         if not self.name.strip():
             raise SchemaError(f"{path}.name", "got an empty string; must be a non-empty name")
+        if not _NAME.fullmatch(self.name) or self.name in (".", ".."):
+            raise SchemaError(f"{path}.name", f"got {shorten(repr(self.name))}; must be a name, not a path: 1 to "
+                              "100 letters, digits, '.', '_' or '-', not '.' or '..' (it names results/<name>)")
 
 
 @dataclass(frozen=True, kw_only=True)

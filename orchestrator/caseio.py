@@ -10,29 +10,57 @@ from typing import Any
 import tomli_w
 
 from .case import Case
-from .schema import SchemaError, from_dict, to_dict
+from .schema import SchemaError, from_dict, shorten, to_dict
 
 CASE_FILE_NAME = "case.toml"
+MAX_MESSAGE = 280  # characters of a CaseError's text (the CLI adds "pulseform: error: ")
+MAX_CASE_FILE = 10 * 2**20  # bytes
+MAX_STRING = 10_000  # characters of any string in a case
+PATH_KEYS = (("geometry", "mesh"), ("geometry", "pro"))  # strings that name files
 _SEGMENT = re.compile(r"^([A-Za-z_][A-Za-z0-9_\-]*)((?:\[\d+\])*)$")
+_CONTROL = re.compile(r"[\x00-\x1f\x7f-\x9f\u2028\u2029]")
+
+
+def one_line(text: str, limit: int = MAX_MESSAGE) -> str:
+    """``text`` as one printable line of at most ``limit`` characters.
+
+    Control characters (newlines, NUL, ...) and unencodable ones (lone surrogates) are escaped; a
+    longer text keeps its start and end around `` … ``.
+    """
+    text = _CONTROL.sub(lambda m: m.group().encode("unicode_escape").decode("ascii"), text)
+    text = text.encode("utf-8", "backslashreplace").decode("utf-8")
+    if len(text) > limit:
+        head = (limit - 3) * 2 // 3
+        text = text[:head] + " … " + text[len(text) - (limit - 3 - head):]
+    return text
 
 
 class CaseError(ValueError):
-    """A case file or an override is invalid. ``str()`` is one line naming file and key path."""
+    """A case file or an override is invalid. ``str()`` is one line naming file and key path.
+
+    The line is at most :data:`MAX_MESSAGE` characters: a long source, key or message is elided in
+    the middle, control characters are escaped.
+    """
 
     def __init__(self, source: str, path: str, message: str) -> None:
         self.source = source
         self.path = path
         self.message = message
-        where = f"{source}: {path}: " if path else f"{source}: "
-        super().__init__(where + message)
+        src, key = one_line(source, 120), one_line(path, 100)
+        where = f"{src}: {key}: " if path else f"{src}: "
+        super().__init__(where + one_line(message, MAX_MESSAGE - len(where)))
 
 
 def resolve_case_file(path: str | Path) -> Path:
     """Accept a case folder (holding ``case.toml``) or a ``.toml`` file; return the file path."""
     p = Path(path)
-    if p.is_dir():
-        p = p / CASE_FILE_NAME
-    if not p.is_file():
+    try:
+        if p.is_dir():
+            p = p / CASE_FILE_NAME
+        found = p.is_file()
+    except (OSError, ValueError) as exc:  # too long, NUL byte, no permission, ...
+        raise CaseError(str(path), "", f"cannot open: {getattr(exc, 'strerror', None) or exc}") from None
+    if not found:
         raise CaseError(str(path), "", f"no case file found (expected a folder with {CASE_FILE_NAME} "
                         "or a .toml file)")
     return p
@@ -42,11 +70,24 @@ def read_toml(path: Path) -> dict[str, Any]:
     """Parse a TOML file; syntax errors become :class:`CaseError` with line and column."""
     try:
         with open(path, "rb") as fh:
-            return tomllib.load(fh)
-    except tomllib.TOMLDecodeError as exc:
-        raise CaseError(str(path), "", f"TOML syntax error: {exc}") from None
+            raw = fh.read(MAX_CASE_FILE + 1)
+        if len(raw) > MAX_CASE_FILE:
+            raise CaseError(str(path), "", f"larger than {MAX_CASE_FILE // 2**20} MiB; not a case file")
+        return _parse_toml(raw.decode("utf-8"), str(path), "")
     except (OSError, UnicodeDecodeError) as exc:
         raise CaseError(str(path), "", f"cannot read: {exc}") from None
+
+
+def _parse_toml(text: str, source: str, key: str) -> dict[str, Any]:
+    """``tomllib.loads`` whose every failure (syntax, nesting, huge integers) is a :class:`CaseError`."""
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise CaseError(source, key, f"TOML syntax error: {exc}") from None
+    except RecursionError:
+        raise CaseError(source, key, "TOML nested too deeply") from None
+    except ValueError as exc:  # int() of more than sys.get_int_max_str_digits() digits
+        raise CaseError(source, key, f"TOML value not readable: {str(exc).split(';')[0]}") from None
 
 
 def parse_override(text: str, source: str = "") -> tuple[list[str | int], Any]:
@@ -56,24 +97,41 @@ def parse_override(text: str, source: str = "") -> tuple[list[str | int], Any]:
     The value is read as a TOML literal (number, bool, string, array, inline table); a bare word
     that is not valid TOML is taken as a string. Nothing is evaluated.
     """
+    source = source or f"--set {text}"
+    bad = _CONTROL.search(text)
+    if bad or not _encodable(text):
+        what = repr(bad.group()) if bad else "a character that is not valid UTF-8"
+        raise CaseError(source, "", f"got {what}; a --set holds one key.path=value without control characters")
     if "=" not in text:
-        raise CaseError(source or f"--set {text}", "", "expected key.path=value")
+        raise CaseError(source, "", "expected key.path=value")
     key, raw = text.split("=", 1)
     key, raw = key.strip(), raw.strip()
     segments: list[str | int] = []
     for part in key.split("."):
         m = _SEGMENT.match(part)
         if not m:
-            raise CaseError(source or f"--set {text}", key, "malformed key path (use e.g. time.end or bodies[0].mesh_size)")
+            raise CaseError(source, key, "malformed key path (use e.g. time.end or bodies[0].mesh_size)")
         segments.append(m.group(1))
         segments.extend(int(i) for i in re.findall(r"\[(\d+)\]", m.group(2)))
     if not raw:
-        raise CaseError(source or f"--set {text}", key, "missing value after '='")
+        raise CaseError(source, key, "missing value after '='")
     try:
-        value = tomllib.loads(f"v = {raw}")["v"]
+        doc = tomllib.loads(f"v = {raw}")
     except tomllib.TOMLDecodeError:
-        value = raw
-    return segments, value
+        return segments, raw
+    except (RecursionError, ValueError):
+        doc = _parse_toml(f"v = {raw}", source, key)  # raises the CaseError
+    if list(doc) != ["v"]:  # no second key smuggled in (a comment ends the line, a newline is refused)
+        raise CaseError(source, key, "the value must be one TOML value")
+    return segments, doc["v"]
+
+
+def _encodable(text: str) -> bool:
+    try:
+        text.encode("utf-8")
+    except UnicodeEncodeError:
+        return False
+    return True
 
 
 def apply_override(data: dict[str, Any], segments: list[str | int], value: Any, source: str) -> None:
@@ -92,7 +150,9 @@ def apply_override(data: dict[str, Any], segments: list[str | int], value: Any, 
             continue
         if not isinstance(node, dict):
             raise CaseError(source, shown, "is not a table; cannot set a key inside it")
-        assert isinstance(seg, str)
+        if isinstance(seg, int):
+            raise CaseError(source, f"{shown}[{seg}]", f"{shown or 'the case'} is a table, not a list; "
+                            "name a key instead of an index")
         shown = f"{shown}.{seg}" if shown else seg
         if last:
             node[seg] = value
@@ -137,14 +197,60 @@ def load_case(path: str | Path, overrides: list[str] | tuple[str, ...] = ()) -> 
         segments, value = parse_override(text, source)
         apply_override(data, segments, value, source)
     source = f"{file}" + (" (with --set overrides)" if overrides else "")
+    check_strings(data, source)
     from .user_deck import resolve_deck_paths  # a user's own .geo/.msh + .pro: paths from the case folder
 
-    resolve_deck_paths(data, file, source)
+    try:
+        resolve_deck_paths(data, file, source)
+    except (OSError, ValueError) as exc:  # CaseError is a ValueError: passed on as it is
+        if isinstance(exc, CaseError):
+            raise
+        raise CaseError(source, "geometry", f"cannot resolve mesh/pro: {getattr(exc, 'strerror', None) or exc}") \
+            from None
     try:
         case = from_dict(Case, data)
     except SchemaError as exc:
         raise CaseError(source, exc.path, exc.message) from None
+    except RecursionError:
+        raise CaseError(source, "", "nested too deeply") from None
     return case, file
+
+
+def check_strings(data: dict[str, Any], source: str) -> None:
+    """Refuse, in the raw case mapping, strings and keys that no later step should see.
+
+    A NUL character or a lone surrogate anywhere, a string longer than :data:`MAX_STRING` characters, and
+    in file names (:data:`PATH_KEYS`) more than 4096 bytes or a part of more than 255 bytes (the
+    operating system's limits) raise :class:`CaseError` naming the key.
+    """
+    todo: list[tuple[str, Any]] = [("", data)]
+    while todo:  # iterative: any nesting depth
+        path, node = todo.pop()
+        items = node.items() if isinstance(node, dict) else enumerate(node) if isinstance(node, list) else ()
+        for k, v in items:
+            sub = f"{path}[{k}]" if isinstance(k, int) else (f"{path}.{k}" if path else k)
+            for text, what in ((k, "key"), (v, "value")):
+                if isinstance(text, str):
+                    _check_string(text, what, sub, source)
+            if isinstance(v, (dict, list)):
+                todo.append((sub, v))
+    for table, key in PATH_KEYS:
+        node = data.get(table)
+        value = node.get(key) if isinstance(node, dict) else None
+        if isinstance(value, str):
+            parts = value.encode("utf-8").split(b"/")
+            if len(value.encode("utf-8")) > 4096 or max(len(p) for p in parts) > 255:
+                raise CaseError(source, f"{table}.{key}", f"got a path of {len(value)} characters; a file name "
+                                "may have at most 4096 bytes, each part at most 255")
+
+
+def _check_string(text: str, what: str, path: str, source: str) -> None:
+    if "\x00" in text:
+        raise CaseError(source, path, f"the {what} {shorten(repr(text))} holds a NUL character; not allowed")
+    if not _encodable(text):
+        raise CaseError(source, path, f"the {what} holds a character that is not valid UTF-8")
+    if len(text) > MAX_STRING:
+        raise CaseError(source, path, f"the {what} has {len(text)} characters; at most {MAX_STRING} allowed")
 
 
 def case_to_toml(case: Case) -> str:

@@ -115,7 +115,10 @@ def _setup_logging(quiet: bool) -> None:
 
 
 def _error(msg: str, code: int) -> int:
-    print(f"pulseform: error: {msg}", file=sys.stderr)
+    """Print ``pulseform: error: <msg>`` as one line of at most ~300 characters; return ``code``."""
+    from .caseio import MAX_MESSAGE, one_line
+
+    print(f"pulseform: error: {one_line(msg, MAX_MESSAGE)}", file=sys.stderr)
     return code
 
 

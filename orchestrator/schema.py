@@ -8,6 +8,9 @@ Supported field types: ``str``, ``int``, ``float`` (an int is accepted), ``bool`
 fixed-length ``tuple[float, float]``, variable ``tuple[X, ...]``, ``dict[str, X]``, ``X | None``,
 nested dataclasses, and tagged unions of dataclasses (``A | B``) told apart by their ``type`` literal.
 
+Every number must be finite (an infinity only where the field's default is that infinity) and lie in
+the plausible range of its unit (:data:`PLAUSIBLE`; ``spec(magnitude=...)`` overrides it for one field).
+
 Every problem raises :class:`SchemaError` carrying the dotted key path and what is allowed, so the CLI
 can print a single line. No string from the input is ever evaluated.
 """
@@ -16,10 +19,36 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import operator
 import types
 from typing import Any, Literal, Union, get_args, get_origin, get_type_hints
 
 MISSING = dataclasses.MISSING
+
+#: Plausible magnitudes of a number by its unit: (smallest non-zero |value|, largest |value|). Generous for
+#: pulsed forming and its EM circuits, they refuse absurd inputs (1e308 Pa, 1e30 s) before any meshing.
+#: Zero passes wherever the field's own bounds allow it. The README's case-file section lists this table.
+PLAUSIBLE: dict[str, tuple[float, float]] = {
+    "m": (1e-12, 10.0),
+    "s": (1e-15, 1e3),
+    "-": (1e-12, 1e9),
+    "kg/m^3": (1e-3, 1e5),
+    "Pa": (1e-6, 1e13),
+    "Pa·m": (1e-6, 1e13),
+    "Pa·s²/m²": (1e-12, 1e12),
+    "m/s": (1e-12, 1e5),
+    "1/s": (1e-12, 1e12),
+    "rad/s": (1e-6, 1e12),
+    "S/m": (1e-12, 1e9),
+    "V": (1e-6, 1e7),
+    "A": (1e-6, 1e8),
+    "F": (1e-15, 10.0),
+    "H": (1e-15, 1.0),
+    "Ω": (1e-12, 1e6),
+    "J/(kg·K)": (1e-3, 1e6),
+}
+#: Range of a number without a unit in :data:`PLAUSIBLE` (e.g. user-deck parameters): finite and not huge.
+PLAUSIBLE_OTHER: tuple[float, float] = (0.0, 1e15)
 
 
 class SchemaError(ValueError):
@@ -49,6 +78,7 @@ def spec(
     lt: float | None = None,
     le: float | None = None,
     default_factory: Any = MISSING,
+    magnitude: tuple[float, float] | None = None,
 ) -> Any:
     """Declare a dataclass field with its unit, documentation and numeric bounds.
 
@@ -64,8 +94,16 @@ def spec(
         Exclusive / inclusive bounds for numbers (applied to every element of a numeric tuple).
     default_factory : callable, optional
         Factory for mutable defaults.
+    magnitude : (float, float), optional
+        Plausible (smallest non-zero, largest) ``|value|`` of this field instead of the unit's entry in
+        :data:`PLAUSIBLE` (e.g. a wall-clock time limit, which may well exceed the simulated times).
+
+    Notes
+    -----
+    A default of ``inf`` or ``-inf`` makes that infinity an allowed input value of the field.
     """
-    meta = {"unit": unit, "doc": doc, "gt": gt, "ge": ge, "lt": lt, "le": le}
+    inf = default if isinstance(default, float) and math.isinf(default) else None
+    meta = {"unit": unit, "doc": doc, "gt": gt, "ge": ge, "lt": lt, "le": le, "magnitude": magnitude, "inf": inf}
     if default_factory is not MISSING:
         return dataclasses.field(default_factory=default_factory, metadata=meta)
     return dataclasses.field(default=default, metadata=meta)
@@ -114,6 +152,18 @@ def _tag(cls: type) -> str:
     return args[0]
 
 
+def shorten(text: str, limit: int = 60) -> str:
+    """``text`` cut to ``limit`` characters (``…`` marks the cut)."""
+    return text if len(text) <= limit else text[:limit] + "…"
+
+
+def show_number(value: int | float) -> str:
+    """A number for a message: ``repr``, or the digit count of a huge integer (no 4300-digit limit)."""
+    if isinstance(value, int) and not isinstance(value, bool) and value.bit_length() > 64:
+        return f"an integer of about {int(value.bit_length() * math.log10(2)) + 1} digits"
+    return repr(value)
+
+
 def _describe_value(value: Any) -> str:
     if isinstance(value, dict):
         return "a table"
@@ -121,22 +171,41 @@ def _describe_value(value: Any) -> str:
         return "a list"
     if isinstance(value, bool):
         return "true" if value else "false"
-    if isinstance(value, str):
-        return repr(value)
-    return repr(value)
+    if isinstance(value, (int, float)):
+        return show_number(value)
+    return shorten(repr(value))
 
 
-def _check_bounds(value: float, meta: dict[str, Any], path: str) -> None:
+def plausible_range(meta: dict[str, Any]) -> tuple[float, float]:
+    """(smallest non-zero, largest) ``|value|`` of a field: its ``magnitude``, else its unit's entry."""
+    return meta.get("magnitude") or PLAUSIBLE.get(meta.get("unit") or "", PLAUSIBLE_OTHER)
+
+
+def _check_bounds(value: int | float, meta: dict[str, Any], path: str) -> None:
+    """Finite, within the field's bounds, and within its plausible range (see :data:`PLAUSIBLE`)."""
     unit = meta.get("unit") or ""
     suffix = f" ({unit})" if unit and unit != "-" else ""
-    if not math.isfinite(value):
-        raise SchemaError(path, f"got {value!r}; must be a finite number{suffix}")
-    checks = (("gt", lambda v, b: v > b, ">"), ("ge", lambda v, b: v >= b, ">="),
-              ("lt", lambda v, b: v < b, "<"), ("le", lambda v, b: v <= b, "<="))
-    for key, ok, sym in checks:
+    shown = show_number(value)
+    is_float = isinstance(value, float)
+    if is_float and (math.isnan(value) or (math.isinf(value) and value != meta.get("inf"))):
+        allowed = f" or {meta['inf']!r}" if meta.get("inf") is not None else ""
+        raise SchemaError(path, f"got {shown}; must be a finite number{allowed}{suffix}")
+    for key, ok in (("gt", operator.gt), ("ge", operator.ge), ("lt", operator.lt), ("le", operator.le)):
         bound = meta.get(key)
         if bound is not None and not ok(value, bound):
-            raise SchemaError(path, f"got {value!r}; must be {bounds_text(meta)}{suffix}")
+            raise SchemaError(path, f"got {shown}; must be {bounds_text(meta)}{suffix}")
+    if is_float and math.isinf(value):
+        return  # the field's default infinity
+    lo, hi = plausible_range(meta)
+    if not (value == 0 or lo <= abs(value) <= hi):
+        zero = " (or 0)" if _zero_allowed(meta) else ""
+        raise SchemaError(path, f"got {shown}; outside the plausible range {lo:g} <= |value| <= {hi:g}"
+                                f"{' ' + unit if unit and unit != '-' else ''}{zero}")
+
+
+def _zero_allowed(meta: dict[str, Any]) -> bool:
+    return all(meta.get(k) is None or ok(0.0, meta[k]) for k, ok in
+               (("gt", operator.gt), ("ge", operator.ge), ("lt", operator.lt), ("le", operator.le)))
 
 
 def bounds_text(meta: dict[str, Any]) -> str:
@@ -183,7 +252,7 @@ def convert(tp: Any, value: Any, path: str, meta: dict[str, Any] | None = None) 
         if isinstance(value, bool) or not isinstance(value, int):
             raise SchemaError(path, f"got {_describe_value(value)}; expected an integer"
                               + (f" {bounds_text(meta)}" if bounds_text(meta) else ""))
-        _check_bounds(float(value), meta, path)
+        _check_bounds(value, meta, path)
         return value
     if tp is float:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
@@ -191,7 +260,7 @@ def convert(tp: Any, value: Any, path: str, meta: dict[str, Any] | None = None) 
             raise SchemaError(path, f"got {_describe_value(value)}; expected a number"
                               + (f" in {unit}" if unit and unit != "-" else "")
                               + (f" {bounds_text(meta)}" if bounds_text(meta) else ""))
-        _check_bounds(float(value), meta, path)
+        _check_bounds(value, meta, path)
         return float(value)
     if tp is str:
         if not isinstance(value, str):
@@ -348,4 +417,5 @@ def _fmt_default(value: Any) -> str:
 
 
 __all__ = ["SchemaError", "spec", "convert", "from_dict", "to_dict", "reference_rows",
-           "describe_field", "bounds_text"]
+           "describe_field", "bounds_text", "PLAUSIBLE", "PLAUSIBLE_OTHER", "plausible_range", "shorten",
+           "show_number"]

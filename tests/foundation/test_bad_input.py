@@ -16,7 +16,10 @@ import tomli_w
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from pulseform.orchestrator.caseio import load_case
+from pulseform.orchestrator.case import Case
 from pulseform.orchestrator.cli import main
+from pulseform.orchestrator.schema import PLAUSIBLE, reference_rows
 
 REPO = Path(__file__).resolve().parents[2]
 BASE = tomllib.loads((REPO / "cases/bar_impact/case.toml").read_text())
@@ -85,6 +88,28 @@ BAD_FILES = [
     ("infinite_end", [(("time", "end"), float("inf"))], "time.end"),
     ("axisym_negative_r", [(("mechanics", "formulation"), "axisymmetric"),
                            (("bodies", 0, "shape", "origin"), [-1.0, 0.0])], "bodies[0].shape"),
+    # issue 13: the name is a folder name, numbers are finite and plausible, strings hold no NUL
+    ("name_absolute_path", [(("case", "name"), "/some/path/VICTIM")], "case.name"),
+    ("name_escapes", [(("case", "name"), "../../x")], "case.name"),
+    ("name_dot", [(("case", "name"), ".")], "case.name"),
+    ("name_dotdot", [(("case", "name"), "..")], "case.name"),
+    ("name_too_long", [(("case", "name"), "x" * 101)], "case.name"),
+    ("name_space", [(("case", "name"), "bar impact")], "case.name"),
+    ("name_unicode", [(("case", "name"), "stoß")], "case.name"),
+    ("name_nul", [(("case", "name"), "bar\x00impact")], "case.name"),
+    ("nul_in_description", [(("case", "description"), "a\x00b")], "case.description"),
+    ("nul_in_key", [(("case", "a\x00b"), 1)], "case.a\\x00b"),
+    ("bulk_modulus_huge", [(("materials", "paper_al", "bulk_modulus"), 1e308)], "materials.paper_al.bulk_modulus"),
+    ("density_tiny", [(("materials", "paper_al", "density"), 1e-300)], "materials.paper_al.density"),
+    ("height_huge", [(("bodies", 0, "shape", "height"), 1e308)], "bodies[0].shape.height"),
+    ("end_huge", [(("time", "end"), 1e30)], "time.end"),
+    ("end_nan", [(("time", "end"), float("nan"))], "time.end"),
+    ("origin_huge", [(("bodies", 0, "shape", "origin"), [-1e308, 0.0])], "bodies[0].shape.origin[0]"),
+    ("velocity_inf", [(("bodies", 0, "initial_velocity"), [float("inf"), 0.0])], "bodies[0].initial_velocity[0]"),
+    ("damping_until_minus_inf", [(("mechanics", "mass_damping_until"), float("-inf"))],
+     "mechanics.mass_damping_until"),
+    ("n_5000_digits", [(("coupling",), {"n": 10 ** 4000})], "coupling.n"),
+    ("end_int_4000_digits", [(("time", "end"), 10 ** 4000)], "time.end"),
 ]
 
 BAD_OVERRIDES = [
@@ -98,6 +123,15 @@ BAD_OVERRIDES = [
     ("set_unknown_key", ["mechanics.viscosity=1"], "mechanics.viscosity"),
     ("set_into_scalar", ["time.end.x=1"], "time.end"),
     ("set_bad_path", ["time..end=1"], "time..end"),
+    ("set_index_into_table", ["time[0]=1"], "time[0]"),
+    ("set_index_into_body", ["bodies[0][1]=1"], "bodies[0][1]"),
+    ("set_smuggled_table", ["time.end=1e-3\n[extra]"], "--set"),
+    ("set_smuggled_key", ["time.end=1e-3\rcase.name='x'"], "--set"),
+    ("set_control_in_key", ["time.e\x1bnd=1"], "--set"),
+    ("set_nested_value", ["time.end=" + "[" * 5000 + "]" * 5000], "time.end"),
+    ("set_5000_digits", ["time.end=" + "9" * 5000], "time.end"),
+    ("set_name_path", ["case.name='/tmp/x'"], "case.name"),
+    ("set_end_inf", ["time.end=inf"], "time.end"),
 ]
 
 
@@ -141,6 +175,7 @@ def _assert_one_line_error(capsys, rc: int, must_contain: str, file_hint: str) -
     assert len(lines) == 1, err
     assert "Traceback" not in err
     assert lines[0].startswith("pulseform: error: ")
+    assert len(lines[0]) <= 300, lines[0]
     assert must_contain in lines[0], lines[0]
     assert file_hint in lines[0], lines[0]
     return lines[0]
@@ -263,3 +298,61 @@ def test_generated_junk_never_tracebacks(tmp_path, capsys, path, value):
         lines = [ln for ln in err.splitlines() if ln.strip()]
         assert len(lines) == 1
         assert lines[0].startswith("pulseform: error: ")
+
+
+# ----------------------------------------------------------------------------- issue 13: inputs that once gave tracebacks
+def test_deeply_nested_toml(tmp_path, capsys):
+    file = tmp_path / "deep.toml"
+    file.write_text((REPO / "cases/bar_impact/case.toml").read_text() + "\nx = " + "[" * 5000 + "]" * 5000 + "\n")
+    _assert_one_line_error(capsys, main(["check", str(file)]), "nested too deeply", str(file))
+
+
+def test_5000_digit_integer_in_file(tmp_path, capsys):
+    file = tmp_path / "digits.toml"
+    file.write_text((REPO / "cases/bar_impact/case.toml").read_text().replace("[time]\n", "[time]\nn = " + "7" * 5000
+                                                                             + "\n", 1))
+    _assert_one_line_error(capsys, main(["check", str(file)]), "4300 digits", str(file))
+
+
+def test_long_and_nul_case_paths(tmp_path, capsys):
+    long = str(tmp_path / ("x" * 5000))
+    line = _assert_one_line_error(capsys, main(["check", long]), "too long", str(tmp_path))
+    assert "…" in line
+    line = _assert_one_line_error(capsys, main(["check", str(tmp_path / "a\x00b.toml")]), "no case file", "a\\x00b")
+    assert "\x00" not in line
+
+
+def test_user_deck_path_tricks(capsys):
+    deck = str(REPO / "cases/user_deck_sheet_bulge")
+    for value, key in (("'a" + "b" * 5000 + ".geo'", "geometry.mesh"), ('"sheet\\u0000bulge.pro"', "geometry.pro")):
+        _assert_one_line_error(capsys, main(["check", deck, "--set", f"{key}={value}"]), key, "case.toml")
+
+
+def test_default_infinities_are_accepted(tmp_path, capsys):
+    """inf where the default is inf (Box bounds, mass_damping_until), so `check`'s own output reads back."""
+    data = copy.deepcopy(BASE)
+    data["mechanics"]["mass_damping_until"] = float("inf")
+    data["bodies"][0]["fixed"] = [{"where": {"xmin": float("-inf"), "xmax": 0.0}, "components": [0]}]
+    rc = main(["check", str(_write(tmp_path, data))])
+    out, err = capsys.readouterr()
+    assert rc == 0, err
+    again = tmp_path / "again.toml"
+    again.write_text(out.split("\n", 1)[1])
+    assert "-inf" in again.read_text()
+    assert main(["check", str(again)]) == 0, capsys.readouterr().err
+
+
+def test_shipped_cases_pass():
+    for file in sorted((REPO / "cases").glob("*/*.toml")):
+        load_case(file)
+
+
+def test_every_unit_has_a_plausible_range():
+    units = {unit for _, allowed, unit, _, _ in reference_rows(Case) if "number" in allowed or "integer" in allowed}
+    assert units - {""} <= set(PLAUSIBLE), units - set(PLAUSIBLE)
+
+
+def test_readme_lists_the_plausible_ranges():
+    readme = (REPO / "README.md").read_text()
+    for unit, (lo, hi) in PLAUSIBLE.items():
+        assert f"| `{unit}` | {lo:g} | {hi:g} |" in readme, unit
