@@ -18,7 +18,7 @@ from .schema import SchemaError, shorten, spec
 
 __all__ = ["Box", "Rectangle", "Polygon", "Shape", "CowperSymonds", "JohnsonCook", "Material", "FixedBoundary",
            "Body", "ContactPair", "RigidWall", "PulseSin2", "PulseExp", "Load", "CaseInfo", "TimeControl",
-           "Mechanics", "Coupling", "Probe", "Output", "Case", "EM", "CapacitorBank", "DampedSineCurrent",
+           "Mechanics", "Coupling", "Probe", "Output", "Limits", "Case", "EM", "CapacitorBank", "DampedSineCurrent",
            "FlatCoilSheet", "Geometry", "SolenoidTube", "SheetDie", "OuterTube", "PlanarCoilBlankDie"]
 
 Vec2 = tuple[float, float]
@@ -309,6 +309,18 @@ class Output:
 
 
 @dataclass(frozen=True, kw_only=True)
+class Limits:
+    """Guards against runs that would exhaust the machine (orchestrator/guards.py says how they are estimated)."""
+
+    max_cells: float = spec(2e6, unit="-", gt=0.0, doc="most mesh cells (estimated from areas / mesh size² "
+                            "before any meshing)")
+    max_steps: float = spec(5e7, unit="-", gt=0.0, doc="most explicit steps (estimated: time.end / stable step "
+                            "of the undeformed mesh)")
+    gmsh_time_limit_s: float = spec(600.0, unit="s", gt=0.0, doc="wall-time limit of one gmsh run on a user's .geo")
+    getdp_time_limit_s: float = spec(600.0, unit="s", gt=0.0, doc="wall-time limit of one getdp run (one EM step)")
+
+
+@dataclass(frozen=True, kw_only=True)
 class Case:
     """A whole case file."""
 
@@ -326,6 +338,7 @@ class Case:
     probes: tuple[Probe, ...] = spec((), doc="[[probes]] point histories")
     output: Output = spec(Output(), doc="[output] table")
     analysis: tuple[str, ...] = spec((), doc="case-specific analyses (extra history columns, metrics, plots)")
+    limits: Limits = spec(Limits(), doc="[limits] resource guards")
 
     def validate(self, path: str) -> None:
         if not self.materials:
@@ -379,6 +392,9 @@ class Case:
         if self.output.field_interval is not None and self.output.field_interval > self.time.end:
             raise SchemaError("output.field_interval",
                               f"got {self.output.field_interval:g}; must be <= time.end = {self.time.end:g} (s)")
+        from .guards import check_resources
+
+        check_resources(self)
 
     def _validate_coupled(self) -> None:
         regions = [b.region for b in self.bodies if b.region is not None]

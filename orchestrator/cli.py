@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import argparse
 import logging
+import os
+import signal
 import sys
 from pathlib import Path
 
@@ -131,12 +133,19 @@ def _cmd_run(args: argparse.Namespace) -> int:
     except CaseError as exc:
         return _error(str(exc), EXIT_BAD_INPUT)
     out = args.out or Path("results") / case.case.name
-    from .runner import ResumeError, RunFailed, run_case  # heavy imports (dolfinx) only when running
+    from .runner import ResumeError, RunFailed, RunInterrupted, run_case  # heavy imports (dolfinx) only when running
 
     try:
         metrics = run_case(case, out, force=args.force, resume=args.resume, quiet=args.quiet)
     except (ResultsExistError, ResumeError) as exc:
         return _error(str(exc), EXIT_BAD_INPUT)
+    except RunInterrupted as exc:
+        print(f"pulseform: {exc}", file=sys.stderr)
+        return 128 + exc.signum
+    except KeyboardInterrupt:
+        print(f"pulseform: stopped at once (second interrupt); the last checkpoint in {out} stays: continue "
+              "with --resume", file=sys.stderr)
+        return 128 + signal.SIGINT
     except RunFailed as exc:
         from .user_deck import DeckContractError
 
@@ -287,7 +296,16 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return handlers[args.command](args)
     except KeyboardInterrupt:
-        return _error("interrupted", EXIT_FAILED)
+        print("pulseform: interrupted", file=sys.stderr)
+        return 128 + signal.SIGINT
+    except MemoryError:
+        return _error("out of memory (coarsen the mesh, shorten the run or use a larger machine)", EXIT_FAILED)
+    except Exception as exc:  # never a traceback on the terminal; PULSEFORM_TRACEBACK=1 shows it
+        if os.environ.get("PULSEFORM_TRACEBACK"):
+            raise
+        text = " ".join(str(exc).split()) or "no message"
+        return _error(f"internal error: {type(exc).__name__}: {text[:300]} (set PULSEFORM_TRACEBACK=1 to see "
+                      "where; please report it)", EXIT_FAILED)
 
 
 if __name__ == "__main__":  # pragma: no cover

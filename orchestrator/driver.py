@@ -17,6 +17,7 @@ from mpi4py import MPI
 
 from pulseform.solvers import dolfinx as mech
 
+from . import interrupt
 from . import probes as probe_mod
 from .case import Case
 from .checkpoint import CHECKPOINT_NAME, load_checkpoint, save_checkpoint
@@ -47,6 +48,7 @@ class MechanicsRun:
     shapes: list = field(default_factory=list)
     em_snapshot: tuple | None = None
     analyses: list = field(default_factory=list)
+    wall_before_s: float = 0.0  # wall time of the earlier segments of a resumed run (s)
 
 
 def milestones(end: float, interval: float) -> np.ndarray:
@@ -64,7 +66,8 @@ class CaseDriver:
 
     def __init__(self, case: Case, results: ResultsFolder, comm: MPI.Comm) -> None:
         self.case, self.results, self.comm = case, results, comm
-        t0 = _time.perf_counter()
+        t0 = self.wall_start = _time.perf_counter()
+        self.wall_before_s = 0.0
         cp = case.coupling
         if case.case.kind == "coupled":
             self.solver, load = _coupled_participants(case, results, comm)
@@ -131,7 +134,8 @@ class CaseDriver:
         arrays.update({f"load/{k}": v for k, v in self.load.state_dict().items()})
         arrays["history/rows"] = np.array(self.history.rows)
         meta = {"columns": self.history.columns, "part": self.part, "ranks": self.comm.size,
-                "since_record": self._since_record}
+                "since_record": self._since_record,
+                "wall_time_s": self.wall_before_s + _time.perf_counter() - self.wall_start}
         save_checkpoint(self.results.root / self._rank_file(), arrays, meta)
         if self.comm.rank == 0:
             self.history.flush()
@@ -151,7 +155,16 @@ class CaseDriver:
         self.history.rows = [list(r) for r in arrays["history/rows"]]
         self.part = int(meta["part"]) + 1
         self._since_record = int(meta["since_record"])
+        self.wall_before_s = float(meta.get("wall_time_s", 0.0))
         log.info("resumed at t = %.6g s, step %d (part %d)", self.solver.time, self.solver.step_count, self.part)
+
+    def _check_interrupt(self) -> None:
+        """Stop here if a stop signal reached any rank (all ranks stop at the same step)."""
+        signum = interrupt.pending() or 0
+        if self.comm.size > 1:
+            signum = self.comm.allreduce(signum, op=MPI.MAX)
+        if signum:
+            raise interrupt.RunInterrupted(signum)
 
     # ----------------------------------------------------------------- loop
     def run(self, quiet: bool) -> MechanicsRun:
@@ -165,14 +178,18 @@ class CaseDriver:
             self.record()
         writer.write(s.time)
         self._keep_shape()
+        stop = s.time
+
+        def on_step(row: dict[str, float]) -> None:
+            self._on_em_step(row)
+            bar.update_to(s.time)
+            if self.comm.size == 1 and interrupt.pending() is not None and s.time < stop * (1.0 - 1e-12):
+                interrupt.check()  # a step that reaches a milestone first writes its outputs
+
         try:
+            self._check_interrupt()  # a signal during set-up (meshing, deck check)
             with Progress(case.time.end, quiet=quiet or self.comm.rank != 0, desc=case.case.name) as bar:
                 bar.update_to(s.time)
-
-                def on_step(row: dict[str, float]) -> None:
-                    self._on_em_step(row)
-                    bar.update_to(s.time)
-
                 for stop in self.stops:
                     if s.time >= stop * (1.0 - 1e-12):
                         continue
@@ -185,6 +202,13 @@ class CaseDriver:
                     if snap is not None:
                         em_writer.write(s.time, *snap)
                     self.checkpoint()
+                    interrupt.rearm()  # a library (gmsh, at import) may have replaced the handlers
+                    self._check_interrupt()
+        except interrupt.RunInterrupted as exc:
+            exc.time = s.time
+            self.checkpoint()  # at an EM-step boundary: --resume continues exactly from here
+            log.info("interrupted at t = %.6g s (step %d); checkpoint written", s.time, s.step_count)
+            raise
         except Exception:
             if self.comm.rank == 0:
                 self.history.flush()  # keep what was computed up to the failure
@@ -214,7 +238,7 @@ class CaseDriver:
         snap = self.load.snapshot() if hasattr(self.load, "snapshot") else None
         if hasattr(self.load, "close"):
             self.load.close()  # old getdp run folders are deleted in the background: wait for them
-        return MechanicsRun(s, self.history, metrics, self.shapes, snap, self.analyses)
+        return MechanicsRun(s, self.history, metrics, self.shapes, snap, self.analyses, self.wall_before_s)
 
 
 LOAD_COLUMNS_COUPLED = ("force_x_N", "force_y_N", "conservation_error_rel", "coil_current_A",
@@ -267,11 +291,13 @@ def _coupled_participants(case: Case, results: ResultsFolder, comm: MPI.Comm):
     if user_deck:
         from .user_deck import user_deck_load
 
-        return solver, user_deck_load(case, geometry, results.root / "em", bodies, case.coupling.em_substeps)
-    load = GetDPLoad(geometry, em_model(case, (g.air_radius, g.shell_radius)), results.root / "em", bodies,
-                     keep_runs=case.em.keep_runs, remesh_quality=case.em.remesh_quality,
-                     sizes=(g.mesh_size_coil, g.mesh_size_air), em_substeps=case.coupling.em_substeps,
-                     depth=case.mechanics.thickness, time_scheme=case.em.time_scheme)
+        load = user_deck_load(case, geometry, results.root / "em", bodies, case.coupling.em_substeps)
+    else:
+        load = GetDPLoad(geometry, em_model(case, (g.air_radius, g.shell_radius)), results.root / "em", bodies,
+                         keep_runs=case.em.keep_runs, remesh_quality=case.em.remesh_quality,
+                         sizes=(g.mesh_size_coil, g.mesh_size_air), em_substeps=case.coupling.em_substeps,
+                         depth=case.mechanics.thickness, time_scheme=case.em.time_scheme)
+    load.solver.timeout = case.limits.getdp_time_limit_s
     return solver, load
 
 

@@ -11,12 +11,11 @@ from __future__ import annotations
 
 import logging
 
-import gmsh
 import numpy as np
 from scipy.spatial import cKDTree
 
 from pulseform.solvers.getdp import EMMesh
-from pulseform.solvers.getdp.mesh import AIR, AXIS, OUTER, SHELL, Rect, gmsh_physical_elements
+from pulseform.solvers.getdp.mesh import AIR, AXIS, OUTER, SHELL, Rect, gmsh_physical_elements, gmsh_session
 
 from .transfer import boundary_facets, triangle_areas
 
@@ -65,10 +64,7 @@ def remesh_around(parts: list[tuple[np.ndarray, np.ndarray, int]], coil_tag: int
     """
     loops = [boundary_loop(pts, cells) for pts, cells, _ in parts]
     segs = [np.linalg.norm(pts[np.roll(lp, -1)] - pts[lp], axis=1) for (pts, _, _), lp in zip(parts, loops)]
-    gmsh.initialize(readConfigFiles=False)
-    gmsh.option.setNumber("General.Terminal", 0)
-    gmsh.model.add("pulseform_remesh")
-    try:
+    with gmsh_session("pulseform_remesh") as gmsh:
         occ = gmsh.model.occ
         outer = occ.addDisk(0, 0, 0, r_shell, r_shell)
         inner = occ.addDisk(0, 0, 0, r_domain, r_domain)
@@ -121,13 +117,10 @@ def remesh_around(parts: list[tuple[np.ndarray, np.ndarray, int]], coil_tag: int
         gmsh.option.setNumber("Mesh.MeshSizeExtendFromBoundary", 0)
         gmsh.option.setNumber("Mesh.Algorithm", 6)
         gmsh.model.mesh.generate(2)
-        result = _collect(parts)
-    finally:
-        gmsh.finalize()
-    return result
+        return _collect(gmsh, parts)
 
 
-def _collect(parts: list[tuple[np.ndarray, np.ndarray, int]]) -> tuple[EMMesh, list[np.ndarray]]:
+def _collect(gmsh, parts: list[tuple[np.ndarray, np.ndarray, int]]) -> tuple[EMMesh, list[np.ndarray]]:
     """gmsh's air/coil/shell triangles and lines, stitched to the bodies' triangles by coordinates."""
     pts, tri, ttags, lines, ltags, used = gmsh_physical_elements(gmsh)
     scale = float(np.abs(pts).max())

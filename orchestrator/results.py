@@ -8,23 +8,46 @@ Layout::
     <out>/fields/        XDMF/HDF5 fields for ParaView
     <out>/plots/*.png    figures
     <out>/run.log        the run's log
+    <out>/.pulseform     marker: this folder was made by pulseform (what ``--force`` may replace)
+
+A folder in use is locked (``flock`` on the folder itself, released by the kernel when the process
+ends, so a dead run leaves no stale lock): a second run on it is refused while the first is alive.
+Files are created with the user's umask.
 """
 
 from __future__ import annotations
 
 import csv
+import errno
+import fcntl
 import io
 import json
 import math
 import os
 import shutil
+import socket
 import tempfile
+import time
 from pathlib import Path
 from typing import Any, Iterable, Sequence
 
 
 class ResultsExistError(FileExistsError):
-    """The results folder exists and neither ``--force`` nor ``--resume`` was given."""
+    """The results folder exists and neither ``--force`` nor ``--resume`` was given, or it cannot be
+    replaced (not made by pulseform, or in use by a running pulseform)."""
+
+
+#: the file that marks a folder as made by pulseform
+MARKER_NAME = ".pulseform"
+
+#: errno values of a full disk / quota / file-size limit
+DISK_FULL_ERRNOS = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
 
 
 def atomic_write_bytes(path: Path, data: bytes) -> None:
@@ -33,6 +56,7 @@ def atomic_write_bytes(path: Path, data: bytes) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     try:
+        os.fchmod(fd, 0o666 & ~_umask())  # mkstemp makes 0600: give the file the user's umask
         with os.fdopen(fd, "wb") as fh:
             fh.write(data)
             fh.flush()
@@ -86,24 +110,79 @@ class ResultsFolder:
         Reuse an existing folder (continue a run).
     """
 
-    def __init__(self, root: Path, *, force: bool = False, resume: bool = False) -> None:
+    def __init__(self, root: Path, *, force: bool = False, resume: bool = False, lock: bool = True) -> None:
         self.root = Path(root)
+        self._lock_fd: int | None = None
         if self.root.exists() and not self.root.is_dir():
             raise ResultsExistError(f"{self.root}: exists and is not a folder; choose another --out")
-        if self.root.exists() and any(self.root.iterdir()):
-            if resume:
-                pass
-            elif force:
-                shutil.rmtree(self.root)
-            else:
-                raise ResultsExistError(
-                    f"{self.root}: results folder exists; use --force to replace it or --resume to continue")
+        if self.root.is_dir() and lock:
+            self._lock()
         try:
+            if self.root.is_dir() and any(self.root.iterdir()):
+                if resume:
+                    pass
+                elif force:
+                    self._empty_for_force()
+                else:
+                    raise ResultsExistError(f"{self.root}: results folder exists; use --force to replace it or "
+                                            "--resume to continue")
             self.root.mkdir(parents=True, exist_ok=True)
+            if lock and self._lock_fd is None:
+                self._lock()
+            self._write_marker()
             self.fields.mkdir(exist_ok=True)
             self.plots.mkdir(exist_ok=True)
         except OSError as exc:
+            self.release()
+            if isinstance(exc, ResultsExistError):
+                raise
             raise ResultsExistError(f"{self.root}: cannot create the results folder ({exc.strerror})") from None
+        except BaseException:
+            self.release()
+            raise
+
+    def _lock(self) -> None:
+        """Lock the folder for this process (refused while another pulseform holds it)."""
+        fd = os.open(self.root, os.O_RDONLY | os.O_DIRECTORY)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            os.close(fd)
+            who = self._marker().get("pid", "?")
+            raise ResultsExistError(f"{self.root}: in use by a running pulseform (process {who}); wait for it "
+                                    "to end or choose another --out") from None
+        self._lock_fd = fd
+
+    def release(self) -> None:
+        """Release the folder's lock (also released by the kernel when the process ends)."""
+        if self._lock_fd is not None:
+            os.close(self._lock_fd)
+            self._lock_fd = None
+
+    def _marker(self) -> dict[str, Any]:
+        try:
+            data = json.loads((self.root / MARKER_NAME).read_text())
+        except (OSError, ValueError):
+            return {}
+        return data if isinstance(data, dict) else {}
+
+    def _write_marker(self) -> None:
+        from . import __version__
+
+        atomic_write_text(self.root / MARKER_NAME, json.dumps(
+            {"made_by": f"pulseform {__version__}", "pid": os.getpid(), "host": socket.gethostname(),
+             "started": time.strftime("%Y-%m-%dT%H:%M:%S%z")}) + "\n")
+
+    def _empty_for_force(self) -> None:
+        """``--force``: empty a folder pulseform made; refuse any other folder."""
+        if not (self.root / MARKER_NAME).is_file():
+            raise ResultsExistError(f"{self.root}: not a results folder made by pulseform (no {MARKER_NAME} "
+                                    "marker); --force replaces only those: choose another --out")
+        for child in self.root.iterdir():
+            if child.is_dir() and not child.is_symlink():
+                shutil.rmtree(child)
+            else:
+                child.unlink()
 
     @property
     def fields(self) -> Path:

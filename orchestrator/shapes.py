@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import logging
 
-import gmsh
 from dolfinx.io import gmshio
 from dolfinx.mesh import Mesh
 from mpi4py import MPI
+
+from pulseform.solvers.getdp.mesh import gmsh_session
 
 from .case import Polygon, Rectangle, Shape
 
@@ -24,17 +25,6 @@ def shape_vertices(shape: Shape) -> list[tuple[float, float]]:
     return list(shape.points)
 
 
-def _ensure_gmsh() -> None:
-    """Initialise gmsh once per process (gmsh 4.8 has no isInitialized)."""
-    global _GMSH_READY
-    if not _GMSH_READY:
-        gmsh.initialize()
-        _GMSH_READY = True
-
-
-_GMSH_READY = False
-
-
 def mesh_shape(shape: Shape, mesh_size: float, comm: MPI.Comm = MPI.COMM_WORLD,
                name: str = "body") -> Mesh:
     """Mesh ``shape`` with linear triangles of target size ``mesh_size`` (m).
@@ -42,10 +32,7 @@ def mesh_shape(shape: Shape, mesh_size: float, comm: MPI.Comm = MPI.COMM_WORLD,
     Rectangles get a structured-looking frontal mesh (gmsh "Frontal-Delaunay for quads" off,
     algorithm 6); the mesh is built on rank 0 and distributed by DOLFINx.
     """
-    _ensure_gmsh()
-    gmsh.option.setNumber("General.Terminal", 0)
-    gmsh.model.add(name)
-    try:
+    with gmsh_session(name) as gmsh:
         if comm.rank == 0:
             pts = [gmsh.model.geo.addPoint(x, y, 0.0, mesh_size) for x, y in shape_vertices(shape)]
             lines = [gmsh.model.geo.addLine(pts[i], pts[(i + 1) % len(pts)]) for i in range(len(pts))]
@@ -58,8 +45,6 @@ def mesh_shape(shape: Shape, mesh_size: float, comm: MPI.Comm = MPI.COMM_WORLD,
             gmsh.option.setNumber("Mesh.CharacteristicLengthMax", mesh_size)
             gmsh.model.mesh.generate(2)
         mesh, _, _ = gmshio.model_to_mesh(gmsh.model, comm, 0, gdim=2)
-    finally:
-        gmsh.model.remove()
     log.debug("meshed %s: %d cells on rank %d", name,
               mesh.topology.index_map(2).size_local, comm.rank)
     return mesh

@@ -18,12 +18,47 @@ outputs map back to rows of ``triangles``.
 """
 from __future__ import annotations
 
+import signal
+import threading
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any, Iterator
 
 import numpy as np
 
 AIR, SHELL, AXIS, OUTER, NEUMANN = 1, 2, 11, 12, 13
+
+
+@contextmanager
+def gmsh_session(model_name: str) -> Iterator[Any]:
+    """The gmsh API, initialised (quiet, no config files) with one model, finalised on exit.
+
+    gmsh 4.8's Python module sets SIGINT to the default action when imported and puts back, in
+    ``finalize``, whatever was there at import: the caller's SIGINT / SIGTERM handlers are saved
+    before and restored after, so that a Ctrl-C keeps meaning what the caller decided.
+    Yields the ``gmsh`` module.
+    """
+    main = threading.current_thread() is threading.main_thread()
+    saved = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)} if main else {}
+
+    def restore() -> None:
+        for s, h in saved.items():
+            if h is not None and signal.getsignal(s) is not h:
+                signal.signal(s, h)
+
+    import gmsh
+
+    restore()
+    gmsh.initialize(readConfigFiles=False)
+    restore()
+    try:
+        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh.model.add(model_name)
+        yield gmsh
+    finally:
+        gmsh.finalize()
+        restore()
 
 
 def default_name(tag: int) -> str:
@@ -248,15 +283,10 @@ def coil_conductor_mesh(
     overrides :func:`default_name` for coil and conductor ids) in gmsh and in the mesh's
     ``$PhysicalNames``.
     """
-    import gmsh
-
     h_coarse = h_coarse or r_domain / 10
     h_conductor = h_conductor or h_fine
     half = axisymmetric if half is None else half
-    gmsh.initialize(readConfigFiles=False)  # owned for the duration of the call
-    gmsh.option.setNumber("General.Terminal", 0)
-    gmsh.model.add("pulseform_em")
-    try:
+    with gmsh_session("pulseform_em") as gmsh:
         occ = gmsh.model.occ
         r_out = r_shell or r_domain
         outer = occ.addDisk(0, 0, 0, r_out, r_out)
@@ -339,8 +369,6 @@ def coil_conductor_mesh(
         gmsh.option.setNumber("Mesh.Algorithm", 6)
         gmsh.model.mesh.generate(2)
         return _mesh_from_gmsh(gmsh)
-    finally:
-        gmsh.finalize()
 
 
 def gmsh_physical_elements(gmsh) -> tuple[np.ndarray, ...]:

@@ -16,12 +16,39 @@ from pulseform.orchestrator.driver import milestones
 def test_existing_results_need_force(tmp_path):
     r = ResultsFolder(tmp_path / "r")
     r.write_text("x.txt", "1")
+    for kw in ({}, {"force": True}, {"resume": True}):  # a folder in use is refused, whatever the flags
+        with pytest.raises(ResultsExistError, match="in use by a running pulseform"):
+            ResultsFolder(tmp_path / "r", **kw)
+    r.release()
     with pytest.raises(ResultsExistError, match="--force"):
         ResultsFolder(tmp_path / "r")
-    ResultsFolder(tmp_path / "r", resume=True)
+    ResultsFolder(tmp_path / "r", resume=True).release()
     assert (tmp_path / "r" / "x.txt").exists()
-    ResultsFolder(tmp_path / "r", force=True)
+    ResultsFolder(tmp_path / "r", force=True).release()
     assert not (tmp_path / "r" / "x.txt").exists()
+    assert (tmp_path / "r" / ".pulseform").is_file()  # the marker: --force may replace it again
+
+
+def test_force_refuses_a_folder_pulseform_did_not_make(tmp_path):
+    victim = tmp_path / "victim"
+    victim.mkdir()
+    (victim / "thesis.tex").write_text("years of work")
+    with pytest.raises(ResultsExistError, match="not a results folder made by pulseform"):
+        ResultsFolder(victim, force=True)
+    assert [f.name for f in victim.iterdir()] == ["thesis.tex"]
+
+
+def test_results_files_follow_the_umask(tmp_path):
+    import os
+
+    old = os.umask(0o027)
+    try:
+        r = ResultsFolder(tmp_path / "r")
+        mode = r.write_text("x.txt", "1").stat().st_mode & 0o777
+        r.release()
+    finally:
+        os.umask(old)
+    assert mode == 0o640  # 0o666 & ~0o027; mkstemp alone would give 0o600
 
 
 def test_out_is_a_file(tmp_path):

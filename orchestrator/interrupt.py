@@ -1,0 +1,86 @@
+"""SIGINT / SIGTERM during a run: stop at the next safe point instead of dying mid-write.
+
+While :func:`signals_stop_run` is active, the first SIGINT or SIGTERM only records the signal; the
+driver asks :func:`check` at its safe points (after every EM step, after every milestone, after
+set-up) and :class:`RunInterrupted` then unwinds the loop, which writes a checkpoint, the history
+and a ``metrics.json`` with ``status = "interrupted"`` (``pulseform run --resume`` continues
+exactly). A second SIGINT stops at once (Python's KeyboardInterrupt): the last checkpoint stays.
+
+External programs ignore SIGINT (``child_preexec`` of the getdp runner), so a Ctrl-C in the
+terminal lets a running getdp step finish; they die with pulseform through a parent-death signal.
+"""
+
+from __future__ import annotations
+
+import logging
+import signal
+import threading
+from contextlib import contextmanager
+from typing import Iterator
+
+log = logging.getLogger(__name__)
+
+#: the signals that ask a run to stop; exit code of the CLI = 128 + signal number
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+_pending: list[int] = []
+
+
+class RunInterrupted(Exception):
+    """A stop signal arrived; raised at a safe point. ``signum`` is the signal's number."""
+
+    def __init__(self, signum: int) -> None:
+        self.signum = signum
+        self.time: float | None = None  # simulated time of the checkpoint written when it unwound (s)
+        super().__init__(f"interrupted by {signal.Signals(signum).name}")
+
+
+def _handler(signum: int, frame) -> None:  # noqa: ARG001 - signal handler signature
+    if signum == signal.SIGINT and _pending:
+        raise KeyboardInterrupt  # a second Ctrl-C: stop at once
+    if not _pending:
+        _pending.append(signum)
+
+
+def pending() -> int | None:
+    """The stop signal received so far, or None."""
+    return _pending[0] if _pending else None
+
+
+def check() -> None:
+    """Raise :class:`RunInterrupted` if a stop signal arrived (call at safe points only)."""
+    if _pending:
+        raise RunInterrupted(_pending[0])
+
+
+def rearm() -> None:
+    """Put the stop handlers back (a library may have replaced them, e.g. gmsh at import)."""
+    if _armed and threading.current_thread() is threading.main_thread():
+        for s in STOP_SIGNALS:
+            if signal.getsignal(s) is not _handler:
+                signal.signal(s, _handler)
+
+
+_armed = False
+
+
+@contextmanager
+def signals_stop_run() -> Iterator[None]:
+    """Within the block, SIGINT / SIGTERM request a stop at the next safe point (main thread only;
+    elsewhere a no-op). The previous handlers come back afterwards."""
+    global _armed
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = {s: signal.getsignal(s) for s in STOP_SIGNALS}
+    _pending.clear()
+    for s in STOP_SIGNALS:
+        signal.signal(s, _handler)
+    _armed = True
+    try:
+        yield
+    finally:
+        _armed = False
+        for s, h in old.items():
+            signal.signal(s, h if h is not None else signal.SIG_DFL)
+        _pending.clear()
