@@ -294,7 +294,7 @@ def _convert_tagged(classes: list[type], value: Any, path: str) -> Any:
         raise SchemaError(f"{path}.type", "missing required key; allowed: "
                           + ", ".join(repr(t) for t in tags))
     tag = value["type"]
-    if tag not in tags:
+    if not isinstance(tag, str) or tag not in tags:  # a list or table here is unhashable
         raise SchemaError(f"{path}.type", f"got {_describe_value(tag)}; allowed: "
                           + ", ".join(repr(t) for t in tags))
     return from_dict(tags[tag], value, path)
