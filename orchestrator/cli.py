@@ -136,7 +136,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from .runner import ResumeError, RunFailed, RunInterrupted, run_case  # heavy imports (dolfinx) only when running
 
     try:
-        metrics = run_case(case, out, force=args.force, resume=args.resume, quiet=args.quiet)
+        metrics = run_case(case, out, force=args.force, resume=args.resume, quiet=args.quiet,
+                           native_stderr_to_log=True)
     except (ResultsExistError, ResumeError) as exc:
         return _error(str(exc), EXIT_BAD_INPUT)
     except RunInterrupted as exc:
@@ -150,7 +151,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
         from .user_deck import DeckContractError
 
         # a user deck that breaks the contract is bad input, found before the first step
-        return _error(str(exc), EXIT_BAD_INPUT if isinstance(exc.__cause__, DeckContractError) else EXIT_FAILED)
+        code = _error(str(exc), EXIT_BAD_INPUT if isinstance(exc.__cause__, DeckContractError) else EXIT_FAILED)
+        if exc.details:  # the tail of the failing program's log
+            print("  --- log tail ---\n" + "\n".join("  " + ln for ln in exc.details.splitlines()), file=sys.stderr)
+        return code
     if not args.quiet:
         print(f"results: {out}")
         for k in sorted(metrics):

@@ -209,9 +209,13 @@ class CaseDriver:
             self.checkpoint()  # at an EM-step boundary: --resume continues exactly from here
             log.info("interrupted at t = %.6g s (step %d); checkpoint written", s.time, s.step_count)
             raise
-        except Exception:
+        except Exception as exc:
+            exc.add_note(f"at t = {s.time:.6g} s")
             if self.comm.rank == 0:
-                self.history.flush()  # keep what was computed up to the failure
+                try:
+                    self.history.flush()  # keep what was computed up to the failure
+                except OSError as write_error:  # a full disk: report the run's own failure
+                    log.debug("could not flush the history: %s", write_error)
             raise
         finally:
             writer.close()

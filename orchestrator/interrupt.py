@@ -72,6 +72,8 @@ def signals_stop_run() -> Iterator[None]:
     if threading.current_thread() is not threading.main_thread():
         yield
         return
+    import gmsh  # noqa: F401 - gmsh 4.8 resets SIGINT when first imported: let it do so before we install
+
     old = {s: signal.getsignal(s) for s in STOP_SIGNALS}
     _pending.clear()
     for s in STOP_SIGNALS:

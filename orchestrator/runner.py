@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import logging
+import os
+import shutil
+import sys
 import time
 from contextlib import contextmanager
 from pathlib import Path
@@ -19,7 +22,14 @@ log = logging.getLogger(__name__)
 
 
 class RunFailed(RuntimeError):
-    """A run started but did not finish; what was computed so far is on disk."""
+    """A run started but did not finish; what was computed so far is on disk.
+
+    ``str()`` is one line; ``details`` holds the tail of a failing external program's log ("" if none).
+    """
+
+    def __init__(self, message: str, details: str = "") -> None:
+        self.details = details
+        super().__init__(message)
 
 
 class RunInterrupted(RuntimeError):
@@ -40,6 +50,12 @@ class _RunLogHandler(logging.FileHandler):
 
     def handleError(self, record: logging.LogRecord) -> None:  # noqa: N802 - logging's name
         self.failed = True
+
+    def close(self) -> None:
+        try:
+            super().close()
+        except OSError:  # the last buffered lines could not be written (full disk)
+            self.failed = True
 
 
 class ResumeError(ValueError):
@@ -64,9 +80,52 @@ def run_log(path: Path) -> Iterator[None]:
         handler.close()
 
 
+@contextmanager
+def native_stderr_to(path: Path) -> Iterator[None]:
+    """Send file descriptor 2 to ``path`` while Python's ``sys.stderr`` keeps the terminal.
+
+    C libraries (HDF5, PETSc, Open MPI) print their diagnostics straight to descriptor 2 — on a
+    full disk HDF5 alone prints a 60-line error stack. Inside the block these go to the run's log;
+    the console log, the progress bar and the CLI's one-line messages (all through ``sys.stderr``)
+    still reach the terminal. A no-op when ``sys.stderr`` is not descriptor 2 (e.g. under pytest).
+    """
+    try:
+        is_fd2 = sys.stderr.fileno() == 2
+    except (AttributeError, OSError, ValueError):
+        is_fd2 = False
+    if not is_fd2:
+        yield
+        return
+    old = sys.stderr
+    old.flush()
+    saved = os.dup(2)
+    console = os.fdopen(os.dup(saved), "w", buffering=1, encoding=old.encoding, errors="backslashreplace")
+    handlers = [h for h in logging.getLogger().handlers if getattr(h, "stream", None) is old]
+    fd = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o666)
+    os.dup2(fd, 2)
+    os.close(fd)
+    sys.stderr = console
+    for h in handlers:
+        h.setStream(console)
+    try:
+        yield
+    finally:
+        console.flush()
+        os.dup2(saved, 2)
+        os.close(saved)
+        sys.stderr = old
+        for h in handlers:
+            h.setStream(old)
+        console.close()
+
+
 def run_case(case: Case, out: Path, *, force: bool = False, resume: bool = False,
-             quiet: bool = False, comm: MPI.Comm = MPI.COMM_WORLD) -> dict[str, float]:
+             quiet: bool = False, comm: MPI.Comm = MPI.COMM_WORLD,
+             native_stderr_to_log: bool = False) -> dict[str, float]:
     """Run ``case`` and write its results folder ``out``.
+
+    With ``native_stderr_to_log`` (the CLI), what C libraries print to descriptor 2 goes to the
+    run's log (:func:`native_stderr_to`).
 
     Returns
     -------
@@ -87,7 +146,8 @@ def run_case(case: Case, out: Path, *, force: bool = False, resume: bool = False
     if results is None:
         results = ResultsFolder(out, resume=True, lock=False)
     try:
-        with interrupt.signals_stop_run():
+        with interrupt.signals_stop_run(), \
+                native_stderr_to(results.log_file) if native_stderr_to_log and comm.rank == 0 else _nullcontext():
             return _run_in(case, results, resume=resume, quiet=quiet, comm=comm)
     finally:
         results.release()
@@ -113,8 +173,9 @@ def _run_in(case: Case, results: ResultsFolder, *, resume: bool, quiet: bool, co
             log.debug("run failed: %s", exc, exc_info=True)  # the traceback goes to run.log only
             _final_metrics(results, comm, {"status": "failed", "status_ok": 0.0,
                                            "wall_time_s": time.perf_counter() - wall0})
-            raise RunFailed(f"{case.case.name}: {_failure_text(exc, results.root)} "
-                            f"(partial results and log in {results.root})") from exc
+            text, details = _failure_text(exc, results.root)
+            raise RunFailed(f"{case.case.name}: {text} (partial results and log in {results.root})",
+                            details) from exc
         metrics = run.metrics
         metrics["wall_time_s"] = run.wall_before_s + time.perf_counter() - wall0
         metrics["status_ok"] = 1.0
@@ -132,23 +193,44 @@ def _final_metrics(results: ResultsFolder, comm: MPI.Comm, metrics: dict) -> Non
     except OSError as exc:
         if metrics.get("status") == "ok":
             raise
-        log.error("could not write %s: %s", results.root / "metrics.json", exc.strerror)
+        log.debug("could not write %s: %s", results.root / "metrics.json", exc.strerror)
 
 
-def _failure_text(exc: BaseException, root: Path) -> str:
-    """What went wrong, for the one-line error: a full disk and an out-of-memory named plainly."""
-    seen = exc
+def _failure_text(exc: BaseException, root: Path) -> tuple[str, str]:
+    """(one line saying what went wrong, the failing program's log tail or ""): a full disk, an
+    out-of-memory and an external program's time limit are named plainly."""
+    from pulseform.solvers.getdp import GetDPError
+
+    at = "".join(f" {n}" for n in getattr(exc, "__notes__", ()))  # the driver notes the simulated time
+    seen: BaseException | None = exc
     while seen is not None:
         if isinstance(seen, OSError) and seen.errno in DISK_FULL_ERRNOS:
-            where = seen.filename or root
-            return f"no space left to write {where} ({seen.strerror}); what was written before stays readable"
+            return (f"no space left to write {seen.filename or root} ({seen.strerror}){at}; what was written "
+                    "before stays readable"), ""
         if isinstance(seen, MemoryError):
-            return "out of memory (the case's meshes or fields do not fit: coarsen the mesh or use a larger machine)"
+            return (f"out of memory{at} (the case's meshes or fields do not fit: coarsen the mesh or use a larger "
+                    "machine)"), ""
+        if isinstance(seen, GetDPError):
+            where = f" in {seen.run_dir.name}" if seen.run_dir is not None else ""
+            log = f" (log: {seen.log_path})" if seen.log_path is not None else ""
+            if seen.time_limit is not None:
+                return (f"the EM step{at}{where}: getdp exceeded limits.getdp_time_limit_s = {seen.time_limit:g} s "
+                        f"and was stopped{log}"), ""
+            return f"EM step{at}{where}: {seen.summary}{log}", seen.log_tail
         seen = seen.__cause__ or seen.__context__
-    text = str(exc) or type(exc).__name__
-    if "No space left on device" in text or "Disk quota exceeded" in text:
-        return f"no space left on the device of {root}; what was written before stays readable"
-    return text
+    text = " ".join(str(exc).split()) or type(exc).__name__
+    if "No space left on device" in text or "Disk quota exceeded" in text or _nearly_full(root):
+        # libraries (HDF5 through DOLFINx) report a failed write without its errno
+        return (f"no space left to write {root} ({text}){at}; what was written before stays readable"), ""
+    return text + at, ""
+
+
+def _nearly_full(folder: Path, margin: int = 1 << 20) -> bool:
+    """Less than ``margin`` bytes (1 MiB) free on the file system of ``folder``."""
+    try:
+        return shutil.disk_usage(folder).free < margin
+    except OSError:
+        return False
 
 
 def _check_resumable(case: Case, out: Path) -> None:

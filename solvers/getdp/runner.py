@@ -62,7 +62,9 @@ class GetDPError(RuntimeError):
     """
 
     def __init__(self, message: str, *, log_path: Path | None = None, run_dir: Path | None = None,
-                 returncode: int | None = None, log_tail: str = ""):
+                 returncode: int | None = None, log_tail: str = "", time_limit: float | None = None):
+        self.summary = message  # the first line, without log path and tail
+        self.time_limit = time_limit  # set when getdp was stopped for exceeding it (s)
         self.log_path = log_path
         self.run_dir = run_dir
         self.returncode = returncode
@@ -169,9 +171,8 @@ def run_getdp(
             proc = subprocess.run(argv, cwd=run_dir, stdout=log, stderr=subprocess.STDOUT, env=env,
                                   timeout=timeout, check=False, preexec_fn=child_preexec)
         except subprocess.TimeoutExpired:
-            raise GetDPError(f"getdp exceeded its time limit of {timeout:g} s and "
-                             "was stopped", log_path=log_path, run_dir=run_dir,
-                             log_tail=log_tail(log_path)) from None
+            raise GetDPError(f"getdp exceeded its time limit of {timeout:g} s and was stopped", log_path=log_path,
+                             run_dir=run_dir, log_tail=log_tail(log_path), time_limit=timeout) from None
         except OSError as err:
             raise GetDPError(f"could not start getdp: {err}", log_path=log_path, run_dir=run_dir) from None
     wall = time.perf_counter() - t0
