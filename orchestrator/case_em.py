@@ -226,11 +226,16 @@ class UserDeck(_ConductorRoles):
     mesh: str = spec(doc=".geo (meshed with gmsh, MSH 2.2) or .msh, relative to the case folder")
     pro: str = spec(doc="GetDP .pro deck, relative to the case folder")
     allow_outside: bool = spec(False, doc="allow mesh/pro paths outside the case folder")
+    allow_system_calls: bool = spec(False, doc="run decks that run programs (SystemCall, System, "
+                                    "NonBlockingSystemCall, OnelabRun, Merge of a .py in the .geo; SystemCommand, "
+                                    "Python in the .pro; also in their Includes); a deck is code: allow only decks "
+                                    "you trust")
     regions: DeckRegions = spec(doc="physical-group names of the roles")
     turns: int = spec(unit="-", ge=1, doc="number of turns of the coil region")
     shell_inner_radius: float | None = spec(None, unit="m", gt=0.0, doc="shell transformation: inner radius")
     shell_outer_radius: float | None = spec(None, unit="m", gt=0.0, doc="shell transformation: outer radius")
-    parameters: dict[str, float] | None = spec(None, doc="numbers passed with -setnumber to gmsh (.geo) and getdp")
+    parameters: dict[str, float] | None = spec(None, doc="numbers passed with -setnumber to gmsh (.geo) and getdp: "
+                                                   "identifiers, finite, none of the names the runner sets")
 
     _second: ClassVar[tuple[str, str]] = ("die", "regions.die")
 

@@ -2,9 +2,13 @@
 
 The runner
 
-1. resolves ``mesh`` and ``pro`` against the case folder (and refuses paths outside it unless
-   ``allow_outside = true``) when the case is loaded;
-2. meshes a ``.geo`` with ``gmsh -2 -format msh22 -setnumber <parameters>`` (or reads the ``.msh``);
+1. when the case is loaded: resolves ``mesh`` and ``pro`` against the case folder (and refuses
+   paths outside it unless ``allow_outside = true``), checks the ``parameters`` (identifiers, finite
+   numbers, none of the names the runner sets) and refuses decks that run programs (``SystemCall``
+   ... in the .geo, ``SystemCommand`` ... in the .pro, also in their ``Include`` files) unless
+   ``allow_system_calls = true``: all before any gmsh or getdp run;
+2. meshes a ``.geo`` with ``gmsh -2 -format msh22 -setnumber <parameters>`` under a time limit
+   (``limits.gmsh_time_limit_s``), or reads the ``.msh``;
 3. renumbers the physical groups named in ``[geometry.regions]`` to the runner's ids (1 air, 2 shell,
    101 coil, 201 workpiece, 202 die, 11 axis, 12 outer) and tells the deck these ids with
    ``-setnumber Phys_Air, Phys_Shell, Phys_Coil_1, Phys_Cond_1, Phys_Cond_2, Phys_Axis, Phys_Outer``;
@@ -21,6 +25,8 @@ The contract is documented in ``docs/workflow.md``.
 from __future__ import annotations
 
 import logging
+import math
+import re
 import shutil
 import subprocess
 from pathlib import Path
@@ -28,6 +34,7 @@ from typing import Any
 
 import numpy as np
 
+from . import caseio
 from .caseio import CaseError
 
 log = logging.getLogger(__name__)
@@ -40,14 +47,38 @@ SURFACE_ROLES, CURVE_ROLES = ("air", "shell", "coil", "workpiece", "die"), ("axi
 OPTIONAL_ROLES = ("shell", "die")
 
 
+#: wall-time limits (s) when the case has no ``[limits]`` table (``limits.gmsh_time_limit_s``,
+#: ``limits.getdp_time_limit_s`` otherwise): one gmsh run on the .geo, the contract check's getdp run
+GMSH_TIME_LIMIT_S = 600.0
+GETDP_TIME_LIMIT_S = 600.0
+
+
 class DeckContractError(RuntimeError):
-    """A user's deck or mesh does not fulfil the deck contract (one-line message naming what is missing)."""
+    """A user's deck or mesh does not fulfil the deck contract (one-line message naming what is missing).
+
+    ``message`` is the line without the log; ``log_path`` the gmsh/getdp log it refers to, if any
+    (``str()`` appends ``(log: <path>)``)."""
+
+    def __init__(self, message: str, *, log_path: Path | None = None) -> None:
+        self.message = message
+        self.log_path = None if log_path is None else Path(log_path)
+        super().__init__(message if log_path is None else f"{message} (log: {log_path})")
+
+
+def time_limits(case) -> tuple[float, float]:
+    """(gmsh, getdp) wall-time limits in seconds: the case's ``[limits]`` or the module defaults."""
+    lim = getattr(case, "limits", None)
+    return (float(getattr(lim, "gmsh_time_limit_s", None) or GMSH_TIME_LIMIT_S),
+            float(getattr(lim, "getdp_time_limit_s", None) or GETDP_TIME_LIMIT_S))
 
 
 # ----------------------------------------------------------------------------- case loading
 def resolve_deck_paths(data: dict[str, Any], file: Path, source: str) -> None:
     """Make ``geometry.mesh`` / ``geometry.pro`` absolute (relative to the case file's folder) and
-    check them: they must exist and lie inside the case folder unless ``allow_outside`` is true."""
+    check them: they must exist and lie inside the case folder unless ``allow_outside`` is true.
+    Then check ``geometry.parameters`` (:func:`check_parameters`) and, unless
+    ``allow_system_calls`` is true, refuse decks that run programs (:func:`find_program_call`).
+    Raises :class:`CaseError` (one line, file and key named) before any gmsh or getdp run."""
     g = data.get("geometry")
     if not isinstance(g, dict) or g.get("type") != "user_deck":
         return
@@ -65,11 +96,216 @@ def resolve_deck_paths(data: dict[str, Any], file: Path, source: str) -> None:
         if not p.is_file():
             raise CaseError(source, f"geometry.{key}", f"got {value!r}: file not found ({p})")
         g[key] = str(p)
+    check_parameters(g.get("parameters"), source)
+    if g.get("allow_system_calls") is True:
+        return
+    for key, language in (("mesh", "geo"), ("pro", "pro")):
+        value = g.get(key)
+        if not isinstance(value, str) or not value or (key == "mesh" and not value.endswith(".geo")):
+            continue  # a .msh is data; a wrong suffix is reported by the schema
+        found = find_program_call(Path(value), language)
+        if found is not None:
+            where, what = found
+            deck = Path(where.rsplit(":", 1)[0])
+            if deck.is_relative_to(folder):  # name it from the case folder: the line stays short
+                where = str(deck.relative_to(folder)) + ":" + where.rsplit(":", 1)[1]
+            raise CaseError(source, f"geometry.{key}", f"{where}: {what}; refused unless "
+                            "geometry.allow_system_calls = true (a deck is code)")
+
+
+#: longest parameter name accepted (GetDP/Gmsh have no limit; longer names are a mistake)
+MAX_PARAMETER_NAME = 64
+_IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+
+
+def reserved_parameter_names() -> tuple[str, ...]:
+    """Names a deck receives from the runner, which ``geometry.parameters`` may not reuse: the role
+    ids ``Phys_*`` (:data:`ROLE_NUMBERS`), the string ``PulseformLib`` and every name of a getdp run
+    (:func:`pulseform.solvers.getdp.solver.runner_number_names`; ``X_<k>`` stands for X_1, X_2, ...)."""
+    from pulseform.solvers.getdp.solver import runner_number_names
+
+    return tuple(ROLE_NUMBERS.values()) + ("PulseformLib",) + runner_number_names()
+
+
+def is_reserved_parameter(name: str) -> bool:
+    """True if ``name`` is one of :func:`reserved_parameter_names` (``X_<k>``: any X_1, X_2, ...)."""
+    for r in reserved_parameter_names():
+        if r == name or (r.endswith("_<k>") and re.fullmatch(re.escape(r[:-4]) + r"_\d+", name)):
+            return True
+    return False
+
+
+#: characters of a one-line case error (``caseio.MAX_MESSAGE``, which shortens longer ones in the middle)
+_MESSAGE_ROOM = getattr(caseio, "MAX_MESSAGE", 280)
+
+
+def reserved_listing(room: int = 10_000) -> str:
+    """The reserved names in short form (the role ids as ``Phys_*``, families with braces:
+    ``Flag_{Axi,Circuit,...}``, ``Coil_{I0,Ns,...}_<k>``), cut to ``room`` characters (``, ...``)."""
+    groups: dict[str, list[str]] = {}
+    for n in reserved_parameter_names():
+        if n in ROLE_NUMBERS.values():
+            groups["Phys_*"] = []
+            continue
+        groups.setdefault(re.match(r"[A-Z][a-z]*[0-9]*_?|[A-Za-z]+", n).group(), []).append(n)
+    parts = []
+    for prefix, members in groups.items():
+        if len(members) < 2:
+            parts += members or [prefix]
+            continue
+        rest = [m[len(prefix):] for m in members]
+        tail = "_<k>" if all(r.endswith("_<k>") for r in rest) else ""
+        parts.append(prefix + "{" + ",".join(r[:len(r) - len(tail)] for r in rest) + "}" + tail)
+    text = ", ".join(parts)
+    if len(text) <= room:
+        return text
+    return text[:max(room - 5, 0)].rsplit(", ", 1)[0] + ", ..."
+
+
+def _short(text: str, n: int = 40) -> str:
+    return text if len(text) <= n else text[:n] + "..."
+
+
+def check_parameters(params: Any, source: str) -> None:
+    """``geometry.parameters``: names are identifiers (``[A-Za-z_][A-Za-z0-9_]*``, at most
+    :data:`MAX_PARAMETER_NAME` characters) that reuse none of :func:`reserved_parameter_names`,
+    values finite numbers. Raises :class:`CaseError` naming ``geometry.parameters.<name>``."""
+    if not isinstance(params, dict):
+        return  # absent, or the schema reports the type
+    for name, value in params.items():
+        name = str(name)
+        if not _IDENTIFIER.fullmatch(name) or len(name) > MAX_PARAMETER_NAME:
+            raise CaseError(source, f"geometry.parameters.{_short(name)!r}", "a parameter name must be an "
+                            f"identifier ([A-Za-z_][A-Za-z0-9_]*, at most {MAX_PARAMETER_NAME} characters): gmsh "
+                            "and getdp receive it with -setnumber")
+        if is_reserved_parameter(name):
+            key = f"geometry.parameters.{name}"
+            text = f"the runner sets {name}; rename it. Reserved: {{}} (docs/workflow.md)"
+            room = _MESSAGE_ROOM - len(f"{_short(source, 120)}: {key}: ") - len(text) + 2
+            raise CaseError(source, key, text.format(reserved_listing(room)))
+        number = None
+        if isinstance(value, (int, float)) and not isinstance(value, bool):
+            try:
+                number = float(value)
+            except OverflowError:
+                number = None
+        if number is None or not math.isfinite(number):
+            raise CaseError(source, f"geometry.parameters.{name}", f"got {_short(repr(value), 30)}; must be a "
+                            "finite number")
+
+
+# ----------------------------------------------------------------------------- deck content
+#: commands that run programs: in gmsh .geo scripts (``Shell`` is no command of gmsh 4.8 but is
+#: refused too) and in GetDP .pro files (``Python[]{...}`` evaluates Python code)
+PROGRAM_COMMANDS = {"geo": ("SystemCall", "System", "NonBlockingSystemCall", "Shell", "OnelabRun"),
+                    "pro": ("SystemCommand", "Python", "OnelabRun")}
+#: commands that open a file by its name. gmsh runs some kinds (``Merge "x.py"`` runs Python, an
+#: ``.exe`` or a ``.pro`` is started as an ONELAB client), so only these data formats pass
+OPEN_COMMANDS = {"geo": ("Merge", "MergeWithBoundingBox"), "pro": ("GmshRead", "GmshMerge", "GmshOpen")}
+DATA_SUFFIXES = (".msh", ".pos", ".step", ".stp", ".brep", ".brp", ".iges", ".igs", ".stl", ".med", ".unv",
+                 ".vtk", ".mesh", ".bdf", ".nas", ".inp", ".off", ".x3d", ".xao")
+#: files that gmsh's Merge reads as a .geo script (followed like an Include)
+SCRIPT_SUFFIXES = (".geo", ".opt")
+_TOKEN = re.compile(r'''(?P<lc>//[^\n]*) | (?P<bc>/\*.*?(?:\*/|\Z)) | (?P<str>"(?:[^"\\]|\\.)*(?:"|\Z))
+                        | (?P<num>(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?) | (?P<id>[A-Za-z_]\w*)
+                        | (?P<ws>\s+) | (?P<other>.)''', re.S | re.X)
+
+
+def deck_tokens(text: str) -> list[tuple[str, str, int]]:
+    """(kind, text, line) of the identifiers (``id``), string literals (``str``, unquoted) and other
+    characters (``other``) of a .geo/.pro text; comments (``//``, ``/* */``), numbers and blanks
+    are dropped."""
+    out, line = [], 1
+    for m in _TOKEN.finditer(text):
+        kind, tok = m.lastgroup, m.group()
+        if kind == "str":
+            body = tok[1:-1] if len(tok) > 1 and tok.endswith('"') else tok[1:]
+            out.append(("str", re.sub(r"\\(.)", r"\1", body, flags=re.S), line))
+        elif kind in ("id", "other"):
+            out.append((kind, tok, line))
+        line += tok.count("\n")
+    return out
+
+
+def _file_argument(tokens: list, i: int) -> str | None:
+    """The string literal right after ``tokens[i]`` (past one ``[`` or ``(``), or None."""
+    j = i + 1
+    if j < len(tokens) and tokens[j][0] == "other" and tokens[j][1] in "[(":
+        j += 1
+    return tokens[j][1] if j < len(tokens) and tokens[j][0] == "str" else None
+
+
+#: most files one deck scan reads (a deck with more cannot be checked)
+MAX_DECK_FILES = 1000
+
+
+def _read_deck(path: Path, seen: set) -> tuple[Path, list] | None:
+    """(resolved path, tokens) of a deck file not seen yet; None if seen, missing or unreadable
+    (gmsh/getdp then report it themselves)."""
+    try:
+        path = Path(path).resolve()
+        if path in seen or not path.is_file():
+            return None
+        seen.add(path)
+        return path, deck_tokens(path.read_text(errors="replace"))
+    except (OSError, ValueError, RuntimeError):  # a NUL or an over-long name, a symlink loop, no permission
+        return None
+
+
+def find_program_call(path: Path, language: str) -> tuple[str, str] | None:
+    """The first place where the deck ``path`` (``language`` "geo" or "pro") or a file it includes
+    runs a program, as ``("<file>:<line>", what)``; None if there is none.
+
+    ``Include "..."`` is followed (relative to the including file; a cycle or a missing file ends
+    that branch: gmsh/getdp report missing files), as is a gmsh ``Merge`` of a .geo/.opt. An
+    ``Include`` of a computed name (not a string literal; the .pro's ``Include PulseformLib`` is
+    the runner's library) cannot be checked and counts as a call, as does a ``Merge``/``GmshRead``
+    of anything but a data file (:data:`DATA_SUFFIXES`)."""
+    seen: set = set()
+    first = _read_deck(path, seen)
+    stack = [] if first is None else [(first[0], first[1], 0)]
+    while stack:  # depth first, without recursion (include chains may be long)
+        path, tokens, i = stack.pop()
+        while i < len(tokens):
+            kind, tok, line = tokens[i]
+            i += 1
+            if kind != "id":
+                continue
+            where, follow = f"{path}:{line}", None
+            if tok in PROGRAM_COMMANDS[language]:
+                return where, f"{tok} runs a program"
+            if tok == "Include":
+                follow = _file_argument(tokens, i - 1)
+                if follow is None:
+                    if language == "pro" and i < len(tokens) and tokens[i][1] == "PulseformLib":
+                        continue
+                    return where, "Include of a computed file name (cannot be checked)"
+            elif tok in OPEN_COMMANDS[language]:
+                name = _file_argument(tokens, i - 1)
+                suffix = Path(name).suffix.lower() if name else None
+                if language == "geo" and suffix in SCRIPT_SUFFIXES:
+                    follow = name
+                elif suffix not in DATA_SUFFIXES:
+                    shown = "a computed file name" if name is None else repr(_short(name))
+                    return where, f"{tok} of {shown} (may run it as a program)"
+            if follow is not None:
+                if len(seen) >= MAX_DECK_FILES:
+                    return where, f"more than {MAX_DECK_FILES} included files (cannot be checked)"
+                nxt = _read_deck(path.parent / follow, seen)
+                if nxt is not None:
+                    stack.append((path, tokens, i))
+                    stack.append((nxt[0], nxt[1], 0))
+                    break
+    return None
 
 
 # ----------------------------------------------------------------------------- mesh
-def mesh_file(g, work: Path) -> Path:
-    """The deck's MSH 2.2 file: the ``.msh`` itself, or the ``.geo`` meshed by gmsh into ``work``."""
+def mesh_file(g, work: Path, time_limit: float = GMSH_TIME_LIMIT_S) -> Path:
+    """The deck's MSH 2.2 file: the ``.msh`` itself, or the ``.geo`` meshed by gmsh into ``work``
+    (log ``work/gmsh.log``). gmsh is stopped after ``time_limit`` seconds and never outlives
+    pulseform (:func:`pulseform.solvers.getdp.runner.child_preexec`)."""
+    from pulseform.solvers.getdp.runner import child_preexec
+
     src = Path(g.mesh)
     if src.suffix == ".msh":
         return src
@@ -81,26 +317,40 @@ def mesh_file(g, work: Path) -> Path:
     argv = [exe, str(src), "-2", "-format", "msh22", "-o", str(out)]
     for k, v in (g.parameters or {}).items():
         argv += ["-setnumber", k, repr(float(v))]
-    r = subprocess.run(argv, cwd=src.parent, capture_output=True, text=True)
-    (work / "gmsh.log").write_text(r.stdout + r.stderr)
-    errors = [ln for ln in (r.stdout + r.stderr).splitlines() if ln.startswith("Error")]
+    log_path = work / "gmsh.log"
+    with open(log_path, "w") as fh:
+        fh.write("# argv: " + " ".join(argv) + "\n")
+        fh.flush()
+        try:
+            r = subprocess.run(argv, cwd=src.parent, stdout=fh, stderr=subprocess.STDOUT, timeout=time_limit,
+                               check=False, preexec_fn=child_preexec)
+        except subprocess.TimeoutExpired:
+            raise DeckContractError(f"{src}: meshing with gmsh exceeded its time limit of {time_limit:g} s "
+                                    "(limits.gmsh_time_limit_s) and was stopped", log_path=log_path) from None
+        except OSError as exc:
+            raise DeckContractError(f"{src}: could not start gmsh: {exc}", log_path=log_path) from None
+    text = log_path.read_text(errors="replace").split("\n", 1)[-1]
+    errors = [ln for ln in text.splitlines() if ln.startswith("Error")]
     if r.returncode != 0 or errors or not out.is_file():
-        first = errors[0] if errors else f"exit code {r.returncode}"
-        raise DeckContractError(f"{src}: gmsh failed: {first} (log: {work / 'gmsh.log'})")
+        first = errors[0] if errors else (f"killed by signal {-r.returncode}" if r.returncode < 0
+                                          else f"exit code {r.returncode}")
+        raise DeckContractError(f"{src}: gmsh failed: {_short(first, 200)}", log_path=log_path)
     log.info("meshed %s -> %s", src, out)
     return out
 
 
-def read_deck_mesh(path: Path, regions) -> "EMMesh":  # noqa: F821
+def read_deck_mesh(path: Path, regions, name: str | Path | None = None) -> "EMMesh":  # noqa: F821
     """Read ``path`` (MSH 2.2 with named physical groups) and renumber the roles to the runner's ids.
 
     Every triangle must belong to a mapped surface group; curves of unmapped groups are dropped.
+    Messages name ``name`` (the user's .geo when ``path`` is the mesh made from it), else ``path``.
     """
     import meshio
 
     from pulseform.solvers.getdp import EMMesh
 
     m = meshio.read(path)
+    path = path if name is None else name
     names = {name: (int(v[0]), int(v[1])) for name, v in m.field_data.items()}
     phys = m.cell_data_dict.get("gmsh:physical", {})
     tri = m.get_cells_type("triangle")
@@ -146,25 +396,47 @@ def read_deck_mesh(path: Path, regions) -> "EMMesh":  # noqa: F821
 
 def build_user_geometry(case, work: Path, em_dir: Path):
     """The EM geometry of a user deck (no turn rectangles: user meshes are not remeshed), after the
-    deck passed the contract check (one tiny getdp step in ``em_dir/contract_check``)."""
+    deck passed the contract check (one tiny getdp step in ``em_dir/contract_check``). gmsh and
+    getdp run under the case's time limits (:func:`time_limits`)."""
     from .emf_geometry import EMGeometry
 
     g = case.geometry
-    mesh = read_deck_mesh(mesh_file(g, work), g.regions)
+    gmsh_limit, getdp_limit = time_limits(case)
+    mesh = read_deck_mesh(mesh_file(g, work, gmsh_limit), g.regions, name=g.mesh)
     log.info("user EM mesh (%s): %d nodes, %d triangles", Path(g.mesh).name, mesh.n_nodes, len(mesh.triangles))
-    check_contract(make_solver(case, user_em_model(case), Path(em_dir)), mesh, Path(em_dir) / "contract_check")
+    check_contract(make_solver(case, user_em_model(case), Path(em_dir)), mesh, Path(em_dir) / "contract_check",
+                   time_limit=getdp_limit)
     return EMGeometry(mesh, {role: ROLE_IDS[role] for role in ("coil",) + g.conductor_roles()}, [])
+
+
+def log_summary(path: Path, n: int = 2, width: int = 160) -> str:
+    """The last ``n`` non-empty lines of a gmsh/getdp log, joined with `` | `` and shortened."""
+    try:
+        lines = [ln.strip() for ln in Path(path).read_text(errors="replace").splitlines()
+                 if ln.strip() and not ln.startswith("# argv:")]
+    except OSError:
+        return ""
+    return _short(" | ".join(lines[-n:]), width)
 
 
 def check_user_deck(case) -> None:
     """``pulseform check`` of a user deck: mesh it, map its groups to roles and run the contract
-    check in a temporary folder, which is removed when the deck passes and kept (the error names its
-    getdp log) when it does not. Raises :class:`DeckContractError` naming what is wrong."""
+    check in a temporary folder, which is removed whether the deck passes or not. Raises
+    :class:`DeckContractError` naming what is wrong; when that names a gmsh/getdp log of the
+    temporary folder, the message carries the log's last lines instead (an ``Error`` line of the
+    log is in the message already)."""
     import tempfile
 
     tmp = Path(tempfile.mkdtemp(prefix="pulseform_check_"))
-    build_user_geometry(case, tmp / "em_mesh", tmp / "em")
-    shutil.rmtree(tmp, ignore_errors=True)
+    try:
+        build_user_geometry(case, tmp / "em_mesh", tmp / "em")
+    except DeckContractError as exc:
+        if exc.log_path is None or not exc.log_path.is_relative_to(tmp):
+            raise
+        tail = "" if "Error" in exc.message else log_summary(exc.log_path)
+        raise DeckContractError(exc.message + (f"; log ends: {tail}" if tail else "")) from None
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
 
 
 # ----------------------------------------------------------------------------- getdp
@@ -207,8 +479,9 @@ CIRCUIT_TABLES = {"cir_U.txt": "EM_Step: Print[U, OnRegion Capacitance_Cir]",
                   "cir_I.txt": "EM_Step: Print[I, OnRegion Capacitance_Cir]"}
 
 
-def check_contract(solver, mesh, work: Path) -> None:
-    """One tiny getdp step on the deck; raise :class:`DeckContractError` naming what is missing."""
+def check_contract(solver, mesh, work: Path, time_limit: float = GETDP_TIME_LIMIT_S) -> None:
+    """One tiny getdp step on the deck (stopped after ``time_limit`` s); raise
+    :class:`DeckContractError` naming what is missing."""
     from pulseform.solvers.getdp import GetDPError, run_getdp, write_msh22
     from pulseform.solvers.getdp.solver import RESOLUTION
 
@@ -219,6 +492,7 @@ def check_contract(solver, mesh, work: Path) -> None:
     out.mkdir(parents=True)
     msh = write_msh22(mesh, work / "mesh.msh")
     numbers = solver._numbers(mesh)
+    numbers.update(solver.extra_numbers)  # the role ids and the case's parameters, as in GetDPSolver.step
     numbers.update(TimeInit=0.0, TimeFinal=1e-9, NbSteps=1, Flag_ElemOut=1)
     if solver.model.circuit is not None:
         numbers.update(Init_Vc=solver.model.circuit.V0, Init_I=0.0)
@@ -227,7 +501,7 @@ def check_contract(solver, mesh, work: Path) -> None:
                        + f'\nInclude "{deck}";\n')
     try:
         run_getdp(wrapper, msh, work, resolution=RESOLUTION, numbers=numbers, strings={"OutDir": str(out) + "/"},
-                  extra_args=list(solver.petsc_args), executable=solver.executable, timeout=120)
+                  extra_args=list(solver.petsc_args), executable=solver.executable, timeout=time_limit)
     except GetDPError as exc:
         log_text = (work / "getdp.log").read_text(errors="replace") if (work / "getdp.log").is_file() else str(exc)
         errs = [ln.strip() for ln in log_text.splitlines() if ln.lstrip().startswith("Error")] or \
@@ -235,8 +509,8 @@ def check_contract(solver, mesh, work: Path) -> None:
         hint = ""
         if any("Resolution" in e and RESOLUTION in e for e in errs) or any("Unknown Resolution" in e for e in errs):
             hint = f"; the contract needs Resolution {RESOLUTION}"
-        raise DeckContractError(f"deck {deck}: getdp failed on the contract check: {errs[0]}{hint} "
-                                f"(log: {work / 'getdp.log'})") from None
+        raise DeckContractError(f"deck {deck}: getdp failed on the contract check: {_short(errs[0], 200)}{hint}",
+                                log_path=work / "getdp.log") from None
     need = dict(REQUIRED_TABLES)
     if solver.model.circuit is not None:
         need.update(CIRCUIT_TABLES)

@@ -1,10 +1,12 @@
 """The EM participant: one EM step = one getdp run (model, state and results in :mod:`.model`)."""
 from __future__ import annotations
 
+import re
 import shutil
 import threading
 import uuid
 import warnings
+from functools import lru_cache
 from pathlib import Path
 from typing import Sequence
 
@@ -443,3 +445,46 @@ class GetDPSolver:
             current=float(result.circuit_current[-1]) if result.circuit_current is not None else 0.0,
             coil_heat=result.coil_heat.tolist(), res_path=str(run_dir / "em.res"), mesh_signature=sig,
             a_points=pts[used].tolist(), a_triangles=remap[tri].tolist(), a_values=vals[used].tolist())
+
+
+# ----------------------------------------------------------------------------- names a run sets
+#: lists ``run.pro`` defines before the deck is included: the Init path's nodal values
+#: (:meth:`GetDPSolver.step`) and the coil current tables (:meth:`GetDPSolver._table_lines`)
+RUN_PRO_LISTS = ("InitA_List", "Coil_Table_<k>")
+
+
+def _indexed(name: str) -> str:
+    """``Coil_Ns_1`` / ``Coil_Ns~{k}`` -> ``Coil_Ns_<k>`` (one entry per indexed family)."""
+    return re.sub(r"(?:_\d+|~\{\w+\})$", "_<k>", name)
+
+
+@lru_cache(maxsize=1)
+def runner_number_names() -> tuple[str, ...]:
+    """Every name a :class:`GetDPSolver` run defines in getdp, sorted; indexed families once as
+    ``Coil_Ns_<k>`` (``<k>`` = 1, 2, ...).
+
+    The union of (1) the ``DefineConstant`` inputs of the library deck ``Lib_PulsedForming.pro``
+    (the numbers and strings a step passes with ``-setnumber`` / ``-setstring``: ``TimeInit``,
+    ``NbSteps``, ``Flag_*``, ``C_bank``, ``OutDir``, ...), (2) the numbers :meth:`GetDPSolver._numbers`
+    computes from a model and mesh (evaluated here on small models with every option on: a
+    circuit or a prescribed current, a shell, a probe, a coil and two conductors) and (3)
+    :data:`RUN_PRO_LISTS`.  A user deck's own parameters may not reuse any of them
+    (``pulseform.orchestrator.user_deck``).
+    """
+    lib = re.sub(r"//[^\n]*", "", (DECK_DIR / "Lib_PulsedForming.pro").read_text())
+    names = set()
+    for block in re.findall(r"DefineConstant\s*\[(.*?)\]\s*;", lib, flags=re.S):
+        names.update(_indexed(n) for n in re.findall(r"([A-Za-z_]\w*(?:~\{\w+\})?)\s*=", block))
+    pts = [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)]
+    mesh = EMMesh(pts, [[0, 1, 2], [0, 2, 3], [0, 1, 3]], [coil_tag(1), conductor_tag(1), conductor_tag(2)],
+                  [[0, 3]], [11])
+    conductors = [Conductor(1.0), Conductor(1.0)]
+    models = [EMModel(True, [Coil(1)], conductors, circuit=Circuit(1.0, 1.0), shell=(1.0, 2.0), probes=[(0.5, 0.5)]),
+              EMModel(True, [Coil(1, waveform=DampedSine(1.0, 1.0, 1.0))], conductors),
+              EMModel(True, [Coil(1, waveform=CurrentTable([0.0, 1.0], [0.0, 1.0]))], conductors)]
+    for model in models:
+        solver = object.__new__(GetDPSolver)  # _numbers reads only the model (no work folder made)
+        solver.model = model
+        names.update(_indexed(n) for n in solver._numbers(mesh))
+    names.update(RUN_PRO_LISTS)
+    return tuple(sorted(names))
