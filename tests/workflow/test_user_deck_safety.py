@@ -323,8 +323,10 @@ def test_gmsh_dies_with_pulseform(tmp_path):
     case = tmp_path / "case"
     shutil.copytree(CASE, case, ignore=shutil.ignore_patterns("reference", "with_die.toml"))
     exe = str(Path(sys.executable).with_name("pulseform"))
+    tmp = tmp_path / "tmp"  # a SIGKILL leaves check's temporary folder: keep it in tmp_path
+    tmp.mkdir()
     proc = subprocess.Popen([exe, "check", str(case), "--set", "geometry.parameters.NbTurns=1e9"],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=dict(os.environ, TMPDIR=str(tmp)))
     try:
         gmsh_pid = None
         for _ in range(200):
