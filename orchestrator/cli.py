@@ -109,10 +109,14 @@ def _setup_logging(quiet: bool) -> None:
     """One console handler on the root logger. Installed before dolfinx is imported, it also
     turns FFCx's ``logging.basicConfig()`` into a no-op, so JIT compiler chatter stays off the
     terminal (it still reaches run.log)."""
+    root = logging.getLogger()
+    for old in [h for h in root.handlers if getattr(h, "pulseform_console", False)]:
+        root.removeHandler(old)  # main() called again in the same process (tests): one console handler
     handler = logging.StreamHandler(sys.stderr)
+    handler.pulseform_console = True
     handler.setFormatter(logging.Formatter("%(levelname)s: %(message)s"))
     handler.addFilter(_ConsoleFilter(quiet))
-    logging.getLogger().addHandler(handler)
+    root.addHandler(handler)
     logging.getLogger("pulseform").setLevel(logging.INFO)
 
 

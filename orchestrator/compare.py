@@ -20,8 +20,6 @@ import logging
 import math
 import operator
 import re
-import subprocess
-import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -30,6 +28,7 @@ import numpy as np
 
 from .case import Case, FlatCoilSheet, PlanarCoilBlankDie, SolenoidTube
 from .caseio import CaseError, load_case, read_toml, resolve_case_file
+from .children import run_pulseform
 from .results import ResultsFolder
 from .validate import write_json
 
@@ -188,12 +187,11 @@ def _inline(v) -> str:
 
 # --------------------------------------------------------------------------- runs
 def _run(case: str, out: Path, sets: list[str]) -> dict[str, float]:
-    exe = str(Path(sys.executable).with_name("pulseform"))
-    argv = [exe, "run", case, "--out", str(out), "--force", "--quiet"]
+    argv = ["run", case, "--out", str(out), "--force", "--quiet"]
     for s in sets:
         argv += ["--set", s]
     t0 = time.perf_counter()
-    r = subprocess.run(argv, capture_output=True, text=True)
+    r = run_pulseform(argv)
     if r.returncode != 0:
         lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
         raise CompareError(f"compare: run {out.name} failed (exit {r.returncode}): {lines[-1] if lines else ''}",

@@ -1,6 +1,6 @@
 """Parameter sweeps: a full grid of ``--set`` overrides, each member a ``pulseform run`` process.
 
-Members run as separate processes (``subprocess.run`` of the console script, no shell), ``jobs`` at
+Members run as separate processes (:func:`.children.run_pulseform`: the console script, no shell, ended when the sweep dies), ``jobs`` at
 a time, so a crash or a bad value fails that member alone. The table ``sweep.csv`` holds the
 parameters, the status and every metric; ``plots/`` shows the main metrics against each numeric
 parameter.
@@ -12,13 +12,12 @@ import itertools
 import json
 import logging
 import re
-import subprocess
-import sys
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from .caseio import CaseError, load_case, parse_override
+from .children import run_pulseform
 from .results import ResultsFolder, write_csv
 
 log = logging.getLogger(__name__)
@@ -114,11 +113,10 @@ def _worker_id() -> str:
 
 def run_member(case: str, member: Member, extra: list[str]) -> Member:
     """Run one member as its own ``pulseform run`` process; fill in status and metrics."""
-    exe = str(Path(sys.executable).with_name("pulseform"))
-    argv = [exe, "run", case, "--out", str(member.out), "--quiet", "--force", *extra]
+    argv = ["run", case, "--out", str(member.out), "--quiet", "--force", *extra]
     for s in member.overrides:
         argv += ["--set", s]
-    r = subprocess.run(argv, capture_output=True, text=True, env=_child_env())
+    r = run_pulseform(argv, env=_child_env())
     member.returncode = r.returncode
     member.worker = _worker_id()
     if r.returncode != 0:

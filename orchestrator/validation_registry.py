@@ -16,13 +16,13 @@ from __future__ import annotations
 import csv
 import json
 import math
-import subprocess
-import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
 import numpy as np
+
+from .children import run_pulseform
 
 REPO = Path(__file__).resolve().parents[1]
 PROVENANCE_KEYS = ("source", "figure", "units", "obtained")
@@ -184,13 +184,12 @@ def _bar_pe(work: Path) -> RunOutput:
 def run_case_cli(case: str, work: Path, sets: list[str], folder: str = "run") -> tuple[dict[str, float], np.ndarray]:
     """``pulseform run cases/<case>`` into ``work/<folder>`` (the user's path: case file, CLI, results
     folder); returns (metrics, history)."""
-    exe = str(Path(sys.executable).with_name("pulseform"))
     out_dir = work / folder
-    argv = [exe, "run", str(REPO / "cases" / case), "--out", str(out_dir), "--force", "--quiet",
+    argv = ["run", str(REPO / "cases" / case), "--out", str(out_dir), "--force", "--quiet",
             "--set", "output.plots=false"]
     for s in sets:
         argv += ["--set", s]
-    r = subprocess.run(argv, capture_output=True, text=True)
+    r = run_pulseform(argv)
     if r.returncode != 0:
         lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
         raise RuntimeError(f"pulseform run failed ({r.returncode}): {lines[-1] if lines else ''}")

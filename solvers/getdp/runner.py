@@ -29,22 +29,26 @@ FAST_MPI_ENV = {
 _PR_SET_PDEATHSIG = 1
 
 
-def child_preexec() -> None:
-    """``preexec_fn`` of every external program (getdp, gmsh): it must never outlive pulseform.
-
-    In the child, between fork and exec: ask the kernel for SIGKILL when the parent dies
-    (``PR_SET_PDEATHSIG``; kept across exec), exit at once if the parent is already gone, and
-    ignore SIGINT so that a Ctrl-C in the terminal (sent to the whole process group) lets the
-    running step finish: pulseform itself then stops at its next safe point, and a SIGKILL of
-    pulseform still ends the child through the death signal.
-    """
+def die_with_parent(death_signal: int = signal.SIGKILL) -> None:
+    """In a child between fork and exec: have the kernel send ``death_signal`` when the parent dies
+    (``PR_SET_PDEATHSIG``, kept across exec), and exit at once if the parent is already gone."""
     import ctypes
 
     parent = os.getppid()
     libc = ctypes.CDLL(None, use_errno=True)
-    libc.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+    libc.prctl(_PR_SET_PDEATHSIG, int(death_signal), 0, 0, 0)
     if os.getppid() != parent:  # the parent died before the death signal was armed
         os._exit(1)
+
+
+def child_preexec() -> None:
+    """``preexec_fn`` of every external program (getdp, gmsh): it must never outlive pulseform.
+
+    SIGKILL when the parent dies (:func:`die_with_parent`), and SIGINT ignored, so that a Ctrl-C
+    in the terminal (sent to the whole process group) lets the running step finish: pulseform
+    itself then stops at its next safe point, and a SIGKILL of pulseform still ends the child.
+    """
+    die_with_parent(signal.SIGKILL)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
