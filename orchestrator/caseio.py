@@ -14,11 +14,14 @@ from .schema import SchemaError, from_dict, shorten, to_dict
 
 CASE_FILE_NAME = "case.toml"
 MAX_MESSAGE = 280  # characters of a CaseError's text (the CLI adds "pulseform: error: ")
-MAX_CASE_FILE = 10 * 2**20  # bytes
+MAX_CASE_FILE = 2 * 2**20  # bytes: a case is a few kB; 2 MiB hold a polygon of ~80,000 vertices
 MAX_STRING = 10_000  # characters of any string in a case
 PATH_KEYS = (("geometry", "mesh"), ("geometry", "pro"))  # strings that name files
+MAX_KEY_PARTS = 32  # of a dotted key; tomllib's time and memory grow with the square of it
 _SEGMENT = re.compile(r"^([A-Za-z_][A-Za-z0-9_\-]*)((?:\[\d+\])*)$")
 _CONTROL = re.compile(r"[\x00-\x1f\x7f-\x9f\u2028\u2029]")
+_STRING = re.compile(r""""(?:[^"\\\n]|\\.)*"|'[^'\n]*'""")  # one-line TOML strings
+_LONG_KEY = re.compile(r"""(?:(?:[A-Za-z0-9_-]+|"[^"\n]*"|'[^'\n]*')[ \t]*\.[ \t]*){%d}""" % MAX_KEY_PARTS)
 
 
 def one_line(text: str, limit: int = MAX_MESSAGE) -> str:
@@ -80,14 +83,28 @@ def read_toml(path: Path) -> dict[str, Any]:
 
 def _parse_toml(text: str, source: str, key: str) -> dict[str, Any]:
     """``tomllib.loads`` whose every failure (syntax, nesting, huge integers) is a :class:`CaseError`."""
+    _refuse_long_keys(text, source, key)
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise CaseError(source, key, f"TOML syntax error: {exc}") from None
-    except RecursionError:
-        raise CaseError(source, key, "TOML nested too deeply") from None
-    except ValueError as exc:  # int() of more than sys.get_int_max_str_digits() digits
-        raise CaseError(source, key, f"TOML value not readable: {str(exc).split(';')[0]}") from None
+    except (RecursionError, ValueError) as exc:
+        raise CaseError(source, key, _unreadable(exc)) from None
+
+
+def _refuse_long_keys(text: str, source: str, key: str) -> None:
+    """Refuse a dotted key of more than :data:`MAX_KEY_PARTS` parts before tomllib spends minutes and
+    gigabytes on it (100,000 parts exhaust the memory)."""
+    long_lines = (ln for ln in text.splitlines() if ln.count(".") >= MAX_KEY_PARTS)  # a key is on one line
+    if any(_LONG_KEY.search(_STRING.sub('""', ln)) for ln in long_lines):
+        raise CaseError(source, key, f"TOML key with more than {MAX_KEY_PARTS} dotted parts; not a case key")
+
+
+def _unreadable(exc: RecursionError | ValueError) -> str:
+    """Message for a TOML text that parses but cannot be read (tomllib's recursion, int digit limit)."""
+    if isinstance(exc, RecursionError):
+        return "TOML nested too deeply"
+    return f"TOML value not readable: {str(exc).split(';')[0]}"  # more than sys.get_int_max_str_digits()
 
 
 def parse_override(text: str, source: str = "") -> tuple[list[str | int], Any]:
@@ -106,6 +123,9 @@ def parse_override(text: str, source: str = "") -> tuple[list[str | int], Any]:
         raise CaseError(source, "", "expected key.path=value")
     key, raw = text.split("=", 1)
     key, raw = key.strip(), raw.strip()
+    if key.count(".") >= MAX_KEY_PARTS:
+        raise CaseError(source, key, f"more than {MAX_KEY_PARTS} dotted parts; not a case key")
+    _refuse_long_keys(raw, source, key)
     segments: list[str | int] = []
     for part in key.split("."):
         m = _SEGMENT.match(part)
@@ -119,8 +139,8 @@ def parse_override(text: str, source: str = "") -> tuple[list[str | int], Any]:
         doc = tomllib.loads(f"v = {raw}")
     except tomllib.TOMLDecodeError:
         return segments, raw
-    except (RecursionError, ValueError):
-        doc = _parse_toml(f"v = {raw}", source, key)  # raises the CaseError
+    except (RecursionError, ValueError) as exc:
+        raise CaseError(source, key, _unreadable(exc)) from None
     if list(doc) != ["v"]:  # no second key smuggled in (a comment ends the line, a newline is refused)
         raise CaseError(source, key, "the value must be one TOML value")
     return segments, doc["v"]

@@ -132,6 +132,8 @@ BAD_OVERRIDES = [
     ("set_5000_digits", ["time.end=" + "9" * 5000], "time.end"),
     ("set_name_path", ["case.name='/tmp/x'"], "case.name"),
     ("set_end_inf", ["time.end=inf"], "time.end"),
+    ("set_key_100000_parts", ["a" + ".a" * 100_000 + "=1"], "dotted parts"),
+    ("set_value_100000_parts", ["case.description={" + "a." * 100_000 + "b = 1}"], "dotted parts"),
 ]
 
 
@@ -356,3 +358,19 @@ def test_readme_lists_the_plausible_ranges():
     readme = (REPO / "README.md").read_text()
     for unit, (lo, hi) in PLAUSIBLE.items():
         assert f"| `{unit}` | {lo:g} | {hi:g} |" in readme, unit
+
+
+def test_key_of_100000_parts_in_file(tmp_path, capsys):
+    """tomllib needs minutes and gigabytes for it; refused before parsing."""
+    file = tmp_path / "dotted.toml"
+    file.write_text((REPO / "cases/bar_impact/case.toml").read_text() + "\n" + ".".join(["a"] * 100_000) + " = 1\n")
+    _assert_one_line_error(capsys, main(["check", str(file)]), "dotted parts", str(file))
+    file.write_text('[case]\nname = "ok"\ndescription = "' + "a." * 100 + 'b"\n')  # in a string: no key
+    main(["check", str(file)])
+    assert "dotted parts" not in capsys.readouterr().err
+
+
+def test_huge_file(tmp_path, capsys):
+    file = tmp_path / "huge.toml"
+    file.write_text("x = [" + "1.5, " * 600_000 + "]\n")
+    _assert_one_line_error(capsys, main(["check", str(file)]), "MiB", str(file))

@@ -70,6 +70,7 @@ BAD_SETS = [
     "case.name=..", "case.name='" + "y" * 5000 + "'", "case.name=\udcff", "zeit.end=1", "bodies[999].name=x",
     "bodies.nobody.name=x", "time.end=1e-3 # ok\n[x]", "case.name=\"a\\u0000b\"", "time.end=\"1e-3\"",
     "time.end=true", "time[0][1]=1", "case[0]=1", "time.end=1e-3\x1b[2J", "case.kind=thermal",
+    "a" + ".a" * 50000 + "=1", "case.description={" + "a." * 50000 + "b = 1}",
 ]
 
 
@@ -212,6 +213,8 @@ def mutations(data: dict, text: str, rng: random.Random, n: int) -> list[Mutatio
             path, _ = rng.choice(files)
             return edit(kind, path, rng.choice(PATH_TRICKS))
         if kind == "deep":
+            if rng.random() < 0.2:  # a dotted key of many parts: tomllib's cost grows with its square
+                return Mutation(kind, "file", text + "\n" + ".".join(["a"] * rng.choice([40, 5000, 60000])) + " = 1\n")
             path, _ = rng.choice(nodes)
             depth = rng.choice([50, 500, 3000])
             opener, closer = rng.choice([("[", "]"), ("{a=", "}")])
