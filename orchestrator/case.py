@@ -130,6 +130,7 @@ class Body:
     fixed: tuple[FixedBoundary, ...] = spec((), doc="clamped boundary parts")
 
     def validate(self, path: str) -> None:
+        _check_file_name(self.name, f"{path}.name", "fields/<case>_<name>.xdmf")
         if (self.shape is None) == (self.region is None):
             raise SchemaError(f"{path}.shape", "give exactly one of shape (own geometry) or region "
                               "(a [geometry] region such as 'workpiece')")
@@ -230,9 +231,7 @@ class CaseInfo:
     def validate(self, path: str) -> None:
         if not self.name.strip():
             raise SchemaError(f"{path}.name", "got an empty string; must be a non-empty name")
-        if not _NAME.fullmatch(self.name) or self.name in (".", ".."):
-            raise SchemaError(f"{path}.name", f"got {shorten(repr(self.name))}; must be a name, not a path: 1 to "
-                              "100 letters, digits, '.', '_' or '-', not '.' or '..' (it names results/<name>)")
+        _check_file_name(self.name, f"{path}.name", "results/<name>")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -312,12 +311,14 @@ class Output:
 class Limits:
     """Guards against runs that would exhaust the machine (orchestrator/guards.py says how they are estimated)."""
 
-    max_cells: float = spec(2e6, unit="-", gt=0.0, doc="most mesh cells (estimated from areas / mesh size² "
-                            "before any meshing)")
-    max_steps: float = spec(5e7, unit="-", gt=0.0, doc="most explicit steps (estimated: time.end / stable step "
-                            "of the undeformed mesh)")
-    gmsh_time_limit_s: float = spec(600.0, unit="s", gt=0.0, doc="wall-time limit of one gmsh run on a user's .geo")
-    getdp_time_limit_s: float = spec(600.0, unit="s", gt=0.0, doc="wall-time limit of one getdp run (one EM step)")
+    max_cells: float = spec(2e6, unit="-", gt=0.0, magnitude=(1.0, 1e12),
+                            doc="most mesh cells (estimated from areas / mesh size² before any meshing)")
+    max_steps: float = spec(5e7, unit="-", gt=0.0, magnitude=(1.0, 1e12),
+                            doc="most explicit steps (estimated: time.end / stable step of the undeformed mesh)")
+    gmsh_time_limit_s: float = spec(600.0, unit="s", gt=0.0, magnitude=(1e-3, 1e6),
+                                    doc="wall-time limit of one gmsh run (built-in geometry, remesh, user .geo)")
+    getdp_time_limit_s: float = spec(600.0, unit="s", gt=0.0, magnitude=(1e-3, 1e6),
+                                     doc="wall-time limit of one getdp run (one EM step)")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -449,6 +450,13 @@ def _refuse_damping(mo: Mechanics) -> None:
         if getattr(mo, key) > 0.0:
             raise SchemaError(f"mechanics.{key}", "damping acts with pressure loads only (case.kind = 'mechanics' "
                               "or coupling.load = 'pressure'); a GetDP-coupled run would ignore it: remove it")
+
+
+def _check_file_name(name: str, path: str, names: str) -> None:
+    """A name that becomes part of a file or folder name: never a path."""
+    if not _NAME.fullmatch(name) or name in (".", ".."):
+        raise SchemaError(path, f"got {shorten(repr(name))}; must be a name, not a path: 1 to 100 letters, digits, "
+                          f"'.', '_' or '-', not '.' or '..' (it names {names})")
 
 
 def _shape_xmin(shape: Shape) -> float:

@@ -152,10 +152,12 @@ def _cmd_run(args: argparse.Namespace) -> int:
               "with --resume", file=sys.stderr)
         return 128 + signal.SIGINT
     except RunFailed as exc:
+        from .guards import LimitExceeded
         from .user_deck import DeckContractError
 
-        # a user deck that breaks the contract is bad input, found before the first step
-        code = _error(str(exc), EXIT_BAD_INPUT if isinstance(exc.__cause__, DeckContractError) else EXIT_FAILED)
+        # a user deck that breaks the contract, or meshes beyond [limits], is bad input found before the first step
+        bad_input = isinstance(exc.__cause__, (DeckContractError, LimitExceeded))
+        code = _error(str(exc), EXIT_BAD_INPUT if bad_input else EXIT_FAILED)
         if exc.details:  # the tail of the failing program's log
             print("  --- log tail ---\n" + "\n".join("  " + ln for ln in exc.details.splitlines()), file=sys.stderr)
         return code

@@ -29,7 +29,7 @@ import numpy as np
 from .case import Case, FlatCoilSheet, PlanarCoilBlankDie, SolenoidTube
 from .caseio import CaseError, load_case, read_toml, resolve_case_file
 from .children import run_pulseform
-from .results import ResultsFolder
+from .results import ResultsFolder, read_metrics
 from .validate import write_json
 
 log = logging.getLogger(__name__)
@@ -196,7 +196,7 @@ def _run(case: str, out: Path, sets: list[str]) -> dict[str, float]:
         lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
         raise CompareError(f"compare: run {out.name} failed (exit {r.returncode}): {lines[-1] if lines else ''}",
                            run_failed=r.returncode == 1)
-    m = json.loads((out / "metrics.json").read_text())
+    m = read_metrics(out / "metrics.json")
     m["process_wall_s"] = time.perf_counter() - t0
     return m
 

@@ -22,6 +22,7 @@ from . import probes as probe_mod
 from .case import Case
 from .checkpoint import CHECKPOINT_NAME, load_checkpoint, save_checkpoint
 from .em_fields import EMFieldWriter
+from .guards import check_steps_of_meshes
 from .analyses import create as create_analysis
 from .history import History
 from .loop import LoopOptions, StaggeredLoop
@@ -77,6 +78,7 @@ class CaseDriver:
         else:
             self.solver, options = build_solver(case, comm), LoopOptions(n=1, n_max=1)
             load = _pressure_pulses(case)
+        check_steps_of_meshes(case, self.solver.stable_time_step())  # a user deck's mesh is known only now
         self.setup_s = _time.perf_counter() - t0
         self.mechanics = DolfinxMechanics(self.solver)
         self.load: LoadProvider = load
@@ -279,7 +281,7 @@ def _coupled_participants(case: Case, results: ResultsFolder, comm: MPI.Comm):
 
         geometry = build_user_geometry(case, results.root / "em_mesh", results.root / "em")
     else:
-        geometry = build_em_geometry(case.geometry)
+        geometry = build_em_geometry(case.geometry, time_limit=case.limits.gmsh_time_limit_s)
     roles = geometry.conductor_roles()
     subs = {role: conductor_submesh(geometry.mesh, geometry.regions[role]) for role in roles}
     solver = build_solver(case, comm, {role: to_dolfinx(sub, comm) for role, sub in subs.items()})
@@ -302,6 +304,7 @@ def _coupled_participants(case: Case, results: ResultsFolder, comm: MPI.Comm):
                          sizes=(g.mesh_size_coil, g.mesh_size_air), em_substeps=case.coupling.em_substeps,
                          depth=case.mechanics.thickness, time_scheme=case.em.time_scheme)
     load.solver.timeout = case.limits.getdp_time_limit_s
+    load.gmsh_time_limit = case.limits.gmsh_time_limit_s
     return solver, load
 
 

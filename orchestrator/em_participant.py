@@ -139,6 +139,7 @@ class GetDPLoad:
         self.X0 = {b.name: geometry.mesh.points[b.body_to_em].copy() for b in self.bodies}
         self.material = geometry.mesh.points.copy()  # material coordinates of every EM node
         self.remeshes = 0
+        self.gmsh_time_limit: float | None = None  # wall-time limit of a remesh (s)
         self._set_mesh(geometry.mesh)
         self.min_quality = float(self.mover.q_ref.min())
         self._runs: list[Path] = []
@@ -175,7 +176,7 @@ class GetDPLoad:
             parts.append((cur[b.sub.em_nodes], b.sub.cells, b.tag))
         g = self.solver.model
         mesh, indices = remesh_around(parts, self.geometry.regions["coil"], self.geometry.turns, g.shell[0],
-                                      g.shell[1], *self.sizes)
+                                      g.shell[1], *self.sizes, time_limit=self.gmsh_time_limit)
         mesh.names = dict(self.geometry.mesh.names)
         self.material = mesh.points.copy()
         for b, (pts, _, _), index in zip(self.bodies, parts, indices):

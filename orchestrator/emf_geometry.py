@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from pulseform.solvers.getdp import EMMesh, Rect, coil_conductor_mesh, coil_tag, conductor_tag
+from pulseform.solvers.getdp.runner import call_in_child
 
 from .case import FlatCoilSheet, Geometry, PlanarCoilBlankDie, SolenoidTube
 
@@ -80,8 +81,12 @@ def sheet_die_polygon(g: FlatCoilSheet, segments: int | None = None) -> np.ndarr
     return np.array(pts)
 
 
-def build_em_geometry(g: Geometry) -> EMGeometry:
-    """Mesh the EM setup ``g`` (axisymmetric: r = x, z = y; planar: half model x >= 0)."""
+def build_em_geometry(g: Geometry, time_limit: float | None = None) -> EMGeometry:
+    """Mesh the EM setup ``g`` (axisymmetric: r = x, z = y; planar: half model x >= 0).
+
+    gmsh runs in a child process under ``time_limit`` (s; None: no limit), see
+    :func:`~pulseform.solvers.getdp.runner.call_in_child`.
+    """
     conductors, sizes = [], []
     if isinstance(g, FlatCoilSheet):
         turns = flat_coil_turns(g)
@@ -109,9 +114,10 @@ def build_em_geometry(g: Geometry) -> EMGeometry:
             sizes.append(g.mesh_size_die)
     regions = {"coil": coil_tag(1)}
     regions.update({role: conductor_tag(k) for k, role in enumerate(g.conductor_roles(), start=1)})
-    mesh = coil_conductor_mesh([turns], conductors, axisymmetric=not g.planar, half=True, r_domain=g.air_radius,
-                               r_shell=g.shell_radius, h_fine=g.mesh_size_coil, h_coarse=g.mesh_size_air,
-                               h_conductor=sizes, names={tag: role for role, tag in regions.items()})
+    mesh = call_in_child(coil_conductor_mesh, [turns], conductors, axisymmetric=not g.planar, half=True,
+                         r_domain=g.air_radius, r_shell=g.shell_radius, h_fine=g.mesh_size_coil,
+                         h_coarse=g.mesh_size_air, h_conductor=sizes, names={tag: role for role, tag in regions.items()},
+                         time_limit=time_limit, what=f"meshing the {g.type} EM geometry with gmsh")
     log.info("EM mesh (%s): %d nodes, %d triangles, groups %s", g.type, mesh.n_nodes, len(mesh.triangles),
              ", ".join(f"{n} ({t})" for t, n in sorted(mesh.names.items())))
     return EMGeometry(mesh, regions, turns, planar=g.planar)

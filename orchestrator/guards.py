@@ -139,3 +139,17 @@ def check_resources(case) -> None:
         raise SchemaError("time.end", f"got {case.time.end:g} s: ~{steps:.3g} explicit steps (stable step set by "
                           f"{key}), above limits.max_steps = {lim.max_steps:.3g}; shorten time.end, coarsen the "
                           "mesh or raise limits.max_steps")
+
+
+class LimitExceeded(ValueError):
+    """A case exceeds ``[limits]`` once its meshes exist (e.g. a user deck's mesh): bad input, one line."""
+
+
+def check_steps_of_meshes(case, stable_step: float) -> None:
+    """After meshing: ``time.end`` over the meshes' actual stable step (s) against ``limits.max_steps``."""
+    dt = stable_step if case.time.dt_max is None else min(stable_step, case.time.dt_max)
+    steps = case.time.end / dt
+    if steps > case.limits.max_steps:
+        raise LimitExceeded(f"time.end: got {case.time.end:g} s: {steps:.3g} explicit steps at the meshes' stable step "
+                            f"{dt:.3g} s, above limits.max_steps = {case.limits.max_steps:.3g}; shorten time.end, "
+                            "coarsen the mesh or raise limits.max_steps")

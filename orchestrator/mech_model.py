@@ -31,7 +31,7 @@ def build_solver(case: Case, comm: MPI.Comm = MPI.COMM_WORLD,
         if b.region is not None:
             mesh = (region_meshes or {})[b.region]
         else:
-            mesh = mesh_shape(b.shape, b.mesh_size, comm, name=b.name)
+            mesh = mesh_shape(b.shape, b.mesh_size, comm, name=b.name, time_limit=case.limits.gmsh_time_limit_s)
         fixed = tuple((box_marker(f.where), tuple(f.components)) for f in b.fixed)
         bodies.append(mech.BodySpec(name=b.name, mesh=mesh, material=solver_material(case.materials[b.material]),
                                     initial_velocity=tuple(b.initial_velocity), fixed=fixed))

@@ -16,6 +16,7 @@ from scipy.spatial import cKDTree
 
 from pulseform.solvers.getdp import EMMesh
 from pulseform.solvers.getdp.mesh import AIR, AXIS, OUTER, SHELL, Rect, gmsh_physical_elements, gmsh_session
+from pulseform.solvers.getdp.runner import call_in_child
 
 from .transfer import boundary_facets, triangle_areas
 
@@ -43,8 +44,12 @@ def boundary_loop(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
 
 
 def remesh_around(parts: list[tuple[np.ndarray, np.ndarray, int]], coil_tag: int, turns: list[Rect],
-                  r_domain: float, r_shell: float, h_coil: float, h_air: float) -> tuple[EMMesh, list[np.ndarray]]:
+                  r_domain: float, r_shell: float, h_coil: float, h_air: float,
+                  time_limit: float | None = None) -> tuple[EMMesh, list[np.ndarray]]:
     """New half-disk EM mesh (x >= 0) around conductor bodies in their current configuration.
+
+    gmsh runs in a child process (:func:`~pulseform.solvers.getdp.runner.call_in_child`) under
+    ``time_limit`` (s; None: no limit): a breach raises ``TimeLimitExceeded``, a gmsh crash ``ChildFailed``.
 
     Parameters
     ----------
@@ -62,6 +67,15 @@ def remesh_around(parts: list[tuple[np.ndarray, np.ndarray, int]], coil_tag: int
     (EMMesh, list of ndarray)
         The mesh, and per part, for each of its nodes (row of its ``points``) the node index in the mesh.
     """
+    mesh, indices = call_in_child(_remesh_with_gmsh, parts, coil_tag, turns, r_domain, r_shell, h_coil, h_air,
+                                  time_limit=time_limit, what="remeshing the EM air with gmsh")
+    log.info("EM remesh: %d nodes, %d triangles (%d in the conductor bodies)", len(mesh.points), len(mesh.triangles),
+             sum(len(c) for _, c, _ in parts))
+    return mesh, indices
+
+
+def _remesh_with_gmsh(parts, coil_tag, turns, r_domain, r_shell, h_coil, h_air) -> tuple[EMMesh, list[np.ndarray]]:
+    """The gmsh part of :func:`remesh_around` (runs in the child process; does not log)."""
     loops = [boundary_loop(pts, cells) for pts, cells, _ in parts]
     segs = [np.linalg.norm(pts[np.roll(lp, -1)] - pts[lp], axis=1) for (pts, _, _), lp in zip(parts, loops)]
     with gmsh_session("pulseform_remesh") as gmsh:
@@ -147,6 +161,4 @@ def _collect(gmsh, parts: list[tuple[np.ndarray, np.ndarray, int]]) -> tuple[EMM
                   remap[lines], ltags)
     neg = triangle_areas(mesh.points, mesh.triangles) < 0
     mesh.triangles[neg] = mesh.triangles[neg][:, [0, 2, 1]]
-    log.info("EM remesh: %d nodes, %d triangles (%d in the conductor bodies)", len(mesh.points), len(mesh.triangles),
-             sum(len(c) for _, c, _ in parts))
     return mesh, indices

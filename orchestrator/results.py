@@ -87,6 +87,12 @@ def write_metrics(path: Path, metrics: dict[str, Any]) -> None:
     atomic_write_text(path, json.dumps(flat, indent=2) + "\n")
 
 
+def read_metrics(path: Path) -> dict[str, float]:
+    """The numbers of a ``metrics.json`` (null and the ``status`` text left out)."""
+    data = json.loads(Path(path).read_text())
+    return {k: float(v) for k, v in data.items() if isinstance(v, (int, float)) and not isinstance(v, bool)}
+
+
 def write_csv(path: Path, header: Sequence[str], rows: Iterable[Sequence[float]]) -> None:
     """Write a CSV table atomically (numbers with 10 significant digits)."""
     buf = io.StringIO()

@@ -200,6 +200,7 @@ def _failure_text(exc: BaseException, root: Path) -> tuple[str, str]:
     """(one line saying what went wrong, the failing program's log tail or ""): a full disk, an
     out-of-memory and an external program's time limit are named plainly."""
     from pulseform.solvers.getdp import GetDPError
+    from pulseform.solvers.getdp.runner import ChildFailed, TimeLimitExceeded
 
     at = "".join(f" {n}" for n in getattr(exc, "__notes__", ()))  # the driver notes the simulated time
     seen: BaseException | None = exc
@@ -210,6 +211,10 @@ def _failure_text(exc: BaseException, root: Path) -> tuple[str, str]:
         if isinstance(seen, MemoryError):
             return (f"out of memory{at} (the case's meshes or fields do not fit: coarsen the mesh or use a larger "
                     "machine)"), ""
+        if isinstance(seen, TimeLimitExceeded):
+            return f"{seen.what}{at} exceeded limits.gmsh_time_limit_s = {seen.time_limit:g} s and was stopped", ""
+        if isinstance(seen, ChildFailed):
+            return f"{seen}{at}", ""
         if isinstance(seen, GetDPError):
             where = f" in {seen.run_dir.name}" if seen.run_dir is not None else ""
             log = f" (log: {seen.log_path})" if seen.log_path is not None else ""

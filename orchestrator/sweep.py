@@ -9,7 +9,6 @@ parameter.
 from __future__ import annotations
 
 import itertools
-import json
 import logging
 import re
 from concurrent.futures import ThreadPoolExecutor
@@ -18,7 +17,7 @@ from pathlib import Path
 
 from .caseio import CaseError, load_case, parse_override
 from .children import run_pulseform
-from .results import ResultsFolder, write_csv
+from .results import ResultsFolder, read_metrics, write_csv
 
 log = logging.getLogger(__name__)
 
@@ -125,7 +124,7 @@ def run_member(case: str, member: Member, extra: list[str]) -> Member:
         log.warning("sweep member %d (%s) failed: %s", member.index, " ".join(member.overrides), member.error)
     metrics_file = member.out / "metrics.json"
     if metrics_file.is_file():
-        member.metrics = {k: v for k, v in json.loads(metrics_file.read_text()).items() if v is not None}
+        member.metrics = read_metrics(metrics_file)
     return member
 
 

@@ -14,7 +14,6 @@ a minute or so here) and/or ``full``.
 from __future__ import annotations
 
 import csv
-import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -23,6 +22,7 @@ from typing import Callable
 import numpy as np
 
 from .children import run_pulseform
+from .results import read_metrics
 
 REPO = Path(__file__).resolve().parents[1]
 PROVENANCE_KEYS = ("source", "figure", "units", "obtained")
@@ -193,8 +193,7 @@ def run_case_cli(case: str, work: Path, sets: list[str], folder: str = "run") ->
     if r.returncode != 0:
         lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
         raise RuntimeError(f"pulseform run failed ({r.returncode}): {lines[-1] if lines else ''}")
-    return json.loads((out_dir / "metrics.json").read_text()), np.genfromtxt(out_dir / "history.csv", delimiter=",",
-                                                                              names=True)
+    return read_metrics(out_dir / "metrics.json"), np.genfromtxt(out_dir / "history.csv", delimiter=",", names=True)
 
 
 @run("case_bar_impact_wall")

@@ -6,13 +6,16 @@ arguments and reads the outputs.
 from __future__ import annotations
 
 import os
+import pickle
 import re
+import select
 import shutil
 import signal
 import subprocess
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any, Callable
 
 #: Open MPI / hwloc settings that cut a getdp start from ~0.4 s to ~0.1 s without
 #: changing results (measured, see SOLVER_NOTES.md).  Set in the child's env only.
@@ -50,6 +53,84 @@ def child_preexec() -> None:
     """
     die_with_parent(signal.SIGKILL)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+class TimeLimitExceeded(RuntimeError):
+    """A child process (gmsh meshing, ...) ran longer than its time limit and was killed.
+    ``what`` names the work, ``time_limit`` is the limit (s)."""
+
+    def __init__(self, what: str, time_limit: float) -> None:
+        self.what, self.time_limit = what, time_limit
+        super().__init__(f"{what} exceeded its time limit of {time_limit:g} s and was stopped")
+
+
+class ChildFailed(RuntimeError):
+    """A child process died (a signal, e.g. the out-of-memory killer, or a C++ abort) before its answer."""
+
+
+def call_in_child(fn: Callable[..., Any], *args: Any, time_limit: float | None, what: str, **kwargs: Any) -> Any:
+    """``fn(*args, **kwargs)`` computed in a forked child process under a wall-time limit (s).
+
+    For in-process libraries that cannot be interrupted (the gmsh API): the child dies with its
+    parent (:func:`child_preexec`), a crash or an out-of-memory kill of the child is a
+    :class:`ChildFailed` instead of the end of pulseform, and a run over ``time_limit`` is killed
+    and raised as :class:`TimeLimitExceeded`. The result (or the exception) travels back pickled;
+    ``fn`` must not log or use MPI (a forked child shares neither safely).
+    """
+    r, w = os.pipe()
+    pid = os.fork()
+    if pid == 0:  # the child: compute, send, leave without running the parent's exit handlers
+        code = 0
+        try:
+            os.close(r)
+            child_preexec()
+            signal.signal(signal.SIGTERM, signal.SIG_DFL)
+            try:
+                payload = pickle.dumps((True, fn(*args, **kwargs)))
+            except BaseException as exc:  # noqa: BLE001 - every failure goes back to the parent
+                try:
+                    payload = pickle.dumps((False, exc))
+                except Exception:  # noqa: BLE001 - an exception that cannot be pickled
+                    payload = pickle.dumps((False, RuntimeError(f"{type(exc).__name__}: {exc}")))
+            with os.fdopen(w, "wb") as fh:
+                fh.write(payload)
+        except BaseException:  # noqa: BLE001
+            code = 1
+        finally:
+            os._exit(code)
+    os.close(w)
+    data = bytearray()
+    deadline = None if time_limit is None else time.monotonic() + time_limit
+    try:
+        while True:
+            remaining = None if deadline is None else deadline - time.monotonic()
+            if remaining is not None and remaining <= 0:
+                raise TimeLimitExceeded(what, time_limit)
+            if select.select([r], [], [], remaining)[0]:
+                chunk = os.read(r, 1 << 20)
+                if not chunk:
+                    break
+                data += chunk
+    finally:
+        os.close(r)
+        if not data or deadline is not None and time.monotonic() >= deadline:
+            try:
+                os.kill(pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+        _, status = os.waitpid(pid, 0)
+    if not data:
+        how = (f"killed by signal {signal.Signals(os.WTERMSIG(status)).name}" if os.WIFSIGNALED(status)
+               else f"exit code {os.WEXITSTATUS(status)}")
+        sig = os.WTERMSIG(status) if os.WIFSIGNALED(status) else 0
+        hint = {signal.SIGKILL: " (often the out-of-memory killer)",
+                signal.SIGABRT: " (an abort, e.g. std::bad_alloc when memory runs out; its message went to "
+                                "standard error)"}.get(sig, "")
+        raise ChildFailed(f"{what} died before it finished: {how}{hint}")
+    ok, value = pickle.loads(bytes(data))
+    if not ok:
+        raise value
+    return value
 
 
 _ERROR_PATTERN = re.compile(

@@ -51,9 +51,12 @@ REFUSED_KINDS = {"huge", "nonfinite", "nul_value", "nul_key", "unknown_key", "ty
 #: (key glob, kind) that the resource guards (orchestrator/guards.py) will refuse but `check` may still
 #: accept today, e.g. a 1 nm mesh size (billions of cells) or an end time of 500 s (billions of steps).
 #: Not asserted. Once a guard refuses one, move it to GUARDED.
-AWAITING_GUARDS = [("*mesh_size*", "tiny_length"), ("*.Lc_*", "tiny_length"), ("time.end", "long_time")]
+#: A user deck's own mesh parameters (`Lc_*`) are guarded by gmsh's time limit when the deck is meshed,
+#: which this test replaces by a stub (tests/workflow/test_user_deck_safety.py runs it for real); its
+#: step count is guarded once its mesh exists (driver: before the first step; test_signals.py).
+AWAITING_GUARDS = [("*.Lc_*", "tiny_length"), ("time.end", "long_time_deck")]
 #: (key glob, kind) that the guards refuse: asserted like REFUSED_KINDS.
-GUARDED: list[tuple[str, str]] = []
+GUARDED: list[tuple[str, str]] = [("*mesh_size*", "tiny_length"), ("time.end", "long_time")]
 #: keys whose default is an infinity: that infinity is a valid input there
 INF_OK = {"xmin": -math.inf, "ymin": -math.inf, "xmax": math.inf, "ymax": math.inf, "mass_damping_until": math.inf}
 
@@ -92,6 +95,11 @@ def must_refuse(m: Mutation) -> bool:
 
 
 # ----------------------------------------------------------------------------- generation
+def _names_a_file(path: tuple) -> bool:
+    """case.name (results/<name>) and body names (fields/<case>_<body>.xdmf) become file names."""
+    return path == ("case", "name") or (len(path) == 3 and path[0] == "bodies" and path[2] == "name")
+
+
 def _key(path: tuple) -> str:
     out = ""
     for p in path:
@@ -201,12 +209,12 @@ def mutations(data: dict, text: str, rng: random.Random, n: int) -> list[Mutatio
             return Mutation(kind, _key(path), _dump(d))
         if kind == "unicode":
             path, v = rng.choice(strings)
-            return edit("name_path" if path == ("case", "name") else kind, path, rng.choice(UNICODE))
+            return edit("name_path" if _names_a_file(path) else kind, path, rng.choice(UNICODE))
         if kind == "name_path":
             if rng.random() < 0.6 or not names:
                 return edit(kind, ("case", "name"), rng.choice(NAME_TRICKS))
-            path, _ = rng.choice(names)  # body / probe names: not (yet) restricted, so either way
-            return edit("other_name_path", path, rng.choice(NAME_TRICKS))
+            path, _ = rng.choice(names)  # body names name files; probe names are only column prefixes
+            return edit("name_path" if _names_a_file(path) else "other_name_path", path, rng.choice(NAME_TRICKS))
         if kind == "file_path":
             if not files:
                 return generate("name_path")
@@ -236,11 +244,12 @@ def mutations(data: dict, text: str, rng: random.Random, n: int) -> list[Mutatio
             return Mutation(kind, "file", text + "\nx = = 1\n")
         if kind == "truncated":
             return Mutation(kind, "file", text[: rng.randrange(len(text))])
-        if kind == "long_time":
-            return edit(kind, ("time", "end"), 500.0)
+        if kind == "long_time":  # a user deck's mesh size is known only once its .geo is meshed: the run's guard
+            deck = data.get("geometry", {}).get("type") == "user_deck"
+            return edit("long_time_deck" if deck else kind, ("time", "end"), 500.0)
         if kind == "tiny_length":
-            mesh = [(p, v) for p, v in numbers if any(fnmatch.fnmatchcase(_key(p), g) for g, k in AWAITING_GUARDS
-                                                       if k == kind)]
+            mesh = [(p, v) for p, v in numbers if any(fnmatch.fnmatchcase(_key(p), g)
+                                                       for g, k in AWAITING_GUARDS + GUARDED if k == kind)]
             if not mesh:
                 return number("tiny")
             path, _ = rng.choice(mesh)
@@ -345,6 +354,8 @@ def test_fuzz_check(tmp_path, case_file):
 def test_must_refuse_rules():
     """The refusal rule of the fuzz test itself: refused kinds, awaited guards, default infinities."""
     assert must_refuse(Mutation("huge", "time.end", ""))
-    assert not must_refuse(Mutation("tiny_length", "bodies[0].mesh_size", ""))
+    assert must_refuse(Mutation("tiny_length", "bodies[0].mesh_size", ""))
+    assert must_refuse(Mutation("long_time", "time.end", ""))
+    assert not must_refuse(Mutation("tiny_length", "geometry.parameters.Lc_Sheet", ""))
     assert not must_refuse(Mutation("valid_inf", "mechanics.mass_damping_until", ""))
     assert not set(kind for _, kind in AWAITING_GUARDS) & REFUSED_KINDS

@@ -217,3 +217,13 @@ def test_sweep_killed_its_members_stop_with_a_checkpoint(tmp_path):
     _wait_for(lambda: not _alive(members[0]), timeout=60, what="the member to stop")
     m = json.loads((member_out / "metrics.json").read_text())
     assert m["status"] == "interrupted" and (member_out / "checkpoint.npz").is_file(), m
+
+
+def test_user_deck_steps_guarded_once_meshed(tmp_path):
+    """A user deck's element size is known only after its .geo is meshed: the step guard runs then,
+    before the first step (500 s at the deck's ~2e-8 s stable step would be ~2e10 steps)."""
+    r = subprocess.run([EXE, "run", str(REPO / "cases/user_deck_sheet_bulge"), "--out", str(tmp_path / "r"), "--quiet",
+                        "--set", "time.end=500"], capture_output=True, text=True, timeout=300)
+    lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
+    assert r.returncode == 2 and len(lines) == 1, r.stderr
+    assert "time.end" in lines[0] and "above limits.max_steps = 5e+07" in lines[0], lines[0]
