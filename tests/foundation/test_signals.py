@@ -227,3 +227,16 @@ def test_user_deck_steps_guarded_once_meshed(tmp_path):
     lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
     assert r.returncode == 2 and len(lines) == 1, r.stderr
     assert "time.end" in lines[0] and "above limits.max_steps = 5e+07" in lines[0], lines[0]
+
+
+def test_sigkill_during_built_in_meshing_ends_the_gmsh_child(tmp_path):
+    """The gmsh API meshes the built-in geometries in a forked child (solvers/getdp/runner.call_in_child):
+    SIGKILL of pulseform while it meshes (a fine sheet mesh, ~3e5 cells, seconds of gmsh) ends it too."""
+    proc = subprocess.Popen([EXE, "run", str(REPO / "cases/emf_sheet_bulge"), "--out", str(tmp_path / "run"), "--quiet",
+                             "--set", "geometry.mesh_size_sheet=2e-5"], stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL)
+    found: list[int] = []
+    _wait_for(lambda: found.extend(_children(proc.pid, "pulseform")) or found, proc, what="the meshing child")
+    proc.kill()
+    proc.wait()
+    _wait_for(lambda: not any(_alive(c) for c in found), timeout=10, what="the meshing child to end")
