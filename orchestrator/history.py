@@ -28,6 +28,18 @@ class History:
             raise ValueError(f"history row keys changed: {sorted(set(row) ^ set(self.columns))}")
         self.rows.append([float(row[c]) for c in self.columns])
 
+    @classmethod
+    def read(cls, path: Path) -> "History":
+        """The rows of a ``history.csv`` written by :meth:`flush` (e.g. to draw its plots again)."""
+        import csv
+
+        h = cls(path)
+        with open(path, newline="", encoding="utf-8") as fh:
+            reader = csv.reader(fh)
+            h.columns = next(reader, [])
+            h.rows = [[float(v) for v in row] for row in reader if row]
+        return h
+
     def column(self, name: str) -> np.ndarray:
         """One column as an array."""
         j = self.columns.index(name)

@@ -11,6 +11,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 from .history import History  # noqa: E402
+from .units import TimeAxis, label, shown, time_axis, unit_of  # noqa: E402
 
 log = logging.getLogger(__name__)
 
@@ -34,44 +35,59 @@ def _figure(height: float = 4.0):
     return fig, ax
 
 
-def plot_energies(history: History, folder: Path) -> Path:
-    """Energy ledger vs time (ms, J)."""
-    t = history.column("time_s") * 1e3
+def _time_axis(history: History, axis: TimeAxis | None) -> TimeAxis:
+    """The run's time unit; from the history's last time when the caller does not give it."""
+    if axis is not None:
+        return axis
+    t = history.column("time_s")
+    return time_axis(float(t[-1]) if len(t) else 0.0)
+
+
+def plot_energies(history: History, folder: Path, axis: TimeAxis | None = None) -> Path:
+    """Energy ledger (J) vs time (the run's time unit)."""
+    axis = _time_axis(history, axis)
+    t = history.column("time_s") * axis.scale
     fig, ax = _figure()
     for c in history.columns:
         if c.startswith("energy_"):
-            ax.plot(t, history.column(c), label=c.removeprefix("energy_").removesuffix("_J"))
-    ax.set_xlabel("time [ms]")
-    ax.set_ylabel("energy [J]")
+            ax.plot(t, shown(c, history.column(c)), label=c.removeprefix("energy_").removesuffix("_J"))
+    ax.set_xlabel(axis.label)
+    ax.set_ylabel(f"energy [{unit_of('energy_kinetic_J').shown}]")
     ax.set_title("Energy ledger")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     return _save(fig, folder / "energies.png")
 
 
-def plot_probes(history: History, folder: Path, references: dict[str, float] | None = None) -> list[Path]:
-    """One figure per probe column; ``references`` maps a column to a horizontal reference (same unit)."""
+#: history columns without a plot of their own (counters, the time axis, the energies' own plot)
+NOT_PLOTTED = ("time_s", "step", "dt_s", "substeps", "iterations", "em_remeshes", "coil_current_abs_max_A")
+
+
+def plot_probes(history: History, folder: Path, references: dict[str, float] | None = None,
+                axis: TimeAxis | None = None) -> list[Path]:
+    """One figure per history column (probes, body extremes, load values), labelled with the unit
+    of :mod:`.units` (``[?]`` for a column it does not know); ``references`` maps a column to a
+    horizontal reference line (stored unit)."""
     references = references or {}
-    t = history.column("time_s") * 1e3
+    axis = _time_axis(history, axis)
+    t = history.column("time_s") * axis.scale
     paths = []
-    skip = ("time_s", "step", "dt_s", "substeps", "iterations", "em_remeshes", "coil_current_abs_max_A")
     fig, ax = _figure()   # one figure, its line updated per column (rebuilding axes costs more than drawing)
     (line,) = ax.plot(t, t, lw=1.0, label="computed")
-    ax.set_xlabel("time [ms]")
+    ax.set_xlabel(axis.label)
     ax.grid(alpha=0.3)
     try:
         for c in history.columns:
-            if c in skip or c.startswith("energy_"):
+            if c in NOT_PLOTTED or c.startswith("energy_"):
                 continue
-            y = history.column(c)
-            scale, unit = (1e-6, "MPa") if c.endswith("_Pa") else (1.0, c.rsplit("_", 1)[-1])
-            line.set_ydata(y * scale)
+            scale = unit_of(c).scale
+            line.set_ydata(history.column(c) * scale)
             extra = []
             if c in references:
                 extra = [ax.axhline(references[c] * scale, color="k", ls="--", label="reference"), ax.legend()]
             ax.relim()
             ax.autoscale_view()
-            ax.set_ylabel(f"{c} [{unit}]")
+            ax.set_ylabel(label(c))
             paths.append(_save(fig, folder / f"{c}.png", close=False))
             for artist in extra:
                 artist.remove()
@@ -80,13 +96,14 @@ def plot_probes(history: History, folder: Path, references: dict[str, float] | N
     return paths
 
 
-def plot_time_step(history: History, folder: Path) -> Path:
-    """Mechanical time step vs time (µs)."""
-    t = history.column("time_s") * 1e3
+def plot_time_step(history: History, folder: Path, axis: TimeAxis | None = None) -> Path:
+    """Mechanical time step (µs) vs time (the run's time unit)."""
+    axis = _time_axis(history, axis)
+    t = history.column("time_s") * axis.scale
     fig, ax = _figure(3.0)
-    ax.plot(t[1:], history.column("dt_s")[1:] * 1e6)
-    ax.set_xlabel("time [ms]")
-    ax.set_ylabel("dt [µs]")
+    ax.plot(t[1:], shown("dt_s", history.column("dt_s")[1:]))
+    ax.set_xlabel(axis.label)
+    ax.set_ylabel(f"dt [{unit_of('dt_s').shown}]")
     ax.grid(alpha=0.3)
     return _save(fig, folder / "time_step.png")
 

@@ -204,6 +204,8 @@ def plot_sweep(todo: list[Member], grid: dict[str, list[str]], folder: Path) -> 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from .units import label
+
     ok = [m for m in todo if m.returncode == 0]
     for key in grid:
         try:
@@ -217,7 +219,7 @@ def plot_sweep(todo: list[Member], grid: dict[str, list[str]], folder: Path) -> 
         for ax, metric in zip(axes[:, 0], shown):
             pts = sorted((x, m.metrics[metric]) for x, m in zip(xs, ok) if metric in m.metrics)
             ax.plot([p[0] for p in pts], [p[1] for p in pts], "o-")
-            ax.set_ylabel(metric, fontsize=8)
+            ax.set_ylabel(label(metric), fontsize=8)
             ax.grid(alpha=0.3)
         axes[-1, 0].set_xlabel(key)
         fig.tight_layout()

@@ -322,7 +322,10 @@ class CornerFill:
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
 
-        t = history.column("time_s") * 1e6
+        from ..units import time_axis
+
+        axis = time_axis(self.case.time.end)  # the run's time unit, as on its other plots
+        t = history.column("time_s") * axis.scale
         fig, ax = plt.subplots(3, 1, figsize=(7, 8), sharex=True)
         ax[0].plot(t, history.column("die_von_mises_max_Pa") / 1e6, label="von Mises = sqrt(3 J2)")
         ax[0].plot(t, history.column("die_sqrt_J2_max_Pa") / 1e6, label="sqrt(J2)")
@@ -336,18 +339,18 @@ class CornerFill:
         ax[2].plot(t, history.column("contact_fraction"), lw=0.8, label="in contact now")
         ax[2].set_ylabel("fraction of die profile")
         ax[2].legend()
-        ax[2].set_xlabel("time (µs)")
+        ax[2].set_xlabel(axis.label)
         for a, _ in self._windows(history):
             for x in ax:
-                x.axvline(a * 1e6, color="0.7", lw=0.8, ls="--")
+                x.axvline(a * axis.scale, color="0.7", lw=0.8, ls="--")
         fig.suptitle("Corner filling: die stress, blank speed, fill (cf. paper Fig. 3/4)")
         fig.tight_layout()
         fig.savefig(folder / "corner_fill_history.png", dpi=110)
         plt.close(fig)
         if shapes:
-            self._plot_shapes(history, shapes, folder, plt)
+            self._plot_shapes(history, shapes, folder, plt, axis)
 
-    def _plot_shapes(self, history, shapes, folder, plt) -> None:
+    def _plot_shapes(self, history, shapes, folder, plt, axis) -> None:
         windows = self._windows(history)
         fig, ax = plt.subplots(figsize=(9, 5))
         die0 = shapes[0][1]["die"]
@@ -366,7 +369,7 @@ class CornerFill:
         for k, (ts, pos) in enumerate(picks):
             b = pos["blank"]
             ax.plot(b[:, 0] * 1e3, b[:, 1] * 1e3, ".", ms=1.0, color=cmap(k / max(1, len(picks) - 1)),
-                    label=f"t = {ts * 1e6:.0f} µs")
+                    label=f"t = {ts * axis.scale:.4g} {axis.unit}")
         ax.set_aspect("equal")
         ax.set_xlabel("x (mm)")
         ax.set_ylabel("y (mm)")
