@@ -112,6 +112,18 @@ class CaseDriver:
             row[key] = step_row.get(key, 0.0) if step_row else 0.0
         self.history.record(row)
 
+    def initial_row(self) -> dict[str, float]:
+        """The load columns at t = 0 (the first history row): the provider's true initial values
+        (:meth:`~.participants.LoadProvider.initial`; zeros for a provider without it)."""
+        row = {"dt_s": 0.0, "substeps": 0.0, "iterations": 0.0}
+        initial = getattr(self.load, "initial", None)
+        if initial is not None:
+            step = initial(self.mechanics)
+            resultant = self.mechanics.total_force(step.forces) if step.forces else np.zeros(2)
+            row.update({"force_x_N": float(resultant[0]), "force_y_N": float(resultant[1]),
+                        "conservation_error_rel": 0.0, **step.values})
+        return row
+
     def _on_em_step(self, row: dict[str, float]) -> None:
         self._last_row = row
         self._since_record += 1
@@ -177,7 +189,7 @@ class CaseDriver:
         em_writer = EMFieldWriter(self.results.fields / (f"em_part{self.part}" if self.part else "em")) \
             if hasattr(self.load, "snapshot") and self.comm.rank == 0 else None
         if not self.history.rows:
-            self.record()
+            self.record(self.initial_row())
         writer.write(s.time)
         self._keep_shape()
         stop = s.time

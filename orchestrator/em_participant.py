@@ -249,6 +249,26 @@ class GetDPLoad:
             "em_remeshes": float(self.remeshes),
         }
 
+    def initial(self, mechanics) -> LoadStep:
+        """The EM state at t = 0 for the history's first row: the circuit as it starts (current 0,
+        a bank charged to V0), no field yet (no force, magnetic energy or Joule power), the fresh
+        mesh's quality. The coil voltage is the one before the switch closes (0 V): it jumps to
+        about V0·L_coil/(L_coil + L_ext) as the discharge starts, which the first EM step shows."""
+        s = self.state
+        return LoadStep({}, None, {
+            "coil_current_A": float(s.current),
+            "coil_current_abs_max_A": abs(float(s.current)),
+            "coil_voltage_V": 0.0,
+            "capacitor_voltage_V": float(s.capacitor_voltage),
+            "coil_joule_heat_J": float(s.coil_heat[0]) if s.coil_heat else 0.0,
+            "coil_temperature_rise_K": 0.0,
+            "magnetic_energy_J": 0.0,
+            "workpiece_joule_power_W": 0.0,
+            "getdp_force_z_N": 0.0,
+            "em_mesh_min_quality": float(self.mover.q_ref.min()),
+            "em_remeshes": float(self.remeshes),
+        })
+
     def snapshot(self) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]] | None:
         """The latest step's EM mesh and per-element fields (zero outside the conductors)."""
         if self.last is None:

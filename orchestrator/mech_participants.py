@@ -123,6 +123,26 @@ class PressurePulses:
                 forces[name] = forces[name] + f if name in forces else f
         return LoadStep(forces, None, values)
 
+    def initial(self, mechanics: DolfinxMechanics) -> LoadStep:
+        """Pressures and nodal forces (N) at t = 0, for the history's first row: each started
+        pulse at t = 0 (eq. 8 starts at p0, eq. 7 at 0; a pulse waiting for rest at 0) plus the
+        mass damping if it acts at t = 0. Changes no state (the solver's kinetic damping flag is
+        left to :meth:`load`)."""
+        forces: dict[str, np.ndarray] = {}
+        values: dict[str, float] = {}
+        for i, ld in enumerate(self.loads):
+            shift = self.offsets[i]
+            p = 0.0 if np.isnan(shift) else pulse_pressure(ld, 0.0 - float(shift))
+            values[f"load{i}_pressure_Pa"] = p
+            if p != 0.0:
+                f = mechanics.solver.pressure_nodal_forces(ld.body, self._material_marker(i, mechanics), p)
+                forces[ld.body] = forces[ld.body] + f if ld.body in forces else f
+        if self.damping > 0.0 and self.damping_from <= 0.0 < self.damping_until:
+            for name, b in mechanics.solver.bodies.items():
+                f = -self.damping * b.mass[:, None] * b.v
+                forces[name] = forces[name] + f if name in forces else f
+        return LoadStep(forces, None, values)
+
     def _waiting(self, i: int, t0: float) -> bool:
         """Pulse i waits for rest: the previous pulse has started and its window is over."""
         prev_shift = self.offsets[i - 1] if i > 0 else np.nan

@@ -83,6 +83,14 @@ class LoadProvider(Protocol):
         (second order); GetDP returns the mean of its implicit-Euler sub-steps.
         """
 
+    def initial(self, mechanics: Mechanics) -> LoadStep:
+        """The load at t = 0, before the first step, for the first row of history.csv.
+
+        The true initial values (e.g. a charged bank's capacitor voltage, a pulse's pressure at
+        t = 0) and nodal forces, without changing the provider's state. Optional: the loop's
+        owner writes zeros for a provider without it.
+        """
+
     def state_dict(self) -> dict[str, np.ndarray]:
         """Everything needed to continue exactly."""
 
@@ -174,6 +182,10 @@ class AnalyticForce:
         f = np.zeros((self.n_nodes, 2))
         f[:, 1] = fy / self.n_nodes
         return LoadStep({self.body: f}, np.array([0.0, fy]), {"force_y_N": fy})
+
+    def initial(self, mechanics: Mechanics) -> LoadStep:
+        """Nodal forces at t = 0."""
+        return self.load(0.0, 0.0, 0.0, mechanics)
 
     def state_dict(self) -> dict[str, np.ndarray]:
         """Stateless."""
