@@ -236,6 +236,23 @@ def load_case(path: str | Path, overrides: list[str] | tuple[str, ...] = ()) -> 
     return case, file
 
 
+def load_resolved_case(file: str | Path) -> Case:
+    """The resolved ``case.toml`` of a results folder, validated by the schema.
+
+    Unlike :func:`load_case`, a user deck's files are not looked up or scanned: the stored case
+    already names them by absolute path, and reading results never runs a deck.
+    """
+    file = Path(file)
+    data = read_toml(file)
+    check_strings(data, str(file))
+    try:
+        return from_dict(Case, data)
+    except SchemaError as exc:
+        raise CaseError(str(file), exc.path, exc.message) from None
+    except RecursionError:
+        raise CaseError(str(file), "", "nested too deeply") from None
+
+
 def check_strings(data: dict[str, Any], source: str) -> None:
     """Refuse, in the raw case mapping, strings and keys that no later step should see.
 

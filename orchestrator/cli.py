@@ -87,6 +87,12 @@ def _parser() -> argparse.ArgumentParser:
                       help="e.g. 'shape_distance_max_mm>0.05' or 'impulse_rel_diff>0.01' (repeatable; > or <)")
     cmp_.add_argument("--force", action="store_true", help="replace an existing folder")
 
+    plot = sub.add_parser("plot", help="draw every picture of a results folder again",
+                          description="Draw every picture of RESULTS_DIR (a folder written by `pulseform run`) "
+                                      "again into RESULTS_DIR/plots/ from its history.csv, metrics.json, case.toml "
+                                      "and fields, also when the run had output.plots = false.")
+    plot.add_argument("results", metavar="RESULTS_DIR", type=Path, help="a results folder of `pulseform run`")
+
     sub.add_parser("info", help="versions and locations of getdp, gmsh, dolfinx, PETSc, meshio, numpy",
                    description="Print the versions of the external programs and libraries and where each comes from.")
     return p
@@ -289,6 +295,22 @@ def _cmd_compare(args: argparse.Namespace) -> int:
     return EXIT_FAILED if tripped else EXIT_OK
 
 
+def _cmd_plot(args: argparse.Namespace) -> int:
+    from .plots import NotAResultsFolder, check_results_folder, draw_all
+
+    try:
+        root = check_results_folder(args.results)
+    except NotAResultsFolder as exc:
+        return _error(str(exc), EXIT_BAD_INPUT)
+    drawn = draw_all(root)
+    print(f"pictures: {root / 'plots'} ({len(drawn.paths)})")
+    for p in drawn.paths:
+        print(f"  {p.name}")
+    if drawn.failed:
+        return _error(f"{len(drawn.failed)} picture group(s) failed: " + "; ".join(drawn.failed), EXIT_FAILED)
+    return EXIT_OK
+
+
 def _cmd_info(_: argparse.Namespace) -> int:
     from .info import collect
 
@@ -302,7 +324,7 @@ def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     _setup_logging(getattr(args, "quiet", False))
     handlers = {"run": _cmd_run, "check": _cmd_check, "sweep": _cmd_sweep, "info": _cmd_info,
-                "validate": _cmd_validate, "compare": _cmd_compare}
+                "validate": _cmd_validate, "compare": _cmd_compare, "plot": _cmd_plot}
     try:
         return handlers[args.command](args)
     except KeyboardInterrupt:

@@ -210,7 +210,8 @@ class CaseDriver:
                     self.loop.run_until(stop, on_step)
                     if self.history.rows[-1][0] != s.time:
                         self.record(self._last_row)  # the values of the step that reached the milestone
-                    writer.write(s.time)
+                    # the milestone itself, not the sum of steps that reached it (6.0000000000000035e-05)
+                    writer.write(stop if abs(s.time - stop) <= 1e-9 * stop else s.time)
                     self._keep_shape()
                     snap = self.load.snapshot() if em_writer is not None else None
                     if snap is not None:

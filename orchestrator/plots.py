@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import logging
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import matplotlib
@@ -156,3 +157,239 @@ def plot_shapes(shapes: list, folder: Path, axisymmetric: bool) -> Path:
     ax.set_title("Shapes at the field-output times (axes not to scale)")
     ax.grid(alpha=0.3)
     return _save(fig, folder / "shapes.png")
+
+
+# ---------------------------------------------------------------------------------------------------
+# every picture of a results folder: the end of a run and `pulseform plot` call this
+
+#: modules of other pictures, drawn when present: (module, function(results_dir) -> list[Path])
+PICTURE_MODULES = (("pictures_mech", "draw_mechanics"), ("pictures_em", "draw_em"))
+
+
+@dataclass
+class Drawn:
+    """What :func:`draw_all` did.
+
+    Attributes
+    ----------
+    paths : list of Path
+        The pictures written.
+    skipped : list of str
+        One line per picture group not drawn, and why (a module not there yet, no fields, ...).
+    failed : list of str
+        One line per picture group that raised (the traceback is in the log at DEBUG).
+    """
+
+    paths: list[Path] = field(default_factory=list)
+    skipped: list[str] = field(default_factory=list)
+    failed: list[str] = field(default_factory=list)
+
+
+class NotAResultsFolder(ValueError):
+    """The folder holds no ``history.csv`` (or no ``case.toml``) of a pulseform run."""
+
+
+def check_results_folder(results_dir: Path) -> Path:
+    """``results_dir`` as a Path if it holds a run's ``case.toml`` and ``history.csv``; else raise
+    :class:`NotAResultsFolder` with a one-line reason."""
+    root = Path(results_dir)
+    if not root.is_dir():
+        raise NotAResultsFolder(f"{root}: not a results folder (no such folder)")
+    missing = [n for n in ("case.toml", "history.csv") if not (root / n).is_file()]
+    if missing:
+        raise NotAResultsFolder(f"{root}: not a results folder of pulseform (no {' or '.join(missing)})")
+    return root
+
+
+def draw_all(results_dir: Path, *, case=None, history: History | None = None, shapes: list | None = None,
+             analyses: list | None = None, em_snapshot: tuple | None = None) -> Drawn:
+    """Draw every picture of a results folder into its ``plots/`` (atomically, replacing old ones).
+
+    Reads what is not given: the resolved ``case.toml``, ``history.csv``, the fields. The end of a
+    run passes what it holds in memory (case, history, node positions at the output times
+    ``shapes``, its analyses, the last EM snapshot ``(points, triangles, cell data, t)``) and draws
+    the same pictures as ``pulseform plot`` does later from the files. Pictures: energies, time
+    step, one per history column (units from :mod:`.units`, one time unit per run), the case's
+    analyses, then ``pictures_mech.draw_mechanics`` and ``pictures_em.draw_em`` when those modules
+    exist (until then the older shapes / EM force-density pictures). A picture group that fails
+    is reported in :attr:`Drawn.failed` and the others are still drawn.
+    """
+    root = check_results_folder(results_dir)
+    folder = root / "plots"
+    folder.mkdir(exist_ok=True)
+    done = Drawn()
+
+    def attempt(what: str, fn, *args, **kw):
+        try:
+            out = fn(*args, **kw)
+        except Exception as exc:  # one picture group must not cost the others
+            text = " ".join(str(exc).split()) or type(exc).__name__
+            done.failed.append(f"{what}: {type(exc).__name__}: {text[:200]}")
+            log.warning("pictures: %s failed: %s", what, text[:200])
+            log.debug("pictures: %s failed", what, exc_info=True)
+            return None
+        if isinstance(out, Path):
+            done.paths.append(out)
+        elif isinstance(out, (list, tuple)):
+            done.paths.extend(Path(p) for p in out)
+        return out
+
+    def skip(line: str) -> None:
+        done.skipped.append(line)
+        log.info("pictures: %s", line)
+
+    if case is None:
+        case = _read_case(root, skip)
+    if history is None:
+        history = History.read(root / "history.csv")
+    if not history.rows:
+        skip("history.csv has no rows: no history plots")
+        return done
+    end = case.time.end if case is not None else float(history.column("time_s")[-1])
+    axis = time_axis(end)
+    attempt("energies", plot_energies, history, folder, axis)
+    attempt("time step", plot_time_step, history, folder, axis)
+    attempt("history columns", plot_probes, history, folder, None, axis)
+
+    if case is not None and analyses is None:
+        from .analyses import create
+
+        analyses = [create(name, case) for name in case.analysis]
+    mech = _picture_module(*PICTURE_MODULES[0], skip)
+    if shapes is None and case is not None and (analyses or mech is None):
+        shapes = read_shapes(root, case, skip)
+    for a in analyses or []:
+        before = _stamps(folder)
+        attempt(f"analysis {type(a).__name__}", a.plots, history, shapes or [], folder)
+        done.paths.extend(p for p, s in _stamps(folder).items() if before.get(p) != s)
+    if mech is not None:
+        attempt("mechanics pictures", mech, root)
+    elif shapes and "plot_shapes" in globals() and case is not None:
+        attempt("shapes", globals()["plot_shapes"], shapes, folder, case.mechanics.formulation == "axisymmetric")
+
+    if case is not None and case.case.kind == "coupled":
+        em = _picture_module(*PICTURE_MODULES[1], skip)
+        if em is not None:
+            attempt("EM pictures", em, root)
+        elif "plot_em_snapshot" in globals():
+            snap = em_snapshot if em_snapshot is not None else read_em_snapshot(root, skip)
+            if snap is not None:
+                points, triangles, data, t = snap
+                attempt("EM force density", globals()["plot_em_snapshot"], points, triangles, data, folder, t,
+                        box=em_plot_box(case))
+    done.paths = list(dict.fromkeys(done.paths))
+    return done
+
+
+def _stamps(folder: Path) -> dict[Path, int]:
+    return {p: p.stat().st_mtime_ns for p in folder.glob("*.png")}
+
+
+def _read_case(root: Path, skip):
+    """The run's resolved case from ``case.toml`` (None, with a skip line, if it cannot be read)."""
+    from .caseio import CaseError, load_resolved_case
+
+    try:
+        return load_resolved_case(root / "case.toml")
+    except CaseError as exc:
+        skip(f"case.toml unreadable ({exc}): only the history plots")
+        return None
+
+
+def _picture_module(module: str, function: str, skip):
+    """``pulseform.orchestrator.<module>.<function>``, imported lazily; None (with a skip line) while
+    the module does not exist or cannot be imported."""
+    import importlib
+    import importlib.util
+
+    name = f"{__package__}.{module}"
+    try:
+        if importlib.util.find_spec(name) is None:
+            skip(f"{module}.{function}: not available yet, skipped")
+            return None
+        return getattr(importlib.import_module(name), function)
+    except (ImportError, AttributeError) as exc:
+        skip(f"{module}.{function}: cannot be imported ({exc}), skipped")
+        return None
+
+
+def read_shapes(root: Path, case, skip) -> list | None:
+    """Node positions of every body at each stored field time, from ``fields/`` (meshio):
+    ``[(t, {body: (N, 2) positions}), ...]``; None (with a skip line) if the fields cannot be read."""
+    import numpy as np
+
+    try:
+        import meshio
+
+        per_time: dict[float, dict] = {}
+        for b in case.bodies:
+            files = [root / "fields" / f"{case.case.name}_{b.name}.xdmf"]
+            files += sorted((root / "fields").glob(f"{case.case.name}_part*_{b.name}.xdmf"),
+                            key=lambda p: int(p.name[len(case.case.name) + 5:].split("_")[0]))
+            for path in files:
+                if not path.is_file():
+                    continue
+                with meshio.xdmf.TimeSeriesReader(str(path)) as reader:
+                    points, _ = reader.read_points_cells()
+                    for k in range(reader.num_steps):
+                        t, point_data, _ = reader.read_data(k)
+                        key = next((n for n in point_data if n.startswith("displacement")), None)
+                        if key is None:
+                            raise ValueError(f"{path.name}: no displacement among {sorted(point_data)}")
+                        x = np.asarray(points)[:, :2] + np.asarray(point_data[key])[:, :2]
+                        per_time.setdefault(round(float(t), 15), {})[b.name] = x
+        shapes = [(t, bodies) for t, bodies in sorted(per_time.items()) if len(bodies) == len(case.bodies)]
+    except (Exception, SystemExit) as exc:  # meshio exits on XDMF it cannot parse
+        skip(f"body shapes not readable from fields/ ({type(exc).__name__}: {str(exc)[:120]}): shape plots skipped")
+        return None
+    if not shapes:
+        skip("no body shapes in fields/: shape plots skipped")
+        return None
+    return shapes
+
+
+def read_em_snapshot(root: Path, skip) -> tuple | None:
+    """The last EM snapshot of ``fields/em*/em.pvd``: (points, triangles, cell data, t); None (with a
+    skip line) when there is none."""
+    import xml.etree.ElementTree as ET
+
+    import numpy as np
+
+    last = None
+    for pvd in (root / "fields").glob("em*/em.pvd"):
+        try:
+            sets = ET.parse(pvd).getroot().iter("DataSet")
+            for ds in sets:
+                t = float(ds.get("timestep"))
+                if last is None or t > last[0]:
+                    last = (t, pvd.parent / ds.get("file"))
+        except (ET.ParseError, OSError, TypeError, ValueError):
+            continue
+    if last is None:
+        skip("no EM snapshot in fields/em/: EM force-density picture skipped")
+        return None
+    try:
+        import meshio
+
+        mesh = meshio.read(last[1])
+        tri = [i for i, c in enumerate(mesh.cells) if c.type == "triangle"]
+        data = {k: np.concatenate([np.asarray(v[i]) for i in tri]) for k, v in mesh.cell_data.items()}
+        triangles = np.concatenate([mesh.cells[i].data for i in tri])
+    except Exception as exc:
+        skip(f"{last[1]} unreadable ({type(exc).__name__}): EM force-density picture skipped")
+        return None
+    return np.asarray(mesh.points), triangles, data, last[0]
+
+
+def em_plot_box(case) -> tuple[float, float, float, float] | None:
+    """Region of interest (m) for EM pictures: the coil and workpiece with a margin."""
+    g = case.geometry
+    if g is None:
+        return None
+    if g.type == "flat_coil_sheet":
+        r = 1.15 * g.sheet_radius
+        return (0.0, r, -3 * g.turn_height, g.coil_gap + 0.25 * r)
+    if g.type != "solenoid_tube":  # a user deck: the whole mesh
+        return None
+    half = 0.6 * max(g.tube_length, g.turns * (g.turn_height + g.turn_gap))
+    return (0.0, 1.5 * (g.tube_inner_radius + g.tube_thickness), -half, half)

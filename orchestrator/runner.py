@@ -251,35 +251,18 @@ def _check_resumable(case: Case, out: Path) -> None:
 
 def _dispatch(case: Case, results: ResultsFolder, *, quiet: bool, resume: bool, comm: MPI.Comm):
     from .driver import run_case_loop
-    from .plots import plot_em_snapshot, plot_energies, plot_probes, plot_shapes, plot_time_step
 
     run = run_case_loop(case, results, quiet=quiet, resume=resume, comm=comm)
     interrupt.check()  # a signal after the last step still ends with an honest status
     if case.output.plots and comm.rank == 0:
-        plot_energies(run.history, results.plots)
-        plot_time_step(run.history, results.plots)
-        plot_probes(run.history, results.plots)
-        if run.shapes:
-            plot_shapes(run.shapes, results.plots, case.mechanics.formulation == "axisymmetric")
-        for analysis in run.analyses:
-            analysis.plots(run.history, run.shapes, results.plots)
-        if run.em_snapshot is not None:
-            plot_em_snapshot(*run.em_snapshot, results.plots, run.solver.time, box=_em_plot_box(case))
+        from .plots import draw_all
+
+        # the pictures `pulseform plot` draws from the folder, from what the run holds in memory
+        snap = None if run.em_snapshot is None else (*run.em_snapshot, run.solver.time)
+        drawn = draw_all(results.root, case=case, history=run.history, shapes=run.shapes, analyses=run.analyses,
+                         em_snapshot=snap)
+        log.info("%d pictures in %s", len(drawn.paths), results.plots)
     return run
-
-
-def _em_plot_box(case: Case) -> tuple[float, float, float, float] | None:
-    """Region of interest (m) for the EM plot: the coil and workpiece with a margin."""
-    g = case.geometry
-    if g is None:
-        return None
-    if g.type == "flat_coil_sheet":
-        r = 1.15 * g.sheet_radius
-        return (0.0, r, -3 * g.turn_height, g.coil_gap + 0.25 * r)
-    if g.type != "solenoid_tube":  # a user deck: the whole mesh
-        return None
-    half = 0.6 * max(g.tube_length, g.turns * (g.turn_height + g.turn_gap))
-    return (0.0, 1.5 * (g.tube_inner_radius + g.tube_thickness), -half, half)
 
 
 @contextmanager
