@@ -205,21 +205,20 @@ def _history(folder: Path) -> np.ndarray:
     return np.genfromtxt(folder / "history.csv", delimiter=",", names=True)
 
 
-def final_shape(folder: Path, case_name: str, body: str) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
-    """(reference coordinates, final displacement, {time: von Mises per cell}) of ``body``."""
-    import h5py
+def final_shape(folder: Path, case_name: str, body: str) -> tuple[np.ndarray, np.ndarray, dict[float, np.ndarray]]:
+    """(reference coordinates (N, 2), final displacement (N, 2), {time: von Mises per cell}) of ``body``
+    (m, m, Pa) from the run's field files; ``case_name`` is kept for the callers (the files name it)."""
+    from .mech_fields import FieldFileError, read_fields
 
-    files = sorted((folder / "fields").glob(f"{case_name}*_{body}.h5"))
-    if not files:
+    try:
+        bodies = read_fields(folder)
+    except FieldFileError as exc:
+        raise CompareError(f"compare: {exc}", run_failed=True) from None
+    if body not in bodies:
         raise CompareError(f"compare: no field file for body {body!r} in {folder / 'fields'}", run_failed=True)
-    with h5py.File(files[-1], "r") as f:
-        x = f["Mesh/mesh/geometry"][...]
-        disp = f["Function/displacement"]
-        last = max(disp.keys(), key=lambda k: float(k.replace("_", ".")))
-        u = disp[last][...][:, :2]
-        vm = {k: f["Function/von_mises"][k][...].ravel() for k in f["Function/von_mises"].keys()} \
-            if "Function/von_mises" in f else {}
-    return x, u, vm
+    bf = bodies[body]
+    vm = {float(t): bf.read(k, ("von_mises_Pa",))["von_mises_Pa"] for k, t in enumerate(bf.times)}
+    return bf.points[:, :2], bf.displacement(len(bf.times) - 1), vm
 
 
 def shape_distance(xa, ua, xb, ub) -> float:

@@ -3,13 +3,13 @@
     .venv/bin/python scripts/study_corner_fill_frames.py RESULTS_DIR [--spacing 1e-4] [--times t1,t2,...]
 
 For each field output of a corner-fill results folder (``fields/<case>_blank.xdmf/.h5`` and
-``_die``) it samples the die's cavity profile (the die's exterior edges with upward normal below the
-flange, initial configuration, as ``orchestrator/analyses/corner_fill.py``) every ``--spacing``
-metres of arc length, moves the samples with the die's displacement, and measures the distance
-from each sample to the blank's boundary (current configuration). A sample counts as touched
-within ``2 h0`` (the analysis' rule). Prints per frame: the fine-sampled touched fraction now and so
-far, the untouched arc-length intervals so far (mm of profile, with their x, y), and the gap
-between the blank and the bottom of the 130-degree corner (the deepest point of the corner arc),
+``_die``, read by ``pulseform.orchestrator.mech_fields``) it samples the die's cavity profile (the
+die's exterior edges with upward normal below the flange, initial configuration, as
+``orchestrator/analyses/corner_fill.py``) every ``--spacing`` metres of arc length, moves the
+samples with the die's displacement, and measures the distance from each sample to the blank's
+boundary (current configuration). A sample counts as touched within ``2 h0`` (the analysis' rule).
+Prints per frame: the fine-sampled touched fraction now and so far, the untouched arc-length
+intervals so far (mm of profile, with their x, y), and the gap between the blank and the bottom of the 130-degree corner (the deepest point of the corner arc),
 plus the blank's kinetic energy within 10 mm of that corner point. Writes RESULTS_DIR/frames.csv.
 
 This is a post-processing study (the fields are written every ``output.field_interval``, so the
@@ -23,8 +23,9 @@ import csv
 import tomllib
 from pathlib import Path
 
-import h5py
 import numpy as np
+
+from pulseform.orchestrator.mech_fields import read_fields
 
 FILL_GAP_FACTOR = 2.0
 CORNER_RADIUS_KE = 0.01  # m: blank nodes within this distance of the corner count for its kinetic energy
@@ -40,18 +41,21 @@ def boundary_edges(cells: np.ndarray) -> np.ndarray:
 
 
 def read_body(folder: Path, case: str, body: str) -> tuple[np.ndarray, np.ndarray, dict[float, np.ndarray]]:
-    """(X0 (N, 2) m, triangles (C, 3), {time s: displacement (N, 2) m}) of one body's field file."""
-    with h5py.File(folder / "fields" / f"{case}_{body}.h5", "r") as f:
-        X = f["Mesh/mesh/geometry"][:, :2]
-        cells = f["Mesh/mesh/topology"][:]
-        disp = {float(k.replace("_", ".")): f["Function/displacement"][k][:, :2] for k in f["Function/displacement"]}
-        vel = {float(k.replace("_", ".")): f["Function/velocity"][k][:, :2] for k in f["Function/velocity"]}
+    """(X0 (N, 2) m, triangles (C, 3), {time s: (displacement, velocity) (N, 2) m, m/s}) of one body's
+    field files (every part of a resumed run; ``case`` is kept for the callers)."""
+    bf = read_fields(folder)[body]
+    X = bf.points[:, :2]
+    frames = {}
+    for k, t in enumerate(bf.times):
+        d = bf.read(k, ("displacement_m", "velocity_m_s"))
+        frames[float(t)] = (d["displacement_m"][:, :2], d["velocity_m_s"][:, :2])
     # orient triangles counter-clockwise
+    cells = bf.triangles
     a, b, c = X[cells[:, 0]], X[cells[:, 1]], X[cells[:, 2]]
     cw = ((b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])) < 0
     cells = cells.copy()
     cells[cw] = cells[cw][:, [0, 2, 1]]
-    return X, cells, {t: (disp[t], vel.get(t)) for t in sorted(disp)}
+    return X, cells, frames
 
 
 def point_segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:

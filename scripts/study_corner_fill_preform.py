@@ -25,8 +25,9 @@ import subprocess
 import time
 from pathlib import Path
 
-import h5py
 import numpy as np
+
+from pulseform.orchestrator.mech_fields import read_fields
 
 ROOT = Path(__file__).resolve().parents[1]
 CASE = ROOT / "cases" / "corner_fill_restrike"
@@ -57,11 +58,9 @@ def run_preform(out: Path, duration: float, extra: list[str], reuse: bool = Fals
 def blank_at(folder: Path, t: float | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(reference coordinates, displacement) of the blank, m, at the field output nearest to t
     (s; None: the last one)."""
-    with h5py.File(folder / "fields" / "corner_fill_restrike_blank.h5", "r") as f:
-        disp = f["Function/displacement"]
-        times = {float(k.replace("_", ".")): k for k in disp}
-        key = times[max(times)] if t is None else times[min(times, key=lambda s: abs(s - t))]
-        return f["Mesh/mesh/geometry"][:, :2], disp[key][:, :2]
+    blank = read_fields(folder)["blank"]
+    k = len(blank.times) - 1 if t is None else int(np.argmin(np.abs(blank.times - t)))
+    return blank.points[:, :2], blank.displacement(k)
 
 
 def summary(folder: Path, t: float | None = None) -> dict[str, float]:

@@ -1,21 +1,160 @@
-"""XDMF field output (one file per body) through dolfinx.io.XDMFFile."""
+"""Field output: one XDMF + HDF5 pair per body, one mesh with every field at each output time.
+
+File layout (``<prefix>_<body>.h5``; h5py reads it by name, no XDMF needed)::
+
+    /                     attrs: format, body, formulation, coordinates ("r z" or "x y"),
+                                 stress_components
+    /Mesh/points          (N, 3) float64, m: reference coordinates (x, y, 0); x = r, y = z in axisymmetry
+    /Mesh/triangles       (C, 3) int64: node indices of each triangle
+    /times                (T,) float64, s: the output times (exact: milestones rounded to 12 digits)
+    /Step_0000/           attrs: time (s); one group per output time, in time order
+        displacement_m    (N, 3) at nodes: (u_x, u_y, 0) = current - reference position
+        velocity_m_s      (N, 3) at nodes: (v_x, v_y, 0) (the solver's last half-step velocity)
+        stress_Pa         (C, 6) per cell: Cauchy stress, components xx, yy, zz, xy, yz, xz
+                          (ParaView's order and names XX YY ZZ XY YZ XZ for a symmetric tensor;
+                          zz is the hoop stress in axisymmetry, the out-of-plane stress in plane
+                          strain, 0 in plane stress; yz = xz = 0), equal to ``Body.cell_stress``
+        von_mises_Pa      (C,) per cell
+        plastic_strain    (C,) per cell: equivalent plastic strain (-)
+
+The ``.xdmf`` beside it is a temporal collection of uniform grids, all on the same mesh datasets,
+each with all its point and cell attributes: ParaView (Xdmf3ReaderS) reads one unstructured grid
+with every array at every time, and ``meshio.xdmf.TimeSeriesReader`` reads points, cells and, per
+step, all point and cell data. The XDMF is rewritten atomically after every output and the HDF5
+file is flushed, so a run that stops leaves readable files up to its last output.
+
+MPI: rank 0 gathers every body's owned nodes (in the global node numbering of the P1 space) and
+owned cells (rank by rank) and writes the files alone; the other ranks write nothing.
+"""
 from __future__ import annotations
 
 import logging
+import os
+import xml.etree.ElementTree as ET
 from pathlib import Path
 
-from dolfinx import fem
-from dolfinx.io import XDMFFile
+import numpy as np
 
-__all__ = ["FieldWriter"]
+__all__ = ["FieldWriter", "STRESS_COMPONENTS", "output_time", "FORMAT"]
 
 log = logging.getLogger(__name__)
 
+FORMAT = "pulseform mechanical fields 1"
+#: component names of ``stress_Pa`` (and the solver's ``cell_stress`` order for the first four)
+STRESS_COMPONENTS = ("xx", "yy", "zz", "xy", "yz", "xz")
+POINT_FIELDS = ("displacement_m", "velocity_m_s")
+CELL_FIELDS = ("stress_Pa", "von_mises_Pa", "plastic_strain")
+
+
+def output_time(t: float) -> float:
+    """An output time as stored: rounded to 12 significant digits, so that a milestone reached by
+    summed steps (6.0000000000000035e-05) is stored as the milestone (6e-05)."""
+    return float(f"{float(t):.12g}")
+
+
+def _vec3(a: np.ndarray) -> np.ndarray:
+    out = np.zeros((a.shape[0], 3))
+    out[:, :2] = a
+    return out
+
+
+def _tensor6(s: np.ndarray) -> np.ndarray:
+    out = np.zeros((s.shape[0], 6))
+    out[:, :4] = s  # the solver's [xx, yy, zz, xy]
+    return out
+
+
+class _BodyFile:
+    """Rank-0 side of one body's HDF5 file and XDMF index."""
+
+    def __init__(self, path_xdmf: Path, body: str, formulation: str, points: np.ndarray,
+                 triangles: np.ndarray):
+        import h5py
+
+        self.xdmf = path_xdmf
+        self.h5_path = path_xdmf.with_suffix(".h5")
+        self.body = body
+        self.n_points, self.n_cells = points.shape[0], triangles.shape[0]
+        self.h5 = h5py.File(self.h5_path, "w")
+        a = self.h5.attrs
+        a["format"] = FORMAT
+        a["body"] = body
+        a["formulation"] = formulation
+        a["coordinates"] = "r z" if formulation == "axisymmetric" else "x y"
+        a["stress_components"] = " ".join(STRESS_COMPONENTS)
+        pts = self.h5.create_dataset("Mesh/points", data=points)
+        pts.attrs["unit"] = "m"
+        pts.attrs["description"] = "reference (initial) coordinates; current = points + displacement_m"
+        self.h5.create_dataset("Mesh/triangles", data=triangles.astype(np.int64))
+        self.h5.create_dataset("times", shape=(0,), maxshape=(None,), dtype="f8").attrs["unit"] = "s"
+        self.times: list[float] = []
+        self.h5.flush()
+
+    def write(self, t: float, point: dict[str, np.ndarray], cell: dict[str, np.ndarray]) -> None:
+        k = len(self.times)
+        g = self.h5.create_group(f"Step_{k:04d}")
+        g.attrs["time"] = t
+        for name, arr in {**point, **cell}.items():
+            d = g.create_dataset(name, data=arr)
+            if name == "stress_Pa":
+                d.attrs["components"] = " ".join(STRESS_COMPONENTS)
+        self.times.append(t)
+        ds = self.h5["times"]
+        ds.resize((k + 1,))
+        ds[k] = t
+        self.h5.flush()
+        self._write_xdmf(point, cell)
+
+    def _write_xdmf(self, point: dict[str, np.ndarray], cell: dict[str, np.ndarray]) -> None:
+        h5 = self.h5_path.name
+
+        def item(parent, path: str, shape, dtype):
+            kind, prec = ("Int", "8") if np.dtype(dtype).kind in "iu" else ("Float", "8")
+            e = ET.SubElement(parent, "DataItem", DataType=kind, Precision=prec, Format="HDF",
+                              Dimensions=" ".join(str(n) for n in shape))
+            e.text = f"{h5}:{path}"
+
+        def kind_of(arr):
+            if arr.ndim == 1:
+                return "Scalar"
+            return {3: "Vector", 6: "Tensor6"}[arr.shape[1]]
+
+        root = ET.Element("Xdmf", Version="3.0")
+        domain = ET.SubElement(root, "Domain")
+        coll = ET.SubElement(domain, "Grid", Name=self.body, GridType="Collection",
+                             CollectionType="Temporal")
+        for k, t in enumerate(self.times):
+            grid = ET.SubElement(coll, "Grid", Name=self.body if k == 0 else f"{self.body}_{k:04d}",
+                                 GridType="Uniform")
+            topo = ET.SubElement(grid, "Topology", TopologyType="Triangle",
+                                 NumberOfElements=str(self.n_cells))
+            item(topo, "/Mesh/triangles", (self.n_cells, 3), np.int64)
+            geo = ET.SubElement(grid, "Geometry", GeometryType="XYZ")
+            item(geo, "/Mesh/points", (self.n_points, 3), np.float64)
+            ET.SubElement(grid, "Time", Value=repr(t))
+            for centre, fields in (("Node", point), ("Cell", cell)):
+                for name, arr in fields.items():
+                    att = ET.SubElement(grid, "Attribute", Name=name, AttributeType=kind_of(arr),
+                                        Center=centre)
+                    item(att, f"/Step_{k:04d}/{name}", arr.shape, arr.dtype)
+        ET.indent(root)
+        tmp = self.xdmf.with_name(f".{self.xdmf.name}.tmp")
+        with open(tmp, "w", encoding="utf-8") as f:  # the user's umask, like the .h5
+            f.write('<?xml version="1.0" encoding="utf-8"?>\n')
+            f.write(ET.tostring(root, encoding="unicode"))
+            f.write("\n")
+        os.replace(tmp, self.xdmf)
+
+    def close(self) -> None:
+        self.h5.close()
+
 
 class FieldWriter:
-    """Write displacement, velocity (P1) and stress, von Mises, eps_p (DG0) of every body.
+    """Write displacement and velocity (nodes) and stress tensor, von Mises stress and equivalent
+    plastic strain (cells) of every body: one mesh, all fields, per output time (see the module
+    docstring for the file layout).
 
-    The mesh is written in the reference configuration; warp it by ``displacement`` to see the
+    The mesh is stored in the reference configuration; warp it by ``displacement_m`` to see the
     deformed shape.
 
     Parameters
@@ -23,49 +162,54 @@ class FieldWriter:
     solver : ExplicitSolver
         The solver whose bodies are written.
     path_prefix : str or Path
-        Files are ``<path_prefix>_<body>.xdmf`` (+ .h5).
+        Files are ``<path_prefix>_<body>.xdmf`` + ``.h5``.
     """
 
     def __init__(self, solver, path_prefix):
         self.solver = solver
-        self._files = {}
-        self._fun = {}
+        self.comm = solver.comm
+        self._files: dict[str, _BodyFile] = {}
         prefix = Path(path_prefix)
+        self._gids = {}
         for n, b in solver.bodies.items():
-            path = prefix.parent / f"{prefix.name}_{n}.xdmf"
-            xf = XDMFFile(b.mesh.comm, str(path), "w")
-            xf.write_mesh(b.mesh)
-            W4 = fem.VectorFunctionSpace(b.mesh, ("DG", 0), dim=4)
-            W1 = fem.FunctionSpace(b.mesh, ("DG", 0))
-            funs = {"displacement": fem.Function(b.V), "velocity": fem.Function(b.V),
-                    "stress": fem.Function(W4), "von_mises": fem.Function(W1),
-                    "eps_p": fem.Function(W1)}
-            for name, f in funs.items():
-                f.name = name
-            nco = b.cells.shape[0]
-            c4 = W4.dofmap.list.array.reshape(-1, 1)[:nco, 0]
-            c1 = W1.dofmap.list.array.reshape(-1, 1)[:nco, 0]
-            self._files[n] = xf
-            self._fun[n] = (funs, c4, c1)
+            own = b.global_ids[: b.n_owned]
+            self._gids[n] = own
+            parts = self.comm.gather((own, b.X0[: b.n_owned], b.global_ids[b.cells]), root=0)
+            if self.comm.rank == 0:
+                n_glob = b.V.dofmap.index_map.size_global
+                X = np.zeros((n_glob, 2))
+                for gid, x, _ in parts:
+                    X[gid] = x
+                tris = np.vstack([c.reshape(-1, 3) for _, _, c in parts]).astype(np.int64)
+                path = prefix.parent / f"{prefix.name}_{n}.xdmf"
+                self._files[n] = _BodyFile(path, n, solver.formulation, _vec3(X), tris)
 
     def write(self, t: float) -> None:
-        """Write all fields at time ``t`` (s)."""
+        """Write all fields of every body at time ``t`` (s; stored as :func:`output_time` (t))."""
+        t = output_time(t)
         for n, b in self.solver.bodies.items():
-            funs, c4, c1 = self._fun[n]
-            funs["displacement"].x.array[:] = b.u.ravel()
-            funs["velocity"].x.array[:] = b.v.ravel()
-            s = funs["stress"].x.array.reshape(-1, 4)
-            s[c4] = b.cell_stress
-            funs["von_mises"].x.array[c1] = b.von_mises
-            funs["eps_p"].x.array[c1] = b.eps_p
-            for f in funs.values():
-                f.x.scatter_forward()
-                self._files[n].write_function(f, t)
+            own = slice(0, b.n_owned)
+            local = (self._gids[n], b.u[own], b.v[own], b.cell_stress, b.von_mises, b.eps_p)
+            parts = self.comm.gather(local, root=0)
+            if self.comm.rank != 0:
+                continue
+            f = self._files[n]
+            u = np.zeros((f.n_points, 2))
+            v = np.zeros((f.n_points, 2))
+            for gid, ui, vi, *_ in parts:
+                u[gid] = ui
+                v[gid] = vi
+            s = np.vstack([p[3].reshape(-1, 4) for p in parts])
+            vm = np.concatenate([p[4] for p in parts])
+            ep = np.concatenate([p[5] for p in parts])
+            f.write(t, {"displacement_m": _vec3(u), "velocity_m_s": _vec3(v)},
+                    {"stress_Pa": _tensor6(s), "von_mises_Pa": vm.astype(float),
+                     "plastic_strain": ep.astype(float)})
 
     def close(self) -> None:
         """Close the files."""
-        for xf in self._files.values():
-            xf.close()
+        for f in self._files.values():
+            f.close()
         self._files = {}
 
     def __enter__(self):

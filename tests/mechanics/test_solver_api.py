@@ -79,19 +79,46 @@ def test_pressure_nodal_forces_resultant():
 
 
 def test_field_writer(tmp_path):
+    """One mesh per body, all fields per output time, exact times, the stress tensor per cell equal
+    to the solver's cell values; meshio's time-series reader and h5py read the same."""
+    import h5py
+    import meshio
+
     s = _two_bars()
-    s.advance(s.stable_time_step(), 5)
     w = FieldWriter(s, tmp_path / "fields")
-    w.write(s.time)
-    s.advance(s.stable_time_step(), 5)
-    w.write(s.time)
+    w.write(0.0)
+    expect = {}
+    for t_out in (3e-5, 6e-5):
+        s.advance(s.stable_time_step(), 5)
+        w.write(t_out + 3.5e-20)  # a milestone reached by summed steps
+        expect[t_out] = {n: (b.u.copy(), b.cell_stress.copy(), b.von_mises.copy(), b.eps_p.copy())
+                         for n, b in s.bodies.items()}
     w.close()
-    for n in ("left", "right"):
+    for n, b in s.bodies.items():
         xdmf = tmp_path / f"fields_{n}.xdmf"
-        assert xdmf.exists() and (tmp_path / f"fields_{n}.h5").exists()
-        text = xdmf.read_text()
-        for name in ("displacement", "velocity", "stress", "von_mises", "eps_p"):
-            assert name in text
+        with meshio.xdmf.TimeSeriesReader(xdmf) as r:
+            points, cells = r.read_points_cells()
+            assert len(cells) == 1 and cells[0].type == "triangle"
+            assert np.array_equal(points[:, :2], b.X0) and np.array_equal(cells[0].data, b.cells)
+            assert r.num_steps == 3
+            for k, t_out in enumerate((0.0, 3e-5, 6e-5)):
+                t, pd, cd = r.read_data(k)
+                assert t == t_out  # exact, not 6.0000000000000035e-05
+                assert set(pd) == {"displacement_m", "velocity_m_s"}
+                assert set(cd) == {"stress_Pa", "von_mises_Pa", "plastic_strain"}
+                if k:
+                    u, st, vm, ep = expect[t_out][n]
+                    assert np.array_equal(pd["displacement_m"][:, :2], u)
+                    assert np.array_equal(cd["stress_Pa"][0][:, :4], st)
+                    assert not cd["stress_Pa"][0][:, 4:].any()
+                    assert np.array_equal(cd["von_mises_Pa"][0], vm)
+                    assert np.array_equal(cd["plastic_strain"][0], ep)
+        with h5py.File(tmp_path / f"fields_{n}.h5", "r") as f:
+            assert list(f["times"][:]) == [0.0, 3e-5, 6e-5]
+            d = f["Step_0002/stress_Pa"]
+            assert d.attrs["components"] == "xx yy zz xy yz xz"
+            assert np.array_equal(d[:, :4], expect[6e-5][n][1])
+            assert f.attrs["body"] == n and f.attrs["formulation"] == "plane_strain"
 
 
 def test_input_validation():
