@@ -168,10 +168,25 @@ def _cmd_run(args: argparse.Namespace) -> int:
             print("  --- log tail ---\n" + "\n".join("  " + ln for ln in exc.details.splitlines()), file=sys.stderr)
         return code
     if not args.quiet:
+        for line in _summary(case, metrics, out):
+            print(line)
         print(f"results: {out}")
         for k in sorted(metrics):
             print(f"  {k} = {metrics[k]:.6g}")
     return EXIT_OK
+
+
+def _summary(case, metrics: dict, out: Path) -> list[str]:
+    """The headline lines of a finished run (:func:`.summary.headline`), indented under ``summary:``."""
+    from .history import History
+    from .summary import headline
+
+    try:
+        history = History.read(out / "history.csv")
+    except (OSError, ValueError):
+        history = None
+    lines = [h.text() for h in headline(case, metrics, history)]
+    return ["summary:"] + ["  " + ln for ln in lines] if lines else []
 
 
 def _cmd_check(args: argparse.Namespace) -> int:

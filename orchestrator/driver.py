@@ -322,8 +322,9 @@ def _coupled_participants(case: Case, results: ResultsFolder, comm: MPI.Comm):
 
 
 def body_extremes(solver, comm: MPI.Comm) -> dict[str, float]:
-    """Per body: largest |u_x| and |u_y| (m), largest speed (m/s) and y-momentum Σ m v_y (N·s;
-    full ring in axisymmetry; velocities as the solver stores them, at the last half step)."""
+    """Per body: largest |u_x| and |u_y| (m), largest speed (m/s), y-momentum Σ m v_y (N·s;
+    full ring in axisymmetry; velocities as the solver stores them, at the last half step) and
+    largest cell von Mises stress (Pa)."""
     out = {}
     for name, b in solver.bodies.items():
         own = slice(0, b.n_owned)
@@ -334,6 +335,8 @@ def body_extremes(solver, comm: MPI.Comm) -> dict[str, float]:
         out[f"{name}_max_uy_m"] = comm.allreduce(uy, op=MPI.MAX)
         out[f"{name}_max_speed_m_s"] = comm.allreduce(sp, op=MPI.MAX)
         out[f"{name}_momentum_y_Ns"] = comm.allreduce(float(b.mass[own] @ b.v[own, 1]), op=MPI.SUM)
+        vm = b.von_mises
+        out[f"{name}_max_von_mises_Pa"] = comm.allreduce(float(vm.max()) if len(vm) else 0.0, op=MPI.MAX)
     return out
 
 
@@ -374,6 +377,7 @@ def mech_metrics(solver, case: Case, history: History) -> dict[str, float]:
         out[f"{b.name}_max_ux_mm"] = float(history.column(f"{b.name}_max_ux_m").max()) * 1e3
         out[f"{b.name}_max_uy_mm"] = float(history.column(f"{b.name}_max_uy_m").max()) * 1e3
         out[f"{b.name}_max_speed_m_s"] = float(history.column(f"{b.name}_max_speed_m_s").max())
+        out[f"{b.name}_max_von_mises_MPa"] = float(history.column(f"{b.name}_max_von_mises_Pa").max()) / 1e6
         if b.region == "workpiece" and case.geometry is not None:
             if case.geometry.type == "flat_coil_sheet":
                 out["max_deflection_mm"] = out[f"{b.name}_max_uy_mm"]

@@ -1,0 +1,124 @@
+"""The headline figures of a finished run, as labelled values (the CLI prints them before the metrics).
+
+Only the lines that apply to the case: the bank energy ½ C V0² of a capacitor circuit, the peak coil
+current (coupled), the force impulse (loaded cases), the largest deflection (or displacement) and
+speed of the workpiece (or of any body), the peak von Mises stress of a die (or collar), and where
+the energy went: the peak kinetic energy and the plastic work in % of the bank energy, of the
+external work of the loads (pressure pulses, a prescribed coil current), or, for an impact without
+loads, of the initial kinetic energy.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .units import time_axis
+
+#: body regions (and, for mechanics cases, body names) whose peak stress is a die's
+DIE_REGIONS = ("die", "outer_tube")
+
+
+@dataclass(frozen=True)
+class Headline:
+    """One line of the summary: ``label``, ``value`` in ``unit``, and an optional ``note``."""
+
+    label: str
+    value: float
+    unit: str
+    note: str = ""
+
+    def text(self, width: int = 28) -> str:
+        """``label  value unit  note`` on one line."""
+        note = f"  {self.note}" if self.note else ""
+        value = f"{self.value:.3g}" if self.unit == "%" else f"{self.value:.4g}"
+        return f"{self.label:<{width}}{value} {self.unit}{note}"
+
+
+def energy_text(joules: float) -> str:
+    """``"900 J"``, ``"1.12 MJ"``: an energy with 3 significant digits and a fitting prefix."""
+    for factor, unit in ((1e9, "GJ"), (1e6, "MJ"), (1e3, "kJ")):
+        if abs(joules) >= factor:
+            return f"{joules / factor:.3g} {unit}"
+    return f"{joules:.3g} J"
+
+
+def headline(case, metrics: dict[str, float], history) -> list[Headline]:
+    """The summary of a run of ``case`` from its metrics and :class:`~.history.History`."""
+    cols = set(history.columns) if history is not None and history.rows else set()
+    col = history.column if cols else None
+    axis = time_axis(case.time.end)
+
+    def at(column: str) -> str:
+        """``at <time of the column's largest |value|>``."""
+        if column not in cols:
+            return ""
+        t = col("time_s")[int(np.argmax(np.abs(col(column))))]
+        return f"at {t * axis.scale:.4g} {axis.unit}"
+
+    out: list[Headline] = []
+    circuit = case.em.circuit if case.case.kind == "coupled" and case.em is not None else None
+    bank = None
+    if circuit is not None and case.coupling.load != "pressure":
+        bank = 0.5 * circuit.capacitance * circuit.voltage ** 2
+        out.append(Headline("bank energy", bank, "J",
+                            f"½ C V0², {circuit.capacitance * 1e6:.4g} µF at {circuit.voltage / 1e3:.4g} kV"))
+    if "coil_current_peak_kA" in metrics:
+        out.append(Headline("peak coil current", metrics["coil_current_peak_kA"], "kA", at("coil_current_A")))
+    if "force_impulse_Ns" in metrics:
+        out.append(Headline("force impulse", metrics["force_impulse_Ns"], "N·s"))
+
+    workpiece = [b.name for b in case.bodies if b.region == "workpiece"]
+    movers = workpiece or [b.name for b in case.bodies]
+    if "max_deflection_mm" in metrics:
+        out.append(Headline("max deflection", metrics["max_deflection_mm"], "mm", _whose(workpiece)))
+    elif "max_radial_displacement_mm" in metrics:
+        out.append(Headline("max radial displacement", metrics["max_radial_displacement_mm"], "mm", _whose(workpiece)))
+    else:
+        disp = {n: max(metrics.get(f"{n}_max_ux_mm", np.nan), metrics.get(f"{n}_max_uy_mm", np.nan))
+                for n in movers if f"{n}_max_ux_mm" in metrics}
+        if disp:
+            name = max(disp, key=disp.get)
+            out.append(Headline("max displacement", disp[name], "mm", f"({name})"))
+    speeds = {n: metrics[f"{n}_max_speed_m_s"] for n in movers if f"{n}_max_speed_m_s" in metrics}
+    if speeds:
+        name = max(speeds, key=speeds.get)
+        when = at(f"{name}_max_speed_m_s")
+        out.append(Headline("max speed", speeds[name], "m/s", f"{when} ({name})".strip()))
+
+    for b in case.bodies:
+        is_die = b.region in DIE_REGIONS or (b.region is None and b.name == "die")
+        key = f"{b.name}_max_von_mises_MPa"
+        if is_die and key in metrics:
+            out.append(Headline(f"peak von Mises, {b.name}", metrics[key], "MPa", at(f"{b.name}_max_von_mises_Pa")))
+
+    out.extend(_energy_lines(bank, metrics, history, cols))
+    return out
+
+
+def _whose(names: list[str]) -> str:
+    return f"({names[0]})" if len(names) == 1 else ""
+
+
+def _energy_lines(bank: float | None, metrics: dict[str, float], history, cols: set[str]) -> list[Headline]:
+    """Peak kinetic energy and plastic work in % of the energy put in."""
+    if "energy_kinetic_J" not in cols:
+        return []
+    ke = history.column("energy_kinetic_J")
+    plastic = float(history.column("energy_plastic_J")[-1]) if "energy_plastic_J" in cols else \
+        metrics.get("plastic_work_J", 0.0)
+    external = float(history.column("energy_external_work_J")[-1]) if "energy_external_work_J" in cols else 0.0
+    if bank is not None and bank > 0.0:
+        ref, of = bank, "of the bank energy"
+    elif external > 0.0:
+        ref, of = external, "of the external work"
+    elif ke[0] > 0.0:  # an impact: the energy it starts with
+        return [Headline("kinetic energy at the end", 100.0 * float(ke[-1]) / ke[0], "%",
+                         f"of the initial {energy_text(ke[0])}"),
+                Headline("plastic work", 100.0 * plastic / ke[0], "%",
+                         f"of the initial kinetic energy ({energy_text(plastic)})")]
+    else:
+        return []
+    return [Headline("peak kinetic energy", 100.0 * float(ke.max()) / ref, "%", f"{of} ({energy_text(ke.max())})"),
+            Headline("plastic work", 100.0 * plastic / ref, "%", f"{of} ({energy_text(plastic)})")]
