@@ -314,32 +314,18 @@ def _picture_module(module: str, function: str, skip):
 
 
 def read_shapes(root: Path, case, skip) -> list | None:
-    """Node positions of every body at each stored field time, from ``fields/`` (meshio):
+    """Node positions of every body at each stored field time, from ``fields/`` (:mod:`.mech_fields`):
     ``[(t, {body: (N, 2) positions}), ...]``; None (with a skip line) if the fields cannot be read."""
-    import numpy as np
-
     try:
-        import meshio
+        from .mech_fields import read_fields
 
+        bodies = read_fields(root)
         per_time: dict[float, dict] = {}
-        for b in case.bodies:
-            files = [root / "fields" / f"{case.case.name}_{b.name}.xdmf"]
-            files += sorted((root / "fields").glob(f"{case.case.name}_part*_{b.name}.xdmf"),
-                            key=lambda p: int(p.name[len(case.case.name) + 5:].split("_")[0]))
-            for path in files:
-                if not path.is_file():
-                    continue
-                with meshio.xdmf.TimeSeriesReader(str(path)) as reader:
-                    points, _ = reader.read_points_cells()
-                    for k in range(reader.num_steps):
-                        t, point_data, _ = reader.read_data(k)
-                        key = next((n for n in point_data if n.startswith("displacement")), None)
-                        if key is None:
-                            raise ValueError(f"{path.name}: no displacement among {sorted(point_data)}")
-                        x = np.asarray(points)[:, :2] + np.asarray(point_data[key])[:, :2]
-                        per_time.setdefault(round(float(t), 15), {})[b.name] = x
-        shapes = [(t, bodies) for t, bodies in sorted(per_time.items()) if len(bodies) == len(case.bodies)]
-    except (Exception, SystemExit) as exc:  # meshio exits on XDMF it cannot parse
+        for name, bf in bodies.items():
+            for k, t in enumerate(bf.times):
+                per_time.setdefault(float(t), {})[name] = bf.current(k)
+        shapes = [(t, pos) for t, pos in sorted(per_time.items()) if len(pos) == len(bodies)]
+    except Exception as exc:  # an older or damaged folder: the other pictures are still drawn
         skip(f"body shapes not readable from fields/ ({type(exc).__name__}: {str(exc)[:120]}): shape plots skipped")
         return None
     if not shapes:
