@@ -1,0 +1,190 @@
+"""Issue 14: units from a table, one time unit per run, the t = 0 history row, `pulseform plot`,
+and the summary `pulseform run` prints (short runs of the demo, bar impact and the press fit)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pulseform.orchestrator.caseio import load_case
+from pulseform.orchestrator.history import History
+from pulseform.orchestrator.summary import headline
+from pulseform.orchestrator.units import label, time_axis, unit_of
+
+REPO = Path(__file__).resolve().parents[2]
+EXE = str(Path(sys.executable).with_name("pulseform"))
+DEMO_SHORT = ["--set", "time.end=2e-6", "--set", "output.field_interval=1e-6"]
+BAR_COARSE = ["--set", "bodies.left.mesh_size=0.25", "--set", "bodies.right.mesh_size=0.25"]
+
+
+def _run(case: str, out: Path, *extra: str) -> subprocess.CompletedProcess:
+    r = subprocess.run([EXE, "run", str(REPO / "cases" / case), "--out", str(out), *extra],
+                       capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr[-3000:]
+    return r
+
+
+@pytest.fixture(scope="module")
+def demo(tmp_path_factory):
+    out = tmp_path_factory.mktemp("pictures") / "demo"
+    return out, _run("emf_sheet_bulge", out, *DEMO_SHORT)
+
+
+@pytest.fixture(scope="module")
+def bar(tmp_path_factory):
+    out = tmp_path_factory.mktemp("pictures") / "bar"
+    return out, _run("bar_impact", out, *BAR_COARSE)
+
+
+def _columns(out: Path) -> list[str]:
+    return History.read(out / "history.csv").columns + list(json.loads((out / "metrics.json").read_text()))
+
+
+# ------------------------------------------------------------------ units
+def test_units_of_named_columns():
+    assert unit_of("sheet_max_speed_m_s").shown == "m/s"
+    assert unit_of("sheet_max_uy_m").shown == "mm" and unit_of("sheet_max_uy_m").scale == 1e3
+    assert unit_of("contact_mid_contact_pressure_Pa").shown == "MPa"
+    assert unit_of("conservation_error_rel").shown == "-"
+    assert unit_of("em_mesh_min_quality").shown == "-"
+    assert unit_of("dt_s").shown == "µs"
+    assert unit_of("coil_current_peak_kA").shown == "kA"
+    assert label("left_momentum_y_Ns") == "left_momentum_y_Ns [N·s]"
+    assert label("some_new_column_xyz") == "some_new_column_xyz [?]"  # unknown: visible, not guessed
+
+
+def test_one_time_unit_per_run_length():
+    assert time_axis(60e-6).unit == "µs" and time_axis(60e-6).scale == 1e6
+    assert time_axis(2.2e-3).unit == "µs"          # bar impact: a pulse too
+    assert time_axis(16e-3).unit == "ms"
+    assert time_axis(100.0).unit == "s"
+
+
+@pytest.mark.getdp
+def test_every_column_of_a_demo_run_has_a_unit(demo):
+    unknown = [c for c in _columns(demo[0]) if not unit_of(c).known]
+    assert not unknown, f"add these columns to orchestrator/units.RULES: {unknown}"
+
+
+def test_every_column_of_a_mechanics_run_has_a_unit(bar):
+    unknown = [c for c in _columns(bar[0]) if not unit_of(c).known]
+    assert not unknown, f"add these columns to orchestrator/units.RULES: {unknown}"
+
+
+# ------------------------------------------------------------------ t = 0 row
+@pytest.mark.getdp
+def test_demo_t0_row_holds_the_charged_bank(demo):
+    h = History.read(demo[0] / "history.csv")
+    first = dict(zip(h.columns, h.rows[0]))
+    assert first["time_s"] == 0.0
+    assert first["capacitor_voltage_V"] == 6000.0         # charged to V0, not 0
+    assert first["coil_current_A"] == 0.0 and first["force_y_N"] == 0.0 and first["magnetic_energy_J"] == 0.0
+    q = h.column("em_mesh_min_quality")
+    assert q[0] > 0.0 and q[0] == pytest.approx(q[1], rel=1e-3)  # the fresh mesh's quality, not 0
+    vc = h.column("capacitor_voltage_V")
+    assert np.all(np.diff(vc[:4]) < 0), "the bank discharges from V0 (no ramp up from 0)"
+
+
+@pytest.fixture(scope="module")
+def press_fit(tmp_path_factory):
+    """The press fit for two steps, run with output.plots = false."""
+    out = tmp_path_factory.mktemp("pictures") / "tpf"
+    _run("tube_press_fit", out, "--quiet", "--set", "time.end=2e-7", "--set", "output.field_interval=1e-7",
+         "--set", "output.history_every=1", "--set", "bodies.inner.mesh_size=1e-3",
+         "--set", "bodies.outer.mesh_size=1e-3", "--set", "output.plots=false")
+    return out
+
+
+def test_pressure_t0_row_holds_the_pulse_at_t0(press_fit):
+    """Eq. (8) starts at p0: the t = 0 row has p0 and its force, equal to the first step's (n = 1
+    evaluates the pulse at the step's start)."""
+    h = History.read(press_fit / "history.csv")
+    p, fx = h.column("load0_pressure_Pa"), h.column("force_x_N")
+    assert p[0] == 350e6
+    assert fx[0] > 0.0 and fx[0] == pytest.approx(fx[1], rel=1e-12)
+
+
+# ------------------------------------------------------------------ pulseform plot
+def _plot(folder: Path) -> subprocess.CompletedProcess:
+    return subprocess.run([EXE, "plot", str(folder)], capture_output=True, text=True)
+
+
+def test_plot_redraws_the_pictures_of_a_run(bar, tmp_path):
+    out = bar[0]
+    drawn_by_run = {p.name for p in (out / "plots").glob("*.png")}
+    assert {"energies.png", "time_step.png", "contact_mid_contact_pressure_Pa.png"} <= drawn_by_run
+    for p in (out / "plots").glob("*.png"):
+        p.unlink()
+    r = _plot(out)
+    assert r.returncode == 0, r.stderr
+    assert {p.name for p in (out / "plots").glob("*.png")} == drawn_by_run
+    assert f"pictures: {out / 'plots'}" in r.stdout and "energies.png" in r.stdout
+
+
+def test_plot_draws_a_run_made_without_plots(press_fit):
+    """output.plots = false: the run draws nothing; `pulseform plot` draws the history plots, the
+    case analysis' pictures and the shapes from the field files."""
+    assert not list((press_fit / "plots").glob("*.png"))
+    r = _plot(press_fit)
+    assert r.returncode == 0, r.stderr
+    names = {p.name for p in (press_fit / "plots").glob("*.png")}
+    assert {"energies.png", "load0_pressure_Pa.png", "press_fit_displacements.png"} <= names, names
+
+
+def test_plot_refuses_a_folder_that_is_not_a_run(tmp_path):
+    (tmp_path / "x").mkdir()
+    for folder in (tmp_path / "x", tmp_path / "missing"):
+        r = _plot(folder)
+        err = [ln for ln in r.stderr.splitlines() if ln.strip()]
+        assert r.returncode == 2 and len(err) == 1 and "not a results folder" in err[0], r.stderr
+
+
+# ------------------------------------------------------------------ summary
+def _summary(stdout: str) -> list[str]:
+    """The lines between ``summary:`` and ``results:`` (which comes before the metrics)."""
+    lines = stdout.splitlines()
+    start, end = lines.index("summary:"), next(i for i, ln in enumerate(lines) if ln.startswith("results:"))
+    assert start < end
+    return [ln.strip() for ln in lines[start + 1:end]]
+
+
+@pytest.mark.getdp
+def test_demo_summary_before_the_metrics(demo):
+    lines = _summary(demo[1].stdout)
+    labels = [ln.split("  ")[0] for ln in lines]
+    assert labels == ["bank energy", "peak coil current", "force impulse", "max deflection", "max speed",
+                      "peak kinetic energy", "plastic work"], lines
+    assert lines[0].split()[2:4] == ["900", "J"]           # ½ · 50 µF · (6 kV)²
+    m = json.loads((demo[0] / "metrics.json").read_text())
+    assert f"{m['coil_current_peak_kA']:.4g} kA" in lines[1]
+    assert "% " in lines[5] and "of the bank energy" in lines[5]
+
+
+def test_bar_summary_only_the_lines_that_apply(bar):
+    lines = _summary(bar[1].stdout)
+    text = "\n".join(lines)
+    assert "bank energy" not in text and "coil current" not in text and "impulse" not in text
+    assert lines[0].startswith("max displacement") and lines[1].startswith("max speed")
+    assert "kinetic energy at the end" in text and "of the initial" in text
+
+
+def test_summary_names_the_die_peak_stress():
+    """A case with a die: its peak von Mises stress (from the run's metrics) is a line."""
+    case, _ = load_case(REPO / "cases" / "corner_fill")
+    h = History(Path("unused"))
+    for t, ke in ((0.0, 0.0), (1e-5, 2.0), (2e-5, 1.0)):
+        h.record({"time_s": t, "energy_kinetic_J": ke, "energy_plastic_J": 0.5 * t / 2e-5,
+                  "energy_external_work_J": 4.0 * t / 2e-5, "die_max_von_mises_Pa": 3e8 * t / 2e-5})
+    metrics = {"die_max_von_mises_MPa": 300.0, "blank_max_ux_mm": 0.1, "blank_max_uy_mm": 1.2,
+               "blank_max_speed_m_s": 40.0, "die_max_ux_mm": 0.01, "die_max_uy_mm": 0.02, "die_max_speed_m_s": 1.0,
+               "force_impulse_Ns": 0.3}
+    lines = {h_.label: h_ for h_ in headline(case, metrics, h)}
+    assert lines["peak von Mises, die"].value == 300.0 and lines["peak von Mises, die"].unit == "MPa"
+    assert lines["peak kinetic energy"].value == pytest.approx(50.0)  # 2 J of 4 J external work
+    assert lines["plastic work"].value == pytest.approx(12.5)
+    assert "bank energy" not in lines
