@@ -35,7 +35,9 @@ fi
 stamp=.venv/.pulseform-installed
 if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ] || ! .venv/bin/python -c "import pulseform.orchestrator" 2>/dev/null; then
   echo "pulseform setup: pip install -e . (constrained to Debian's numpy)"
+  # --no-deps in both: pyproject.toml lists what the code imports, but Debian provides it (apt above);
+  # pip resolving that list would download h5py and gmsh again (Debian ships them without pip's names)
   .venv/bin/python -m pip install -q --no-build-isolation --no-deps --no-index -c constraints.txt -e . \
-    || .venv/bin/python -m pip install -q --no-build-isolation -c constraints.txt -e .
+    || .venv/bin/python -m pip install -q --no-build-isolation --no-deps -c constraints.txt -e .
   touch "$stamp"
 fi
