@@ -139,26 +139,6 @@ def plot_em_snapshot(points, triangles, data: dict, folder: Path, t: float, box=
     return _save(fig, folder / "em_force_density.png")
 
 
-def plot_shapes(shapes: list, folder: Path, axisymmetric: bool) -> Path:
-    """Node positions of every body at each field-output time (mm), coloured by time."""
-    import numpy as np
-
-    fig, ax = plt.subplots(figsize=(8, 4))
-    cmap = plt.get_cmap("viridis")
-    times = [t for t, _ in shapes]
-    tmax = max(times[-1], 1e-300)
-    for t, bodies in shapes:
-        for x in bodies.values():
-            ax.plot(x[:, 0] * 1e3, x[:, 1] * 1e3, ".", ms=1.0, color=cmap(t / tmax))
-    sm = plt.cm.ScalarMappable(cmap=cmap, norm=plt.Normalize(0, tmax * 1e6))
-    fig.colorbar(sm, ax=ax, label="time [µs]")
-    ax.set_xlabel("r [mm]" if axisymmetric else "x [mm]")
-    ax.set_ylabel("z [mm]" if axisymmetric else "y [mm]")
-    ax.set_title("Shapes at the field-output times (axes not to scale)")
-    ax.grid(alpha=0.3)
-    return _save(fig, folder / "shapes.png")
-
-
 # ---------------------------------------------------------------------------------------------------
 # every picture of a results folder: the end of a run and `pulseform plot` call this
 
@@ -262,10 +242,8 @@ def draw_all(results_dir: Path, *, case=None, history: History | None = None, sh
         before = _stamps(folder)
         attempt(f"analysis {type(a).__name__}", a.plots, history, shapes or [], folder)
         done.paths.extend(p for p, s in _stamps(folder).items() if before.get(p) != s)
-    if mech is not None:
+    if mech is not None:  # shapes.png (workpiece outlines) and the 3D pictures, from fields/
         attempt("mechanics pictures", mech, root)
-    elif shapes and "plot_shapes" in globals() and case is not None:
-        attempt("shapes", globals()["plot_shapes"], shapes, folder, case.mechanics.formulation == "axisymmetric")
 
     if case is not None and case.case.kind == "coupled":
         em = _picture_module(*PICTURE_MODULES[1], skip)

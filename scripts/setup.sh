@@ -7,7 +7,8 @@ cd "$here"
 
 APT_PACKAGES=(getdp gmsh python3-gmsh python3-dolfinx python3-meshio python3-h5py python3-scipy
   python3-pytest python3-mpi4py python3-numba python3-matplotlib python3-hypothesis python3-tqdm
-  python3-tomli-w python3-venv python3-pip python3-setuptools python3-dev gcc openmpi-bin)
+  python3-tomli-w python3-venv python3-pip python3-setuptools python3-dev gcc openmpi-bin
+  libegl1 libegl-mesa0 libgl1-mesa-dri)  # the last three: VTK's off-screen rendering through Mesa (EGL)
 
 missing=()
 for p in "${APT_PACKAGES[@]}"; do
@@ -40,4 +41,12 @@ if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ] || ! .venv/bin/python -c
   .venv/bin/python -m pip install -q --no-build-isolation --no-deps --no-index -c constraints.txt -e . \
     || .venv/bin/python -m pip install -q --no-build-isolation --no-deps -c constraints.txt -e .
   touch "$stamp"
+fi
+
+# 3D pictures (orchestrator/pictures_mech.py): pyvista and VTK, which Debian 12 lacks, from PyPI,
+# constrained to Debian's numpy (constraints.txt pins them too); VTK renders off-screen through
+# Mesa's EGL (apt above), no display needed.
+if ! .venv/bin/python -c "import importlib.util as u, sys; sys.exit(not (u.find_spec('pyvista') and u.find_spec('vtk')))"; then
+  echo "pulseform setup: pip install pyvista vtk (constrained to Debian's numpy)"
+  .venv/bin/python -m pip install -q -c constraints.txt pyvista vtk
 fi
