@@ -2,8 +2,14 @@
 
 One EM step k covers [t_k, t_k + n·dt_mech]:
 
-1. ``dt_mech`` is the mechanics' stable step (capped by ``dt_max``); near a milestone the last EM
-   step takes ``ceil(remaining / dt_mech)`` equal substeps so that it lands exactly on it.
+1. ``dt_mech`` is the mechanics' stable step (capped by ``dt_max``) and H = n·dt_mech the nominal EM
+   step. EM steps land exactly on every milestone (output time) without a short step there
+   (``landing = "even"``, the default): the m = ceil(remaining / H) EM steps left to the next
+   milestone are made equal, remaining / m ≤ H, each of ceil(step / dt_mech) equal substeps, and
+   an EM step is never more than ``max_growth`` (2) times the previous one. Shrinking only the
+   last EM step before a milestone (``landing = "last"``, the mechanics-only cases: the explicit
+   scheme has no step-ratio limit) made the next EM step up to n times longer; variable-step BDF2
+   is zero-stable only for ratios below 1 + √2, and the coil voltage rang at every output time.
 2. The load provider computes nodal forces on the *current* geometry for that interval (GetDP: the
    mean of its implicit sub-steps; pressure and analytic loads: at t0 + (n − 1)·dt/2, the centre of
    the window over which central differences deliver the held force's impulse: a force passed to
@@ -45,6 +51,15 @@ class LoopOptions:
     iterate : bool
         Repeat each EM step on the geometry reached at its end until the resultant and the
         displacement change by less than ``iterate_tol`` (relative), at most ``iterate_max`` times.
+    landing : {"even", "last"}
+        How EM steps land on a milestone. "even": the EM steps left to it are equal (the step
+        changes smoothly, an output time does not perturb the EM time scheme); "last": full steps,
+        then one shorter step (only for the mechanics alone, whose explicit scheme has no
+        step-ratio limit; keeps the mechanics cases' figures).
+    max_growth : float
+        "even" only: an EM step is at most this many times the previous one (variable-step BDF2 is
+        zero-stable for ratios below 1 + √2 ≈ 2.41), also when n doubles (adaptive) or the stable
+        mechanical step grows.
     """
 
     n: int = 10
@@ -55,12 +70,17 @@ class LoopOptions:
     iterate: bool = False
     iterate_tol: float = 1e-3
     iterate_max: int = 10
+    landing: str = "even"
+    max_growth: float = 2.0
 
     def __post_init__(self) -> None:
         if not 1 <= self.n_min <= self.n <= self.n_max:
             raise ValueError(f"need 1 <= n_min <= n <= n_max, got {self.n_min}, {self.n}, {self.n_max}")
         if self.adapt_tol <= 0 or self.iterate_tol <= 0 or self.iterate_max < 1:
             raise ValueError("adapt_tol and iterate_tol must be > 0, iterate_max >= 1")
+        if self.landing not in ("even", "last") or not self.max_growth > 1.0:
+            raise ValueError(f"landing must be 'even' or 'last' and max_growth > 1, got {self.landing!r}, "
+                             f"{self.max_growth}")
 
 
 @dataclass
@@ -79,12 +99,14 @@ class LoopCounters:
     f_scale: float = 0.0
     last_values: dict[str, float] = field(default_factory=dict)
     last_resultant: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    last_em_step: float = 0.0  # length of the last EM step (s); 0 before the first
 
     def state_dict(self) -> dict[str, np.ndarray]:
         """As arrays, for checkpoints."""
         return {"counters": np.array([self.em_steps, self.ledger_max, self.em_time_s, self.mech_time_s, self.n,
                                       self.iterations, self.iterations_max, self.unconverged, self.f_scale]),
-                "impulse": self.impulse.copy(), "last_resultant": self.last_resultant.copy()}
+                "impulse": self.impulse.copy(), "last_resultant": self.last_resultant.copy(),
+                "last_em_step": np.array([self.last_em_step])}
 
     def load_state_dict(self, d: dict[str, np.ndarray]) -> None:
         """Restore :meth:`state_dict`."""
@@ -94,6 +116,7 @@ class LoopCounters:
         self.f_scale = float(fs)
         self.impulse = d["impulse"].copy()
         self.last_resultant = d["last_resultant"].copy()
+        self.last_em_step = float(d["last_em_step"][0]) if "last_em_step" in d else 0.0  # older checkpoints
 
 
 class StaggeredLoop:
@@ -123,15 +146,27 @@ class StaggeredLoop:
         return self.counters.n
 
     def substeps(self, t_stop: float) -> tuple[float, int]:
-        """(dt_mech, number of substeps) of the next EM step, landing exactly on ``t_stop``."""
+        """(dt_mech, number of substeps) of the next EM step, landing exactly on ``t_stop``.
+
+        A function of the current time, stable step, n and the previous EM step's length only
+        (all in the checkpoint), so a resumed run takes the same steps.
+        """
         dt = self.mech.stable_time_step()
         if self.dt_max is not None:
             dt = min(dt, self.dt_max)
         remaining = t_stop - self.mech.time
-        if self.n * dt >= remaining * (1.0 - 1e-12):
-            k = max(1, math.ceil(remaining / dt - 1e-9))
-            return remaining / k, k
-        return dt, self.n
+        if self.options.landing == "last":
+            if self.n * dt >= remaining * (1.0 - 1e-12):
+                k = max(1, math.ceil(remaining / dt - 1e-9))
+                return remaining / k, k
+            return dt, self.n
+        h = self.n * dt
+        if self.counters.last_em_step > 0.0:
+            h = min(h, self.options.max_growth * self.counters.last_em_step)
+        m = max(1, math.ceil(remaining / h * (1.0 - 1e-12)))  # EM steps left to the milestone, all equal
+        step = remaining / m
+        k = max(1, math.ceil(step / dt * (1.0 - 1e-13)))  # step / k <= dt (1 + 1e-13)
+        return step / k, k
 
     def em_step(self, t_stop: float) -> dict[str, float]:
         """One EM step followed by its mechanical substeps; returns the step's scalars."""
@@ -154,6 +189,7 @@ class StaggeredLoop:
             step, resultant, iterations = self._iterate(saved, step, resultant, dt, k, t0, t1, t_mid)
         err = ledger_error(resultant[None, :], step.reference_integral) if step.reference_integral is not None else 0.0
         c.em_steps += 1
+        c.last_em_step = dt * k
         c.impulse += resultant * (t1 - t0)
         c.ledger_max = max(c.ledger_max, err)
         c.iterations += iterations
