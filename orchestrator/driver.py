@@ -336,9 +336,18 @@ def body_extremes(solver, comm: MPI.Comm) -> dict[str, float]:
         out[f"{name}_max_uy_m"] = comm.allreduce(uy, op=MPI.MAX)
         out[f"{name}_max_speed_m_s"] = comm.allreduce(sp, op=MPI.MAX)
         out[f"{name}_momentum_y_Ns"] = comm.allreduce(float(b.mass[own] @ b.v[own, 1]), op=MPI.SUM)
-        vm = b.von_mises
-        out[f"{name}_max_von_mises_Pa"] = comm.allreduce(float(vm.max()) if len(vm) else 0.0, op=MPI.MAX)
+        out[f"{name}_max_von_mises_Pa"] = comm.allreduce(max_von_mises(b.cell_stress), op=MPI.MAX)
     return out
+
+
+def max_von_mises(stress: np.ndarray) -> float:
+    """Largest von Mises stress (Pa) of cell stresses (C, 4: xx, yy, zz, xy), as ``body.von_mises``
+    but in half its time (one pass: 3 J2 = s·s + s_xy² − tr²/3; it runs at every history row)."""
+    if not len(stress):
+        return 0.0
+    tr = stress[:, 0] + stress[:, 1] + stress[:, 2]
+    q = np.einsum("ij,ij->i", stress, stress) + stress[:, 3] * stress[:, 3] - tr * tr / 3.0
+    return float(np.sqrt(1.5 * max(float(q.max()), 0.0)))
 
 
 def coupled_metrics(history: History, counters) -> dict[str, float]:
