@@ -285,7 +285,9 @@ def render_fields(results_dir: Path) -> list[Path]:
         # one frame per output time, same camera and colour scale
         p = pv.Plotter(off_screen=True, window_size=(1000, 600))
         p.set_background("white")
-        actors = {n: p.add_mesh(m.copy(), scalar_bar_args=bar, **shown) for n, m in per_time[0].items()}
+        live = {n: m.copy() for n, m in per_time[0].items()}  # the plotter's meshes, updated in place
+        for m in live.values():
+            p.add_mesh(m, scalar_bar_args=bar, **shown)
         scene.camera(p, bounds)
         p.add_axes(color="black", xlabel="x", ylabel="y", zlabel="z")
         text = p.add_text("", position="upper_left", font_size=11, color="black", render=False)
@@ -293,7 +295,9 @@ def render_fields(results_dir: Path) -> list[Path]:
             p.add_text(note, position="lower_right", font_size=9, color="black", render=False)
         for k, t in enumerate(times):
             for n, m in per_time[k].items():
-                actors[n].mapper.dataset.copy_from(m)
+                live[n].points[:] = m.points  # same topology at every output
+                live[n].cell_data["value"][:] = m.cell_data["value"]
+                live[n].Modified()
             text.SetText(2, f"{name}: {title.split(' [')[0]}, {tlabel(float(t))}\n"
                             f"{', '.join(bodies)} ({where}; mm)")
             paths.append(_screenshot(p, frames_dir / f"{stem}_{k:04d}.png"))

@@ -130,7 +130,18 @@ def test_bar_field_files(bar):
 
 
 def test_bar_pictures(bar):
+    """Also: in the last frame both bars are coloured (each body's picture follows the times)."""
+    import matplotlib.image as mpimg
+
     _check_pictures(bar, len(BAR_TIMES))
+    img = mpimg.imread(sorted((bar / "plots" / "mechanics").glob("von_mises_*.png"))[-1])[..., :3]
+    h, w, _ = img.shape
+    body = img[int(0.12 * h):int(0.9 * h), :int(0.8 * w)]  # without the title and the colour bar
+    cols = np.flatnonzero((body.min(axis=2) < 0.9).mean(axis=0) > 0.2)  # columns through the bars
+    mid = (cols[0] + cols[-1]) // 2
+    for half in (body[:, cols[0]:mid - 3], body[:, mid + 3:cols[-1]]):
+        drawn = half[half.min(axis=2) < 0.9]
+        assert len(np.unique((drawn * 255).round().astype(np.uint8), axis=0)) > 20
 
 
 @pytest.mark.getdp
