@@ -71,8 +71,9 @@ def test_every_column_of_a_demo_run_has_a_unit(demo):
     assert not unknown, f"add these columns to orchestrator/units.RULES: {unknown}"
 
 
-def test_every_column_of_a_mechanics_run_has_a_unit(bar):
-    unknown = [c for c in _columns(bar[0]) if not unit_of(c).known]
+def test_every_column_of_a_mechanics_run_has_a_unit(bar, press_fit):
+    """The bar impact, and the press fit with its analysis' columns and a pressure load."""
+    unknown = [c for c in _columns(bar[0]) + _columns(press_fit) if not unit_of(c).known]
     assert not unknown, f"add these columns to orchestrator/units.RULES: {unknown}"
 
 
