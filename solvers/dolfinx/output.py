@@ -28,8 +28,10 @@ owned cells (rank by rank) and writes the files alone; the other ranks write not
 """
 from __future__ import annotations
 
+import errno
 import logging
 import os
+import shutil
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -42,6 +44,8 @@ log = logging.getLogger(__name__)
 FORMAT = "pulseform mechanical fields 1"
 #: component names of ``stress_Pa`` (and the solver's ``cell_stress`` order for the first four)
 STRESS_COMPONENTS = ("xx", "yy", "zz", "xy", "yz", "xz")
+#: free space kept on the disk beyond twice the bytes of a write (HDF5 metadata, the XDMF, the log)
+SPACE_MARGIN = 1 << 20
 POINT_FIELDS = ("displacement_m", "velocity_m_s")
 CELL_FIELDS = ("stress_Pa", "von_mises_Pa", "plastic_strain")
 
@@ -75,6 +79,7 @@ class _BodyFile:
         self.h5_path = path_xdmf.with_suffix(".h5")
         self.body = body
         self.n_points, self.n_cells = points.shape[0], triangles.shape[0]
+        _ensure_space(self.h5_path, points.nbytes + triangles.nbytes)
         self.h5 = h5py.File(self.h5_path, "w")
         a = self.h5.attrs
         a["format"] = FORMAT
@@ -91,6 +96,7 @@ class _BodyFile:
         self.h5.flush()
 
     def write(self, t: float, point: dict[str, np.ndarray], cell: dict[str, np.ndarray]) -> None:
+        _ensure_space(self.h5_path, sum(a.nbytes for a in (*point.values(), *cell.values())))
         k = len(self.times)
         g = self.h5.create_group(f"Step_{k:04d}")
         g.attrs["time"] = t
@@ -146,7 +152,20 @@ class _BodyFile:
         os.replace(tmp, self.xdmf)
 
     def close(self) -> None:
-        self.h5.close()
+        try:
+            self.h5.close()
+        except (OSError, RuntimeError) as exc:  # e.g. a full disk: keep the error that stopped the run
+            log.warning("closing %s: %s", self.h5_path, exc)
+
+
+def _ensure_space(path: Path, nbytes: int) -> None:
+    """Refuse a write (OSError ENOSPC) that would fill the disk, before HDF5 starts it: HDF5 that
+    ran out of space mid-write leaves the file and the library in a state that crashes the process at
+    exit (h5py 3.7 / HDF5 1.10, Debian 12)."""
+    free = shutil.disk_usage(path.parent).free
+    if free < 2 * nbytes + SPACE_MARGIN:
+        raise OSError(errno.ENOSPC, f"No space left on device for {nbytes} bytes of fields "
+                      f"({free} bytes free)", str(path))
 
 
 class FieldWriter:
