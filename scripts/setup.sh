@@ -48,5 +48,7 @@ fi
 # Mesa's EGL (apt above), no display needed.
 if ! .venv/bin/python -c "import importlib.util as u, sys; sys.exit(not (u.find_spec('pyvista') and u.find_spec('vtk')))"; then
   echo "pulseform setup: pip install pyvista vtk (constrained to Debian's numpy)"
-  .venv/bin/python -m pip install -q -c constraints.txt pyvista vtk
+  # --no-warn-conflicts: pip would report the Debian-provided h5py and gmsh of pulseform's own list as
+  # missing (Debian ships them without pip metadata)
+  .venv/bin/python -m pip install -q --no-warn-conflicts -c constraints.txt pyvista vtk
 fi
