@@ -320,7 +320,7 @@ def _cmd_plot(args: argparse.Namespace) -> int:
     drawn = draw_all(root)
     print(f"pictures: {root / 'plots'} ({len(drawn.paths)})")
     for p in drawn.paths:
-        print(f"  {p.name}")
+        print(f"  {p.relative_to(root / 'plots') if p.is_relative_to(root / 'plots') else p}")
     if drawn.failed:
         return _error(f"{len(drawn.failed)} picture group(s) failed: " + "; ".join(drawn.failed), EXIT_FAILED)
     return EXIT_OK
