@@ -9,8 +9,10 @@ keeps in Python what the per-process path keeps in EMState: the force density at
 B and the Joule density are asked for only when the loop reads them (a field output): a query
 message after the step.  A mesh of other connectivity (remesh) ends the process and starts a new
 one seeded with both BDF2 states, interpolated in material coordinates (persistent.seed_from_state).
-Not covered here: resume from a product checkpoint (the restart mechanism itself is checked in
-restart.py).
+A repeated step (coupling.iterate: the loop restores the EM state and calls step again for the
+same step) is sent as a "redo": getdp restores the step's start vectors and steps again on the new
+geometry.  Not covered here: resume from a product checkpoint (the restart mechanism itself is
+checked in restart.py), a remesh inside an iterated step.
 """
 from __future__ import annotations
 
@@ -70,6 +72,9 @@ class PResult:
 
 
 class PersistentSolverAdapter:
+    #: PersistentGetDP(lean=...) for every process (install(lean=True) sets it)
+    lean = False
+
     def __init__(self, model, work_dir, *, time_scheme="euler", **_ignored):
         if time_scheme != "bdf2":
             raise ValueError("the persistent study path implements BDF2 only")
@@ -84,6 +89,8 @@ class PersistentSolverAdapter:
         self.circuit_prev = None   # (Vc, I) of x_{n-1}
         self.material_prev = None
         self.mass_cp = None
+        self._last_call = None   # (state.step_index, state.t) of the last step: a repeat is a redo
+        self._backup = None      # Python-side history before the last step
 
     def initial_state(self, t0: float = 0.0) -> EMState:
         v0 = self.model.circuit.V0 if self.model.circuit else 0.0
@@ -92,7 +99,7 @@ class PersistentSolverAdapter:
     def _new_process(self):
         self.segment += 1
         return PersistentGetDP(self.model, self.work_dir / f"persistent_{self.segment:03d}",
-                               step_time_limit=self.timeout or 600.0, verbosity=2)
+                               step_time_limit=self.timeout or 600.0, verbosity=2, lean=self.lean)
 
     def step(self, mesh, state: EMState, t_end: float, n_sub: int = 1, *, material_points=None, run_name=None,
              force_init_path: bool = False, element_output: str = "all"):
@@ -120,7 +127,14 @@ class PersistentSolverAdapter:
                          init=init, init2=init2)
             self.f_prev = None   # other elements: the start value is matched in material coordinates below
         t0 = state.t
-        out = self.p.step(mesh.points, float(t_end), FLAG_ELEM)
+        redo = self._last_call == (state.step_index, state.t)   # coupling.iterate repeats the step
+        if redo:
+            self.f_prev, self.power_prev, self.circuit_prev, self.dt_prev, self.material_prev = self._backup
+        else:
+            self._backup = (self.f_prev, self.power_prev, self.circuit_prev, getattr(self, "dt_prev", None),
+                            self.material_prev)
+        self._last_call = (state.step_index, state.t)
+        out = self.p.step(mesh.points, float(t_end), FLAG_ELEM, redo=redo)
         r = PResult(self, out, t0, mesh)
         centroids = mat[mesh.triangles[out.elements]].mean(axis=1)
         if state.t == 0.0 and self.f_prev is None:
@@ -156,9 +170,11 @@ class PersistentSolverAdapter:
             self.p = None
 
 
-def install():
+def install(lean: bool = False):
     """Replace GetDPSolver in the coupled loop by the adapter; GetDPLoad.close also ends getdp."""
     import pulseform.orchestrator.em_participant as ep
+
+    PersistentSolverAdapter.lean = lean
 
     ep.GetDPSolver = PersistentSolverAdapter
     original_close = ep.GetDPLoad.close

@@ -31,12 +31,13 @@ def run_today(mesh, motion, times, work: Path, move: bool):
         pts = motion.points(t) if move else mesh.points
         r, st = s.step(mesh.with_points(pts), st, float(t), material_points=mesh.points)
         rows.append(dict(I=r.coil_current[-1, 0], Vc=r.capacitor_voltage[-1], F=r.conductor_force[-1, 0].copy(),
-                         el=r.elements.copy(), f=r.force_density[-1].copy(), t=r.times[-1]))
+                         el=r.elements.copy(), f=r.force_density[-1].copy(), t=r.times[-1], P=r.coil_power[-1, 0],
+                         KP=r.conductor_power[-1, 0], W=r.magnetic_energy[-1]))
     return rows
 
 
-def run_persistent(mesh, motion, times, work: Path, move: bool):
-    p = PersistentGetDP(MODEL, work / "persistent")
+def run_persistent(mesh, motion, times, work: Path, move: bool, lean: bool = False):
+    p = PersistentGetDP(MODEL, work / ("persistent_lean" if lean else "persistent"), lean=lean)
     p.start(mesh)
     rows = []
     try:
@@ -44,7 +45,7 @@ def run_persistent(mesh, motion, times, work: Path, move: bool):
             pts = motion.points(t) if move else mesh.points
             o = p.step(pts, float(t), FLAG_ELEM)
             rows.append(dict(I=o.coil[0, 0], Vc=o.glob[1], F=o.cond[0, 1:3].copy(), el=o.elements.copy(),
-                             f=o.force_density.copy(), t=o.t))
+                             f=o.force_density.copy(), t=o.t, P=o.coil[0, 2], KP=o.cond[0, 0], W=o.glob[0]))
     finally:
         rc = p.close()
     assert rc == 0, rc
@@ -52,13 +53,15 @@ def run_persistent(mesh, motion, times, work: Path, move: bool):
 
 
 def compare(a, b) -> dict:
-    out = {"I": [], "Vc": [], "F": [], "f": [], "I_abs": [], "F_abs": []}
+    out = {"I": [], "Vc": [], "F": [], "f": [], "P": [], "KP": [], "W": [], "I_abs": [], "F_abs": []}
     for ra, rb in zip(a, b):
         assert np.array_equal(ra["el"], rb["el"])
         out["I"].append(abs(ra["I"] - rb["I"]) / abs(ra["I"]))
         out["Vc"].append(abs(ra["Vc"] - rb["Vc"]) / abs(ra["Vc"]))
         out["F"].append(float(np.linalg.norm(ra["F"] - rb["F"]) / np.linalg.norm(ra["F"])))
         out["f"].append(float(np.abs(ra["f"] - rb["f"]).max() / np.abs(ra["f"]).max()))
+        for q in ("P", "KP", "W"):
+            out[q].append(abs(ra[q] - rb[q]) / abs(ra[q]))
         out["I_abs"].append(ra["I"])
         out["F_abs"].append(ra["F"][1])
     return out
@@ -80,15 +83,18 @@ def main(argv=None):
     result = {}
     with tempfile.TemporaryDirectory(prefix="pgdp_cmp_") as tmp:
         work = (args.work or Path(tmp)).resolve()
-        for move in (False, True):
-            tag = "moving mesh" if move else "fixed mesh"
-            a = run_today(mesh, motion, times, work / tag.replace(" ", "_"), move)
-            b = run_persistent(mesh, motion, times, work / tag.replace(" ", "_"), move)
+        for move, lean in ((False, False), (True, False), (True, True)):
+            tag = ("moving mesh" if move else "fixed mesh") + (", lean outputs" if lean else "")
+            folder = work / tag.replace(" ", "_").replace(",", "")
+            a = run_today(mesh, motion, times, folder, move)
+            b = run_persistent(mesh, motion, times, folder, move, lean)
             d = compare(a, b)
             result[tag] = d
             print(f"\n{tag}: max over the steps of |persistent - per-process| / |per-process|")
             print(f"  coil current {max(d['I']):.2e}   capacitor voltage {max(d['Vc']):.2e}   "
                   f"disk force (GetDP integral) {max(d['F']):.2e}   element force density (max-norm) {max(d['f']):.2e}")
+            print(f"  coil Joule power {max(d['P']):.2e}   disk Joule power {max(d['KP']):.2e}   "
+                  f"magnetic energy {max(d['W']):.2e}")
             print(f"  end values: I = {a[-1]['I']:.6f} A vs {b[-1]['I']:.6f} A; F_z = {a[-1]['F'][1]:.6f} N vs "
                   f"{b[-1]['F'][1]:.6f} N")
             k = int(np.argmax(d["I"]))

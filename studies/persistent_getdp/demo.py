@@ -24,10 +24,10 @@ KEYS = ["coil_current_peak_kA", "force_impulse_z_Ns", "max_deflection_mm", "coil
 
 def inner(mode: str, out: str, sets: list[str]) -> int:
     sys.path.insert(0, str(HERE))
-    if mode == "persistent":
+    if mode.startswith("persistent"):
         from adapter import install
 
-        install()
+        install(lean=mode == "persistent-lean")
     from pulseform.orchestrator.cli import main
 
     argv = ["run", str(CASE), "--out", out, "--force", "--quiet"]
@@ -52,13 +52,15 @@ def main(argv=None):
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--out", type=Path, default=REPO / "results" / "study_persistent_demo")
     ap.add_argument("--set", action="append", default=[])
+    ap.add_argument("--modes", nargs="+", default=["per-process", "persistent", "persistent-lean"],
+                    help="per-process, persistent (today's outputs each step), persistent-lean (only what the loop needs)")
     ap.add_argument("--inner", nargs=2, metavar=("MODE", "OUT"))
     args = ap.parse_args(argv)
     if args.inner:
         return inner(args.inner[0], args.inner[1], args.set)
     import numpy as np
 
-    res = {"per-process": [], "persistent": []}
+    res = {mode: [] for mode in args.modes}
     for rep in range(args.repeat):
         for mode in res:
             m = run(mode, args.out / f"{mode}_{rep}", args.set)
@@ -78,16 +80,20 @@ def main(argv=None):
               f"{1e3 * d['load_time_s'] / n:.1f} ms per EM step (getdp {1e3 * d['em_getdp_process_s'] / n:.1f} ms, "
               f"files {1e3 * d['em_getdp_io_s'] / n:.1f} ms); mechanics {d['mech_time_s']:.2f} s; "
               f"set-up {d['setup_time_s']:.2f} s")
-    a, b = med["per-process"], med["persistent"]
-    print(f"  speed-up: wall {a['process_wall_s'] / b['process_wall_s']:.2f}x, EM time "
-          f"{a['load_time_s'] / b['load_time_s']:.2f}x")
-    print("\nmetrics (first run of each):")
+    a = med["per-process"]
+    for mode in res:
+        if mode != "per-process":
+            b = med[mode]
+            print(f"  speed-up of {mode}: wall {a['process_wall_s'] / b['process_wall_s']:.2f}x, EM time "
+                  f"{a['load_time_s'] / b['load_time_s']:.2f}x")
+    print("\nmetrics (first run of each; relative difference to per-process):")
+    print(f"  {'':28} " + " ".join(f"{m:>22}" for m in res))
     for k in KEYS:
-        x, y = res["per-process"][0].get(k), res["persistent"][0].get(k)
-        if x is None or y is None:
-            continue
-        rel = abs(x - y) / abs(x) if x else abs(y)
-        print(f"  {k:<28} {x:>22.15g} {y:>22.15g}   rel. diff {rel:.1e}")
+        vals = [res[m][0].get(k) for m in res]
+        x = vals[0]
+        cells = [f"{v:22.15g}" for v in vals]
+        rels = [abs(v - x) / abs(x) if x else abs(v) for v in vals[1:]]
+        print(f"  {k:<28} " + " ".join(cells) + "   " + " ".join(f"{r:.1e}" for r in rels))
     (args.out / "summary.json").write_text(json.dumps({"runs": res, "medians": med}, indent=1, default=float))
     return 0
 

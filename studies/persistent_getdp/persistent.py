@@ -42,7 +42,7 @@ HERE = Path(__file__).resolve().parent
 STUDY_CASE_DECK = HERE / "decks" / "em_case.pro"
 STUDY_LIB = HERE / "decks" / "Lib_PulsedForming.pro"
 RESOLUTION = "EM_Persistent"
-FLAG_ELEM, FLAG_FIELDS, FLAG_STATE, FLAG_STOP, FLAG_QUERY = 1, 2, 4, 8, 32
+FLAG_ELEM, FLAG_FIELDS, FLAG_STATE, FLAG_STOP, FLAG_QUERY, FLAG_REDO = 1, 2, 4, 8, 32, 64
 
 
 def read_pre_dofs(path: Path, system: int) -> np.ndarray:
@@ -82,11 +82,15 @@ class PersistentGetDP:
 
     Parameters mirror :class:`GetDPSolver` (model, deck, extra_numbers, preamble, petsc_args);
     ``step_time_limit`` bounds each EM step and the start-up (s); ``verbosity`` is getdp's ``-v``.
+    ``lean``: getdp evaluates only the integrals the loop needs each step (PF_GlobalsSet = 7: coil
+    I, U, circuit, magnetic energy, conductor Joule power); the conductor force is the sum of the
+    per-element table (the same element integrals) and the coil Joule power (Ns I / Sc)^2 / sigma
+    times the coil volume (uniform current density); the coil force is not computed (NaN).
     """
 
     def __init__(self, model: EMModel, run_dir: str | Path, *, deck: str | Path = STUDY_CASE_DECK,
                  executable: str = "getdp", petsc_args=DEFAULT_PETSC_ARGS, step_time_limit: float = 600.0,
-                 extra_numbers: dict | None = None, preamble=(), verbosity: int = 3):
+                 extra_numbers: dict | None = None, preamble=(), verbosity: int = 3, lean: bool = False):
         self.model = model
         self.run_dir = Path(run_dir).resolve()
         self.deck = Path(deck).resolve()
@@ -96,6 +100,9 @@ class PersistentGetDP:
         self.extra_numbers = dict(extra_numbers or {})
         self.preamble = list(preamble)
         self.verbosity = verbosity
+        self.lean = lean
+        if lean:
+            self.extra_numbers["PF_GlobalsSet"] = 7
         self.proc: subprocess.Popen | None = None
         self._in_fd: int | None = None
         self._helper = object.__new__(GetDPSolver)   # only for _numbers / _table_lines (read-only use)
@@ -193,8 +200,9 @@ class PersistentGetDP:
         return time.perf_counter() - t0
 
     # ------------------------------------------------------------------ one step
-    def step(self, points: np.ndarray, t_end: float, flags: int = FLAG_ELEM) -> StepOut:
-        """Move the nodes to ``points`` and advance to ``t_end`` (one BDF2 step)."""
+    def step(self, points: np.ndarray, t_end: float, flags: int = FLAG_ELEM, redo: bool = False) -> StepOut:
+        """Move the nodes to ``points`` and advance to ``t_end`` (one BDF2 step); ``redo``: the last
+        step again, from its start state, on the geometry ``points`` (coupling.iterate)."""
         c0 = time.perf_counter()
         du = np.asarray(points, float) - self.points
         vec = np.zeros(self.n_u)
@@ -202,7 +210,9 @@ class PersistentGetDP:
         vec[self.u_index[ok]] = du[ok]
         if np.any(du[~ok] != 0):
             raise ValueError("a node without a displacement dof moved")
-        self._send(vec, float(t_end), flags, self.k + 1)
+        if redo:
+            self.k -= 1
+        self._send(vec, float(t_end), flags | (FLAG_REDO if redo else 0), self.k + 1)
         c1 = time.perf_counter()
         lines = self._wait_done()
         c2 = time.perf_counter()
@@ -360,6 +370,19 @@ class PersistentGetDP:
             out.elements = ids - 1
             vol = _element_volumes(self.mesh.with_points(self.points), out.elements, m.axisymmetric)
             out.force_density = eF[0, :, :2] / vol[:, None]
+            if self.lean and any(ln.startswith("G ") for ln in lines):
+                tags = self.mesh.tri_tags[out.elements]
+                for j in range(len(m.conductors)):
+                    out.cond[j, 1:3] = eF[0, tags == 201 + j, :2].sum(axis=0)
+        if self.lean and any(ln.startswith("G ") for ln in lines):
+            if not hasattr(self, "_coil_vol"):
+                self._coil_vol = [float(_element_volumes(self.mesh, np.flatnonzero(self.mesh.tri_tags == 101 + j),
+                                                         m.axisymmetric).sum()) for j in range(len(m.coils))]
+                self._coil_sc = [float(_element_volumes(self.mesh, np.flatnonzero(self.mesh.tri_tags == 101 + j),
+                                                        False).sum()) for j in range(len(m.coils))]
+            for j, c in enumerate(m.coils):
+                out.coil[j, 2] = (c.turns * out.coil[j, 0] / self._coil_sc[j]) ** 2 / c.sigma * self._coil_vol[j]
+                out.coil[j, 3:5] = np.nan
         if flags & FLAG_FIELDS and m.conductors:
             ids, eP = _element_table(d / "elem_P.txt", 1, 1)
             vol = _element_volumes(self.mesh.with_points(self.points), ids - 1, m.axisymmetric)

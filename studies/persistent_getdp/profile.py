@@ -28,10 +28,11 @@ CONFIGS = [
     ("step only (Generate + Solve + BDF2 vectors)", 0, 0),
     ("+ coil I, U, circuit (no integral)", 1, 0),
     ("+ magnetic energy W (integral, whole domain)", 3, 0),
-    ("+ conductor P, F integrals", 7, 0),
-    ("+ coil P, F integrals (= today's set)", 15, 0),
-    ("+ per-element force table elem_F", 15, 1),
-    ("+ per-element P and b tables (field output)", 15, 3),
+    ("+ conductor Joule power P (integral)", 7, 0),
+    ("+ per-element force table elem_F", 7, 1),
+    ("+ conductor force F (integral = sum of elem_F)", 15, 1),
+    ("+ coil P, F integrals (= today's outputs)", 31, 1),
+    ("+ per-element P and b tables (field output)", 31, 3),
 ]
 
 
