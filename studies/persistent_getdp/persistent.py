@@ -82,10 +82,11 @@ class PersistentGetDP:
 
     Parameters mirror :class:`GetDPSolver` (model, deck, extra_numbers, preamble, petsc_args);
     ``step_time_limit`` bounds each EM step and the start-up (s); ``verbosity`` is getdp's ``-v``.
-    ``lean``: getdp evaluates only the integrals the loop needs each step (PF_GlobalsSet = 7: coil
-    I, U, circuit, magnetic energy, conductor Joule power); the conductor force is the sum of the
-    per-element table (the same element integrals) and the coil Joule power (Ns I / Sc)^2 / sigma
-    times the coil volume (uniform current density); the coil force is not computed (NaN).
+    ``lean``: getdp evaluates only the integrals the loop needs each step (PF_GlobalsSet = 37: coil
+    I, U, circuit; the magnetic energy as 1/2 (j, a) over coils and conductors (Wj, equal to the
+    whole-domain integral to round-off); the conductor Joule power); the conductor force is the sum
+    of the per-element table (the same element integrals) and the coil Joule power (Ns I / Sc)^2 /
+    sigma times the coil volume (uniform current density); the coil force is not computed (NaN).
     """
 
     def __init__(self, model: EMModel, run_dir: str | Path, *, deck: str | Path = STUDY_CASE_DECK,
@@ -102,7 +103,7 @@ class PersistentGetDP:
         self.verbosity = verbosity
         self.lean = lean
         if lean:
-            self.extra_numbers["PF_GlobalsSet"] = 7
+            self.extra_numbers["PF_GlobalsSet"] = 37
         self.proc: subprocess.Popen | None = None
         self._in_fd: int | None = None
         self._helper = object.__new__(GetDPSolver)   # only for _numbers / _table_lines (read-only use)

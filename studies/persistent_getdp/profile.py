@@ -27,9 +27,10 @@ from pulseform.solvers.getdp.runner import FAST_MPI_ENV, child_preexec  # noqa: 
 CONFIGS = [
     ("step only (Generate + Solve + BDF2 vectors)", 0, 0),
     ("+ coil I, U, circuit (no integral)", 1, 0),
-    ("+ magnetic energy W (integral, whole domain)", 3, 0),
-    ("+ conductor Joule power P (integral)", 7, 0),
-    ("+ per-element force table elem_F", 7, 1),
+    ("+ magnetic energy as 1/2 (j, a) on coil + disk (Wj)", 33, 0),
+    ("  (instead: W, integral over the whole domain)", 3, 0),
+    ("+ conductor Joule power P (integral)", 37, 0),
+    ("+ per-element force table elem_F (= lean)", 37, 1),
     ("+ conductor force F (integral = sum of elem_F)", 15, 1),
     ("+ coil P, F integrals (= today's outputs)", 31, 1),
     ("+ per-element P and b tables (field output)", 31, 3),
