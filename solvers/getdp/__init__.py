@@ -33,7 +33,8 @@ Stepping API (staggered coupling)
         mesh_k = mesh0.with_points(current_positions)   # same connectivity, moved nodes
         result, state = solver.step(mesh_k, state, t_end=t_k + dt_em, n_sub=1,
                                     material_points=reference_positions,  # optional, see below
-                                    run_name=None, force_init_path=False, element_output="all")
+                                    run_name=None, force_init_path=False, element_output="all",
+                                    field_output=False)
         result.elements             # rows of mesh_k.triangles in the massive conductors
         result.force_density        # (n_sub, n_el, 2) N/m^3 = j x B at element centroids
         result.force_density_mean   # (n_el, 2) impulse-consistent mean over the sub-steps
@@ -41,6 +42,8 @@ Stepping API (staggered coupling)
         result.conductor_force      # (n_sub, n_conductors, 2) N (2 pi included in axisymmetry)
         result.coil_current, result.coil_voltage, result.capacitor_voltage, result.coil_heat,
         result.coil_temperature_rise, result.magnetic_energy
+        result.b_cells, result.a_nodes   # field_output=True: B on every triangle, nodal potential
+    solver.post_fields(result, mesh_k)   # the same afterwards from the step's em.res (getdp -pos)
 
 Same connectivity as the previous step: the field continues with ``-restart -res <prev .res>``
 (and ``getdp -cal`` with the previous ``.pre``); with ``material_points`` given, only if the
@@ -54,7 +57,8 @@ run to round-off on a fixed mesh (tests/getdp/test_stepping.py).
 
 Failures raise :class:`GetDPError` (message ends with the log tail; the run folder stays);
 getdp warnings become ``RuntimeWarning``.  ``element_output="last"``/``"none"`` skips the
-per-element tables on long runs.
+per-element tables on long runs; ``field_output=True`` adds the whole-domain tables of
+PostOperation ``EM_Field`` (ask for them only on the steps whose fields are written).
 
 Conventions: GetDP frame (x, y) = (r, z) in axisymmetry; a positive coil current flows along
 +z of that frame (-e_phi); forces are unaffected.  Coil voltage is the drop in the current's

@@ -194,6 +194,14 @@ class EMStepResult:
     ``probe_b`` (n, n_probes, 2): B at the model's probe points.  ``force_density_start``
     (n_el, 2): with BDF2, the force density at the step's start (zero at a start from rest).
     Totals are physical (2 pi included in axisymmetry; per metre in planar).
+
+    Whole-domain fields at the step's end (``field_output=True`` or
+    :meth:`~.solver.GetDPSolver.post_fields`; None otherwise, or when the deck has no
+    PostOperation ``EM_Field``): ``b_cells`` (n_triangles, 2) B (T) at the centre of every
+    triangle of the mesh, in the GetDP frame (NaN for a triangle outside ``Vol_Mag``; in the
+    shell region the values belong to the mapped, infinite domain), and ``a_nodes`` (n_nodes,)
+    the nodal unknown at every node: r a_z of the GetDP frame in axisymmetry (= -r a_phi of the
+    right-handed (r, phi, z) frame; its contours are flux lines), a_z in planar (Wb/m).
     """
 
     times: np.ndarray
@@ -219,6 +227,8 @@ class EMStepResult:
     run: RunInfo | None = None
     path: str = ""
     force_density_start: np.ndarray | None = None
+    b_cells: np.ndarray | None = None
+    a_nodes: np.ndarray | None = None
 
     @property
     def force_density_mean(self) -> np.ndarray:

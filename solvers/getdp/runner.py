@@ -219,8 +219,12 @@ def run_getdp(
     log_name: str = "getdp.log",
     allowed_warnings: tuple[str, ...] = (),
     reuse_pre: bool = False,
+    post_operation: str | None = None,
 ) -> RunInfo:
     """Run ``getdp deck -msh mesh -name run_dir/name -setnumber ... -solve resolution``.
+
+    With ``post_operation``, run ``-pos post_operation`` instead of ``-solve`` (post-processing of a
+    saved solution, which ``extra_args`` name with ``-res FILE``).
 
     All paths are made absolute; the process runs in ``run_dir`` with stdout and
     stderr in one log file there.  Raises :class:`GetDPError` on a missing binary,
@@ -245,7 +249,11 @@ def run_getdp(
     argv += list(extra_args)
     # -cal: processing only, with the pre-processing data (dof numbering) already in
     # run_dir/<name>.pre (copied from a run on the same connectivity)
-    argv += (["-cal"] if reuse_pre else ["-solve", resolution]) + ["-v", str(int(verbosity))]
+    if post_operation is not None:
+        argv += ["-pos", post_operation]
+    else:
+        argv += ["-cal"] if reuse_pre else ["-solve", resolution]
+    argv += ["-v", str(int(verbosity))]
     env = dict(os.environ)
     env.update(FAST_MPI_ENV)
     t0 = time.perf_counter()

@@ -16,7 +16,7 @@ from .bdf2 import bdf2_coefficients, match_rows, trapezoid_mean
 from .mesh import EMMesh, coil_tag, conductor_tag, write_msh22
 from .model import (Circuit, Coil, Conductor, CurrentTable, DampedSine, EMModel, EMState, EMStepResult,  # noqa: F401
                     mesh_signature)
-from .runner import RunInfo, run_getdp
+from .runner import GetDPError, RunInfo, run_getdp
 
 DECK_DIR = Path(__file__).resolve().parent / "decks"
 #: PETSc options passed on getdp's command line: direct LU with UMFPACK.  Same results as the
@@ -136,7 +136,8 @@ class GetDPSolver:
     # -- one step
     def step(self, mesh: EMMesh, state: EMState, t_end: float, n_sub: int = 1, *,
              material_points: np.ndarray | None = None, run_name: str | None = None,
-             force_init_path: bool = False, element_output: str = "all") -> tuple[EMStepResult, EMState]:
+             force_init_path: bool = False, element_output: str = "all",
+             field_output: bool = False) -> tuple[EMStepResult, EMState]:
         """Advance from ``state.t`` to ``t_end`` with ``n_sub`` implicit Euler sub-steps (BDF2: one step).
 
         ``mesh`` holds the current node positions.  If its connectivity equals that of
@@ -152,6 +153,11 @@ class GetDPSolver:
         ``element_output``: per-element tables at ``"all"`` sub-steps (default), only the
         ``"last"`` one (the element arrays then have one row), or ``"none"`` (zero
         elements) -- they cost about as much as the solve on long runs.
+
+        ``field_output``: also B on every triangle and the nodal unknown on every node at the
+        step's end (``result.b_cells``, ``result.a_nodes``; PostOperation ``EM_Field``, for
+        snapshots: ask for them only on the steps whose fields are written).  A deck without
+        ``EM_Field`` leaves them None.
         """
         n_elem_rows = {"all": int(n_sub), "last": 1, "none": 0}.get(element_output)
         if n_elem_rows is None:
@@ -177,7 +183,8 @@ class GetDPSolver:
         sig = mesh_signature(mesh)
         numbers = self._numbers(mesh)
         numbers.update(self.extra_numbers)
-        numbers.update(Flag_ElemOut={"all": 1, "last": 2, "none": 0}[element_output])
+        numbers.update(Flag_ElemOut={"all": 1, "last": 2, "none": 0}[element_output],
+                       Flag_FieldOut=int(bool(field_output)))
         data_lines = self.preamble + self._table_lines()
         extra: list[str] = []
         has_field = state.res_path is not None
@@ -232,6 +239,8 @@ class GetDPSolver:
         result = self._read(mesh, out_dir, state, float(t_end), int(n_sub), n_elem_rows, power_start)
         result.run = info
         result.path = str(run_dir)
+        if field_output:
+            self._read_fields(mesh, out_dir, result)
         new_state = self._next_state(mesh, material_points, out_dir, run_dir, state, result, sig, float(t_end))
         if bdf2:
             self._bdf2_history(mesh, pts, state, result, new_state, a_prev)
@@ -245,7 +254,66 @@ class GetDPSolver:
                 discard_folder(self._runs.pop(0))
         return result, new_state
 
+    def post_fields(self, result: EMStepResult, mesh: EMMesh) -> bool:
+        """Fill ``result.b_cells`` and ``result.a_nodes`` afterwards, from the run's saved solution.
+
+        Runs ``getdp run.pro -msh mesh.msh -res em.res -pos EM_Field`` in ``<run folder>/fields``
+        (same numbers as the run; no solve, ~0.1 s here), so the run folder must still exist.
+        ``mesh``: the mesh of that run.  Returns False (and leaves them None) when the deck has
+        no PostOperation ``EM_Field`` or wrote nothing; other getdp failures raise
+        :class:`GetDPError`.
+        """
+        if result.b_cells is not None and result.a_nodes is not None:
+            return True
+        if result.run is None or not result.path:
+            raise ValueError("post_fields needs the result of a GetDPSolver.step (its run folder and argv)")
+        run_dir = Path(result.path)
+        argv = list(result.run.argv)
+        numbers, strings = {}, {}
+        for i, tok in enumerate(argv[:-2]):
+            if tok == "-setnumber":
+                numbers[argv[i + 1]] = float(argv[i + 2])
+            elif tok == "-setstring":
+                strings[argv[i + 1]] = argv[i + 2]
+        out = run_dir / "fields"
+        if out.exists():
+            shutil.rmtree(out)
+        out.mkdir()
+        strings["OutDir"] = str(out) + "/"
+        numbers["Flag_FieldOut"] = 1.0
+        extra = ["-res", str(run_dir / "em.res")]
+        if (run_dir / "em.pre").is_file():   # -pos reads the run's dof numbering from <name>.pre
+            shutil.copyfile(run_dir / "em.pre", out / "em.pre")
+        else:
+            extra = ["-pre", RESOLUTION] + extra
+        try:
+            run_getdp(Path(argv[1]), Path(argv[3]), out, resolution=RESOLUTION, post_operation="EM_Field",
+                      numbers=numbers, strings=strings, extra_args=extra,
+                      executable=self.executable, timeout=self.timeout)
+        except GetDPError as exc:
+            if "EM_Field" in str(exc):   # a user deck without the PostOperation
+                return False
+            raise
+        self._read_fields(mesh, out, result)
+        return result.b_cells is not None and result.a_nodes is not None
+
     # -- helpers
+    def _read_fields(self, mesh: EMMesh, out: Path, result: EMStepResult) -> None:
+        """``field_b.txt`` / ``field_a.txt`` of ``out`` (if written) into ``result.b_cells`` / ``a_nodes``."""
+        fb, fa = out / "field_b.txt", out / "field_a.txt"
+        if not (fb.is_file() and fa.is_file()):
+            return
+        ids, vals = _element_table(fb, 3, 1)
+        if len(ids) and (ids.min() < 1 or ids.max() > len(mesh.triangles)):
+            raise RuntimeError(f"{fb}: element ids outside the mesh's triangles")
+        b = np.full((len(mesh.triangles), 2), np.nan)
+        b[ids - 1] = vals[0, :, :2]
+        d = np.loadtxt(fa, skiprows=1, ndmin=2)
+        a = np.zeros(mesh.n_nodes)   # r = 0: r a_phi = 0 (getdp may print nan on the axis)
+        if d.size:
+            a[d[:, 0].astype(np.int64) - 1] = np.nan_to_num(d[:, 1], nan=0.0)
+        result.b_cells, result.a_nodes = b, a
+
     def _bdf2_history(self, mesh: EMMesh, pts: np.ndarray, state: EMState, result: EMStepResult,
                       new_state: EMState, a_prev: np.ndarray | None) -> None:
         """Fill the BDF2 history of ``new_state`` and the start value of ``result``'s force mean."""
