@@ -21,7 +21,7 @@ from . import interrupt
 from . import probes as probe_mod
 from .case import Case
 from .checkpoint import CHECKPOINT_NAME, load_checkpoint, save_checkpoint
-from .em_fields import EMFieldWriter
+from .em_fields import EMFieldWriter, write_peak_snapshot
 from .guards import check_steps_of_meshes
 from .analyses import create as create_analysis
 from .history import History
@@ -47,7 +47,6 @@ class MechanicsRun:
     history: History
     metrics: dict[str, float] = field(default_factory=dict)
     shapes: list = field(default_factory=list)
-    em_snapshot: tuple | None = None
     analyses: list = field(default_factory=list)
     wall_before_s: float = 0.0  # wall time of the earlier segments of a resumed run (s)
 
@@ -143,7 +142,12 @@ class CaseDriver:
         return CHECKPOINT_NAME if self.comm.size == 1 else f"checkpoint.rank{self.comm.rank}.npz"
 
     def checkpoint(self) -> None:
-        """Write the checkpoint (one file per rank) and flush the history."""
+        """Write the checkpoint (one file per rank) and flush the history and the EM snapshot at the
+        peak coil current (the checkpoint's EM state counts it as written)."""
+        take = getattr(self.load, "take_peak_snapshot", None)
+        peak = take() if take is not None and self.comm.rank == 0 else None
+        if peak is not None:
+            write_peak_snapshot(self.results.fields / "em", *peak)
         arrays = {f"solver/{k}": v for k, v in self.mechanics.state_dict().items()}
         arrays.update({f"loop/{k}": v for k, v in self.loop.counters.state_dict().items()})
         arrays.update({f"load/{k}": v for k, v in self.load.state_dict().items()})
@@ -189,6 +193,8 @@ class CaseDriver:
         writer = mech.FieldWriter(s, str(prefix))
         em_writer = EMFieldWriter(self.results.fields / (f"em_part{self.part}" if self.part else "em")) \
             if hasattr(self.load, "snapshot") and self.comm.rank == 0 else None
+        if em_writer is not None and hasattr(self.load, "request_fields"):
+            self.load.request_fields(self.stops)  # whole-domain EM fields only on the snapshot steps
         if not self.history.rows:
             self.record(self.initial_row())
         writer.write(s.time)
@@ -212,11 +218,12 @@ class CaseDriver:
                     if self.history.rows[-1][0] != s.time:
                         self.record(self._last_row)  # the values of the step that reached the milestone
                     # the milestone itself, not the sum of steps that reached it (6.0000000000000035e-05)
-                    writer.write(stop if abs(s.time - stop) <= 1e-9 * stop else s.time)
+                    t_out = stop if abs(s.time - stop) <= 1e-9 * stop else s.time
+                    writer.write(t_out)
                     self._keep_shape()
                     snap = self.load.snapshot() if em_writer is not None else None
                     if snap is not None:
-                        em_writer.write(s.time, *snap)
+                        em_writer.write(t_out, *snap)
                     self.checkpoint()
                     interrupt.rearm()  # a library (gmsh, at import) may have replaced the handlers
                     self._check_interrupt()
@@ -255,10 +262,9 @@ class CaseDriver:
                 metrics[f"load{i}_start_time_s"] = float(t)
         for a in self.analyses:
             metrics.update(a.metrics(s, self.history))
-        snap = self.load.snapshot() if hasattr(self.load, "snapshot") else None
         if hasattr(self.load, "close"):
             self.load.close()  # old getdp run folders are deleted in the background: wait for them
-        return MechanicsRun(s, self.history, metrics, self.shapes, snap, self.analyses, self.wall_before_s)
+        return MechanicsRun(s, self.history, metrics, self.shapes, self.analyses, self.wall_before_s)
 
 
 LOAD_COLUMNS_COUPLED = ("force_x_N", "force_y_N", "conservation_error_rel", "coil_current_A",

@@ -145,7 +145,11 @@ class GetDPLoad:
         self._runs: list[Path] = []
         self._pinned: Path | None = None  # run folder the last checkpoint restarts from
         self._deleting: list[threading.Thread] = []  # background deletions of old run folders
-        self.last = None  # (moved EM points, EMStepResult) of the latest step
+        self.last = None  # (moved EM points, EMStepResult, EM mesh) of the latest step
+        self.field_times: np.ndarray | None = None  # EM steps ending at these times (s) print whole-domain fields
+        self.peak_abs_current = 0.0  # largest |coil current| at the end of an EM step so far (A)
+        self._peak: dict | None = None  # that step's snapshot material (see take_peak_snapshot)
+        self._post_fields_ok = True  # False once the deck turned out to have no PostOperation EM_Field
         self.timers = {"getdp_process_s": 0.0, "getdp_io_s": 0.0, "mesh_motion_s": 0.0, "transfer_s": 0.0}
 
     @property
@@ -212,10 +216,12 @@ class GetDPLoad:
         c1 = time.perf_counter()
         # after a remesh, keep carrying the state through the Init path: a -restart from the .res of an
         # Init-path run gave garbage fields near the axis (GetDP 3.2.0; seen in tests, see the issue notes)
+        fields = {"field_output": True} if self._wants_fields(t1) and _takes_field_output(self.solver) else {}
         result, self.state = self.solver.step(mesh_k, self.state, t1, n_sub=self.em_substeps,
                                               material_points=self.material,
-                                              force_init_path=self.remeshes > 0)
-        self.last = (x_em, result)
+                                              force_init_path=self.remeshes > 0, **fields)
+        self.last = (x_em, result, self.geometry.mesh)
+        self._track_peak(t1, x_em, result)
         self._prune(Path(result.path))
         c2 = time.perf_counter()
         keep = np.isin(result.element_tags, self.tags)
@@ -269,20 +275,77 @@ class GetDPLoad:
             "em_remeshes": float(self.remeshes),
         })
 
-    def snapshot(self) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]] | None:
-        """The latest step's EM mesh and per-element fields (zero outside the conductors)."""
+    # ------------------------------------------------------------------ field snapshots
+    def request_fields(self, times) -> None:
+        """The EM steps that end at ``times`` (s; the output milestones) also print B on every
+        cell and the nodal potential (``GetDPSolver.step(field_output=True)``): only the steps
+        whose snapshot is written pay for the whole-domain tables."""
+        self.field_times = np.asarray(times, float)
+
+    def _wants_fields(self, t1: float) -> bool:
+        ft = self.field_times
+        return ft is not None and ft.size > 0 and float(np.abs(ft - t1).min()) <= 1e-9 * max(abs(t1), 1e-300)
+
+    def _fields(self, result, mesh) -> None:
+        """Whole-domain fields of a step that did not print them: post-process its saved solution
+        (its run folder must still exist: the latest two are kept)."""
+        if getattr(result, "b_cells", None) is not None or not self._post_fields_ok:
+            return
+        if not hasattr(self.solver, "post_fields"):  # another solver (e.g. a study's adapter)
+            self._post_fields_ok = False
+            return
+        c0 = time.perf_counter()
+        try:
+            self._post_fields_ok = self.solver.post_fields(result, mesh)
+        finally:
+            self.timers["getdp_process_s"] += time.perf_counter() - c0
+        if not self._post_fields_ok:
+            log.info("the EM deck has no PostOperation EM_Field: EM snapshots hold B on the conductors only")
+
+    def _track_peak(self, t1: float, x_em: np.ndarray, result) -> None:
+        """Keep the EM step with the largest |coil current| (end of step) as the peak snapshot.
+
+        The whole-domain fields of that step are fetched (:meth:`_fields`) once a later step
+        shows a smaller current, while the step's run folder still exists; a milestone step has
+        them already."""
+        if result.coil_current.shape[1] == 0:
+            return
+        current = float(result.coil_current[-1, 0])
+        p = self._peak
+        if p is not None and p["t"] == t1:  # a repeated (iterated) EM step replaces its earlier try
+            self.peak_abs_current, self._peak = p["before"], p["previous"]
+            p = self._peak
+        if abs(current) > self.peak_abs_current:
+            if p is not None:
+                p["previous"] = None  # keep one level: only the latest step can be repeated
+            self._peak = {"t": t1, "current": current, "x": x_em, "result": result, "mesh": self.geometry.mesh,
+                          "before": self.peak_abs_current, "previous": p, "written": False}
+            self.peak_abs_current = abs(current)
+        elif p is not None and not p["written"]:
+            self._fields(p["result"], p["mesh"])
+
+    def take_peak_snapshot(self) -> tuple | None:
+        """(t, coil current, points, triangles, cell data, point data) of the peak-current step if it
+        is new since the last call, else None (the driver writes it at milestones and checkpoints)."""
+        p = self._peak
+        if p is None or p["written"]:
+            return None
+        p["written"] = True
+        try:
+            self._fields(p["result"], p["mesh"])
+            return (p["t"], p["current"], *_snapshot(p["mesh"], p["x"], p["result"], self.axisymmetric))
+        except Exception as exc:  # an output: never the end of the run
+            log.warning("no EM snapshot at the peak coil current (t = %.6g s): %s", p["t"], exc)
+            return None
+
+    def snapshot(self) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray], dict[str, np.ndarray]] | None:
+        """The latest step's EM mesh, per-element fields (force and Joule density on the conductors,
+        zero elsewhere; B on every cell) and nodal potential (see :func:`_snapshot`)."""
         if self.last is None:
             return None
-        x, r = self.last
-        mesh = self.geometry.mesh
-        m = len(mesh.triangles)
-        f, p, b = np.zeros((m, 3)), np.zeros(m), np.zeros((m, 3))
-        f[r.elements, :2] = r.force_density[-1]
-        p[r.elements] = r.joule_density[-1]
-        b[r.elements, :2] = r.flux_density[-1]
-        data = {"region": mesh.tri_tags.astype(np.int32), "force_density_N_m3": f,
-                "joule_power_density_W_m3": p, "flux_density_T": b}
-        return x, mesh.triangles, data
+        x, r, mesh = self.last
+        self._fields(r, mesh)  # a no-op when the step printed them (a milestone)
+        return _snapshot(mesh, x, r, self.axisymmetric)
 
     def _prune(self, newest: Path) -> None:
         """Delete run folders older than the last two, except the one the last checkpoint needs."""
@@ -319,7 +382,8 @@ class GetDPLoad:
         if self.state.res_path:
             self._pinned = Path(self.state.res_path).parent
         blob = json.dumps({"state": self.state.to_dict(), "runs": [str(p) for p in self._runs],
-                           "min_quality": self.min_quality, "remeshes": self.remeshes}).encode()
+                           "min_quality": self.min_quality, "remeshes": self.remeshes,
+                           "peak_abs_current": self.peak_abs_current}).encode()
         m = self.geometry.mesh
         d = {"em_state_json": np.frombuffer(blob, dtype=np.uint8), "mesh_points": m.points.copy(),
              "mesh_triangles": m.triangles.copy(), "mesh_tri_tags": m.tri_tags.copy(), "mesh_lines": m.lines.copy(),
@@ -336,6 +400,9 @@ class GetDPLoad:
         self._runs = [Path(p) for p in data["runs"]]
         self.min_quality = float(data["min_quality"])
         self.remeshes = int(data.get("remeshes", 0))
+        # the peak snapshot so far was written with the checkpoint; a repeated (iterated) step
+        # restores the value before it and replaces its own earlier try (_track_peak)
+        self.peak_abs_current = float(data.get("peak_abs_current", 0.0))
         if "mesh_points" in d and (self.remeshes or not np.array_equal(d["mesh_triangles"], self.geometry.mesh.triangles)):
             mesh = EMMesh(d["mesh_points"], d["mesh_triangles"], d["mesh_tri_tags"], d["mesh_lines"],
                           d["mesh_line_tags"])
@@ -347,3 +414,43 @@ class GetDPLoad:
         if "material" in d:
             self.material = np.array(d["material"])
         self._pinned = Path(self.state.res_path).parent if self.state.res_path else None
+
+
+def _snapshot(mesh, x: np.ndarray, r, axisymmetric: bool):
+    """(points, triangles, cell data, point data) of one EM step for the ``.vtu`` files.
+
+    Cell data: ``region`` (physical id), ``force_density_N_m3`` and ``joule_power_density_W_m3``
+    (element averages on the conductors, zero elsewhere), ``flux_density_T`` (B at the cell
+    centre: on every cell when the step has whole-domain fields, else on the conductors only).
+    Point data, with whole-domain fields: ``r_a_phi_Wb`` (axisymmetric; r·a_φ, T·m² = Wb per
+    radian: 2π r a_φ is the flux through the circle of radius r) or ``a_z_Wb_m`` (planar); its
+    contours are the flux lines.  Signs: GetDP's frame, i.e. a positive coil current flowing along
+    −e_φ (axisymmetric) or +z (planar), so that B = curl a holds with the written values.
+    """
+    m = len(mesh.triangles)
+    f, p, b = np.zeros((m, 3)), np.zeros(m), np.zeros((m, 3))
+    f[r.elements, :2] = r.force_density[-1]
+    p[r.elements] = r.joule_density[-1]
+    point_data = {}
+    if getattr(r, "b_cells", None) is not None and getattr(r, "a_nodes", None) is not None:
+        b[:, :2] = np.nan_to_num(r.b_cells)
+        if axisymmetric:
+            point_data["r_a_phi_Wb"] = -r.a_nodes  # getdp's unknown is r a_z of its frame, z = -e_phi
+        else:
+            point_data["a_z_Wb_m"] = r.a_nodes.copy()
+    else:
+        b[r.elements, :2] = r.flux_density[-1]
+    data = {"region": mesh.tri_tags.astype(np.int32), "force_density_N_m3": f,
+            "joule_power_density_W_m3": p, "flux_density_T": b}
+    return x, mesh.triangles, data, point_data
+
+
+def _takes_field_output(solver) -> bool:
+    """True if ``solver.step`` accepts ``field_output`` (GetDPSolver; not every stand-in does)."""
+    import inspect
+
+    try:
+        params = inspect.signature(solver.step).parameters
+    except (TypeError, ValueError):
+        return False
+    return "field_output" in params or any(p.kind is p.VAR_KEYWORD for p in params.values())

@@ -109,36 +109,6 @@ def plot_time_step(history: History, folder: Path, axis: TimeAxis | None = None)
     return _save(fig, folder / "time_step.png")
 
 
-def plot_em_snapshot(points, triangles, data: dict, folder: Path, t: float, box=None) -> Path:
-    """Force-density magnitude (N/m³, log scale) on the moved EM mesh, mesh edges in grey."""
-    import numpy as np
-    from matplotlib.colors import LogNorm
-    from matplotlib.tri import Triangulation
-
-    f = np.linalg.norm(data["force_density_N_m3"][:, :2], axis=1)
-    tri = Triangulation(points[:, 0] * 1e3, points[:, 1] * 1e3, triangles)
-    fig, ax = plt.subplots(figsize=(8, 4))
-    ax.triplot(tri, color="0.8", lw=0.2)
-    pos = f > 0
-    if pos.any():
-        tri_c = Triangulation(points[:, 0] * 1e3, points[:, 1] * 1e3, triangles[pos])
-        pc = ax.tripcolor(tri_c, facecolors=f[pos], norm=LogNorm(vmin=f[pos].max() * 1e-3, vmax=f[pos].max()),
-                          cmap="inferno")
-        fig.colorbar(pc, ax=ax, label="|j × B| [N/m³]")
-    coil = data["region"] // 100 == 1
-    if coil.any():
-        tri_k = Triangulation(points[:, 0] * 1e3, points[:, 1] * 1e3, triangles[coil])
-        ax.tripcolor(tri_k, facecolors=np.ones(coil.sum()), cmap="Greens", vmin=0, vmax=2, alpha=0.6)
-    if box is not None:
-        ax.set_xlim(box[0] * 1e3, box[1] * 1e3)
-        ax.set_ylim(box[2] * 1e3, box[3] * 1e3)
-    ax.set_aspect("equal")
-    ax.set_xlabel("r [mm]")
-    ax.set_ylabel("z [mm]")
-    ax.set_title(f"Lorentz force density, t = {t * 1e6:.1f} µs (coil in green)")
-    return _save(fig, folder / "em_force_density.png")
-
-
 # ---------------------------------------------------------------------------------------------------
 # every picture of a results folder: the end of a run and `pulseform plot` call this
 
@@ -182,16 +152,16 @@ def check_results_folder(results_dir: Path) -> Path:
 
 
 def draw_all(results_dir: Path, *, case=None, history: History | None = None, shapes: list | None = None,
-             analyses: list | None = None, em_snapshot: tuple | None = None) -> Drawn:
+             analyses: list | None = None) -> Drawn:
     """Draw every picture of a results folder into its ``plots/`` (atomically, replacing old ones).
 
     Reads what is not given: the resolved ``case.toml``, ``history.csv``, the fields. The end of a
     run passes what it holds in memory (case, history, node positions at the output times
-    ``shapes``, its analyses, the last EM snapshot ``(points, triangles, cell data, t)``) and draws
-    the same pictures as ``pulseform plot`` does later from the files. Pictures: energies, time
+    ``shapes``, its analyses) and draws the same pictures as ``pulseform plot`` does later from the files. Pictures: energies, time
     step, one per history column (units from :mod:`.units`, one time unit per run), the case's
     analyses, then ``pictures_mech.draw_mechanics`` and ``pictures_em.draw_em`` when those modules
-    exist (until then the older shapes / EM force-density pictures). A picture group that fails
+    exist (until then the older shapes picture; the EM pictures are ``pictures_em``'s, from
+    ``fields/em/``). A picture group that fails
     is reported in :attr:`Drawn.failed` and the others are still drawn.
     """
     root = check_results_folder(results_dir)
@@ -249,12 +219,6 @@ def draw_all(results_dir: Path, *, case=None, history: History | None = None, sh
         em = _picture_module(*PICTURE_MODULES[1], skip)
         if em is not None:
             attempt("EM pictures", em, root)
-        elif "plot_em_snapshot" in globals():
-            snap = em_snapshot if em_snapshot is not None else read_em_snapshot(root, skip)
-            if snap is not None:
-                points, triangles, data, t = snap
-                attempt("EM force density", globals()["plot_em_snapshot"], points, triangles, data, folder, t,
-                        box=em_plot_box(case))
     done.paths = list(dict.fromkeys(done.paths))
     return done
 
@@ -310,50 +274,3 @@ def read_shapes(root: Path, case, skip) -> list | None:
         skip("no body shapes in fields/: shape plots skipped")
         return None
     return shapes
-
-
-def read_em_snapshot(root: Path, skip) -> tuple | None:
-    """The last EM snapshot of ``fields/em*/em.pvd``: (points, triangles, cell data, t); None (with a
-    skip line) when there is none."""
-    import xml.etree.ElementTree as ET
-
-    import numpy as np
-
-    last = None
-    for pvd in (root / "fields").glob("em*/em.pvd"):
-        try:
-            sets = ET.parse(pvd).getroot().iter("DataSet")
-            for ds in sets:
-                t = float(ds.get("timestep"))
-                if last is None or t > last[0]:
-                    last = (t, pvd.parent / ds.get("file"))
-        except (ET.ParseError, OSError, TypeError, ValueError):
-            continue
-    if last is None:
-        skip("no EM snapshot in fields/em/: EM force-density picture skipped")
-        return None
-    try:
-        import meshio
-
-        mesh = meshio.read(last[1])
-        tri = [i for i, c in enumerate(mesh.cells) if c.type == "triangle"]
-        data = {k: np.concatenate([np.asarray(v[i]) for i in tri]) for k, v in mesh.cell_data.items()}
-        triangles = np.concatenate([mesh.cells[i].data for i in tri])
-    except Exception as exc:
-        skip(f"{last[1]} unreadable ({type(exc).__name__}): EM force-density picture skipped")
-        return None
-    return np.asarray(mesh.points), triangles, data, last[0]
-
-
-def em_plot_box(case) -> tuple[float, float, float, float] | None:
-    """Region of interest (m) for EM pictures: the coil and workpiece with a margin."""
-    g = case.geometry
-    if g is None:
-        return None
-    if g.type == "flat_coil_sheet":
-        r = 1.15 * g.sheet_radius
-        return (0.0, r, -3 * g.turn_height, g.coil_gap + 0.25 * r)
-    if g.type != "solenoid_tube":  # a user deck: the whole mesh
-        return None
-    half = 0.6 * max(g.tube_length, g.turns * (g.turn_height + g.turn_gap))
-    return (0.0, 1.5 * (g.tube_inner_radius + g.tube_thickness), -half, half)

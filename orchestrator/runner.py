@@ -258,9 +258,7 @@ def _dispatch(case: Case, results: ResultsFolder, *, quiet: bool, resume: bool, 
         from .plots import draw_all
 
         # the pictures `pulseform plot` draws from the folder, from what the run holds in memory
-        snap = None if run.em_snapshot is None else (*run.em_snapshot, run.solver.time)
-        drawn = draw_all(results.root, case=case, history=run.history, shapes=run.shapes, analyses=run.analyses,
-                         em_snapshot=snap)
+        drawn = draw_all(results.root, case=case, history=run.history, shapes=run.shapes, analyses=run.analyses)
         log.info("%d pictures in %s", len(drawn.paths), results.plots)
     return run
 
