@@ -303,7 +303,7 @@ class Output:
 
     field_interval: float | None = spec(None, unit="s", gt=0.0,
                                         doc="XDMF field output interval (default: end / 20)")
-    history_every: int = spec(1, unit="-", ge=1, doc="history.csv row every N mechanical steps")
+    history_every: int = spec(1, unit="-", ge=1, doc="history.csv row every N EM steps (mechanics cases: mechanical steps), plus one at each output time")
     plots: bool = spec(True, doc="write plots/*.png")
 
 
