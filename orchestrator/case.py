@@ -315,6 +315,9 @@ class Limits:
                             doc="most mesh cells (estimated from areas / mesh size² before any meshing)")
     max_steps: float = spec(5e7, unit="-", gt=0.0, magnitude=(1.0, 1e12),
                             doc="most explicit steps (estimated: time.end / stable step of the undeformed mesh)")
+    max_em_steps: float = spec(5e4, unit="-", gt=0.0, magnitude=(1.0, 1e12),
+                               doc="most EM steps of a GetDP-coupled case (getdp runs; estimated: explicit steps / "
+                                   "coupling.n)")
     gmsh_time_limit_s: float = spec(600.0, unit="s", gt=0.0, magnitude=(1e-3, 1e6),
                                     doc="wall-time limit of one gmsh run (built-in geometry, remesh, user .geo)")
     getdp_time_limit_s: float = spec(600.0, unit="s", gt=0.0, magnitude=(1e-3, 1e6),

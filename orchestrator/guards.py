@@ -10,6 +10,9 @@ Estimates (checked by ``Case.validate``, so ``pulseform check`` and every run se
 - **explicit steps**: ``time.end`` over the smallest estimated stable step of the undeformed meshes,
   ``cfl · 0.5 h / c_d`` with the dilatational wave speed ``c_d = sqrt((K + 4G/3) / ρ)`` (a well-shaped
   triangle of size h has an altitude of ~0.87 h; 0.5 h allows for real meshes), capped by ``time.dt_max``.
+  h is the region's element size, or its thickness where that is smaller (a 1 µm sheet meshed "at
+  0.5 mm" gets 1 µm elements).
+- **EM steps** of a GetDP-coupled case: explicit steps / ``coupling.n`` (one getdp run each).
 
 The limits are the case's ``[limits]`` table (see :class:`~pulseform.orchestrator.case.Limits`).
 """
@@ -34,10 +37,16 @@ class Region:
     key: str
     area: float
     size: float
+    thinnest: float = math.inf  # the region's smallest extent (m): a sheet's thickness caps its elements
+
+    @property
+    def h(self) -> float:
+        """Element size (m): the set size, or the region's thickness where that is smaller."""
+        return min(self.size, self.thinnest)
 
     @property
     def cells(self) -> float:
-        return CELLS_PER_AREA_OVER_H2 * self.area / self.size ** 2
+        return CELLS_PER_AREA_OVER_H2 * self.area / self.h ** 2
 
 
 def _shape_area(shape) -> float:
@@ -52,52 +61,52 @@ def _geometry_regions(g) -> list[Region]:
     air = 0.5 * math.pi * g.air_radius ** 2 if hasattr(g, "air_radius") else 0.0
     turn = g.turn_width * g.turn_height if hasattr(g, "turn_width") else 0.0
     if g.type == "flat_coil_sheet":
-        out = [Region("geometry.mesh_size_sheet", g.sheet_radius * g.sheet_thickness, g.mesh_size_sheet)]
+        out = [Region("geometry.mesh_size_sheet", g.sheet_radius * g.sheet_thickness, g.mesh_size_sheet,
+                      g.sheet_thickness)]
         if g.die is not None:
             d = g.die
             out.append(Region("geometry.die.mesh_size", d.outer_radius * d.height, d.mesh_size))
     elif g.type == "solenoid_tube":
-        out = [Region("geometry.mesh_size_tube", g.tube_thickness * g.tube_length, g.mesh_size_tube)]
+        out = [Region("geometry.mesh_size_tube", g.tube_thickness * g.tube_length, g.mesh_size_tube,
+                      g.tube_thickness)]
         if g.outer_tube is not None:
             o = g.outer_tube
-            out.append(Region("geometry.outer_tube.mesh_size", o.thickness * o.length, o.mesh_size))
+            out.append(Region("geometry.outer_tube.mesh_size", o.thickness * o.length, o.mesh_size, o.thickness))
     elif g.type == "planar_coil_blank_die":
-        out = [Region("geometry.mesh_size_blank", g.blank_half_width * g.blank_thickness, g.mesh_size_blank)]
+        out = [Region("geometry.mesh_size_blank", g.blank_half_width * g.blank_thickness, g.mesh_size_blank,
+                      g.blank_thickness)]
         if g.die is not None:
             pts = list(g.die)
             area = 0.5 * abs(sum(x0 * y1 - x1 * y0 for (x0, y0), (x1, y1) in zip(pts, pts[1:] + pts[:1])))
             out.append(Region("geometry.mesh_size_die", area, g.mesh_size_die))
     else:
         return []
-    out.append(Region("geometry.mesh_size_coil", g.turns * turn, g.mesh_size_coil))
+    out.append(Region("geometry.mesh_size_coil", g.turns * turn, g.mesh_size_coil, min(g.turn_width, g.turn_height)))
     out.append(Region("geometry.mesh_size_air", air, g.mesh_size_air))
     return out
 
 
-def _body_size(case, i: int) -> tuple[float | None, str]:
-    """Element size (m) of body ``i`` and the key that sets it: its own mesh_size, or its EM region's."""
-    body = case.bodies[i]
-    if body.mesh_size is not None:
-        return body.mesh_size, f"bodies[{i}].mesh_size"
+def _body_regions(case) -> list[Region]:
+    """Each body's meshed region, in the order of ``case.bodies`` (None where unknown before meshing)."""
     g = case.geometry
-    if g is None:
-        return None, ""
-    own = {"flat_coil_sheet": {"workpiece": "mesh_size_sheet"},
-           "solenoid_tube": {"workpiece": "mesh_size_tube"},
-           "planar_coil_blank_die": {"workpiece": "mesh_size_blank", "die": "mesh_size_die"}}.get(g.type, {})
-    if body.region in own:
-        return getattr(g, own[body.region]), f"geometry.{own[body.region]}"
-    sub = {"die": "die", "outer_tube": "outer_tube"}.get(body.region or "")
-    part = getattr(g, sub, None) if sub else None
-    if part is not None and hasattr(part, "mesh_size"):
-        return part.mesh_size, f"geometry.{sub}.mesh_size"
-    return None, ""
+    geo = {r.key: r for r in _geometry_regions(g)} if g is not None else {}
+    key = {"workpiece": {"flat_coil_sheet": "mesh_size_sheet", "solenoid_tube": "mesh_size_tube",
+                         "planar_coil_blank_die": "mesh_size_blank"},
+           "die": {"flat_coil_sheet": "die.mesh_size", "planar_coil_blank_die": "mesh_size_die"},
+           "outer_tube": {"solenoid_tube": "outer_tube.mesh_size"}}
+    out = []
+    for i, b in enumerate(case.bodies):
+        if b.shape is not None and b.mesh_size is not None:
+            thin = min(b.shape.width, b.shape.height) if b.shape.type == "rectangle" else math.inf
+            out.append(Region(f"bodies[{i}].mesh_size", _shape_area(b.shape), b.mesh_size, thin))
+        else:
+            out.append(geo.get("geometry." + key.get(b.region or "", {}).get(g.type if g else "", ""), None))
+    return out
 
 
 def estimated_cells(case) -> tuple[float, Region | None]:
     """(estimated cells of all meshes, the region contributing most)."""
-    regions = [Region(f"bodies[{i}].mesh_size", _shape_area(b.shape), b.mesh_size)
-               for i, b in enumerate(case.bodies) if b.shape is not None and b.mesh_size is not None]
+    regions = [r for r, b in zip(_body_regions(case), case.bodies) if r is not None and b.shape is not None]
     if case.geometry is not None:
         regions += _geometry_regions(case.geometry)
     if not regions:
@@ -106,17 +115,16 @@ def estimated_cells(case) -> tuple[float, Region | None]:
 
 
 def estimated_steps(case) -> tuple[float, str]:
-    """(estimated explicit steps to time.end, the key path of the body's size that sets the step)."""
+    """(estimated explicit steps to time.end, the key path of the size that sets the step)."""
     worst, key = math.inf, ""
-    for i, b in enumerate(case.bodies):
-        h, size_key = _body_size(case, i)
-        if h is None:
+    for region, b in zip(_body_regions(case), case.bodies):
+        if region is None:
             continue
         m = case.materials[b.material]
         c_d = math.sqrt((m.bulk_modulus + 4.0 * m.shear_modulus / 3.0) / m.density)
-        dt = case.time.cfl * STEP_LENGTH_FRACTION * h / c_d
+        dt = case.time.cfl * STEP_LENGTH_FRACTION * region.h / c_d
         if dt < worst:
-            worst, key = dt, size_key
+            worst, key = dt, region.key + (" (capped by the part's thickness)" if region.thinnest < region.size else "")
     if case.time.dt_max is not None:
         if case.time.dt_max < worst:
             key = "time.dt_max"
@@ -124,6 +132,13 @@ def estimated_steps(case) -> tuple[float, str]:
     if not math.isfinite(worst):
         return 0.0, ""
     return case.time.end / worst, key
+
+
+def _em_steps(case, steps: float) -> float:
+    """GetDP runs of a coupled case with ``steps`` explicit steps (0 for other cases)."""
+    if case.case.kind != "coupled" or case.coupling.load != "getdp":
+        return 0.0
+    return steps / case.coupling.n
 
 
 def check_resources(case) -> None:
@@ -139,6 +154,11 @@ def check_resources(case) -> None:
         raise SchemaError("time.end", f"got {case.time.end:g} s: ~{steps:.3g} explicit steps (stable step set by "
                           f"{key}), above limits.max_steps = {lim.max_steps:.3g}; shorten time.end, coarsen the "
                           "mesh or raise limits.max_steps")
+    em = _em_steps(case, steps)
+    if em > lim.max_em_steps:
+        raise SchemaError("time.end", f"got {case.time.end:g} s: ~{em:.3g} EM steps (getdp runs; stable step set by "
+                          f"{key}, coupling.n = {case.coupling.n}), above limits.max_em_steps = {lim.max_em_steps:.3g}; "
+                          "shorten time.end, coarsen the mesh, raise coupling.n or raise limits.max_em_steps")
 
 
 class LimitExceeded(ValueError):
@@ -149,6 +169,11 @@ def check_steps_of_meshes(case, stable_step: float) -> None:
     """After meshing: ``time.end`` over the meshes' actual stable step (s) against ``limits.max_steps``."""
     dt = stable_step if case.time.dt_max is None else min(stable_step, case.time.dt_max)
     steps = case.time.end / dt
+    em = _em_steps(case, steps)
+    if em > case.limits.max_em_steps:
+        raise LimitExceeded(f"time.end: got {case.time.end:g} s: {em:.3g} EM steps (getdp runs) at the meshes' stable "
+                            f"step {dt:.3g} s and coupling.n = {case.coupling.n}, above limits.max_em_steps = "
+                            f"{case.limits.max_em_steps:.3g}; shorten time.end, coarsen the mesh or raise the limit")
     if steps > case.limits.max_steps:
         raise LimitExceeded(f"time.end: got {case.time.end:g} s: {steps:.3g} explicit steps at the meshes' stable step "
                             f"{dt:.3g} s, above limits.max_steps = {case.limits.max_steps:.3g}; shorten time.end, "

@@ -103,6 +103,30 @@ def write_csv(path: Path, header: Sequence[str], rows: Iterable[Sequence[float]]
     atomic_write_text(path, buf.getvalue())
 
 
+def _lock_folder(root: Path) -> int:
+    """An exclusive ``flock`` on the folder ``root``: its descriptor (closing it releases the lock).
+    Raises :class:`ResultsExistError` while another process holds it."""
+    fd = os.open(root, os.O_RDONLY | os.O_DIRECTORY)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        os.close(fd)
+        try:
+            who = json.loads((Path(root) / MARKER_NAME).read_text()).get("pid", "?")
+        except (OSError, ValueError, AttributeError):
+            who = "?"
+        raise ResultsExistError(f"{root}: in use by a running pulseform (process {who}); wait for it to end or "
+                                "choose another --out") from None
+    return fd
+
+
+def refuse_if_in_use(root: Path) -> None:
+    """Raise :class:`ResultsExistError` if a running pulseform holds the folder ``root`` (see
+    :class:`ResultsFolder`); a missing folder is not in use."""
+    if Path(root).is_dir():
+        os.close(_lock_folder(Path(root)))
+
+
 class ResultsFolder:
     """One run's output folder.
 
@@ -149,28 +173,13 @@ class ResultsFolder:
 
     def _lock(self) -> None:
         """Lock the folder for this process (refused while another pulseform holds it)."""
-        fd = os.open(self.root, os.O_RDONLY | os.O_DIRECTORY)
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            os.close(fd)
-            who = self._marker().get("pid", "?")
-            raise ResultsExistError(f"{self.root}: in use by a running pulseform (process {who}); wait for it "
-                                    "to end or choose another --out") from None
-        self._lock_fd = fd
+        self._lock_fd = _lock_folder(self.root)
 
     def release(self) -> None:
         """Release the folder's lock (also released by the kernel when the process ends)."""
         if self._lock_fd is not None:
             os.close(self._lock_fd)
             self._lock_fd = None
-
-    def _marker(self) -> dict[str, Any]:
-        try:
-            data = json.loads((self.root / MARKER_NAME).read_text())
-        except (OSError, ValueError):
-            return {}
-        return data if isinstance(data, dict) else {}
 
     def _write_marker(self) -> None:
         from . import __version__

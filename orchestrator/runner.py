@@ -16,7 +16,7 @@ from mpi4py import MPI
 from . import interrupt
 from .case import Case
 from .caseio import case_to_toml
-from .results import DISK_FULL_ERRNOS, ResultsFolder
+from .results import DISK_FULL_ERRNOS, ResultsFolder, refuse_if_in_use
 
 log = logging.getLogger(__name__)
 
@@ -140,6 +140,7 @@ def run_case(case: Case, out: Path, *, force: bool = False, resume: bool = False
         The solver failed; the log, history so far and partial metrics stay in ``out``.
     """
     if resume:
+        refuse_if_in_use(Path(out))  # "in use" before "nothing to resume yet"
         _check_resumable(case, Path(out))
     results = ResultsFolder(out, force=force, resume=resume) if comm.rank == 0 else None
     comm.Barrier()

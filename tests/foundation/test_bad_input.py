@@ -374,3 +374,16 @@ def test_huge_file(tmp_path, capsys):
     file = tmp_path / "huge.toml"
     file.write_text("x = [" + "1.5, " * 600_000 + "]\n")
     _assert_one_line_error(capsys, main(["check", str(file)]), "MiB", str(file))
+
+
+def test_thin_part_caps_the_element_size_of_the_guards(capsys):
+    """A 1 µm sheet "meshed at 0.5 mm" gets 1 µm elements: ~7e4 getdp runs for the demo's 60 µs. Found by
+    the slow fuzz tier (it ran for more than 10 minutes); the guards now use the thickness (guards.py)."""
+    from pulseform.orchestrator.cli import main
+
+    code = main(["check", str(REPO / "cases/emf_sheet_bulge"), "--set", "geometry.sheet_thickness=1e-6"])
+    err = capsys.readouterr().err
+    assert code == 2 and "limits.max_em_steps" in err and "capped by the part's thickness" in err, err
+    code = main(["check", str(REPO / "cases/emf_sheet_bulge"), "--set", "geometry.sheet_thickness=1e-6",
+                 "--set", "limits.max_em_steps=1e6"])
+    assert code == 0, capsys.readouterr().err
