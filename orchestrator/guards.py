@@ -166,15 +166,16 @@ class LimitExceeded(ValueError):
 
 
 def check_steps_of_meshes(case, stable_step: float) -> None:
-    """After meshing: ``time.end`` over the meshes' actual stable step (s) against ``limits.max_steps``."""
+    """After meshing: explicit steps and getdp runs at the meshes' actual stable step (s) against
+    ``limits.max_steps`` and ``limits.max_em_steps``."""
     dt = stable_step if case.time.dt_max is None else min(stable_step, case.time.dt_max)
     steps = case.time.end / dt
+    if steps > case.limits.max_steps:
+        raise LimitExceeded(f"time.end: got {case.time.end:g} s: {steps:.3g} explicit steps at the meshes' stable step "
+                            f"{dt:.3g} s, above limits.max_steps = {case.limits.max_steps:.3g}; shorten time.end, "
+                            "coarsen the mesh or raise limits.max_steps")
     em = _em_steps(case, steps)
     if em > case.limits.max_em_steps:
         raise LimitExceeded(f"time.end: got {case.time.end:g} s: {em:.3g} EM steps (getdp runs) at the meshes' stable "
                             f"step {dt:.3g} s and coupling.n = {case.coupling.n}, above limits.max_em_steps = "
                             f"{case.limits.max_em_steps:.3g}; shorten time.end, coarsen the mesh or raise the limit")
-    if steps > case.limits.max_steps:
-        raise LimitExceeded(f"time.end: got {case.time.end:g} s: {steps:.3g} explicit steps at the meshes' stable step "
-                            f"{dt:.3g} s, above limits.max_steps = {case.limits.max_steps:.3g}; shorten time.end, "
-                            "coarsen the mesh or raise limits.max_steps")
