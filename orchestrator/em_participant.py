@@ -74,6 +74,20 @@ def em_model(case: Case, shell: tuple[float, float] | None) -> EMModel:
     return EMModel(axisymmetric=not g.planar, coils=[coil], conductors=conductors, circuit=circuit, shell=shell)
 
 
+def make_em_solver(model: EMModel, work_dir: Path, time_scheme: str, getdp_process: str, **kw) -> GetDPSolver:
+    """The EM participant: a persistent getdp for BDF2 (``getdp_process`` "persistent" or "auto"),
+    else one getdp process per EM step. ``kw`` go to the solver (deck, numbers, preamble)."""
+    if getdp_process not in ("auto", "persistent", "per_step"):
+        raise ValueError(f"getdp_process must be 'auto', 'persistent' or 'per_step', got {getdp_process!r}")
+    if getdp_process == "persistent" and time_scheme != "bdf2":
+        raise ValueError("the persistent getdp implements time_scheme='bdf2' only")
+    if getdp_process != "per_step" and time_scheme == "bdf2":
+        from pulseform.solvers.getdp.persistent import PersistentGetDPSolver
+
+        return PersistentGetDPSolver(model, work_dir, **kw)
+    return GetDPSolver(model, work_dir, time_scheme=time_scheme, **kw)
+
+
 @dataclass
 class ConductorBody:
     """A mechanical body that is an EM conductor region (shared nodes).
@@ -123,17 +137,22 @@ class GetDPLoad:
         See :class:`~pulseform.solvers.getdp.GetDPSolver`.
     depth : float
         Planar geometries: the mechanics' thickness (m) that multiplies GetDP's per-metre forces.
+    getdp_process : {"per_step", "persistent", "auto"}
+        One getdp process per EM step (:class:`~pulseform.solvers.getdp.GetDPSolver`), or one for the
+        whole run (:class:`~pulseform.solvers.getdp.persistent.PersistentGetDPSolver`, BDF2 only;
+        "auto" takes it with BDF2).
     """
 
     def __init__(self, geometry: EMGeometry, model: EMModel, work_dir: Path, bodies: list[ConductorBody],
                  keep_runs: bool = False, remesh_quality: float = 0.3, sizes: tuple[float, float] = (1e-3, 0.02),
-                 em_substeps: int = 1, depth: float = 1.0, time_scheme: str = "euler") -> None:
+                 em_substeps: int = 1, depth: float = 1.0, time_scheme: str = "euler",
+                 getdp_process: str = "per_step") -> None:
         self.geometry, self.bodies = geometry, list(bodies)
         self.keep_runs, self.remesh_quality, self.sizes = keep_runs, remesh_quality, sizes
         self.em_substeps = em_substeps
         self.axisymmetric = not geometry.planar
         self.scale = 1.0 if self.axisymmetric else float(depth)
-        self.solver = GetDPSolver(model, work_dir, time_scheme=time_scheme)
+        self.solver = make_em_solver(model, work_dir, time_scheme, getdp_process)
         self.state = self.solver.initial_state(0.0)
         # the bodies' material coordinates
         self.X0 = {b.name: geometry.mesh.points[b.body_to_em].copy() for b in self.bodies}
@@ -323,6 +342,9 @@ class GetDPLoad:
             self.peak_abs_current = abs(current)
         elif p is not None and not p["written"]:
             self._fields(p["result"], p["mesh"])
+        p = self._peak
+        if p is not None and p["t"] == t1 and getattr(self.solver, "fields_expire", False):
+            self._fields(result, self.geometry.mesh)  # a persistent getdp has them only until the next step
 
     def take_peak_snapshot(self) -> tuple | None:
         """(t, coil current, points, triangles, cell data, point data) of the peak-current step if it
@@ -368,7 +390,10 @@ class GetDPLoad:
             self._deleting.append(thread)
 
     def close(self) -> None:
-        """Wait until the old run folders are deleted (call once the run is over)."""
+        """End a persistent getdp and wait until the old run folders are deleted (call once the run is
+        over)."""
+        if hasattr(self.solver, "close"):
+            self.solver.close()
         for thread in self._deleting:
             thread.join()
         self._deleting = []
@@ -381,7 +406,8 @@ class GetDPLoad:
         """
         if self.state.res_path:
             self._pinned = Path(self.state.res_path).parent
-        blob = json.dumps({"state": self.state.to_dict(), "runs": [str(p) for p in self._runs],
+        state = self.solver.complete_state(self.state) if hasattr(self.solver, "complete_state") else self.state
+        blob = json.dumps({"state": state.to_dict(), "runs": [str(p) for p in self._runs],
                            "min_quality": self.min_quality, "remeshes": self.remeshes,
                            "peak_abs_current": self.peak_abs_current}).encode()
         m = self.geometry.mesh

@@ -72,6 +72,14 @@ def _element_table(path: Path, ncomp: int, n_blocks: int) -> tuple[np.ndarray, n
     return ids, np.stack(blocks)
 
 
+def init_list_line(name: str, ids, values) -> str:
+    """A ``run.pro`` line defining the list ``name() = {N, id, value, ...}`` for ``ValueFromIndex``
+    (the pair count first, else every lookup silently returns 0); values in ``repr``: exact round trip."""
+    pairs = [f"{int(i)}, {float(v)!r}" for i, v in zip(np.asarray(ids).tolist(), np.asarray(values).tolist())]
+    body = ",\n  ".join(", ".join(pairs[j:j + 8]) for j in range(0, len(pairs), 8))
+    return f"{name}() = {{{len(pairs)},\n  {body}}};"
+
+
 def _table(path: Path) -> np.ndarray:
     """Read a whitespace table written by getdp (np.loadtxt: the fastest reader measured here)."""
     return np.loadtxt(path, ndmin=2)
@@ -218,9 +226,7 @@ class GetDPSolver:
                     init_vc = c1 * state.capacitor_voltage - c2 * state.capacitor_voltage_prev
                     init_i = c1 * state.current - c2 * state.current_prev
             numbers["Flag_InitA"] = 1
-            pairs = [f"{i}, {v!r}" for i, v in zip(ids.tolist(), vals.tolist())]   # repr: exact round trip
-            body = ",\n  ".join(", ".join(pairs[j:j + 8]) for j in range(0, len(pairs), 8))
-            data_lines.append(f"InitA_List() = {{{len(ids)},\n  {body}}};")
+            data_lines.append(init_list_line("InitA_List", ids, vals))
         numbers.update(TimeInit=t_init, TimeFinal=float(t_end), NbSteps=int(n_sub))
         if model.circuit is not None:
             numbers["Init_Vc"] = init_vc
@@ -518,7 +524,7 @@ class GetDPSolver:
 # ----------------------------------------------------------------------------- names a run sets
 #: lists ``run.pro`` defines before the deck is included: the Init path's nodal values
 #: (:meth:`GetDPSolver.step`) and the coil current tables (:meth:`GetDPSolver._table_lines`)
-RUN_PRO_LISTS = ("InitA_List", "Coil_Table_<k>")
+RUN_PRO_LISTS = ("InitA_List", "InitA2_List", "Coil_Table_<k>")
 
 
 def _indexed(name: str) -> str:
@@ -531,7 +537,8 @@ def runner_number_names() -> tuple[str, ...]:
     """Every name a :class:`GetDPSolver` run defines in getdp, sorted; indexed families once as
     ``Coil_Ns_<k>`` (``<k>`` = 1, 2, ...).
 
-    The union of (1) the ``DefineConstant`` inputs of the library deck ``Lib_PulsedForming.pro``
+    The union of (1) the ``DefineConstant`` inputs of the library decks ``Lib_PulsedForming.pro``
+    and ``Lib_Persistent.pro``
     (the numbers and strings a step passes with ``-setnumber`` / ``-setstring``: ``TimeInit``,
     ``NbSteps``, ``Flag_*``, ``C_bank``, ``OutDir``, ...), (2) the numbers :meth:`GetDPSolver._numbers`
     computes from a model and mesh (evaluated here on small models with every option on: a
@@ -539,10 +546,11 @@ def runner_number_names() -> tuple[str, ...]:
     :data:`RUN_PRO_LISTS`.  A user deck's own parameters may not reuse any of them
     (``pulseform.orchestrator.user_deck``).
     """
-    lib = re.sub(r"//[^\n]*", "", (DECK_DIR / "Lib_PulsedForming.pro").read_text())
     names = set()
-    for block in re.findall(r"DefineConstant\s*\[(.*?)\]\s*;", lib, flags=re.S):
-        names.update(_indexed(n) for n in re.findall(r"([A-Za-z_]\w*(?:~\{\w+\})?)\s*=", block))
+    for deck in ("Lib_PulsedForming.pro", "Lib_Persistent.pro"):
+        lib = re.sub(r"//[^\n]*", "", (DECK_DIR / deck).read_text())
+        for block in re.findall(r"DefineConstant\s*\[(.*?)\]\s*;", lib, flags=re.S):
+            names.update(_indexed(n) for n in re.findall(r"([A-Za-z_]\w*(?:~\{\w+\})?)\s*=", block))
     pts = [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)]
     mesh = EMMesh(pts, [[0, 1, 2], [0, 2, 3], [0, 1, 3]], [coil_tag(1), conductor_tag(1), conductor_tag(2)],
                   [[0, 3]], [11])

@@ -1,0 +1,674 @@
+"""One getdp process advances many EM steps while the mesh moves (BDF2): no process per step.
+
+:class:`PersistentGetDPSolver` has the stepping API of :class:`~.solver.GetDPSolver` (BDF2 only)
+and gives the same results to round-off (tests/getdp/test_persistent.py); it drives one
+:class:`PersistentProcess` per mesh connectivity (a remesh or a resume starts a new one, seeded
+with both BDF2 history states).
+
+Protocol of one EM step (the Resolution ``EM_Persistent`` of ``decks/Lib_Persistent.pro``):
+
+* Python -> getdp: one binary GetDP ``.res`` message written into the FIFO ``in.fifo`` (getdp's
+  ``-res`` file); ``ReadSolution[U]`` blocks on it.  Its ``$Solution`` header carries t_n (Time),
+  the flags (TimeImag, :data:`FLAG_ELEM` ...) and the step number (TimeStep); the vector is the
+  node displacement *increment* (x_new - x_getdp) in the dof order of the displacement system U,
+  read once per process from getdp's ``.pre`` (DofData #1).  ``DeformMesh`` moves the nodes.
+* getdp -> Python: text lines on the FIFO ``out.fifo`` (held open read-write here, so getdp's
+  appending opens never block and a read never sees end-of-file): ``C k I U P Fx Fy`` per coil,
+  ``K k P Fx Fy`` per conductor, ``G W Vc Ic``, then ``D k t dt`` when the step is done; the
+  per-element force table ``elem_F.txt`` (and ``elem_P.txt``, ``elem_b.txt``, ``field_b.txt``,
+  ``field_a.txt``, ``nodes_a.txt``, ``nodes_a_prev.txt`` on request) in the process's ``out/``.
+* Failure: the wait selects on the FIFO and on a pidfd of getdp: a getdp that dies is reported at
+  once with its exit status and log tail, one that hangs is killed after the time limit; getdp runs
+  with :func:`~.runner.child_preexec` (SIGKILL when pulseform dies, SIGINT ignored).
+
+Only what the loop needs is computed each step (``PF_GlobalsSet`` = 37): the coil current and
+voltage and the circuit (global unknowns), the magnetic energy as ½ (j, a) over coils and
+conductors (equal to the whole-domain ½ (ν curl a, curl a) of the discrete solution), the
+conductors' Joule power, and the per-element force integrals; the conductor force is their sum,
+the coil's Joule power (N_s I / S_c)² / σ × V_coil (uniform current density), the coil force is
+not computed (NaN).  B and Joule power per element are fetched only when read (a field output).
+"""
+from __future__ import annotations
+
+import logging
+import os
+import select
+import shutil
+import signal
+import subprocess
+import time
+import warnings
+import weakref
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+
+from .bdf2 import match_rows, trapezoid_mean
+from .mesh import EMMesh, coil_tag, conductor_tag, write_msh22
+from .model import EMModel, EMState, EMStepResult
+from .runner import FAST_MPI_ENV, GetDPError, RunInfo, child_preexec, find_getdp, log_tail, scan_log
+from .solver import CASE_DECK, DEFAULT_PETSC_ARGS, GetDPSolver, _element_table, _element_volumes, init_list_line
+
+log = logging.getLogger(__name__)
+
+RESOLUTION = "EM_Persistent"
+#: message flags (the ``TimeImag`` of a message; Lib_Persistent.pro): per-element force, Joule
+#: power and B on the conductors, nodal state of x_n and x_{n-1}, stop, no globals (profiling),
+#: query (no step), redo (the last step again on a new geometry), whole-domain fields
+FLAG_ELEM, FLAG_COND_FIELDS, FLAG_STATE, FLAG_STOP = 1, 2, 4, 8
+FLAG_NO_GLOBALS, FLAG_QUERY, FLAG_REDO, FLAG_FIELDS = 16, 32, 64, 128
+#: ``PF_GlobalsSet``: coil I, U and circuit (1) + conductor Joule power (4) + energy from the sources (32)
+LEAN_GLOBALS = 37
+_ENXIO = 6
+#: dof types of getdp's ``.pre`` that are unknowns of the system (a number in the solution vector):
+#: unknown, unknown with an Init value
+_UNKNOWN_TYPES = (1, 5)
+
+
+def read_pre_dofs(path: Path, system: int) -> np.ndarray:
+    """Rows (NumType, Entity, Harmonic, Type, NumDof) of DofData #``system`` in a getdp ``.pre`` file."""
+    text = Path(path).read_text()
+    head = f"$DofData /* #{system} */"
+    i = text.find(head)
+    if i < 0:
+        raise RuntimeError(f"{path}: no {head}")
+    lines = text[i:text.find("$EndDofData", i)].splitlines()
+    n_any = int(lines[5].split()[0])
+    return np.array([ln.split()[:5] for ln in lines[6:6 + n_any]], dtype=np.int64)
+
+
+def read_binary_res(path: Path, n_dofs: int) -> list[np.ndarray]:
+    """The solution vectors (``n_dofs`` doubles each) of a binary GetDP ``.res`` file, in order."""
+    data = Path(path).read_bytes()
+    out, pos = [], 0
+    while True:
+        i = data.find(b"$Solution", pos)
+        if i < 0:
+            return out
+        start = data.index(b"\n", data.index(b"\n", i) + 1) + 1  # after the "$Solution" and header lines
+        out.append(np.frombuffer(data, "<f8", n_dofs, start).copy())
+        pos = data.index(b"$EndSolution", start + 8 * n_dofs)
+
+
+def nodal_dof_map(pre: Path, system: int, n_nodes: int) -> tuple[np.ndarray, int]:
+    """(index of each node's unknown in the solution vector of system ``system``, -1 where the node has
+    none (a Dirichlet node), number of unknowns) from getdp's ``.pre`` (rows ``NumType Entity Harmonic
+    Type NumDof ...``; Type 1 an unknown, 5 an unknown with an Init value, 2 a fixed value): the nodal
+    basis function is the most frequent one of the system."""
+    rows = read_pre_dofs(pre, system)
+    unknown = np.isin(rows[:, 3], _UNKNOWN_TYPES)
+    kinds, counts = np.unique(rows[:, 0], return_counts=True)
+    nodal = rows[(rows[:, 0] == kinds[np.argmax(counts)]) & unknown]
+    index = np.full(n_nodes, -1, np.int64)
+    index[nodal[:, 1] - 1] = nodal[:, 4] - 1
+    return index, int(rows[unknown, 4].max())
+
+
+@dataclass
+class StepAnswer:
+    """What getdp answered to one message (end-of-step values).
+
+    ``coil`` (n_coils, 5): I (A), U (V, getdp's sign), P (W), Fx, Fy (N); ``cond`` (n_conductors, 3):
+    P (W), Fx, Fy (N); ``glob``: magnetic energy (J), capacitor voltage (V), capacitor current (A),
+    inductor current (A: the circuit state; equal to the capacitor's to round-off)
+    (totals per radian in axisymmetry, per metre in planar, as getdp prints them, except where
+    :class:`PersistentGetDPSolver` fills them in).  ``wall`` (s): Python's wait for the answer.
+    """
+
+    k: int
+    t: float
+    coil: np.ndarray
+    cond: np.ndarray
+    glob: np.ndarray
+    has_globals: bool
+    wall: float
+
+
+class PersistentProcess:
+    """One ``getdp -solve EM_Persistent`` process on one mesh connectivity (see the module docstring).
+
+    Parameters
+    ----------
+    run_dir : Path
+        The process's folder (mesh, ``run.pro``, FIFOs, ``getdp.log``, ``out/``); made anew.
+    argv_numbers : dict
+        Numbers passed with ``-setnumber`` (the model's, the deck's, the seed's).
+    lines : list of str
+        Lines of ``run.pro`` before the deck is included (lists: Init values, current tables).
+    deck : Path
+        The case deck (it includes the library, which includes ``Lib_Persistent.pro``).
+    time_limit : float or None
+        Wall-time limit (s) of the start-up and of each message's answer; None: 600 s.
+    """
+
+    def __init__(self, run_dir: Path, mesh: EMMesh, argv_numbers: dict[str, float], lines: list[str], deck: Path,
+                 *, executable: str = "getdp", petsc_args: Sequence[str] = DEFAULT_PETSC_ARGS,
+                 time_limit: float | None = None, verbosity: int = 2) -> None:
+        self.run_dir = Path(run_dir).resolve()
+        self.time_limit = float(time_limit) if time_limit else 600.0
+        rd = self.run_dir
+        if rd.exists():
+            shutil.rmtree(rd)
+        (rd / "out").mkdir(parents=True)
+        self.out_dir = rd / "out"
+        self.mesh = mesh
+        self.points = np.array(mesh.points, float)  # getdp's node coordinates, as getdp computes them
+        msh = write_msh22(mesh, rd / "mesh.msh")
+        wrapper = rd / "run.pro"
+        wrapper.write_text("// generated by pulseform.solvers.getdp.persistent\n" + "\n".join(lines)
+                           + f'\nInclude "{Path(deck).resolve()}";\n')
+        self.fifo_in, self.fifo_out = rd / "in.fifo", rd / "out.fifo"
+        for p in (self.fifo_in, self.fifo_out):
+            os.mkfifo(p, 0o600)
+        argv = [find_getdp(executable), str(wrapper), "-msh", str(msh), "-name", str(rd / "em"),
+                "-res", str(self.fifo_in)]
+        for k, v in argv_numbers.items():
+            argv += ["-setnumber", k, repr(float(v))]
+        argv += ["-setstring", "OutDir", str(self.out_dir) + "/", "-setstring", "PF_Out", str(self.fifo_out)]
+        # -bin (after the PETSc options: before them getdp stopped without solving): SaveSolution writes
+        # the exact unknowns
+        self.argv = argv + list(petsc_args) + ["-bin", "-solve", RESOLUTION, "-v", str(int(verbosity))]
+        self.proc: subprocess.Popen | None = None
+        self._in_fd: int | None = None
+        self._buf = b""
+
+    # ------------------------------------------------------------------ life cycle
+    def start(self, step0: int, t1: float) -> float:
+        """Start getdp; return once it waits for the first message, with the start-up wall time (s)."""
+        c0 = time.perf_counter()
+        self.out_fd = os.open(self.fifo_out, os.O_RDWR | os.O_NONBLOCK)
+        env = dict(os.environ)
+        env.update(FAST_MPI_ENV)
+        self.log_path = self.run_dir / "getdp.log"
+        self._log = open(self.log_path, "w")
+        self._log.write("# argv: " + " ".join(self.argv) + "\n")
+        self._log.flush()
+        try:
+            self.proc = subprocess.Popen(self.argv, cwd=self.run_dir, stdout=self._log, stderr=subprocess.STDOUT,
+                                         env=env, preexec_fn=child_preexec)
+        except OSError as exc:
+            raise GetDPError(f"cannot start getdp: {exc}", log_path=self.log_path, run_dir=self.run_dir) from exc
+        self._finalizer = weakref.finalize(self, _kill, self.proc)
+        self.pidfd = os.pidfd_open(self.proc.pid)
+        self.k, self.t = int(step0), float(t1)
+        # getdp opens in.fifo for reading once pre-processing is done and its loop waits: then the
+        # .pre holds U's dof numbering
+        self._open_in(time.monotonic() + self.time_limit, "start-up")
+        rows = read_pre_dofs(self.run_dir / "em.pre", 1)
+        ntypes = np.unique(rows[:, 0])
+        if len(ntypes) != 2:
+            raise RuntimeError(f"displacement system U: expected 2 basis functions, found {ntypes}")
+        self.n_u = int(rows[:, 4].max())
+        self.u_index = np.full((self.mesh.n_nodes, 2), -1, np.int64)
+        for comp, nt in enumerate(ntypes):  # X (defined first: the smaller number), then Y
+            sel = rows[:, 0] == nt
+            self.u_index[rows[sel, 1] - 1, comp] = rows[sel, 4] - 1
+        self._has_u = self.u_index >= 0
+        self._vec = np.zeros(self.n_u)
+        return time.perf_counter() - c0
+
+    def close(self, timeout: float = 30.0) -> int:
+        """Send the stop message and wait for getdp to exit (killed after ``timeout`` s); its exit code."""
+        if self.proc is None:
+            return 0
+        try:
+            if self.proc.poll() is None:
+                self._send(np.zeros(self.n_u), self.t, FLAG_STOP, self.k + 1)
+                self.proc.wait(timeout)
+        except (subprocess.TimeoutExpired, GetDPError, OSError, AttributeError):
+            self.kill()
+        finally:
+            self._release()
+        return self.proc.returncode
+
+    def kill(self) -> None:
+        """End getdp at once (SIGKILL)."""
+        if self.proc is not None and self.proc.poll() is None:
+            self.proc.kill()
+            self.proc.wait()
+
+    def _release(self) -> None:
+        for name in ("out_fd", "pidfd", "_in_fd"):
+            fd = getattr(self, name, None)
+            if fd is not None:
+                try:
+                    os.close(fd)
+                except OSError:
+                    pass
+                setattr(self, name, None)
+        if getattr(self, "_log", None) is not None and not self._log.closed:
+            self._log.close()
+
+    @property
+    def alive(self) -> bool:
+        return self.proc is not None and self.proc.poll() is None
+
+    # ------------------------------------------------------------------ messages
+    def step(self, points: np.ndarray, t_end: float, flags: int, redo: bool = False) -> StepAnswer:
+        """Move getdp's nodes to ``points`` and advance to ``t_end`` (one BDF2 step); ``redo``: the
+        last step again from its start state, on the geometry ``points``."""
+        du = np.asarray(points, float) - self.points
+        if np.any(du[~self._has_u] != 0.0):
+            raise ValueError("a node without a displacement dof moved")
+        vec = self._vec
+        vec[self.u_index[self._has_u]] = du[self._has_u]
+        k = self.k if redo else self.k + 1
+        self._send(vec, float(t_end), flags | (FLAG_REDO if redo else 0), k)
+        answer = self._answer(k)
+        self.points += du  # what getdp computed: x + (x_new - x), the same IEEE operations
+        self.k, self.t = k, float(t_end)
+        return answer
+
+    def query(self, flags: int) -> StepAnswer:
+        """Outputs of the current solution without a step (``flags``: FLAG_COND_FIELDS, FLAG_FIELDS,
+        FLAG_STATE, FLAG_ELEM)."""
+        self._send(np.zeros(self.n_u), self.t, flags | FLAG_QUERY | FLAG_NO_GLOBALS, self.k)
+        return self._answer(self.k)
+
+    def _answer(self, k: int) -> StepAnswer:
+        c0 = time.perf_counter()
+        lines = self._wait_done(k)
+        wall = time.perf_counter() - c0
+        return self._parse(lines, k, wall)
+
+    def _fail(self, what: str, time_limit: float | None = None) -> GetDPError:
+        self._log.flush()
+        rc = self.proc.poll()
+        if rc is not None and rc < 0:
+            what += f" (getdp killed by signal {signal.Signals(-rc).name})"
+        elif rc is not None:
+            what += f" (getdp exited with code {rc})"
+        errors, _ = scan_log(self.log_path.read_text(errors="replace"))
+        if errors:
+            what += f": {errors[0]}"
+        return GetDPError(what, log_path=self.log_path, run_dir=self.run_dir, returncode=rc,
+                          log_tail=log_tail(self.log_path), time_limit=time_limit)
+
+    def _dead(self) -> bool:
+        return bool(select.select([self.pidfd], [], [], 0)[0])
+
+    def _timeout(self, what: str) -> GetDPError:
+        self.kill()
+        return self._fail(f"getdp exceeded its time limit of {self.time_limit:g} s ({what}) and was stopped",
+                          self.time_limit)
+
+    def _open_in(self, deadline: float, what: str) -> None:
+        """Open the input FIFO for writing once getdp reads it (an O_NONBLOCK open fails with ENXIO before)."""
+        delay = 2e-5
+        while True:
+            try:
+                self._in_fd = os.open(self.fifo_in, os.O_WRONLY | os.O_NONBLOCK)
+                return
+            except OSError as err:
+                if err.errno != _ENXIO:
+                    raise
+            if self._dead():
+                self.proc.wait()
+                raise self._fail(f"getdp stopped before the {what}")
+            if time.monotonic() > deadline:
+                raise self._timeout(what)
+            time.sleep(delay)
+            delay = min(delay * 2, 2e-3)
+
+    def _send(self, vec: np.ndarray, t: float, flags: int, k: int) -> None:
+        head = (b"$ResFormat /* pulseform */\n1.1 1\n$EndResFormat\n$Solution  /* DofData #1 */\n"
+                + f"1 {t!r} {float(flags)!r} {k}\n".encode())
+        msg = head + np.ascontiguousarray(vec, "<f8").tobytes() + b"\n$EndSolution\n"
+        if self._in_fd is None:
+            self._open_in(time.monotonic() + self.time_limit, f"step {k}")
+        fd, self._in_fd = self._in_fd, None
+        try:
+            os.set_blocking(fd, True)
+            view = memoryview(msg)
+            while view:
+                view = view[os.write(fd, view):]  # BrokenPipeError if getdp dies while reading
+        except BrokenPipeError:
+            self.proc.wait()
+            raise self._fail(f"getdp stopped while reading step {k}") from None
+        finally:
+            os.close(fd)  # end-of-file for getdp's ReadSolution
+
+    def _wait_done(self, k: int) -> list[str]:
+        deadline = time.monotonic() + self.time_limit
+        lines: list[str] = []
+        while True:
+            nl = self._buf.find(b"\n")
+            while nl >= 0:
+                line = self._buf[:nl].decode(errors="replace")
+                self._buf = self._buf[nl + 1:]
+                lines.append(line)
+                if line.startswith("D "):
+                    return lines
+                nl = self._buf.find(b"\n")
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                raise self._timeout(f"EM step {k}")
+            ready, _, _ = select.select([self.out_fd, self.pidfd], [], [], remaining)
+            if self.out_fd in ready:
+                self._buf += os.read(self.out_fd, 1 << 16)
+            elif self.pidfd in ready:
+                try:  # lines written just before it died
+                    self._buf += os.read(self.out_fd, 1 << 16)
+                except BlockingIOError:
+                    pass
+                if b"D " not in self._buf:
+                    self.proc.wait()
+                    raise self._fail(f"getdp stopped during EM step {k}")
+
+    def _parse(self, lines: list[str], k_expected: int, wall: float) -> StepAnswer:
+        coil, cond, glob = [], [], np.zeros(4)
+        k = t = None
+        has_globals = False
+        for ln in lines:
+            f = ln.split()
+            if not f:
+                continue
+            if f[0] == "C":
+                coil.append((int(f[1]), [float(x) for x in f[2:7]]))
+            elif f[0] == "K":
+                cond.append((int(f[1]), [float(x) for x in f[2:5]]))
+            elif f[0] == "G":
+                glob[:] = [float(x) for x in f[1:5]]
+                has_globals = True
+            elif f[0] == "D":
+                k, t = int(f[1]), float(f[2])
+        if k != k_expected:
+            raise GetDPError(f"getdp answered step {k}, expected {k_expected}", log_path=self.log_path,
+                             run_dir=self.run_dir, log_tail=log_tail(self.log_path))
+        c = np.array([v for _, v in sorted(coil)]).reshape(-1, 5)
+        kk = np.array([v for _, v in sorted(cond)]).reshape(-1, 3)
+        return StepAnswer(k, t, c, kk, glob, has_globals, wall)
+
+
+def _kill(proc: subprocess.Popen) -> None:
+    """Finalizer: a process object dropped without :meth:`PersistentProcess.close` ends its getdp."""
+    if proc.poll() is None:
+        proc.kill()
+        proc.wait()
+
+
+class PersistentStepResult(EMStepResult):
+    """An :class:`~.model.EMStepResult` whose Joule power and B on the conductors are fetched from
+    getdp when first read (possible until the next step)."""
+
+    _solver: "PersistentGetDPSolver | None" = None
+    _step: int = -1
+    _lazy: dict | None = None
+
+    def _get(self, name: str) -> np.ndarray:
+        lazy = self.__dict__.setdefault("_lazy", {})
+        if lazy.get(name) is None:
+            self._solver._conductor_fields(self)
+        return lazy[name]
+
+    def _put(self, name: str, value) -> None:
+        self.__dict__.setdefault("_lazy", {})[name] = value
+
+    joule_density = property(lambda self: self._get("joule_density"), lambda self, v: self._put("joule_density", v))
+    flux_density = property(lambda self: self._get("flux_density"), lambda self, v: self._put("flux_density", v))
+
+
+class PersistentGetDPSolver(GetDPSolver):
+    """:class:`~.solver.GetDPSolver` with ``time_scheme="bdf2"`` on one persistent getdp process.
+
+    Same constructor and :meth:`step` (``n_sub = 1``); a step's whole-domain fields
+    (:meth:`post_fields`) and conductor fields can be fetched only until the next step
+    (:attr:`fields_expire`).  The returned :class:`~.model.EMState` carries the circuit and the
+    BDF2 scalars; :meth:`complete_state` adds the nodal history for a checkpoint (a query).
+    Call :meth:`close` at the end (a finalizer kills a forgotten process).
+    """
+
+    #: fields of a step are available only until the next step
+    fields_expire = True
+
+    def __init__(self, model: EMModel, work_dir: str | Path, *, executable: str = "getdp",
+                 petsc_args: Sequence[str] = DEFAULT_PETSC_ARGS, timeout: float | None = None,
+                 deck: str | Path = CASE_DECK, extra_numbers: dict[str, float] | None = None,
+                 preamble: Sequence[str] = (), time_scheme: str = "bdf2", verbosity: int = 2, **_unused) -> None:
+        if time_scheme != "bdf2":
+            raise ValueError("the persistent getdp implements time_scheme='bdf2' only")
+        super().__init__(model, work_dir, executable=executable, petsc_args=petsc_args, timeout=timeout, deck=deck,
+                         extra_numbers=extra_numbers, preamble=preamble, time_scheme="bdf2")
+        self.verbosity = verbosity
+        self.proc: PersistentProcess | None = None
+        self.segment = 0
+        self.startup_s = 0.0  # wall time of the process starts (s)
+        self._last: tuple | None = None  # (step_index, t) of the last step's start: a repeat is a redo
+        self._hist: dict | None = None  # Python-side history at the start of the current step
+        self._result: PersistentStepResult | None = None
+
+    # ------------------------------------------------------------------ processes
+    def _start(self, mesh: EMMesh, material: np.ndarray, state: EMState) -> None:
+        """A new process on ``mesh`` from ``state`` (fresh, or seeded with its BDF2 history)."""
+        self.close()
+        self.segment += 1
+        m = self.model
+        numbers = self._numbers(mesh)
+        numbers.update(self.extra_numbers)
+        numbers.update(Flag_ElemOut=0, PF_GlobalsSet=LEAN_GLOBALS, PF_T1=state.t, PF_Step0=state.step_index,
+                       PF_DtPrev=0.0, PF_Seed=1)
+        lines = self.preamble + self._table_lines()
+        if m.circuit is not None:
+            numbers["Init_Vc"], numbers["Init_I"] = state.capacitor_voltage, state.current
+        if state.a_values is not None:
+            ids, v1 = self._interpolate_a(mesh, material, state, state.a_values)
+            lines.append(init_list_line("InitA_List", ids, v1))
+            numbers["Flag_InitA"] = 1
+            if state.a_prev_values is not None and state.dt_prev:
+                _, v2 = self._interpolate_a(mesh, material, state, state.a_prev_values)
+                lines.append(init_list_line("InitA2_List", ids, v2))
+                numbers.update(Flag_InitA=2, PF_Seed=2, PF_DtPrev=state.dt_prev, PF_T2=state.t - state.dt_prev)
+                if m.circuit is not None:
+                    numbers["Init2_Vc"], numbers["Init2_I"] = state.capacitor_voltage_prev, state.current_prev
+        elif state.step_index or state.res_path:
+            raise ValueError("the EM state has no nodal values to start a getdp process from")
+        self.proc = PersistentProcess(self.work_dir / f"persistent_{self.segment:03d}", mesh, numbers, lines,
+                                      self.deck, executable=self.executable, petsc_args=self.petsc_args,
+                                      time_limit=self.timeout, verbosity=self.verbosity)
+        self.startup_s += self.proc.start(state.step_index, state.t)
+        self.material = np.array(material, float)
+        self.mass_cp = np.array([c.density * c.heat_capacity * self._volume(mesh, coil_tag(k), True)
+                                 for k, c in enumerate(m.coils, start=1)])
+        self.coil_joule = np.array([self._volume(mesh, coil_tag(k), True) / c.sigma
+                                    * (c.turns / self._volume(mesh, coil_tag(k), False)) ** 2
+                                    for k, c in enumerate(m.coils, start=1)])  # P = this * I^2 (W/A^2)
+        self.elements = None
+        self._a_index = None  # (node -> unknown of system A, number of unknowns), read at the first state query
+        self._f_prev = None
+        if state.force_density is not None and state.force_points is not None:
+            self._f_prev = (np.asarray(state.force_density, float), np.asarray(state.force_points, float))
+        log.debug("persistent getdp %s started at t = %.6g s (step %d)", self.proc.run_dir.name, state.t,
+                  state.step_index)
+
+    def _volume(self, mesh: EMMesh, tag: int, weighted: bool) -> float:
+        """Volume (2πr-weighted in axisymmetry when ``weighted``) or area of region ``tag`` (m³ or m²)."""
+        axi = self.model.axisymmetric and weighted
+        return float(_element_volumes(mesh, np.flatnonzero(mesh.tri_tags == tag), axi).sum())
+
+    def close(self) -> None:
+        """End the getdp process (if any)."""
+        if self.proc is not None:
+            rc = self.proc.close()
+            if rc:
+                log.warning("persistent getdp ended with exit code %s (log: %s)", rc, self.proc.log_path)
+            self.proc = None
+
+    def _same_mesh(self, mesh: EMMesh) -> bool:
+        p = self.proc
+        return p is not None and (mesh.triangles is p.mesh.triangles or np.array_equal(mesh.triangles, p.mesh.triangles)) \
+            and (mesh.tri_tags is p.mesh.tri_tags or np.array_equal(mesh.tri_tags, p.mesh.tri_tags))
+
+    # ------------------------------------------------------------------ one step
+    def step(self, mesh: EMMesh, state: EMState, t_end: float, n_sub: int = 1, *,
+             material_points: np.ndarray | None = None, run_name: str | None = None,
+             force_init_path: bool = False, element_output: str = "all",
+             field_output: bool = False) -> tuple[EMStepResult, EMState]:
+        """One BDF2 step from ``state.t`` to ``t_end`` on ``mesh`` (its current node positions); see
+        :meth:`GetDPSolver.step`.  A step repeated from the same state (``coupling.iterate``) is redone
+        from its start vectors on the new geometry; a new connectivity (remesh) starts a new process
+        seeded with both history states interpolated in material coordinates."""
+        if n_sub != 1:
+            raise ValueError("time_scheme='bdf2' takes one step per EM step: n_sub (em_substeps) must be 1")
+        if not t_end > state.t:
+            raise ValueError(f"t_end={t_end} must be after state.t={state.t}")
+        mat = mesh.points if material_points is None else np.asarray(material_points, float)
+        redo = False
+        p = self.proc
+        if p is not None and p.alive and self._same_mesh(mesh):
+            if p.k == state.step_index + 1 and self._last == (state.step_index, state.t):
+                redo = True
+            elif p.k != state.step_index or abs(p.t - state.t) > 1e-12 * max(abs(state.t), 1e-300):
+                self._start(mesh, mat, state)  # a state from elsewhere (restored): start from it
+        elif p is not None and p.alive:  # remesh: carry the history of the old process
+            full = self.complete_state(state)
+            self._start(mesh, mat, full)
+        else:
+            self._start(mesh, mat, state)
+        if redo:
+            self._f_prev, self.elements = self._hist["f_prev"], self._hist["elements"]
+        else:
+            self._hist = {"f_prev": self._f_prev, "elements": self.elements}
+        self._last = (state.step_index, state.t)
+        flags = FLAG_ELEM | (FLAG_FIELDS | FLAG_COND_FIELDS if field_output else 0)
+        ans = self.proc.step(mesh.points, float(t_end), flags, redo=redo)
+        result = self._result_of(ans, mesh, mat, state, float(t_end), field_output)
+        new_state = EMState(t=float(t_end), step_index=state.step_index + 1,
+                            capacitor_voltage=float(ans.glob[1]) if self.model.circuit is not None else 0.0,
+                            current=float(ans.glob[3]) if self.model.circuit is not None else 0.0,
+                            coil_heat=result.coil_heat.tolist(), dt_prev=result.dt,
+                            capacitor_voltage_prev=state.capacitor_voltage, current_prev=state.current,
+                            coil_power=result.coil_power[-1].tolist())
+        return result, new_state
+
+    def _result_of(self, ans: StepAnswer, mesh: EMMesh, mat: np.ndarray, state: EMState, t_end: float,
+                   field_output: bool) -> PersistentStepResult:
+        m = self.model
+        out = self.proc.out_dir
+        dt = t_end - state.t
+        nk = len(m.conductors)
+        if nk:
+            ids, eF = _element_table(out / "elem_F.txt", 3, 1)
+            elements = ids - 1
+            if self.elements is None or not np.array_equal(elements, self.elements):
+                self.elements = elements
+                self._tags = mesh.tri_tags[elements]
+            vol = _element_volumes(mesh, elements, m.axisymmetric)
+            force = eF[:, :, :2] / vol[None, :, None]
+            cond_force = np.stack([eF[0, self._tags == conductor_tag(j), :2].sum(axis=0) for j in range(1, nk + 1)])
+        else:
+            elements, force = np.zeros(0, np.int64), np.zeros((1, 0, 2))
+            self._tags = np.zeros(0, np.int64)
+            cond_force = np.zeros((0, 2))
+        current = ans.coil[:, 0]
+        coil_power = self.coil_joule * current ** 2
+        p_start = np.asarray(state.coil_power if state.coil_power is not None else np.zeros(len(m.coils)), float)
+        heat = np.asarray(state.coil_heat or [0.0] * len(m.coils), float) + trapezoid_mean(p_start, coil_power[None]) * dt
+        if not (np.all(np.isfinite(force)) and np.all(np.isfinite(current)) and np.isfinite(ans.glob[0])):
+            raise GetDPError(f"non-finite EM results at t = {t_end:.6g} s", log_path=self.proc.log_path,
+                             run_dir=self.proc.run_dir, log_tail=log_tail(self.proc.log_path))
+        circuit = m.circuit is not None
+        r = PersistentStepResult(
+            times=np.array([t_end]), dt=dt, elements=elements, element_tags=self._tags, force_density=force,
+            force_density_centroid=np.full_like(force, np.nan), joule_density=None, flux_density=None,
+            coil_current=current[None], coil_voltage=-ans.coil[None, :, 1], coil_power=coil_power[None],
+            coil_force=np.full((1, len(m.coils), 2), np.nan), conductor_force=cond_force[None],
+            conductor_power=ans.cond[None, :, 0], magnetic_energy=ans.glob[None, 0],
+            capacitor_voltage=ans.glob[None, 1] if circuit else None,
+            circuit_current=ans.glob[None, 2] if circuit else None, coil_heat=heat,
+            coil_temperature_rise=heat / self.mass_cp if len(m.coils) else heat,
+            probe_b=np.zeros((1, 0, 2)))
+        r._solver, r._step = self, self.proc.k
+        r.run = RunInfo(argv=self.proc.argv, run_dir=self.proc.run_dir, log_path=self.proc.log_path,
+                        wall_time=ans.wall)
+        r.path = str(self.proc.run_dir)
+        self._start_value(r, mat, mesh, state)
+        if field_output:
+            self._read_conductor_fields(r, mesh)
+            self._read_fields(mesh, out, r)
+        self._result = r
+        return r
+
+    def _start_value(self, r: PersistentStepResult, mat: np.ndarray, mesh: EMMesh, state: EMState) -> None:
+        """The force density at the step's start on these elements (BDF2's trapezoid mean)."""
+        if len(r.elements) == 0:
+            return
+        centroids = None
+        if self._f_prev is None:
+            if state.a_values is None and state.step_index == 0:  # from rest: no current, no force
+                r.force_density_start = np.zeros_like(r.force_density[-1])
+        elif self._f_prev[1] is None:  # the same elements as the step before
+            r.force_density_start = self._f_prev[0]
+        else:  # after a restart: match the element centroids in material coordinates
+            centroids = mat[mesh.triangles[r.elements]].mean(axis=1)
+            scale = max(float(np.abs(centroids).max()), 1e-30)
+            idx = match_rows(centroids, self._f_prev[1], 1e-9 * scale)
+            if idx is not None:
+                r.force_density_start = self._f_prev[0][idx]
+        if r.force_density_start is None:
+            warnings.warn("BDF2: no force density at the step's start on these elements; "
+                          "force_density_mean falls back to the end value", RuntimeWarning, stacklevel=4)
+        self._f_prev = (r.force_density[-1], None)
+
+    # ------------------------------------------------------------------ fields and state
+    def _current(self, result: EMStepResult) -> None:
+        if self.proc is None or not self.proc.alive or getattr(result, "_step", None) != self.proc.k \
+                or result is not self._result:
+            raise RuntimeError("fields of an older EM step: the persistent getdp has moved on")
+
+    def _read_conductor_fields(self, r: PersistentStepResult, mesh: EMMesh) -> None:
+        out = self.proc.out_dir
+        ids, eP = _element_table(out / "elem_P.txt", 1, 1)
+        vol = _element_volumes(mesh.with_points(self.proc.points), ids - 1, self.model.axisymmetric)
+        r.joule_density = eP[:, :, 0] / vol[None, :]
+        r.flux_density = _element_table(out / "elem_b.txt", 3, 1)[1][:, :, :2]
+
+    def _conductor_fields(self, r: PersistentStepResult) -> None:
+        """Fetch Joule power and B on the conductors of the current step (a query)."""
+        self._current(r)
+        self.proc.query(FLAG_COND_FIELDS)
+        self._read_conductor_fields(r, self.proc.mesh)
+
+    def post_fields(self, result: EMStepResult, mesh: EMMesh) -> bool:
+        """Whole-domain B and nodal potential of the current step (``result.b_cells``, ``a_nodes``), and
+        Joule power and B on the conductors: a query (PostOperation ``EM_Field``); only until the next
+        step (:attr:`fields_expire`)."""
+        if result.b_cells is not None and result.a_nodes is not None:
+            return True
+        self._current(result)
+        self.proc.query(FLAG_FIELDS | FLAG_COND_FIELDS)
+        self._read_fields(mesh, self.proc.out_dir, result)
+        self._read_conductor_fields(result, mesh)
+        return result.b_cells is not None and result.a_nodes is not None
+
+    def complete_state(self, state: EMState) -> EMState:
+        """``state`` (the one the last step returned) with the nodal BDF2 history and the start values
+        of the next step's trapezoid means: what a checkpoint, a remesh or a per-step solver needs."""
+        p = self.proc
+        if p is None or not p.alive or p.k != state.step_index or state.a_values is not None:
+            return state
+        res = p.run_dir / "em.res"
+        res.unlink(missing_ok=True)
+        p.query(FLAG_STATE)  # x_n and x_{n-1} of system A, binary: the exact unknowns
+        if self._a_index is None:
+            self._a_index = nodal_dof_map(p.run_dir / "em.pre", 0, p.mesh.n_nodes)
+        index, n_dofs = self._a_index
+        x_n, x_prev = read_binary_res(res, n_dofs)[-2:]
+        tri, used = self._cs_nodes(p.mesh)
+        remap = np.full(p.mesh.n_nodes, -1, np.int64)
+        remap[used] = np.arange(len(used))
+
+        def nodal(x: np.ndarray) -> list:
+            i = index[used]
+            return np.where(i >= 0, x[i], 0.0).tolist()  # a Dirichlet node (axis): 0
+
+        full = EMState(**state.to_dict())
+        full.a_points = self.material[used].tolist()
+        full.a_triangles = remap[tri].tolist()
+        full.a_values = nodal(x_n)
+        full.a_prev_values = nodal(x_prev)
+        if self._f_prev is not None and self.elements is not None and len(self.elements):
+            full.force_density = np.asarray(self._f_prev[0]).tolist()
+            full.force_points = self.material[p.mesh.triangles[self.elements]].mean(axis=1).tolist()
+        return full
