@@ -9,6 +9,7 @@ the same loop with the GetDP eddy-current load and the case's n. The run stops a
 from __future__ import annotations
 
 import logging
+import sys
 import time as _time
 from dataclasses import dataclass, field
 
@@ -242,6 +243,8 @@ class CaseDriver:
             raise
         finally:
             writer.close()
+            if sys.exc_info()[0] is not None and hasattr(self.load, "close"):
+                self.load.close()  # a failed or interrupted run ends its persistent getdp too
         c = self.loop.counters
         log.info("mechanics: %d steps to t = %.4g s in %.2f s", s.step_count, s.time, c.mech_time_s)
         metrics = {"mech_steps": float(s.step_count), "em_steps": float(c.em_steps), "n_final": float(c.n),
@@ -322,7 +325,8 @@ def _coupled_participants(case: Case, results: ResultsFolder, comm: MPI.Comm):
         load = GetDPLoad(geometry, em_model(case, (g.air_radius, g.shell_radius)), results.root / "em", bodies,
                          keep_runs=case.em.keep_runs, remesh_quality=case.em.remesh_quality,
                          sizes=(g.mesh_size_coil, g.mesh_size_air), em_substeps=case.coupling.em_substeps,
-                         depth=case.mechanics.thickness, time_scheme=case.em.time_scheme)
+                         depth=case.mechanics.thickness, time_scheme=case.em.time_scheme,
+                         getdp_process=case.em.getdp_process)
     load.solver.timeout = case.limits.getdp_time_limit_s
     load.gmsh_time_limit = case.limits.gmsh_time_limit_s
     return solver, load
