@@ -51,6 +51,34 @@ def test_results_files_follow_the_umask(tmp_path):
     assert mode == 0o640  # 0o666 & ~0o027; mkstemp alone would give 0o600
 
 
+@pytest.mark.getdp
+def test_every_file_of_a_run_follows_the_umask(tmp_path):
+    """Issue 14: a whole coupled run (short demo, pictures on) under umask 027: every file it writes
+    (metrics, history, case, checkpoint, field files, EM snapshots, getdp run folders, pictures, log,
+    marker) is 0640 and every folder 0750 — what the umask allows, not mkstemp's 0600."""
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    exe = str(Path(sys.executable).with_name("pulseform"))
+    repo = Path(__file__).resolve().parents[2]
+    out = tmp_path / "demo"
+    r = subprocess.run([exe, "run", str(repo / "cases/emf_sheet_bulge"), "--out", str(out), "--quiet",
+                        "--set", "time.end=4e-6", "--set", "output.field_interval=2e-6"],
+                       capture_output=True, text=True, preexec_fn=lambda: os.umask(0o027), timeout=600)
+    assert r.returncode == 0, r.stderr[-3000:]
+    files = [p for p in out.rglob("*") if p.is_file()]
+    names = {p.name for p in files}
+    for expected in ("metrics.json", "history.csv", "case.toml", "checkpoint.npz", "run.log", ".pulseform",
+                     "em.pvd", "em_peak_current.vtu", "emf_sheet_bulge_sheet.h5", "shapes.png"):
+        assert expected in names, expected
+    wrong = [f"{oct(p.stat().st_mode & 0o777)} {p.relative_to(out)}" for p in files if p.stat().st_mode & 0o777 != 0o640]
+    wrong += [f"{oct(p.stat().st_mode & 0o777)} {p.relative_to(out)}/" for p in [out, *out.rglob("*")]
+              if p.is_dir() and p.stat().st_mode & 0o777 != 0o750]
+    assert not wrong, wrong[:20]
+
+
 def test_out_is_a_file(tmp_path):
     (tmp_path / "f").write_text("x")
     with pytest.raises(ResultsExistError, match="not a folder"):

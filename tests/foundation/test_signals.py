@@ -242,3 +242,51 @@ def test_sigkill_during_built_in_meshing_ends_the_gmsh_child(tmp_path):
     proc.kill()
     proc.wait()
     _wait_for(lambda: not any(_alive(c) for c in found), timeout=10, what="the meshing child to end")
+
+
+#: runs `pulseform` with the gmsh API meshing function replaced by a fake that records its pid and
+#: then hangs or aborts (in the forked meshing child: solvers/getdp/runner.call_in_child)
+_FAKE_GMSH_DRIVER = '''
+import importlib, logging, os, sys, time
+logging.getLogger().addHandler(logging.NullHandler())  # as the CLI's console handler: no basicConfig output
+mode, module, attr, pidfile = sys.argv[1:5]
+def fake(*args, **kwargs):
+    with open(pidfile, "w") as fh:
+        fh.write(str(os.getpid()))
+    if mode == "hang":
+        time.sleep(1000)
+    os.abort()
+setattr(importlib.import_module(module), attr, fake)
+from pulseform.orchestrator.cli import main
+sys.exit(main(sys.argv[5:]))
+'''
+
+
+@pytest.mark.parametrize("case,module,attr,what", [
+    ("bar_impact", "pulseform.orchestrator.shapes", "_gmsh_triangles", "meshing body 'left' with gmsh"),
+    ("emf_sheet_bulge", "pulseform.orchestrator.emf_geometry", "coil_conductor_mesh",
+     "meshing the flat_coil_sheet EM geometry with gmsh"),
+], ids=["body_shape", "em_geometry"])
+@pytest.mark.parametrize("mode", ["hang", "abort"])
+def test_gmsh_api_meshing_that_never_returns_or_crashes(tmp_path, case, module, attr, what, mode):
+    """A gmsh (API, built-in geometries) that never returns is stopped at limits.gmsh_time_limit_s, one
+    that crashes (an abort, as std::bad_alloc does) is a ChildFailed: one line naming the meshing step,
+    exit 1, metrics status "failed", and the meshing child does not live on."""
+    driver = tmp_path / "driver.py"
+    driver.write_text(_FAKE_GMSH_DRIVER)
+    pidfile, out = tmp_path / "pid", tmp_path / "run"
+    t0 = time.monotonic()
+    r = subprocess.run([sys.executable, str(driver), mode, module, attr, str(pidfile), "run", str(REPO / "cases" / case),
+                        "--out", str(out), "--quiet", "--set", "limits.gmsh_time_limit_s=2"],
+                       capture_output=True, text=True, timeout=120)
+    wall = time.monotonic() - t0
+    lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
+    assert r.returncode == 1 and len(lines) == 1, r.stderr[-3000:]
+    assert lines[0].startswith(f"pulseform: error: {case}: {what} ") and len(lines[0]) <= 300, lines[0]
+    if mode == "hang":
+        assert "exceeded limits.gmsh_time_limit_s = 2 s and was stopped" in lines[0], lines[0]
+        assert 2.0 <= wall < 60, wall
+    else:
+        assert "died before it finished: killed by signal SIGABRT" in lines[0], lines[0]
+    assert json.loads((out / "metrics.json").read_text())["status"] == "failed"
+    _wait_for(lambda: not _alive(int(pidfile.read_text())), timeout=10, what="the meshing child to end")
