@@ -151,7 +151,8 @@ class CaseDriver:
             write_peak_snapshot(self.results.fields / "em", *peak)
         arrays = {f"solver/{k}": v for k, v in self.mechanics.state_dict().items()}
         arrays.update({f"loop/{k}": v for k, v in self.loop.counters.state_dict().items()})
-        arrays.update({f"load/{k}": v for k, v in self.load.state_dict().items()})
+        dump = getattr(self.load, "checkpoint_state_dict", self.load.state_dict)  # optional in LoadProvider
+        arrays.update({f"load/{k}": v for k, v in dump().items()})
         arrays["history/rows"] = np.array(self.history.rows)
         meta = {"columns": self.history.columns, "part": self.part, "ranks": self.comm.size,
                 "since_record": self._since_record,

@@ -399,14 +399,25 @@ class GetDPLoad:
         self._deleting = []
 
     def state_dict(self) -> dict[str, np.ndarray]:
-        """EM state (time, circuit, previous .res path, nodal unknown) as a JSON byte array.
-
-        Called when a checkpoint is written: the run folder holding the state's ``.res`` is kept
-        until the next checkpoint, so a resume can restart from it.
+        """EM state (time, circuit, previous .res path, nodal unknown) as a JSON byte array, mesh and
+        body maps (the loop's saved state of an iterated step; a checkpoint uses
+        :meth:`checkpoint_state_dict`). The run folder holding the state's ``.res`` is kept until the
+        next save, so a resume can restart from it.
         """
         if self.state.res_path:
             self._pinned = Path(self.state.res_path).parent
-        state = self.solver.complete_state(self.state) if hasattr(self.solver, "complete_state") else self.state
+        return self._state_arrays(self.solver.complete_state(self.state))
+
+    def checkpoint_state_dict(self) -> dict[str, np.ndarray]:
+        """:meth:`state_dict` at a checkpoint: the state the solver stores there is also the one the
+        next step continues from (:meth:`GetDPSolver.checkpoint_state`), so that a ``--resume`` from
+        this checkpoint repeats the uninterrupted run exactly."""
+        if self.state.res_path:
+            self._pinned = Path(self.state.res_path).parent
+        self.state = self.solver.checkpoint_state(self.state)
+        return self._state_arrays(self.state)
+
+    def _state_arrays(self, state: EMState) -> dict[str, np.ndarray]:
         blob = json.dumps({"state": state.to_dict(), "runs": [str(p) for p in self._runs],
                            "min_quality": self.min_quality, "remeshes": self.remeshes,
                            "peak_abs_current": self.peak_abs_current}).encode()

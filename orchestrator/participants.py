@@ -97,6 +97,12 @@ class LoadProvider(Protocol):
     def load_state_dict(self, state: dict[str, np.ndarray]) -> None:
         """Restore :meth:`state_dict`."""
 
+    def checkpoint_state_dict(self) -> dict[str, np.ndarray]:
+        """:meth:`state_dict` at a checkpoint (a point a ``--resume`` continues from). Optional: the
+        run's owner calls :meth:`state_dict` for a provider without it. A provider whose in-memory
+        continuation would differ from a resumed one (the persistent getdp) continues from the
+        stored state here."""
+
 
 class RigidAxialBody:
     """A rigid body translating along the axis (y, or z in axisymmetry), with mass and gravity.

@@ -147,7 +147,7 @@ def reserved_listing(room: int = 10_000) -> str:
         if n in ROLE_NUMBERS.values():
             groups["Phys_*"] = []
             continue
-        groups.setdefault(re.match(r"[A-Z][a-z]*[0-9]*_?|[A-Za-z]+", n).group(), []).append(n)
+        groups.setdefault(re.match(r"[A-Z]+(?![a-z])_?|[A-Z][a-z]*[0-9]*_?|[A-Za-z]+", n).group(), []).append(n)
     parts = []
     for prefix, members in groups.items():
         if len(members) < 2:
@@ -155,6 +155,9 @@ def reserved_listing(room: int = 10_000) -> str:
             continue
         rest = [m[len(prefix):] for m in members]
         tail = "_<k>" if all(r.endswith("_<k>") for r in rest) else ""
+        if any("_" in r[:len(r) - len(tail)] for r in rest):  # InitA_List, InitA2_List: no braces
+            parts += members
+            continue
         parts.append(prefix + "{" + ",".join(r[:len(r) - len(tail)] for r in rest) + "}" + tail)
     text = ", ".join(parts)
     if len(text) <= room:
@@ -235,6 +238,8 @@ def _file_argument(tokens: list, i: int) -> str | None:
     return tokens[j][1] if j < len(tokens) and tokens[j][0] == "str" else None
 
 
+#: names of the runner's own deck libraries (absolute paths the runner defines) a .pro may Include
+RUNNER_LIBRARIES = ("PulseformLib", "PulseformPersistentLib")
 #: most files one deck scan reads (a deck with more cannot be checked)
 MAX_DECK_FILES = 1000
 
@@ -258,8 +263,8 @@ def find_program_call(path: Path, language: str) -> tuple[str, str] | None:
 
     ``Include "..."`` is followed (relative to the including file; a cycle or a missing file ends
     that branch: gmsh/getdp report missing files), as is a gmsh ``Merge`` of a .geo/.opt. An
-    ``Include`` of a computed name (not a string literal; the .pro's ``Include PulseformLib`` is
-    the runner's library) cannot be checked and counts as a call, as does a ``Merge``/``GmshRead``
+    ``Include`` of a computed name (not a string literal; the .pro's ``Include PulseformLib`` and the
+    library's ``Include PulseformPersistentLib`` are the runner's own, :data:`RUNNER_LIBRARIES`) cannot be checked and counts as a call, as does a ``Merge``/``GmshRead``
     of anything but a data file (:data:`DATA_SUFFIXES`)."""
     seen: set = set()
     first = _read_deck(path, seen)
@@ -277,7 +282,7 @@ def find_program_call(path: Path, language: str) -> tuple[str, str] | None:
             if tok == "Include":
                 follow = _file_argument(tokens, i - 1)
                 if follow is None:
-                    if language == "pro" and i < len(tokens) and tokens[i][1] == "PulseformLib":
+                    if language == "pro" and i < len(tokens) and tokens[i][1] in RUNNER_LIBRARIES:
                         continue
                     return where, "Include of a computed file name (cannot be checked)"
             elif tok in OPEN_COMMANDS[language]:
@@ -449,18 +454,21 @@ def user_em_model(case):
     return em_model(case, shell)
 
 
-def make_solver(case, model, work_dir: Path):
-    """A GetDPSolver on the user's deck: role ids, the case's parameters and ``PulseformLib``."""
-    from pulseform.solvers.getdp import GetDPSolver
+def make_solver(case, model, work_dir: Path, getdp_process: str = "per_step"):
+    """The EM solver on the user's deck (role ids, the case's parameters and ``PulseformLib``): one
+    getdp process per EM step, or with ``getdp_process = "persistent"`` one for the run (the deck
+    needs Resolution ``EM_Persistent``, which a deck on ``PulseformLib`` has)."""
     from pulseform.solvers.getdp.solver import DECK_DIR
+
+    from .em_participant import make_em_solver
 
     g = case.geometry
     numbers = {name: ROLE_IDS[role] for role, name in ROLE_NUMBERS.items()
                if role not in OPTIONAL_ROLES or getattr(g.regions, role) is not None}
     numbers.update({k: float(v) for k, v in (g.parameters or {}).items()})
     lib = (DECK_DIR / "Lib_PulsedForming.pro").resolve()
-    return GetDPSolver(model, work_dir, deck=g.pro, extra_numbers=numbers, preamble=[f'PulseformLib = "{lib}";'],
-                       time_scheme=case.em.time_scheme)
+    return make_em_solver(model, work_dir, case.em.time_scheme, getdp_process, deck=g.pro, extra_numbers=numbers,
+                          preamble=[f'PulseformLib = "{lib}";'])
 
 
 #: output tables the contract requires after one step (k = 1: one coil, one conductor)
@@ -541,7 +549,21 @@ def user_deck_load(case, geometry, work_dir: Path, bodies, em_substeps: int):
                                     "em.remesh_quality or shorten time.end")
 
     model = user_em_model(case)
-    solver = make_solver(case, model, Path(work_dir))
+    mode = case.em.getdp_process
+    if mode == "auto":  # the deck selects: the persistent getdp (BDF2 only) where it has EM_Persistent
+        mode = "per_step"
+        if case.em.time_scheme == "bdf2":
+            persistent = make_solver(case, model, Path(work_dir), "persistent")
+            persistent.timeout = case.limits.getdp_time_limit_s
+            if persistent.probe(geometry.mesh):
+                mode = "persistent"
+    solver = make_solver(case, model, Path(work_dir), mode)
+    if mode == "persistent" and case.em.getdp_process == "persistent":
+        solver.timeout = case.limits.getdp_time_limit_s
+        if not solver.probe(geometry.mesh):
+            raise DeckContractError(f"deck {case.geometry.pro}: em.getdp_process = 'persistent' needs Resolution "
+                                    "EM_Persistent (Include PulseformLib provides it), or set getdp_process = 'per_step'")
+    log.info("user deck: %s", "one persistent getdp process" if mode == "persistent" else "a getdp process per EM step")
     load = UserDeckLoad(geometry, model, work_dir, bodies, keep_runs=case.em.keep_runs,
                         remesh_quality=case.em.remesh_quality, sizes=(1.0, 1.0), em_substeps=em_substeps,
                         time_scheme=case.em.time_scheme)

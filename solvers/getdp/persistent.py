@@ -30,6 +30,7 @@ not computed (NaN).  B and Joule power per element are fetched only when read (a
 """
 from __future__ import annotations
 
+import json
 import logging
 import os
 import select
@@ -49,11 +50,13 @@ from .bdf2 import match_rows, trapezoid_mean
 from .mesh import EMMesh, coil_tag, conductor_tag, write_msh22
 from .model import EMModel, EMState, EMStepResult
 from .runner import FAST_MPI_ENV, GetDPError, RunInfo, child_preexec, find_getdp, log_tail, scan_log
-from .solver import CASE_DECK, DEFAULT_PETSC_ARGS, GetDPSolver, _element_table, _element_volumes, init_list_line
+from .solver import CASE_DECK, DECK_DIR, DEFAULT_PETSC_ARGS, GetDPSolver, _element_table, _element_volumes, init_list_line
 
 log = logging.getLogger(__name__)
 
 RESOLUTION = "EM_Persistent"
+#: the library holding it, included by Lib_PulsedForming.pro when ``PulseformPersistentLib`` names it
+PERSISTENT_LIB = (DECK_DIR / "Lib_Persistent.pro").resolve()
 #: message flags (the ``TimeImag`` of a message; Lib_Persistent.pro): per-element force, Joule
 #: power and B on the conductors, nodal state of x_n and x_{n-1}, stop, no globals (profiling),
 #: query (no step), redo (the last step again on a new geometry), whole-domain fields
@@ -274,6 +277,7 @@ class PersistentProcess:
         return self._parse(lines, k, wall)
 
     def _fail(self, what: str, time_limit: float | None = None) -> GetDPError:
+        self.reported = True  # the error names the exit; closing need not warn again
         self._log.flush()
         rc = self.proc.poll()
         if rc is not None and rc < 0:
@@ -440,16 +444,17 @@ class PersistentGetDPSolver(GetDPSolver):
         self._result: PersistentStepResult | None = None
 
     # ------------------------------------------------------------------ processes
-    def _start(self, mesh: EMMesh, material: np.ndarray, state: EMState) -> None:
-        """A new process on ``mesh`` from ``state`` (fresh, or seeded with its BDF2 history)."""
-        self.close()
-        self.segment += 1
+    def make_process(self, mesh: EMMesh, material: np.ndarray, state: EMState, run_dir: Path,
+                     extra_numbers: dict[str, float] | None = None) -> PersistentProcess:
+        """The getdp process (prepared in ``run_dir``, not started) that continues ``state`` on ``mesh``:
+        fresh, or seeded with the BDF2 history interpolated from the material coordinates ``material``
+        (m). ``extra_numbers`` go last (bench/em_step.py sets the self-clocked baseline's ``PF_Self*``)."""
         m = self.model
         numbers = self._numbers(mesh)
         numbers.update(self.extra_numbers)
         numbers.update(Flag_ElemOut=0, PF_GlobalsSet=LEAN_GLOBALS, PF_T1=state.t, PF_Step0=state.step_index,
                        PF_DtPrev=0.0, PF_Seed=1)
-        lines = self.preamble + self._table_lines()
+        lines = [f'PulseformPersistentLib = "{PERSISTENT_LIB}";'] + self.preamble + self._table_lines()
         if m.circuit is not None:
             numbers["Init_Vc"], numbers["Init_I"] = state.capacitor_voltage, state.current
         if state.a_values is not None:
@@ -464,9 +469,16 @@ class PersistentGetDPSolver(GetDPSolver):
                     numbers["Init2_Vc"], numbers["Init2_I"] = state.capacitor_voltage_prev, state.current_prev
         elif state.step_index or state.res_path:
             raise ValueError("the EM state has no nodal values to start a getdp process from")
-        self.proc = PersistentProcess(self.work_dir / f"persistent_{self.segment:03d}", mesh, numbers, lines,
-                                      self.deck, executable=self.executable, petsc_args=self.petsc_args,
-                                      time_limit=self.timeout, verbosity=self.verbosity)
+        numbers.update(extra_numbers or {})
+        return PersistentProcess(run_dir, mesh, numbers, lines, self.deck, executable=self.executable,
+                                 petsc_args=self.petsc_args, time_limit=self.timeout, verbosity=self.verbosity)
+
+    def _start(self, mesh: EMMesh, material: np.ndarray, state: EMState) -> None:
+        """A new process on ``mesh`` from ``state`` (fresh, or seeded with its BDF2 history)."""
+        self.close()
+        self.segment += 1
+        m = self.model
+        self.proc = self.make_process(mesh, material, state, self.work_dir / f"persistent_{self.segment:03d}")
         self.startup_s += self.proc.start(state.step_index, state.t)
         self.material = np.array(material, float)
         self.mass_cp = np.array([c.density * c.heat_capacity * self._volume(mesh, coil_tag(k), True)
@@ -482,6 +494,19 @@ class PersistentGetDPSolver(GetDPSolver):
         log.debug("persistent getdp %s started at t = %.6g s (step %d)", self.proc.run_dir.name, state.t,
                   state.step_index)
 
+    def probe(self, mesh: EMMesh) -> bool:
+        """True if the deck runs ``EM_Persistent`` on ``mesh`` (a process started and stopped, no step);
+        False with the reason logged when getdp fails (e.g. a deck without the resolution)."""
+        try:
+            self._start(mesh, mesh.points, self.initial_state())
+            return True
+        except GetDPError as exc:
+            log.info("no persistent getdp for deck %s: %s", self.deck, exc.summary)
+            return False
+        finally:
+            self.close()
+            self.segment = 0
+
     def _volume(self, mesh: EMMesh, tag: int, weighted: bool) -> float:
         """Volume (2πr-weighted in axisymmetry when ``weighted``) or area of region ``tag`` (m³ or m²)."""
         axi = self.model.axisymmetric and weighted
@@ -491,7 +516,7 @@ class PersistentGetDPSolver(GetDPSolver):
         """End the getdp process (if any)."""
         if self.proc is not None:
             rc = self.proc.close()
-            if rc:
+            if rc and not getattr(self.proc, "reported", False):
                 log.warning("persistent getdp ended with exit code %s (log: %s)", rc, self.proc.log_path)
             self.proc = None
 
@@ -641,6 +666,16 @@ class PersistentGetDPSolver(GetDPSolver):
         self._read_fields(mesh, self.proc.out_dir, result)
         self._read_conductor_fields(result, mesh)
         return result.b_cells is not None and result.a_nodes is not None
+
+    def checkpoint_state(self, state: EMState) -> EMState:
+        """:meth:`complete_state` as a checkpoint stores it (a JSON round trip), and the process ends:
+        the next step starts a new process seeded from exactly that state, as a ``--resume`` from
+        the checkpoint does, so a resumed run repeats the uninterrupted run's operations bit for bit
+        (a continuing process would differ from a seeded one at round-off: the air and circuit
+        unknowns outside M x~ start at 0 in a seeded process). Cost: one getdp start per checkpoint."""
+        full = EMState.from_dict(json.loads(json.dumps(self.complete_state(state).to_dict())))
+        self.close()
+        return full
 
     def complete_state(self, state: EMState) -> EMState:
         """``state`` (the one the last step returned) with the nodal BDF2 history and the start values

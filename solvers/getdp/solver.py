@@ -260,6 +260,15 @@ class GetDPSolver:
                 discard_folder(self._runs.pop(0))
         return result, new_state
 
+    def complete_state(self, state: EMState) -> EMState:
+        """``state`` with everything a restart needs: here ``state`` itself (it names its ``.res``)."""
+        return state
+
+    def checkpoint_state(self, state: EMState) -> EMState:
+        """The state a checkpoint stores, from which :meth:`step` continues: ``state`` itself (each
+        step is a new getdp process started from the previous ``.res``, as after a resume)."""
+        return state
+
     def post_fields(self, result: EMStepResult, mesh: EMMesh) -> bool:
         """Fill ``result.b_cells`` and ``result.a_nodes`` afterwards, from the run's saved solution.
 
@@ -524,7 +533,7 @@ class GetDPSolver:
 # ----------------------------------------------------------------------------- names a run sets
 #: lists ``run.pro`` defines before the deck is included: the Init path's nodal values
 #: (:meth:`GetDPSolver.step`) and the coil current tables (:meth:`GetDPSolver._table_lines`)
-RUN_PRO_LISTS = ("InitA_List", "InitA2_List", "Coil_Table_<k>")
+RUN_PRO_LISTS = ("InitA_List", "InitA2_List", "Coil_Table_<k>", "PulseformPersistentLib")
 
 
 def _indexed(name: str) -> str:

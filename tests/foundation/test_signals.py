@@ -135,21 +135,25 @@ def _fake_getdp(folder: Path) -> Path:
     return folder
 
 
-def test_hanging_getdp_stopped_by_the_time_limit(tmp_path):
+@pytest.mark.parametrize("process, run_folder", [("per_step", "step_00000"), ("persistent", "persistent_001")])
+def test_hanging_getdp_stopped_by_the_time_limit(tmp_path, process, run_folder):
+    """A getdp that never answers (a fake that sleeps) is stopped after limits.getdp_time_limit_s on
+    both EM paths: one line naming the limit and the run folder with its log, exit 1, no child left."""
     env = dict(os.environ, PATH=f"{_fake_getdp(tmp_path / 'bin')}:{os.environ['PATH']}",
                PULSEFORM_TEST_PIDFILE=str(tmp_path / "pid"))
     out = tmp_path / "run"
     t0 = time.time()
     r = subprocess.run([EXE, "run", str(REPO / "cases/emf_sheet_bulge"), "--out", str(out), "--quiet",
-                        "--set", "limits.getdp_time_limit_s=2"], capture_output=True, text=True, env=env, timeout=120)
+                        "--set", "limits.getdp_time_limit_s=2", "--set", f"em.getdp_process={process}"],
+                       capture_output=True, text=True, env=env, timeout=120)
     assert r.returncode == 1
     lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
     assert len(lines) == 1, r.stderr
-    assert "getdp exceeded limits.getdp_time_limit_s = 2 s" in lines[0] and "step_00000" in lines[0], lines[0]
+    assert "getdp exceeded limits.getdp_time_limit_s = 2 s" in lines[0] and run_folder in lines[0], lines[0]
     assert time.time() - t0 < 60
     assert not _alive(int((tmp_path / "pid").read_text()))
     assert json.loads((out / "metrics.json").read_text())["status"] == "failed"
-    assert "fake getdp hangs" in (out / "em" / "step_00000" / "getdp.log").read_text()
+    assert "fake getdp hangs" in (out / "em" / run_folder / "getdp.log").read_text()
 
 
 def test_sigkill_of_pulseform_ends_its_getdp(tmp_path):
@@ -290,3 +294,42 @@ def test_gmsh_api_meshing_that_never_returns_or_crashes(tmp_path, case, module, 
         assert "died before it finished: killed by signal SIGABRT" in lines[0], lines[0]
     assert json.loads((out / "metrics.json").read_text())["status"] == "failed"
     _wait_for(lambda: not _alive(int(pidfile.read_text())), timeout=10, what="the meshing child to end")
+
+
+_OOM_DRIVER = '''
+import logging, sys
+logging.getLogger().addHandler(logging.NullHandler())  # as the CLI's console handler: no basicConfig output
+from pulseform.solvers.dolfinx import output
+calls, real = [], output.FieldWriter.write
+def write(self, t):
+    calls.append(t)
+    if len(calls) == 3:  # the third field output: t = 0 and 0.2 ms are on disk
+        raise MemoryError()
+    return real(self, t)
+output.FieldWriter.write = write
+from pulseform.orchestrator.cli import main
+sys.exit(main(sys.argv[1:]))
+'''
+
+
+def test_out_of_memory_mid_run_is_one_line_and_keeps_the_results(tmp_path):
+    """Issue 13, deliverable 3: a MemoryError in the middle of a run (here raised by the third field
+    write of a coarse bar impact) ends it with one line naming the time, exit 1, status "failed", and
+    what was written before (history, the first two field outputs) stays readable."""
+    from pulseform.orchestrator.mech_fields import read_fields
+
+    driver = tmp_path / "driver.py"
+    driver.write_text(_OOM_DRIVER)
+    out = tmp_path / "run"
+    r = subprocess.run([sys.executable, str(driver), "run", str(REPO / "cases/bar_impact"), "--out", str(out), "--quiet",
+                        "--set", "bodies.left.mesh_size=0.25", "--set", "bodies.right.mesh_size=0.25"],
+                       capture_output=True, text=True, timeout=300)
+    lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
+    assert r.returncode == 1 and len(lines) == 1, r.stderr[-3000:]
+    assert lines[0].startswith("pulseform: error: bar_impact: out of memory at t = 0.0004 s") and len(lines[0]) <= 300
+    assert json.loads((out / "metrics.json").read_text())["status"] == "failed"
+    import numpy as np
+
+    h = np.genfromtxt(out / "history.csv", delimiter=",", names=True)
+    assert h["time_s"][-1] == pytest.approx(4e-4)
+    assert {name: list(f.times) for name, f in read_fields(out).items()} == {"left": [0.0, 2e-4], "right": [0.0, 2e-4]}

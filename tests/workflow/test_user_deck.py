@@ -118,3 +118,43 @@ def test_paths_resolve_from_the_case_folder_not_the_cwd(tmp_path):
     r = pulseform("check", str(CASE), cwd=tmp_path)
     assert r.returncode == 0
     assert f'pro = "{CASE / "sheet_bulge.pro"}"' in r.stdout
+
+
+@pytest.mark.getdp
+def test_user_deck_on_both_getdp_paths_gives_the_same_results(tmp_path):
+    """Issue 15: a user deck on PulseformLib runs on the persistent getdp (em.getdp_process = 'auto'
+    with BDF2 selects it after a probe) and on a getdp process per EM step with the same results
+    (round-off: the two paths solve the same systems; tests/getdp/test_persistent.py gives 8e-14 on
+    one step)."""
+    metrics, logs = {}, {}
+    for mode in ("auto", "per_step"):
+        r = pulseform("run", str(CASE), "--out", str(tmp_path / mode), *SHORT, "--set", f"em.getdp_process='{mode}'")
+        assert r.returncode == 0, r.stderr[-3000:]
+        metrics[mode] = json.loads((tmp_path / mode / "metrics.json").read_text())
+        logs[mode] = (tmp_path / mode / "run.log").read_text()
+    assert "user deck: one persistent getdp process" in logs["auto"]
+    assert "user deck: a getdp process per EM step" in logs["per_step"]
+    assert (tmp_path / "auto/em/persistent_001/getdp.log").is_file()
+    # measured: at most 3.3e-13 relative (kinetic energy), 2e-14 on the peak current
+    keys = ("force_impulse_Ns", "coil_current_peak_kA", "coil_joule_heat_J", "kinetic_energy_final_J",
+            "sheet_max_von_mises_MPa")
+    for key in keys:
+        assert metrics["auto"][key] == pytest.approx(metrics["per_step"][key], rel=1e-11), key
+
+
+@pytest.mark.getdp
+def test_user_deck_without_the_persistent_resolution_runs_per_step(tmp_path):
+    """A deck on its own copy of the library without Lib_Persistent.pro: 'auto' falls back to a getdp
+    process per EM step (logged); an explicit 'persistent' is one line naming EM_Persistent, exit 2."""
+    def drop_persistent(lib):
+        assert "Include PulseformPersistentLib;" in lib
+        return lib.replace("Include PulseformPersistentLib;", "")
+
+    case = _broken_copy(tmp_path, drop_persistent)
+    r = pulseform("run", str(case), "--out", str(tmp_path / "auto"), *SHORT)
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert "user deck: a getdp process per EM step" in (tmp_path / "auto/run.log").read_text()
+    r = pulseform("run", str(case), "--out", str(tmp_path / "persistent"), *SHORT, "--set", "em.getdp_process='persistent'")
+    assert r.returncode == 2
+    line = one_line_error(r)
+    assert "EM_Persistent" in line and "getdp_process" in line
