@@ -671,8 +671,8 @@ class PersistentGetDPSolver(GetDPSolver):
         """:meth:`complete_state` as a checkpoint stores it (a JSON round trip), and the process ends:
         the next step starts a new process seeded from exactly that state, as a ``--resume`` from
         the checkpoint does, so a resumed run repeats the uninterrupted run's operations bit for bit
-        (a continuing process would differ from a seeded one at round-off: the air and circuit
-        unknowns outside M x~ start at 0 in a seeded process). Cost: one getdp start per checkpoint."""
+        (a continuing process differs from a seeded one at round-off, 1e-15 on the first step:
+        docs/getdp.md). Cost: one getdp start per checkpoint."""
         full = EMState.from_dict(json.loads(json.dumps(self.complete_state(state).to_dict())))
         self.close()
         return full
