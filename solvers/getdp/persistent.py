@@ -243,6 +243,8 @@ class PersistentProcess:
                 setattr(self, name, None)
         if getattr(self, "_log", None) is not None and not self._log.closed:
             self._log.close()
+        for fifo in (self.fifo_in, self.fifo_out):  # a FIFO left in a results folder blocks a reader
+            fifo.unlink(missing_ok=True)
 
     @property
     def alive(self) -> bool:

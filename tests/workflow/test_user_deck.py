@@ -135,6 +135,7 @@ def test_user_deck_on_both_getdp_paths_gives_the_same_results(tmp_path):
     assert "user deck: one persistent getdp process" in logs["auto"]
     assert "user deck: a getdp process per EM step" in logs["per_step"]
     assert (tmp_path / "auto/em/persistent_001/getdp.log").is_file()
+    assert not [f for f in (tmp_path / "auto").rglob("*") if f.is_fifo()]  # a FIFO would block a reader
     # measured: at most 3.3e-13 relative (kinetic energy), 2e-14 on the peak current
     keys = ("force_impulse_Ns", "coil_current_peak_kA", "coil_joule_heat_J", "kinetic_energy_final_J",
             "sheet_max_von_mises_MPa")
