@@ -298,7 +298,7 @@ def _coupled_participants(case: Case, results: ResultsFolder, comm: MPI.Comm):
     from .shared_mesh import conductor_submesh, match_nodes, to_dolfinx
 
     if comm.size > 1:
-        raise NotImplementedError("coupled runs are serial for now (getdp runs once per EM step)")
+        raise NotImplementedError("coupled runs are serial for now (the GetDP participant and the force transfer run on one process)")
     user_deck = case.geometry.type == "user_deck"  # a user's own .geo/.msh + .pro (orchestrator/user_deck.py)
     if user_deck:
         from .user_deck import build_user_geometry
