@@ -30,6 +30,7 @@ import os
 import signal
 import subprocess
 import sys
+import time
 import tomllib
 from pathlib import Path
 
@@ -355,36 +356,58 @@ def _screenshot(p, out: Path) -> Path:
 
 # --------------------------------------------------------------------------------------- entry
 def draw_mechanics(results_dir: Path, *, isolated: bool = True,
-                   time_limit: float = RENDER_TIME_LIMIT_S) -> list[Path]:
+                   time_limit: float = RENDER_TIME_LIMIT_S, wait: bool = True):
     """Draw the mechanical pictures of a results folder from its field files (see the module
     docstring); returns the paths written. ``isolated``: render the 3D pictures in a child process
-    (a crash or a hang of the graphics stack then raises :class:`PicturesFailed`)."""
+    (a crash or a hang of the graphics stack then raises :class:`PicturesFailed`). ``wait=False``
+    (isolated only): start the child, draw shapes.png, and return a function that waits for the
+    child and returns every path, so that the caller draws its own pictures meanwhile."""
     root = Path(results_dir)
-    bodies = read_fields(root)
-    (root / "plots").mkdir(exist_ok=True)
-    paths = [plot_shapes(bodies, workpieces(root, list(bodies)), root / "plots", _run_name(root))]
     if not isolated:
-        return paths + render_fields(root)
+        bodies = read_fields(root)
+        (root / "plots").mkdir(exist_ok=True)
+        return [plot_shapes(bodies, workpieces(root, list(bodies)), root / "plots", _run_name(root))] \
+            + render_fields(root)
+    (root / "plots").mkdir(exist_ok=True)
     env = dict(os.environ, PYVISTA_OFF_SCREEN="true")
     if not env.get("DISPLAY"):  # straight to EGL (Mesa), without VTK's failed attempt at an X server
         env.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
+    child = subprocess.Popen([sys.executable, "-m", "pulseform.orchestrator.pictures_mech", str(root)],
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
+                             preexec_fn=_preexec)
+    deadline = time.monotonic() + time_limit
     try:
-        r = subprocess.run([sys.executable, "-m", "pulseform.orchestrator.pictures_mech", str(root)],
-                           capture_output=True, text=True, timeout=time_limit, env=env,
-                           preexec_fn=_preexec)
-    except subprocess.TimeoutExpired:
-        raise PicturesFailed(f"3D pictures: rendering took more than {time_limit:g} s; "
-                             f"{len(paths)} picture(s) drawn") from None
-    lines = [ln for ln in r.stdout.splitlines() if ln.startswith("[")]
-    if r.returncode != 0 or not lines:
-        err = [ln for ln in r.stderr.splitlines() if ln.strip() and "bad X server" not in ln]
-        if r.returncode < 0:
-            why = f"the renderer was killed by {signal.Signals(-r.returncode).name}"
-        else:
-            why = err[-1].strip() if err else f"exit code {r.returncode}"
-        log.debug("3D pictures: child stderr:\n%s", r.stderr[-4000:])
-        raise PicturesFailed(f"3D pictures not drawn ({why[:200]}); shapes.png was drawn")
-    return paths + [Path(p) for p in json.loads(lines[-1])]
+        bodies = read_fields(root)
+        paths = [plot_shapes(bodies, workpieces(root, list(bodies)), root / "plots", _run_name(root))]
+    except BaseException:
+        child.kill()
+        child.communicate()
+        raise
+
+    def finish() -> list[Path]:
+        try:
+            out, err = child.communicate(timeout=max(deadline - time.monotonic(), 0.0))
+        except subprocess.TimeoutExpired:
+            child.kill()
+            child.communicate()
+            raise PicturesFailed(f"3D pictures: rendering took more than {time_limit:g} s; "
+                                 f"{len(paths)} picture(s) drawn") from None
+        except BaseException:
+            child.kill()
+            child.communicate()
+            raise
+        lines = [ln for ln in out.splitlines() if ln.startswith("[")]
+        if child.returncode != 0 or not lines:
+            errs = [ln for ln in err.splitlines() if ln.strip() and "bad X server" not in ln]
+            if child.returncode < 0:
+                why = f"the renderer was killed by {signal.Signals(-child.returncode).name}"
+            else:
+                why = errs[-1].strip() if errs else f"exit code {child.returncode}"
+            log.debug("3D pictures: child stderr:\n%s", err[-4000:])
+            raise PicturesFailed(f"3D pictures not drawn ({why[:200]}); shapes.png was drawn")
+        return paths + [Path(p) for p in json.loads(lines[-1])]
+
+    return finish() if wait else finish
 
 
 def _preexec() -> None:

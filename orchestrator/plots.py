@@ -197,6 +197,9 @@ def draw_all(results_dir: Path, *, case=None, history: History | None = None, sh
         return done
     end = case.time.end if case is not None else float(history.column("time_s")[-1])
     axis = time_axis(end)
+    mech = _picture_module(*PICTURE_MODULES[0], skip)
+    # the 3D pictures render in a child process while this one draws the rest
+    finish_mech = attempt("mechanics pictures", mech, root, wait=False) if mech is not None else None
     attempt("energies", plot_energies, history, folder, axis)
     attempt("time step", plot_time_step, history, folder, axis)
     attempt("history columns", plot_probes, history, folder, None, axis)
@@ -205,20 +208,18 @@ def draw_all(results_dir: Path, *, case=None, history: History | None = None, sh
         from .analyses import create
 
         analyses = [create(name, case) for name in case.analysis]
-    mech = _picture_module(*PICTURE_MODULES[0], skip)
     if shapes is None and case is not None and (analyses or mech is None):
         shapes = read_shapes(root, case, skip)
     for a in analyses or []:
         before = _stamps(folder)
         attempt(f"analysis {type(a).__name__}", a.plots, history, shapes or [], folder)
         done.paths.extend(p for p, s in _stamps(folder).items() if before.get(p) != s)
-    if mech is not None:  # shapes.png (workpiece outlines) and the 3D pictures, from fields/
-        attempt("mechanics pictures", mech, root)
-
     if case is not None and case.case.kind == "coupled":
         em = _picture_module(*PICTURE_MODULES[1], skip)
         if em is not None:
             attempt("EM pictures", em, root)
+    if finish_mech is not None:  # shapes.png (workpiece outlines) and the 3D pictures, from fields/
+        attempt("mechanics pictures", finish_mech)
     done.paths = list(dict.fromkeys(done.paths))
     return done
 
