@@ -128,6 +128,7 @@ def continuous(mesh, pts, times, work: Path) -> tuple[float, float]:
                                 preexec_fn=child_preexec, timeout=3600).returncode
         walls.append(time.perf_counter() - w0)
         done = sum(1 for ln in open(lines) if ln.startswith("D "))
+        p.close()  # never started: removes its FIFOs
         if rc != 0 or done != n:
             raise RuntimeError(f"self-clocked getdp: exit {rc}, {done} of {n} steps (log {p.run_dir}/getdp.log)")
     return (walls[1] - walls[0]) / (len(times) - 1), walls[0]
