@@ -30,7 +30,6 @@ not computed (NaN).  B and Joule power per element are fetched only when read (a
 """
 from __future__ import annotations
 
-import json
 import logging
 import os
 import select
@@ -675,12 +674,12 @@ class PersistentGetDPSolver(GetDPSolver):
         return result.b_cells is not None and result.a_nodes is not None
 
     def checkpoint_state(self, state: EMState) -> EMState:
-        """:meth:`complete_state` as a checkpoint stores it (a JSON round trip), and the process ends:
+        """:meth:`complete_state`, and the process ends:
         the next step starts a new process seeded from exactly that state, as a ``--resume`` from
         the checkpoint does, so a resumed run repeats the uninterrupted run's operations bit for bit
         (a continuing process differs from a seeded one at round-off, 1e-15 on the first step:
         docs/getdp.md). Cost: one getdp start per checkpoint."""
-        full = EMState.from_dict(json.loads(json.dumps(self.complete_state(state).to_dict())))
+        full = self.complete_state(state)  # plain floats and lists: what JSON gives back, bit for bit
         self.close()
         return full
 
