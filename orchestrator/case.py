@@ -290,7 +290,7 @@ class Coupling:
 class Probe:
     """A point whose history goes into history.csv."""
 
-    name: str = spec(doc="column prefix in history.csv")
+    name: str = spec(doc="column prefix in history.csv and plots/<name>_<quantity>.png: 1 to 100 letters, digits, ._-")
     body: str = spec(doc="body the point belongs to")
     point: Vec2 = spec(unit="m", doc="initial (material) position")
     quantity: Literal["contact_pressure", "wall_pressure", "von_mises", "velocity", "displacement"] = spec(
@@ -382,6 +382,7 @@ class Case:
         for i, p in enumerate(self.probes):
             if p.body not in names:
                 raise SchemaError(f"probes[{i}].body", f"got {p.body!r}; allowed: {_choices(names)}")
+            _check_file_name(p.name, f"probes[{i}].name", "history.csv columns and plots/<name>_<quantity>.png")
             if p.name in probe_names:
                 raise SchemaError(f"probes[{i}].name", f"got {p.name!r}; probe names must be unique")
             probe_names.append(p.name)

@@ -143,6 +143,14 @@ class ResultsFolder:
     def __init__(self, root: Path, *, force: bool = False, resume: bool = False, lock: bool = True) -> None:
         self.root = Path(root)
         self._lock_fd: int | None = None
+        try:
+            os.stat(self.root)
+        except FileNotFoundError:
+            pass
+        except OSError as exc:  # a name too long, a file in the path, no permission
+            shown = str(self.root) if len(str(self.root)) <= 120 else str(self.root)[:120] + "…"
+            raise ResultsExistError(f"{shown}: cannot be a results folder ({exc.strerror}); choose another --out") \
+                from None
         if self.root.exists() and not self.root.is_dir():
             raise ResultsExistError(f"{self.root}: exists and is not a folder; choose another --out")
         if self.root.is_dir() and lock:

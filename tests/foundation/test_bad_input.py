@@ -131,6 +131,8 @@ BAD_OVERRIDES = [
     ("set_nested_value", ["time.end=" + "[" * 5000 + "]" * 5000], "time.end"),
     ("set_5000_digits", ["time.end=" + "9" * 5000], "time.end"),
     ("set_name_path", ["case.name='/tmp/x'"], "case.name"),
+    ("probe_name_path", ["probes[0].name='../../escape'"], "probes[0].name"),  # it names plots/<name>_*.png
+    ("probe_name_long", [f"probes[0].name='{'p' * 300}'"], "probes[0].name"),
     ("set_end_inf", ["time.end=inf"], "time.end"),
     ("set_key_100000_parts", ["a" + ".a" * 100_000 + "=1"], "dotted parts"),
     ("set_value_100000_parts", ["case.description={" + "a." * 100_000 + "b = 1}"], "dotted parts"),
@@ -322,6 +324,20 @@ def test_long_and_nul_case_paths(tmp_path, capsys):
     assert "…" in line
     line = _assert_one_line_error(capsys, main(["check", str(tmp_path / "a\x00b.toml")]), "no case file", "a\\x00b")
     assert "\x00" not in line
+
+
+def test_unusable_out_folders(tmp_path, capsys):
+    """--out that cannot be a folder (a 300-character name, a file in the path) is bad input for run
+    and sweep: exit 2, one short line, nothing created (issue 13: was an internal error, exit 1)."""
+    long = str(tmp_path / ("p" * 300))
+    (tmp_path / "file").write_text("x")
+    case = str(REPO / "cases/bar_impact")
+    for argv, why in ((["run", case, "--out", long, "--quiet"], "File name too long"),
+                      (["sweep", case, "--param", "time.end=1e-5,2e-5", "--out", long], "File name too long"),
+                      (["run", case, "--out", str(tmp_path / "file" / "x"), "--quiet"], "Not a directory")):
+        line = _assert_one_line_error(capsys, main(argv), "cannot be a results folder", why)
+        assert len(line) <= 300, line
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["file"]
 
 
 def test_user_deck_path_tricks(capsys):

@@ -96,8 +96,9 @@ def must_refuse(m: Mutation) -> bool:
 
 # ----------------------------------------------------------------------------- generation
 def _names_a_file(path: tuple) -> bool:
-    """case.name (results/<name>) and body names (fields/<case>_<body>.xdmf) become file names."""
-    return path == ("case", "name") or (len(path) == 3 and path[0] == "bodies" and path[2] == "name")
+    """case.name (results/<name>), body names (fields/<case>_<body>.xdmf) and probe names
+    (plots/<probe>_<quantity>.png) become file names."""
+    return path == ("case", "name") or (len(path) == 3 and path[0] in ("bodies", "probes") and path[2] == "name")
 
 
 def _key(path: tuple) -> str:
@@ -213,7 +214,7 @@ def mutations(data: dict, text: str, rng: random.Random, n: int) -> list[Mutatio
         if kind == "name_path":
             if rng.random() < 0.6 or not names:
                 return edit(kind, ("case", "name"), rng.choice(NAME_TRICKS))
-            path, _ = rng.choice(names)  # body names name files; probe names are only column prefixes
+            path, _ = rng.choice(names)  # body and probe names name files
             return edit("name_path" if _names_a_file(path) else "other_name_path", path, rng.choice(NAME_TRICKS))
         if kind == "file_path":
             if not files:
