@@ -50,6 +50,7 @@ class MechanicsRun:
     shapes: list = field(default_factory=list)
     analyses: list = field(default_factory=list)
     wall_before_s: float = 0.0  # wall time of the earlier segments of a resumed run (s)
+    pictures_stopped_by: int | None = None  # a stop signal that ended the pictures (the run is complete)
 
 
 def milestones(end: float, interval: float) -> np.ndarray:

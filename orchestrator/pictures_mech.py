@@ -361,7 +361,8 @@ def draw_mechanics(results_dir: Path, *, isolated: bool = True,
     docstring); returns the paths written. ``isolated``: render the 3D pictures in a child process
     (a crash or a hang of the graphics stack then raises :class:`PicturesFailed`). ``wait=False``
     (isolated only): start the child, draw shapes.png, and return a function that waits for the
-    child and returns every path, so that the caller draws its own pictures meanwhile."""
+    child and returns every path, so that the caller draws its own pictures meanwhile; its
+    ``cancel()`` kills the child instead."""
     root = Path(results_dir)
     if not isolated:
         bodies = read_fields(root)
@@ -385,6 +386,8 @@ def draw_mechanics(results_dir: Path, *, isolated: bool = True,
         raise
 
     def finish() -> list[Path]:
+        if cancelled:
+            return paths
         try:
             out, err = child.communicate(timeout=max(deadline - time.monotonic(), 0.0))
         except subprocess.TimeoutExpired:
@@ -407,6 +410,16 @@ def draw_mechanics(results_dir: Path, *, isolated: bool = True,
             raise PicturesFailed(f"3D pictures not drawn ({why[:200]}); shapes.png was drawn")
         return paths + [Path(p) for p in json.loads(lines[-1])]
 
+    cancelled: list[bool] = []
+
+    def cancel() -> None:
+        """Stop the 3D renderer (a stop signal during the pictures)."""
+        cancelled.append(True)
+        if child.poll() is None:
+            child.kill()
+        child.communicate()
+
+    finish.cancel = cancel
     return finish() if wait else finish
 
 

@@ -128,11 +128,14 @@ class Drawn:
         One line per picture group not drawn, and why (a module not there yet, no fields, ...).
     failed : list of str
         One line per picture group that raised (the traceback is in the log at DEBUG).
+    stopped : bool
+        ``stop`` said so: the remaining picture groups were not drawn.
     """
 
     paths: list[Path] = field(default_factory=list)
     skipped: list[str] = field(default_factory=list)
     failed: list[str] = field(default_factory=list)
+    stopped: bool = False
 
 
 class NotAResultsFolder(ValueError):
@@ -152,7 +155,7 @@ def check_results_folder(results_dir: Path) -> Path:
 
 
 def draw_all(results_dir: Path, *, case=None, history: History | None = None, shapes: list | None = None,
-             analyses: list | None = None) -> Drawn:
+             analyses: list | None = None, stop=None) -> Drawn:
     """Draw every picture of a results folder into its ``plots/`` (atomically, replacing old ones).
 
     Reads what is not given: the resolved ``case.toml``, ``history.csv``, the fields. The end of a
@@ -162,7 +165,9 @@ def draw_all(results_dir: Path, *, case=None, history: History | None = None, sh
     analyses, then ``pictures_mech.draw_mechanics`` and ``pictures_em.draw_em`` when those modules
     exist (until then the older shapes picture; the EM pictures are ``pictures_em``'s, from
     ``fields/em/``). A picture group that fails
-    is reported in :attr:`Drawn.failed` and the others are still drawn.
+    is reported in :attr:`Drawn.failed` and the others are still drawn. ``stop``: a function asked
+    before each picture group; when it returns true the remaining groups are skipped
+    (:attr:`Drawn.stopped`) and the 3D renderer is killed (a stop signal at the end of a run).
     """
     root = check_results_folder(results_dir)
     folder = root / "plots"
@@ -170,6 +175,12 @@ def draw_all(results_dir: Path, *, case=None, history: History | None = None, sh
     done = Drawn()
 
     def attempt(what: str, fn, *args, **kw):
+        if stop is not None and not done.stopped and stop():
+            done.stopped = True
+            if finish_mech is not None and hasattr(finish_mech, "cancel"):
+                finish_mech.cancel()
+        if done.stopped:
+            return None
         try:
             out = fn(*args, **kw)
         except Exception as exc:  # one picture group must not cost the others
@@ -199,6 +210,7 @@ def draw_all(results_dir: Path, *, case=None, history: History | None = None, sh
     axis = time_axis(end)
     mech = _picture_module(*PICTURE_MODULES[0], skip)
     # the 3D pictures render in a child process while this one draws the rest
+    finish_mech = None
     finish_mech = attempt("mechanics pictures", mech, root, wait=False) if mech is not None else None
     attempt("energies", plot_energies, history, folder, axis)
     attempt("time step", plot_time_step, history, folder, axis)

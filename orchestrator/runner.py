@@ -5,6 +5,7 @@ from __future__ import annotations
 import logging
 import os
 import shutil
+import signal
 import sys
 import time
 from contextlib import contextmanager
@@ -42,6 +43,16 @@ class RunInterrupted(RuntimeError):
         self.signum, self.time, self.out = signum, time_s, out
         at = "before the first step" if time_s is None else f"at t = {time_s:.6g} s"
         super().__init__(f"interrupted {at}; continue with --resume (results in {out})")
+
+
+class PicturesInterrupted(RunInterrupted):
+    """SIGINT / SIGTERM while the pictures were drawn: the run itself is complete (metrics.json,
+    status "ok"); some pictures are missing."""
+
+    def __init__(self, signum: int, out: Path) -> None:
+        self.signum, self.time, self.out = signum, None, out
+        RuntimeError.__init__(self, f"interrupted while drawing the pictures; the run is complete (results in "
+                              f"{out}); 'pulseform plot {out}' draws them")
 
 
 class _RunLogHandler(logging.FileHandler):
@@ -182,6 +193,8 @@ def _run_in(case: Case, results: ResultsFolder, *, resume: bool, quiet: bool, co
         metrics["status_ok"] = 1.0
         _final_metrics(results, comm, {**metrics, "status": "ok"})
         log.info("done in %.2f s; metrics in %s", metrics["wall_time_s"], results.root / "metrics.json")
+        if run.pictures_stopped_by is not None:
+            raise PicturesInterrupted(run.pictures_stopped_by, results.root)
     return metrics
 
 
@@ -258,9 +271,14 @@ def _dispatch(case: Case, results: ResultsFolder, *, quiet: bool, resume: bool, 
     if case.output.plots and comm.rank == 0:
         from .plots import draw_all
 
-        # the pictures `pulseform plot` draws from the folder, from what the run holds in memory
-        drawn = draw_all(results.root, case=case, history=run.history, shapes=run.shapes, analyses=run.analyses)
+        # the pictures `pulseform plot` draws from the folder, from what the run holds in memory; a stop
+        # signal now ends the drawing (the results are complete): PicturesInterrupted after the metrics
+        drawn = draw_all(results.root, case=case, history=run.history, shapes=run.shapes, analyses=run.analyses,
+                         stop=lambda: interrupt.pending() is not None)
         log.info("%d pictures in %s", len(drawn.paths), results.plots)
+        if drawn.stopped:
+            log.info("pictures stopped by %s; the results are complete", signal.Signals(interrupt.pending()).name)
+            run.pictures_stopped_by = interrupt.pending()
     return run
 
 

@@ -333,3 +333,38 @@ def test_out_of_memory_mid_run_is_one_line_and_keeps_the_results(tmp_path):
     h = np.genfromtxt(out / "history.csv", delimiter=",", names=True)
     assert h["time_s"][-1] == pytest.approx(4e-4)
     assert {name: list(f.times) for name, f in read_fields(out).items()} == {"left": [0.0, 2e-4], "right": [0.0, 2e-4]}
+
+
+_SIGNAL_IN_PICTURES = '''
+import os, signal, sys
+from pulseform.orchestrator import plots
+real = plots.plot_energies
+def plot_energies(*args, **kw):  # the first picture group after the 3D renderer started
+    os.kill(os.getpid(), signal.SIG{sig})
+    return real(*args, **kw)
+plots.plot_energies = plot_energies
+from pulseform.orchestrator.cli import main
+sys.exit(main(sys.argv[1:]))
+'''
+
+
+@pytest.mark.parametrize("sig", ["INT", "TERM"])
+def test_signal_while_drawing_the_pictures(tmp_path, sig):
+    """Issue 13 (audit): a stop signal during the end-of-run pictures ends the drawing at the next
+    picture group and kills the 3D renderer: one line saying the run is complete and how to draw the
+    pictures, exit 128 + signal, metrics.json complete with status "ok" (was: ignored, exit 0)."""
+    driver = tmp_path / "driver.py"
+    driver.write_text(_SIGNAL_IN_PICTURES.replace("{sig}", sig))
+    out = tmp_path / "run"
+    r = subprocess.run([sys.executable, str(driver), "run", str(REPO / "cases/bar_impact"), "--out", str(out), "--quiet",
+                        "--set", "bodies.left.mesh_size=0.25", "--set", "bodies.right.mesh_size=0.25"],
+                       capture_output=True, text=True, timeout=300)
+    lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
+    assert r.returncode == 128 + getattr(signal, f"SIG{sig}") and len(lines) == 1, r.stderr[-3000:]
+    assert lines[0].startswith("pulseform: interrupted while drawing the pictures; the run is complete")
+    assert f"'pulseform plot {out}' draws them" in lines[0]
+    m = json.loads((out / "metrics.json").read_text())
+    assert m["status"] == "ok" and m["status_ok"] == 1.0 and m["end_time_s"] > 0
+    assert not (out / "plots" / "deformed_von_mises.png").exists()  # the renderer was stopped
+    assert not (out / "plots" / "time_step.png").exists()  # the groups after the signal were skipped
+    assert (out / "plots" / "energies.png").is_file()  # the group that was running finished
