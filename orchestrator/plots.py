@@ -10,6 +10,7 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
 
 from .history import History  # noqa: E402
 from .units import TimeAxis, label, shown, time_axis, unit_of  # noqa: E402
@@ -102,7 +103,12 @@ def plot_time_step(history: History, folder: Path, axis: TimeAxis | None = None)
     axis = _time_axis(history, axis)
     t = history.column("time_s") * axis.scale
     fig, ax = _figure(3.0)
-    ax.plot(t[1:], shown("dt_s", history.column("dt_s")[1:]))
+    fig.subplots_adjust(bottom=0.18)  # room for the time label on the lower figure
+    dt = shown("dt_s", history.column("dt_s")[1:])
+    ax.plot(t[1:], dt)
+    if len(dt) and np.ptp(dt) <= 1e-9 * np.abs(dt).max():  # a constant step: no axis of round-off digits
+        ax.set_ylim(0.0, 1.2 * float(np.abs(dt).max()) or 1.0)
+    ax.ticklabel_format(axis="y", useOffset=False)
     ax.set_xlabel(axis.label)
     ax.set_ylabel(f"dt [{unit_of('dt_s').shown}]")
     ax.grid(alpha=0.3)
