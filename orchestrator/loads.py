@@ -4,20 +4,55 @@ from __future__ import annotations
 
 import math
 
+import numba
 import numpy as np
 
 from .case import Box, Load, PulseExp, PulseSin2
 
 
+#: columns of :func:`pulse_table`
+KIND, AMPLITUDE, BETA, OMEGA, DECAY, T_START, T_END = range(7)
+
+
 def pulse_pressure(load: Load, t: float) -> float:
-    """Pressure (Pa) of a pulse at time ``t`` (s); zero outside [t_start, t_end)."""
+    """Pressure (Pa) of a pulse at time ``t`` (s); zero outside [t_start, t_end).
+
+    sin² is taken as s·s (correctly rounded), not ``s ** 2`` (the C library's ``pow``, which
+    differs in the last bit for ~0.1 % of arguments), so that the compiled twin
+    :func:`pulse_value` gives the same bits."""
     if t < load.t_start or t >= load.t_end:
         return 0.0
     tau = t - load.t_start
     if isinstance(load, PulseSin2):
-        return load.amplitude * math.exp(-load.beta * tau) * math.sin(load.omega * tau) ** 2
+        s = math.sin(load.omega * tau)
+        return load.amplitude * math.exp(-load.beta * tau) * (s * s)
     assert isinstance(load, PulseExp)
     return load.amplitude * math.exp(-tau / load.decay_time)
+
+
+def pulse_table(loads: tuple[Load, ...]) -> np.ndarray:
+    """The pulses as rows [kind (0: eq. 7, 1: eq. 8), amplitude (Pa), beta (1/s), omega (rad/s),
+    decay time (s), t_start (s), t_end (s)] for :func:`pulse_value`."""
+    out = np.zeros((len(loads), 7))
+    for i, ld in enumerate(loads):
+        if isinstance(ld, PulseSin2):
+            out[i] = (0.0, ld.amplitude, ld.beta, ld.omega, 0.0, ld.t_start, ld.t_end)
+        else:
+            assert isinstance(ld, PulseExp)
+            out[i] = (1.0, ld.amplitude, 0.0, 0.0, ld.decay_time, ld.t_start, ld.t_end)
+    return out
+
+
+@numba.njit(cache=True)
+def pulse_value(row: np.ndarray, t: float) -> float:
+    """:func:`pulse_pressure` (Pa) of a :func:`pulse_table` row at ``t`` (s), compiled; same bits."""
+    if t < row[T_START] or t >= row[T_END]:
+        return 0.0
+    tau = t - row[T_START]
+    if row[KIND] == 0.0:
+        s = math.sin(row[OMEGA] * tau)
+        return row[AMPLITUDE] * math.exp(-row[BETA] * tau) * (s * s)
+    return row[AMPLITUDE] * math.exp(-tau / row[DECAY])
 
 
 def pulse_impulse_per_area(load: Load) -> float:

@@ -18,8 +18,8 @@ from .contact_kernel import contact_pass, surface_geometry
 from .kernels import element_step
 from .reductions import np_sum
 
-__all__ = ["BodyArrays", "WallArrays", "run_steps", "switch_forces", "EV_NONE", "EV_DT",
-           "EV_INVERTED", "SC"]
+__all__ = ["BodyArrays", "WallArrays", "run_steps", "step", "switch_forces",
+           "follower_pressure", "EV_NONE", "EV_DT", "EV_INVERTED", "SC"]
 
 EV_NONE = 0
 EV_DT = 1
@@ -311,3 +311,46 @@ def run_steps(B, W, C, sc, dt, n_steps, ev, evf):
         if ev[0] != EV_NONE:
             return k
     return n_steps
+
+
+@numba.njit(cache=True)
+def follower_pressure(x, segs, s0, s1, n0, n1, p, axisym, thickness, acc0, acc1, out, assign):
+    """Consistent nodal forces (N) of a uniform follower pressure ``p`` (Pa, positive pushes into
+    the body) on the segments ``segs[s0:s1]`` (node rows into ``x``, body on the left) at the
+    current positions ``x`` (m), rounded as :meth:`.body.Body.pressure_forces` (per-node sums in
+    segment order, like ``np.bincount``; planar: times ``thickness``; axisymmetric: 2 pi ring).
+
+    Rows ``n0:n1`` (the body's nodes) of ``out`` receive the forces (``assign``) or have them
+    added (a further load on the same body); ``acc0`` / ``acc1`` are (N, 2) scratch.
+    """
+    for i in range(n0, n1):
+        acc0[i, 0] = 0.0
+        acc0[i, 1] = 0.0
+        acc1[i, 0] = 0.0
+        acc1[i, 1] = 0.0
+    twopi = 2 * np.pi
+    for s in range(s0, s1):
+        a = segs[s, 0]
+        b = segs[s, 1]
+        t0 = x[b, 0] - x[a, 0]
+        t1 = x[b, 1] - x[a, 1]
+        ln = np.sqrt(t0 * t0 + t1 * t1)
+        nx = t1 / ln
+        ny = -t0 / ln
+        if axisym:
+            wa = twopi * ln * (2 * x[a, 0] + x[b, 0]) / 6.0
+            wb = twopi * ln * (x[a, 0] + 2 * x[b, 0]) / 6.0
+        else:
+            wa = 0.5 * ln * thickness
+            wb = wa
+        acc0[a, 0] += wa * nx
+        acc0[a, 1] += wa * ny
+        acc1[b, 0] += wb * nx
+        acc1[b, 1] += wb * ny
+    for i in range(n0, n1):
+        for c in range(2):
+            f = 0.0 - p * (acc0[i, c] + acc1[i, c])
+            if assign:
+                out[i, c] = f
+            else:
+                out[i, c] = out[i, c] + f
