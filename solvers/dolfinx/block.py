@@ -40,8 +40,8 @@ BodyArrays = namedtuple("BodyArrays", [
     "acc"])
 
 #: Rigid walls: their planes, the bodies they act on, and per-node scratch.
-WallArrays = namedtuple("WallArrays", ["point", "normal", "sliding", "acts", "on", "fn", "push",
-                                       "hits"])
+WallArrays = namedtuple("WallArrays", ["point", "normal", "sliding", "acts", "order", "on", "fn",
+                                       "push", "hits"])
 
 
 @numba.njit(cache=True)
@@ -134,9 +134,10 @@ def _apply_walls(B, W, sc):
         p1 = W.point[iw, 1]
         n0 = W.normal[iw, 0]
         n1 = W.normal[iw, 1]
-        for ib in range(nb):
-            if not W.acts[iw, ib]:
-                continue
+        for k in range(nb):
+            ib = W.order[iw, k]          # the wall's bodies in its own order (as the Python loop)
+            if ib < 0:
+                break
             nh = 0
             for i in range(B.node_off[ib], B.node_off[ib + 1]):
                 d = (B.x[i, 0] - p0) * n0 + (B.x[i, 1] - p1) * n1

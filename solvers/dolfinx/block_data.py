@@ -114,14 +114,16 @@ class BlockData:
         s = self.solver
         nw = len(s.rigid_walls)
         acts = np.zeros((nw, len(self.names)), np.uint8)
+        order = np.full((nw, len(self.names)), -1, np.int64)
         for iw, w in enumerate(s.rigid_walls):
-            for n in (w.bodies or self.names):
+            for k, n in enumerate(w.bodies or self.names):
                 acts[iw, self.names.index(n)] = 1
+                order[iw, k] = self.names.index(n)
         return WallArrays(
             point=np.array([w.point for w in s.rigid_walls], float).reshape(nw, 2),
             normal=np.array([w.unit_normal() for w in s.rigid_walls], float).reshape(nw, 2),
             sliding=np.array([w.sliding for w in s.rigid_walls], np.uint8),
-            acts=acts, on=np.zeros((nw, ntot), np.uint8), fn=np.zeros((nw, ntot)),
+            acts=acts, order=order, on=np.zeros((nw, ntot), np.uint8), fn=np.zeros((nw, ntot)),
             push=np.zeros((nw, ntot), np.uint8), hits=np.zeros(max(ntot, 1), np.int64))
 
     def _contact(self) -> ContactArrays:
