@@ -13,7 +13,7 @@ from mpi4py import MPI
 from pulseform.solvers.dolfinx.block import EV_NONE, SC, follower_pressure, step, switch_forces
 
 from .case import Load
-from .loads import box_marker, pulse_pressure, pulse_table, pulse_value
+from .loads import T_END, T_START, box_marker, pulse_pressure, pulse_table, pulse_value
 from .participants import LoadStep
 
 log = logging.getLogger(__name__)
@@ -186,18 +186,23 @@ class PressurePulses:
         ``t_stop`` (left to the loop's own step) and at the first event. Mass damping (−α m v)
         is applied as in :meth:`load`.
 
+        Rest-triggered pulses too: a pulse waiting for rest (its predecessor's window over) checks
+        the loaded body's largest nodal speed each step, fires below ``rest_speed``, and applies
+        its ``rest_damping`` while it waits, as :meth:`load` does.
+
         Returns None (nothing done) where a step needs Python: no compiled solver path (MPI,
-        callables) or a rest-triggered pulse not yet fired (its trigger and rest damping).
+        callables).
         """
         solver = mechanics.solver
         bd = getattr(solver, "compiled", None)
-        if bd is None or n_max < 1 or np.isnan(self.offsets).any():
+        if bd is None or n_max < 1 or (len(self.offsets) and np.isnan(self.offsets[0])):
             return None
         plan = self._block_plan(mechanics)
         out = PulseBlock(np.zeros(n_max), np.zeros(n_max), np.zeros((n_max, 2)),
                          np.zeros((n_max, len(self.loads))), None)
         bd.load()
-        done = _pulse_steps(bd.B, bd.W, bd.C, bd.sc, bd.ev, bd.evf, plan.table, self.offsets.copy(),
+        offsets = self.offsets.copy()
+        done = _pulse_steps(bd.B, bd.W, bd.C, bd.sc, bd.ev, bd.evf, plan.table, offsets, plan.rest,
                             plan.body, plan.seg_off, plan.segs, bd.node_off, plan.order,
                             float(self.kinetic_until), float(self.damping), float(self.damping_from),
                             float(self.damping_until), float(t_stop), int(n_max),
@@ -205,6 +210,7 @@ class PressurePulses:
                             solver.mode == 2, plan.thickness, plan.new, plan.acc0, plan.acc1,
                             plan.has, out.t0, out.dt, out.resultant, out.pressure)
         bd.store()
+        self.offsets = offsets
         last = done if bd.ev[0] != EV_NONE else done - 1
         if last >= 0:
             solver.kinetic_damping = bool(out.t0[last] + 0.0 * out.dt[last] < self.kinetic_until)
@@ -234,7 +240,8 @@ class PressurePulses:
             seg_off.append(seg_off[-1] + len(sg))
             body.append(ib)
         ntot = int(bd.node_off[-1])
-        self._plan = _Plan(solver, pulse_table(self.loads),
+        rest = np.array([[ld.rest_speed, ld.rest_damping] for ld in self.loads]).reshape(-1, 2)
+        self._plan = _Plan(solver, pulse_table(self.loads), rest,
                            np.concatenate(segs).reshape(-1, 2) if segs else np.zeros((0, 2), np.int64),
                            np.array(seg_off, np.int64), np.array(body, np.int64),
                            np.zeros(len(names), np.int64), float(next(iter(solver.bodies.values())).thickness),
@@ -262,6 +269,7 @@ class _Plan:
 
     solver: object
     table: np.ndarray      # pulse_table rows
+    rest: np.ndarray       # per pulse: rest_speed (m/s), rest_damping (1/s)
     segs: np.ndarray       # (S, 2) loaded segments of every pulse, solver-wide node rows
     seg_off: np.ndarray    # pulse i's segments: segs[seg_off[i]:seg_off[i + 1]]
     body: np.ndarray       # body index per pulse
@@ -290,7 +298,7 @@ class PulseBlock:
 
 
 @numba.njit(cache=True)
-def _pulse_steps(B, W, C, sc, ev, evf, table, shifts, lbody, seg_off, segs, node_off, order,
+def _pulse_steps(B, W, C, sc, ev, evf, table, shifts, rest, lbody, seg_off, segs, node_off, order,
                  kin_until, damping, damping_from, damping_until, t_stop, n_max, dt_max, axisym, thickness, new, acc0, acc1, has,
                  out_t0, out_dt, out_res, out_p):
     """EM steps of one mechanical step each with the pulses' follower pressures, as
@@ -309,7 +317,24 @@ def _pulse_steps(B, W, C, sc, ev, evf, table, shifts, lbody, seg_off, segs, node
         new[:] = 0.0
         has[:] = 0
         nl = 0
+        relax = 0.0
         for i in range(table.shape[0]):
+            if math.isnan(shifts[i]):  # PressurePulses._shift: fire a waiting pulse at rest
+                ps = shifts[i - 1]
+                if not (math.isnan(ps) or t0 < table[i - 1, T_END] + ps):
+                    ib = lbody[i]
+                    speed = 0.0
+                    if node_off[ib + 1] > node_off[ib]:
+                        speed = -np.inf
+                        for j in range(node_off[ib], node_off[ib + 1]):
+                            sp = math.sqrt(B.v[j, 0] * B.v[j, 0] + B.v[j, 1] * B.v[j, 1])
+                            if sp > speed or math.isnan(sp):
+                                speed = sp
+                    if speed < rest[i, 0]:
+                        shifts[i] = t0 - table[i, T_START]
+            if math.isnan(shifts[i]) and rest[i, 1] > 0.0 and i > 0 and \
+                    not math.isnan(shifts[i - 1]) and t0 >= table[i - 1, T_END] + shifts[i - 1]:
+                relax = max(relax, rest[i, 1])
             p = 0.0 if math.isnan(shifts[i]) else pulse_value(table[i], t_mid - shifts[i])
             out_p[done, i] = p
             if p == 0.0:
@@ -321,7 +346,7 @@ def _pulse_steps(B, W, C, sc, ev, evf, table, shifts, lbody, seg_off, segs, node
                 order[nl] = ib
                 nl += 1
             has[ib] = 1
-        alpha = 0.0 + (damping if damping_from <= t_mid < damping_until else 0.0)
+        alpha = relax + (damping if damping_from <= t_mid < damping_until else 0.0)
         if alpha > 0.0:                # mass damping on every body, after the pulses
             for ib in range(node_off.shape[0] - 1):
                 for i in range(node_off[ib], node_off[ib + 1]):

@@ -50,6 +50,9 @@ CASES = {
     # pressure on the inner tube, contact, and the mass damping from 1.5e-4 s moved to 2e-5 s
     "tube_press_fit": TUBE_COARSE + ["--set", "time.end=4e-5", "--set", "output.field_interval=1.5e-5",
                                      "--set", "mechanics.mass_damping_from=2e-5"],
+    # pulse 1 waits for rest (rest damping) after pulse 0's shortened window, then fires
+    "corner_fill_multipulse": CORNER_COARSE + ["--set", "time.end=8e-5", "--set", "output.field_interval=2e-5",
+                                               "--set", "loads[0].t_end=1.5e-5", "--set", "loads[1].rest_speed=8.0"],
     # no load; probes, contact, history every 3 steps
     "bar_impact": ["--set", "time.end=2e-4", "--set", "output.history_every=3"],
 }
@@ -77,5 +80,8 @@ def test_blocks_match_per_step_python_bitwise(tmp_path, monkeypatch, name):
         if k in skip:
             continue
         assert got.metrics[k] == v or (np.isnan(v) and np.isnan(got.metrics[k])), k
+    if name == "corner_fill_multipulse":
+        start = got.metrics["load1_start_time_s"]
+        assert 1.5e-5 < start < 7e-5, start          # it waited, then fired inside the run
     if name == "corner_fill":
         assert got.solver.energies()["contact_stored_J"] > 0 or got.metrics.get("die_contact_pressure_max_MPa", 0) > 0
