@@ -85,3 +85,21 @@ def test_blocks_match_per_step_python_bitwise(tmp_path, monkeypatch, name):
         assert 1.5e-5 < start < 7e-5, start          # it waited, then fired inside the run
     if name == "corner_fill":
         assert got.solver.energies()["contact_stored_J"] > 0 or got.metrics.get("die_contact_pressure_max_MPa", 0) > 0
+
+
+def test_event_inside_a_block_is_raised_as_per_step(tmp_path, monkeypatch):
+    """A penetration inside a compiled block (contact stiffness 1e4 x too small) stops the run
+    with the per-step path's exception and message, after the same history rows."""
+    from pulseform.solvers.dolfinx import ContactPenetrationError
+
+    sets = CORNER_COARSE + ["--set", "time.end=6e-5", "--set", "output.field_interval=3e-5",
+                            "--set", "contact[0].stiffness=1e2"]
+    msgs, rows = [], []
+    for blocks in (False, True):
+        with pytest.raises(ContactPenetrationError) as info:
+            _run(tmp_path, "corner_fill", sets, blocks, monkeypatch)
+        msgs.append(str(info.value))
+        hist = (tmp_path / f"corner_fill_{blocks}" / "history.csv").read_text()
+        rows.append(hist)
+    assert "reached h=" in msgs[0] and msgs[0] == msgs[1]
+    assert rows[0] == rows[1] and rows[0].count("\n") > 10
