@@ -53,6 +53,9 @@ CASES = {
     # pulse 1 waits for rest (rest damping) after pulse 0's shortened window, then fires
     "corner_fill_multipulse": CORNER_COARSE + ["--set", "time.end=8e-5", "--set", "output.field_interval=2e-5",
                                                "--set", "loads[0].t_end=1.5e-5", "--set", "loads[1].rest_speed=8.0"],
+    # a rigid wall, and kinetic damping while the bar is stopped, switched off at 1.2e-3 s
+    "bar_impact_wall": ["--set", "time.end=1.5e-3", "--set", "output.field_interval=5e-4", "--set", "output.history_every=4",
+                        "--set", "mechanics.kinetic_damping_until=1.2e-3"],
     # no load; probes, contact, history every 3 steps
     "bar_impact": ["--set", "time.end=2e-4", "--set", "output.history_every=3"],
 }
@@ -80,6 +83,8 @@ def test_blocks_match_per_step_python_bitwise(tmp_path, monkeypatch, name):
         if k in skip:
             continue
         assert got.metrics[k] == v or (np.isnan(v) and np.isnan(got.metrics[k])), k
+    if name == "bar_impact_wall":
+        assert got.solver.energies()["kinetic_damping_J"] > 0 and not got.solver.kinetic_damping
     if name == "corner_fill_multipulse":
         start = got.metrics["load1_start_time_s"]
         assert 1.5e-5 < start < 7e-5, start          # it waited, then fired inside the run
