@@ -110,6 +110,9 @@ def switch_forces(B, sc, new):
 
 @numba.njit(cache=True)
 def _kinetic_peak(B, ib, sc):
+    """Kinetic damping of body ``ib`` (as ``ExplicitSolver._kinetic_peak``): once its half-step
+    kinetic energy has passed a peak, zero its velocities (prescribed ones re-applied); returns
+    the kinetic energy removed, J."""
     n0 = B.node_off[ib]
     n1 = B.node_off[ib + 1]
     ke = 0.5 * _half_ke(B, n0, n1)
@@ -126,6 +129,8 @@ def _kinetic_peak(B, ib, sc):
 
 @numba.njit(cache=True)
 def _apply_walls(B, W, sc):
+    """Put nodes behind a rigid wall back on it and remove their (normal) velocity; mark the nodes
+    on the wall (``W.on``) for the reactions. Returns the kinetic energy removed, J."""
     removed = 0.0
     tol = sc[_WTOL]
     nb = B.node_off.shape[0] - 1
@@ -171,6 +176,8 @@ def _apply_walls(B, W, sc):
 
 @numba.njit(cache=True)
 def _wall_reactions(B, W, ib):
+    """Cancel the force (all of it, or its normal part on a sliding wall) of body ``ib``'s wall
+    nodes pushed into the wall; ``W.fn`` / ``W.push`` keep the normal force for the pressures."""
     for iw in range(W.point.shape[0]):
         if not W.acts[iw, ib]:
             continue

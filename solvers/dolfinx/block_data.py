@@ -8,7 +8,7 @@ block but a few scalars, the active contact sets and the contact / wall outputs.
 from __future__ import annotations
 
 import logging
-from typing import Dict
+from typing import TYPE_CHECKING, Dict, List, Sequence, Tuple
 
 import numpy as np
 
@@ -17,12 +17,15 @@ from .cell_list import new_grid
 from .contact_kernel import ContactArrays
 from .kernels import N_PRM
 
+if TYPE_CHECKING:
+    from .solver import ExplicitSolver
+
 __all__ = ["BlockData", "block_supported"]
 
 log = logging.getLogger(__name__)
 
 
-def block_supported(solver) -> str:
+def block_supported(solver: "ExplicitSolver") -> str:
     """Why the compiled block path cannot run this solver ('' if it can)."""
     if solver.comm.size > 1:
         return "MPI (ghost exchange per step)"
@@ -35,7 +38,8 @@ def block_supported(solver) -> str:
     return ""
 
 
-def _concat_views(arrays, shape_tail, dtype=float):
+def _concat_views(arrays: Sequence[np.ndarray], shape_tail: Tuple[int, ...],
+                  dtype=float) -> Tuple[np.ndarray, List[np.ndarray]]:
     """One array holding ``arrays`` back to back, and views of it in their place."""
     n = sum(len(a) for a in arrays)
     out = np.zeros((n,) + shape_tail, dtype=dtype)
@@ -56,7 +60,7 @@ class BlockData:
         Its bodies' arrays are replaced by views into the concatenated arrays.
     """
 
-    def __init__(self, solver) -> None:
+    def __init__(self, solver: "ExplicitSolver") -> None:
         self.solver = solver
         bodies = list(solver.bodies.values())
         names = list(solver.bodies)
@@ -259,12 +263,12 @@ class BlockData:
                 s._wall_out[iw].setdefault("p", {})[n] = (rows, -W.fn[iw, o0 + rows] / area[rows])
 
 
-def _cat(arrays, dtype) -> np.ndarray:
+def _cat(arrays: Sequence[np.ndarray], dtype) -> np.ndarray:
     """``np.concatenate`` of 1D or (n, 2) arrays as ``dtype``; empty (0,) for no arrays."""
     return np.concatenate(arrays).astype(dtype) if arrays else np.zeros(0, dtype)
 
 
-def _csr(owner: np.ndarray, n: int):
+def _csr(owner: np.ndarray, n: int) -> Tuple[np.ndarray, np.ndarray]:
     """Offsets (n + 1) and entries listing, per owner, the indices i with owner[i] == it,
     ascending."""
     order = np.argsort(owner, kind="stable").astype(np.int64)
