@@ -13,6 +13,7 @@ from .contact import (ContactPairSpec, ContactPenetrationError, RigidWallSpec, S
 from .kernels import (MODE_AXISYMMETRIC, MODE_PLANE_STRAIN, MODE_PLANE_STRESS,
                       element_critical_dt, element_step, pack_parameters)
 from . import restart
+from .cell_fields import kinetic_sum
 from .block import EV_DT, EV_INVERTED, run_steps
 from .block_data import BlockData, block_supported
 from .reference_kernel import element_step_numpy
@@ -480,8 +481,7 @@ class ExplicitSolver:
         ke = 0.0
         for b in self.bodies.values():
             no = b.n_owned
-            vn = b.v[:no] + 0.5 * self._dt_prev * b.a[:no]
-            ke += 0.5 * float(np.sum(b.mass[:no] * np.sum(vn ** 2, axis=1)))
+            ke += 0.5 * float(kinetic_sum(b.mass, b.v, b.a, 0.5 * self._dt_prev, no, np.empty(no)))
         return self._sum(ke)
 
     def _elastic(self) -> float:
