@@ -78,7 +78,8 @@ class CaseDriver:
                                   iterate_max=cp.iterate_max)
         else:
             # the explicit mechanics alone has no step-ratio limit: full steps, one shorter step at a milestone
-            self.solver, options = build_solver(case, comm), LoopOptions(n=1, n_max=1, landing="last")
+            self.solver, options = build_solver(case, comm), LoopOptions(n=1, n_max=1, landing="last",
+                                                                       block=case.output.history_every)
             load = _pressure_pulses(case)
         check_steps_of_meshes(case, self.solver.stable_time_step())  # a user deck's mesh is known only now
         self.setup_s = _time.perf_counter() - t0

@@ -60,6 +60,11 @@ class LoopOptions:
         "even" only: an EM step is at most this many times the previous one (variable-step BDF2 is
         zero-stable for ratios below 1 + √2 ≈ 2.41), also when n doubles (adaptive) or the stable
         mechanical step grows.
+    block : int
+        Mechanics alone (n = 1, "last", not adaptive, not iterated): let a load provider with
+        ``advance_block`` run up to this many EM steps in one compiled block, ending where the EM
+        step count is a multiple of ``block`` (the caller's history cadence: ``on_em_step`` still
+        gets every step's row, but reads the state only there). 1: every EM step from Python.
     """
 
     n: int = 10
@@ -72,12 +77,15 @@ class LoopOptions:
     iterate_max: int = 10
     landing: str = "even"
     max_growth: float = 2.0
+    block: int = 1
 
     def __post_init__(self) -> None:
         if not 1 <= self.n_min <= self.n <= self.n_max:
             raise ValueError(f"need 1 <= n_min <= n <= n_max, got {self.n_min}, {self.n}, {self.n_max}")
         if self.adapt_tol <= 0 or self.iterate_tol <= 0 or self.iterate_max < 1:
             raise ValueError("adapt_tol and iterate_tol must be > 0, iterate_max >= 1")
+        if self.block < 1:
+            raise ValueError(f"block must be >= 1, got {self.block}")
         if self.landing not in ("even", "last") or not self.max_growth > 1.0:
             raise ValueError(f"landing must be 'even' or 'last' and max_growth > 1, got {self.landing!r}, "
                              f"{self.max_growth}")
@@ -247,9 +255,53 @@ class StaggeredLoop:
     def run_until(self, t_stop: float, on_em_step=None) -> None:
         """EM steps until the mechanics reaches ``t_stop`` exactly; ``on_em_step(row)`` after each."""
         while self.mech.time < t_stop * (1.0 - 1e-12):
-            row = self.em_step(t_stop)
-            if on_em_step is not None:
-                on_em_step(row)
+            rows = self._block(t_stop)
+            if not rows and (rows is None or rows.error is None):
+                rows = [self.em_step(t_stop)]
+            for row in rows:
+                if on_em_step is not None:
+                    on_em_step(row)
+            if getattr(rows, "error", None) is not None:
+                raise rows.error
+
+    def _block(self, t_stop: float) -> "_Rows | None":
+        """EM steps run by the load provider's compiled block (see ``LoopOptions.block``), with the
+        counters and rows :meth:`em_step` would give them; None (or empty) where it cannot run."""
+        o, c = self.options, self.counters
+        run = getattr(self.load, "advance_block", None)
+        if run is None or o.block < 2 or o.n != 1 or o.adaptive or o.iterate or o.landing != "last":
+            return None
+        c0 = time.perf_counter()
+        blk = run(self.mech, t_stop, o.block - c.em_steps % o.block, self.dt_max)
+        if blk is None:
+            return None
+        c.mech_time_s += time.perf_counter() - c0
+        rows = _Rows(error=blk.error)
+        for t0, dt, res, p in zip(blk.t0, blk.dt, blk.resultant, blk.pressure):
+            dt, k = float(dt), 1
+            t1 = float(t0) + dt * k
+            resultant = res.copy()
+            values = {f"load{i}_pressure_Pa": float(v) for i, v in enumerate(p)}
+            c.em_steps += 1
+            c.last_em_step = dt * k
+            c.impulse += resultant * (t1 - float(t0))
+            c.ledger_max = max(c.ledger_max, 0.0)
+            c.iterations += 1
+            c.iterations_max = max(c.iterations_max, 1)
+            rows.append({"force_x_N": float(resultant[0]), "force_y_N": float(resultant[1]),
+                         "conservation_error_rel": 0.0, "substeps": float(k), "dt_s": dt,
+                         "iterations": 1.0, **values})
+            c.last_values = values
+            c.last_resultant = resultant
+        return rows
+
+
+class _Rows(list):
+    """History rows of a compiled block, and the event that stopped it (raised after the rows)."""
+
+    def __init__(self, error: Exception | None = None) -> None:
+        super().__init__()
+        self.error = error
 
 
 def _flat(positions: dict[str, np.ndarray]) -> np.ndarray:

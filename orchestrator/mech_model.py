@@ -24,8 +24,9 @@ def solver_material(m: Material) -> "mech.Material":
 
 
 def build_solver(case: Case, comm: MPI.Comm = MPI.COMM_WORLD,
-                 region_meshes: dict | None = None) -> "mech.ExplicitSolver":
-    """Mesh every body (or take its region's mesh, cut from the EM mesh) and build the solver."""
+                 region_meshes: dict | None = None, compiled_steps: bool = True) -> "mech.ExplicitSolver":
+    """Mesh every body (or take its region's mesh, cut from the EM mesh) and build the solver
+    (``compiled_steps``: the solver's compiled block path, else its Python step loop)."""
     bodies = []
     for b in case.bodies:
         if b.region is not None:
@@ -44,4 +45,4 @@ def build_solver(case: Case, comm: MPI.Comm = MPI.COMM_WORLD,
     return mech.ExplicitSolver(bodies, formulation=mo.formulation, contact_pairs=pairs, rigid_walls=walls,
                                cfl=case.time.cfl, bulk_viscosity=mo.bulk_viscosity,
                                bulk_linear=mo.bulk_viscosity_linear, bulk_quadratic=mo.bulk_viscosity_quadratic,
-                               thickness=mo.thickness, comm=comm)
+                               thickness=mo.thickness, comm=comm, compiled_steps=compiled_steps)

@@ -16,6 +16,7 @@ from petsc4py import PETSc
 from dolfinx import mesh as dmesh
 from dolfinx.la import ScatterMode
 
+from . import cell_fields
 from .material import Material
 
 __all__ = ["BodySpec", "Body"]
@@ -286,27 +287,17 @@ class Body:
     @property
     def von_mises(self) -> np.ndarray:
         """Von Mises stress per owned cell, Pa."""
-        s = self.cell_stress
-        p = s[:, :3].mean(axis=1)
-        d = s[:, :3] - p[:, None]
-        return np.sqrt(1.5 * ((d ** 2).sum(axis=1) + 2 * s[:, 3] ** 2))
+        return cell_fields.von_mises(self.cell_stress)
 
     def cell_volumes(self) -> np.ndarray:
         """Current cell volumes (planar: area x thickness; axisymmetric: 2 pi r_c area), m^3."""
-        xe = self.x[self.cells]
-        a = 0.5 * ((xe[:, 1, 0] - xe[:, 0, 0]) * (xe[:, 2, 1] - xe[:, 0, 1])
-                   - (xe[:, 2, 0] - xe[:, 0, 0]) * (xe[:, 1, 1] - xe[:, 0, 1]))
-        if self.axisymmetric:
-            return 2 * np.pi * xe[:, :, 0].mean(axis=1) * a
-        return self.thickness * a
+        return cell_fields.cell_volumes(self.cells, self.x, bool(self.axisymmetric),
+                                        float(self.thickness))
 
     def elastic_energy(self) -> float:
         """Elastic strain energy of the owned cells, sum of (s:s / 4G + p^2 / 2K) V, J."""
-        s = self.cell_stress
-        G, K = self.material.shear_modulus, self.material.bulk_modulus
-        p = s[:, :3].mean(axis=1)
-        d = s[:, :3] - p[:, None]
-        w = ((d ** 2).sum(axis=1) + 2 * s[:, 3] ** 2) / (4 * G) + p ** 2 / (2 * K)
+        w = cell_fields.elastic_energy_density(self.cell_stress, float(self.material.shear_modulus),
+                                               float(self.material.bulk_modulus))
         return float(np.dot(w, self.cell_volumes()))
 
     def sync_mesh_geometry(self) -> None:

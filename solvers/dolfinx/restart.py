@@ -43,7 +43,7 @@ def load_state_dict(solver, d: Mapping[str, np.ndarray]) -> None:
             if arr.shape != cur.shape:
                 raise ValueError(f"state for {n}/{key} has shape {arr.shape}, need {cur.shape}")
             cur[...] = arr
-        solver._fext[n] = np.array(d[f"{n}/fext"], dtype=float)
+        solver._fext[n][...] = np.asarray(d[f"{n}/fext"], dtype=float)
         solver._fext_nonzero[n] = bool(np.any(solver._fext[n]))
     solver.time = float(d["time"])
     solver.step_count = int(d["step_count"])
@@ -58,7 +58,7 @@ def load_state_dict(solver, d: Mapping[str, np.ndarray]) -> None:
     ke = np.asarray(d.get("kinetic_damping_ke", np.zeros(len(solver.bodies))))
     solver._ke_half = {n: float(v) for n, v in zip(solver.bodies, ke)}
     for n in solver._fsurf_prev:
-        solver._fsurf_prev[n] = np.array(d[f"{n}/contact_force"], dtype=float)
+        solver._fsurf_prev[n][...] = np.asarray(d[f"{n}/contact_force"], dtype=float)
     solver._active = {}
     for key in d:
         if key.startswith("active/") and key.endswith("/slave"):

@@ -13,6 +13,9 @@ from .contact import (ContactPairSpec, ContactPenetrationError, RigidWallSpec, S
 from .kernels import (MODE_AXISYMMETRIC, MODE_PLANE_STRAIN, MODE_PLANE_STRESS,
                       element_critical_dt, element_step, pack_parameters)
 from . import restart
+from .cell_fields import kinetic_sum
+from .block import EV_DT, EV_INVERTED, run_steps
+from .block_data import BlockData, block_supported
 from .reference_kernel import element_step_numpy
 
 __all__ = ["ExplicitSolver"]
@@ -52,6 +55,10 @@ class ExplicitSolver:
         Must be the communicator of every body's mesh.
     kernel : {"numba", "numpy"}
         Element kernel: the compiled one, or the vectorised-numpy reference.
+    compiled_steps : bool
+        Run the steps of :meth:`advance` in the compiled block path (:mod:`.block`; serial runs
+        with constant prescribed velocities and the numba kernel) instead of the Python step
+        loop. Both give the same bits; the Python loop is kept for MPI and as the reference.
 
     Attributes
     ----------
@@ -66,7 +73,7 @@ class ExplicitSolver:
                  rigid_walls: Sequence[RigidWallSpec] = (), cfl: float = 0.5,
                  bulk_viscosity: bool = True, bulk_linear: float = 0.06,
                  bulk_quadratic: float = 1.2, thickness: float = 1.0, comm=MPI.COMM_WORLD,
-                 kernel: str = "numba"):
+                 kernel: str = "numba", compiled_steps: bool = True):
         if formulation not in _MODES:
             raise ValueError(f"formulation must be one of {sorted(_MODES)}, got {formulation!r}")
         if not 0 < cfl <= 1:
@@ -132,6 +139,13 @@ class ExplicitSolver:
         self._compute_forces(0.0, update_state=False)
         self._E0 = self._stored_energy()
         self._contact_stored0 = self._contact_stored
+        why = block_supported(self) if kernel == "numba" else "the numpy kernel"
+        if compiled_steps and not why:
+            self._block = BlockData(self)
+        else:
+            self._block = None
+            if compiled_steps:
+                log.info("ExplicitSolver: Python step loop (%s)", why)
         log.info("ExplicitSolver: %s, %d bodies, %d contact pairs, %d walls, stable dt %.4g s",
                  formulation, len(self.bodies), len(self.contact_pairs), len(self.rigid_walls),
                  self.stable_time_step())
@@ -206,10 +220,50 @@ class ExplicitSolver:
                 b.a.ravel()[self._cidx[n]] = 0.0
                 ke_new = np.sum(b.mass[:no, None] * (b.v[:no] + 0.5 * self._dt_prev * b.a[:no]) ** 2)
                 self._acc["external_work_J"] += self._sum(0.5 * (ke_new - ke_old))
-            self._fext[n] = fext[n]
+            self._fext[n][...] = fext[n]
             self._fext_nonzero[n] = bool(np.any(fext[n]))
+        if self._block is not None:
+            self._run_block(dt, int(n_steps))
+            return
         for _ in range(int(n_steps)):
-            self._step(dt, fext)
+            self._step(dt, self._fext)
+
+    @property
+    def compiled(self):
+        """The compiled block path's arrays (:class:`~.block_data.BlockData`), or None when the
+        Python step loop runs (MPI, callables in constraints, numpy kernel)."""
+        return self._block
+
+    def _run_block(self, dt: float, n_steps: int) -> None:
+        """``n_steps`` steps of size ``dt`` in the compiled path; raises its events."""
+        bd = self._block
+        bd.load()
+        run_steps(bd.B, bd.W, bd.C, bd.sc, dt, n_steps, bd.ev, bd.evf)
+        bd.store()
+        self.raise_event(dt)
+
+    def raise_event(self, dt: float) -> None:
+        """Raise what the compiled path reported in its event array (nothing if none)."""
+        bd = self._block
+        code = int(bd.ev[0])
+        if code == 0:
+            return
+        if code == EV_DT:
+            raise RuntimeError(f"t={self.time:.6e} s: dt={dt:.4e} s exceeds the critical step "
+                               f"{self._dt_crit:.4e} s of the deformed mesh")
+        if code == EV_INVERTED:
+            n = bd.names[int(bd.ev[1])]
+            b, e = self.bodies[n], int(bd.ev[2])
+            raise RuntimeError(f"t={self.time:.6e} s: cell {e} of body {n!r} inverted "
+                               f"(centroid {b.x[b.cells[e]].mean(axis=0)})")
+        ip, _, si, mi, _, _ = bd.passes[int(bd.ev[1])]
+        sn, mn = bd.surf_names[si], bd.surf_names[mi]
+        i, h = int(bd.ev[2]), float(bd.evf[0])
+        xs = self.bodies[sn].x[bd.C.rows[bd.C.node_off[si] + i] - bd.node_off[bd.names.index(sn)]]
+        raise ContactPenetrationError(
+            f"t={self.time:.6e} s: node {int(self._surf[sn].gids[i])} of body {sn!r} "
+            f"at ({xs[0]:.6g}, {xs[1]:.6g}) m reached h={h:.3e} m <= 0 against "
+            f"body {mn!r} (contact pair {ip})")
 
     def _step(self, dt: float, fext: Mapping[str, np.ndarray]) -> None:
         if dt > self._dt_crit * (1 + 1e-12):
@@ -375,7 +429,7 @@ class ExplicitSolver:
             s.scatter_add(fsurf[n], ftot[n])
             if dt > 0:
                 work += dt * float(np.sum(data[n][1] * 0.5 * (self._fsurf_prev[n] + fsurf[n])))
-            self._fsurf_prev[n] = fsurf[n]
+            self._fsurf_prev[n][...] = fsurf[n]
         self._contact_work += work
         self._contact_stored = stored
 
@@ -427,8 +481,7 @@ class ExplicitSolver:
         ke = 0.0
         for b in self.bodies.values():
             no = b.n_owned
-            vn = b.v[:no] + 0.5 * self._dt_prev * b.a[:no]
-            ke += 0.5 * float(np.sum(b.mass[:no] * np.sum(vn ** 2, axis=1)))
+            ke += 0.5 * float(kinetic_sum(b.mass, b.v, b.a, 0.5 * self._dt_prev, no, np.empty(no)))
         return self._sum(ke)
 
     def _elastic(self) -> float:

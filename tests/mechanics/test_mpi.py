@@ -13,8 +13,10 @@ SCRIPT = Path(__file__).with_name("mpi_bar_metrics.py")
 
 
 def _run(argv):
+    # numba's error-message highlighting writes an ANSI reset ("\x1b[0m") to stdout under mpirun
+    # (also at d149021, before the compiled steps), which cut the JSON line in two
     env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
-               OMPI_MCA_rmaps_base_oversubscribe="1")
+               OMPI_MCA_rmaps_base_oversubscribe="1", NUMBA_DISABLE_ERROR_MESSAGE_HIGHLIGHTING="1")
     r = subprocess.run(argv, capture_output=True, text=True, timeout=900, env=env)
     assert r.returncode == 0, r.stderr[-3000:]
     return json.loads(r.stdout.strip().splitlines()[-1])
