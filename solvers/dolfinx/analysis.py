@@ -58,8 +58,10 @@ def contact_stress_metrics(t: Sequence[float], stress: Sequence[float],
     dur = te - ts
     a, b = ts + window[0] * dur, ts + window[1] * dur
     sel = (t >= a) & (t <= b)
-    return {"contact_stress_plateau_MPa": float(s[sel].mean() / 1e6),
-            "contact_stress_std_MPa": float(s[sel].std() / 1e6),
+    # a contact shorter than the history's sampling leaves no sample in the window: no plateau (NaN)
+    plateau, std = (float(s[sel].mean()), float(s[sel].std())) if sel.any() else (float("nan"), float("nan"))
+    return {"contact_stress_plateau_MPa": plateau / 1e6,
+            "contact_stress_std_MPa": std / 1e6,
             "contact_duration_ms": float(dur * 1e3),
             "contact_start_ms": float(ts * 1e3), "contact_end_ms": float(te * 1e3)}
 

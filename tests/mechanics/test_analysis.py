@@ -26,3 +26,17 @@ def test_metrics_validation_and_energy_error():
     assert energy_error_rel(e[1], 100.0) == 0.03
     s = np.r_[0.0, np.ones(8), 0.0, 0.0] * 1e6
     assert bar_impact_metrics(t, s, e, 100.0)["energy_error_rel"] == 0.03
+
+
+def test_contact_shorter_than_the_sampling_has_no_plateau():
+    """One sample in contact (crossings at 0.2 and 1.8 us): a window of 90-95 % of the contact
+    (1.64-1.72 us) holds no sample, so the plateau is NaN, without numpy's "Mean of empty slice"
+    warnings on the console (found by the issue-13 fuzz: bars that barely touch)."""
+    import warnings
+
+    t = [0.0, 1e-6, 2e-6, 3e-6]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        m = contact_stress_metrics(t, [0.0, 5e6, 0.0, 0.0], window=(0.9, 0.95), threshold=1e6)
+    assert np.isnan(m["contact_stress_plateau_MPa"]) and np.isnan(m["contact_stress_std_MPa"])
+    assert m["contact_duration_ms"] == pytest.approx(1.6e-3)
