@@ -16,8 +16,11 @@ The runner
    ``DefineConstant`` list with ``-setnumber``, ``OutDir`` with ``-setstring``, resolution
    ``EM_Transient``), with the string ``PulseformLib`` (absolute path of ``Lib_PulsedForming.pro``)
    defined before the deck is read, and the case's ``parameters`` as extra ``-setnumber``;
-5. checks the contract once before the run (one tiny step in ``em/contract_check/``): a getdp error
-   or a missing output table becomes a one-line :class:`DeckContractError` naming what is missing.
+5. checks the deck once before the run (:mod:`.deck_check`: a few one-step getdp runs in
+   ``em/contract_check/`` with the run's numbers): a getdp error, a missing output table, a time
+   window that is not the runner's, a hollow model (zero energy or coil current, missing force rows
+   or field state) or a state carry that does not reproduce a continuous run becomes a one-line
+   :class:`DeckContractError` naming what failed.
 
 The contract is documented in ``docs/workflow.md``.
 """
@@ -401,7 +404,7 @@ def read_deck_mesh(path: Path, regions, name: str | Path | None = None) -> "EMMe
 
 def build_user_geometry(case, work: Path, em_dir: Path):
     """The EM geometry of a user deck (no turn rectangles: user meshes are not remeshed), after the
-    deck passed the contract check (one tiny getdp step in ``em_dir/contract_check``). gmsh and
+    deck passed the check (:func:`check_contract`, getdp runs in ``em_dir/contract_check``). gmsh and
     getdp run under the case's time limits (:func:`time_limits`)."""
     from .emf_geometry import EMGeometry
 
@@ -487,52 +490,18 @@ CIRCUIT_TABLES = {"cir_U.txt": "EM_Step: Print[U, OnRegion Capacitance_Cir]",
                   "cir_I.txt": "EM_Step: Print[I, OnRegion Capacitance_Cir]"}
 
 
-def check_contract(solver, mesh, work: Path, time_limit: float = GETDP_TIME_LIMIT_S) -> None:
-    """One tiny getdp step on the deck (stopped after ``time_limit`` s); raise
-    :class:`DeckContractError` naming what is missing."""
-    from pulseform.solvers.getdp import GetDPError, run_getdp, write_msh22
-    from pulseform.solvers.getdp.solver import RESOLUTION
+def check_contract(solver, mesh, work: Path, time_limit: float = GETDP_TIME_LIMIT_S) -> "DeckCheckReport":  # noqa: F821
+    """The deck check (:func:`pulseform.orchestrator.deck_check.check_deck`): a few one-step getdp
+    runs on the deck with the run's numbers (each stopped after ``time_limit`` s) prove that it
+    fulfils the contract, solves the model and carries its state, the first step's tables left in
+    ``work/out``. The carry is checked through the Init path (``Flag_InitA``), and through the
+    restart path too when ``solver`` steps implicit Euler (BDF2 runs use only the Init path).
+    Returns the :class:`~pulseform.orchestrator.deck_check.DeckCheckReport`; raises
+    :class:`DeckContractError` (one line) naming what failed."""
+    from .deck_check import check_deck
 
-    deck = Path(solver.deck)
-    if work.exists():
-        shutil.rmtree(work)
-    out = work / "out"
-    out.mkdir(parents=True)
-    msh = write_msh22(mesh, work / "mesh.msh")
-    numbers = solver._numbers(mesh)
-    numbers.update(solver.extra_numbers)  # the role ids and the case's parameters, as in GetDPSolver.step
-    numbers.update(TimeInit=0.0, TimeFinal=1e-9, NbSteps=1, Flag_ElemOut=1)
-    if solver.model.circuit is not None:
-        numbers.update(Init_Vc=solver.model.circuit.V0, Init_I=0.0)
-    wrapper = work / "run.pro"
-    wrapper.write_text("// pulseform: deck contract check\n" + "\n".join(solver.preamble + solver._table_lines())
-                       + f'\nInclude "{deck}";\n')
-    try:
-        run_getdp(wrapper, msh, work, resolution=RESOLUTION, numbers=numbers, strings={"OutDir": str(out) + "/"},
-                  extra_args=list(solver.petsc_args), executable=solver.executable, timeout=time_limit)
-    except GetDPError as exc:
-        log_text = (work / "getdp.log").read_text(errors="replace") if (work / "getdp.log").is_file() else str(exc)
-        errs = [ln.strip() for ln in log_text.splitlines() if ln.lstrip().startswith("Error")] or \
-            [ln.strip() for ln in str(exc).splitlines() if "rror" in ln] or [str(exc).splitlines()[0]]
-        hint = ""
-        if any("Resolution" in e and RESOLUTION in e for e in errs) or any("Unknown Resolution" in e for e in errs):
-            hint = f"; the contract needs Resolution {RESOLUTION}"
-        raise DeckContractError(f"deck {deck}: getdp failed on the contract check: {_short(errs[0], 200)}{hint}",
-                                log_path=work / "getdp.log") from None
-    need = dict(REQUIRED_TABLES)
-    if solver.model.circuit is not None:
-        need.update(CIRCUIT_TABLES)
-    for k in range(2, len(solver.model.conductors) + 1):  # a die: massive conductor 2
-        need.update({f"cond_P_{k}.txt": f"EM_Step: Print[P[Cond_{k}], OnGlobal]",
-                     f"cond_F_{k}.txt": f"EM_Step: Print[F[Cond_{k}], OnGlobal]"})
-    missing = [f for f in need if not (out / f).is_file()]
-    if missing:
-        raise DeckContractError(f"deck {deck} breaks the deck contract: after one step OutDir lacks "
-                                + ", ".join(f"{f} ({need[f]})" for f in missing))
-    if not (work / "em.res").is_file():
-        raise DeckContractError(f"deck {deck} breaks the deck contract: no em.res (Resolution {RESOLUTION} must "
-                                "SaveSolution its system every sub-step; the runner passes -name)")
-    log.info("deck %s passed the contract check", deck)
+    paths = ("init",) if getattr(solver, "time_scheme", "euler") == "bdf2" else ("init", "restart")
+    return check_deck(solver, mesh, Path(work), time_limit, carry_paths=paths)
 
 
 def user_deck_load(case, geometry, work_dir: Path, bodies, em_substeps: int):

@@ -1,13 +1,16 @@
 """Users' own decks (cases/user_deck_sheet_bulge): the example runs end to end and matches the
 built-in equivalent case (cases/emf_sheet_bulge: same geometry, bank and loop) within 1 %, a deck
 that breaks the contract fails with one line naming what is missing, deck paths stay inside the
-case folder."""
+case folder. The deck check (issue 18): a hollow deck, a deck that ignores the state carry and a deck
+with its own time window are each refused in one line; every shipped deck passes the chained-carry
+check with a run's numbers."""
 
 from __future__ import annotations
 
 import json
 import shutil
 
+import numpy as np
 import pytest
 
 from pulseform.orchestrator.caseio import load_case
@@ -159,3 +162,125 @@ def test_user_deck_without_the_persistent_resolution_runs_per_step(tmp_path):
     assert r.returncode == 2
     line = one_line_error(r)
     assert "EM_Persistent" in line and "getdp_process" in line
+
+
+# ----------------------------------------------------------------------------- the deck check (issue 18)
+def _edited_deck(tmp_path, edit_pro, toml: str = "case.toml"):
+    """A copy of the example whose own deck sheet_bulge.pro is edited by ``edit_pro`` (which must
+    change it); returns the case file ``toml`` of the copy."""
+    case = tmp_path / "case"
+    shutil.copytree(CASE, case, ignore=shutil.ignore_patterns("reference"))
+    pro = case / "sheet_bulge.pro"
+    text = pro.read_text()
+    edited = edit_pro(text)
+    assert edited != text
+    pro.write_text(edited)
+    return case / toml
+
+
+def _own_ids(text: str, roles=("Air", "Shell", "Coil_1", "Cond_1", "Axis", "Outer")) -> str:
+    """The deck's regions on its own physical ids (AIR, COIL, ... of sheet_bulge_common.pro) instead
+    of the ids the runner passes (Phys_*): the runner renumbered the mesh's groups, so they are empty."""
+    own = {"Air": "AIR", "Shell": "INF", "Coil_1": "COIL", "Cond_1": "SHEET", "Cond_2": "DIE", "Axis": "AXIS",
+           "Outer": "OUTER"}
+    for role in roles:
+        assert f"Region[{{Phys_{role}}}]" in text
+        text = text.replace(f"Region[{{Phys_{role}}}]", f"Region[{{{own[role]}}}]")
+    return text
+
+
+def _refused(case, *sets) -> str:
+    """``pulseform check`` of a broken deck: exit 2 and its one error line."""
+    r = pulseform("check", str(case), *[a for s in sets for a in ("--set", s)])
+    assert r.returncode == 2, r.stdout[-2000:] + r.stderr[-2000:]
+    return one_line_error(r)
+
+
+@pytest.mark.getdp
+def test_hollow_deck_is_refused(tmp_path):
+    """The deck's groups on its own region numbers, which pulseform's renumbering leaves empty:
+    getdp solves an empty model without complaint (the old contract check passed it: every table
+    existed); the check names the zero energy, the missing force rows and the empty field state."""
+    line = _refused(_edited_deck(tmp_path, _own_ids))
+    assert "sheet_bulge.pro is hollow" in line
+    assert "W = 0" in line and "force rows for 0 of 486 workpiece elements" in line
+    assert "field state on 0 of" in line and "Phys_*" in line
+
+
+@pytest.mark.getdp
+def test_deck_with_a_hollow_workpiece_or_die_is_refused(tmp_path):
+    """Only the workpiece on the deck's own id (the coil works: W and the current are not zero),
+    then only the die of with_die.toml: one force row per workpiece and die element is required."""
+    line = _refused(_edited_deck(tmp_path / "sheet", lambda t: _own_ids(t, ("Cond_1",))))
+    assert "is hollow" in line and "force rows for 0 of 486 workpiece elements" in line and "W =" not in line
+    line = _refused(_edited_deck(tmp_path / "die", lambda t: _own_ids(t, ("Cond_2",)), "with_die.toml"))
+    assert "is hollow" in line and "force rows for 486 of 1582 workpiece and die elements" in line
+
+
+@pytest.mark.getdp
+def test_deck_that_ignores_the_state_carry_is_refused(tmp_path):
+    """A library copy whose Init constraint never applies (Flag_InitA ignored): every step on the
+    Init path (every BDF2 step) would restart from a zero field; one step alone looks right."""
+    def ignore_init(lib):
+        assert lib.count("If(Flag_InitA == 1)") == 1
+        return lib.replace("If(Flag_InitA == 1)", "If(Flag_InitA == 99)")
+
+    line = _refused(_broken_copy(tmp_path, ignore_init))
+    assert "does not carry its state" in line and "Flag_InitA = 1" in line and "two-step run" in line
+
+
+@pytest.mark.getdp
+def test_deck_with_its_own_time_window_is_refused(tmp_path):
+    """The deck's own ``TimeFinal = 10e-6;`` wins over the runner's -setnumber: the check's step
+    ends at 10 µs instead of 0.1 µs."""
+    case = _edited_deck(tmp_path, lambda t: t.replace("Include PulseformLib;", "TimeFinal = 10e-6;\nInclude PulseformLib;"))
+    line = _refused(case)
+    assert "overrides the time window" in line and "W.txt has 1 row(s) ending at t = 1e-05 s" in line
+    assert "ending at 1e-07 s" in line
+
+
+def _shipped_user_decks() -> list:
+    """Every case file under cases/ on a user deck."""
+    found = []
+    for toml in sorted((REPO / "cases").glob("*/*.toml")):
+        if '"user_deck"' in toml.read_text():
+            found.append(toml)
+    assert CASE / "case.toml" in found and CASE / "with_die.toml" in found
+    return found
+
+
+@pytest.mark.getdp
+@pytest.mark.parametrize("toml", _shipped_user_decks(), ids=lambda p: f"{p.parent.name}/{p.name}")
+@pytest.mark.parametrize("scheme", ["bdf2", "euler"])
+def test_every_shipped_deck_passes_the_check_with_a_runs_numbers(tmp_path, toml, scheme):
+    """The check on every shipped user deck: it solves the model (one force row per conductor
+    element, the field state on every coil and conductor node), two chained one-step runs equal one
+    two-step run to round-off through the Init path (measured 6.9e-13 / 9.1e-13 with the die: the
+    nodal values travel as printed digits) and, for implicit Euler, the restart path (5e-16); its
+    getdp numbers are exactly those of a run's first step (the role ids Phys_* and
+    [geometry.parameters] included); its getdp runs take well under 2 s here (measured 0.55 s)."""
+    from pulseform.orchestrator import user_deck as ud
+    from pulseform.solvers.getdp import conductor_tag
+
+    case, _ = load_case(toml, [f"em.time_scheme='{scheme}'"])
+    g = case.geometry
+    mesh = ud.read_deck_mesh(ud.mesh_file(g, tmp_path / "mesh"), g.regions)
+    model = ud.user_em_model(case)
+    report = ud.check_contract(ud.make_solver(case, model, tmp_path / "em"), mesh, tmp_path / "em/contract_check")
+    tags = [conductor_tag(k) for k in range(1, len(model.conductors) + 1)]
+    assert report.force_rows == np.isin(mesh.tri_tags, tags).sum() > 0
+    assert report.magnetic_energy > 0 and report.coil_current > 0 and report.state_nodes > 0
+    assert set(report.carry_difference) == ({"init"} if scheme == "bdf2" else {"init", "restart"})
+    assert max(report.carry_difference.values()) < 1e-11
+    assert report.wall_time_s < 10.0  # generous (shared CPUs); measured 0.55 s
+
+    def numbers(argv):
+        return {argv[i + 1]: float(argv[i + 2]) for i, a in enumerate(argv[:-2]) if a == "-setnumber"}
+
+    checked = numbers(report.argv)
+    for name in ud.ROLE_NUMBERS.values():
+        assert (name in checked) == (name != "Phys_Cond_2" or len(tags) == 2), name
+    assert {k: float(v) for k, v in g.parameters.items()}.items() <= checked.items()
+    run = ud.make_solver(case, model, tmp_path / "run")  # a run's first EM step, per-step getdp
+    result, _ = run.step(mesh, run.initial_state(0.0), 1e-7)
+    assert numbers(result.run.argv) == checked
