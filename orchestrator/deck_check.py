@@ -126,8 +126,8 @@ def check_deck(solver: GetDPSolver, mesh: EMMesh, work: Path, time_limit: float,
         diff, what = _largest_difference(chained, chained_state, two, state2)
         report.carry_difference[path] = diff
         if not diff <= CARRY_RTOL:
-            how = ("Flag_InitA = 1: start from InitA_List" if path == "init"
-                   else "-restart -res: SaveSolution every step")
+            how = ("Init path: Flag_InitA, InitA_List, Init_Vc, Init_I" if path == "init"
+                   else "restart path: -restart -res em.res")
             raise DeckContractError(f"deck {deck} does not carry its state ({how}): a step chained after another "
                                     f"differs from one two-step run by {diff:.2g} in the {what} "
                                     f"(tolerance {CARRY_RTOL:g})")
