@@ -168,6 +168,8 @@ class GetDPLoad:
         self.field_times: np.ndarray | None = None  # EM steps ending at these times (s) print whole-domain fields
         self.peak_abs_current = 0.0  # largest |coil current| at the end of an EM step so far (A)
         self._peak: dict | None = None  # that step's snapshot material (see take_peak_snapshot)
+        self._fetched_peak: dict | None = None  # the latest earlier peak candidate with its fields
+        self._rise: list[tuple[float, float]] = []  # (t, |coil current|) of the last three EM steps
         self._post_fields_ok = True  # False once the deck turned out to have no PostOperation EM_Field
         self.timers = {"getdp_process_s": 0.0, "getdp_io_s": 0.0, "mesh_motion_s": 0.0, "transfer_s": 0.0}
 
@@ -326,25 +328,40 @@ class GetDPLoad:
 
         The whole-domain fields of that step are fetched (:meth:`_fields`) once a later step
         shows a smaller current, while the step's run folder still exists; a milestone step has
-        them already."""
+        them already. A persistent getdp holds a step's fields only until its next step: there a
+        rising step's fields are fetched when the peak is near (:func:`peak_is_near`: at most
+        :data:`PEAK_LOOKAHEAD_STEPS` steps ahead by the current's curvature), the last fetched
+        candidate standing in should the prediction miss (logged)."""
         if result.coil_current.shape[1] == 0:
             return
         current = float(result.coil_current[-1, 0])
+        expire = getattr(self.solver, "fields_expire", False)
         p = self._peak
         if p is not None and p["t"] == t1:  # a repeated (iterated) EM step replaces its earlier try
             self.peak_abs_current, self._peak = p["before"], p["previous"]
+            self._rise = self._rise[:-1]
             p = self._peak
+        self._rise = (self._rise + [(t1, abs(current))])[-3:]
         if abs(current) > self.peak_abs_current:
             if p is not None:
                 p["previous"] = None  # keep one level: only the latest step can be repeated
+                if p.get("fetched"):
+                    self._fetched_peak = p
             self._peak = {"t": t1, "current": current, "x": x_em, "result": result, "mesh": self.geometry.mesh,
-                          "before": self.peak_abs_current, "previous": p, "written": False}
+                          "before": self.peak_abs_current, "previous": p, "written": False, "fetched": not expire}
             self.peak_abs_current = abs(current)
+            if expire and peak_is_near(self._rise):  # fetch now: the next step would lose them
+                self._fields(result, self.geometry.mesh)
+                self._peak["fetched"] = True
         elif p is not None and not p["written"]:
-            self._fields(p["result"], p["mesh"])
-        p = self._peak
-        if p is not None and p["t"] == t1 and getattr(self.solver, "fields_expire", False):
-            self._fields(result, self.geometry.mesh)  # a persistent getdp has them only until the next step
+            if not p["fetched"]:  # the peak came sooner than predicted: keep the last fetched step
+                fallback = self._fetched_peak
+                log.warning("EM snapshot at the peak coil current: the peak (t = %.6g s, %.6g A) came sooner "
+                            "than predicted; the snapshot is the step at t = %s", p["t"], p["current"],
+                            "none" if fallback is None else f"{fallback['t']:.6g} s ({fallback['current']:.6g} A)")
+                self._peak = p = fallback
+            if p is not None and not p["written"]:
+                self._fields(p["result"], p["mesh"])
 
     def take_peak_snapshot(self) -> tuple | None:
         """(t, coil current, points, triangles, cell data, point data) of the peak-current step if it
@@ -451,6 +468,31 @@ class GetDPLoad:
         if "material" in d:
             self.material = np.array(d["material"])
         self._pinned = Path(self.state.res_path).parent if self.state.res_path else None
+
+
+#: a rising step's whole-domain fields are fetched on the persistent getdp when the current's peak is
+#: predicted within this many EM steps (a smooth discharge: the prediction is good to a step)
+PEAK_LOOKAHEAD_STEPS = 3.0
+
+
+def peak_is_near(rise: list[tuple[float, float]], lookahead: float = PEAK_LOOKAHEAD_STEPS) -> bool:
+    """True if the last of ``rise`` ((t, |I|) of the last three EM steps, s and A) may be the peak of
+    |I| or precede it by at most ``lookahead`` steps: the rate of rise, extrapolated linearly in time,
+    reaches zero within ``lookahead`` steps of the last length. A rate that does not fall: False (far
+    from a peak); a rate that is not positive, or fewer than three steps (the start of a run or of a
+    resumed segment: nothing to predict from): True."""
+    if len(rise) < 3:
+        return True
+    (t0, a0), (t1, a1), (t2, a2) = rise
+    if not (t2 > t1 > t0):
+        return True
+    r1, r2 = (a1 - a0) / (t1 - t0), (a2 - a1) / (t2 - t1)
+    if r2 <= 0.0:
+        return True
+    slope = (r2 - r1) / (0.5 * (t2 - t0))  # d(rate)/dt between the two steps' centres
+    if slope >= 0.0:
+        return False
+    return r2 / -slope <= lookahead * (t2 - t1) + 0.5 * (t2 - t1)
 
 
 def _snapshot(mesh, x: np.ndarray, r, axisymmetric: bool):
