@@ -348,7 +348,8 @@ class GetDPLoad:
                 if p.get("fetched"):
                     self._fetched_peak = p
             self._peak = {"t": t1, "current": current, "x": x_em, "result": result, "mesh": self.geometry.mesh,
-                          "before": self.peak_abs_current, "previous": p, "written": False, "fetched": not expire}
+                          "before": self.peak_abs_current, "previous": p, "written": False,
+                          "fetched": not expire or getattr(result, "b_cells", None) is not None}  # a milestone's
             self.peak_abs_current = abs(current)
             if expire and peak_is_near(self._rise):  # fetch now: the next step would lose them
                 self._fields(result, self.geometry.mesh)

@@ -42,3 +42,27 @@ def test_far_from_the_peak_and_edge_cases():
     assert peak_is_near([(0.0, 0.0), (1.0, 1.0)])  # the first steps of a run (or after --resume)
     assert peak_is_near([(0.0, 0.0), (1.0, 2.0), (2.0, 2.1)])  # rate from 2 to 0.1 per step: a step away
     assert not peak_is_near([(0.0, 0.0), (1.0, 10.0), (2.0, 19.0)])  # rate 10 -> 9: ~9 steps away
+
+
+def test_the_demos_peak_snapshot_is_the_peak_step(tmp_path):
+    """The demo to 20 us on the persistent getdp: the peak-current snapshot (fields fetched only
+    near the predicted peak) is the EM step of the largest |I| in history.csv, with no "came sooner
+    than predicted" fallback in run.log."""
+    import json
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    repo = Path(__file__).resolve().parents[2]
+    exe = str(Path(sys.executable).with_name("pulseform"))
+    out = tmp_path / "demo"
+    r = subprocess.run([exe, "run", str(repo / "cases/emf_sheet_bulge"), "--out", str(out), "--quiet",
+                        "--set", "time.end=2e-5", "--set", "output.field_interval=1e-5", "--set", "output.plots=false"],
+                       capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert "sooner than predicted" not in (out / "run.log").read_text()
+    peak = json.loads((out / "fields/em/em_peak_current.json").read_text())
+    h = np.genfromtxt(out / "history.csv", delimiter=",", names=True)
+    k = int(np.argmax(np.abs(h["coil_current_A"])))
+    assert peak["time_s"] == pytest.approx(h["time_s"][k], rel=1e-9)  # the snapshot is the peak step's
+    assert abs(peak["coil_current_A"]) == pytest.approx(np.abs(h["coil_current_A"]).max(), rel=1e-9)
