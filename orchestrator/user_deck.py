@@ -260,6 +260,17 @@ def _read_deck(path: Path, seen: set) -> tuple[Path, list] | None:
         return None
 
 
+def _assigned(tokens: list, i: int) -> bool:
+    """``tokens[i]`` is the target of a plain assignment (``NAME = ...`` or ``NAME += ...``), not a
+    ``DefineConstant[ NAME = default ]`` entry (a default never replaces the runner's value)."""
+    nxt = tokens[i + 1][1] if i + 1 < len(tokens) else ""
+    after = tokens[i + 2][1] if i + 2 < len(tokens) else ""
+    if not (nxt == "=" and after != "=") and not (nxt in "+-*/" and nxt and after == "="):
+        return False
+    prev = tokens[i - 1][1] if i > 0 else ";"
+    return prev not in ("[", ",")
+
+
 def find_program_call(path: Path, language: str) -> tuple[str, str] | None:
     """The first place where the deck ``path`` (``language`` "geo" or "pro") or a file it includes
     runs a program, as ``("<file>:<line>", what)``; None if there is none.
@@ -282,6 +293,8 @@ def find_program_call(path: Path, language: str) -> tuple[str, str] | None:
             where, follow = f"{path}:{line}", None
             if tok in PROGRAM_COMMANDS[language]:
                 return where, f"{tok} runs a program"
+            if language == "pro" and tok in RUNNER_LIBRARIES and _assigned(tokens, i - 1):
+                return where, f"{tok} is set (the runner's library path: its Include would read an unchecked file)"
             if tok == "Include":
                 follow = _file_argument(tokens, i - 1)
                 if follow is None:

@@ -375,3 +375,21 @@ def test_a_passing_check_removes_its_folder(case, capsys, tmp_path):
     code, _ = check(case, capsys=capsys)
     assert code == 0
     assert not any((tmp_path / "tmp").iterdir())
+
+
+@pytest.mark.parametrize("name", ["PulseformLib", "PulseformPersistentLib"])
+def test_deck_may_not_repoint_the_runners_library(tmp_path, capsys, name):
+    """`Include PulseformLib;` is not scanned (it is the runner's own library), so a deck that sets
+    the name itself would have getdp read an unchecked file: refused in one line; the library's own
+    `DefineConstant[ PulseformPersistentLib = "" ]` default (a copied library) stays allowed."""
+    from pulseform.orchestrator.user_deck import find_program_call
+
+    lib = (REPO / "solvers/getdp/decks/Lib_PulsedForming.pro").read_text()
+    (tmp_path / "Lib_local.pro").write_text(lib)
+    deck = tmp_path / "deck.pro"
+    deck.write_text('Include "Lib_local.pro";\n')
+    assert find_program_call(deck, "pro") is None  # a copied library with its DefineConstant default
+    (tmp_path / "evil.pro").write_text('SystemCommand["touch /tmp/pwned"];\n')
+    deck.write_text(f'{name} = "evil.pro";\nInclude {name};\n')
+    where, what = find_program_call(deck, "pro")
+    assert where.endswith("deck.pro:1") and f"{name} is set" in what
