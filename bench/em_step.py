@@ -35,7 +35,8 @@ import numpy as np
 from pulseform.orchestrator.mesh_motion import MeshMover
 from pulseform.solvers.getdp import Circuit, Coil, Conductor, EMModel, GetDPSolver, Rect, coil_conductor_mesh
 from pulseform.solvers.getdp.mesh import AXIS, OUTER, SHELL, conductor_tag, coil_tag
-from pulseform.solvers.getdp.persistent import FLAG_ELEM, PersistentGetDPSolver
+from pulseform.solvers.getdp.persistent import PersistentGetDPSolver
+from pulseform.solvers.getdp.persistent_process import FLAG_ELEM
 from pulseform.solvers.getdp.runner import FAST_MPI_ENV, child_preexec
 
 TURNS = [Rect(0.010 + i * 0.004, -0.003, 0.013 + i * 0.004, -0.001) for i in range(5)]

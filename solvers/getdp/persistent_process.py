@@ -1,0 +1,381 @@
+"""One persistent getdp process and its message protocol (used by :mod:`.persistent`).
+
+Protocol of one EM step (the Resolution ``EM_Persistent`` of ``decks/Lib_Persistent.pro``):
+
+* Python -> getdp: one binary GetDP ``.res`` message written into the FIFO ``in.fifo`` (getdp's
+  ``-res`` file); ``ReadSolution[U]`` blocks on it.  Its ``$Solution`` header carries t_n (Time),
+  the flags (TimeImag, :data:`FLAG_ELEM` ...) and the step number (TimeStep); the vector is the
+  node displacement *increment* (x_new - x_getdp) in the dof order of the displacement system U,
+  read once per process from getdp's ``.pre`` (DofData #1).  ``DeformMesh`` moves the nodes.
+* getdp -> Python: text lines on the FIFO ``out.fifo`` (held open read-write here, so getdp's
+  appending opens never block and a read never sees end-of-file): ``C k I U P Fx Fy`` per coil,
+  ``K k P Fx Fy`` per conductor, ``G W Vc Ic``, then ``D k t dt`` when the step is done; the
+  per-element force table ``elem_F.txt`` (and ``elem_P.txt``, ``elem_b.txt``, ``field_b.txt``,
+  ``field_a.txt``, ``nodes_a.txt``, ``nodes_a_prev.txt`` on request) in the process's ``out/``.
+* Failure: the wait selects on the FIFO and on a pidfd of getdp: a getdp that dies is reported at
+  once with its exit status and log tail, one that hangs is killed after the time limit; getdp runs
+  with :func:`~.runner.child_preexec` (SIGKILL when pulseform dies, SIGINT ignored).
+"""
+from __future__ import annotations
+
+import os
+import select
+import shutil
+import signal
+import subprocess
+import tempfile
+import time
+import weakref
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+
+from .mesh import EMMesh, write_msh22
+from .runner import FAST_MPI_ENV, GetDPError, child_preexec, find_getdp, log_tail, scan_log
+from .solver import DECK_DIR, DEFAULT_PETSC_ARGS
+
+RESOLUTION = "EM_Persistent"
+#: the library holding it, included by Lib_PulsedForming.pro when ``PulseformPersistentLib`` names it
+PERSISTENT_LIB = (DECK_DIR / "Lib_Persistent.pro").resolve()
+#: message flags (the ``TimeImag`` of a message; Lib_Persistent.pro): per-element force, Joule
+#: power and B on the conductors, nodal state of x_n and x_{n-1}, stop, no globals (profiling),
+#: query (no step), redo (the last step again on a new geometry), whole-domain fields
+FLAG_ELEM, FLAG_COND_FIELDS, FLAG_STATE, FLAG_STOP = 1, 2, 4, 8
+FLAG_NO_GLOBALS, FLAG_QUERY, FLAG_REDO, FLAG_FIELDS = 16, 32, 64, 128
+#: ``PF_GlobalsSet``: coil I, U and circuit (1) + conductor Joule power (4) + energy from the sources (32)
+LEAN_GLOBALS = 37
+_ENXIO = 6
+#: dof types of getdp's ``.pre`` that are unknowns of the system (a number in the solution vector):
+#: unknown, unknown with an Init value
+_UNKNOWN_TYPES = (1, 5)
+
+
+def read_pre_dofs(path: Path, system: int) -> np.ndarray:
+    """Rows (NumType, Entity, Harmonic, Type, NumDof) of DofData #``system`` in a getdp ``.pre`` file."""
+    text = Path(path).read_text()
+    head = f"$DofData /* #{system} */"
+    i = text.find(head)
+    if i < 0:
+        raise RuntimeError(f"{path}: no {head}")
+    lines = text[i:text.find("$EndDofData", i)].splitlines()
+    n_any = int(lines[5].split()[0])
+    return np.array([ln.split()[:5] for ln in lines[6:6 + n_any]], dtype=np.int64)
+
+
+def read_binary_res(path: Path, n_dofs: int) -> list[np.ndarray]:
+    """The solution vectors (``n_dofs`` doubles each) of a binary GetDP ``.res`` file, in order."""
+    data = Path(path).read_bytes()
+    out, pos = [], 0
+    while True:
+        i = data.find(b"$Solution", pos)
+        if i < 0:
+            return out
+        start = data.index(b"\n", data.index(b"\n", i) + 1) + 1  # after the "$Solution" and header lines
+        out.append(np.frombuffer(data, "<f8", n_dofs, start).copy())
+        pos = data.index(b"$EndSolution", start + 8 * n_dofs)
+
+
+def nodal_dof_map(pre: Path, system: int, n_nodes: int) -> tuple[np.ndarray, int]:
+    """(index of each node's unknown in the solution vector of system ``system``, -1 where the node has
+    none (a Dirichlet node), number of unknowns) from getdp's ``.pre`` (rows ``NumType Entity Harmonic
+    Type NumDof ...``; Type 1 an unknown, 5 an unknown with an Init value, 2 a fixed value): the nodal
+    basis function is the most frequent one of the system."""
+    rows = read_pre_dofs(pre, system)
+    unknown = np.isin(rows[:, 3], _UNKNOWN_TYPES)
+    kinds, counts = np.unique(rows[:, 0], return_counts=True)
+    nodal = rows[(rows[:, 0] == kinds[np.argmax(counts)]) & unknown]
+    index = np.full(n_nodes, -1, np.int64)
+    index[nodal[:, 1] - 1] = nodal[:, 4] - 1
+    return index, int(rows[unknown, 4].max())
+
+
+@dataclass
+class StepAnswer:
+    """What getdp answered to one message (end-of-step values).
+
+    ``coil`` (n_coils, 5): I (A), U (V, getdp's sign), P (W), Fx, Fy (N); ``cond`` (n_conductors, 3):
+    P (W), Fx, Fy (N); ``glob``: magnetic energy (J), capacitor voltage (V), capacitor current (A),
+    inductor current (A: the circuit state; equal to the capacitor's to round-off)
+    (totals per radian in axisymmetry, per metre in planar, as getdp prints them, except where
+    :class:`PersistentGetDPSolver` fills them in).  ``wall`` (s): Python's wait for the answer.
+    """
+
+    k: int
+    t: float
+    coil: np.ndarray
+    cond: np.ndarray
+    glob: np.ndarray
+    has_globals: bool
+    wall: float
+
+
+class PersistentProcess:
+    """One ``getdp -solve EM_Persistent`` process on one mesh connectivity (see the module docstring).
+
+    Parameters
+    ----------
+    run_dir : Path
+        The process's folder (mesh, ``run.pro``, FIFOs, ``getdp.log``, ``out/``); made anew.
+    argv_numbers : dict
+        Numbers passed with ``-setnumber`` (the model's, the deck's, the seed's).
+    lines : list of str
+        Lines of ``run.pro`` before the deck is included (lists: Init values, current tables).
+    deck : Path
+        The case deck (it includes the library, which includes ``Lib_Persistent.pro``).
+    time_limit : float or None
+        Wall-time limit (s) of the start-up and of each message's answer; None: 600 s.
+    """
+
+    def __init__(self, run_dir: Path, mesh: EMMesh, argv_numbers: dict[str, float], lines: list[str], deck: Path,
+                 *, executable: str = "getdp", petsc_args: Sequence[str] = DEFAULT_PETSC_ARGS,
+                 time_limit: float | None = None, verbosity: int = 2) -> None:
+        self.run_dir = Path(run_dir).resolve()
+        self.time_limit = float(time_limit) if time_limit else 600.0
+        rd = self.run_dir
+        if rd.exists():
+            shutil.rmtree(rd)
+        (rd / "out").mkdir(parents=True)
+        self.out_dir = rd / "out"
+        self.mesh = mesh
+        self.points = np.array(mesh.points, float)  # getdp's node coordinates, as getdp computes them
+        msh = write_msh22(mesh, rd / "mesh.msh")
+        wrapper = rd / "run.pro"
+        wrapper.write_text("// generated by pulseform.solvers.getdp.persistent\n" + "\n".join(lines)
+                           + f'\nInclude "{Path(deck).resolve()}";\n')
+        # the FIFOs live in a private folder of the temporary directory, not in the results folder:
+        # some file systems (SMB, FAT, some FUSE mounts) cannot hold a FIFO
+        self.fifo_dir = Path(tempfile.mkdtemp(prefix="pulseform_getdp_"))
+        self.fifo_in, self.fifo_out = self.fifo_dir / "in.fifo", self.fifo_dir / "out.fifo"
+        self._remove_fifos = weakref.finalize(self, shutil.rmtree, str(self.fifo_dir), True)
+        for p in (self.fifo_in, self.fifo_out):
+            os.mkfifo(p, 0o600)
+        argv = [find_getdp(executable), str(wrapper), "-msh", str(msh), "-name", str(rd / "em"),
+                "-res", str(self.fifo_in)]
+        for k, v in argv_numbers.items():
+            argv += ["-setnumber", k, repr(float(v))]
+        argv += ["-setstring", "OutDir", str(self.out_dir) + "/", "-setstring", "PF_Out", str(self.fifo_out)]
+        # -bin (after the PETSc options: before them getdp stopped without solving): SaveSolution writes
+        # the exact unknowns
+        self.argv = argv + list(petsc_args) + ["-bin", "-solve", RESOLUTION, "-v", str(int(verbosity))]
+        self.proc: subprocess.Popen | None = None
+        self._in_fd: int | None = None
+        self._buf = b""
+
+    # ------------------------------------------------------------------ life cycle
+    def start(self, step0: int, t1: float) -> float:
+        """Start getdp; return once it waits for the first message, with the start-up wall time (s)."""
+        c0 = time.perf_counter()
+        self.out_fd = os.open(self.fifo_out, os.O_RDWR | os.O_NONBLOCK)
+        env = dict(os.environ)
+        env.update(FAST_MPI_ENV)
+        self.log_path = self.run_dir / "getdp.log"
+        self._log = open(self.log_path, "w")
+        self._log.write("# argv: " + " ".join(self.argv) + "\n")
+        self._log.flush()
+        try:
+            self.proc = subprocess.Popen(self.argv, cwd=self.run_dir, stdout=self._log, stderr=subprocess.STDOUT,
+                                         env=env, preexec_fn=child_preexec)
+        except OSError as exc:
+            raise GetDPError(f"cannot start getdp: {exc}", log_path=self.log_path, run_dir=self.run_dir) from exc
+        self._finalizer = weakref.finalize(self, _kill, self.proc)
+        self.pidfd = os.pidfd_open(self.proc.pid)
+        self.k, self.t = int(step0), float(t1)
+        # getdp opens in.fifo for reading once pre-processing is done and its loop waits: then the
+        # .pre holds U's dof numbering
+        self._open_in(time.monotonic() + self.time_limit, "start-up")
+        rows = read_pre_dofs(self.run_dir / "em.pre", 1)
+        ntypes = np.unique(rows[:, 0])
+        if len(ntypes) != 2:
+            raise RuntimeError(f"displacement system U: expected 2 basis functions, found {ntypes}")
+        self.n_u = int(rows[:, 4].max())
+        self.u_index = np.full((self.mesh.n_nodes, 2), -1, np.int64)
+        for comp, nt in enumerate(ntypes):  # X (defined first: the smaller number), then Y
+            sel = rows[:, 0] == nt
+            self.u_index[rows[sel, 1] - 1, comp] = rows[sel, 4] - 1
+        self._has_u = self.u_index >= 0
+        self._vec = np.zeros(self.n_u)
+        return time.perf_counter() - c0
+
+    def close(self, timeout: float = 30.0) -> int:
+        """Send the stop message and wait for getdp to exit (killed after ``timeout`` s); its exit code."""
+        if self.proc is None:
+            self._release()
+            return 0
+        try:
+            if self.proc.poll() is None:
+                self._send(np.zeros(self.n_u), self.t, FLAG_STOP, self.k + 1)
+                self.proc.wait(timeout)
+        except (subprocess.TimeoutExpired, GetDPError, OSError, AttributeError):
+            self.kill()
+        finally:
+            self._release()
+        return self.proc.returncode
+
+    def kill(self) -> None:
+        """End getdp at once (SIGKILL)."""
+        if self.proc is not None and self.proc.poll() is None:
+            self.proc.kill()
+            self.proc.wait()
+
+    def _release(self) -> None:
+        for name in ("out_fd", "pidfd", "_in_fd"):
+            fd = getattr(self, name, None)
+            if fd is not None:
+                try:
+                    os.close(fd)
+                except OSError:
+                    pass
+                setattr(self, name, None)
+        if getattr(self, "_log", None) is not None and not self._log.closed:
+            self._log.close()
+        self._remove_fifos()
+
+    @property
+    def alive(self) -> bool:
+        return self.proc is not None and self.proc.poll() is None
+
+    # ------------------------------------------------------------------ messages
+    def step(self, points: np.ndarray, t_end: float, flags: int, redo: bool = False) -> StepAnswer:
+        """Move getdp's nodes to ``points`` and advance to ``t_end`` (one BDF2 step); ``redo``: the
+        last step again from its start state, on the geometry ``points``."""
+        du = np.asarray(points, float) - self.points
+        if np.any(du[~self._has_u] != 0.0):
+            raise ValueError("a node without a displacement dof moved")
+        vec = self._vec
+        vec[self.u_index[self._has_u]] = du[self._has_u]
+        k = self.k if redo else self.k + 1
+        self._send(vec, float(t_end), flags | (FLAG_REDO if redo else 0), k)
+        answer = self._answer(k)
+        self.points += du  # what getdp computed: x + (x_new - x), the same IEEE operations
+        self.k, self.t = k, float(t_end)
+        return answer
+
+    def query(self, flags: int) -> StepAnswer:
+        """Outputs of the current solution without a step (``flags``: FLAG_COND_FIELDS, FLAG_FIELDS,
+        FLAG_STATE, FLAG_ELEM)."""
+        self._send(np.zeros(self.n_u), self.t, flags | FLAG_QUERY | FLAG_NO_GLOBALS, self.k)
+        return self._answer(self.k)
+
+    def _answer(self, k: int) -> StepAnswer:
+        c0 = time.perf_counter()
+        lines = self._wait_done(k)
+        wall = time.perf_counter() - c0
+        return self._parse(lines, k, wall)
+
+    def _fail(self, what: str, time_limit: float | None = None) -> GetDPError:
+        self.reported = True  # the error names the exit; closing need not warn again
+        self._log.flush()
+        rc = self.proc.poll()
+        if rc is not None and rc < 0:
+            what += f" (getdp killed by signal {signal.Signals(-rc).name})"
+        elif rc is not None:
+            what += f" (getdp exited with code {rc})"
+        errors, _ = scan_log(self.log_path.read_text(errors="replace"))
+        if errors:
+            what += f": {errors[0]}"
+        return GetDPError(what, log_path=self.log_path, run_dir=self.run_dir, returncode=rc,
+                          log_tail=log_tail(self.log_path), time_limit=time_limit)
+
+    def _dead(self) -> bool:
+        return bool(select.select([self.pidfd], [], [], 0)[0])
+
+    def _timeout(self, what: str) -> GetDPError:
+        self.kill()
+        return self._fail(f"getdp exceeded its time limit of {self.time_limit:g} s ({what}) and was stopped",
+                          self.time_limit)
+
+    def _open_in(self, deadline: float, what: str) -> None:
+        """Open the input FIFO for writing once getdp reads it (an O_NONBLOCK open fails with ENXIO before)."""
+        delay = 2e-5
+        while True:
+            try:
+                self._in_fd = os.open(self.fifo_in, os.O_WRONLY | os.O_NONBLOCK)
+                return
+            except OSError as err:
+                if err.errno != _ENXIO:
+                    raise
+            if self._dead():
+                self.proc.wait()
+                raise self._fail(f"getdp stopped before the {what}")
+            if time.monotonic() > deadline:
+                raise self._timeout(what)
+            time.sleep(delay)
+            delay = min(delay * 2, 2e-3)
+
+    def _send(self, vec: np.ndarray, t: float, flags: int, k: int) -> None:
+        head = (b"$ResFormat /* pulseform */\n1.1 1\n$EndResFormat\n$Solution  /* DofData #1 */\n"
+                + f"1 {t!r} {float(flags)!r} {k}\n".encode())
+        msg = head + np.ascontiguousarray(vec, "<f8").tobytes() + b"\n$EndSolution\n"
+        if self._in_fd is None:
+            self._open_in(time.monotonic() + self.time_limit, f"step {k}")
+        fd, self._in_fd = self._in_fd, None
+        try:
+            os.set_blocking(fd, True)
+            view = memoryview(msg)
+            while view:
+                view = view[os.write(fd, view):]  # BrokenPipeError if getdp dies while reading
+        except BrokenPipeError:
+            self.proc.wait()
+            raise self._fail(f"getdp stopped while reading step {k}") from None
+        finally:
+            os.close(fd)  # end-of-file for getdp's ReadSolution
+
+    def _wait_done(self, k: int) -> list[str]:
+        deadline = time.monotonic() + self.time_limit
+        lines: list[str] = []
+        while True:
+            nl = self._buf.find(b"\n")
+            while nl >= 0:
+                line = self._buf[:nl].decode(errors="replace")
+                self._buf = self._buf[nl + 1:]
+                lines.append(line)
+                if line.startswith("D "):
+                    return lines
+                nl = self._buf.find(b"\n")
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                raise self._timeout(f"EM step {k}")
+            ready, _, _ = select.select([self.out_fd, self.pidfd], [], [], remaining)
+            if self.out_fd in ready:
+                self._buf += os.read(self.out_fd, 1 << 16)
+            elif self.pidfd in ready:
+                try:  # lines written just before it died
+                    self._buf += os.read(self.out_fd, 1 << 16)
+                except BlockingIOError:
+                    pass
+                if b"D " not in self._buf:
+                    self.proc.wait()
+                    raise self._fail(f"getdp stopped during EM step {k}")
+
+    def _parse(self, lines: list[str], k_expected: int, wall: float) -> StepAnswer:
+        coil, cond, glob = [], [], np.zeros(4)
+        k = t = None
+        has_globals = False
+        for ln in lines:
+            f = ln.split()
+            if not f:
+                continue
+            if f[0] == "C":
+                coil.append((int(f[1]), [float(x) for x in f[2:7]]))
+            elif f[0] == "K":
+                cond.append((int(f[1]), [float(x) for x in f[2:5]]))
+            elif f[0] == "G":
+                glob[:] = [float(x) for x in f[1:5]]
+                has_globals = True
+            elif f[0] == "D":
+                k, t = int(f[1]), float(f[2])
+        if k != k_expected:
+            raise GetDPError(f"getdp answered step {k}, expected {k_expected}", log_path=self.log_path,
+                             run_dir=self.run_dir, log_tail=log_tail(self.log_path))
+        c = np.array([v for _, v in sorted(coil)]).reshape(-1, 5)
+        kk = np.array([v for _, v in sorted(cond)]).reshape(-1, 3)
+        return StepAnswer(k, t, c, kk, glob, has_globals, wall)
+
+
+def _kill(proc: subprocess.Popen) -> None:
+    """Finalizer: a process object dropped without :meth:`PersistentProcess.close` ends its getdp."""
+    if proc.poll() is None:
+        proc.kill()
+        proc.wait()
