@@ -38,6 +38,18 @@ def cell_volumes(cells: np.ndarray, x: np.ndarray, axisymmetric: bool,
     return out
 
 
+@numba.njit(cache=True, inline="always")
+def _pressure_and_dev_norm2(stress: np.ndarray, e: int) -> tuple[float, float]:
+    """Mean stress p (Pa) of cell ``e`` and s:s (Pa^2) of its deviator (xx, yy, zz, xy components),
+    summed in the order of the numpy code it replaced (same bits)."""
+    p = (stress[e, 0] + stress[e, 1] + stress[e, 2]) / 3.0
+    d0 = stress[e, 0] - p
+    d1 = stress[e, 1] - p
+    d2 = stress[e, 2] - p
+    dd = d0 * d0 + d1 * d1 + d2 * d2
+    return p, dd + 2 * (stress[e, 3] * stress[e, 3])
+
+
 @numba.njit(cache=True)
 def elastic_energy_density(stress: np.ndarray, G: float, K: float) -> np.ndarray:
     """Elastic energy per unit volume of each cell, s:s / 4G + p^2 / 2K, J/m^3 (stress in Pa)."""
@@ -46,12 +58,8 @@ def elastic_energy_density(stress: np.ndarray, G: float, K: float) -> np.ndarray
     g4 = 4 * G
     k2 = 2 * K
     for e in range(n):
-        p = (stress[e, 0] + stress[e, 1] + stress[e, 2]) / 3.0
-        d0 = stress[e, 0] - p
-        d1 = stress[e, 1] - p
-        d2 = stress[e, 2] - p
-        dd = d0 * d0 + d1 * d1 + d2 * d2
-        out[e] = (dd + 2 * (stress[e, 3] * stress[e, 3])) / g4 + (p * p) / k2
+        p, ss = _pressure_and_dev_norm2(stress, e)
+        out[e] = ss / g4 + (p * p) / k2
     return out
 
 
@@ -61,12 +69,7 @@ def von_mises(stress: np.ndarray) -> np.ndarray:
     n = stress.shape[0]
     out = np.empty(n)
     for e in range(n):
-        p = (stress[e, 0] + stress[e, 1] + stress[e, 2]) / 3.0
-        d0 = stress[e, 0] - p
-        d1 = stress[e, 1] - p
-        d2 = stress[e, 2] - p
-        dd = d0 * d0 + d1 * d1 + d2 * d2
-        out[e] = math.sqrt(1.5 * (dd + 2 * (stress[e, 3] * stress[e, 3])))
+        out[e] = math.sqrt(1.5 * _pressure_and_dev_norm2(stress, e)[1])
     return out
 
 
