@@ -15,7 +15,7 @@ import numpy as np
 from .block import N_SC, SC, BodyArrays, WallArrays
 from .cell_list import new_grid
 from .contact_kernel import ContactArrays
-from .kernels import N_PRM
+from .kernels import N_PRM, WORK_SIZE
 
 if TYPE_CHECKING:
     from .solver import ExplicitSolver
@@ -102,7 +102,8 @@ class BlockData:
             con_val=np.concatenate(con_val) if con_val else np.zeros(0),
             cidx_off=np.cumsum([0] + [len(c) for c in cidx]).astype(np.int64),
             cidx=np.concatenate(cidx) if cidx else np.zeros(0, np.int64),
-            ke_half=np.zeros(len(names)), tmp=np.zeros(2 * max(ntot, 1)), acc=np.zeros(3))
+            ke_half=np.zeros(len(names)), tmp=np.zeros(2 * max(ntot, 1)), acc=np.zeros(3),
+            work=np.zeros(WORK_SIZE))
         self.W = self._walls(ntot)
         self.C = self._contact()
         self.sc = np.zeros(N_SC)

@@ -41,8 +41,9 @@ def _grads(X):
     return ta, gx, gy
 
 
-def element_step_numpy(cells, x, v, dt, prm, stress, eps_p, f_int, acc):
-    """Vectorised-numpy twin of :func:`.kernels.element_step` (same arguments and return value)."""
+def element_step_numpy(cells, x, v, dt, prm, stress, eps_p, f_int, acc, work=None):
+    """Vectorised-numpy twin of :func:`.kernels.element_step` (same arguments and return value;
+    ``work`` is not used)."""
     if int(prm[P_RATE]) != 0:
         raise NotImplementedError("the numpy reference kernel supports rate-independent materials")
     rho, G, K = prm[P_RHO], prm[P_G], prm[P_K]

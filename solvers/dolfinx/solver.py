@@ -11,7 +11,7 @@ from .body import Body, BodySpec
 from .contact import (ContactPairSpec, ContactPenetrationError, RigidWallSpec, Surface,
                       soft_contact_pass)
 from .kernels import (MODE_AXISYMMETRIC, MODE_PLANE_STRAIN, MODE_PLANE_STRESS,
-                      element_critical_dt, element_step, pack_parameters)
+                      WORK_SIZE, element_critical_dt, element_step, pack_parameters)
 from . import restart
 from .cell_fields import kinetic_sum
 from .block import EV_DT, EV_INVERTED, run_steps
@@ -91,6 +91,7 @@ class ExplicitSolver:
         self.cfl = float(cfl)
         self.comm = comm
         self._kernel = element_step if kernel == "numba" else element_step_numpy
+        self._work = np.zeros(WORK_SIZE)  # the element kernel's scratch
         axi = self.mode == MODE_AXISYMMETRIC
         self.bodies: Dict[str, Body] = {}
         for spec in bodies:
@@ -356,10 +357,10 @@ class ExplicitSolver:
             acc = np.zeros(3)
             if update_state:
                 d = self._kernel(b.cells, b.x, b.v, dt, self._prm[n], b.cell_stress, b.eps_p,
-                                 f, acc)
+                                 f, acc, self._work)
             else:
                 d = self._kernel(b.cells, b.x, np.zeros_like(b.v), 0.0, self._prm[n],
-                                 b.cell_stress.copy(), b.eps_p.copy(), f, acc)
+                                 b.cell_stress.copy(), b.eps_p.copy(), f, acc, self._work)
             if acc[2] >= 0:
                 e = int(acc[2])
                 raise RuntimeError(f"t={self.time:.6e} s: cell {e} of body {n!r} inverted "

@@ -163,3 +163,55 @@ def test_return_lands_on_the_yield_surface(mode):
     assert np.all(vm[~yielded] <= (STEEL.yield_stress + STEEL.hardening_modulus * 0.02) * (1 + 1e-12))
     if mode == MODE_PLANE_STRESS:
         assert np.all(st[:, 2] == 0.0)
+
+
+@pytest.mark.parametrize("mode", [MODE_PLANE_STRESS, MODE_PLANE_STRAIN, MODE_AXISYMMETRIC])
+@pytest.mark.parametrize("rate", [False, True])
+def test_batched_kernel_equals_the_scalar_cell_update(mode, rate):
+    """The vectorised batches (SoA scratch, selects instead of branches) give each cell what the
+    scalar per-cell update gives, to round-off: several batches and a partial one, an inverted
+    cell in the middle (first inverted index reported, its stress and plastic strain untouched,
+    no force), plastic cells (and the plane-stress secant redo), a rate law (all scalar)."""
+    from pulseform.solvers.dolfinx.element_math import BATCH, OUT_ROWS, cell_update
+    from pulseform.solvers.dolfinx.material import CowperSymonds
+
+    mat = Material(7800.0, 80e9, 170e9, 300e6, 1e9, rate_law=CowperSymonds(6500.0, 4.0)) if rate else STEEL
+    rng = np.random.default_rng(3)
+    nc = 2 * BATCH + 37
+    x = np.zeros((3 * nc, 2))
+    base = np.array([[0.0, 0.0], [1e-3, 0.0], [0.0, 1e-3]])
+    for e in range(nc):
+        x[3 * e:3 * e + 3] = base + rng.normal(scale=1e-4, size=(3, 2)) + [0.01 + 2e-3 * e, 0.0]
+    cells = np.arange(3 * nc, dtype=np.int32).reshape(nc, 3)
+    bad = BATCH + 5
+    x[3 * bad + 1], x[3 * bad + 2] = x[3 * bad + 2].copy(), x[3 * bad + 1].copy()   # inverted
+    v = rng.normal(scale=30.0, size=x.shape)
+    dt = 2e-8
+    stress0 = rng.normal(scale=800e6 if rate else 250e6, size=(nc, 4))
+    if mode == MODE_PLANE_STRESS:
+        stress0[:, 2] = 0.0
+    prm = pack_parameters(mat, mode, 1e-3, 0.06, 1.2, True)
+    st, ep, f, acc = stress0.copy(), np.full(nc, 0.01), np.zeros_like(x), np.zeros(3)
+    d = element_step(cells, x, v, dt, prm, st, ep, f, acc)
+    assert acc[2] == bad
+    assert np.array_equal(st[bad], stress0[bad]) and ep[bad] == 0.01 and not f[3 * bad:3 * bad + 3].any()
+    assert (ep > 0.01).sum() > 20
+    out = np.zeros(OUT_ROWS)
+    dmin, wp, wv = np.inf, 0.0, 0.0
+    for e in range(nc):
+        if e == bad:
+            continue
+        p = x[cells[e]].ravel()
+        q = v[cells[e]].ravel()
+        cell_update(*p, *q, *stress0[e], 0.01, dt, prm, out)
+        scale = np.abs(out[:4]).max()
+        assert np.abs(st[e] - out[:4]).max() <= 1e-12 * scale
+        assert ep[e] == pytest.approx(out[4], rel=1e-12, abs=1e-15)
+        fe = out[5:11].reshape(3, 2).copy()
+        fe[:, 0] += out[11]
+        assert np.abs(f[cells[e]] - fe).max() <= 1e-12 * np.abs(fe).max()
+        dmin = min(dmin, out[12])
+        wp += out[13]
+        wv += out[14]
+    assert d == pytest.approx(dmin, rel=1e-12)
+    assert acc[0] == pytest.approx(wp, rel=1e-12) and acc[1] == pytest.approx(wv, rel=1e-12)
