@@ -52,13 +52,19 @@ def _umask() -> int:
 
 def atomic_write_bytes(path: Path, data: bytes) -> None:
     """Write ``data`` to ``path`` through a temporary file in the same folder and ``os.replace``."""
+    atomic_write_chunks(path, (data,))
+
+
+def atomic_write_chunks(path: Path, chunks: Iterable[bytes]) -> None:
+    """Write the concatenation of ``chunks`` to ``path`` atomically (temporary file in the same
+    folder, ``fsync``, ``os.replace``), without joining them into one buffer first."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     try:
         os.fchmod(fd, 0o666 & ~_umask())  # mkstemp makes 0600: give the file the user's umask
         with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
+            fh.writelines(chunks)
             fh.flush()
             os.fsync(fh.fileno())
         os.replace(tmp, path)
@@ -93,14 +99,19 @@ def read_metrics(path: Path) -> dict[str, float]:
     return {k: float(v) for k, v in data.items() if isinstance(v, (int, float)) and not isinstance(v, bool)}
 
 
-def write_csv(path: Path, header: Sequence[str], rows: Iterable[Sequence[float]]) -> None:
-    """Write a CSV table atomically (numbers with 10 significant digits)."""
+def csv_lines(rows: Iterable[Sequence[float]]) -> str:
+    """CSV text of ``rows`` as :func:`write_csv` writes them (floats with 10 significant digits,
+    ``csv`` writer quoting, one ``\\n``-terminated line per row)."""
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
-    w.writerow(header)
     for row in rows:
         w.writerow([f"{v:.10g}" if isinstance(v, float) else v for v in row])
-    atomic_write_text(path, buf.getvalue())
+    return buf.getvalue()
+
+
+def write_csv(path: Path, header: Sequence[str], rows: Iterable[Sequence[float]]) -> None:
+    """Write a CSV table atomically (numbers with 10 significant digits)."""
+    atomic_write_text(path, csv_lines([header]) + csv_lines(rows))
 
 
 def _lock_folder(root: Path) -> int:

@@ -3,7 +3,9 @@
 An analysis is a class with
 
 * ``__init__(self, case)``,
-* ``record(self, solver) -> dict[str, float]``: columns added to every history row (SI units in names),
+* ``record(self, solver, row=None) -> dict[str, float]``: columns added to every history row (SI
+  units in names); ``row``: the row's columns so far (time, ``energy_*``, probes, body extremes),
+  to reuse instead of computing them again (None: compute them),
 * ``metrics(self, solver, history) -> dict[str, float]``: added to ``metrics.json``,
 * ``plots(self, history, shapes, folder) -> None``: PNGs into ``plots/``.
 

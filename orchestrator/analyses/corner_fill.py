@@ -41,6 +41,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from pulseform.solvers.dolfinx.cell_fields import von_mises_max
+from pulseform.solvers.dolfinx.cell_list import new_grid
+
+from .corner_fill_kernel import (blank_motion, build_midpoint_grid, distances_within, min_distances,
+                                 profile_samples)
+
 FILL_GAP_FACTOR = 2.0  # a profile point counts as touched when the blank is within 2 h0 of it
 FILL_SAMPLE_SPACING = 1.0e-4  # m: arc-length spacing of the profile samples (h0 of the case)
 CORNER_RADIUS = 1.0e-2  # m: blank nodes this close to the corner count for its kinetic energy
@@ -111,16 +117,24 @@ class CornerFill:
         self._sample_seg = np.repeat(np.arange(len(n)), n)
         self._sample_xi = np.concatenate([(np.arange(k) + 0.5) / k for k in n])
         self._sample_w = (self._profile_len0 / n)[self._sample_seg]
+        self._sample_ends = (self._profile[self._sample_seg, 0], self._profile[self._sample_seg, 1])
         self._corner = self._find_corner(X)
         blank = solver.bodies["blank"]
         self._blank_segs = blank.segments
         self._blank_seg_len_max = float(np.linalg.norm(blank.X0[self._blank_segs[:, 1]]
                                                        - blank.X0[self._blank_segs[:, 0]], axis=1).max())
+        # scratch of the compiled queries: the blank segments' midpoints and their cell-list grid
+        m = len(self._blank_segs)
+        self._mid = (np.empty(m), np.empty(m))
+        self._grid = new_grid(m)
+        self._scratch = (np.empty(blank.n_owned), np.empty(blank.n_owned))
 
     def _sample_points(self, x: np.ndarray) -> np.ndarray:
         """Profile samples (S, 2), m, for die node positions x."""
-        a, b = x[self._profile[self._sample_seg, 0]], x[self._profile[self._sample_seg, 1]]
-        return a + self._sample_xi[:, None] * (b - a)
+        ia, ib = self._sample_ends
+        out = np.empty((len(ia), 2))
+        profile_samples(x, ia, ib, self._sample_xi, out)
+        return out
 
     def _find_corner(self, X0: np.ndarray) -> int | None:
         """Index of the sample in the middle of the rounded corner between the flat bottom and the
@@ -131,24 +145,24 @@ class CornerFill:
         arc = np.flatnonzero((ang > 1.0) & (ang < 49.0) & (p[:, 1] < p[:, 1].min() + 5e-3))
         return int(arc[len(arc) // 2]) if len(arc) else None
 
-    def _blank_distance(self, p: np.ndarray, blank) -> np.ndarray:
-        """Distance (m) from points p (P, 2) to the blank's boundary, exact where it is below
-        FILL_GAP_FACTOR h0 (segments are searched among the nearest midpoints), else >= that bound."""
-        from scipy.spatial import cKDTree
+    def _bound(self) -> float:
+        """Search radius (m) around a point for the midpoints of the blank segments that may lie
+        within FILL_GAP_FACTOR h0 of it (half the longest initial segment, with a 1.5 stretch allowance)."""
+        return FILL_GAP_FACTOR * self.h0 + 0.5 * self._blank_seg_len_max * 1.5
 
-        bs = self._blank_segs
-        a, b = blank.x[bs[:, 0]], blank.x[bs[:, 1]]
-        bound = FILL_GAP_FACTOR * self.h0 + 0.5 * self._blank_seg_len_max * 1.5  # stretch allowance
-        k = min(8, len(bs))
-        dist, idx = cKDTree(0.5 * (a + b)).query(p, k=k, distance_upper_bound=bound)
-        idx = np.atleast_2d(idx.reshape(len(p), -1))
-        found = idx < len(bs)
-        out = np.full(len(p), np.inf)
-        rows = np.flatnonzero(found.any(axis=1))
-        if len(rows):
-            j = np.where(found[rows], idx[rows], 0)
-            d = _segment_distances(p[rows], a[j], b[j])
-            out[rows] = np.where(found[rows], d, np.inf).min(axis=1)
+    def _build_grid(self, blank) -> None:
+        """The blank segments' current midpoints in the cell-list grid of :meth:`_blank_distance`."""
+        build_midpoint_grid(blank.x, self._blank_segs, self._bound(), *self._mid, *self._grid)
+
+    def _blank_distance(self, p: np.ndarray, blank, grid_ready: bool = False) -> np.ndarray:
+        """Distance (m) from points p (P, 2) to the blank's boundary, exact where it is below
+        FILL_GAP_FACTOR h0 (every segment whose midpoint is within :meth:`_bound` is searched),
+        else >= that bound or ``inf``. ``grid_ready``: :meth:`_build_grid` ran for the current positions."""
+        if not grid_ready:
+            self._build_grid(blank)
+        out = np.empty(len(p))
+        distances_within(np.ascontiguousarray(p, dtype=float), blank.x, self._blank_segs, self._bound(),
+                         *self._mid, *self._grid, out)
         return out
 
     def touched(self, solver) -> np.ndarray:
@@ -158,45 +172,66 @@ class CornerFill:
         p = self._sample_points(solver.bodies["die"].x)
         return self._blank_distance(p, solver.bodies["blank"]) <= FILL_GAP_FACTOR * self.h0
 
-    def _touched_segments(self, solver) -> np.ndarray:
+    def _touched_segments(self, solver, grid_ready: bool = False) -> np.ndarray:
         """The former measure: per profile segment, is the blank within FILL_GAP_FACTOR h0 of its midpoint."""
         die, blank = solver.bodies["die"], solver.bodies["blank"]
         mid = 0.5 * (die.x[self._profile[:, 0]] + die.x[self._profile[:, 1]])
-        return self._blank_distance(mid, blank) <= FILL_GAP_FACTOR * self.h0
+        return self._blank_distance(mid, blank, grid_ready) <= FILL_GAP_FACTOR * self.h0
 
-    def _corner_state(self, solver) -> tuple[float, float]:
-        """(gap m from the corner point to the blank, kinetic energy J of the blank near it)."""
-        if self._corner is None:
-            return float("nan"), float("nan")
+    def _gaps(self, solver, samples: np.ndarray) -> tuple[float, float]:
+        """(corner gap, apex gap), m: distances from the corner sample (NaN without a corner) and
+        from the die's deepest profile point to the blank's boundary (all its segments)."""
         die, blank = solver.bodies["die"], solver.bodies["blank"]
-        c = self._sample_points(die.x)[self._corner][None]
-        bs = self._blank_segs
-        gap = float(_point_segment_distance(c, blank.x[bs[:, 0]], blank.x[bs[:, 1]])[0])
+        pts = die.x[self._profile.ravel()]
+        q = np.empty((2, 2))
+        q[0] = samples[self._corner] if self._corner is not None else 0.0
+        q[1] = pts[np.argmin(pts[:, 1])]
+        out = np.empty(2)
+        min_distances(q, blank.x, self._blank_segs, out)
+        return (float(out[0]) if self._corner is not None else float("nan")), float(out[1])
+
+    def _blank_motion(self, solver, samples: np.ndarray) -> tuple[float, float, float]:
+        """(largest nodal speed m/s, mass-weighted rms speed m/s, kinetic energy J of the nodes
+        within CORNER_RADIUS of the corner, NaN without a corner) of the blank's owned nodes."""
+        blank = solver.bodies["blank"]
         no = blank.n_owned
-        near = np.linalg.norm(blank.x[:no] - c, axis=1) < CORNER_RADIUS
-        ke = 0.5 * float((blank.mass[:no][near] * (blank.v[:no][near] ** 2).sum(axis=1)).sum())
-        return gap, ke
+        if len(self._scratch[0]) < no:
+            self._scratch = (np.empty(no), np.empty(no))
+        c = samples[self._corner] if self._corner is not None else (np.nan, np.nan)
+        mv2, near = self._scratch
+        speed, k = blank_motion(blank.x, blank.v, blank.mass, no, float(c[0]), float(c[1]), CORNER_RADIUS,
+                                mv2, near)
+        ke = 0.5 * float(near[:k].sum()) if self._corner is not None else float("nan")
+        return float(speed), float(np.sqrt(mv2[:no].sum() / blank.mass[:no].sum())), ke
 
     # ------------------------------------------------------------------ hooks
-    def record(self, solver) -> dict[str, float]:
-        touched = self.touched(solver)
+    def record(self, solver, row: dict[str, float] | None = None) -> dict[str, float]:
+        """This row's columns; ``row``: the driver's columns so far (its ``energy_*`` are reused)."""
+        if self._profile is None:
+            self._setup(solver)
+        die, blank = solver.bodies["die"], solver.bodies["blank"]
+        samples = self._sample_points(die.x)
+        self._build_grid(blank)  # once for both measures
+        touched = self._blank_distance(samples, blank, grid_ready=True) <= FILL_GAP_FACTOR * self.h0
         if self._ever is None:  # a fresh run, or the first record after --resume (checkpointed state)
             self._ever = _saved_mask(solver, STATE_KEY, len(touched))
             self._ever_segments = _saved_mask(solver, STATE_KEY_SEGMENTS, len(self._profile))
         self._ever = self._ever | touched
-        self._ever_segments = self._ever_segments | self._touched_segments(solver)
+        self._ever_segments = self._ever_segments | self._touched_segments(solver, grid_ready=True)
         if not hasattr(solver, "analysis_state"):
             solver.analysis_state = {}
         solver.analysis_state[STATE_KEY] = self._ever
         solver.analysis_state[STATE_KEY_SEGMENTS] = self._ever_segments
-        die, blank = solver.bodies["die"], solver.bodies["blank"]
-        vm = float(die.von_mises.max()) if len(die.cells) else 0.0
+        vm = von_mises_max(die.cell_stress) if len(die.cells) else 0.0
         _, _, p, _ = solver.contact_pressure(self.pair)
-        speed = float(np.sqrt((blank.v[: blank.n_owned] ** 2).sum(axis=1)).max())
-        ke = solver.energies()
+        speed, rms, corner_ke = self._blank_motion(solver, samples)
+        if row is not None and "energy_kinetic_J" in row:
+            ke = {k: row[f"energy_{k}"] for k in ("kinetic_J", "elastic_J", "plastic_J")}
+        else:
+            ke = solver.energies()
         ratio = ke["kinetic_J"] / max(ke["elastic_J"] + ke["plastic_J"], 1e-300)
         w = self._sample_w
-        gap, corner_ke = self._corner_state(solver)
+        gap, apex_gap = self._gaps(solver, samples)
         return {
             "fill_fraction": float(w[self._ever].sum() / w.sum()),
             "contact_fraction": float(w[touched].sum() / w.sum()),
@@ -207,22 +242,11 @@ class CornerFill:
             "die_von_mises_max_Pa": vm,
             "die_sqrt_J2_max_Pa": vm / np.sqrt(3.0),
             "blank_speed_max_m_s": speed,
-            "blank_rms_speed_m_s": float(np.sqrt((blank.mass[: blank.n_owned] * (blank.v[: blank.n_owned] ** 2).sum(axis=1)).sum()
-                                                 / blank.mass[: blank.n_owned].sum())),
+            "blank_rms_speed_m_s": rms,
             "die_contact_pressure_max_Pa": float(p.max()) if len(p) else 0.0,
-            "blank_apex_gap_m": self._apex_gap(solver),
+            "blank_apex_gap_m": apex_gap,
             "kinetic_to_deformation_ratio": float(ratio),
         }
-
-    def _apex_gap(self, solver) -> float:
-        """Distance (m) from the die's deepest profile point (the apex) to the blank."""
-        if self._profile is None:
-            self._setup(solver)
-        die, blank = solver.bodies["die"], solver.bodies["blank"]
-        pts = die.x[self._profile.ravel()]
-        apex = pts[np.argmin(pts[:, 1])][None]
-        bs = self._blank_segs
-        return float(_point_segment_distance(apex, blank.x[bs[:, 0]], blank.x[bs[:, 1]])[0])
 
     def metrics(self, solver, history) -> dict[str, float]:
         ff = history.column("fill_fraction")

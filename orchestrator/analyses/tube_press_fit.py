@@ -73,7 +73,7 @@ class TubePressFit:
             "outer_inner": np.flatnonzero(np.abs(o.X0[: o.n_owned, 0] - self.R2) < tol),
         }
 
-    def record(self, solver) -> dict[str, float]:
+    def record(self, solver, row: dict[str, float] | None = None) -> dict[str, float]:
         if self._nodes is None:
             self._setup(solver)
         i, o = solver.bodies["inner"], solver.bodies["outer"]

@@ -1,9 +1,10 @@
 """Compiled per-cell fields for outputs and history rows (cell volumes, elastic energy density,
-von Mises stress) and the kinetic-energy sum, rounded exactly as the numpy expressions they
-replace in :class:`~.body.Body` and :class:`~.solver.ExplicitSolver` (same operations, same
-order; sums as numpy's ``mean`` / ``sum`` over three components and :func:`.reductions.np_sum`).
+von Mises stress and its maxima, the nodal extremes of a history row) and the kinetic-energy sum,
+rounded exactly as the numpy expressions they replace in :class:`~.body.Body`,
+:class:`~.solver.ExplicitSolver` and the orchestrator's history rows (same operations, same order;
+sums as numpy's ``mean`` / ``sum`` over three components and :func:`.reductions.np_sum`).
 
-They run once per history row (twice with the corner-fill analysis), where the numpy versions
+They run once per history row, where the numpy versions
 cost ~0.35 ms per call on the corner-fill mesh (gathers into (n, 3, 2) temporaries).
 """
 from __future__ import annotations
@@ -15,7 +16,8 @@ import numpy as np
 
 from .reductions import np_sum
 
-__all__ = ["cell_volumes", "elastic_energy_density", "von_mises", "kinetic_sum"]
+__all__ = ["cell_volumes", "elastic_energy_density", "von_mises", "von_mises_max", "j2_times_3_max",
+           "nodal_extremes", "kinetic_sum"]
 
 
 @numba.njit(cache=True)
@@ -71,6 +73,51 @@ def von_mises(stress: np.ndarray) -> np.ndarray:
     for e in range(n):
         out[e] = math.sqrt(1.5 * _pressure_and_dev_norm2(stress, e)[1])
     return out
+
+
+@numba.njit(cache=True)
+def von_mises_max(stress: np.ndarray) -> float:
+    """Largest von Mises stress (Pa) over the cells, as ``von_mises(stress).max()`` without the
+    array (NaN if one is NaN, as numpy's ``max``; ``-inf`` for no cells, where numpy raises)."""
+    best = -np.inf
+    for e in range(stress.shape[0]):
+        best = _max_nan(best, math.sqrt(1.5 * _pressure_and_dev_norm2(stress, e)[1]))
+    return best
+
+
+@numba.njit(cache=True, inline="always")
+def _max_nan(best: float, value: float) -> float:
+    """max(best, value) as numpy's ``max`` reduces: a NaN sticks."""
+    return value if best == best and not value <= best else best
+
+
+@numba.njit(cache=True)
+def j2_times_3_max(stress: np.ndarray, ss: np.ndarray) -> float:
+    """Largest 3 J2 / 1.5 = s.s + s_xy^2 - tr^2 / 3 (Pa^2) over the cells, given
+    ``ss = np.einsum("ij,ij->i", stress, stress)``, rounded as the numpy expression
+    ``(ss + stress[:, 3] * stress[:, 3] - tr * tr / 3.0).max()``, tr = s_xx + s_yy + s_zz
+    (NaN if one is NaN; ``-inf`` for no cells). The einsum stays in numpy: its summation order
+    depends on the CPU's vector width."""
+    best = -np.inf
+    for e in range(stress.shape[0]):
+        tr = stress[e, 0] + stress[e, 1] + stress[e, 2]
+        best = _max_nan(best, (ss[e] + stress[e, 3] * stress[e, 3]) - tr * tr / 3.0)
+    return best
+
+
+@numba.njit(cache=True)
+def nodal_extremes(x: np.ndarray, X0: np.ndarray, v: np.ndarray, n: int) -> tuple[float, float, float]:
+    """Largest |u_x| (m), |u_y| (m) of the displacement u = x - X0 and largest |v| (m/s) over the
+    nodes i < n, as numpy's ``np.abs(u[:n, 0]).max()``, ``np.abs(u[:n, 1]).max()``,
+    ``np.sqrt((v[:n] ** 2).sum(axis=1)).max()`` (NaN if one is NaN; ``-inf`` for no nodes)."""
+    ux = -np.inf
+    uy = -np.inf
+    sp = -np.inf
+    for i in range(n):
+        ux = _max_nan(ux, abs(x[i, 0] - X0[i, 0]))
+        uy = _max_nan(uy, abs(x[i, 1] - X0[i, 1]))
+        sp = _max_nan(sp, math.sqrt(v[i, 0] * v[i, 0] + v[i, 1] * v[i, 1]))
+    return ux, uy, sp
 
 
 @numba.njit(cache=True)

@@ -19,9 +19,11 @@ from pulseform.orchestrator.cli import main
 
 REPO = Path(__file__).resolve().parents[2]
 EXE = str(Path(sys.executable).with_name("pulseform"))
-#: the paper's corner fill on very coarse meshes: ~7,600 explicit steps, a few seconds of stepping
+#: the paper's corner fill on very coarse meshes: ~15,000 explicit steps, a few seconds of stepping (its full
+#: 320 us: with history rows at ~0.3 ms, 160 us ran ~1.7 s from the first step to the end, shorter than the
+#: 1.5 s wait + shutdown of the signal test)
 CORNER = [EXE, "run", str(REPO / "cases/corner_fill"), "--quiet", "--set", "bodies.die.mesh_size=4e-3",
-          "--set", "bodies.blank.mesh_size=1e-3", "--set", "time.end=1.6e-4", "--set", "output.plots=false"]
+          "--set", "bodies.blank.mesh_size=1e-3", "--set", "time.end=3.2e-4", "--set", "output.plots=false"]
 TIMERS = ("load_time_s", "mech_time_s", "setup_time_s", "wall_time_s")
 
 
@@ -84,7 +86,7 @@ def test_signal_mid_run_then_resume_equals_uninterrupted(sig, reference, tmp_pat
     assert len(lines) == 1 and lines[0].startswith("pulseform: interrupted at t = ") \
         and "continue with --resume" in lines[0], err
     m = json.loads((out / "metrics.json").read_text())
-    assert m["status"] == "interrupted" and 0.0 < m["end_time_s"] < 1.6e-4, m
+    assert m["status"] == "interrupted" and 0.0 < m["end_time_s"] < 3.2e-4, m
     assert "interrupted at t =" in (out / "run.log").read_text()
     assert (out / "checkpoint.npz").is_file() and (out / "history.csv").is_file()
 
@@ -114,7 +116,7 @@ def test_two_runs_on_one_folder(tmp_path):
     _, err = first.communicate(timeout=300)
     assert first.returncode == 0, err
     m = json.loads((out / "metrics.json").read_text())
-    assert m["status"] == "ok" and m["end_time_s"] == pytest.approx(1.6e-4)
+    assert m["status"] == "ok" and m["end_time_s"] == pytest.approx(3.2e-4)
     # the lock died with the first run: --force may now replace the folder
     r = subprocess.run([*CORNER, "--out", str(out), "--force", "--set", "time.end=2e-5"], capture_output=True, text=True)
     assert r.returncode == 0, r.stderr[-2000:]
