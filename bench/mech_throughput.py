@@ -3,16 +3,19 @@
 compiled path (numba: the whole step in one compiled block, ``ExplicitSolver(compiled_steps=True)``)
 and the plain vectorised-numpy reference kernel in the Python step loop (gather, element-wise
 array arithmetic, np.bincount scatter; same algorithm), timed in the same run in alternating
-rounds (the machine is shared), with their ratio. Targets (issue 15): full step >= 50 M
-element-updates/s and >= 10x the numpy twin.
+rounds (the machine is shared), with their ratio; the compiled path on one thread and on
+``--threads`` (default: every core numba sees; ``ExplicitSolver(threads=...)``, same results bit
+for bit). Targets (issue 15): full step >= 50 M element-updates/s and >= 10x the numpy twin. The
+threaded figure needs idle cores: a core busy with another process slows every step.
 
-Usage: .venv/bin/python bench/mech_throughput.py [--n 224] [--steps 60]
+Usage: .venv/bin/python bench/mech_throughput.py [--n 224] [--steps 60] [--threads N]
 """
 from __future__ import annotations
 
 import argparse
 import time
 
+import numba
 import numpy as np
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
@@ -23,7 +26,7 @@ from pulseform.solvers.dolfinx.reference_kernel import element_step_numpy
 
 
 
-def build(n: int, kernel: str) -> ExplicitSolver:
+def build(n: int, kernel: str, threads: int = 1) -> ExplicitSolver:
     # 0.1 m block at 200 m/s onto a rigid wall: yields within a few steps (Al, paper section 5)
     msh = dmesh.create_rectangle(MPI.COMM_SELF, [np.array([0.0, 0.0]), np.array([0.1, 0.1])],
                                  [n, n])
@@ -31,7 +34,7 @@ def build(n: int, kernel: str) -> ExplicitSolver:
     return ExplicitSolver([BodySpec("block", msh, mat, initial_velocity=(-200.0, 0.0))],
                           formulation="plane_strain",
                           rigid_walls=(RigidWallSpec((0.0, 0.0), (1.0, 0.0)),), comm=msh.comm,
-                          kernel=kernel)
+                          kernel=kernel, threads=threads)
 
 
 def time_steps(s: ExplicitSolver, steps: int) -> float:
@@ -61,18 +64,22 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=224, help="cells per side / 2 (224 -> 100352 cells)")
     ap.add_argument("--steps", type=int, default=60)
+    ap.add_argument("--threads", type=int, default=numba.config.NUMBA_NUM_THREADS,
+                    help="threads of the threaded run (default: the cores numba sees)")
     a = ap.parse_args()
     s_nb = build(a.n, "numba")
+    s_th = build(a.n, "numba", a.threads)
     s_np = build(a.n, "numpy")
     ne = s_nb.bodies["block"].cells.shape[0]
-    for sv in (s_nb, s_np):                   # warm-up (JIT, caches)
+    for sv in (s_nb, s_th, s_np):             # warm-up (JIT, caches)
         sv.advance(sv.stable_time_step(), 2)
-    # the machine is shared: alternate the two in rounds and keep each one's best round
+    # the machine is shared: alternate the runs in rounds and keep each one's best round
     rounds = 5
     per = max(a.steps // rounds, 1)
-    t_nb, t_np, k_nb, k_np = [], [], [], []
+    t_nb, t_th, t_np, k_nb, k_np = [], [], [], [], []
     for _ in range(rounds):
         t_nb.append(time_steps(s_nb, per))
+        t_th.append(time_steps(s_th, per))
         t_np.append(time_steps(s_np, max(per // 4, 1)))
         k_nb.append(time_kernel(element_step, s_nb, 4))
         k_np.append(time_kernel(element_step_numpy, s_nb, 2))
@@ -80,14 +87,20 @@ def main() -> None:
     print(f"block impact: {ne} P1 cells, plastic cells {np.count_nonzero(eps)} "
           f"(max eps_p {eps.max():.3e}) after {s_nb.step_count} steps; {rounds} alternating rounds,"
           f" best round shown (median in brackets)")
-    for label, tb, tp in (("full explicit step", t_nb, t_np), ("element kernel only", k_nb, k_np)):
+    same = all(np.array_equal(getattr(s_nb.bodies["block"], k), getattr(s_th.bodies["block"], k))
+               for k in ("x", "v", "cell_stress", "eps_p")) and s_nb.energies() == s_th.energies()
+    for label, tb, tp in (("full explicit step", t_nb, t_np), (f"  on {a.threads} threads", t_th, t_np),
+                          ("element kernel only", k_nb, k_np)):
         print(f"{label:20s} numba: {ne / min(tb) / 1e6:7.2f} M element-updates/s "
               f"[{ne / np.median(tb) / 1e6:.2f}]   numpy: {ne / min(tp) / 1e6:6.2f} M/s "
               f"[{ne / np.median(tp) / 1e6:.2f}]   ratio {min(tp) / min(tb):5.2f}x "
               f"[{np.median(tp) / np.median(tb):.2f}x]")
-    full = ne / min(t_nb) / 1e6
-    print(f"full step numba {full:.2f} M element-updates/s (target 50)")
-    print(f"bench: mech_throughput full_step_numba_over_numpy={min(t_np) / min(t_nb):.2f} target=10")
+    print(f"one thread vs {a.threads} threads after {s_nb.step_count} steps each: state and energy "
+          f"ledger {'identical (bitwise)' if same else 'DIFFER'}")
+    print(f"full step numba {ne / min(t_nb) / 1e6:.2f} M element-updates/s on one thread, "
+          f"{ne / min(t_th) / 1e6:.2f} on {a.threads} (target 50)")
+    print(f"bench: mech_throughput full_step_numba_over_numpy={min(t_np) / min(t_nb):.2f} target=10 "
+          f"(on {a.threads} threads {min(t_np) / min(t_th):.2f})")
 
 
 if __name__ == "__main__":

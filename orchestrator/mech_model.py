@@ -45,4 +45,5 @@ def build_solver(case: Case, comm: MPI.Comm = MPI.COMM_WORLD,
     return mech.ExplicitSolver(bodies, formulation=mo.formulation, contact_pairs=pairs, rigid_walls=walls,
                                cfl=case.time.cfl, bulk_viscosity=mo.bulk_viscosity,
                                bulk_linear=mo.bulk_viscosity_linear, bulk_quadratic=mo.bulk_viscosity_quadratic,
-                               thickness=mo.thickness, comm=comm, compiled_steps=compiled_steps)
+                               thickness=mo.thickness, comm=comm, compiled_steps=compiled_steps,
+                               threads=mo.threads)

@@ -18,7 +18,8 @@ from .contact_kernel import contact_pass, surface_geometry
 from .kernels import element_step
 from .reductions import np_sum
 
-__all__ = ["BodyArrays", "WallArrays", "run_steps", "step", "switch_forces",
+__all__ = ["BodyArrays", "WallArrays", "run_steps", "step", "step_begin", "after_kernel",
+           "forces_end", "switch_forces",
            "follower_pressure", "EV_NONE", "EV_DT", "EV_INVERTED", "SC"]
 
 EV_NONE = 0
@@ -229,40 +230,38 @@ def _contact(C, B, sc, dt, ev, evf):
 
 
 @numba.njit(cache=True)
-def _forces(B, W, C, sc, dt, ev, evf):
-    """Internal (element kernel), external, contact and wall forces; a = f / m."""
-    nb = B.node_off.shape[0] - 1
-    B.f[:] = 0.0
-    dtc = np.inf
-    for ib in range(nb):
-        c0 = B.cell_off[ib]
-        c1 = B.cell_off[ib + 1]
-        B.acc[:] = 0.0
-        d = element_step(B.cells[c0:c1], B.x, B.v, dt, B.prm[ib], B.stress[c0:c1],
-                         B.eps_p[c0:c1], B.f, B.acc, B.work)
-        if B.acc[2] >= 0:
-            ev[0] = EV_INVERTED
-            ev[1] = ib
-            ev[2] = int(B.acc[2])
-            return
-        sc[_PL] += B.acc[0]
-        sc[_VI] += B.acc[1]
-        dtc = min(dtc, d)
-        n0 = B.node_off[ib]
-        n1 = B.node_off[ib + 1]
+def after_kernel(B, sc, ib, d, dtc, ev):
+    """Body ``ib``'s element kernel has added its internal forces to ``B.f`` and its dissipation
+    to ``B.acc`` (critical step ``d``, s): book them, f = f_ext - f_int on its nodes. Returns the
+    smallest critical step so far (``dtc``, s); an inverted cell is an event."""
+    if B.acc[2] >= 0:
+        ev[0] = EV_INVERTED
+        ev[1] = ib
+        ev[2] = int(B.acc[2])
+        return dtc
+    sc[_PL] += B.acc[0]
+    sc[_VI] += B.acc[1]
+    n0 = B.node_off[ib]
+    n1 = B.node_off[ib + 1]
+    for i in range(n0, n1):
+        B.f[i, 0] = -B.f[i, 0]
+        B.f[i, 1] = -B.f[i, 1]
+    if B.fext_on[ib]:
         for i in range(n0, n1):
-            B.f[i, 0] = -B.f[i, 0]
-            B.f[i, 1] = -B.f[i, 1]
-        if B.fext_on[ib]:
-            for i in range(n0, n1):
-                B.f[i, 0] += B.fext[i, 0]
-                B.f[i, 1] += B.fext[i, 1]
+            B.f[i, 0] += B.fext[i, 0]
+            B.f[i, 1] += B.fext[i, 1]
+    return min(dtc, d)
+
+
+@numba.njit(cache=True)
+def forces_end(B, W, C, sc, dt, dtc, ev, evf):
+    """After every body's element forces: the critical step, contact and wall forces; a = f / m."""
     sc[_DTC] = dtc
     if sc[_NCONTACT] > 0:
         _contact(C, B, sc, dt, ev, evf)
         if ev[0] != EV_NONE:
             return
-    for ib in range(nb):
+    for ib in range(B.node_off.shape[0] - 1):
         _wall_reactions(B, W, ib)
         for i in range(B.node_off[ib], B.node_off[ib + 1]):
             B.a[i, 0] = B.f[i, 0] / B.m[i]
@@ -273,8 +272,26 @@ def _forces(B, W, C, sc, dt, ev, evf):
 
 
 @numba.njit(cache=True)
-def step(B, W, C, sc, dt, ev, evf):
-    """One explicit step of size ``dt`` (s); ``ev[0]`` != 0 reports an event."""
+def _forces(B, W, C, sc, dt, ev, evf):
+    """Internal (element kernel), external, contact and wall forces; a = f / m."""
+    B.f[:] = 0.0
+    dtc = np.inf
+    for ib in range(B.node_off.shape[0] - 1):
+        c0 = B.cell_off[ib]
+        c1 = B.cell_off[ib + 1]
+        B.acc[:] = 0.0
+        d = element_step(B.cells[c0:c1], B.x, B.v, dt, B.prm[ib], B.stress[c0:c1],
+                         B.eps_p[c0:c1], B.f, B.acc, B.work)
+        dtc = after_kernel(B, sc, ib, d, dtc, ev)
+        if ev[0] != EV_NONE:
+            return
+    forces_end(B, W, C, sc, dt, dtc, ev, evf)
+
+
+@numba.njit(cache=True)
+def step_begin(B, W, sc, dt, ev):
+    """The step up to the forces: v^{n+1/2}, constraints, kinetic damping, external work, x^{n+1},
+    rigid walls, t^{n+1}; a step above the critical one is an event (nothing done)."""
     if dt > sc[_DTC] * (1 + 1e-12):
         ev[0] = EV_DT
         return
@@ -304,6 +321,14 @@ def step(B, W, C, sc, dt, ev, evf):
     sc[_WALL] += _apply_walls(B, W, sc)
     sc[_EXT] += wext
     sc[_T] = t_new
+
+
+@numba.njit(cache=True)
+def step(B, W, C, sc, dt, ev, evf):
+    """One explicit step of size ``dt`` (s); ``ev[0]`` != 0 reports an event."""
+    step_begin(B, W, sc, dt, ev)
+    if ev[0] != EV_NONE:
+        return
     _forces(B, W, C, sc, dt, ev, evf)
     if ev[0] != EV_NONE:
         return

@@ -65,8 +65,8 @@ def pack_parameters(material, mode: int, thickness: float, b1: float, b2: float,
 
 #: length (float64) of the scratch ``work`` of :func:`element_step`
 WORK_SIZE = (IN_ROWS + OUT_ROWS) * ROW + OUT_ROWS + 4
-#: cells per chunk: the dissipation sums are taken per chunk, then over the chunks in order (a
-#: chunk is the unit a threaded kernel would hand to a thread: the sums would not change)
+#: cells per chunk: the dissipation sums are taken per chunk, then over the chunks in order, so
+#: that the threaded kernel (:mod:`.kernel_threads`, a chunk per task) gives the same bits
 CHUNK = 8192
 
 
@@ -111,13 +111,14 @@ def element_step(cells, x, v, dt, prm, stress, eps_p, f_int, acc, work=None):
         work = np.empty(WORK_SIZE)
     nc = cells.shape[0]
     part = work[WORK_SIZE - 4:]
+    no_fe = work[:0].reshape(0, 7)
     dtmin = 1e300
     wp = 0.0
     wv = 0.0
     acc[2] = -1.0
     for e0 in range(0, nc, CHUNK):
-        element_chunk(cells, x, v, dt, prm, stress, eps_p, f_int, e0, min(nc, e0 + CHUNK), work,
-                      part)
+        element_chunk(cells, x, v, dt, prm, stress, eps_p, f_int, no_fe, e0, min(nc, e0 + CHUNK),
+                      work, part)
         dtmin = min(dtmin, part[0])
         wp += part[1]
         wv += part[2]
@@ -129,15 +130,18 @@ def element_step(cells, x, v, dt, prm, stress, eps_p, f_int, acc, work=None):
 
 
 @numba.njit(cache=True, error_model="numpy", fastmath=FM)
-def element_chunk(cells, x, v, dt, prm, stress, eps_p, f_int, e0, e1, work, part):
-    """Cells ``e0:e1`` of :func:`element_step`; their nodal forces are added to ``f_int`` in cell
-    order. ``part`` receives (smallest critical step s, plastic and bulk-viscous dissipation J
-    summed in cell order, first inverted cell or -1)."""
+def element_chunk(cells, x, v, dt, prm, stress, eps_p, f_int, fe, e0, e1, work, part):
+    """Cells ``e0:e1`` of :func:`element_step`. Their nodal forces are added to ``f_int`` in cell
+    order, or, if ``fe`` has rows, stored per cell in ``fe`` (nc, 7: f0x f0y f1x f1y f2x f2y, and
+    the hoop force per node in axisymmetry) for the threaded kernel's gather. ``part`` receives
+    (smallest critical step s, plastic and bulk-viscous dissipation J summed in cell order, first
+    inverted cell or -1)."""
     inp = work[:IN_ROWS * ROW]
     out = work[IN_ROWS * ROW:(IN_ROWS + OUT_ROWS) * ROW]
     one = work[(IN_ROWS + OUT_ROWS) * ROW:(IN_ROWS + OUT_ROWS) * ROW + OUT_ROWS]
     axi = int(prm[P_MODE]) == MODE_AXISYMMETRIC
     vector = int(prm[P_RATE]) == 0
+    store = fe.shape[0] > 0
     dtmin = 1e300
     wp = 0.0
     wv = 0.0
@@ -184,26 +188,33 @@ def element_chunk(cells, x, v, dt, prm, stress, eps_p, f_int, e0, e1, work, part
             if out[15 * ROW + j] == ST_INVERTED:
                 if bad < 0.0:
                     bad = e
+                if store:
+                    for r in range(7):
+                        fe[e, r] = 0.0
                 continue
             stress[e, 0] = out[0 * ROW + j]
             stress[e, 1] = out[1 * ROW + j]
             stress[e, 2] = out[2 * ROW + j]
             stress[e, 3] = out[3 * ROW + j]
             eps_p[e] = out[4 * ROW + j]
-            i0 = cells[e, 0]
-            i1 = cells[e, 1]
-            i2 = cells[e, 2]
-            f_int[i0, 0] += out[5 * ROW + j]
-            f_int[i0, 1] += out[6 * ROW + j]
-            f_int[i1, 0] += out[7 * ROW + j]
-            f_int[i1, 1] += out[8 * ROW + j]
-            f_int[i2, 0] += out[9 * ROW + j]
-            f_int[i2, 1] += out[10 * ROW + j]
-            if axi:
-                hoop = out[11 * ROW + j]
-                f_int[i0, 0] += hoop
-                f_int[i1, 0] += hoop
-                f_int[i2, 0] += hoop
+            if store:
+                for r in range(7):
+                    fe[e, r] = out[(5 + r) * ROW + j]
+            else:
+                i0 = cells[e, 0]
+                i1 = cells[e, 1]
+                i2 = cells[e, 2]
+                f_int[i0, 0] += out[5 * ROW + j]
+                f_int[i0, 1] += out[6 * ROW + j]
+                f_int[i1, 0] += out[7 * ROW + j]
+                f_int[i1, 1] += out[8 * ROW + j]
+                f_int[i2, 0] += out[9 * ROW + j]
+                f_int[i2, 1] += out[10 * ROW + j]
+                if axi:
+                    hoop = out[11 * ROW + j]
+                    f_int[i0, 0] += hoop
+                    f_int[i1, 0] += hoop
+                    f_int[i2, 0] += hoop
             dte = out[12 * ROW + j]
             if dte < dtmin:
                 dtmin = dte

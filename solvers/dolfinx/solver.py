@@ -4,6 +4,7 @@ from __future__ import annotations
 import logging
 from typing import Dict, Mapping, Optional, Sequence
 
+import numba
 import numpy as np
 from mpi4py import MPI
 
@@ -15,6 +16,7 @@ from .kernels import (MODE_AXISYMMETRIC, MODE_PLANE_STRAIN, MODE_PLANE_STRESS,
 from . import restart
 from .cell_fields import kinetic_sum
 from .block import EV_DT, EV_INVERTED, run_steps
+from .kernel_threads import run_steps_threaded
 from .block_data import BlockData, block_supported
 from .reference_kernel import element_step_numpy
 
@@ -59,6 +61,9 @@ class ExplicitSolver:
         Run the steps of :meth:`advance` in the compiled block path (:mod:`.block`; serial runs
         with constant prescribed velocities and the numba kernel) instead of the Python step
         loop. Both give the same bits; the Python loop is kept for MPI and as the reference.
+    threads : int
+        Threads of the element kernel (compiled block path only; default 1). The results do not
+        depend on it (:mod:`.kernel_threads`); at most the cores numba sees.
 
     Attributes
     ----------
@@ -73,7 +78,7 @@ class ExplicitSolver:
                  rigid_walls: Sequence[RigidWallSpec] = (), cfl: float = 0.5,
                  bulk_viscosity: bool = True, bulk_linear: float = 0.06,
                  bulk_quadratic: float = 1.2, thickness: float = 1.0, comm=MPI.COMM_WORLD,
-                 kernel: str = "numba", compiled_steps: bool = True):
+                 kernel: str = "numba", compiled_steps: bool = True, threads: int = 1):
         if formulation not in _MODES:
             raise ValueError(f"formulation must be one of {sorted(_MODES)}, got {formulation!r}")
         if not 0 < cfl <= 1:
@@ -86,6 +91,10 @@ class ExplicitSolver:
             raise ValueError("kernel must be 'numba' or 'numpy'")
         if not bodies:
             raise ValueError("need at least one body")
+        if int(threads) != threads or not 1 <= threads <= numba.config.NUMBA_NUM_THREADS:
+            raise ValueError(f"threads must be an integer from 1 to {numba.config.NUMBA_NUM_THREADS} "
+                             f"(the cores numba sees), got {threads}")
+        self.threads = int(threads)
         self.formulation = formulation
         self.mode = _MODES[formulation]
         self.cfl = float(cfl)
@@ -141,6 +150,9 @@ class ExplicitSolver:
         self._E0 = self._stored_energy()
         self._contact_stored0 = self._contact_stored
         why = block_supported(self) if kernel == "numba" else "the numpy kernel"
+        if self.threads > 1 and (why or not compiled_steps):
+            raise ValueError(f"threads = {self.threads} needs the compiled block path, not available here "
+                             f"({why or 'compiled_steps=False'})")
         if compiled_steps and not why:
             self._block = BlockData(self)
         else:
@@ -239,7 +251,11 @@ class ExplicitSolver:
         """``n_steps`` steps of size ``dt`` in the compiled path; raises its events."""
         bd = self._block
         bd.load()
-        run_steps(bd.B, bd.W, bd.C, bd.sc, dt, n_steps, bd.ev, bd.evf)
+        if bd.threaded is None:
+            run_steps(bd.B, bd.W, bd.C, bd.sc, dt, n_steps, bd.ev, bd.evf)
+        else:
+            numba.set_num_threads(self.threads)
+            run_steps_threaded(bd.B, bd.W, bd.C, bd.sc, dt, n_steps, bd.ev, bd.evf, bd.threaded)
         bd.store()
         self.raise_event(dt)
 

@@ -108,6 +108,8 @@ BAD_FILES = [
     ("velocity_inf", [(("bodies", 0, "initial_velocity"), [float("inf"), 0.0])], "bodies[0].initial_velocity[0]"),
     ("damping_until_minus_inf", [(("mechanics", "mass_damping_until"), float("-inf"))],
      "mechanics.mass_damping_until"),
+    ("threads_zero", [(("mechanics", "threads"), 0)], "mechanics.threads"),
+    ("threads_above_the_cores", [(("mechanics", "threads"), 10 ** 6)], "mechanics.threads"),
     ("n_5000_digits", [(("coupling",), {"n": 10 ** 4000})], "coupling.n"),
     ("end_int_4000_digits", [(("time", "end"), 10 ** 4000)], "time.end"),
 ]
