@@ -245,7 +245,10 @@ def batch_update(inp, out, n, dt, prm):
     ``out`` (OUT_ROWS x ROW, flattened); rate-independent materials only (``prm[P_RATE] == 0``).
     The formulas of :func:`cell_update`, with selects instead of branches so that the loop
     vectorises (LLVM also turns the branches on the formulation into selects: measured as fast as
-    one loop per formulation, which took minutes to compile).
+    one loop per formulation, which took minutes to compile). They are written out again here on
+    purpose: the loop vectorises only if everything in it is inlined, and sharing the formulas
+    through ``inline="always"`` helpers made numba compile this function in 31 s instead of 1.4 s
+    (same speed); ``test_batched_kernel_equals_the_scalar_cell_update`` keeps the two equal.
 
     Row ``15`` of ``out`` gives each cell's status: 1 done, 0 inverted (the rest of its outputs
     are meaningless), 2 a plane-stress return that needs the secant iteration (redo it with
