@@ -1,11 +1,11 @@
 """The explicit steps with the element kernel on several threads (``ExplicitSolver(threads=n)``).
 
 The cells go in fixed chunks of :data:`.kernels.CHUNK` (a task each) through
-:func:`.kernels.element_chunk`, which here stores each cell's nodal forces instead of adding them;
-then each node gathers its cells' forces in cell order (a node-to-cell map built once,
-:func:`force_map`), and the chunks' dissipation sums are added in chunk order. These are the
-serial kernel's sums in the serial order: the results do not depend on the number of threads, they
-are the serial results bit for bit.
+:func:`.kernels.element_chunk`. A node whose cells all lie in one chunk gets its forces added by
+that chunk's task, in cell order; for a node shared by chunks the forces are stored per cell and
+gathered afterwards in cell order (a node-to-cell map built once, :func:`force_map`); the chunks'
+dissipation sums are added in chunk order. These are the serial kernel's sums in the serial order:
+the results do not depend on the number of threads, they are the serial results bit for bit.
 
 The threaded kernel is a top-level numba ``parallel`` function called from Python once per body
 and step (:func:`run_steps_threaded`), between the compiled step phases of :mod:`.block`: numba
@@ -25,10 +25,6 @@ from .element_math import MODE_AXISYMMETRIC, P_MODE
 from .kernels import CHUNK, WORK_SIZE, element_chunk
 
 __all__ = ["force_map", "ThreadArrays", "element_step_threaded", "run_steps_threaded"]
-
-#: nodes per gather task
-NODE_CHUNK = 4096
-
 
 def force_map(cells: np.ndarray, n_nodes: int) -> tuple[np.ndarray, np.ndarray]:
     """Node-to-cell map of the force gather: for node i, ``ent[off[i]:off[i+1]]`` are
@@ -54,10 +50,13 @@ def force_map(cells: np.ndarray, n_nodes: int) -> tuple[np.ndarray, np.ndarray]:
 
 @dataclass
 class ThreadArrays:
-    """Per body: its cells' slices of the block arrays, per-cell forces (nc, 7), the
-    :func:`force_map` with node rows of the block, a scratch and a result row per chunk."""
+    """Per body: its cells' slices of the block arrays, the nodes shared by chunks (a flag per
+    node row of the block, and their body-local indices), per-cell forces (nc, 7), the
+    :func:`force_map` (body-local node indices), a scratch and a result row per chunk."""
 
     cells: list
+    shared: list
+    gather: list
     stress: list
     eps_p: list
     fe: list
@@ -70,7 +69,7 @@ class ThreadArrays:
     @classmethod
     def build(cls, B) -> "ThreadArrays":
         """The arrays for the bodies of the block arrays ``B`` (:class:`.block.BodyArrays`)."""
-        t = cls(*([] for _ in range(9)))
+        t = cls(*([] for _ in range(11)))
         for ib in range(len(B.node_off) - 1):
             n0, n1 = int(B.node_off[ib]), int(B.node_off[ib + 1])
             c0, c1 = int(B.cell_off[ib]), int(B.cell_off[ib + 1])
@@ -78,6 +77,15 @@ class ThreadArrays:
             off, ent = force_map(cells - n0, n1 - n0)
             nch = max(1, -(-(c1 - c0) // CHUNK))
             t.cells.append(cells)
+            chunk = np.arange(c1 - c0) // CHUNK
+            first = np.full(n1 - n0, np.iinfo(np.int64).max)
+            last = np.full(n1 - n0, -1)
+            np.minimum.at(first, cells.ravel() - n0, np.repeat(chunk, 3))
+            np.maximum.at(last, cells.ravel() - n0, np.repeat(chunk, 3))
+            sh = np.zeros(len(B.x), np.uint8)          # node rows of the block
+            sh[n0:n1] = first != last
+            t.shared.append(sh)
+            t.gather.append(np.flatnonzero(first != last).astype(np.int64))
             t.stress.append(B.stress[c0:c1])
             t.eps_p.append(B.eps_p[c0:c1])
             t.fe.append(np.zeros((max(c1 - c0, 1), 7)))
@@ -90,39 +98,39 @@ class ThreadArrays:
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _gather(off, ent, fe, f_int, n0, i0, i1, axi):
-    """f_int[n0 + i] += the forces of node i's cells in cell order, for i in i0..i1 (no fast-math:
-    the serial kernel's order of additions)."""
+def _gather(off, ent, fe, f_int, n0, nodes, k0, k1, axi):
+    """f_int[n0 + i] += the forces of node i's cells in cell order, for i in nodes[k0:k1] (no
+    fast-math: the serial kernel's order of additions)."""
     fef = fe.reshape(-1)
-    for i in range(i0, i1):
+    for k in range(k0, k1):
+        i = nodes[k]
         fx = f_int[n0 + i, 0]
         fy = f_int[n0 + i, 1]
         for j in range(off[i], off[i + 1]):
-            k = ent[j]
-            fx += fef[k]
-            fy += fef[k + 1]
+            e = ent[j]
+            fx += fef[e]
+            fy += fef[e + 1]
             if axi:
-                fx += fef[k - k % 7 + 6]
+                fx += fef[e - e % 7 + 6]
         f_int[n0 + i, 0] = fx
         f_int[n0 + i, 1] = fy
 
 
 @numba.njit(cache=True, parallel=True, error_model="numpy")
-def element_step_threaded(cells, x, v, dt, prm, stress, eps_p, f_int, acc, fe, off, ent, work,
-                          parts, n0, n1):
+def element_step_threaded(cells, x, v, dt, prm, stress, eps_p, f_int, acc, shared, gather, fe,
+                          off, ent, work, parts, n0):
     """:func:`.kernels.element_step` on the threads numba has (``numba.set_num_threads``), with the
-    same arguments and results (bit for bit) plus: ``fe`` (nc, 7) per-cell forces, ``off, ent``
-    the :func:`force_map` of these cells (node rows from ``n0``), ``work`` (chunks, WORK_SIZE) and
-    ``parts`` (chunks, 4) a scratch and a result row per chunk, ``n0:n1`` the node rows."""
+    same arguments and results (bit for bit) plus (see :class:`ThreadArrays`): ``shared`` the flag
+    per node row of the nodes shared by chunks, ``gather`` their indices from ``n0``, ``fe`` (nc, 7)
+    per-cell forces, ``off, ent`` the :func:`force_map` of these cells (node indices from ``n0``),
+    ``work`` (chunks, WORK_SIZE) and ``parts`` (chunks, 4) a scratch and a result row per chunk."""
     nc = cells.shape[0]
     nch = (nc + CHUNK - 1) // CHUNK
     for k in numba.prange(nch):
-        element_chunk(cells, x, v, dt, prm, stress, eps_p, f_int, fe, k * CHUNK,
+        element_chunk(cells, x, v, dt, prm, stress, eps_p, f_int, fe, shared, k * CHUNK,
                       min(nc, (k + 1) * CHUNK), work[k], parts[k])
     axi = int(prm[P_MODE]) == MODE_AXISYMMETRIC
-    nn = n1 - n0
-    for k in numba.prange((nn + NODE_CHUNK - 1) // NODE_CHUNK):
-        _gather(off, ent, fe, f_int, n0, k * NODE_CHUNK, min(nn, (k + 1) * NODE_CHUNK), axi)
+    _gather(off, ent, fe, f_int, n0, gather, 0, gather.shape[0], axi)   # few nodes: one thread
     dtmin = 1e300
     wp = 0.0
     wv = 0.0
@@ -150,10 +158,9 @@ def run_steps_threaded(B, W, C, sc, dt: float, n_steps: int, ev, evf, T: ThreadA
         dtc = np.inf
         for ib in range(len(T.cells)):
             B.acc[:] = 0.0
-            n0, n1 = T.nodes[ib]
             d = element_step_threaded(T.cells[ib], B.x, B.v, dt, B.prm[ib], T.stress[ib],
-                                      T.eps_p[ib], B.f, B.acc, T.fe[ib], T.off[ib], T.ent[ib],
-                                      T.work[ib], T.parts[ib], n0, n1)
+                                      T.eps_p[ib], B.f, B.acc, T.shared[ib], T.gather[ib], T.fe[ib],
+                                      T.off[ib], T.ent[ib], T.work[ib], T.parts[ib], T.nodes[ib][0])
             dtc = after_kernel(B, sc, ib, d, dtc, ev)
             if ev[0] != EV_NONE:
                 return k

@@ -68,6 +68,7 @@ WORK_SIZE = (IN_ROWS + OUT_ROWS) * ROW + OUT_ROWS + 4
 #: cells per chunk: the dissipation sums are taken per chunk, then over the chunks in order, so
 #: that the threaded kernel (:mod:`.kernel_threads`, a chunk per task) gives the same bits
 CHUNK = 8192
+_NO_SHARED = np.zeros(0, np.uint8)  # the serial kernel flags no node (a constant in compiled code)
 
 
 @numba.njit(cache=True, error_model="numpy", fastmath=FM)
@@ -117,8 +118,8 @@ def element_step(cells, x, v, dt, prm, stress, eps_p, f_int, acc, work=None):
     wv = 0.0
     acc[2] = -1.0
     for e0 in range(0, nc, CHUNK):
-        element_chunk(cells, x, v, dt, prm, stress, eps_p, f_int, no_fe, e0, min(nc, e0 + CHUNK),
-                      work, part)
+        element_chunk(cells, x, v, dt, prm, stress, eps_p, f_int, no_fe, _NO_SHARED, e0,
+                      min(nc, e0 + CHUNK), work, part)
         dtmin = min(dtmin, part[0])
         wp += part[1]
         wv += part[2]
@@ -130,12 +131,13 @@ def element_step(cells, x, v, dt, prm, stress, eps_p, f_int, acc, work=None):
 
 
 @numba.njit(cache=True, error_model="numpy", fastmath=FM)
-def element_chunk(cells, x, v, dt, prm, stress, eps_p, f_int, fe, e0, e1, work, part):
+def element_chunk(cells, x, v, dt, prm, stress, eps_p, f_int, fe, shared, e0, e1, work, part):
     """Cells ``e0:e1`` of :func:`element_step`. Their nodal forces are added to ``f_int`` in cell
-    order, or, if ``fe`` has rows, stored per cell in ``fe`` (nc, 7: f0x f0y f1x f1y f2x f2y, and
-    the hoop force per node in axisymmetry) for the threaded kernel's gather. ``part`` receives
-    (smallest critical step s, plastic and bulk-viscous dissipation J summed in cell order, first
-    inverted cell or -1)."""
+    order; if ``fe`` has rows (the threaded kernel), those of the nodes flagged in ``shared`` (node
+    rows of ``f_int``: nodes whose cells lie in more than one chunk) are stored per cell in ``fe``
+    instead (nc, 7: f0x f0y f1x f1y f2x f2y, and the hoop force per node in axisymmetry) for a
+    gather. ``part`` receives (smallest critical step s, plastic and bulk-viscous dissipation J
+    summed in cell order, first inverted cell or -1)."""
     inp = work[:IN_ROWS * ROW]
     out = work[IN_ROWS * ROW:(IN_ROWS + OUT_ROWS) * ROW]
     one = work[(IN_ROWS + OUT_ROWS) * ROW:(IN_ROWS + OUT_ROWS) * ROW + OUT_ROWS]
@@ -197,13 +199,30 @@ def element_chunk(cells, x, v, dt, prm, stress, eps_p, f_int, fe, e0, e1, work, 
             stress[e, 2] = out[2 * ROW + j]
             stress[e, 3] = out[3 * ROW + j]
             eps_p[e] = out[4 * ROW + j]
+            i0 = cells[e, 0]
+            i1 = cells[e, 1]
+            i2 = cells[e, 2]
             if store:
-                for r in range(7):
-                    fe[e, r] = out[(5 + r) * ROW + j]
+                if shared[i0] or shared[i1] or shared[i2]:
+                    for r in range(7):
+                        fe[e, r] = out[(5 + r) * ROW + j]
+                hoop = out[11 * ROW + j] if axi else 0.0
+                if not shared[i0]:
+                    f_int[i0, 0] += out[5 * ROW + j]
+                    f_int[i0, 1] += out[6 * ROW + j]
+                    if axi:
+                        f_int[i0, 0] += hoop
+                if not shared[i1]:
+                    f_int[i1, 0] += out[7 * ROW + j]
+                    f_int[i1, 1] += out[8 * ROW + j]
+                    if axi:
+                        f_int[i1, 0] += hoop
+                if not shared[i2]:
+                    f_int[i2, 0] += out[9 * ROW + j]
+                    f_int[i2, 1] += out[10 * ROW + j]
+                    if axi:
+                        f_int[i2, 0] += hoop
             else:
-                i0 = cells[e, 0]
-                i1 = cells[e, 1]
-                i2 = cells[e, 2]
                 f_int[i0, 0] += out[5 * ROW + j]
                 f_int[i0, 1] += out[6 * ROW + j]
                 f_int[i1, 0] += out[7 * ROW + j]
