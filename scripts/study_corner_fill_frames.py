@@ -3,9 +3,9 @@
     .venv/bin/python scripts/study_corner_fill_frames.py RESULTS_DIR [--spacing 1e-4] [--times t1,t2,...]
 
 For each field output of a corner-fill results folder (``fields/<case>_blank.xdmf/.h5`` and
-``_die``, read by ``pulseform.orchestrator.mech_fields``) it samples the die's cavity profile (the
+``_die``, read by ``pulseform.orchestrator.run.mech_fields``) it samples the die's cavity profile (the
 die's exterior edges with upward normal below the flange, initial configuration, as
-``orchestrator/analyses/corner_fill.py``) every ``--spacing`` metres of arc length, moves the
+``orchestrator/run/analyses/corner_fill.py``) every ``--spacing`` metres of arc length, moves the
 samples with the die's displacement, and measures the distance from each sample to the blank's
 boundary (current configuration). A sample counts as touched within ``2 h0`` (the analysis' rule).
 Prints per frame: the fine-sampled touched fraction now and so far, the untouched arc-length
@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pulseform.orchestrator.mech_fields import read_fields
+from pulseform.orchestrator.run.mech_fields import read_fields
 
 FILL_GAP_FACTOR = 2.0
 CORNER_RADIUS_KE = 0.01  # m: blank nodes within this distance of the corner count for its kinetic energy

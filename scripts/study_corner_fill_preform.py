@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pulseform.orchestrator.mech_fields import read_fields
+from pulseform.orchestrator.run.mech_fields import read_fields
 
 ROOT = Path(__file__).resolve().parents[1]
 CASE = ROOT / "cases" / "corner_fill_restrike"

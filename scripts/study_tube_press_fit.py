@@ -23,8 +23,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 CASE = ROOT / "cases" / "tube_press_fit"
 R0, R1, R_OUT, H0 = 0.0105, 0.0125, 0.025, 5.0e-5
-from pulseform.orchestrator.analyses.tube_press_fit import VANISH  # noqa: E402
-from pulseform.orchestrator.analyses.tube_press_fit import critical_clearance as _critical  # noqa: E402
+from pulseform.orchestrator.run.analyses.tube_press_fit import VANISH  # noqa: E402
+from pulseform.orchestrator.run.analyses.tube_press_fit import critical_clearance as _critical  # noqa: E402
 
 
 def outer_sets(c_percent: float) -> list[str]:
@@ -48,7 +48,7 @@ def run_one(out: Path, c: float, extra: list[str]) -> dict:
 
 def critical_clearance(rows: list[dict]) -> tuple[float, float]:
     """(last clearance with pressure, first clearance without), % of R0: the critical clearance lies
-    between them (``orchestrator/analyses/tube_press_fit.critical_clearance``)."""
+    between them (``orchestrator/run/analyses/tube_press_fit.critical_clearance``)."""
     return _critical([(r["clearance_percent"], r["residual_contact_pressure_MPa"]) for r in rows if r.get("ok")])
 
 

@@ -553,7 +553,7 @@ def runner_number_names() -> tuple[str, ...]:
     computes from a model and mesh (evaluated here on small models with every option on: a
     circuit or a prescribed current, a shell, a probe, a coil and two conductors) and (3)
     :data:`RUN_PRO_LISTS`.  A user deck's own parameters may not reuse any of them
-    (``pulseform.orchestrator.user_deck``).
+    (``pulseform.orchestrator.em.user_deck``).
     """
     names = set()
     for deck in ("Lib_PulsedForming.pro", "Lib_Persistent.pro"):

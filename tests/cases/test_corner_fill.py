@@ -15,7 +15,7 @@ import sys
 import numpy as np
 import pytest
 
-from pulseform.orchestrator.analyses.corner_fill import _point_segment_distance, _yielded_fraction
+from pulseform.orchestrator.run.analyses.corner_fill import _point_segment_distance, _yielded_fraction
 
 from .helpers import CORNER_COARSE, REPO, run_many
 
@@ -119,7 +119,7 @@ def test_p0_sweep_fill_grows_with_pressure(tmp_path):
 def test_touched_so_far_survives_kill_and_resume(tmp_path):
     """The fill fraction is a "touched at some time so far" record: a run killed after its first
     checkpoint and resumed must report the same fill metrics as the uninterrupted run (the record
-    travels in the checkpoint, orchestrator/mech_participants.py). Very coarse meshes (blank 1 mm,
+    travels in the checkpoint, orchestrator/mech/participants.py). Very coarse meshes (blank 1 mm,
     die 4 mm) and 160 us; the checkpoint at 120 us is taken after the blank has struck the bottom
     and rebounded, so that what was touched before it is not all touched again afterwards (checked
     on the uninterrupted run: fill so far > contact now there)."""
