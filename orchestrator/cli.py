@@ -159,7 +159,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         return 128 + signal.SIGINT
     except RunFailed as exc:
         from .case.guards import LimitExceeded
-        from .em.user_deck import DeckContractError
+        from .em.deck_check import DeckContractError
 
         # a user deck that breaks the contract, or meshes beyond [limits], is bad input found before the first step
         bad_input = isinstance(exc.__cause__, (DeckContractError, LimitExceeded))

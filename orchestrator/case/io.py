@@ -9,11 +9,12 @@ from typing import Any
 
 import tomli_w
 
+from .deck_files import resolve_deck_paths
+from .errors import MAX_MESSAGE, CaseError, one_line  # noqa: F401  (the case-file API)
 from .model import Case
 from .schema import SchemaError, from_dict, shorten, to_dict
 
 CASE_FILE_NAME = "case.toml"
-MAX_MESSAGE = 280  # characters of a CaseError's text (the CLI adds "pulseform: error: ")
 MAX_CASE_FILE = 2 * 2**20  # bytes: a case is a few kB; 2 MiB hold a polygon of ~80,000 vertices
 MAX_STRING = 10_000  # characters of any string in a case
 PATH_KEYS = (("geometry", "mesh"), ("geometry", "pro"))  # strings that name files
@@ -22,36 +23,6 @@ _SEGMENT = re.compile(r"^([A-Za-z_][A-Za-z0-9_\-]*)((?:\[\d+\])*)$")
 _CONTROL = re.compile(r"[\x00-\x1f\x7f-\x9f\u2028\u2029]")
 _STRING = re.compile(r""""(?:[^"\\\n]|\\.)*"|'[^'\n]*'""")  # one-line TOML strings
 _LONG_KEY = re.compile(r"""(?:(?:[A-Za-z0-9_-]+|"[^"\n]*"|'[^'\n]*')[ \t]*\.[ \t]*){%d}""" % MAX_KEY_PARTS)
-
-
-def one_line(text: str, limit: int = MAX_MESSAGE) -> str:
-    """``text`` as one printable line of at most ``limit`` characters.
-
-    Control characters (newlines, NUL, ...) and unencodable ones (lone surrogates) are escaped; a
-    longer text keeps its start and end around `` … ``.
-    """
-    text = _CONTROL.sub(lambda m: m.group().encode("unicode_escape").decode("ascii"), text)
-    text = text.encode("utf-8", "backslashreplace").decode("utf-8")
-    if len(text) > limit:
-        head = (limit - 3) * 2 // 3
-        text = text[:head] + " … " + text[len(text) - (limit - 3 - head):]
-    return text
-
-
-class CaseError(ValueError):
-    """A case file or an override is invalid. ``str()`` is one line naming file and key path.
-
-    The line is at most :data:`MAX_MESSAGE` characters: a long source, key or message is elided in
-    the middle, control characters are escaped.
-    """
-
-    def __init__(self, source: str, path: str, message: str) -> None:
-        self.source = source
-        self.path = path
-        self.message = message
-        src, key = one_line(source, 120), one_line(path, 100)
-        where = f"{src}: {key}: " if path else f"{src}: "
-        super().__init__(where + one_line(message, MAX_MESSAGE - len(where)))
 
 
 def resolve_case_file(path: str | Path) -> Path:
@@ -218,8 +189,6 @@ def load_case(path: str | Path, overrides: list[str] | tuple[str, ...] = ()) -> 
         apply_override(data, segments, value, source)
     source = f"{file}" + (" (with --set overrides)" if overrides else "")
     check_strings(data, source)
-    from ..em.user_deck import resolve_deck_paths  # a user's own .geo/.msh + .pro: paths from the case folder
-
     try:
         resolve_deck_paths(data, file, source)
     except (OSError, ValueError) as exc:  # CaseError is a ValueError: passed on as it is

@@ -14,6 +14,7 @@ from typing import Literal
 
 from .em_model import (EM, CapacitorBank, DampedSineCurrent, FlatCoilSheet, Geometry, OuterTube, PlanarCoilBlankDie,
                       SheetDie, SolenoidTube)
+from .guards import check_resources
 from .schema import SchemaError, shorten, spec
 
 __all__ = ["Box", "Rectangle", "Polygon", "Shape", "CowperSymonds", "JohnsonCook", "Material", "FixedBoundary",
@@ -397,8 +398,6 @@ class Case:
         if self.output.field_interval is not None and self.output.field_interval > self.time.end:
             raise SchemaError("output.field_interval",
                               f"got {self.output.field_interval:g}; must be <= time.end = {self.time.end:g} (s)")
-        from .guards import check_resources
-
         check_resources(self)
 
     def _validate_coupled(self) -> None:

@@ -27,7 +27,8 @@ from __future__ import annotations
 import logging
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
+from typing import Any
 
 import numpy as np
 
@@ -78,6 +79,14 @@ class LoopOptions:
     landing: str = "even"
     max_growth: float = 2.0
     block: int = 1
+
+    @classmethod
+    def from_coupling(cls, coupling: Any, **overrides: Any) -> LoopOptions:
+        """The options of a coupled case: every field the case's ``[coupling]`` table shares with
+        these options (n, adaptive, n_min, n_max, adapt_tol, iterate, iterate_tol, iterate_max) taken
+        from it by name, the rest defaults or ``overrides``."""
+        shared = {f.name: getattr(coupling, f.name) for f in fields(cls) if hasattr(coupling, f.name)}
+        return cls(**{**shared, **overrides})
 
     def __post_init__(self) -> None:
         if not 1 <= self.n_min <= self.n <= self.n_max:

@@ -21,11 +21,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-
-def triangle_areas(x: np.ndarray, cells: np.ndarray) -> np.ndarray:
-    """Signed areas (m²) of triangles; positive for counter-clockwise node order."""
-    a, b, c = x[cells[:, 0]], x[cells[:, 1]], x[cells[:, 2]]
-    return 0.5 * ((b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (c[:, 0] - a[:, 0]) * (b[:, 1] - a[:, 1]))
+from ..mesh.triangles import boundary_facets, triangle_areas  # noqa: F401  (also used by the transfer's callers)
 
 
 def nodal_volume_weights(x: np.ndarray, cells: np.ndarray, *, axisymmetric: bool,
@@ -67,17 +63,6 @@ def ledger_error(nodal: np.ndarray, integral: np.ndarray) -> float:
     ref = float(np.linalg.norm(integral))
     diff = float(np.linalg.norm(total - integral))
     return diff / ref if ref > 0.0 else diff
-
-
-def boundary_facets(cells: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """Boundary edges (K, 2) oriented with the body on their left (counter-clockwise boundary)."""
-    c = cells.copy()
-    neg = triangle_areas(x, c) < 0
-    c[neg] = c[neg][:, [0, 2, 1]]
-    edges = np.concatenate([c[:, [0, 1]], c[:, [1, 2]], c[:, [2, 0]]])
-    key = np.sort(edges, axis=1)
-    _, inverse, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
-    return edges[counts[inverse] == 1]
 
 
 def pressure_to_nodal_forces(x: np.ndarray, facets: np.ndarray, pressure: float, *, axisymmetric: bool,

@@ -33,7 +33,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .user_deck import CIRCUIT_TABLES, REQUIRED_TABLES, DeckContractError, _short
+from pulseform.solvers.getdp.contract import CIRCUIT_TABLES, REQUIRED_TABLES
+
+from ..case.deck_files import short
 
 if TYPE_CHECKING:
     from pulseform.solvers.getdp import EMMesh, EMState, EMStepResult, GetDPSolver
@@ -45,6 +47,18 @@ CHECK_STEP_S = 1e-7
 #: largest relative difference between two chained one-step runs and one two-step run (measured on
 #: the example: 9e-13 through the Init path, whose nodal values travel as printed tables)
 CARRY_RTOL = 1e-9
+
+
+class DeckContractError(RuntimeError):
+    """A user's deck or mesh does not fulfil the deck contract (one-line message naming what is missing).
+
+    ``message`` is the line without the log; ``log_path`` the gmsh/getdp log it refers to, if any
+    (``str()`` appends ``(log: <path>)``)."""
+
+    def __init__(self, message: str, *, log_path: Path | None = None) -> None:
+        self.message = message
+        self.log_path = None if log_path is None else Path(log_path)
+        super().__init__(message if log_path is None else f"{message} (log: {log_path})")
 
 
 @dataclass
@@ -154,7 +168,7 @@ def _run(solver: GetDPSolver, mesh: EMMesh, state: EMState, t_end: float, n_sub:
         raise _getdp_failure(deck, run_dir, exc) from None
     except (RuntimeError, ValueError, OSError, IndexError) as exc:  # the solver could not read the output
         result, error = None, exc
-    text = _short((str(error) or type(error).__name__).splitlines()[0], 200) if error is not None else ""
+    text = short((str(error) or type(error).__name__).splitlines()[0], 200) if error is not None else ""
     if error is not None and not (run_dir / "getdp.log").is_file():  # refused before getdp ran
         raise DeckContractError(f"deck {deck}: the check could not start getdp: {text}")
     _contract_tables(solver, run_dir, deck)
@@ -176,7 +190,7 @@ def _getdp_failure(deck: Path, run_dir: Path, exc: Exception) -> DeckContractErr
     hint = ""
     if any("Resolution" in e and RESOLUTION in e for e in errs) or any("Unknown Resolution" in e for e in errs):
         hint = f"; the contract needs Resolution {RESOLUTION}"
-    return DeckContractError(f"deck {deck}: getdp failed on the contract check: {_short(errs[0], 200)}{hint}",
+    return DeckContractError(f"deck {deck}: getdp failed on the contract check: {short(errs[0], 200)}{hint}",
                              log_path=log_file)
 
 
@@ -229,7 +243,7 @@ def _solves_the_model(solver: GetDPSolver, mesh: EMMesh, out: Path, deck: Path) 
     conductor element, a field state on every coil and conductor node; else one line listing
     everything that is hollow."""
     from pulseform.solvers.getdp import conductor_tag
-    from pulseform.solvers.getdp.solver import _element_table
+    from pulseform.solvers.getdp.solver import read_element_table
 
     model = solver.model
     problems: list[str] = []
@@ -245,14 +259,14 @@ def _solves_the_model(solver: GetDPSolver, mesh: EMMesh, out: Path, deck: Path) 
     want = np.flatnonzero(np.isin(mesh.tri_tags, tags)) + 1
     roles = "workpiece and die" if len(tags) > 1 else "workpiece"
     try:
-        ids, _ = _element_table(out / "elem_f.txt", 3, 1)
+        ids, _ = read_element_table(out / "elem_f.txt", 3, 1)
     except (RuntimeError, ValueError, OSError):
         ids = np.zeros(0, np.int64)
     if len(ids) != len(want) or not np.array_equal(np.sort(ids), want):
         extra = len(np.setdiff1d(ids, want))
         problems.append(f"force rows for {len(np.intersect1d(ids, want))} of {len(want)} {roles} elements"
                         + (f" (+{extra} elsewhere)" if extra else ""))
-    _, nodes = solver._cs_nodes(mesh)
+    _, nodes = solver.conductor_nodes(mesh)
     d = _read_rows(out / "nodes_a.txt") if (out / "nodes_a.txt").is_file() else np.zeros((0, 2))
     state_nodes = np.unique(d[:, 0].astype(np.int64)) - 1 if len(d) else np.zeros(0, np.int64)
     if not np.isin(nodes, state_nodes).all():

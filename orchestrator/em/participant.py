@@ -39,11 +39,12 @@ from pulseform.solvers.getdp.mesh import SHELL as SHELL_TAG
 from pulseform.solvers.getdp.solver import discard_folder
 
 from ..case.model import Case
+from ..coupling.interfaces import LoadStep
+from ..coupling.transfer import cell_force_integral, cell_to_nodal_forces
 from ..mesh.em_geometry import EMGeometry
 from ..mesh.motion import MeshMover, MeshQualityError
-from ..coupling.interfaces import LoadStep
+from ..mesh.remesh import remesh_around
 from ..mesh.shared import ConductorMesh
-from ..coupling.transfer import cell_force_integral, cell_to_nodal_forces
 
 log = logging.getLogger(__name__)
 
@@ -192,8 +193,6 @@ class GetDPLoad:
 
     def _remesh(self, positions: dict[str, np.ndarray]) -> None:
         """Mesh air, coil and shell again around the bodies' current shapes (see :mod:`.remesh`)."""
-        from ..mesh.remesh import remesh_around
-
         parts = []
         for b in self.bodies:
             cur = np.zeros_like(self.x_ref)

@@ -7,8 +7,8 @@ from mpi4py import MPI
 from pulseform.solvers import dolfinx as mech
 
 from ..case.model import Case, CowperSymonds, Material
-from .pulses import box_marker
 from ..mesh.shapes import mesh_shape
+from .pulses import box_marker
 
 
 def solver_material(m: Material) -> "mech.Material":

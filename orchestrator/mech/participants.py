@@ -13,8 +13,8 @@ from mpi4py import MPI
 from pulseform.solvers.dolfinx.block import EV_NONE, SC, follower_pressure, step, switch_forces
 
 from ..case.model import Load
-from .pulses import T_END, T_START, box_marker, pulse_pressure, pulse_table, pulse_value
 from ..coupling.interfaces import LoadStep
+from .pulses import T_END, T_START, box_marker, pulse_pressure, pulse_table, pulse_value
 
 log = logging.getLogger(__name__)
 

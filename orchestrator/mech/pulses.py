@@ -25,6 +25,18 @@ def pulse_pressure(load: Load, t: float) -> float:
     return load.amplitude * math.exp(-tau / load.decay_time)
 
 
+def sin2_pulse(t: np.ndarray, p0: float, beta: float, omega: float) -> np.ndarray:
+    """Eq. (7) with its time origin at the pulse's start, vectorised (Pa; for fits and plots):
+    ``p0 e^(−βt) sin²(ωt)``. :func:`pulse_pressure` and the compiled :func:`pulse_value` evaluate the
+    same formula at one time (with ``math``: the run's bits)."""
+    return p0 * np.exp(-beta * t) * np.sin(omega * t) ** 2
+
+
+def exp_pulse(t: np.ndarray, p0: float, decay: float) -> np.ndarray:
+    """Eq. (8) with its time origin at the pulse's start, vectorised (Pa): ``p0 e^(−t/T)``."""
+    return p0 * np.exp(-t / decay)
+
+
 def pulse_table(loads: tuple[Load, ...]) -> np.ndarray:
     """The pulses as rows [kind (0: eq. 7, 1: eq. 8), amplitude (Pa), beta (1/s), omega (rad/s),
     decay time (s), t_start (s), t_end (s), 2.0] for :func:`pulse_value`.

@@ -15,7 +15,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
-from ..coupling.transfer import triangle_areas
+from .triangles import triangle_areas
 
 log = logging.getLogger(__name__)
 

@@ -18,7 +18,7 @@ from pulseform.solvers.getdp import EMMesh
 from pulseform.solvers.getdp.mesh import AIR, AXIS, OUTER, SHELL, Rect, gmsh_physical_elements, gmsh_session
 from pulseform.solvers.getdp.runner import call_in_child
 
-from ..coupling.transfer import boundary_facets, triangle_areas
+from .triangles import boundary_facets, triangle_areas
 
 log = logging.getLogger(__name__)
 

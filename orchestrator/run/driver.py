@@ -19,18 +19,22 @@ from mpi4py import MPI
 from pulseform.solvers import dolfinx as mech
 from pulseform.solvers.dolfinx.cell_fields import j2_times_3_max, nodal_extremes
 
-from . import interrupt
-from ..mech import probes as probe_mod
-from ..case.model import Case
-from .checkpoint import CHECKPOINT_NAME, load_checkpoint, save_checkpoint
-from .em_fields import EMFieldWriter, write_peak_snapshot
 from ..case.guards import check_steps_of_meshes
-from .analyses import create as create_analysis
-from .history import History
+from ..case.model import Case
+from ..coupling.interfaces import LoadProvider
 from ..coupling.loop import LoopOptions, StaggeredLoop
+from ..em.participant import ConductorBody, GetDPLoad, em_model
+from ..em.user_deck import build_user_geometry, user_deck_load
+from ..mech import probes as probe_mod
 from ..mech.model import build_solver
 from ..mech.participants import DolfinxMechanics, PressurePulses
-from ..coupling.interfaces import LoadProvider
+from ..mesh.em_geometry import build_em_geometry
+from ..mesh.shared import conductor_submesh, match_nodes, to_dolfinx
+from . import interrupt
+from .analyses import create as create_analysis
+from .checkpoint import CHECKPOINT_NAME, load_checkpoint, save_checkpoint
+from .em_fields import EMFieldWriter, write_peak_snapshot
+from .history import History
 from .progress import Progress
 from .results import ResultsFolder
 
@@ -74,9 +78,7 @@ class CaseDriver:
         cp = case.coupling
         if case.case.kind == "coupled":
             self.solver, load = _coupled_participants(case, results, comm)
-            options = LoopOptions(n=cp.n, adaptive=cp.adaptive, n_min=cp.n_min, n_max=cp.n_max,
-                                  adapt_tol=cp.adapt_tol, iterate=cp.iterate, iterate_tol=cp.iterate_tol,
-                                  iterate_max=cp.iterate_max)
+            options = LoopOptions.from_coupling(cp)
         else:
             # the explicit mechanics alone has no step-ratio limit: full steps, one shorter step at a milestone
             self.solver, options = build_solver(case, comm), LoopOptions(n=1, n_max=1, landing="last",
@@ -89,7 +91,7 @@ class CaseDriver:
         self.loop = StaggeredLoop(load, self.mechanics, options, dt_max=case.time.dt_max)
         self.probes = probe_mod.attach(self.solver, case.probes, comm)
         self.analyses = [create_analysis(name, case) for name in case.analysis]
-        self.load_columns = LOAD_COLUMNS_COUPLED if isinstance(self.load, _GetDPLoad()) else \
+        self.load_columns = LOAD_COLUMNS_COUPLED if isinstance(self.load, GetDPLoad) else \
             ("force_x_N", "force_y_N") + tuple(f"load{i}_pressure_Pa" for i in range(len(case.loads)))
         self.history = History(results.root / "history.csv")
         self.part = 0
@@ -260,7 +262,7 @@ class CaseDriver:
         if case.loads or case.case.kind == "coupled":
             metrics["force_impulse_Ns"] = float(np.linalg.norm(c.impulse))
             metrics["force_impulse_z_Ns"] = float(c.impulse[1])
-        if isinstance(self.load, _GetDPLoad()):
+        if isinstance(self.load, GetDPLoad):
             metrics.update(coupled_metrics(self.history, c))
             metrics.update({f"em_{k}": v for k, v in self.load.timers.items()})
         metrics.update(mech_metrics(s, case, self.history))
@@ -281,12 +283,6 @@ LOAD_COLUMNS_COUPLED = ("force_x_N", "force_y_N", "conservation_error_rel", "coi
                         "em_mesh_min_quality", "em_remeshes")
 
 
-def _GetDPLoad():  # noqa: N802 - the class, imported lazily (GetDP modules only for coupled runs)
-    from ..em.participant import GetDPLoad
-
-    return GetDPLoad
-
-
 def _pressure_pulses(case: Case) -> PressurePulses:
     """The case's pressure pulses with its damping options."""
     mo = case.mechanics
@@ -296,15 +292,11 @@ def _pressure_pulses(case: Case) -> PressurePulses:
 
 def _coupled_participants(case: Case, results: ResultsFolder, comm: MPI.Comm):
     """Mesh the EM setup, cut the conductor bodies' mechanical meshes from it, build solver and GetDP load."""
-    from ..em.participant import ConductorBody, GetDPLoad, em_model
-    from ..mesh.em_geometry import build_em_geometry
-    from ..mesh.shared import conductor_submesh, match_nodes, to_dolfinx
 
     if comm.size > 1:
         raise NotImplementedError("coupled runs are serial for now (the GetDP participant and the force transfer run on one process)")
     user_deck = case.geometry.type == "user_deck"  # a user's own .geo/.msh + .pro (orchestrator/em/user_deck.py)
     if user_deck:
-        from ..em.user_deck import build_user_geometry
 
         geometry = build_user_geometry(case, results.root / "em_mesh", results.root / "em")
     else:
@@ -322,7 +314,6 @@ def _coupled_participants(case: Case, results: ResultsFolder, comm: MPI.Comm):
                                     match_nodes(solver.bodies[name].X0, geometry.mesh.points, 1e-12 * scale)))
     g = case.geometry
     if user_deck:
-        from ..em.user_deck import user_deck_load
 
         load = user_deck_load(case, geometry, results.root / "em", bodies, case.coupling.em_substeps)
     else:

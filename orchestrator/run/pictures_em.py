@@ -33,6 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .history import History
 from .plots import _save, plt
 
 log = logging.getLogger(__name__)
@@ -115,8 +116,6 @@ def peak_file(root: Path) -> tuple[float, float, Path] | None:
 def _current_at(root: Path, times: list[float]) -> list[float | None]:
     """Coil current (A) of the history row nearest each time (None without history or column)."""
     try:
-        from .history import History
-
         h = History.read(root / "history.csv")
         t, i = h.column("time_s"), h.column("coil_current_A")
     except (OSError, ValueError, StopIteration):

@@ -12,6 +12,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from ..case.io import CaseError, load_resolved_case  # noqa: E402
+from .analyses import create  # noqa: E402
 from .history import History  # noqa: E402
 from .units import TimeAxis, label, shown, time_axis, unit_of  # noqa: E402
 
@@ -223,8 +225,6 @@ def draw_all(results_dir: Path, *, case=None, history: History | None = None, sh
     attempt("history columns", plot_probes, history, folder, None, axis)
 
     if case is not None and analyses is None:
-        from .analyses import create
-
         analyses = [create(name, case) for name in case.analysis]
     if shapes is None and case is not None and (analyses or mech is None):
         shapes = read_shapes(root, case, skip)
@@ -248,8 +248,6 @@ def _stamps(folder: Path) -> dict[Path, int]:
 
 def _read_case(root: Path, skip):
     """The run's resolved case from ``case.toml`` (None, with a skip line, if it cannot be read)."""
-    from ..case.io import CaseError, load_resolved_case
-
     try:
         return load_resolved_case(root / "case.toml")
     except CaseError as exc:

@@ -31,6 +31,8 @@ import time
 from pathlib import Path
 from typing import Any, Iterable, Sequence
 
+from .. import __version__
+
 
 class ResultsExistError(FileExistsError):
     """The results folder exists and neither ``--force`` nor ``--resume`` was given, or it cannot be
@@ -201,8 +203,6 @@ class ResultsFolder:
             self._lock_fd = None
 
     def _write_marker(self) -> None:
-        from .. import __version__
-
         atomic_write_text(self.root / MARKER_NAME, json.dumps(
             {"made_by": f"pulseform {__version__}", "pid": os.getpid(), "host": socket.gethostname(),
              "started": time.strftime("%Y-%m-%dT%H:%M:%S%z")}) + "\n")

@@ -14,9 +14,9 @@ from typing import Iterator
 
 from mpi4py import MPI
 
-from . import interrupt
-from ..case.model import Case
 from ..case.io import case_to_toml
+from ..case.model import Case
+from . import interrupt
 from .results import DISK_FULL_ERRNOS, ResultsFolder, refuse_if_in_use
 
 log = logging.getLogger(__name__)

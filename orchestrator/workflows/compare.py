@@ -26,10 +26,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ..case.model import Case, FlatCoilSheet, PlanarCoilBlankDie, SolenoidTube
 from ..case.io import CaseError, load_case, read_toml, resolve_case_file
-from .children import run_pulseform
+from ..case.model import Case, FlatCoilSheet, PlanarCoilBlankDie, SolenoidTube
+from ..mech.pulses import exp_pulse, sin2_pulse
 from ..run.results import ResultsFolder, read_metrics
+from .children import run_pulseform
 from .validate import write_json
 
 log = logging.getLogger(__name__)
@@ -96,14 +97,6 @@ def loaded_surface(case: Case) -> tuple[dict[str, float], float, int, float]:
 
 
 # --------------------------------------------------------------------------- fits
-def sin2_pulse(t, p0, beta, omega):
-    return p0 * np.exp(-beta * t) * np.sin(omega * t) ** 2
-
-
-def exp_pulse(t, p0, decay):
-    return p0 * np.exp(-t / decay)
-
-
 def fit_pulse(t: np.ndarray, p: np.ndarray, kind: str = "sin2") -> dict[str, float]:
     """Least-squares eq. (7) (``sin2``: P0, β, ω) or eq. (8) (``exp``: p0, T) fit of p(t) (Pa).
 

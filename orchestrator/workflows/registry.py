@@ -21,8 +21,8 @@ from typing import Callable
 
 import numpy as np
 
-from .children import run_pulseform
 from ..run.results import read_metrics
+from .children import run_pulseform
 
 REPO = Path(__file__).resolve().parents[1]
 PROVENANCE_KEYS = ("source", "figure", "units", "obtained")

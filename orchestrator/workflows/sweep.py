@@ -16,8 +16,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..case.io import CaseError, load_case, parse_override
-from .children import run_pulseform
 from ..run.results import ResultsFolder, read_metrics, write_csv
+from ..run.units import label
+from .children import run_pulseform
 
 log = logging.getLogger(__name__)
 
@@ -203,8 +204,6 @@ def plot_sweep(todo: list[Member], grid: dict[str, list[str]], folder: Path) -> 
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-
-    from ..run.units import label
 
     ok = [m for m in todo if m.returncode == 0]
     for key in grid:

@@ -17,7 +17,9 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import __version__
 from ..run.results import ResultsFolder, atomic_write_text
+from .info import collect
 from .registry import REGISTRY, REPO, RUNS, Analytic, CsvCurve, Entry, ReferenceError_, RunOutput
 
 log = logging.getLogger(__name__)
@@ -255,12 +257,8 @@ def _write_report(outcomes: list[Outcome], runs: dict, root: Path) -> None:
 
 def _environment() -> dict[str, str]:
     """Versions of pulseform and the programs it ran (as ``pulseform info``), next to the results."""
-    from .. import __version__
-
     env = {"pulseform": __version__}
     try:
-        from .info import collect
-
         env.update({c.name: c.version for c in collect()})
     except Exception as exc:  # never lose a report over a version query
         env["error"] = str(exc)

@@ -30,7 +30,7 @@ from .model import EMModel, EMState, EMStepResult
 from .persistent_process import (FLAG_COND_FIELDS, FLAG_ELEM, FLAG_FIELDS, FLAG_STATE, LEAN_GLOBALS, PERSISTENT_LIB,
                                  PersistentProcess, StepAnswer, nodal_dof_map, read_binary_res)
 from .runner import GetDPError, RunInfo, log_tail
-from .solver import CASE_DECK, DEFAULT_PETSC_ARGS, GetDPSolver, _element_table, _element_volumes, init_list_line
+from .solver import CASE_DECK, DEFAULT_PETSC_ARGS, GetDPSolver, _element_volumes, init_list_line, read_element_table
 
 log = logging.getLogger(__name__)
 
@@ -216,7 +216,7 @@ class PersistentGetDPSolver(GetDPSolver):
         dt = t_end - state.t
         nk = len(m.conductors)
         if nk:
-            ids, eF = _element_table(out / "elem_F.txt", 3, 1)
+            ids, eF = read_element_table(out / "elem_F.txt", 3, 1)
             elements = ids - 1
             if self.elements is None or not np.array_equal(elements, self.elements):
                 self.elements = elements
@@ -286,10 +286,10 @@ class PersistentGetDPSolver(GetDPSolver):
 
     def _read_conductor_fields(self, r: PersistentStepResult, mesh: EMMesh) -> None:
         out = self.proc.out_dir
-        ids, eP = _element_table(out / "elem_P.txt", 1, 1)
+        ids, eP = read_element_table(out / "elem_P.txt", 1, 1)
         vol = _element_volumes(mesh.with_points(self.proc.points), ids - 1, self.model.axisymmetric)
         r.joule_density = eP[:, :, 0] / vol[None, :]
-        r.flux_density = _element_table(out / "elem_b.txt", 3, 1)[1][:, :, :2]
+        r.flux_density = read_element_table(out / "elem_b.txt", 3, 1)[1][:, :, :2]
 
     def _conductor_fields(self, r: PersistentStepResult) -> None:
         """Fetch Joule power and B on the conductors of the current step (a query)."""
@@ -332,7 +332,7 @@ class PersistentGetDPSolver(GetDPSolver):
             self._a_index = nodal_dof_map(p.run_dir / "em.pre", 0, p.mesh.n_nodes)
         index, n_dofs = self._a_index
         x_n, x_prev = read_binary_res(res, n_dofs)[-2:]
-        tri, used = self._cs_nodes(p.mesh)
+        tri, used = self.conductor_nodes(p.mesh)
         remap = np.full(p.mesh.n_nodes, -1, np.int64)
         remap[used] = np.arange(len(used))
 

@@ -48,7 +48,7 @@ def discard_folder(path: Path) -> threading.Thread | None:
     return thread
 
 
-def _element_table(path: Path, ncomp: int, n_blocks: int) -> tuple[np.ndarray, np.ndarray]:
+def read_element_table(path: Path, ncomp: int, n_blocks: int) -> tuple[np.ndarray, np.ndarray]:
     """Read ``n_blocks`` appended getdp ElementTable blocks (count, then "id v1 .. vncomp" rows).
 
     Returns (element ids of the first block, values (n_blocks, count, ncomp)); every block
@@ -318,7 +318,7 @@ class GetDPSolver:
         fb, fa = out / "field_b.txt", out / "field_a.txt"
         if not (fb.is_file() and fa.is_file()):
             return
-        ids, vals = _element_table(fb, 3, 1)
+        ids, vals = read_element_table(fb, 3, 1)
         if len(ids) and (ids.min() < 1 or ids.max() > len(mesh.triangles)):
             raise RuntimeError(f"{fb}: element ids outside the mesh's triangles")
         b = np.full((len(mesh.triangles), 2), np.nan)
@@ -397,7 +397,7 @@ class GetDPSolver:
                 lines.append(f"Coil_Table_{k}() = {{\n  {body}}};")
         return lines
 
-    def _cs_nodes(self, mesh: EMMesh) -> tuple[np.ndarray, np.ndarray]:
+    def conductor_nodes(self, mesh: EMMesh) -> tuple[np.ndarray, np.ndarray]:
         """(triangles, sorted unique nodes) of the coil and conductor regions.
 
         Cached for the last connectivity (moved meshes share their triangle arrays).
@@ -418,7 +418,7 @@ class GetDPSolver:
         (restart carries values by node, which is right only for Lagrangian nodes)."""
         if state.a_points is None:
             return True
-        _, nodes = self._cs_nodes(mesh)
+        _, nodes = self.conductor_nodes(mesh)
         old = np.asarray(state.a_points, float)
         if old.shape != (len(nodes), 2):
             return False
@@ -432,7 +432,7 @@ class GetDPSolver:
         old_p = np.asarray(state.a_points, float)
         old_t = np.asarray(state.a_triangles, np.int64)
         old_v = np.asarray(values, float)
-        _, nodes = self._cs_nodes(mesh)
+        _, nodes = self.conductor_nodes(mesh)
         if self._nodes_are_material(mesh, material_points, state):   # same material nodes: no interpolation
             return nodes + 1, old_v.copy()
         q = material_points[nodes]
@@ -468,10 +468,10 @@ class GetDPSolver:
         kp = np.column_stack([_table(out / f"cond_P_{k}.txt")[:, 1] for k in range(1, nk + 1)]) \
             if nk else np.zeros((n, 0))
         if nk and n_rows:
-            ids, ef = _element_table(out / "elem_f.txt", 3, n_rows)
-            ids_F, eF = _element_table(out / "elem_F.txt", 3, n_rows)
-            ids_P, eP = _element_table(out / "elem_P.txt", 1, n_rows)
-            ids_b, eb = _element_table(out / "elem_b.txt", 3, n_rows)
+            ids, ef = read_element_table(out / "elem_f.txt", 3, n_rows)
+            ids_F, eF = read_element_table(out / "elem_F.txt", 3, n_rows)
+            ids_P, eP = read_element_table(out / "elem_P.txt", 1, n_rows)
+            ids_b, eb = read_element_table(out / "elem_b.txt", 3, n_rows)
             if not (np.array_equal(ids, ids_F) and np.array_equal(ids, ids_P) and np.array_equal(ids, ids_b)):
                 raise RuntimeError("per-element tables list elements in different orders")
             elements = ids - 1
@@ -517,7 +517,7 @@ class GetDPSolver:
         nodes_file = out / "nodes_a.txt"
         d = np.loadtxt(nodes_file, skiprows=1, ndmin=2)
         pts = mesh.points if material_points is None else np.asarray(material_points, float)
-        tri, used = self._cs_nodes(mesh)
+        tri, used = self.conductor_nodes(mesh)
         remap = np.full(mesh.n_nodes, -1, np.int64)
         remap[used] = np.arange(len(used))
         vals = np.zeros(mesh.n_nodes)

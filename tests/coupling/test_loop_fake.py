@@ -7,7 +7,8 @@ import pytest
 
 from pulseform.orchestrator.coupling.loop import StaggeredLoop
 from pulseform.orchestrator.mesh.motion import MeshMover, MeshQualityError, triangle_quality
-from pulseform.orchestrator.coupling.interfaces import AnalyticForce, LoadStep, RigidAxialBody, plain_total
+from pulseform.orchestrator.coupling.fakes import AnalyticForce, RigidAxialBody
+from pulseform.orchestrator.coupling.interfaces import LoadStep, plain_total
 from pulseform.orchestrator.coupling.transfer import cell_force_integral, cell_to_nodal_forces
 
 from .meshes import rect_mesh

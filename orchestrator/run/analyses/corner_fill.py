@@ -44,6 +44,7 @@ import numpy as np
 from pulseform.solvers.dolfinx.cell_fields import von_mises_max
 from pulseform.solvers.dolfinx.cell_list import new_grid
 
+from ..units import time_axis
 from .corner_fill_kernel import (blank_motion, build_midpoint_grid, distances_within, min_distances,
                                  profile_samples)
 
@@ -345,8 +346,6 @@ class CornerFill:
 
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
-
-        from ..units import time_axis
 
         axis = time_axis(self.case.time.end)  # the run's time unit, as on its other plots
         t = history.column("time_s") * axis.scale
