@@ -22,9 +22,9 @@ from typing import Callable
 import numpy as np
 
 from ..run.results import read_metrics
-from .children import run_pulseform
+from ..run.children import run_pulseform
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 PROVENANCE_KEYS = ("source", "figure", "units", "obtained")
 MU0 = 4e-7 * math.pi
 

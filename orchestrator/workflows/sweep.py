@@ -1,6 +1,6 @@
 """Parameter sweeps: a full grid of ``--set`` overrides, each member a ``pulseform run`` process.
 
-Members run as separate processes (:func:`.children.run_pulseform`: the console script, no shell, ended when the sweep dies), ``jobs`` at
+Members run as separate processes (:func:`pulseform.orchestrator.run.children.run_pulseform`: the console script, no shell, ended when the sweep dies), ``jobs`` at
 a time, so a crash or a bad value fails that member alone. The table ``sweep.csv`` holds the
 parameters, the status and every metric; ``plots/`` shows the main metrics against each numeric
 parameter.
@@ -18,7 +18,7 @@ from pathlib import Path
 from ..case.io import CaseError, load_case, parse_override
 from ..run.results import ResultsFolder, read_metrics, write_csv
 from ..run.units import label
-from .children import run_pulseform
+from ..run.children import run_pulseform
 
 log = logging.getLogger(__name__)
 

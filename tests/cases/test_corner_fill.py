@@ -10,7 +10,6 @@ does not give the die's depth: ours was chosen so that the threshold lies betwee
 from __future__ import annotations
 
 import math
-import sys
 
 import numpy as np
 import pytest
@@ -24,8 +23,7 @@ KEYS = ("fill_fraction", "die_mises_max_MPa", "blank_speed_max_m_s", "die_contac
 
 
 def test_die_profile_is_the_documented_130_degree_groove():
-    sys.path.insert(0, str(REPO / "scripts"))
-    from study_corner_fill_die import die_polygon
+    from pulseform.orchestrator.run.analyses.corner_fill_die import die_polygon
 
     pts = np.array(die_polygon(depth=0.02, radius=0.002, bottom_half_width=0.06))
     x, y = pts[:, 0], pts[:, 1]

@@ -21,6 +21,22 @@ import numpy as np
 
 
 VANISH = 0.02  # "near zero": below 2 % of the residual pressure at zero (the smallest) clearance
+#: the case's radii (m): inner tube bore R0 and outer radius R1, the outer tube's outer radius, the
+#: contact layer h0 (cases/tube_press_fit/case.toml)
+R0, R1, R_OUT, H0 = 0.0105, 0.0125, 0.025, 5.0e-5
+
+
+def outer_sets(c_percent: float) -> list[str]:
+    """``--set`` arguments that give the case a radial clearance of ``c_percent`` % of R0 beyond the
+    contact layer: the outer tube's inner radius becomes R1 + c R0 + h0 (its outer radius stays)."""
+    r2 = R1 + c_percent / 100.0 * R0 + H0
+    return ["--set", f"bodies.outer.shape.origin=[{r2:.9g}, 0.0]", "--set", f"bodies.outer.shape.width={R_OUT - r2:.9g}"]
+
+
+def critical_clearance_of_rows(rows: list[dict]) -> tuple[float, float]:
+    """:func:`critical_clearance` of a sweep's rows (``clearance_percent``,
+    ``residual_contact_pressure_MPa``; rows without a true ``ok`` left out), % of R0."""
+    return critical_clearance([(r["clearance_percent"], r["residual_contact_pressure_MPa"]) for r in rows if r.get("ok")])
 
 
 def critical_clearance(points: list[tuple[float, float]]) -> tuple[float, float]:

@@ -1,6 +1,6 @@
 """Is the restrike case's preform quasi-static? Ramp-rate independence of the preformed shape.
 
-    .venv/bin/python scripts/study_corner_fill_preform.py OUT [--durations 4e-3,8e-3] [--set k=v ...]
+    .venv/bin/python studies/corner_fill/preform.py OUT [--durations 4e-3,8e-3] [--set k=v ...]
                                                           [--baseline RESULTS@TIME] [--reuse]
 
 Runs only the preforming stage of ``cases/corner_fill_restrike`` (pressure P_pre sin^2(pi t / T),
@@ -20,59 +20,12 @@ touched within 2 h0) and changes the preform's fill fraction by less than 0.01. 
 from __future__ import annotations
 
 import argparse
-import json
-import subprocess
-import time
+import logging
 from pathlib import Path
 
 import numpy as np
 
-from pulseform.orchestrator.run.mech_fields import read_fields
-
-ROOT = Path(__file__).resolve().parents[1]
-CASE = ROOT / "cases" / "corner_fill_restrike"
-SHAPE_TOL = 2.0e-4  # m: 2 h0
-FILL_TOL = 0.01
-
-
-def run_preform(out: Path, duration: float, extra: list[str], reuse: bool = False) -> Path:
-    """The preform of length ``duration`` (s) alone; returns its results folder (``reuse``: keep a
-    finished one)."""
-    folder = out / f"T_{duration:g}"
-    if reuse and (folder / "metrics.json").is_file():
-        return folder
-    sets = [f"loads[0].omega={np.pi / duration:.9g}", f"loads[0].t_end={duration:.9g}",
-            f"mechanics.mass_damping_until={duration:.9g}", f"mechanics.kinetic_damping_until={duration:.9g}",
-            f"time.end={duration:.9g}",
-            f"output.field_interval={duration / 20:.9g}"]
-    cmd = [str(ROOT / ".venv" / "bin" / "pulseform"), "run", str(CASE), "--out", str(folder), "--force", "--quiet",
-           *[x for s in sets for x in ("--set", s)], *extra]
-    t0 = time.perf_counter()
-    proc = subprocess.run(cmd, capture_output=True, text=True)
-    print(f"T = {duration * 1e3:g} ms: exit {proc.returncode}, {time.perf_counter() - t0:.0f} s wall", flush=True)
-    if proc.returncode != 0:
-        raise SystemExit(proc.stderr[-800:])
-    return folder
-
-
-def blank_at(folder: Path, t: float | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """(reference coordinates, displacement) of the blank, m, at the field output nearest to t
-    (s; None: the last one)."""
-    blank = read_fields(folder)["blank"]
-    k = len(blank.times) - 1 if t is None else int(np.argmin(np.abs(blank.times - t)))
-    return blank.points[:, :2], blank.displacement(k)
-
-
-def summary(folder: Path, t: float | None = None) -> dict[str, float]:
-    """Fill fraction at time t (history row nearest below; None: the end) and the preform metrics."""
-    m = json.loads((folder / "metrics.json").read_text())
-    if t is not None:
-        h = np.genfromtxt(folder / "history.csv", delimiter=",", names=True)
-        i = np.flatnonzero(h["time_s"] <= t * (1 + 1e-9))[-1]
-        m["fill_fraction"] = float(h["fill_fraction"][i])
-        m["unfilled_length_mm"] = float(h["unfilled_length_m"][i]) * 1e3
-        m["apex_gap_final_mm"] = float(h["blank_apex_gap_m"][i]) * 1e3
-    return m
+from pulseform.orchestrator.run.analyses.corner_fill_preform import FILL_TOL, SHAPE_TOL, blank_at, run_preform, summary
 
 
 def main() -> None:
@@ -83,6 +36,7 @@ def main() -> None:
     ap.add_argument("--reuse", action="store_true", help="keep finished runs in OUT")
     ap.add_argument("--baseline", default="", help="RESULTS@TIME: the first shape from an existing restrike run")
     args = ap.parse_args()
+    logging.basicConfig(level=logging.INFO, format="%(message)s")  # each run's exit and wall time
     args.out.mkdir(parents=True, exist_ok=True)
     extra = [x for s in args.sets for x in ("--set", s)]
     runs = []  # (label, folder, time of the preformed shape or None for the end)

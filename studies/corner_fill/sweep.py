@@ -1,6 +1,6 @@
 """Corner-filling study (paper sec. 5, Figures 3 and 4): P0 sweep, multi-pulse, restrike, summary.
 
-    .venv/bin/python scripts/study_corner_fill.py OUT [--amplitudes 5,10,15,20,25,30,35] [--skip-sweep]
+    .venv/bin/python studies/corner_fill/sweep.py OUT [--amplitudes 5,10,15,20,25,30,35] [--skip-sweep]
                                                   [--skip-multi] [--skip-restrike] [--set k=v ...]
 
 1. ``pulseform sweep cases/corner_fill --param loads[0].amplitude=...`` into OUT/sweep (one member at a
@@ -21,7 +21,7 @@ import subprocess
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 PF = str(ROOT / ".venv" / "bin" / "pulseform")
 FILLED = 0.999  # filled: every cavity-profile segment touched (fill_fraction = 1, docs/cases.md)
 

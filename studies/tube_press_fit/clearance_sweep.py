@@ -1,6 +1,6 @@
 """Clearance sweep of cases/tube_press_fit (paper Figure 7): residual contact pressure vs clearance.
 
-    .venv/bin/python scripts/study_tube_press_fit.py OUT [--clearances 0,0.5,1,2,3,4,5,6] [--set k=v ...]
+    .venv/bin/python studies/tube_press_fit/clearance_sweep.py OUT [--clearances 0,0.5,1,2,3,4,5,6] [--set k=v ...]
 
 Runs ``pulseform run`` once per clearance c (in % of R0 = 10.5 mm), one at a time, into OUT/c_<c>/:
 the outer tube's inner radius is 12.5 mm + c R0 + h0 (its outer radius stays 25 mm). Writes
@@ -20,16 +20,11 @@ import sys
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 CASE = ROOT / "cases" / "tube_press_fit"
-R0, R1, R_OUT, H0 = 0.0105, 0.0125, 0.025, 5.0e-5
-from pulseform.orchestrator.run.analyses.tube_press_fit import VANISH  # noqa: E402
-from pulseform.orchestrator.run.analyses.tube_press_fit import critical_clearance as _critical  # noqa: E402
 
-
-def outer_sets(c_percent: float) -> list[str]:
-    r2 = R1 + c_percent / 100.0 * R0 + H0
-    return ["--set", f"bodies.outer.shape.origin=[{r2:.9g}, 0.0]", "--set", f"bodies.outer.shape.width={R_OUT - r2:.9g}"]
+from pulseform.orchestrator.run.analyses.tube_press_fit import H0, R0, VANISH, outer_sets  # noqa: E402
+from pulseform.orchestrator.run.analyses.tube_press_fit import critical_clearance_of_rows as critical_clearance  # noqa: E402,E501
 
 
 def run_one(out: Path, c: float, extra: list[str]) -> dict:
@@ -44,12 +39,6 @@ def run_one(out: Path, c: float, extra: list[str]) -> dict:
         return {"clearance_percent": c, "ok": 0.0, "wall_s": wall}
     m = json.loads((folder / "metrics.json").read_text())
     return {"clearance_percent": c, "ok": 1.0, "wall_s": wall, **m}
-
-
-def critical_clearance(rows: list[dict]) -> tuple[float, float]:
-    """(last clearance with pressure, first clearance without), % of R0: the critical clearance lies
-    between them (``orchestrator/run/analyses/tube_press_fit.critical_clearance``)."""
-    return _critical([(r["clearance_percent"], r["residual_contact_pressure_MPa"]) for r in rows if r.get("ok")])
 
 
 def plots(out: Path, rows: list[dict]) -> None:

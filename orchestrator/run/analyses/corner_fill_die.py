@@ -1,22 +1,20 @@
 """Die profile of the corner-filling cases (half model, symmetry plane x = 0), as case-file points.
 
-    python scripts/study_corner_fill_die.py [--depth 0.02] [--radius 0.003] ...
-
-prints the counter-clockwise polygon of the steel die: a 130-degree V groove (walls at 25 degrees to
+:func:`die_polygon` gives the counter-clockwise polygon of the steel die: a 130-degree V groove (walls at 25 degrees to
 the horizontal) of depth D below the flange, its apex rounded with radius R (the corner to fill), the
 entry edge rounded with radius Re, a flat flange out to x_end, and a die block of thickness T below the
-apex. The flange top lies at y = -gap (the blank's lower face is y = 0). Paste the output into
-``[[bodies]] shape.points`` of cases/corner_fill*/case.toml.
+apex. The flange top lies at y = -gap (the blank's lower face is y = 0).
+``studies/corner_fill/die.py`` prints it for ``[[bodies]] shape.points`` of cases/corner_fill*/case.toml.
 """
 
 from __future__ import annotations
 
-import argparse
 import math
 
 
-def die_polygon(depth=0.02, radius=0.003, entry_radius=0.005, x_end=0.145, thickness=0.02, gap=1.5e-4,
-                angle_deg=130.0, arc_step=5e-4, bottom_half_width=0.0):
+def die_polygon(depth: float = 0.02, radius: float = 0.003, entry_radius: float = 0.005, x_end: float = 0.145,
+                thickness: float = 0.02, gap: float = 1.5e-4, angle_deg: float = 130.0, arc_step: float = 5e-4,
+                bottom_half_width: float = 0.0) -> list[tuple[float, float]]:
     """Counter-clockwise (x, y) vertices (m) of the half die.
 
     bottom_half_width = 0: a V groove whose included angle is ``angle_deg`` (walls at
@@ -50,13 +48,14 @@ was taken as lying on the side's extension (h = 0, a spurious penetration). A 1 
 that zone at 0.02 mm, below the gaps the contact layer leaves."""
 
 
-def _n(radius, angle, step):
+def _n(radius: float, angle: float, step: float) -> int:
     """Arc segments: about ``step`` long (no die cells much smaller than the blank's: they would set
     the explicit time step), at least 2."""
     return max(2, int(math.ceil(radius * angle / step)))
 
 
-def _base_and_entry(a, w, yf, depth, thickness, x_end, entry_radius, arc_step):
+def _base_and_entry(a: float, w: float, yf: float, depth: float, thickness: float, x_end: float,
+                    entry_radius: float, arc_step: float) -> list[tuple[float, float]]:
     """Base, outer side and flange corner of the die, then the entry fillet (flange tangent point ->
     wall tangent point, centre below the flange) of a groove whose walls are inclined ``a`` to the
     horizontal and reach the flange level at x = ``w``."""
@@ -71,7 +70,8 @@ def _base_and_entry(a, w, yf, depth, thickness, x_end, entry_radius, arc_step):
     return pts
 
 
-def _trapezoid(depth, radius, entry_radius, x_end, thickness, gap, angle_deg, arc_step, xc):
+def _trapezoid(depth: float, radius: float, entry_radius: float, x_end: float, thickness: float, gap: float,
+               angle_deg: float, arc_step: float, xc: float) -> list[tuple[float, float]]:
     a = math.radians(180.0 - angle_deg)  # wall inclination to the horizontal (50 deg for 130)
     yf = -gap
     w = xc + depth / math.tan(a)
@@ -86,22 +86,3 @@ def _trapezoid(depth, radius, entry_radius, x_end, thickness, gap, angle_deg, ar
     pts.append((0.0, yf - depth))
     pts.append((0.0, yf - depth - SIDE_STEP))
     return [(round(x, 7), round(y, 7)) for x, y in pts]
-
-
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--depth", type=float, default=0.02)
-    ap.add_argument("--radius", type=float, default=0.003)
-    ap.add_argument("--entry-radius", type=float, default=0.005)
-    ap.add_argument("--x-end", type=float, default=0.145)
-    ap.add_argument("--thickness", type=float, default=0.02)
-    ap.add_argument("--gap", type=float, default=1.5e-4)
-    ap.add_argument("--bottom-half-width", type=float, default=0.0)
-    args = ap.parse_args()
-    pts = die_polygon(args.depth, args.radius, args.entry_radius, args.x_end, args.thickness, args.gap,
-                      bottom_half_width=args.bottom_half_width)
-    print("points = [" + ", ".join(f"[{x:.7g}, {y:.7g}]" for x, y in pts) + "]")
-
-
-if __name__ == "__main__":
-    main()

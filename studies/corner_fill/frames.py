@@ -1,6 +1,6 @@
 """Corner-fill results read back frame by frame (field outputs): where the blank touches the die.
 
-    .venv/bin/python scripts/study_corner_fill_frames.py RESULTS_DIR [--spacing 1e-4] [--times t1,t2,...]
+    .venv/bin/python studies/corner_fill/frames.py RESULTS_DIR [--spacing 1e-4] [--times t1,t2,...]
 
 For each field output of a corner-fill results folder (``fields/<case>_blank.xdmf/.h5`` and
 ``_die``, read by ``pulseform.orchestrator.run.mech_fields``) it samples the die's cavity profile (the
