@@ -7,7 +7,7 @@ from typing import Callable
 
 import numpy as np
 
-from .interfaces import LoadStep, Mechanics, plain_total
+from .interfaces import LoadCapabilities, LoadStep, Mechanics, plain_total
 
 
 class RigidAxialBody:
@@ -79,11 +79,13 @@ class RigidAxialBody:
             float(t), int(k), float(y), float(v), float(a), float(dtp)
 
 
-class AnalyticForce:
+class AnalyticForce(LoadCapabilities):
     """A load provider with an analytic resultant F(t) (N) along y, spread evenly over a body's nodes.
 
     The force is evaluated at ``t_mid``, the centre of its impulse window (second-order hold).
     """
+
+    columns = ("force_y_N",)
 
     def __init__(self, body: str, n_nodes: int, force: Callable[[float], float]) -> None:
         self.body, self.n_nodes, self.force = body, n_nodes, force

@@ -102,3 +102,44 @@ class LoadProvider(Protocol):
         run's owner calls :meth:`state_dict` for a provider without it. A provider whose in-memory
         continuation would differ from a resumed one (the persistent getdp) continues from the
         stored state here."""
+
+    # The run's owner (run/driver.py) also uses the optional capabilities of :class:`LoadCapabilities`;
+    # a provider inherits their defaults from it. The loop itself asks only for ``advance_block``
+    # (compiled blocks of EM steps; optional: every EM step from Python without it).
+
+
+class LoadCapabilities:
+    """The optional capabilities of a load provider, declared once with what a provider without them
+    does: the run's owner calls them without asking whether they exist."""
+
+    #: history columns of :attr:`LoadStep.values`, in order (besides the resultant's)
+    columns: tuple[str, ...] = ("force_x_N", "force_y_N")
+    #: the provider has EM fields to write (:meth:`snapshot`, :meth:`request_fields`, :meth:`take_peak_snapshot`)
+    em_fields: bool = False
+
+    def initial(self, mechanics: Mechanics) -> LoadStep | None:
+        """The load at t = 0 (see :meth:`LoadProvider.initial`); None: the history's first row gets zeros."""
+        return None
+
+    def checkpoint_state_dict(self) -> dict[str, np.ndarray]:
+        """See :meth:`LoadProvider.checkpoint_state_dict`: here the plain :meth:`state_dict`."""
+        return self.state_dict()
+
+    def run_metrics(self, history, counters) -> dict[str, float]:
+        """The provider's own figures for ``metrics.json`` at the end of a run (``history``: the run's
+        :class:`~pulseform.orchestrator.run.history.History`, ``counters``: the loop's counters)."""
+        return {}
+
+    def request_fields(self, times) -> None:
+        """Whole-domain fields wanted at these times (s) only (no-op without EM fields)."""
+
+    def take_peak_snapshot(self) -> tuple | None:
+        """The field snapshot at the peak coil current once, when it is new (None: nothing to write)."""
+        return None
+
+    def snapshot(self) -> tuple | None:
+        """The current EM field snapshot (None: nothing to write)."""
+        return None
+
+    def close(self) -> None:
+        """End what the provider runs (a persistent getdp) and wait for its clean-up; idempotent."""

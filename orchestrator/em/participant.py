@@ -5,7 +5,7 @@ Each EM step [t0, t1]:
 1. the EM mesh follows the mechanics: the nodes of every conductor body (workpiece, die, outer
    tube) take the mechanical displacement (the meshes share them), coil, shell and outer boundary
    stay, axis (or symmetry-plane) nodes slide along it, the rest of the air is smoothed
-   harmonically (:class:`~.mesh_motion.MeshMover`); an inverted or degenerate element raises
+   harmonically (:class:`pulseform.orchestrator.mesh.motion.MeshMover`); an inverted or degenerate element raises
    before the mesh reaches GetDP;
 2. getdp runs the EM step on the moved mesh (geometry frozen): one BDF2 step from a shifted Init
    state (``time_scheme = "bdf2"``), or ``em_substeps`` implicit-Euler sub-steps restarting from
@@ -27,91 +27,36 @@ import json
 import logging
 import threading
 import time
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from pulseform.solvers.getdp import Circuit, Coil, Conductor, DampedSine, EMMesh, EMModel, EMState, GetDPSolver
+from pulseform.solvers.getdp import EMMesh, EMModel, EMState, GetDPSolver
 from pulseform.solvers.getdp.mesh import AXIS as AXIS_TAG
 from pulseform.solvers.getdp.mesh import OUTER as OUTER_TAG
 from pulseform.solvers.getdp.mesh import SHELL as SHELL_TAG
 from pulseform.solvers.getdp.solver import discard_folder
 
-from ..case.model import Case
-from ..coupling.interfaces import LoadStep
+from ..coupling.interfaces import LoadCapabilities, LoadStep
 from ..coupling.transfer import cell_force_integral, cell_to_nodal_forces
 from ..mesh.em_geometry import EMGeometry
 from ..mesh.motion import MeshMover, MeshQualityError
 from ..mesh.remesh import remesh_around
-from ..mesh.shared import ConductorMesh
+from ..mesh.shared import ConductorBody, ConductorMesh  # noqa: F401  (ConductorBody: the participant's API)
+from .solver import make_em_solver
 
 log = logging.getLogger(__name__)
 
 
-def em_model(case: Case, shell: tuple[float, float] | None) -> EMModel:
-    """The GetDP model of a coupled case: one stranded coil, the conductor bodies as massive
-    conductors 1, 2, ... in the geometry's conductor order (workpiece first).
-
-    ``shell``: inner and outer radius (m) of the shell transformation to infinity, or None.
-    """
-    em, g = case.em, case.geometry
-    wave = None
-    if em.current is not None:
-        wave = DampedSine(I0=em.current.amplitude, beta=em.current.beta, omega=em.current.omega)
-    coil = Coil(turns=g.turns, sigma=em.coil_conductivity, waveform=wave, density=em.coil_density,
-                heat_capacity=em.coil_heat_capacity)
-    conductors = []
-    for role in g.conductor_roles():
-        body = next(b for b in case.bodies if b.region == role)
-        sigma = case.materials[body.material].electrical_conductivity
-        if sigma <= 0.0:
-            raise ValueError(f"materials.{body.material}.electrical_conductivity must be > 0 for the {role}")
-        conductors.append(Conductor(sigma=sigma, name=body.name))
-    circuit = None
-    if em.circuit is not None:
-        c = em.circuit
-        circuit = Circuit(C=c.capacitance, V0=c.voltage, R_ext=c.resistance, L_ext=c.inductance)
-    return EMModel(axisymmetric=not g.planar, coils=[coil], conductors=conductors, circuit=circuit, shell=shell)
+#: the history columns of a GetDP load
+LOAD_COLUMNS_COUPLED = ("force_x_N", "force_y_N", "conservation_error_rel", "coil_current_A",
+                        "coil_current_abs_max_A", "coil_voltage_V",
+                        "capacitor_voltage_V", "coil_joule_heat_J", "coil_temperature_rise_K",
+                        "magnetic_energy_J", "workpiece_joule_power_W", "getdp_force_z_N",
+                        "em_mesh_min_quality", "em_remeshes")
 
 
-def make_em_solver(model: EMModel, work_dir: Path, time_scheme: str, getdp_process: str, **kw) -> GetDPSolver:
-    """The EM participant: a persistent getdp for BDF2 (``getdp_process`` "persistent" or "auto"),
-    else one getdp process per EM step. ``kw`` go to the solver (deck, numbers, preamble)."""
-    if getdp_process not in ("auto", "persistent", "per_step"):
-        raise ValueError(f"getdp_process must be 'auto', 'persistent' or 'per_step', got {getdp_process!r}")
-    if getdp_process == "persistent" and time_scheme != "bdf2":
-        raise ValueError("the persistent getdp implements time_scheme='bdf2' only")
-    if getdp_process != "per_step" and time_scheme == "bdf2":
-        from pulseform.solvers.getdp.persistent import PersistentGetDPSolver
-
-        return PersistentGetDPSolver(model, work_dir, **kw)
-    return GetDPSolver(model, work_dir, time_scheme=time_scheme, **kw)
-
-
-@dataclass
-class ConductorBody:
-    """A mechanical body that is an EM conductor region (shared nodes).
-
-    Attributes
-    ----------
-    name : str
-        The mechanical body's name.
-    tag : int
-        Its EM physical id (201, 202, ...).
-    sub : ConductorMesh
-        The region cut from the EM mesh (its mechanical mesh).
-    body_to_em : ndarray
-        EM node index of each of the body's (local) nodes.
-    """
-
-    name: str
-    tag: int
-    sub: ConductorMesh
-    body_to_em: np.ndarray
-
-
-class GetDPLoad:
+class GetDPLoad(LoadCapabilities):
     """Load provider: GetDP eddy-current forces on the conductor bodies (see the module docstring).
 
     Parameters
@@ -296,6 +241,21 @@ class GetDPLoad:
         })
 
     # ------------------------------------------------------------------ field snapshots
+    columns = LOAD_COLUMNS_COUPLED
+    em_fields = True
+
+    def run_metrics(self, history, counters) -> dict[str, float]:
+        """EM figures of a coupled run from its history (current, heat, conservation) and the EM timers."""
+        current = history.column("coil_current_abs_max_A")
+        return {
+            "coil_current_peak_kA": float(np.abs(current).max()) / 1e3,
+            "coil_joule_heat_J": float(history.column("coil_joule_heat_J")[-1]),
+            "coil_temperature_rise_K": float(history.column("coil_temperature_rise_K")[-1]),
+            "conservation_error_rel": float(counters.ledger_max),
+            "em_time_s": float(counters.em_time_s),
+            **{f"em_{k}": v for k, v in self.timers.items()},
+        }
+
     def request_fields(self, times) -> None:
         """The EM steps that end at ``times`` (s; the output milestones) also print B on every
         cell and the nodal potential (``GetDPSolver.step(field_output=True)``): only the steps

@@ -45,7 +45,8 @@ from ..case.deck_files import (MAX_PARAMETER_NAME, check_parameters, deck_tokens
                                resolve_deck_paths, short)
 from ..mesh.em_geometry import EMGeometry
 from .deck_check import DeckCheckReport, DeckContractError, check_deck  # noqa: F401  (DeckContractError: the API)
-from .participant import GetDPLoad, em_model, make_em_solver
+from .participant import GetDPLoad
+from .solver import em_model, make_em_solver
 
 log = logging.getLogger(__name__)
 

@@ -13,7 +13,7 @@ from mpi4py import MPI
 from pulseform.solvers.dolfinx.block import EV_NONE, SC, follower_pressure, step, switch_forces
 
 from ..case.model import Load
-from ..coupling.interfaces import LoadStep
+from ..coupling.interfaces import LoadCapabilities, LoadStep
 from .pulses import T_END, T_START, box_marker, pulse_pressure, pulse_table, pulse_value
 
 log = logging.getLogger(__name__)
@@ -74,7 +74,7 @@ class DolfinxMechanics:
         self.solver.analysis_state = {k[n:]: np.asarray(v) for k, v in state.items() if k.startswith(ANALYSIS_PREFIX)}
 
 
-class PressurePulses:
+class PressurePulses(LoadCapabilities):
     """Load provider of the paper's pressure pulses (eq. 7, 8) as follower surface tractions, plus
     optional mass-proportional damping.
 
@@ -248,6 +248,15 @@ class PressurePulses:
                            np.zeros((ntot, 2)), np.zeros((ntot, 2)), np.zeros((ntot, 2)),
                            np.zeros(len(names), np.uint8))
         return self._plan
+
+    @property
+    def columns(self) -> tuple[str, ...]:
+        """The resultant and each pulse's pressure."""
+        return ("force_x_N", "force_y_N") + tuple(f"load{i}_pressure_Pa" for i in range(len(self.loads)))
+
+    def run_metrics(self, history, counters) -> dict[str, float]:
+        """The actual start time of each pulse (s)."""
+        return {f"load{i}_start_time_s": float(t) for i, t in enumerate(self.start_times())}
 
     def start_times(self) -> list[float]:
         """Actual start time (s) of each pulse (nan: not started)."""

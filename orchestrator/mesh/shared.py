@@ -66,3 +66,25 @@ def match_nodes(body_points: np.ndarray, em_points: np.ndarray, tol: float) -> n
         raise ValueError(f"mechanical node at {body_points[worst, :2]} is {dist[worst]:.3g} m from the "
                          "nearest EM node: meshes do not share nodes")
     return idx
+
+
+@dataclass
+class ConductorBody:
+    """A mechanical body that is an EM conductor region (shared nodes).
+
+    Attributes
+    ----------
+    name : str
+        The mechanical body's name.
+    tag : int
+        Its EM physical id (201, 202, ...).
+    sub : ConductorMesh
+        The region cut from the EM mesh (its mechanical mesh).
+    body_to_em : ndarray
+        EM node index of each of the body's (local) nodes.
+    """
+
+    name: str
+    tag: int
+    sub: ConductorMesh
+    body_to_em: np.ndarray

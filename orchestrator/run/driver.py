@@ -23,13 +23,14 @@ from ..case.guards import check_steps_of_meshes
 from ..case.model import Case
 from ..coupling.interfaces import LoadProvider
 from ..coupling.loop import LoopOptions, StaggeredLoop
-from ..em.participant import ConductorBody, GetDPLoad, em_model
+from ..em.participant import GetDPLoad
+from ..em.solver import em_model
 from ..em.user_deck import build_user_geometry, user_deck_load
 from ..mech import probes as probe_mod
 from ..mech.model import build_solver
 from ..mech.participants import DolfinxMechanics, PressurePulses
 from ..mesh.em_geometry import build_em_geometry
-from ..mesh.shared import conductor_submesh, match_nodes, to_dolfinx
+from ..mesh.shared import ConductorBody, conductor_submesh, match_nodes, to_dolfinx
 from . import interrupt
 from .analyses import create as create_analysis
 from .checkpoint import CHECKPOINT_NAME, load_checkpoint, save_checkpoint
@@ -91,8 +92,7 @@ class CaseDriver:
         self.loop = StaggeredLoop(load, self.mechanics, options, dt_max=case.time.dt_max)
         self.probes = probe_mod.attach(self.solver, case.probes, comm)
         self.analyses = [create_analysis(name, case) for name in case.analysis]
-        self.load_columns = LOAD_COLUMNS_COUPLED if isinstance(self.load, GetDPLoad) else \
-            ("force_x_N", "force_y_N") + tuple(f"load{i}_pressure_Pa" for i in range(len(case.loads)))
+        self.load_columns = self.load.columns
         self.history = History(results.root / "history.csv")
         self.part = 0
         self._since_record = 0
@@ -120,11 +120,11 @@ class CaseDriver:
 
     def initial_row(self) -> dict[str, float]:
         """The load columns at t = 0 (the first history row): the provider's true initial values
-        (:meth:`~.participants.LoadProvider.initial`; zeros for a provider without it)."""
+        (:meth:`pulseform.orchestrator.coupling.interfaces.LoadProvider.initial`; zeros for a provider
+        whose ``initial`` gives None)."""
         row = {"dt_s": 0.0, "substeps": 0.0, "iterations": 0.0}
-        initial = getattr(self.load, "initial", None)
-        if initial is not None:
-            step = initial(self.mechanics)
+        step = self.load.initial(self.mechanics)
+        if step is not None:
             resultant = self.mechanics.total_force(step.forces) if step.forces else np.zeros(2)
             row.update({"force_x_N": float(resultant[0]), "force_y_N": float(resultant[1]),
                         "conservation_error_rel": 0.0, **step.values})
@@ -150,14 +150,12 @@ class CaseDriver:
     def checkpoint(self) -> None:
         """Write the checkpoint (one file per rank) and flush the history and the EM snapshot at the
         peak coil current (the checkpoint's EM state counts it as written)."""
-        take = getattr(self.load, "take_peak_snapshot", None)
-        peak = take() if take is not None and self.comm.rank == 0 else None
+        peak = self.load.take_peak_snapshot() if self.comm.rank == 0 else None
         if peak is not None:
             write_peak_snapshot(self.results.fields / "em", *peak)
         arrays = {f"solver/{k}": v for k, v in self.mechanics.state_dict().items()}
         arrays.update({f"loop/{k}": v for k, v in self.loop.counters.state_dict().items()})
-        dump = getattr(self.load, "checkpoint_state_dict", self.load.state_dict)  # optional in LoadProvider
-        arrays.update({f"load/{k}": v for k, v in dump().items()})
+        arrays.update({f"load/{k}": v for k, v in self.load.checkpoint_state_dict().items()})
         arrays["history/rows"] = self.history.array()
         meta = {"columns": self.history.columns, "part": self.part, "ranks": self.comm.size,
                 "since_record": self._since_record,
@@ -199,8 +197,8 @@ class CaseDriver:
         prefix = self.results.fields / (case.case.name + (f"_part{self.part}" if self.part else ""))
         writer = mech.FieldWriter(s, str(prefix))
         em_writer = EMFieldWriter(self.results.fields / (f"em_part{self.part}" if self.part else "em")) \
-            if hasattr(self.load, "snapshot") and self.comm.rank == 0 else None
-        if em_writer is not None and hasattr(self.load, "request_fields"):
+            if self.load.em_fields and self.comm.rank == 0 else None
+        if em_writer is not None:
             self.load.request_fields(self.stops)  # whole-domain EM fields only on the snapshot steps
         if not self.history.rows:
             self.record(self.initial_row())
@@ -249,7 +247,7 @@ class CaseDriver:
             raise
         finally:
             writer.close()
-            if sys.exc_info()[0] is not None and hasattr(self.load, "close"):
+            if sys.exc_info()[0] is not None:
                 self.load.close()  # a failed or interrupted run ends its persistent getdp too
         c = self.loop.counters
         log.info("mechanics: %d steps to t = %.4g s in %.2f s", s.step_count, s.time, c.mech_time_s)
@@ -262,25 +260,13 @@ class CaseDriver:
         if case.loads or case.case.kind == "coupled":
             metrics["force_impulse_Ns"] = float(np.linalg.norm(c.impulse))
             metrics["force_impulse_z_Ns"] = float(c.impulse[1])
-        if isinstance(self.load, GetDPLoad):
-            metrics.update(coupled_metrics(self.history, c))
-            metrics.update({f"em_{k}": v for k, v in self.load.timers.items()})
+        metrics.update(self.load.run_metrics(self.history, c))
         metrics.update(mech_metrics(s, case, self.history))
-        if isinstance(self.load, PressurePulses) and case.loads:
-            for i, t in enumerate(self.load.start_times()):
-                metrics[f"load{i}_start_time_s"] = float(t)
         for a in self.analyses:
             metrics.update(a.metrics(s, self.history))
-        if hasattr(self.load, "close"):
-            self.load.close()  # old getdp run folders are deleted in the background: wait for them
+        self.load.close()  # old getdp run folders are deleted in the background: wait for them
         return MechanicsRun(s, self.history, metrics, self.shapes, self.analyses, self.wall_before_s)
 
-
-LOAD_COLUMNS_COUPLED = ("force_x_N", "force_y_N", "conservation_error_rel", "coil_current_A",
-                        "coil_current_abs_max_A", "coil_voltage_V",
-                        "capacitor_voltage_V", "coil_joule_heat_J", "coil_temperature_rise_K",
-                        "magnetic_energy_J", "workpiece_joule_power_W", "getdp_force_z_N",
-                        "em_mesh_min_quality", "em_remeshes")
 
 
 def _pressure_pulses(case: Case) -> PressurePulses:
@@ -356,18 +342,6 @@ def max_von_mises(stress: np.ndarray) -> float:
         return 0.0
     q = j2_times_3_max(stress, np.einsum("ij,ij->i", stress, stress))
     return float(np.sqrt(1.5 * max(float(q), 0.0)))
-
-
-def coupled_metrics(history: History, counters) -> dict[str, float]:
-    """EM figures of a coupled run from its history: current, heat, conservation."""
-    current = history.column("coil_current_abs_max_A")
-    return {
-        "coil_current_peak_kA": float(np.abs(current).max()) / 1e3,
-        "coil_joule_heat_J": float(history.column("coil_joule_heat_J")[-1]),
-        "coil_temperature_rise_K": float(history.column("coil_temperature_rise_K")[-1]),
-        "conservation_error_rel": float(counters.ledger_max),
-        "em_time_s": float(counters.em_time_s),
-    }
 
 
 def run_case_loop(case: Case, results: ResultsFolder, *, quiet: bool = False, resume: bool = False,

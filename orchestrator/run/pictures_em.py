@@ -27,90 +27,23 @@ from __future__ import annotations
 
 import json
 import logging
-import xml.etree.ElementTree as ET
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from pulseform.solvers.getdp.mesh import AIR, coil_tag, conductor_tag
+
+from .em_fields import Snapshot, output_series, peak_file, read_snapshot  # noqa: F401  (read_snapshot: API)
 from .history import History
 from .plots import _save, plt
 
 log = logging.getLogger(__name__)
 
 MU0 = 4e-7 * np.pi
-COIL_TAGS = (100, 200)  # physical ids 101.. of the coils
-CONDUCTOR_TAGS = (200, 300)  # 201 workpiece, 202 die / collar
-WORKPIECE = 201
-AIR = 1
-
-
-@dataclass
-class Snapshot:
-    """One EM ``.vtu``: moved mesh (m), cell and point data (SI), its time (s) and coil current (A)."""
-
-    t: float
-    points: np.ndarray
-    triangles: np.ndarray
-    cells: dict[str, np.ndarray]
-    nodes: dict[str, np.ndarray] = field(default_factory=dict)
-    current: float | None = None
-    label: str = ""
-
-    @property
-    def region(self) -> np.ndarray:
-        return self.cells["region"]
-
-    @property
-    def potential(self) -> tuple[str, np.ndarray] | None:
-        for name in ("r_a_phi_Wb", "a_z_Wb_m"):
-            if name in self.nodes:
-                return name, self.nodes[name]
-        return None
-
-    def b_everywhere(self) -> bool:
-        """B written on every cell (not only on the conductors)."""
-        b = np.abs(self.cells["flux_density_T"][:, :2]).sum(axis=1)
-        return bool(np.any(b[self.region == AIR] > 0))
-
-    def magnitude(self, name: str) -> np.ndarray:
-        return np.linalg.norm(self.cells[name][:, :2], axis=1)
-
-
-def read_snapshot(path: Path, t: float, current: float | None = None, label: str = "") -> Snapshot:
-    import meshio
-
-    mesh = meshio.read(path)
-    blocks = [i for i, c in enumerate(mesh.cells) if c.type == "triangle"]
-    triangles = np.concatenate([mesh.cells[i].data for i in blocks])
-    cells = {k: np.concatenate([np.asarray(v[i]) for i in blocks]) for k, v in mesh.cell_data.items()}
-    nodes = {k: np.asarray(v) for k, v in mesh.point_data.items()}
-    return Snapshot(t, np.asarray(mesh.points)[:, :2], triangles, cells, nodes, current, label)
-
-
-def output_series(root: Path) -> list[tuple[float, Path]]:
-    """(time, file) of every EM snapshot of ``fields/em*/em.pvd`` (resumed parts too), by time."""
-    found: dict[float, Path] = {}
-    for pvd in sorted((root / "fields").glob("em*/em.pvd")):
-        try:
-            for ds in ET.parse(pvd).getroot().iter("DataSet"):
-                path = pvd.parent / ds.get("file")
-                if path.is_file():
-                    found[round(float(ds.get("timestep")), 15)] = path
-        except (ET.ParseError, OSError, TypeError, ValueError) as exc:
-            log.info("EM pictures: %s unreadable (%s)", pvd, exc)
-    return sorted(found.items())
-
-
-def peak_file(root: Path) -> tuple[float, float, Path] | None:
-    """(time, coil current, file) of ``fields/em/em_peak_current.vtu``, or None."""
-    meta = root / "fields" / "em" / "em_peak_current.json"
-    try:
-        d = json.loads(meta.read_text())
-        path = meta.parent / d.get("file", "em_peak_current.vtu")
-        return (float(d["time_s"]), float(d["coil_current_A"]), path) if path.is_file() else None
-    except (OSError, ValueError, KeyError, TypeError):
-        return None
+COIL_TAGS = (coil_tag(0), conductor_tag(0))  # physical ids 101.. of the coils
+CONDUCTOR_TAGS = (conductor_tag(0), conductor_tag(100))  # 201 workpiece, 202 die / collar
+WORKPIECE = conductor_tag(1)
 
 
 def _current_at(root: Path, times: list[float]) -> list[float | None]:

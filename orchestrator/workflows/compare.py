@@ -29,8 +29,8 @@ import numpy as np
 from ..case.io import CaseError, load_case, read_toml, resolve_case_file
 from ..case.model import Case, FlatCoilSheet, PlanarCoilBlankDie, SolenoidTube
 from ..mech.pulses import exp_pulse, sin2_pulse
-from ..run.results import ResultsFolder, read_metrics
 from ..run.children import run_pulseform
+from ..run.results import ResultsFolder, read_metrics
 from .validate import write_json
 
 log = logging.getLogger(__name__)

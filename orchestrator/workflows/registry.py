@@ -21,8 +21,8 @@ from typing import Callable
 
 import numpy as np
 
-from ..run.results import read_metrics
 from ..run.children import run_pulseform
+from ..run.results import read_metrics
 
 REPO = Path(__file__).resolve().parents[2]
 PROVENANCE_KEYS = ("source", "figure", "units", "obtained")

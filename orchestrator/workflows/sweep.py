@@ -16,9 +16,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..case.io import CaseError, load_case, parse_override
+from ..run.children import run_pulseform
 from ..run.results import ResultsFolder, read_metrics, write_csv
 from ..run.units import label
-from ..run.children import run_pulseform
 
 log = logging.getLogger(__name__)
 
