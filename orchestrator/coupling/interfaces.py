@@ -103,9 +103,10 @@ class LoadProvider(Protocol):
         continuation would differ from a resumed one (the persistent getdp) continues from the
         stored state here."""
 
-    # The run's owner (run/driver.py) also uses the optional capabilities of :class:`LoadCapabilities`;
-    # a provider inherits their defaults from it. The loop itself asks only for ``advance_block``
-    # (compiled blocks of EM steps; optional: every EM step from Python without it).
+    # Optional for the loop: ``follow(t0, mechanics)``, the load's own mesh follows the mechanics
+    # before each load (step 2 of an EM step, :mod:`.loop`), and ``advance_block`` (compiled blocks of
+    # EM steps). The run's owner (run/driver.py) also uses the optional capabilities of
+    # :class:`LoadCapabilities`; a provider inherits their defaults from it.
 
 
 class LoadCapabilities:

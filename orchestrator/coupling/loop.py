@@ -10,16 +10,19 @@ One EM step k covers [t_k, t_k + n·dt_mech]:
    last EM step before a milestone (``landing = "last"``, the mechanics-only cases: the explicit
    scheme has no step-ratio limit) made the next EM step up to n times longer; variable-step BDF2
    is zero-stable only for ratios below 1 + √2, and the coil voltage rang at every output time.
-2. The load provider computes nodal forces on the *current* geometry for that interval (GetDP: the
+2. Mesh motion: a load with a mesh of its own (GetDP's EM mesh) moves it with the mechanics' current
+   positions (``follow``: conductor nodes with the bodies, the air smoothed, remeshed when its worst
+   element degrades).
+3. The load provider computes nodal forces on the *current* geometry for that interval (GetDP: the
    mean of its implicit sub-steps; pressure and analytic loads: at t0 + (n − 1)·dt/2, the centre of
    the window over which central differences deliver the held force's impulse: a force passed to
    ``advance`` acts from the current time on, i.e. in the velocity updates at t0, ..., t1 − dt).
-3. The forces are **held** constant over the n mechanical substeps (zero-order hold; no
+4. The forces are **held** constant over the n mechanical substeps (zero-order hold; no
    interpolation), the conservation ledger |Σ nodal F − ∫ f dV| / |∫ f dV| and the impulse
    Σ F·Δt are updated.
-4. The mechanics advances n substeps.
+5. The mechanics advances n substeps.
 
-The loop does not know which participants it drives (see :mod:`.participants`).
+The loop does not know which participants it drives (see :mod:`.interfaces`).
 """
 
 from __future__ import annotations
@@ -194,6 +197,7 @@ class StaggeredLoop:
         c = self.counters
         saved = (self.mech.state_dict(), self.load.state_dict()) if self.options.iterate else None
         c0 = time.perf_counter()
+        self._follow(t0)
         step = self.load.load(t0, t1, t_mid, self.mech)
         c1 = time.perf_counter()
         resultant = self.mech.total_force(step.forces)
@@ -220,6 +224,12 @@ class StaggeredLoop:
         c.last_resultant = resultant
         return row
 
+    def _follow(self, t0: float) -> None:
+        """Step 1: the load's mesh follows the mechanics (a load without a mesh of its own has no ``follow``)."""
+        follow = getattr(self.load, "follow", None)
+        if follow is not None:
+            follow(t0, self.mech)
+
     def _iterate(self, saved, step, resultant, dt, k, t0, t1, t_mid):
         """Repeat the EM step on the end-of-step geometry until force and motion settle."""
         c, o = self.counters, self.options
@@ -229,7 +239,8 @@ class StaggeredLoop:
         for it in range(2, o.iterate_max + 1):
             c0 = time.perf_counter()
             self.load.load_state_dict(load_state)
-            new_step = self.load.load(t0, t1, t_mid, self.mech)  # mechanics sits at the end geometry
+            self._follow(t0)  # mechanics sits at the end geometry
+            new_step = self.load.load(t0, t1, t_mid, self.mech)
             c1 = time.perf_counter()
             new_res = self.mech.total_force(new_step.forces)
             self.mech.load_state_dict(mech_state)
