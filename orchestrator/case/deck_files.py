@@ -63,7 +63,7 @@ _IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 def reserved_parameter_names() -> tuple[str, ...]:
     """Names a deck receives from the runner, which ``geometry.parameters`` may not reuse: the role
     ids ``Phys_*`` (:data:`ROLE_NUMBERS`), the string ``PulseformLib`` and every name of a getdp run
-    (:func:`pulseform.solvers.getdp.solver.runner_number_names`; ``X_<k>`` stands for X_1, X_2, ...)."""
+    (:func:`pulseform.solvers.getdp.contract.runner_number_names`; ``X_<k>`` stands for X_1, X_2, ...)."""
     return tuple(ROLE_NUMBERS.values()) + ("PulseformLib",) + runner_number_names()
 
 

@@ -243,7 +243,7 @@ def _solves_the_model(solver: GetDPSolver, mesh: EMMesh, out: Path, deck: Path) 
     conductor element, a field state on every coil and conductor node; else one line listing
     everything that is hollow."""
     from pulseform.solvers.getdp import conductor_tag
-    from pulseform.solvers.getdp.solver import read_element_table
+    from pulseform.solvers.getdp.files import read_element_table
 
     model = solver.model
     problems: list[str] = []

@@ -35,7 +35,7 @@ from pulseform.solvers.getdp import EMMesh, EMModel, EMState, GetDPSolver
 from pulseform.solvers.getdp.mesh import AXIS as AXIS_TAG
 from pulseform.solvers.getdp.mesh import OUTER as OUTER_TAG
 from pulseform.solvers.getdp.mesh import SHELL as SHELL_TAG
-from pulseform.solvers.getdp.solver import discard_folder
+from pulseform.solvers.getdp.files import discard_folder
 
 from ..coupling.interfaces import LoadCapabilities, LoadStep
 from ..coupling.transfer import cell_force_integral, cell_to_nodal_forces

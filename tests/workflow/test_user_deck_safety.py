@@ -24,7 +24,7 @@ from pulseform.orchestrator import cli
 from pulseform.orchestrator.em import user_deck
 from pulseform.orchestrator.em.user_deck import DeckContractError, find_program_call, mesh_file
 from pulseform.solvers.getdp import solver as getdp_solver
-from pulseform.solvers.getdp.solver import runner_number_names
+from pulseform.solvers.getdp.contract import runner_number_names
 
 from wf_helpers import REPO
 
