@@ -99,9 +99,9 @@ def _split(name: str, m: dict) -> None:
 
 def _pressure(args, m: dict) -> None:
     """The equal-impulse pressure pulse, eq. (7), uniform on the sheet's lower face over the coil."""
-    from pulseform.orchestrator.caseio import load_case
-    from pulseform.orchestrator.case import Box, PulseSin2
-    from pulseform.orchestrator.loads import pulse_impulse_per_area
+    from pulseform.orchestrator.case.io import load_case
+    from pulseform.orchestrator.case.model import Box, PulseSin2
+    from pulseform.orchestrator.mech.pulses import pulse_impulse_per_area
 
     case, _ = load_case(REPO / "cases/emf_sheet_bulge")
     g = case.geometry

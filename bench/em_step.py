@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pulseform.orchestrator.mesh_motion import MeshMover
+from pulseform.orchestrator.mesh.motion import MeshMover
 from pulseform.solvers.getdp import Circuit, Coil, Conductor, EMModel, GetDPSolver, Rect, coil_conductor_mesh
 from pulseform.solvers.getdp.mesh import AXIS, OUTER, SHELL, conductor_tag, coil_tag
 from pulseform.solvers.getdp.persistent import PersistentGetDPSolver

@@ -22,9 +22,9 @@ from pathlib import Path
 
 import numpy as np
 
-from pulseform.orchestrator.caseio import load_case
-from pulseform.orchestrator.mech_model import build_solver
-from pulseform.orchestrator.loads import box_marker
+from pulseform.orchestrator.case.io import load_case
+from pulseform.orchestrator.mech.model import build_solver
+from pulseform.orchestrator.mech.pulses import box_marker
 from pulseform.solvers.dolfinx import ExplicitSolver
 from pulseform.solvers.dolfinx.kernels import element_step
 

@@ -128,22 +128,22 @@ def _setup_logging(quiet: bool) -> None:
 
 def _error(msg: str, code: int) -> int:
     """Print ``pulseform: error: <msg>`` as one line of at most ~300 characters; return ``code``."""
-    from .caseio import MAX_MESSAGE, one_line
+    from .case.io import MAX_MESSAGE, one_line
 
     print(f"pulseform: error: {one_line(msg, MAX_MESSAGE)}", file=sys.stderr)
     return code
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
-    from .caseio import CaseError, load_case
-    from .results import ResultsExistError
+    from .case.io import CaseError, load_case
+    from .run.results import ResultsExistError
 
     try:
         case, _ = load_case(args.case, args.overrides)
     except CaseError as exc:
         return _error(str(exc), EXIT_BAD_INPUT)
     out = args.out or Path("results") / case.case.name
-    from .runner import ResumeError, RunFailed, RunInterrupted, run_case  # heavy imports (dolfinx) only when running
+    from .run.runner import ResumeError, RunFailed, RunInterrupted, run_case  # heavy imports (dolfinx) only when running
 
     try:
         metrics = run_case(case, out, force=args.force, resume=args.resume, quiet=args.quiet,
@@ -158,8 +158,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
               "with --resume", file=sys.stderr)
         return 128 + signal.SIGINT
     except RunFailed as exc:
-        from .guards import LimitExceeded
-        from .user_deck import DeckContractError
+        from .case.guards import LimitExceeded
+        from .em.deck_check import DeckContractError
 
         # a user deck that breaks the contract, or meshes beyond [limits], is bad input found before the first step
         bad_input = isinstance(exc.__cause__, (DeckContractError, LimitExceeded))
@@ -178,8 +178,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 def _summary(case, metrics: dict, out: Path) -> list[str]:
     """The headline lines of a finished run (:func:`.summary.headline`), indented under ``summary:``."""
-    from .history import History
-    from .summary import headline
+    from .run.history import History
+    from .run.summary import headline
 
     try:
         history = History.read(out / "history.csv")
@@ -190,14 +190,14 @@ def _summary(case, metrics: dict, out: Path) -> list[str]:
 
 
 def _cmd_check(args: argparse.Namespace) -> int:
-    from .caseio import CaseError, case_to_toml, load_case
+    from .case.io import CaseError, case_to_toml, load_case
 
     try:
         case, file = load_case(args.case, args.overrides)
     except CaseError as exc:
         return _error(str(exc), EXIT_BAD_INPUT)
     if case.geometry is not None and case.geometry.type == "user_deck":
-        from .user_deck import DeckContractError, check_user_deck
+        from .em.user_deck import DeckContractError, check_user_deck
 
         try:  # mesh the deck, map its groups and run one tiny getdp step (in a temporary folder)
             check_user_deck(case)
@@ -210,9 +210,9 @@ def _cmd_check(args: argparse.Namespace) -> int:
 
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
-    from .caseio import CaseError, load_case
-    from .results import ResultsExistError
-    from .sweep import run_sweep
+    from .case.io import CaseError, load_case
+    from .run.results import ResultsExistError
+    from .workflows.sweep import run_sweep
 
     if args.jobs < 1:
         return _error(f"--jobs: got {args.jobs}; must be >= 1", EXIT_BAD_INPUT)
@@ -224,7 +224,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
                           "others run members), e.g. mpirun -n 3 pulseform sweep CASE --mpi --param ...; "
                           "without mpirun use --jobs N", EXIT_BAD_INPUT)
         if MPI.COMM_WORLD.Get_rank() > 0:  # mpirun -n N: ranks > 0 are the sweep's workers
-            from .sweep import serve_mpi_workers
+            from .workflows.sweep import serve_mpi_workers
 
             serve_mpi_workers()
             return EXIT_OK
@@ -250,8 +250,8 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
 
 
 def _cmd_validate(args: argparse.Namespace) -> int:
-    from .results import ResultsExistError
-    from .validate import SelectionError, run_validation, select
+    from .run.results import ResultsExistError
+    from .workflows.validate import SelectionError, run_validation, select
 
     try:
         entries = select(args.suite, args.only)
@@ -281,9 +281,9 @@ def _cmd_validate(args: argparse.Namespace) -> int:
 
 
 def _cmd_compare(args: argparse.Namespace) -> int:
-    from .caseio import CaseError, load_case
-    from .compare import CompareError, parse_conditions, run_compare
-    from .results import ResultsExistError
+    from .case.io import CaseError, load_case
+    from .workflows.compare import CompareError, parse_conditions, run_compare
+    from .run.results import ResultsExistError
 
     try:
         conditions = parse_conditions(args.fail_if)
@@ -311,7 +311,7 @@ def _cmd_compare(args: argparse.Namespace) -> int:
 
 
 def _cmd_plot(args: argparse.Namespace) -> int:
-    from .plots import NotAResultsFolder, check_results_folder, draw_all
+    from .run.plots import NotAResultsFolder, check_results_folder, draw_all
 
     try:
         root = check_results_folder(args.results)
@@ -327,7 +327,7 @@ def _cmd_plot(args: argparse.Namespace) -> int:
 
 
 def _cmd_info(_: argparse.Namespace) -> int:
-    from .info import collect
+    from .workflows.info import collect
 
     for row in collect():
         print(f"{row.name:<10} {row.version:<28} {row.location}  [{row.source}]")

@@ -43,7 +43,7 @@ if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ] || ! .venv/bin/python -c
   touch "$stamp"
 fi
 
-# 3D pictures (orchestrator/pictures_mech.py): pyvista and VTK, which Debian 12 lacks, from PyPI,
+# 3D pictures (orchestrator/run/pictures_mech.py): pyvista and VTK, which Debian 12 lacks, from PyPI,
 # constrained to Debian's numpy (constraints.txt pins them too); VTK renders off-screen through
 # Mesa's EGL (apt above), no display needed.
 if ! .venv/bin/python -c "import importlib.util as u, sys; sys.exit(not (u.find_spec('pyvista') and u.find_spec('vtk')))"; then

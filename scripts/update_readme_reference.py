@@ -2,7 +2,7 @@
 
 from pathlib import Path
 
-from pulseform.orchestrator.reference import END, START, case_reference_markdown
+from pulseform.orchestrator.case.reference import END, START, case_reference_markdown
 
 readme = Path(__file__).resolve().parents[1] / "README.md"
 text = readme.read_text()

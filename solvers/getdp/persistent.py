@@ -25,12 +25,13 @@ from typing import Sequence
 import numpy as np
 
 from .bdf2 import match_rows, trapezoid_mean
+from .files import element_volumes, init_list_line, read_element_table
 from .mesh import EMMesh, coil_tag, conductor_tag
 from .model import EMModel, EMState, EMStepResult
 from .persistent_process import (FLAG_COND_FIELDS, FLAG_ELEM, FLAG_FIELDS, FLAG_STATE, LEAN_GLOBALS, PERSISTENT_LIB,
                                  PersistentProcess, StepAnswer, nodal_dof_map, read_binary_res)
 from .runner import GetDPError, RunInfo, log_tail
-from .solver import CASE_DECK, DEFAULT_PETSC_ARGS, GetDPSolver, _element_table, _element_volumes, init_list_line
+from .solver import CASE_DECK, DEFAULT_PETSC_ARGS, GetDPSolver
 
 log = logging.getLogger(__name__)
 
@@ -152,7 +153,7 @@ class PersistentGetDPSolver(GetDPSolver):
     def _volume(self, mesh: EMMesh, tag: int, weighted: bool) -> float:
         """Volume (2πr-weighted in axisymmetry when ``weighted``) or area of region ``tag`` (m³ or m²)."""
         axi = self.model.axisymmetric and weighted
-        return float(_element_volumes(mesh, np.flatnonzero(mesh.tri_tags == tag), axi).sum())
+        return float(element_volumes(mesh, np.flatnonzero(mesh.tri_tags == tag), axi).sum())
 
     def close(self) -> None:
         """End the getdp process (if any)."""
@@ -216,12 +217,12 @@ class PersistentGetDPSolver(GetDPSolver):
         dt = t_end - state.t
         nk = len(m.conductors)
         if nk:
-            ids, eF = _element_table(out / "elem_F.txt", 3, 1)
+            ids, eF = read_element_table(out / "elem_F.txt", 3, 1)
             elements = ids - 1
             if self.elements is None or not np.array_equal(elements, self.elements):
                 self.elements = elements
                 self._tags = mesh.tri_tags[elements]
-            vol = _element_volumes(mesh, elements, m.axisymmetric)
+            vol = element_volumes(mesh, elements, m.axisymmetric)
             force = eF[:, :, :2] / vol[None, :, None]
             cond_force = np.stack([eF[0, self._tags == conductor_tag(j), :2].sum(axis=0) for j in range(1, nk + 1)])
         else:
@@ -286,10 +287,10 @@ class PersistentGetDPSolver(GetDPSolver):
 
     def _read_conductor_fields(self, r: PersistentStepResult, mesh: EMMesh) -> None:
         out = self.proc.out_dir
-        ids, eP = _element_table(out / "elem_P.txt", 1, 1)
-        vol = _element_volumes(mesh.with_points(self.proc.points), ids - 1, self.model.axisymmetric)
+        ids, eP = read_element_table(out / "elem_P.txt", 1, 1)
+        vol = element_volumes(mesh.with_points(self.proc.points), ids - 1, self.model.axisymmetric)
         r.joule_density = eP[:, :, 0] / vol[None, :]
-        r.flux_density = _element_table(out / "elem_b.txt", 3, 1)[1][:, :, :2]
+        r.flux_density = read_element_table(out / "elem_b.txt", 3, 1)[1][:, :, :2]
 
     def _conductor_fields(self, r: PersistentStepResult) -> None:
         """Fetch Joule power and B on the conductors of the current step (a query)."""
@@ -332,7 +333,7 @@ class PersistentGetDPSolver(GetDPSolver):
             self._a_index = nodal_dof_map(p.run_dir / "em.pre", 0, p.mesh.n_nodes)
         index, n_dofs = self._a_index
         x_n, x_prev = read_binary_res(res, n_dofs)[-2:]
-        tri, used = self._cs_nodes(p.mesh)
+        tri, used = self.conductor_nodes(p.mesh)
         remap = np.full(p.mesh.n_nodes, -1, np.int64)
         remap[used] = np.arange(len(used))
 

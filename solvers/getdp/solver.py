@@ -1,18 +1,15 @@
 """The EM participant: one EM step = one getdp run (model, state and results in :mod:`.model`)."""
 from __future__ import annotations
 
-import re
 import shutil
-import threading
-import uuid
 import warnings
-from functools import lru_cache
 from pathlib import Path
 from typing import Sequence
 
 import numpy as np
 
 from .bdf2 import bdf2_coefficients, match_rows, trapezoid_mean
+from .files import discard_folder, element_volumes, init_list_line, read_element_table, read_table
 from .mesh import EMMesh, coil_tag, conductor_tag, write_msh22
 from .model import (Circuit, Coil, Conductor, CurrentTable, DampedSine, EMModel, EMState, EMStepResult,  # noqa: F401
                     mesh_signature)
@@ -27,70 +24,6 @@ RESOLUTION = "EM_Transient"
 #: time schemes of :class:`GetDPSolver`: GetDP's theta-scheme loop (theta from the ``TimeTheta``
 #: number, 1 = implicit Euler), or BDF2 as one shifted implicit-Euler step per run (:mod:`.bdf2`)
 TIME_SCHEMES = ("euler", "bdf2")
-
-
-def discard_folder(path: Path) -> threading.Thread | None:
-    """Delete a run folder off the critical path: rename it, remove it in a daemon thread.
-
-    Returns the thread (join it to wait for the deletion), or None when the folder is gone already
-    or could not be renamed (then it was deleted synchronously)."""
-    path = Path(path)
-    if not path.exists():
-        return None
-    trash = path.with_name(f".trash_{path.name}_{uuid.uuid4().hex[:8]}")
-    try:
-        path.rename(trash)
-    except OSError:
-        shutil.rmtree(path, ignore_errors=True)
-        return None
-    thread = threading.Thread(target=shutil.rmtree, args=(trash, True), daemon=True)
-    thread.start()
-    return thread
-
-
-def _element_table(path: Path, ncomp: int, n_blocks: int) -> tuple[np.ndarray, np.ndarray]:
-    """Read ``n_blocks`` appended getdp ElementTable blocks (count, then "id v1 .. vncomp" rows).
-
-    Returns (element ids of the first block, values (n_blocks, count, ncomp)); every block
-    must list the same elements in the same order.
-    """
-    tok = np.fromstring(Path(path).read_text(), sep=" ")   # C parser, accepts nan/inf
-    pos, ids, blocks = 0, None, []
-    for _ in range(n_blocks):
-        if pos >= tok.size:
-            raise RuntimeError(f"{path}: fewer than {n_blocks} element blocks")
-        count = int(tok[pos])
-        rows = tok[pos + 1: pos + 1 + count * (1 + ncomp)].reshape(count, 1 + ncomp)
-        pos += 1 + count * (1 + ncomp)
-        if ids is None:
-            ids = rows[:, 0].astype(np.int64)
-        elif not np.array_equal(rows[:, 0].astype(np.int64), ids):
-            raise RuntimeError(f"{path}: element order changed between sub-steps")
-        blocks.append(rows[:, 1:])
-    if pos != tok.size:
-        raise RuntimeError(f"{path}: unexpected trailing data")
-    return ids, np.stack(blocks)
-
-
-def init_list_line(name: str, ids, values) -> str:
-    """A ``run.pro`` line defining the list ``name() = {N, id, value, ...}`` for ``ValueFromIndex``
-    (the pair count first, else every lookup silently returns 0); values in ``repr``: exact round trip."""
-    pairs = [f"{int(i)}, {float(v)!r}" for i, v in zip(np.asarray(ids).tolist(), np.asarray(values).tolist())]
-    body = ",\n  ".join(", ".join(pairs[j:j + 8]) for j in range(0, len(pairs), 8))
-    return f"{name}() = {{{len(pairs)},\n  {body}}};"
-
-
-def _table(path: Path) -> np.ndarray:
-    """Read a whitespace table written by getdp (np.loadtxt: the fastest reader measured here)."""
-    return np.loadtxt(path, ndmin=2)
-
-
-def _element_volumes(mesh: EMMesh, rows: np.ndarray, axisymmetric: bool) -> np.ndarray:
-    """Volumes of the triangles ``rows`` (2 pi r_c A in axisymmetry, A in planar)."""
-    p = mesh.points[mesh.triangles[rows]]
-    d1, d2 = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
-    a = 0.5 * np.abs(d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0])
-    return 2 * np.pi * p[:, :, 0].mean(axis=1) * a if axisymmetric else a
 
 
 # ----------------------------------------------------------------------------- solver
@@ -318,7 +251,7 @@ class GetDPSolver:
         fb, fa = out / "field_b.txt", out / "field_a.txt"
         if not (fb.is_file() and fa.is_file()):
             return
-        ids, vals = _element_table(fb, 3, 1)
+        ids, vals = read_element_table(fb, 3, 1)
         if len(ids) and (ids.min() < 1 or ids.max() > len(mesh.triangles)):
             raise RuntimeError(f"{fb}: element ids outside the mesh's triangles")
         b = np.full((len(mesh.triangles), 2), np.nan)
@@ -366,7 +299,7 @@ class GetDPSolver:
             nb.update(Flag_Shell=1, Val_Rint=m.shell[0], Val_Rext=m.shell[1],
                       Val_Cx=m.shell_centre[0], Val_Cy=m.shell_centre[1])
         for k, c in enumerate(m.coils, start=1):
-            area = float(_element_volumes(mesh, np.flatnonzero(mesh.tri_tags == coil_tag(k)), False).sum())
+            area = float(element_volumes(mesh, np.flatnonzero(mesh.tri_tags == coil_tag(k)), False).sum())
             if area <= 0:
                 raise ValueError(f"coil {k}: region {coil_tag(k)} is empty in the mesh")
             nb[f"Coil_Ns_{k}"] = c.turns
@@ -397,7 +330,7 @@ class GetDPSolver:
                 lines.append(f"Coil_Table_{k}() = {{\n  {body}}};")
         return lines
 
-    def _cs_nodes(self, mesh: EMMesh) -> tuple[np.ndarray, np.ndarray]:
+    def conductor_nodes(self, mesh: EMMesh) -> tuple[np.ndarray, np.ndarray]:
         """(triangles, sorted unique nodes) of the coil and conductor regions.
 
         Cached for the last connectivity (moved meshes share their triangle arrays).
@@ -418,7 +351,7 @@ class GetDPSolver:
         (restart carries values by node, which is right only for Lagrangian nodes)."""
         if state.a_points is None:
             return True
-        _, nodes = self._cs_nodes(mesh)
+        _, nodes = self.conductor_nodes(mesh)
         old = np.asarray(state.a_points, float)
         if old.shape != (len(nodes), 2):
             return False
@@ -432,7 +365,7 @@ class GetDPSolver:
         old_p = np.asarray(state.a_points, float)
         old_t = np.asarray(state.a_triangles, np.int64)
         old_v = np.asarray(values, float)
-        _, nodes = self._cs_nodes(mesh)
+        _, nodes = self.conductor_nodes(mesh)
         if self._nodes_are_material(mesh, material_points, state):   # same material nodes: no interpolation
             return nodes + 1, old_v.copy()
         q = material_points[nodes]
@@ -449,35 +382,35 @@ class GetDPSolver:
         m = self.model
         nc, nk = len(m.coils), len(m.conductors)
         dt = (t_end - state.t) / n
-        w = _table(out / "W.txt")
+        w = read_table(out / "W.txt")
         times = w[:, 0]
         if len(times) != n:
             raise RuntimeError(f"expected {n} sub-steps in {out}, found {len(times)}")
         if abs(times[-1] - t_end) > 1e-6 * dt:
             raise RuntimeError(f"last sub-step at t = {times[-1]!r}, expected {t_end!r}")
-        cur = np.column_stack([_table(out / f"coil_I_{k}.txt")[:, 1] for k in range(1, nc + 1)]) \
+        cur = np.column_stack([read_table(out / f"coil_I_{k}.txt")[:, 1] for k in range(1, nc + 1)]) \
             if nc else np.zeros((n, 0))
-        us = np.column_stack([_table(out / f"coil_U_{k}.txt")[:, 1] for k in range(1, nc + 1)]) \
+        us = np.column_stack([read_table(out / f"coil_U_{k}.txt")[:, 1] for k in range(1, nc + 1)]) \
             if nc else np.zeros((n, 0))
-        cp = np.column_stack([_table(out / f"coil_P_{k}.txt")[:, 1] for k in range(1, nc + 1)]) \
+        cp = np.column_stack([read_table(out / f"coil_P_{k}.txt")[:, 1] for k in range(1, nc + 1)]) \
             if nc else np.zeros((n, 0))
-        cf = np.stack([_table(out / f"coil_F_{k}.txt")[:, 1:3] for k in range(1, nc + 1)], axis=1) \
+        cf = np.stack([read_table(out / f"coil_F_{k}.txt")[:, 1:3] for k in range(1, nc + 1)], axis=1) \
             if nc else np.zeros((n, 0, 2))
-        kf = np.stack([_table(out / f"cond_F_{k}.txt")[:, 1:3] for k in range(1, nk + 1)], axis=1) \
+        kf = np.stack([read_table(out / f"cond_F_{k}.txt")[:, 1:3] for k in range(1, nk + 1)], axis=1) \
             if nk else np.zeros((n, 0, 2))
-        kp = np.column_stack([_table(out / f"cond_P_{k}.txt")[:, 1] for k in range(1, nk + 1)]) \
+        kp = np.column_stack([read_table(out / f"cond_P_{k}.txt")[:, 1] for k in range(1, nk + 1)]) \
             if nk else np.zeros((n, 0))
         if nk and n_rows:
-            ids, ef = _element_table(out / "elem_f.txt", 3, n_rows)
-            ids_F, eF = _element_table(out / "elem_F.txt", 3, n_rows)
-            ids_P, eP = _element_table(out / "elem_P.txt", 1, n_rows)
-            ids_b, eb = _element_table(out / "elem_b.txt", 3, n_rows)
+            ids, ef = read_element_table(out / "elem_f.txt", 3, n_rows)
+            ids_F, eF = read_element_table(out / "elem_F.txt", 3, n_rows)
+            ids_P, eP = read_element_table(out / "elem_P.txt", 1, n_rows)
+            ids_b, eb = read_element_table(out / "elem_b.txt", 3, n_rows)
             if not (np.array_equal(ids, ids_F) and np.array_equal(ids, ids_P) and np.array_equal(ids, ids_b)):
                 raise RuntimeError("per-element tables list elements in different orders")
             elements = ids - 1
             if elements.max() >= len(mesh.triangles):
                 raise RuntimeError("per-element output refers to a non-triangle element")
-            vol = _element_volumes(mesh, elements, m.axisymmetric)
+            vol = element_volumes(mesh, elements, m.axisymmetric)
             centroid = ef[:, :, :2]
             force = eF[:, :, :2] / vol[None, :, None]
             joule = eP[:, :, 0] / vol[None, :]
@@ -490,17 +423,17 @@ class GetDPSolver:
             centroid = np.zeros((n_rows, 0, 2))
             joule = np.zeros((n_rows, 0))
             bfield = np.zeros((n_rows, 0, 2))
-        probe_b = np.stack([_table(out / f"probe_b_{i}.txt")[:, -3:-1]
+        probe_b = np.stack([read_table(out / f"probe_b_{i}.txt")[:, -3:-1]
                             for i in range(1, len(m.probes) + 1)], axis=1) if m.probes else np.zeros((n, 0, 2))
         vc = ic = None
         if m.circuit is not None:
-            vc = _table(out / "cir_U.txt")[:, 1]
-            ic = _table(out / "cir_I.txt")[:, 1]
+            vc = read_table(out / "cir_U.txt")[:, 1]
+            ic = read_table(out / "cir_I.txt")[:, 1]
         # Joule heat over the step: rectangle rule (implicit Euler) or trapezoid (BDF2, from power_start)
         q = cp.sum(axis=0) * dt if power_start is None else trapezoid_mean(power_start, cp) * n * dt
         heat = np.asarray(state.coil_heat or [0.0] * nc, float) + q
         mass_cp = np.array([c.density * c.heat_capacity
-                            * _element_volumes(mesh, np.flatnonzero(mesh.tri_tags == coil_tag(k)), m.axisymmetric).sum()
+                            * element_volumes(mesh, np.flatnonzero(mesh.tri_tags == coil_tag(k)), m.axisymmetric).sum()
                             for k, c in enumerate(m.coils, start=1)])
         for name, arr in (("force density", force), ("coil current", cur), ("energy", w[:, 1])):
             if not np.all(np.isfinite(arr)):
@@ -517,7 +450,7 @@ class GetDPSolver:
         nodes_file = out / "nodes_a.txt"
         d = np.loadtxt(nodes_file, skiprows=1, ndmin=2)
         pts = mesh.points if material_points is None else np.asarray(material_points, float)
-        tri, used = self._cs_nodes(mesh)
+        tri, used = self.conductor_nodes(mesh)
         remap = np.full(mesh.n_nodes, -1, np.int64)
         remap[used] = np.arange(len(used))
         vals = np.zeros(mesh.n_nodes)
@@ -528,48 +461,3 @@ class GetDPSolver:
             current=float(result.circuit_current[-1]) if result.circuit_current is not None else 0.0,
             coil_heat=result.coil_heat.tolist(), res_path=str(run_dir / "em.res"), mesh_signature=sig,
             a_points=pts[used].tolist(), a_triangles=remap[tri].tolist(), a_values=vals[used].tolist())
-
-
-# ----------------------------------------------------------------------------- names a run sets
-#: lists ``run.pro`` defines before the deck is included: the Init path's nodal values
-#: (:meth:`GetDPSolver.step`) and the coil current tables (:meth:`GetDPSolver._table_lines`)
-RUN_PRO_LISTS = ("InitA_List", "InitA2_List", "Coil_Table_<k>", "PulseformPersistentLib")
-
-
-def _indexed(name: str) -> str:
-    """``Coil_Ns_1`` / ``Coil_Ns~{k}`` -> ``Coil_Ns_<k>`` (one entry per indexed family)."""
-    return re.sub(r"(?:_\d+|~\{\w+\})$", "_<k>", name)
-
-
-@lru_cache(maxsize=1)
-def runner_number_names() -> tuple[str, ...]:
-    """Every name a :class:`GetDPSolver` run defines in getdp, sorted; indexed families once as
-    ``Coil_Ns_<k>`` (``<k>`` = 1, 2, ...).
-
-    The union of (1) the ``DefineConstant`` inputs of the library decks ``Lib_PulsedForming.pro``
-    and ``Lib_Persistent.pro``
-    (the numbers and strings a step passes with ``-setnumber`` / ``-setstring``: ``TimeInit``,
-    ``NbSteps``, ``Flag_*``, ``C_bank``, ``OutDir``, ...), (2) the numbers :meth:`GetDPSolver._numbers`
-    computes from a model and mesh (evaluated here on small models with every option on: a
-    circuit or a prescribed current, a shell, a probe, a coil and two conductors) and (3)
-    :data:`RUN_PRO_LISTS`.  A user deck's own parameters may not reuse any of them
-    (``pulseform.orchestrator.user_deck``).
-    """
-    names = set()
-    for deck in ("Lib_PulsedForming.pro", "Lib_Persistent.pro"):
-        lib = re.sub(r"//[^\n]*", "", (DECK_DIR / deck).read_text())
-        for block in re.findall(r"DefineConstant\s*\[(.*?)\]\s*;", lib, flags=re.S):
-            names.update(_indexed(n) for n in re.findall(r"([A-Za-z_]\w*(?:~\{\w+\})?)\s*=", block))
-    pts = [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)]
-    mesh = EMMesh(pts, [[0, 1, 2], [0, 2, 3], [0, 1, 3]], [coil_tag(1), conductor_tag(1), conductor_tag(2)],
-                  [[0, 3]], [11])
-    conductors = [Conductor(1.0), Conductor(1.0)]
-    models = [EMModel(True, [Coil(1)], conductors, circuit=Circuit(1.0, 1.0), shell=(1.0, 2.0), probes=[(0.5, 0.5)]),
-              EMModel(True, [Coil(1, waveform=DampedSine(1.0, 1.0, 1.0))], conductors),
-              EMModel(True, [Coil(1, waveform=CurrentTable([0.0, 1.0], [0.0, 1.0]))], conductors)]
-    for model in models:
-        solver = object.__new__(GetDPSolver)  # _numbers reads only the model (no work folder made)
-        solver.model = model
-        names.update(_indexed(n) for n in solver._numbers(mesh))
-    names.update(RUN_PRO_LISTS)
-    return tuple(sorted(names))

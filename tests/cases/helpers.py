@@ -36,8 +36,7 @@ def run_many(jobs: dict[str, tuple[str, list[str]]], root: Path) -> dict[str, di
 
 
 def tube_clearance(c_percent: float) -> list[str]:
-    """--set arguments for a radial clearance of c % of R0 (scripts/study_tube_press_fit.py)."""
-    sys.path.insert(0, str(REPO / "scripts"))
-    from study_tube_press_fit import outer_sets
+    """--set arguments for a radial clearance of c % of R0 (studies/tube_press_fit/clearance_sweep.py)."""
+    from pulseform.orchestrator.run.analyses.tube_press_fit import outer_sets
 
     return outer_sets(c_percent)

@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from pulseform.orchestrator import driver as driver_mod
-from pulseform.orchestrator import mech_participants
-from pulseform.orchestrator.caseio import load_case
-from pulseform.orchestrator.results import ResultsFolder
+from pulseform.orchestrator.run import driver as driver_mod
+from pulseform.orchestrator.mech import participants as mech_participants
+from pulseform.orchestrator.case.io import load_case
+from pulseform.orchestrator.run.results import ResultsFolder
 
 from .helpers import CORNER_COARSE, REPO, TUBE_COARSE
 

@@ -10,12 +10,11 @@ does not give the die's depth: ours was chosen so that the threshold lies betwee
 from __future__ import annotations
 
 import math
-import sys
 
 import numpy as np
 import pytest
 
-from pulseform.orchestrator.analyses.corner_fill import _point_segment_distance, _yielded_fraction
+from pulseform.orchestrator.run.analyses.corner_fill import _point_segment_distance, _yielded_fraction
 
 from .helpers import CORNER_COARSE, REPO, run_many
 
@@ -24,8 +23,7 @@ KEYS = ("fill_fraction", "die_mises_max_MPa", "blank_speed_max_m_s", "die_contac
 
 
 def test_die_profile_is_the_documented_130_degree_groove():
-    sys.path.insert(0, str(REPO / "scripts"))
-    from study_corner_fill_die import die_polygon
+    from pulseform.orchestrator.run.analyses.corner_fill_die import die_polygon
 
     pts = np.array(die_polygon(depth=0.02, radius=0.002, bottom_half_width=0.06))
     x, y = pts[:, 0], pts[:, 1]
@@ -119,7 +117,7 @@ def test_p0_sweep_fill_grows_with_pressure(tmp_path):
 def test_touched_so_far_survives_kill_and_resume(tmp_path):
     """The fill fraction is a "touched at some time so far" record: a run killed after its first
     checkpoint and resumed must report the same fill metrics as the uninterrupted run (the record
-    travels in the checkpoint, orchestrator/mech_participants.py). Very coarse meshes (blank 1 mm,
+    travels in the checkpoint, orchestrator/mech/participants.py). Very coarse meshes (blank 1 mm,
     die 4 mm) and 160 us; the checkpoint at 120 us is taken after the blank has struck the bottom
     and rebounded, so that what was touched before it is not all touched again afterwards (checked
     on the uninterrupted run: fill so far > contact now there)."""

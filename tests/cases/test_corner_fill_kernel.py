@@ -7,8 +7,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from pulseform.orchestrator.analyses.corner_fill import _point_segment_distance, _segment_distances
-from pulseform.orchestrator.analyses.corner_fill_kernel import (blank_motion, build_midpoint_grid,
+from pulseform.orchestrator.run.analyses.corner_fill import _point_segment_distance, _segment_distances
+from pulseform.orchestrator.run.analyses.corner_fill_kernel import (blank_motion, build_midpoint_grid,
                                                                 distances_within, min_distances)
 from pulseform.solvers.dolfinx.cell_fields import nodal_extremes, von_mises, von_mises_max
 from pulseform.solvers.dolfinx.cell_list import new_grid
@@ -95,7 +95,7 @@ def test_von_mises_max_bitwise():
 
 def test_history_row_extremes_bitwise_as_numpy():
     """driver.body_extremes / max_von_mises: the compiled passes give numpy's bits."""
-    from pulseform.orchestrator.driver import max_von_mises
+    from pulseform.orchestrator.run.driver import max_von_mises
 
     rng = np.random.default_rng(7)
     stress = rng.normal(0, 3e8, (7000, 4))

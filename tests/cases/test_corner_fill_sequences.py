@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from .helpers import CORNER_COARSE, REPO, run_many
+from .helpers import CORNER_COARSE, run_many
 
 FILLED = 0.999
 
@@ -62,12 +62,10 @@ def test_preform_is_quasi_static_by_ramp_rate(runs, tmp_path):
     """Quasi-static means the preformed shape does not depend on how fast the pressure is ramped:
     the same preform over 8 ms instead of 4 ms must move no blank node by more than 2 h0 = 0.2 mm
     (the fill measure's resolution) and change the preform's fill fraction by less than 0.01.
-    Criterion fixed before the first 8 ms run was made (scripts/study_corner_fill_preform.py); with
+    Criterion fixed before the first 8 ms run was made (studies/corner_fill/preform.py); with
     kinetic damping the case mesh gives 0.106 mm and equal fills (docs/cases.md)."""
-    import sys
-
-    sys.path.insert(0, str(REPO / "scripts"))
-    from study_corner_fill_preform import FILL_TOL, SHAPE_TOL, blank_at, run_preform, summary
+    from pulseform.orchestrator.run.analyses.corner_fill_preform import (FILL_TOL, SHAPE_TOL, blank_at, run_preform,
+                                                                         summary)
 
     base = Path(runs["restrike"]["_out"])
     slow = run_preform(tmp_path, 8e-3, CORNER_COARSE)

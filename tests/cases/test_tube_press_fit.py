@@ -4,7 +4,7 @@ References (paper sec. 6): with a small clearance (the Figure 6 example: 0.006 R
 from about the same point and a residual contact pressure remains; the residual pressure falls as
 the clearance grows, and beyond a critical clearance ("should not be more than 3 % of the inner
 tube internal radius") the tubes unload from different points and no pressure is left.
-"Near zero" here: below 2 % of the value at small clearance (scripts/study_tube_press_fit.py uses
+"Near zero" here: below 2 % of the value at small clearance (studies/tube_press_fit/clearance_sweep.py uses
 the zero-clearance value).
 Default tier: 0.5 mm cells instead of 0.25 mm.
 """
@@ -73,10 +73,7 @@ def sweep(tmp_path_factory):
 def test_clearance_sweep_critical_clearance_a_few_percent(sweep):
     """Positive residual pressure up to a critical clearance of a few % of R0, none beyond
     (paper: 3 %; ours lies between 3 and 4 % on the 1 % sweep grid, docs/cases.md)."""
-    import sys
-
-    sys.path.insert(0, str(REPO / "scripts"))
-    from study_tube_press_fit import critical_clearance
+    from pulseform.orchestrator.run.analyses.tube_press_fit import critical_clearance_of_rows as critical_clearance
 
     cs, p = sweep
     assert p[0] > 1.0

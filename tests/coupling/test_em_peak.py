@@ -5,7 +5,7 @@ holds a step's fields only until its next step, so rising steps near the peak fe
 import numpy as np
 import pytest
 
-from pulseform.orchestrator.em_participant import PEAK_LOOKAHEAD_STEPS, peak_is_near
+from pulseform.orchestrator.em.participant import PEAK_LOOKAHEAD_STEPS, peak_is_near
 
 
 def _flags(t, current):

@@ -125,7 +125,7 @@ def test_b_is_the_curl_of_the_written_potential(ringing):
 
 def test_em_pictures(ringing, tmp_path):
     """The run drew them (output.plots), and draw_em draws them again from the folder's files alone."""
-    from pulseform.orchestrator.pictures_em import draw_em, facing_surface, read_snapshot, surface_pressure
+    from pulseform.orchestrator.run.pictures_em import draw_em, facing_surface, read_snapshot, surface_pressure
     import matplotlib.image as mpimg
 
     names = ["em_flux_density_peak_current.png", "em_flux_density_last_output.png",

@@ -13,8 +13,9 @@ import math
 import numpy as np
 import pytest
 
-from pulseform.orchestrator.loop import LoopOptions, StaggeredLoop
-from pulseform.orchestrator.participants import LoadStep, RigidAxialBody
+from pulseform.orchestrator.coupling.loop import LoopOptions, StaggeredLoop
+from pulseform.orchestrator.coupling.fakes import RigidAxialBody
+from pulseform.orchestrator.coupling.interfaces import LoadStep
 from pulseform.solvers.getdp.bdf2 import bdf2_coefficients
 
 NODES = np.array([[0.0, 0.0], [1.0, 0.0], [0.5, 1.0]])

@@ -5,10 +5,10 @@ import math
 import numpy as np
 import pytest
 
-from pulseform.orchestrator.case import FlatCoilSheet, SolenoidTube
-from pulseform.orchestrator.emf_geometry import build_em_geometry, flat_coil_turns, solenoid_turns
-from pulseform.orchestrator.shared_mesh import conductor_submesh, match_nodes, to_dolfinx
-from pulseform.orchestrator.transfer import cell_volumes
+from pulseform.orchestrator.case.model import FlatCoilSheet, SolenoidTube
+from pulseform.orchestrator.mesh.em_geometry import build_em_geometry, flat_coil_turns, solenoid_turns
+from pulseform.orchestrator.mesh.shared import conductor_submesh, match_nodes, to_dolfinx
+from pulseform.orchestrator.coupling.transfer import cell_volumes
 from pulseform.solvers.getdp.mesh import AIR, AXIS, OUTER, SHELL
 
 SHEET = FlatCoilSheet(type="flat_coil_sheet", turns=3, coil_inner_radius=10e-3, turn_width=4e-3,

@@ -5,10 +5,11 @@ import math
 import numpy as np
 import pytest
 
-from pulseform.orchestrator.loop import StaggeredLoop
-from pulseform.orchestrator.mesh_motion import MeshMover, MeshQualityError, triangle_quality
-from pulseform.orchestrator.participants import AnalyticForce, LoadStep, RigidAxialBody, plain_total
-from pulseform.orchestrator.transfer import cell_force_integral, cell_to_nodal_forces
+from pulseform.orchestrator.coupling.loop import StaggeredLoop
+from pulseform.orchestrator.mesh.motion import MeshMover, MeshQualityError, triangle_quality
+from pulseform.orchestrator.coupling.fakes import AnalyticForce, RigidAxialBody
+from pulseform.orchestrator.coupling.interfaces import LoadStep, plain_total
+from pulseform.orchestrator.coupling.transfer import cell_force_integral, cell_to_nodal_forces
 
 from .meshes import rect_mesh
 
@@ -181,7 +182,7 @@ def test_inverted_element_never_passes():
 def test_adaptive_n_grows_after_the_pulse_and_stays_accurate():
     """A sin² pulse (1 ms) then no force: adaptive n doubles once the resultant stops changing.
     Reference: n = 1 with a 10× smaller step (converged to 1e-12 here)."""
-    from pulseform.orchestrator.loop import LoopOptions
+    from pulseform.orchestrator.coupling.loop import LoopOptions
 
     w = 2 * math.pi * 1e3
     force = lambda t: 100.0 * math.sin(w * t) ** 2 if t < math.pi / w else 0.0  # noqa: E731
@@ -223,7 +224,7 @@ def test_iterated_coupling_is_stable_where_plain_staggering_is_not():
     """Spring feedback with ω·dt_em = 0.31: forces lagging one EM step pump energy in (amplitude
     grows > 10×); iterating each EM step on its end geometry converges in a few iterations and the
     amplitude never grows (initial amplitude 1 m/s / ω)."""
-    from pulseform.orchestrator.loop import LoopOptions
+    from pulseform.orchestrator.coupling.loop import LoopOptions
 
     omega = 2 * math.pi * 10.0
     amps = {}

@@ -13,11 +13,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pulseform.orchestrator.case import (FlatCoilSheet, OuterTube, PlanarCoilBlankDie, SheetDie, SolenoidTube)
-from pulseform.orchestrator.em_participant import ConductorBody, GetDPLoad
-from pulseform.orchestrator.emf_geometry import build_em_geometry, sheet_die_polygon
-from pulseform.orchestrator.shared_mesh import conductor_submesh
-from pulseform.orchestrator.transfer import cell_volumes
+from pulseform.orchestrator.case.model import (FlatCoilSheet, OuterTube, PlanarCoilBlankDie, SheetDie, SolenoidTube)
+from pulseform.orchestrator.em.participant import ConductorBody, GetDPLoad
+from pulseform.orchestrator.mesh.em_geometry import build_em_geometry, sheet_die_polygon
+from pulseform.orchestrator.mesh.shared import conductor_submesh
+from pulseform.orchestrator.coupling.transfer import cell_volumes
 from pulseform.solvers.getdp import Coil, Conductor, EMModel
 from pulseform.solvers.getdp.mesh import AXIS
 

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from pulseform.orchestrator.case import Box, PulseSin2
-from pulseform.orchestrator.mech_participants import PressurePulses
+from pulseform.orchestrator.case.model import Box, PulseSin2
+from pulseform.orchestrator.mech.participants import PressurePulses
 
 
 def _fake(speed):

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from pulseform.orchestrator import transfer as tr
+from pulseform.orchestrator.coupling import transfer as tr
 
 from .meshes import rect_mesh
 

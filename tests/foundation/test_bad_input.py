@@ -16,10 +16,10 @@ import tomli_w
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from pulseform.orchestrator.caseio import load_case
-from pulseform.orchestrator.case import Case
+from pulseform.orchestrator.case.io import load_case
+from pulseform.orchestrator.case.model import Case
 from pulseform.orchestrator.cli import main
-from pulseform.orchestrator.schema import PLAUSIBLE, reference_rows
+from pulseform.orchestrator.case.schema import PLAUSIBLE, reference_rows
 
 REPO = Path(__file__).resolve().parents[2]
 BASE = tomllib.loads((REPO / "cases/bar_impact/case.toml").read_text())

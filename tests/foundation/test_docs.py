@@ -2,7 +2,7 @@
 
 from pathlib import Path
 
-from pulseform.orchestrator.reference import END, START, case_reference_markdown
+from pulseform.orchestrator.case.reference import END, START, case_reference_markdown
 
 README = Path(__file__).resolve().parents[2] / "README.md"
 

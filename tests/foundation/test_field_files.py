@@ -18,8 +18,8 @@ import meshio
 import numpy as np
 import pytest
 
-from pulseform.orchestrator.checkpoint import load_checkpoint
-from pulseform.orchestrator.mech_fields import STRESS_COMPONENTS, read_fields
+from pulseform.orchestrator.run.checkpoint import load_checkpoint
+from pulseform.orchestrator.run.mech_fields import STRESS_COMPONENTS, read_fields
 
 REPO = Path(__file__).resolve().parents[2]
 EXE = str(Path(sys.executable).with_name("pulseform"))

@@ -36,7 +36,7 @@ from typing import Any
 import pytest
 import tomli_w
 
-from pulseform.orchestrator import user_deck
+from pulseform.orchestrator.em import user_deck
 from pulseform.orchestrator.cli import main
 
 REPO = Path(__file__).resolve().parents[2]
@@ -48,7 +48,7 @@ MAX_LINE = 300
 #: Mutation kinds `check` must refuse (exit 2) wherever they land.
 REFUSED_KINDS = {"huge", "nonfinite", "nul_value", "nul_key", "unknown_key", "type", "deep", "name_path", "file_path",
                  "bad_set", "broken_file"}
-#: (key glob, kind) that the resource guards (orchestrator/guards.py) will refuse but `check` may still
+#: (key glob, kind) that the resource guards (orchestrator/case/guards.py) will refuse but `check` may still
 #: accept today, e.g. a 1 nm mesh size (billions of cells) or an end time of 500 s (billions of steps).
 #: Not asserted. Once a guard refuses one, move it to GUARDED.
 #: A user deck's own mesh parameters (`Lc_*`) are guarded by gmsh's time limit when the deck is meshed,

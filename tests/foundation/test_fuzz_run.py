@@ -37,7 +37,7 @@ def _loads(original: Path, m: Mutation) -> bool:
     """Whether the case of mutation ``m`` validates (so that `run` really runs it)."""
     import tempfile
 
-    from pulseform.orchestrator.caseio import CaseError, load_case
+    from pulseform.orchestrator.case.io import CaseError, load_case
 
     with tempfile.TemporaryDirectory() as tmp:
         file = Path(tmp) / "case.toml"

@@ -1,6 +1,6 @@
 """``history.csv`` is formatted once per row (issue 15): a flush formats only the rows recorded since
 the previous one and rewrites the whole file atomically, with the bytes of one fresh
-:func:`~pulseform.orchestrator.results.write_csv` of every row — also across a restart that restores
+:func:`~pulseform.orchestrator.run.results.write_csv` of every row — also across a restart that restores
 the rows from a checkpoint (numpy floats) and goes on recording."""
 
 from __future__ import annotations
@@ -11,8 +11,8 @@ import os
 
 import numpy as np
 
-from pulseform.orchestrator.history import History
-from pulseform.orchestrator.results import write_csv
+from pulseform.orchestrator.run.history import History
+from pulseform.orchestrator.run.results import write_csv
 
 
 def _one_write(header, rows) -> bytes:

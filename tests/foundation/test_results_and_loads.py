@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 from scipy.integrate import quad
 
-from pulseform.orchestrator.case import Box, PulseExp, PulseSin2
-from pulseform.orchestrator.loads import pulse_impulse_per_area, pulse_pressure
-from pulseform.orchestrator.results import ResultsExistError, ResultsFolder, atomic_write_text
-from pulseform.orchestrator.driver import milestones
+from pulseform.orchestrator.case.model import Box, PulseExp, PulseSin2
+from pulseform.orchestrator.mech.pulses import pulse_impulse_per_area, pulse_pressure
+from pulseform.orchestrator.run.results import ResultsExistError, ResultsFolder, atomic_write_text
+from pulseform.orchestrator.run.driver import milestones
 
 
 def test_existing_results_need_force(tmp_path):

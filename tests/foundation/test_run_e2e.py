@@ -106,7 +106,7 @@ def test_kill9_then_resume_gives_same_metrics(tmp_path, coarse_run):
         assert got[k] == pytest.approx(ref[k], rel=1e-12, abs=1e-300), k
     assert "resumed at" in (out / "run.log").read_text()
     # the field files: a _part1 file from the resumed time on; joined, the same times and fields
-    from pulseform.orchestrator.mech_fields import read_fields
+    from pulseform.orchestrator.run.mech_fields import read_fields
 
     assert list((out / "fields").glob("bar_impact_part1_*.xdmf"))
     got_f, ref_f = read_fields(out), read_fields(tmp_path / "ref")

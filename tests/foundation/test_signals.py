@@ -274,8 +274,8 @@ sys.exit(main(sys.argv[5:]))
 
 
 @pytest.mark.parametrize("case,module,attr,what", [
-    ("bar_impact", "pulseform.orchestrator.shapes", "_gmsh_triangles", "meshing body 'left' with gmsh"),
-    ("emf_sheet_bulge", "pulseform.orchestrator.emf_geometry", "coil_conductor_mesh",
+    ("bar_impact", "pulseform.orchestrator.mesh.shapes", "_gmsh_triangles", "meshing body 'left' with gmsh"),
+    ("emf_sheet_bulge", "pulseform.orchestrator.mesh.em_geometry", "coil_conductor_mesh",
      "meshing the flat_coil_sheet EM geometry with gmsh"),
 ], ids=["body_shape", "em_geometry"])
 @pytest.mark.parametrize("mode", ["hang", "abort"])
@@ -323,7 +323,7 @@ def test_out_of_memory_mid_run_is_one_line_and_keeps_the_results(tmp_path):
     """Issue 13, deliverable 3: a MemoryError in the middle of a run (here raised by the third field
     write of a coarse bar impact) ends it with one line naming the time, exit 1, status "failed", and
     what was written before (history, the first two field outputs) stays readable."""
-    from pulseform.orchestrator.mech_fields import read_fields
+    from pulseform.orchestrator.run.mech_fields import read_fields
 
     driver = tmp_path / "driver.py"
     driver.write_text(_OOM_DRIVER)
@@ -344,7 +344,7 @@ def test_out_of_memory_mid_run_is_one_line_and_keeps_the_results(tmp_path):
 
 _SIGNAL_IN_PICTURES = '''
 import os, signal, sys
-from pulseform.orchestrator import plots
+from pulseform.orchestrator.run import plots
 real = plots.plot_energies
 def plot_energies(*args, **kw):  # the first picture group after the 3D renderer started
     os.kill(os.getpid(), signal.SIG{sig})

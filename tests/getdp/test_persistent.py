@@ -14,7 +14,7 @@ import stat
 import numpy as np
 import pytest
 
-from pulseform.orchestrator.mesh_motion import MeshMover
+from pulseform.orchestrator.mesh.motion import MeshMover
 from pulseform.solvers.getdp import (Circuit, Coil, Conductor, EMModel, EMState, GetDPError, GetDPSolver, Rect,
                                      coil_conductor_mesh)
 from pulseform.solvers.getdp.mesh import OUTER, SHELL

@@ -13,7 +13,7 @@ import math
 import numpy as np
 import pytest
 
-from pulseform.orchestrator.compare import (CompareError, circuit_shape, exp_pulse, fit_pulse, parse_conditions,
+from pulseform.orchestrator.workflows.compare import (CompareError, circuit_shape, exp_pulse, fit_pulse, parse_conditions,
                                             shape_distance, sin2_pulse)
 
 from wf_helpers import REPO, one_line_error, pulseform

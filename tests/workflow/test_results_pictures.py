@@ -11,10 +11,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pulseform.orchestrator.caseio import load_case
-from pulseform.orchestrator.history import History
-from pulseform.orchestrator.summary import headline
-from pulseform.orchestrator.units import label, time_axis, unit_of
+from pulseform.orchestrator.case.io import load_case
+from pulseform.orchestrator.run.history import History
+from pulseform.orchestrator.run.summary import headline
+from pulseform.orchestrator.run.units import label, time_axis, unit_of
 
 REPO = Path(__file__).resolve().parents[2]
 EXE = str(Path(sys.executable).with_name("pulseform"))
@@ -68,13 +68,13 @@ def test_one_time_unit_per_run_length():
 @pytest.mark.getdp
 def test_every_column_of_a_demo_run_has_a_unit(demo):
     unknown = [c for c in _columns(demo[0]) if not unit_of(c).known]
-    assert not unknown, f"add these columns to orchestrator/units.RULES: {unknown}"
+    assert not unknown, f"add these columns to orchestrator/run/units.RULES: {unknown}"
 
 
 def test_every_column_of_a_mechanics_run_has_a_unit(bar, press_fit):
     """The bar impact, and the press fit with its analysis' columns and a pressure load."""
     unknown = [c for c in _columns(bar[0]) + _columns(press_fit) if not unit_of(c).known]
-    assert not unknown, f"add these columns to orchestrator/units.RULES: {unknown}"
+    assert not unknown, f"add these columns to orchestrator/run/units.RULES: {unknown}"
 
 
 # ------------------------------------------------------------------ t = 0 row

@@ -13,7 +13,7 @@ import shutil
 import numpy as np
 import pytest
 
-from pulseform.orchestrator.caseio import load_case
+from pulseform.orchestrator.case.io import load_case
 
 from wf_helpers import REPO, one_line_error, pulseform
 
@@ -269,7 +269,7 @@ def test_every_shipped_deck_passes_the_check_with_a_runs_numbers(tmp_path, toml,
     nodal values travel as printed digits) and, for implicit Euler, the restart path (5e-16); its
     getdp numbers are exactly those of a run's first step (the role ids Phys_* and
     [geometry.parameters] included); its getdp runs take well under 2 s here (measured 0.55 s)."""
-    from pulseform.orchestrator import user_deck as ud
+    from pulseform.orchestrator.em import user_deck as ud
     from pulseform.solvers.getdp import conductor_tag
 
     case, _ = load_case(toml, [f"em.time_scheme='{scheme}'"])

@@ -20,10 +20,11 @@ import numpy as np
 import pytest
 import tomli_w
 
-from pulseform.orchestrator import cli, user_deck
-from pulseform.orchestrator.user_deck import DeckContractError, find_program_call, mesh_file
+from pulseform.orchestrator import cli
+from pulseform.orchestrator.em import user_deck
+from pulseform.orchestrator.em.user_deck import DeckContractError, find_program_call, mesh_file
 from pulseform.solvers.getdp import solver as getdp_solver
-from pulseform.solvers.getdp.solver import runner_number_names
+from pulseform.solvers.getdp.contract import runner_number_names
 
 from wf_helpers import REPO
 
@@ -382,7 +383,7 @@ def test_deck_may_not_repoint_the_runners_library(tmp_path, capsys, name):
     """`Include PulseformLib;` is not scanned (it is the runner's own library), so a deck that sets
     the name itself would have getdp read an unchecked file: refused in one line; the library's own
     `DefineConstant[ PulseformPersistentLib = "" ]` default (a copied library) stays allowed."""
-    from pulseform.orchestrator.user_deck import find_program_call
+    from pulseform.orchestrator.em.user_deck import find_program_call
 
     lib = (REPO / "solvers/getdp/decks/Lib_PulsedForming.pro").read_text()
     (tmp_path / "Lib_local.pro").write_text(lib)

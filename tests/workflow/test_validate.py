@@ -1,6 +1,6 @@
 """`pulseform validate`: the fast suite passes and reports; a broken reference makes it exit 1.
 
-References are those of the registry (orchestrator/validation_registry.py): the paper's 1D-bar
+References are those of the registry (orchestrator/workflows/registry.py): the paper's 1D-bar
 contact stress (sec. 4, eq. (6): rho c v / 2 = 70 MPa for 2L/c = 1.6 ms) stored with provenance in
 cases/bar_impact/reference/contact_stress_1d_bar.csv, H0 erfc(...) and B0^2/(2 mu0) for the GetDP
 slab, Newton's second law and the transfer ledger for the coupled free sheet.
@@ -13,8 +13,8 @@ import shutil
 
 import pytest
 
-from pulseform.orchestrator.validate import select
-from pulseform.orchestrator.validation_registry import PROVENANCE_KEYS, REGISTRY, RUNS, CsvCurve
+from pulseform.orchestrator.workflows.validate import select
+from pulseform.orchestrator.workflows.registry import PROVENANCE_KEYS, REGISTRY, RUNS, CsvCurve
 
 from wf_helpers import REPO, one_line_error, pulseform
 
@@ -97,7 +97,7 @@ def test_unknown_selection_is_bad_input(tmp_path):
 
 def _fake_entries(monkeypatch):
     """Two cheap fake runs (no solver): 'measured' reports x = 0.9, 'baseline' x = 1.0."""
-    from pulseform.orchestrator.validation_registry import Analytic, Entry, RunOutput
+    from pulseform.orchestrator.workflows.registry import Analytic, Entry, RunOutput
 
     monkeypatch.setitem(RUNS, "fake_measured", lambda work: RunOutput(scalars={"x": 0.9}))
     monkeypatch.setitem(RUNS, "fake_baseline", lambda work: RunOutput(scalars={"x": 1.0}))
@@ -116,7 +116,7 @@ def test_bounds_and_known_deviations(tmp_path, monkeypatch):
     """A "below" claim against another run's value passes with the signed error -0.1 <= -0.05; a known
     deviation whose comparison fails is reported as "known deviation (xfail)" and does not fail the
     suite; one whose comparison passes (the result changed) is XPASS and fails it (strict)."""
-    from pulseform.orchestrator.validate import run_validation
+    from pulseform.orchestrator.workflows.validate import run_validation
 
     lower, known, flipped = _fake_entries(monkeypatch)
     out = run_validation([lower, known], tmp_path / "ok")
@@ -134,7 +134,7 @@ def test_bounds_and_known_deviations(tmp_path, monkeypatch):
 
 
 def test_a_failed_run_is_never_a_known_deviation(tmp_path, monkeypatch):
-    from pulseform.orchestrator.validate import run_validation
+    from pulseform.orchestrator.workflows.validate import run_validation
 
     _, known, _ = _fake_entries(monkeypatch)
 

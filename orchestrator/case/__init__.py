@@ -1,0 +1,1 @@
+"""The case: schema, typed case model (mechanics + EM tables), case-file io, resource guards, reference table."""

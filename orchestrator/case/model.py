@@ -1,0 +1,482 @@
+"""The case file model: typed, frozen dataclasses in SI units, validated from TOML.
+
+Every key states its unit and allowed range through :func:`~pulseform.orchestrator.case.schema.spec`;
+the README's case-file reference is generated from these declarations
+(``python -m pulseform.orchestrator.case.reference``) and a test keeps the two in step.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+from dataclasses import dataclass
+from typing import Literal
+
+from .em_model import (EM, CapacitorBank, DampedSineCurrent, FlatCoilSheet, Geometry, OuterTube, PlanarCoilBlankDie,
+                      SheetDie, SolenoidTube)
+from .guards import check_resources
+from .schema import SchemaError, shorten, spec
+
+__all__ = ["Box", "Rectangle", "Polygon", "Shape", "CowperSymonds", "JohnsonCook", "Material", "FixedBoundary",
+           "Body", "ContactPair", "RigidWall", "PulseSin2", "PulseExp", "Load", "CaseInfo", "TimeControl",
+           "Mechanics", "Coupling", "Probe", "Output", "Limits", "Case", "EM", "CapacitorBank", "DampedSineCurrent",
+           "FlatCoilSheet", "Geometry", "SolenoidTube", "SheetDie", "OuterTube", "PlanarCoilBlankDie"]
+
+Vec2 = tuple[float, float]
+_NAME = re.compile(r"[A-Za-z0-9._-]{1,100}")
+
+
+# --------------------------------------------------------------------------- geometry primitives
+@dataclass(frozen=True, kw_only=True)
+class Box:
+    """Axis-aligned box selecting boundary nodes/facets whose points lie inside it (inclusive)."""
+
+    xmin: float = spec(-math.inf, unit="m", doc="lower x (or r) bound")
+    xmax: float = spec(math.inf, unit="m", doc="upper x (or r) bound")
+    ymin: float = spec(-math.inf, unit="m", doc="lower y (or z) bound")
+    ymax: float = spec(math.inf, unit="m", doc="upper y (or z) bound")
+
+    def validate(self, path: str) -> None:
+        if not self.xmin <= self.xmax:
+            raise SchemaError(f"{path}.xmax", f"got {self.xmax:g}; must be >= xmin = {self.xmin:g} (m)")
+        if not self.ymin <= self.ymax:
+            raise SchemaError(f"{path}.ymax", f"got {self.ymax:g}; must be >= ymin = {self.ymin:g} (m)")
+
+
+@dataclass(frozen=True, kw_only=True)
+class Rectangle:
+    """Rectangle with its lower-left corner at ``origin``."""
+
+    type: Literal["rectangle"] = spec(doc="shape kind")
+    origin: Vec2 = spec((0.0, 0.0), unit="m", doc="lower-left corner (x, y) or (r, z)")
+    width: float = spec(unit="m", gt=0.0, doc="extent along x (or r)")
+    height: float = spec(unit="m", gt=0.0, doc="extent along y (or z)")
+
+
+@dataclass(frozen=True, kw_only=True)
+class Polygon:
+    """Simple polygon given by its vertices in counter-clockwise order."""
+
+    type: Literal["polygon"] = spec(doc="shape kind")
+    points: tuple[Vec2, ...] = spec(unit="m", doc="vertices, counter-clockwise, >= 3")
+
+    def validate(self, path: str) -> None:
+        if len(self.points) < 3:
+            raise SchemaError(f"{path}.points", f"got {len(self.points)} points; need at least 3")
+        area = 0.5 * sum(x0 * y1 - x1 * y0 for (x0, y0), (x1, y1)
+                         in zip(self.points, self.points[1:] + self.points[:1]))
+        if area <= 0.0:
+            raise SchemaError(f"{path}.points", "vertices must be counter-clockwise with positive area")
+
+
+Shape = Rectangle | Polygon
+
+
+# --------------------------------------------------------------------------- materials
+@dataclass(frozen=True, kw_only=True)
+class CowperSymonds:
+    """Cowper–Symonds rate law: σ_s · (1 + (ε̇_p / D)^(1/q))."""
+
+    type: Literal["cowper_symonds"] = spec(doc="rate law kind")
+    D: float = spec(unit="1/s", gt=0.0, doc="reference strain rate D")
+    q: float = spec(unit="-", gt=0.0, doc="exponent q")
+
+
+@dataclass(frozen=True, kw_only=True)
+class JohnsonCook:
+    """Johnson–Cook rate term: σ_s · (1 + C ln(ε̇_p / ε̇_0)) for ε̇_p > ε̇_0."""
+
+    type: Literal["johnson_cook"] = spec(doc="rate law kind")
+    C: float = spec(unit="-", ge=0.0, doc="rate sensitivity C")
+    reference_strain_rate: float = spec(1.0, unit="1/s", gt=0.0, doc="reference strain rate ε̇_0")
+
+
+@dataclass(frozen=True, kw_only=True)
+class Material:
+    """Elastic–plastic material with linear isotropic hardening σ_s = σ0 + A ε_p (paper, sec. 4–5)."""
+
+    density: float = spec(unit="kg/m^3", gt=0.0, doc="mass density ρ")
+    shear_modulus: float = spec(unit="Pa", gt=0.0, doc="shear modulus G")
+    bulk_modulus: float = spec(unit="Pa", gt=0.0, doc="bulk modulus K")
+    yield_stress: float = spec(unit="Pa", gt=0.0, doc="initial yield stress σ0")
+    hardening_modulus: float = spec(0.0, unit="Pa", ge=0.0, doc="linear hardening modulus A")
+    electrical_conductivity: float = spec(0.0, unit="S/m", ge=0.0, doc="σ for eddy currents (EM)")
+    rate_law: CowperSymonds | JohnsonCook | None = spec(None, doc="optional strain-rate hardening")
+
+
+# --------------------------------------------------------------------------- bodies and contact
+@dataclass(frozen=True, kw_only=True)
+class FixedBoundary:
+    """Zero displacement of the chosen components on boundary nodes inside ``where``."""
+
+    where: Box = spec(doc="box selecting the boundary nodes")
+    components: tuple[int, ...] = spec((0, 1), unit="-", ge=0, le=1, doc="0 = x (r), 1 = y (z)")
+
+    def validate(self, path: str) -> None:
+        if not self.components:
+            raise SchemaError(f"{path}.components", "got an empty list; allowed: [0], [1] or [0, 1]")
+
+
+@dataclass(frozen=True, kw_only=True)
+class Body:
+    """A deformable body meshed with P1 triangles."""
+
+    name: str = spec(doc="unique body name")
+    material: str = spec(doc="key of a [materials.<name>] table")
+    shape: Shape | None = spec(None, doc="own geometry (rectangle or polygon); or give region")
+    region: Literal["workpiece", "die", "outer_tube"] | None = spec(
+        None, doc="the [geometry] conductor region this body is (its EM and mechanical meshes share nodes)")
+    mesh_size: float | None = spec(None, unit="m", gt=0.0, doc="target element size (with shape)")
+    initial_velocity: Vec2 = spec((0.0, 0.0), unit="m/s", doc="uniform initial velocity")
+    fixed: tuple[FixedBoundary, ...] = spec((), doc="clamped boundary parts")
+
+    def validate(self, path: str) -> None:
+        _check_file_name(self.name, f"{path}.name", "fields/<case>_<name>.xdmf")
+        if (self.shape is None) == (self.region is None):
+            raise SchemaError(f"{path}.shape", "give exactly one of shape (own geometry) or region "
+                              "(a [geometry] region such as 'workpiece')")
+        if self.shape is not None and self.mesh_size is None:
+            raise SchemaError(f"{path}.mesh_size", "missing required key (a number > 0, in m) for a body with shape")
+
+
+@dataclass(frozen=True, kw_only=True)
+class ContactPair:
+    """Soft contact, paper eq. (5): p = k (1/h − 1/h0) for h < h0, slave nodes on master segments."""
+
+    slave: str = spec(doc="body whose boundary nodes are checked")
+    master: str = spec(doc="body whose boundary segments repel")
+    stiffness: float = spec(unit="Pa·m", gt=0.0, doc="k per unit area")
+    h0: float = spec(unit="m", gt=0.0, doc="width of the force layer")
+    friction: float = spec(0.0, unit="-", ge=0.0, doc="Coulomb coefficient μ")
+    viscosity: float = spec(0.0, unit="Pa·s²/m²", ge=0.0,
+                            doc="paper's ν in ν|v|², on the pair's relative normal velocity")
+    two_pass: bool = spec(False, doc="also check master nodes against slave segments")
+
+    def validate(self, path: str) -> None:
+        if self.slave == self.master:
+            raise SchemaError(f"{path}.master", f"got {self.master!r}; must differ from slave")
+
+
+@dataclass(frozen=True, kw_only=True)
+class RigidWall:
+    """Rigid half-space: a node with (x − point)·normal < 0 is put back on the wall with v = 0."""
+
+    point: Vec2 = spec(unit="m", doc="a point on the wall")
+    normal: Vec2 = spec(unit="-", doc="normal pointing into the allowed side")
+    bodies: tuple[str, ...] = spec((), doc="bodies it acts on (empty = all)")
+    sliding: bool = spec(False, doc="frictionless: remove only the normal velocity (false: the paper's "
+                                    "rule v = 0, which also sticks the face tangentially)")
+
+    def validate(self, path: str) -> None:
+        if math.hypot(*self.normal) == 0.0:
+            raise SchemaError(f"{path}.normal", "got [0, 0]; must be a non-zero vector")
+
+
+# --------------------------------------------------------------------------- loads
+@dataclass(frozen=True, kw_only=True)
+class _PulseWindow:
+    """What every pressure pulse has: where it acts and when."""
+
+    body: str = spec(doc="loaded body")
+    surface: Box = spec(doc="box selecting the loaded boundary facets")
+    amplitude: float = spec(unit="Pa", gt=0.0, doc="peak pressure scale (P0 or p0)")
+    t_start: float = spec(0.0, unit="s", ge=0.0, doc="pulse start")
+    t_end: float = spec(unit="s", gt=0.0, doc="pulse end (pressure is zero afterwards)")
+    trigger: Literal["time", "rest"] = spec(
+        "time", doc="'rest': start (with the same window length) once the previous pulse has ended and "
+                    "the loaded body's max speed is below rest_speed")
+    rest_speed: float = spec(0.5, unit="m/s", gt=0.0, doc="speed below which the body counts as at rest")
+    rest_damping: float = spec(0.0, unit="1/s", ge=0.0,
+                               doc="mass damping α on every body while this 'rest' pulse waits (after the previous "
+                                   "window): dynamic relaxation standing in for the time between discharges")
+
+    def validate(self, path: str) -> None:
+        _check_window(self.t_start, self.t_end, path)
+
+
+@dataclass(frozen=True, kw_only=True)
+class PulseSin2(_PulseWindow):
+    """Pressure pulse, paper eq. (7): P = P0 e^(−βt) sin²(ωt), t measured from ``t_start``."""
+
+    type: Literal["pulse_sin2"] = spec(doc="load kind")
+    beta: float = spec(unit="1/s", ge=0.0, doc="decay rate β")
+    omega: float = spec(unit="rad/s", gt=0.0, doc="angular frequency ω")
+
+
+@dataclass(frozen=True, kw_only=True)
+class PulseExp(_PulseWindow):
+    """Pressure pulse, paper eq. (8): p = p0 e^(−t/T), t measured from ``t_start``."""
+
+    type: Literal["pulse_exp"] = spec(doc="load kind")
+    decay_time: float = spec(unit="s", gt=0.0, doc="T")
+
+
+def _check_window(t_start: float, t_end: float, path: str) -> None:
+    if t_end <= t_start:
+        raise SchemaError(f"{path}.t_end", f"got {t_end:g}; must be > t_start = {t_start:g} (s)")
+
+
+Load = PulseSin2 | PulseExp
+
+
+# --------------------------------------------------------------------------- run control
+@dataclass(frozen=True, kw_only=True)
+class CaseInfo:
+    """What the case is."""
+
+    name: str = spec(doc="case name: 1 to 100 letters, digits, '.', '_', '-' (default results folder results/<name>)")
+    kind: Literal["mechanics", "coupled"] = spec(
+        "mechanics", doc="'mechanics': explicit solver with pressure loads; 'coupled': GetDP + explicit solver")
+    description: str = spec("", doc="free text")
+
+    def validate(self, path: str) -> None:
+        if not self.name.strip():
+            raise SchemaError(f"{path}.name", "got an empty string; must be a non-empty name")
+        _check_file_name(self.name, f"{path}.name", "results/<name>")
+
+
+@dataclass(frozen=True, kw_only=True)
+class TimeControl:
+    """Time stepping of the explicit mechanics."""
+
+    end: float = spec(unit="s", gt=0.0, doc="simulated end time")
+    cfl: float = spec(0.5, unit="-", gt=0.0, le=1.0, doc="safety factor on the stable time step")
+    dt_max: float | None = spec(None, unit="s", gt=0.0, doc="upper bound on the mechanical step")
+
+
+@dataclass(frozen=True, kw_only=True)
+class Mechanics:
+    """Mechanical model options."""
+
+    formulation: Literal["plane_stress", "plane_strain", "axisymmetric"] = spec(
+        "plane_strain", doc="2D kinematics")
+    thickness: float = spec(1.0, unit="m", gt=0.0, doc="out-of-plane thickness (planar only)")
+    bulk_viscosity: bool = spec(True, doc="linear + quadratic artificial bulk viscosity")
+    bulk_viscosity_linear: float = spec(0.06, unit="-", ge=0.0, doc="linear coefficient")
+    bulk_viscosity_quadratic: float = spec(1.2, unit="-", ge=0.0, doc="quadratic coefficient")
+    mass_damping: float = spec(0.0, unit="1/s", ge=0.0,
+                               doc="mass-proportional damping α: force −α m v on every node (dynamic relaxation)")
+    mass_damping_until: float = spec(math.inf, unit="s", gt=0.0, doc="damping acts for t < this time")
+    mass_damping_from: float = spec(0.0, unit="s", ge=0.0, doc="damping acts for t >= this time (final relaxation)")
+    kinetic_damping_until: float = spec(
+        0.0, unit="s", ge=0.0,
+        doc="kinetic damping (dynamic relaxation) for t < this time: a body's velocities are set to zero "
+            "whenever its kinetic energy has passed a peak (quasi-static loading; 0: off)")
+    threads: int = spec(1, unit="-", ge=1,
+                        doc="threads of the element kernel in serial GetDP-coupled runs (results do not depend on it; "
+                            "worth it from ~10^4 cells, on cores no other process uses; mechanics-only pulse runs "
+                            "keep one thread)")
+
+    def validate(self, path: str) -> None:
+        cores = os.cpu_count() or 1
+        if self.threads > cores:
+            raise SchemaError(f"{path}.threads", f"got {self.threads}; this machine has {cores} cores: 1 to {cores}")
+
+
+@dataclass(frozen=True, kw_only=True)
+class Coupling:
+    """Staggered EM–mechanics coupling (used by coupled cases)."""
+
+    n: int = spec(10, unit="-", ge=1, doc="mechanical steps per EM step (subcycling)")
+    em_substeps: int = spec(1, unit="-", ge=1,
+                            doc="implicit-Euler sub-steps inside each EM step (one getdp run; mean force is held)")
+    load: Literal["getdp", "pressure"] = spec(
+        "getdp", doc="coupled cases: GetDP eddy-current forces, or the [[loads]] pressure pulses on the "
+                     "same workpiece mesh through the same loop (for comparisons)")
+    adaptive: bool = spec(False, doc="adapt n from the change of the force resultant between EM steps")
+    n_min: int = spec(1, unit="-", ge=1, doc="smallest n when adaptive")
+    n_max: int = spec(1000, unit="-", ge=1, doc="largest n when adaptive")
+    adapt_tol: float = spec(0.05, unit="-", gt=0.0, doc="relative resultant change that halves n (a quarter doubles it)")
+    iterate: bool = spec(False, doc="repeat each EM step on its end geometry until force and motion settle")
+    iterate_tol: float = spec(1e-3, unit="-", gt=0.0, doc="relative change that ends the iterations")
+    iterate_max: int = spec(10, unit="-", ge=1, doc="most iterations per EM step")
+
+    def validate(self, path: str) -> None:
+        if not self.n_min <= self.n <= self.n_max:
+            raise SchemaError(f"{path}.n", f"got {self.n}; must lie in [n_min, n_max] = [{self.n_min}, {self.n_max}]")
+
+
+@dataclass(frozen=True, kw_only=True)
+class Probe:
+    """A point whose history goes into history.csv."""
+
+    name: str = spec(doc="column prefix in history.csv and plots/<name>_<quantity>.png: 1 to 100 letters, digits, ._-")
+    body: str = spec(doc="body the point belongs to")
+    point: Vec2 = spec(unit="m", doc="initial (material) position")
+    quantity: Literal["contact_pressure", "wall_pressure", "von_mises", "velocity", "displacement"] = spec(
+        doc="recorded quantity (Pa, Pa, Pa, m/s, m); wall_pressure: reaction per area of the first wall")
+
+
+@dataclass(frozen=True, kw_only=True)
+class Output:
+    """What is written to the results folder."""
+
+    field_interval: float | None = spec(None, unit="s", gt=0.0,
+                                        doc="XDMF field output interval (default: end / 20)")
+    history_every: int = spec(1, unit="-", ge=1, doc="history.csv row every N EM steps (mechanics cases: mechanical steps), plus one at each output time")
+    plots: bool = spec(True, doc="write plots/*.png")
+
+
+@dataclass(frozen=True, kw_only=True)
+class Limits:
+    """Guards against runs that would exhaust the machine (orchestrator/case/guards.py says how they are estimated)."""
+
+    max_cells: float = spec(2e6, unit="-", gt=0.0, magnitude=(1.0, 1e12),
+                            doc="most mesh cells (estimated from areas / mesh size² before any meshing)")
+    max_steps: float = spec(5e7, unit="-", gt=0.0, magnitude=(1.0, 1e12),
+                            doc="most explicit steps (estimated: time.end / stable step of the undeformed mesh)")
+    max_em_steps: float = spec(5e4, unit="-", gt=0.0, magnitude=(1.0, 1e12),
+                               doc="most EM steps of a GetDP-coupled case (getdp runs; estimated: explicit steps / "
+                                   "coupling.n)")
+    gmsh_time_limit_s: float = spec(600.0, unit="s", gt=0.0, magnitude=(1e-3, 1e6),
+                                    doc="wall-time limit of one gmsh run (built-in geometry, remesh, user .geo)")
+    getdp_time_limit_s: float = spec(600.0, unit="s", gt=0.0, magnitude=(1e-3, 1e6),
+                                     doc="wall-time limit of one getdp run (one EM step)")
+
+
+@dataclass(frozen=True, kw_only=True)
+class Case:
+    """A whole case file."""
+
+    case: CaseInfo = spec(doc="[case] table")
+    time: TimeControl = spec(doc="[time] table")
+    materials: dict[str, Material] = spec(doc="[materials.<name>] tables")
+    bodies: tuple[Body, ...] = spec(doc="[[bodies]] list")
+    mechanics: Mechanics = spec(Mechanics(), doc="[mechanics] table")
+    contact: tuple[ContactPair, ...] = spec((), doc="[[contact]] pairs")
+    walls: tuple[RigidWall, ...] = spec((), doc="[[walls]] rigid half-spaces")
+    loads: tuple[Load, ...] = spec((), doc="[[loads]] surface pressure pulses")
+    coupling: Coupling = spec(Coupling(), doc="[coupling] table")
+    geometry: Geometry | None = spec(None, doc="[geometry] EM setup (coupled cases)")
+    em: EM | None = spec(None, doc="[em] table (coupled cases)")
+    probes: tuple[Probe, ...] = spec((), doc="[[probes]] point histories")
+    output: Output = spec(Output(), doc="[output] table")
+    analysis: tuple[str, ...] = spec((), doc="case-specific analyses (extra history columns, metrics, plots)")
+    limits: Limits = spec(Limits(), doc="[limits] resource guards")
+
+    def validate(self, path: str) -> None:
+        if not self.materials:
+            raise SchemaError("materials", "no material defined; add a [materials.<name>] table")
+        if not self.bodies:
+            raise SchemaError("bodies", "no body defined; add at least one [[bodies]] table")
+        names: list[str] = []
+        for i, b in enumerate(self.bodies):
+            if b.name in names:
+                raise SchemaError(f"bodies[{i}].name", f"got {b.name!r}; body names must be unique")
+            names.append(b.name)
+            if b.material not in self.materials:
+                raise SchemaError(f"bodies[{i}].material",
+                                  f"got {b.material!r}; allowed: {_choices(self.materials)}")
+        for i, c in enumerate(self.contact):
+            for role in ("slave", "master"):
+                if getattr(c, role) not in names:
+                    raise SchemaError(f"contact[{i}].{role}",
+                                      f"got {getattr(c, role)!r}; allowed: {_choices(names)}")
+        for i, w in enumerate(self.walls):
+            for j, b in enumerate(w.bodies):
+                if b not in names:
+                    raise SchemaError(f"walls[{i}].bodies[{j}]", f"got {b!r}; allowed: {_choices(names)}")
+        for i, ld in enumerate(self.loads):
+            if ld.body not in names:
+                raise SchemaError(f"loads[{i}].body", f"got {ld.body!r}; allowed: {_choices(names)}")
+        self._validate_coupled()
+        from ..run.analyses import REGISTRY  # light: no solver imports
+
+        for i, name in enumerate(self.analysis):
+            if name not in REGISTRY:
+                raise SchemaError(f"analysis[{i}]", f"got {name!r}; allowed: {_choices(sorted(REGISTRY))}")
+        for i, ld in enumerate(self.loads):
+            if ld.trigger == "rest" and i == 0:
+                raise SchemaError(f"loads[{i}].trigger", "the first pulse cannot wait for rest; use 'time'")
+        probe_names: list[str] = []
+        for i, p in enumerate(self.probes):
+            if p.body not in names:
+                raise SchemaError(f"probes[{i}].body", f"got {p.body!r}; allowed: {_choices(names)}")
+            _check_file_name(p.name, f"probes[{i}].name", "history.csv columns and plots/<name>_<quantity>.png")
+            if p.name in probe_names:
+                raise SchemaError(f"probes[{i}].name", f"got {p.name!r}; probe names must be unique")
+            probe_names.append(p.name)
+        if self.mechanics.formulation == "axisymmetric":
+            for i, b in enumerate(self.bodies):
+                if b.shape is None:
+                    continue
+                xmin = _shape_xmin(b.shape)
+                if xmin < 0.0:
+                    raise SchemaError(f"bodies[{i}].shape",
+                                      f"reaches r = {xmin:g} m; axisymmetric bodies need r >= 0")
+        if self.output.field_interval is not None and self.output.field_interval > self.time.end:
+            raise SchemaError("output.field_interval",
+                              f"got {self.output.field_interval:g}; must be <= time.end = {self.time.end:g} (s)")
+        check_resources(self)
+
+    def _validate_coupled(self) -> None:
+        regions = [b.region for b in self.bodies if b.region is not None]
+        if self.case.kind == "coupled":
+            for key in ("geometry", "em"):
+                if getattr(self, key) is None:
+                    raise SchemaError(key, f"missing required table [{key}] for case.kind = 'coupled'")
+            if "workpiece" not in regions:
+                raise SchemaError("bodies", "a coupled case needs a body with region = 'workpiece'")
+            roles = self.geometry.conductor_roles()
+            for i, b in enumerate(self.bodies):
+                if b.region is not None and b.region not in roles:
+                    raise SchemaError(f"bodies[{i}].region", f"got {b.region!r}; the {self.geometry.type} geometry "
+                                      f"has the conductor regions {_choices(roles)}")
+            for role in roles:
+                if role not in regions:
+                    raise SchemaError("bodies", f"the geometry's conductor region {role!r} needs a body with "
+                                      f"region = {role!r} (its material gives the conductivity)")
+            if self.coupling.load == "pressure" and not self.loads:
+                raise SchemaError("loads", "coupling.load = 'pressure' needs at least one [[loads]] pulse")
+            if self.coupling.load == "getdp" and self.loads:
+                raise SchemaError("loads", "pressure [[loads]] are used only with coupling.load = 'pressure'; "
+                                  "remove them or set coupling.load = 'pressure'")
+            if self.coupling.load == "getdp":
+                _refuse_damping(self.mechanics)
+            if self.geometry.planar and self.mechanics.formulation == "axisymmetric":
+                raise SchemaError("mechanics.formulation", f"got 'axisymmetric'; the {self.geometry.type} "
+                                  "geometry is planar: use 'plane_strain' or 'plane_stress'")
+            if not self.geometry.planar and self.mechanics.formulation != "axisymmetric":
+                raise SchemaError("mechanics.formulation", f"got {self.mechanics.formulation!r}; the "
+                                  f"{self.geometry.type} geometry is axisymmetric: use 'axisymmetric'")
+            if self.em.time_scheme == "bdf2" and self.coupling.em_substeps != 1:
+                raise SchemaError("coupling.em_substeps", f"got {self.coupling.em_substeps}; em.time_scheme = "
+                                  "'bdf2' takes one step per getdp run: use 1 (and a smaller coupling.n)")
+            if self.geometry.planar and self.em.circuit is not None:
+                raise SchemaError("em.circuit", "planar geometries are per metre of depth: give a prescribed "
+                                  "em.current (a capacitor bank would need the coil's length)")
+        elif regions:
+            i = next(i for i, b in enumerate(self.bodies) if b.region is not None)
+            raise SchemaError(f"bodies[{i}].region", "regions exist only in coupled cases; give a shape")
+        if len(set(regions)) != len(regions):
+            raise SchemaError("bodies", "each geometry region may be used by one body only")
+
+    def body(self, name: str) -> Body:
+        """The body called ``name``."""
+        return next(b for b in self.bodies if b.name == name)
+
+
+def _refuse_damping(mo: Mechanics) -> None:
+    """Damping acts through the pressure-pulse load provider; a GetDP-coupled run has none."""
+    for key in ("mass_damping", "kinetic_damping_until"):
+        if getattr(mo, key) > 0.0:
+            raise SchemaError(f"mechanics.{key}", "damping acts with pressure loads only (case.kind = 'mechanics' "
+                              "or coupling.load = 'pressure'); a GetDP-coupled run would ignore it: remove it")
+
+
+def _check_file_name(name: str, path: str, names: str) -> None:
+    """A name that becomes part of a file or folder name: never a path."""
+    if not _NAME.fullmatch(name) or name in (".", ".."):
+        raise SchemaError(path, f"got {shorten(repr(name))}; must be a name, not a path: 1 to 100 letters, digits, "
+                          f"'.', '_' or '-', not '.' or '..' (it names {names})")
+
+
+def _shape_xmin(shape: Shape) -> float:
+    if isinstance(shape, Rectangle):
+        return shape.origin[0]
+    return min(p[0] for p in shape.points)
+
+
+def _choices(names) -> str:
+    return ", ".join(repr(n) for n in names) if names else "(none defined)"

@@ -1,0 +1,146 @@
+"""The two participants of the staggered loop, as small interfaces (fakes: :mod:`.fakes`).
+
+The loop (:mod:`.loop`) only sees these protocols, so a fake load (an analytic force), a
+pressure pulse, a GetDP eddy-current load, the explicit DOLFINx mechanics, a rigid body or a
+prescribed motion all plug in without touching it.
+
+Conventions: nodal forces are dicts ``body name -> (N, 2) array`` in N (planar: for the case's
+thickness; axisymmetric: over the full 2π ring); positions likewise in m.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import numpy as np
+
+
+@dataclass
+class LoadStep:
+    """What a load provider hands the loop for one EM step [t0, t1].
+
+    Attributes
+    ----------
+    forces : dict
+        Nodal forces per body (N), held constant over the step.
+    reference_integral : ndarray (2,)
+        The provider's own ∫ f dV (N) for the conservation ledger (None when not applicable).
+    values : dict
+        Scalars for history.csv (SI units in the names), e.g. coil current.
+    """
+
+    forces: dict[str, np.ndarray]
+    reference_integral: np.ndarray | None = None
+    values: dict[str, float] = field(default_factory=dict)
+
+
+class Mechanics(Protocol):
+    """A mechanical participant."""
+
+    time: float
+    step_count: int
+
+    def stable_time_step(self) -> float:
+        """Largest stable step (s), safety factor included."""
+
+    def advance(self, dt: float, n_steps: int, forces: dict[str, np.ndarray] | None) -> None:
+        """``n_steps`` steps of ``dt`` (s) with nodal forces held constant.
+
+        The forces act from the current time on: the acceleration of the first velocity update
+        already includes them (the convention of the explicit DOLFINx solver).
+        """
+
+    def positions(self) -> dict[str, np.ndarray]:
+        """Current node coordinates per body (m)."""
+
+    def total_force(self, forces: dict[str, np.ndarray]) -> np.ndarray:
+        """Resultant (N), shape (2,), of nodal forces: each node counted once over all ranks."""
+
+    def state_dict(self) -> dict[str, np.ndarray]:
+        """Everything needed to continue exactly."""
+
+    def load_state_dict(self, state: dict[str, np.ndarray]) -> None:
+        """Restore :meth:`state_dict`."""
+
+
+def plain_total(forces: dict[str, np.ndarray]) -> np.ndarray:
+    """Resultant (N) of nodal forces held entirely on this process."""
+    total = np.zeros(2)
+    for f in forces.values():
+        total += np.asarray(f)[:, :2].sum(axis=0)
+    return total
+
+
+class LoadProvider(Protocol):
+    """A load participant."""
+
+    def load(self, t0: float, t1: float, t_mid: float, mechanics: Mechanics) -> LoadStep:
+        """Nodal forces for the EM step [t0, t1] (s) on the mechanics' current geometry.
+
+        ``t_mid`` is the centre of the window over which central differences deliver the held
+        force's impulse, t0 + (n − 1)·dt/2; providers with an explicit time law evaluate there
+        (second order); GetDP returns the mean of its implicit-Euler sub-steps.
+        """
+
+    def initial(self, mechanics: Mechanics) -> LoadStep:
+        """The load at t = 0, before the first step, for the first row of history.csv.
+
+        The true initial values (e.g. a charged bank's capacitor voltage, a pulse's pressure at
+        t = 0) and nodal forces, without changing the provider's state. Optional: the loop's
+        owner writes zeros for a provider without it.
+        """
+
+    def state_dict(self) -> dict[str, np.ndarray]:
+        """Everything needed to continue exactly."""
+
+    def load_state_dict(self, state: dict[str, np.ndarray]) -> None:
+        """Restore :meth:`state_dict`."""
+
+    def checkpoint_state_dict(self) -> dict[str, np.ndarray]:
+        """:meth:`state_dict` at a checkpoint (a point a ``--resume`` continues from). Optional: the
+        run's owner calls :meth:`state_dict` for a provider without it. A provider whose in-memory
+        continuation would differ from a resumed one (the persistent getdp) continues from the
+        stored state here."""
+
+    # Optional for the loop: ``follow(t0, mechanics)``, the load's own mesh follows the mechanics
+    # before each load (step 2 of an EM step, :mod:`.loop`), and ``advance_block`` (compiled blocks of
+    # EM steps). The run's owner (run/driver.py) also uses the optional capabilities of
+    # :class:`LoadCapabilities`; a provider inherits their defaults from it.
+
+
+class LoadCapabilities:
+    """The optional capabilities of a load provider, declared once with what a provider without them
+    does: the run's owner calls them without asking whether they exist."""
+
+    #: history columns of :attr:`LoadStep.values`, in order (besides the resultant's)
+    columns: tuple[str, ...] = ("force_x_N", "force_y_N")
+    #: the provider has EM fields to write (:meth:`snapshot`, :meth:`request_fields`, :meth:`take_peak_snapshot`)
+    em_fields: bool = False
+
+    def initial(self, mechanics: Mechanics) -> LoadStep | None:
+        """The load at t = 0 (see :meth:`LoadProvider.initial`); None: the history's first row gets zeros."""
+        return None
+
+    def checkpoint_state_dict(self) -> dict[str, np.ndarray]:
+        """See :meth:`LoadProvider.checkpoint_state_dict`: here the plain :meth:`state_dict`."""
+        return self.state_dict()
+
+    def run_metrics(self, history, counters) -> dict[str, float]:
+        """The provider's own figures for ``metrics.json`` at the end of a run (``history``: the run's
+        :class:`~pulseform.orchestrator.run.history.History`, ``counters``: the loop's counters)."""
+        return {}
+
+    def request_fields(self, times) -> None:
+        """Whole-domain fields wanted at these times (s) only (no-op without EM fields)."""
+
+    def take_peak_snapshot(self) -> tuple | None:
+        """The field snapshot at the peak coil current once, when it is new (None: nothing to write)."""
+        return None
+
+    def snapshot(self) -> tuple | None:
+        """The current EM field snapshot (None: nothing to write)."""
+        return None
+
+    def close(self) -> None:
+        """End what the provider runs (a persistent getdp) and wait for its clean-up; idempotent."""

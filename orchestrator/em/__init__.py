@@ -1,0 +1,1 @@
+"""The electromagnetic participant: GetDP load provider, users' own decks and their contract check."""

@@ -1,0 +1,506 @@
+"""The GetDP eddy-current load provider of the staggered loop.
+
+Each EM step [t0, t1]:
+
+1. the EM mesh follows the mechanics: the nodes of every conductor body (workpiece, die, outer
+   tube) take the mechanical displacement (the meshes share them), coil, shell and outer boundary
+   stay, axis (or symmetry-plane) nodes slide along it, the rest of the air is smoothed
+   harmonically (:class:`pulseform.orchestrator.mesh.motion.MeshMover`); an inverted or degenerate element raises
+   before the mesh reaches GetDP;
+2. getdp runs the EM step on the moved mesh (geometry frozen): one BDF2 step from a shifted Init
+   state (``time_scheme = "bdf2"``), or ``em_substeps`` implicit-Euler sub-steps restarting from
+   the previous ``.res`` (``"euler"``);
+3. the per-element force density f = j × B (N/m³) of the conductors becomes consistent nodal forces
+   ∫ N_i f 2πr dA (planar: ∫ N_i f dA × the mechanics' thickness) on the shared nodes; the ledger
+   compares their sum with Σ f_e V_e.
+
+The returned force is the impulse-consistent mean over the EM step (BDF2: trapezoid of the start
+and end values; implicit Euler: the mean of the sub-steps), held over the n mechanical substeps.
+Implicit Euler is first order and damps the bank's LC ringing by about (ω dt)²/2 per step, so
+there the EM time step, not the hold, dominates the error at large n; BDF2 is second order
+(docs/coupling.md).
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+
+from pulseform.solvers.getdp import EMMesh, EMModel, EMState, GetDPSolver
+from pulseform.solvers.getdp.mesh import AXIS as AXIS_TAG
+from pulseform.solvers.getdp.mesh import OUTER as OUTER_TAG
+from pulseform.solvers.getdp.mesh import SHELL as SHELL_TAG
+from pulseform.solvers.getdp.files import discard_folder
+
+from ..coupling.interfaces import LoadCapabilities, LoadStep
+from ..coupling.transfer import cell_force_integral, cell_to_nodal_forces
+from ..mesh.em_geometry import EMGeometry
+from ..mesh.motion import MeshMover, MeshQualityError
+from ..mesh.remesh import remesh_around
+from ..mesh.shared import ConductorBody, ConductorMesh  # noqa: F401  (ConductorBody: the participant's API)
+from .solver import make_em_solver
+
+log = logging.getLogger(__name__)
+
+
+#: the history columns of a GetDP load
+LOAD_COLUMNS_COUPLED = ("force_x_N", "force_y_N", "conservation_error_rel", "coil_current_A",
+                        "coil_current_abs_max_A", "coil_voltage_V",
+                        "capacitor_voltage_V", "coil_joule_heat_J", "coil_temperature_rise_K",
+                        "magnetic_energy_J", "workpiece_joule_power_W", "getdp_force_z_N",
+                        "em_mesh_min_quality", "em_remeshes")
+
+
+class GetDPLoad(LoadCapabilities):
+    """Load provider: GetDP eddy-current forces on the conductor bodies (see the module docstring).
+
+    Parameters
+    ----------
+    geometry : EMGeometry
+        The EM mesh and its regions.
+    model : EMModel
+        The GetDP model.
+    work_dir : Path
+        Folder of the getdp runs (one sub-folder per EM step).
+    bodies : list of ConductorBody
+        The mechanical bodies that are EM conductors (the workpiece first).
+    keep_runs : bool
+        Keep every run folder (default: only the last two).
+    remesh_quality : float
+        Remesh the air when the worst element quality (:func:`~.mesh_motion.triangle_quality`) falls
+        below this fraction of the worst quality of the freshly made mesh.
+    sizes : (float, float)
+        Element sizes (m) near the coil and far in the air, for remeshing.
+    em_substeps : int
+        Implicit sub-steps inside each EM step (one getdp run, frozen geometry); the force
+        handed to the mechanics is their mean, so the EM step's impulse is kept.
+    time_scheme : {"euler", "bdf2"}
+        See :class:`~pulseform.solvers.getdp.GetDPSolver`.
+    depth : float
+        Planar geometries: the mechanics' thickness (m) that multiplies GetDP's per-metre forces.
+    getdp_process : {"per_step", "persistent", "auto"}
+        One getdp process per EM step (:class:`~pulseform.solvers.getdp.GetDPSolver`), or one for the
+        whole run (:class:`~pulseform.solvers.getdp.persistent.PersistentGetDPSolver`, BDF2 only;
+        "auto" takes it with BDF2).
+    """
+
+    def __init__(self, geometry: EMGeometry, model: EMModel, work_dir: Path, bodies: list[ConductorBody],
+                 keep_runs: bool = False, remesh_quality: float = 0.3, sizes: tuple[float, float] = (1e-3, 0.02),
+                 em_substeps: int = 1, depth: float = 1.0, time_scheme: str = "euler",
+                 getdp_process: str = "per_step") -> None:
+        self.geometry, self.bodies = geometry, list(bodies)
+        self.keep_runs, self.remesh_quality, self.sizes = keep_runs, remesh_quality, sizes
+        self.em_substeps = em_substeps
+        self.axisymmetric = not geometry.planar
+        self.scale = 1.0 if self.axisymmetric else float(depth)
+        self.solver = make_em_solver(model, work_dir, time_scheme, getdp_process)
+        self.state = self.solver.initial_state(0.0)
+        # the bodies' material coordinates
+        self.X0 = {b.name: geometry.mesh.points[b.body_to_em].copy() for b in self.bodies}
+        self.material = geometry.mesh.points.copy()  # material coordinates of every EM node
+        self.remeshes = 0
+        self.gmsh_time_limit: float | None = None  # wall-time limit of a remesh (s)
+        self._set_mesh(geometry.mesh)
+        self.min_quality = float(self.mover.q_ref.min())
+        self._moved: tuple[float, np.ndarray] | None = None  # (t0, moved EM nodes) of the coming step
+        self._runs: list[Path] = []
+        self._pinned: Path | None = None  # run folder the last checkpoint restarts from
+        self._deleting: list[threading.Thread] = []  # background deletions of old run folders
+        self.last = None  # (moved EM points, EMStepResult, EM mesh) of the latest step
+        self.field_times: np.ndarray | None = None  # EM steps ending at these times (s) print whole-domain fields
+        self.peak_abs_current = 0.0  # largest |coil current| at the end of an EM step so far (A)
+        self._peak: dict | None = None  # that step's snapshot material (see take_peak_snapshot)
+        self._fetched_peak: dict | None = None  # the latest earlier peak candidate with its fields
+        self._rise: list[tuple[float, float]] = []  # (t, |coil current|) of the last three EM steps
+        self._post_fields_ok = True  # False once the deck turned out to have no PostOperation EM_Field
+        self.timers = {"getdp_process_s": 0.0, "getdp_io_s": 0.0, "mesh_motion_s": 0.0, "transfer_s": 0.0}
+
+    @property
+    def tags(self) -> np.ndarray:
+        """EM physical ids of the conductor bodies."""
+        return np.array([b.tag for b in self.bodies])
+
+    def _set_mesh(self, mesh) -> None:
+        """Use ``mesh`` (current configuration) as the reference of the mesh motion."""
+        self.geometry = EMGeometry(mesh, self.geometry.regions, self.geometry.turns, self.geometry.planar)
+        self.x_ref = mesh.points.copy()
+        fixed = np.unique(np.concatenate([
+            mesh.triangles[mesh.tri_tags == self.geometry.regions["coil"]].ravel(),
+            mesh.triangles[mesh.tri_tags == SHELL_TAG].ravel(),
+            mesh.lines[mesh.line_tags == OUTER_TAG].ravel()] + [b.body_to_em for b in self.bodies]))
+        axis = np.unique(mesh.lines[mesh.line_tags == AXIS_TAG].ravel())  # slide along the axis/symmetry line
+        self.mover = MeshMover(self.x_ref, mesh.triangles, (np.union1d(fixed, axis), fixed))
+        self.mover.min_quality = self.remesh_quality * float(self.mover.q_ref.min())
+
+    def _remesh(self, positions: dict[str, np.ndarray]) -> None:
+        """Mesh air, coil and shell again around the bodies' current shapes (see :mod:`.remesh`)."""
+        parts = []
+        for b in self.bodies:
+            cur = np.zeros_like(self.x_ref)
+            cur[b.body_to_em] = positions[b.name][:, :2]
+            parts.append((cur[b.sub.em_nodes], b.sub.cells, b.tag))
+        g = self.solver.model
+        mesh, indices = remesh_around(parts, self.geometry.regions["coil"], self.geometry.turns, g.shell[0],
+                                      g.shell[1], *self.sizes, time_limit=self.gmsh_time_limit)
+        mesh.names = dict(self.geometry.mesh.names)
+        self.material = mesh.points.copy()
+        for b, (pts, _, _), index in zip(self.bodies, parts, indices):
+            local = np.full(len(self.x_ref), -1, dtype=np.int64)  # old EM node -> row of the submesh
+            local[b.sub.em_nodes] = np.arange(len(b.sub.em_nodes))
+            b.body_to_em = index[local[b.body_to_em]]
+            b.sub = ConductorMesh(np.flatnonzero(mesh.tri_tags == b.tag), index, pts, b.sub.cells)
+            self.material[b.body_to_em] = self.X0[b.name]
+        self._set_mesh(mesh)
+        self.remeshes += 1
+
+    def follow(self, t0: float, mechanics) -> None:
+        """Mesh motion for the EM step starting at ``t0`` (step 2 of the loop's EM step,
+        :mod:`pulseform.orchestrator.coupling.loop`): the EM mesh follows the bodies.
+
+        When the moved mesh's worst element falls below ``remesh_quality`` (or inverts), the air
+        is remeshed around the bodies and the EM state is carried in material coordinates.
+        """
+        c0 = time.perf_counter()
+        positions = mechanics.positions()
+        u = np.zeros_like(self.x_ref)
+        for b in self.bodies:
+            u[b.body_to_em] = positions[b.name][:, :2] - self.x_ref[b.body_to_em]
+        try:
+            x_em = self.mover.moved(u)  # checks quality: a degenerate or inverted element never reaches GetDP
+        except MeshQualityError as exc:
+            log.info("t = %.6g s: %s: remeshing the air around the conductors", t0, exc)
+            self._remesh(positions)
+            x_em = self.mover.moved(np.zeros_like(self.x_ref))
+        self.min_quality = min(self.min_quality, float(self.mover.last_min_quality))
+        self._moved = (t0, x_em)
+        self.timers["mesh_motion_s"] += time.perf_counter() - c0
+
+    def load(self, t0: float, t1: float, t_mid: float, mechanics) -> LoadStep:
+        """Run one getdp step to ``t1`` on the mesh :meth:`follow` moved, return nodal forces (N).
+
+        A caller that drives the load alone (no loop) gets :meth:`follow` here."""
+        if self._moved is None or self._moved[0] != t0:
+            self.follow(t0, mechanics)
+        x_em, self._moved = self._moved[1], None
+        mesh_k = self.geometry.mesh.with_points(x_em)
+        if abs(self.state.t - t0) > 1e-9 * max(t1, 1e-300):
+            raise RuntimeError(f"EM state at t = {self.state.t:.9g} s, but the step starts at {t0:.9g} s")
+        c1 = time.perf_counter()
+        # after a remesh, keep carrying the state through the Init path: a -restart from the .res of an
+        # Init-path run gave garbage fields near the axis (GetDP 3.2.0; seen in tests, see the issue notes)
+        fields = {"field_output": True} if self._wants_fields(t1) and _takes_field_output(self.solver) else {}
+        result, self.state = self.solver.step(mesh_k, self.state, t1, n_sub=self.em_substeps,
+                                              material_points=self.material,
+                                              force_init_path=self.remeshes > 0, **fields)
+        self.last = (x_em, result, self.geometry.mesh)
+        self._track_peak(t1, x_em, result)
+        self._prune(Path(result.path))
+        c2 = time.perf_counter()
+        keep = np.isin(result.element_tags, self.tags)
+        f = result.force_density_mean[keep]  # impulse-consistent mean over the sub-steps
+        tris = mesh_k.triangles[result.elements[keep]]
+        f_em = self.scale * cell_to_nodal_forces(x_em, tris, f, axisymmetric=self.axisymmetric)
+        forces = {b.name: f_em[b.body_to_em] for b in self.bodies}
+        integral = self.scale * cell_force_integral(x_em, tris, f, axisymmetric=self.axisymmetric)
+        getdp_total = result.conductor_force[-1, 0]
+        c3 = time.perf_counter()
+        process = result.run.wall_time if result.run is not None else 0.0
+        self.timers["getdp_process_s"] += process
+        self.timers["getdp_io_s"] += (c2 - c1) - process
+        self.timers["transfer_s"] += c3 - c2
+        return LoadStep(forces, integral, self._values(result, getdp_total))
+
+    def _values(self, result, getdp_total: np.ndarray) -> dict[str, float]:
+        """History values of an EM step (circuit, energies, the workpiece's GetDP force)."""
+        return {
+            "coil_current_A": float(result.coil_current[-1, 0]),
+            "coil_current_abs_max_A": float(np.abs(result.coil_current[:, 0]).max()),
+            "coil_voltage_V": float(result.coil_voltage[-1, 0]),
+            "capacitor_voltage_V": float(result.capacitor_voltage[-1]) if result.capacitor_voltage is not None else 0.0,
+            "coil_joule_heat_J": float(result.coil_heat[0]),
+            "coil_temperature_rise_K": float(result.coil_temperature_rise[0]),
+            "magnetic_energy_J": float(result.magnetic_energy[-1]),
+            "workpiece_joule_power_W": float(result.conductor_power[-1, 0]),
+            "getdp_force_z_N": float(self.scale * getdp_total[1]),
+            "em_mesh_min_quality": float(self.mover.last_min_quality),
+            "em_remeshes": float(self.remeshes),
+        }
+
+    def initial(self, mechanics) -> LoadStep:
+        """The EM state at t = 0 for the history's first row: the circuit as it starts (current 0,
+        a bank charged to V0), no field yet (no force, magnetic energy or Joule power), the fresh
+        mesh's quality. The coil voltage is the one before the switch closes (0 V): it jumps to
+        about V0·L_coil/(L_coil + L_ext) as the discharge starts, which the first EM step shows."""
+        s = self.state
+        return LoadStep({}, None, {
+            "coil_current_A": float(s.current),
+            "coil_current_abs_max_A": abs(float(s.current)),
+            "coil_voltage_V": 0.0,
+            "capacitor_voltage_V": float(s.capacitor_voltage),
+            "coil_joule_heat_J": float(s.coil_heat[0]) if s.coil_heat else 0.0,
+            "coil_temperature_rise_K": 0.0,
+            "magnetic_energy_J": 0.0,
+            "workpiece_joule_power_W": 0.0,
+            "getdp_force_z_N": 0.0,
+            "em_mesh_min_quality": float(self.mover.q_ref.min()),
+            "em_remeshes": float(self.remeshes),
+        })
+
+    # ------------------------------------------------------------------ field snapshots
+    columns = LOAD_COLUMNS_COUPLED
+    em_fields = True
+
+    def run_metrics(self, history, counters) -> dict[str, float]:
+        """EM figures of a coupled run from its history (current, heat, conservation) and the EM timers."""
+        current = history.column("coil_current_abs_max_A")
+        return {
+            "coil_current_peak_kA": float(np.abs(current).max()) / 1e3,
+            "coil_joule_heat_J": float(history.column("coil_joule_heat_J")[-1]),
+            "coil_temperature_rise_K": float(history.column("coil_temperature_rise_K")[-1]),
+            "conservation_error_rel": float(counters.ledger_max),
+            "em_time_s": float(counters.em_time_s),
+            **{f"em_{k}": v for k, v in self.timers.items()},
+        }
+
+    def request_fields(self, times) -> None:
+        """The EM steps that end at ``times`` (s; the output milestones) also print B on every
+        cell and the nodal potential (``GetDPSolver.step(field_output=True)``): only the steps
+        whose snapshot is written pay for the whole-domain tables."""
+        self.field_times = np.asarray(times, float)
+
+    def _wants_fields(self, t1: float) -> bool:
+        ft = self.field_times
+        return ft is not None and ft.size > 0 and float(np.abs(ft - t1).min()) <= 1e-9 * max(abs(t1), 1e-300)
+
+    def _fields(self, result, mesh) -> None:
+        """Whole-domain fields of a step that did not print them: post-process its saved solution
+        (its run folder must still exist: the latest two are kept)."""
+        if getattr(result, "b_cells", None) is not None or not self._post_fields_ok:
+            return
+        if not hasattr(self.solver, "post_fields"):  # another solver (e.g. a study's adapter)
+            self._post_fields_ok = False
+            return
+        c0 = time.perf_counter()
+        try:
+            self._post_fields_ok = self.solver.post_fields(result, mesh)
+        finally:
+            self.timers["getdp_process_s"] += time.perf_counter() - c0
+        if not self._post_fields_ok:
+            log.info("the EM deck has no PostOperation EM_Field: EM snapshots hold B on the conductors only")
+
+    def _track_peak(self, t1: float, x_em: np.ndarray, result) -> None:
+        """Keep the EM step with the largest |coil current| (end of step) as the peak snapshot.
+
+        The whole-domain fields of that step are fetched (:meth:`_fields`) once a later step
+        shows a smaller current, while the step's run folder still exists; a milestone step has
+        them already. A persistent getdp holds a step's fields only until its next step: there a
+        rising step's fields are fetched when the peak is near (:func:`peak_is_near`: at most
+        :data:`PEAK_LOOKAHEAD_STEPS` steps ahead by the current's curvature), the last fetched
+        candidate standing in should the prediction miss (logged)."""
+        if result.coil_current.shape[1] == 0:
+            return
+        current = float(result.coil_current[-1, 0])
+        expire = getattr(self.solver, "fields_expire", False)
+        p = self._peak
+        if p is not None and p["t"] == t1:  # a repeated (iterated) EM step replaces its earlier try
+            self.peak_abs_current, self._peak = p["before"], p["previous"]
+            self._rise = self._rise[:-1]
+            p = self._peak
+        self._rise = (self._rise + [(t1, abs(current))])[-3:]
+        if abs(current) > self.peak_abs_current:
+            if p is not None:
+                p["previous"] = None  # keep one level: only the latest step can be repeated
+                if p.get("fetched"):
+                    self._fetched_peak = p
+            self._peak = {"t": t1, "current": current, "x": x_em, "result": result, "mesh": self.geometry.mesh,
+                          "before": self.peak_abs_current, "previous": p, "written": False,
+                          "fetched": not expire or getattr(result, "b_cells", None) is not None}  # a milestone's
+            self.peak_abs_current = abs(current)
+            if expire and peak_is_near(self._rise):  # fetch now: the next step would lose them
+                self._fields(result, self.geometry.mesh)
+                self._peak["fetched"] = True
+        elif p is not None and not p["written"]:
+            if not p["fetched"]:  # the peak came sooner than predicted: keep the last fetched step
+                fallback = self._fetched_peak
+                log.warning("EM snapshot at the peak coil current: the peak (t = %.6g s, %.6g A) came sooner "
+                            "than predicted; the snapshot is the step at t = %s", p["t"], p["current"],
+                            "none" if fallback is None else f"{fallback['t']:.6g} s ({fallback['current']:.6g} A)")
+                self._peak = p = fallback
+            if p is not None and not p["written"]:
+                self._fields(p["result"], p["mesh"])
+
+    def take_peak_snapshot(self) -> tuple | None:
+        """(t, coil current, points, triangles, cell data, point data) of the peak-current step if it
+        is new since the last call, else None (the driver writes it at milestones and checkpoints)."""
+        p = self._peak
+        if p is None or p["written"]:
+            return None
+        p["written"] = True
+        try:
+            self._fields(p["result"], p["mesh"])
+            return (p["t"], p["current"], *_snapshot(p["mesh"], p["x"], p["result"], self.axisymmetric))
+        except Exception as exc:  # an output: never the end of the run
+            log.warning("no EM snapshot at the peak coil current (t = %.6g s): %s", p["t"], exc)
+            return None
+
+    def snapshot(self) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray], dict[str, np.ndarray]] | None:
+        """The latest step's EM mesh, per-element fields (force and Joule density on the conductors,
+        zero elsewhere; B on every cell) and nodal potential (see :func:`_snapshot`)."""
+        if self.last is None:
+            return None
+        x, r, mesh = self.last
+        self._fields(r, mesh)  # a no-op when the step printed them (a milestone)
+        return _snapshot(mesh, x, r, self.axisymmetric)
+
+    def _prune(self, newest: Path) -> None:
+        """Delete run folders older than the last two, except the one the last checkpoint needs."""
+        if newest in self._runs:  # a repeated (iterated) step reuses its folder
+            return
+        self._runs.append(newest)
+        if self.keep_runs:
+            return
+        for old in self._runs[:-2]:
+            if old != self._pinned:
+                self._discard(old)
+        self._runs = [p for p in self._runs[:-2] if p == self._pinned] + self._runs[-2:]
+
+    def _discard(self, path: Path) -> None:
+        """Delete a run folder in a background thread (the next getdp run overlaps the deletion);
+        :meth:`close` waits for the deletions."""
+        self._deleting = [t for t in self._deleting if t.is_alive()]
+        thread = discard_folder(path)
+        if thread is not None:
+            self._deleting.append(thread)
+
+    def close(self) -> None:
+        """End a persistent getdp and wait until the old run folders are deleted (call once the run is
+        over)."""
+        if hasattr(self.solver, "close"):
+            self.solver.close()
+        for thread in self._deleting:
+            thread.join()
+        self._deleting = []
+
+    def state_dict(self) -> dict[str, np.ndarray]:
+        """EM state (time, circuit, previous .res path, nodal unknown) as a JSON byte array, mesh and
+        body maps (the loop's saved state of an iterated step; a checkpoint uses
+        :meth:`checkpoint_state_dict`). The run folder holding the state's ``.res`` is kept until the
+        next save, so a resume can restart from it.
+        """
+        if self.state.res_path:
+            self._pinned = Path(self.state.res_path).parent
+        return self._state_arrays(self.solver.complete_state(self.state))
+
+    def checkpoint_state_dict(self) -> dict[str, np.ndarray]:
+        """:meth:`state_dict` at a checkpoint: the state the solver stores there is also the one the
+        next step continues from (:meth:`GetDPSolver.checkpoint_state`), so that a ``--resume`` from
+        this checkpoint repeats the uninterrupted run exactly."""
+        if self.state.res_path:
+            self._pinned = Path(self.state.res_path).parent
+        self.state = self.solver.checkpoint_state(self.state)
+        return self._state_arrays(self.state)
+
+    def _state_arrays(self, state: EMState) -> dict[str, np.ndarray]:
+        blob = json.dumps({"state": state.to_dict(), "runs": [str(p) for p in self._runs],
+                           "min_quality": self.min_quality, "remeshes": self.remeshes,
+                           "peak_abs_current": self.peak_abs_current}).encode()
+        m = self.geometry.mesh
+        d = {"em_state_json": np.frombuffer(blob, dtype=np.uint8), "mesh_points": m.points.copy(),
+             "mesh_triangles": m.triangles.copy(), "mesh_tri_tags": m.tri_tags.copy(), "mesh_lines": m.lines.copy(),
+             "mesh_line_tags": m.line_tags.copy(), "material": self.material.copy()}
+        for i, b in enumerate(self.bodies):
+            d.update({f"body_to_em_{i}": b.body_to_em.copy(), f"sub_rows_{i}": b.sub.rows.copy(),
+                      f"sub_em_nodes_{i}": b.sub.em_nodes.copy(), f"sub_points_{i}": b.sub.points.copy()})
+        return d
+
+    def load_state_dict(self, d: dict[str, np.ndarray]) -> None:
+        """Restore :meth:`state_dict`."""
+        data = json.loads(bytes(d["em_state_json"]).decode())
+        self.state = EMState.from_dict(data["state"])
+        self._runs = [Path(p) for p in data["runs"]]
+        self.min_quality = float(data["min_quality"])
+        self.remeshes = int(data.get("remeshes", 0))
+        # the peak snapshot so far was written with the checkpoint; a repeated (iterated) step
+        # restores the value before it and replaces its own earlier try (_track_peak)
+        self.peak_abs_current = float(data.get("peak_abs_current", 0.0))
+        if "mesh_points" in d and (self.remeshes or not np.array_equal(d["mesh_triangles"], self.geometry.mesh.triangles)):
+            mesh = EMMesh(d["mesh_points"], d["mesh_triangles"], d["mesh_tri_tags"], d["mesh_lines"],
+                          d["mesh_line_tags"])
+            for i, b in enumerate(self.bodies):
+                b.body_to_em = np.array(d[f"body_to_em_{i}"])
+                b.sub = ConductorMesh(np.array(d[f"sub_rows_{i}"]), np.array(d[f"sub_em_nodes_{i}"]),
+                                      np.array(d[f"sub_points_{i}"]), b.sub.cells)
+            self._set_mesh(mesh)
+        if "material" in d:
+            self.material = np.array(d["material"])
+        self._pinned = Path(self.state.res_path).parent if self.state.res_path else None
+
+
+#: a rising step's whole-domain fields are fetched on the persistent getdp when the current's peak is
+#: predicted within this many EM steps (a smooth discharge: the prediction is good to a step)
+PEAK_LOOKAHEAD_STEPS = 3.0
+
+
+def peak_is_near(rise: list[tuple[float, float]], lookahead: float = PEAK_LOOKAHEAD_STEPS) -> bool:
+    """True if the last of ``rise`` ((t, |I|) of the last three EM steps, s and A) may be the peak of
+    |I| or precede it by at most ``lookahead`` steps: the rate of rise, extrapolated linearly in time,
+    reaches zero within ``lookahead`` steps of the last length. A rate that does not fall: False (far
+    from a peak); a rate that is not positive, or fewer than three steps (the start of a run or of a
+    resumed segment: nothing to predict from): True."""
+    if len(rise) < 3:
+        return True
+    (t0, a0), (t1, a1), (t2, a2) = rise
+    if not (t2 > t1 > t0):
+        return True
+    r1, r2 = (a1 - a0) / (t1 - t0), (a2 - a1) / (t2 - t1)
+    if r2 <= 0.0:
+        return True
+    slope = (r2 - r1) / (0.5 * (t2 - t0))  # d(rate)/dt between the two steps' centres
+    if slope >= 0.0:
+        return False
+    return r2 / -slope <= lookahead * (t2 - t1) + 0.5 * (t2 - t1)
+
+
+def _snapshot(mesh, x: np.ndarray, r, axisymmetric: bool):
+    """(points, triangles, cell data, point data) of one EM step for the ``.vtu`` files.
+
+    Cell data: ``region`` (physical id), ``force_density_N_m3`` and ``joule_power_density_W_m3``
+    (element averages on the conductors, zero elsewhere), ``flux_density_T`` (B at the cell
+    centre: on every cell when the step has whole-domain fields, else on the conductors only).
+    Point data, with whole-domain fields: ``r_a_phi_Wb`` (axisymmetric; r·a_φ, T·m² = Wb per
+    radian: 2π r a_φ is the flux through the circle of radius r) or ``a_z_Wb_m`` (planar); its
+    contours are the flux lines.  Signs: GetDP's frame, i.e. a positive coil current flowing along
+    −e_φ (axisymmetric) or +z (planar), so that B = curl a holds with the written values.
+    """
+    m = len(mesh.triangles)
+    f, p, b = np.zeros((m, 3)), np.zeros(m), np.zeros((m, 3))
+    f[r.elements, :2] = r.force_density[-1]
+    p[r.elements] = r.joule_density[-1]
+    point_data = {}
+    if getattr(r, "b_cells", None) is not None and getattr(r, "a_nodes", None) is not None:
+        b[:, :2] = np.nan_to_num(r.b_cells)
+        if axisymmetric:
+            point_data["r_a_phi_Wb"] = -r.a_nodes  # getdp's unknown is r a_z of its frame, z = -e_phi
+        else:
+            point_data["a_z_Wb_m"] = r.a_nodes.copy()
+    else:
+        b[r.elements, :2] = r.flux_density[-1]
+    data = {"region": mesh.tri_tags.astype(np.int32), "force_density_N_m3": f,
+            "joule_power_density_W_m3": p, "flux_density_T": b}
+    return x, mesh.triangles, data, point_data
+
+
+def _takes_field_output(solver) -> bool:
+    """True if ``solver.step`` accepts ``field_output`` (GetDPSolver; not every stand-in does)."""
+    import inspect
+
+    try:
+        params = inspect.signature(solver.step).parameters
+    except (TypeError, ValueError):
+        return False
+    return "field_output" in params or any(p.kind is p.VAR_KEYWORD for p in params.values())

@@ -1,0 +1,267 @@
+"""Users' own EM decks: a case's own Gmsh ``.geo``/``.msh`` and GetDP ``.pro`` (``[geometry] type = "user_deck"``).
+
+The runner
+
+1. when the case is loaded: resolves ``mesh`` and ``pro`` against the case folder (and refuses
+   paths outside it unless ``allow_outside = true``), checks the ``parameters`` (identifiers, finite
+   numbers, none of the names the runner sets) and refuses decks that run programs (``SystemCall``
+   ... in the .geo, ``SystemCommand`` ... in the .pro, also in their ``Include`` files) unless
+   ``allow_system_calls = true``: all before any gmsh or getdp run;
+2. meshes a ``.geo`` with ``gmsh -2 -format msh22 -setnumber <parameters>`` under a time limit
+   (``limits.gmsh_time_limit_s``), or reads the ``.msh``;
+3. renumbers the physical groups named in ``[geometry.regions]`` to the runner's ids (1 air, 2 shell,
+   101 coil, 201 workpiece, 202 die, 11 axis, 12 outer) and tells the deck these ids with
+   ``-setnumber Phys_Air, Phys_Shell, Phys_Coil_1, Phys_Cond_1, Phys_Cond_2, Phys_Axis, Phys_Outer``;
+4. runs getdp on the deck exactly like the built-in ``em_case.pro`` (every number of the library's
+   ``DefineConstant`` list with ``-setnumber``, ``OutDir`` with ``-setstring``, resolution
+   ``EM_Transient``), with the string ``PulseformLib`` (absolute path of ``Lib_PulsedForming.pro``)
+   defined before the deck is read, and the case's ``parameters`` as extra ``-setnumber``;
+5. checks the deck once before the run (:mod:`.deck_check`: a few one-step getdp runs in
+   ``em/contract_check/`` with the run's numbers): a getdp error, a missing output table, a time
+   window that is not the runner's, a hollow model (zero energy or coil current, missing force rows
+   or field state) or a state carry that does not reproduce a continuous run becomes a one-line
+   :class:`DeckContractError` naming what failed.
+
+The contract is documented in ``docs/workflow.md``.
+"""
+
+from __future__ import annotations
+
+import logging
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+
+from pulseform.solvers.getdp import EMMesh
+from pulseform.solvers.getdp.runner import child_preexec
+from pulseform.solvers.getdp.solver import DECK_DIR
+from pulseform.solvers.getdp.contract import (CIRCUIT_TABLES, CURVE_ROLES, OPTIONAL_ROLES, REQUIRED_TABLES,  # noqa: F401
+                                              ROLE_IDS, ROLE_NUMBERS, SURFACE_ROLES)
+
+from ..case.deck_files import (MAX_PARAMETER_NAME, check_parameters, deck_tokens, find_program_call,  # noqa: F401
+                               is_reserved_parameter, reserved_listing, reserved_parameter_names,
+                               resolve_deck_paths, short)
+from ..mesh.em_geometry import EMGeometry
+from .deck_check import DeckCheckReport, DeckContractError, check_deck  # noqa: F401  (DeckContractError: the API)
+from .participant import GetDPLoad
+from .solver import em_model, make_em_solver
+
+log = logging.getLogger(__name__)
+
+
+
+#: wall-time limits (s) when the case has no ``[limits]`` table (``limits.gmsh_time_limit_s``,
+#: ``limits.getdp_time_limit_s`` otherwise): one gmsh run on the .geo, the contract check's getdp run
+GMSH_TIME_LIMIT_S = 600.0
+GETDP_TIME_LIMIT_S = 600.0
+
+
+def time_limits(case) -> tuple[float, float]:
+    """(gmsh, getdp) wall-time limits in seconds: the case's ``[limits]`` or the module defaults."""
+    lim = getattr(case, "limits", None)
+    return (float(getattr(lim, "gmsh_time_limit_s", None) or GMSH_TIME_LIMIT_S),
+            float(getattr(lim, "getdp_time_limit_s", None) or GETDP_TIME_LIMIT_S))
+
+
+# ----------------------------------------------------------------------------- mesh
+def mesh_file(g, work: Path, time_limit: float = GMSH_TIME_LIMIT_S) -> Path:
+    """The deck's MSH 2.2 file: the ``.msh`` itself, or the ``.geo`` meshed by gmsh into ``work``
+    (log ``work/gmsh.log``). gmsh is stopped after ``time_limit`` seconds and never outlives
+    pulseform (:func:`pulseform.solvers.getdp.runner.child_preexec`)."""
+    src = Path(g.mesh)
+    if src.suffix == ".msh":
+        return src
+    work.mkdir(parents=True, exist_ok=True)
+    out = work / (src.stem + ".msh")
+    exe = shutil.which("gmsh")
+    if exe is None:
+        raise DeckContractError("gmsh not found on PATH: needed to mesh " + str(src))
+    argv = [exe, str(src), "-2", "-format", "msh22", "-o", str(out)]
+    for k, v in (g.parameters or {}).items():
+        argv += ["-setnumber", k, repr(float(v))]
+    log_path = work / "gmsh.log"
+    with open(log_path, "w") as fh:
+        fh.write("# argv: " + " ".join(argv) + "\n")
+        fh.flush()
+        try:
+            r = subprocess.run(argv, cwd=src.parent, stdout=fh, stderr=subprocess.STDOUT, timeout=time_limit,
+                               check=False, preexec_fn=child_preexec)
+        except subprocess.TimeoutExpired:
+            raise DeckContractError(f"{src}: meshing with gmsh exceeded its time limit of {time_limit:g} s "
+                                    "(limits.gmsh_time_limit_s) and was stopped", log_path=log_path) from None
+        except OSError as exc:
+            raise DeckContractError(f"{src}: could not start gmsh: {exc}", log_path=log_path) from None
+    text = log_path.read_text(errors="replace").split("\n", 1)[-1]
+    errors = [ln for ln in text.splitlines() if ln.startswith("Error")]
+    if r.returncode != 0 or errors or not out.is_file():
+        first = errors[0] if errors else (f"killed by signal {-r.returncode}" if r.returncode < 0
+                                          else f"exit code {r.returncode}")
+        raise DeckContractError(f"{src}: gmsh failed: {short(first, 200)}", log_path=log_path)
+    log.info("meshed %s -> %s", src, out)
+    return out
+
+
+def read_deck_mesh(path: Path, regions, name: str | Path | None = None) -> EMMesh:
+    """Read ``path`` (MSH 2.2 with named physical groups) and renumber the roles to the runner's ids.
+
+    Every triangle must belong to a mapped surface group; curves of unmapped groups are dropped.
+    Messages name ``name`` (the user's .geo when ``path`` is the mesh made from it), else ``path``.
+    """
+    import meshio
+
+    m = meshio.read(path)
+    path = path if name is None else name
+    names = {name: (int(v[0]), int(v[1])) for name, v in m.field_data.items()}
+    phys = m.cell_data_dict.get("gmsh:physical", {})
+    tri = m.get_cells_type("triangle")
+    if not len(tri) or "triangle" not in phys:
+        raise DeckContractError(f"{path}: no triangles with physical groups")
+    lines = m.get_cells_type("line")
+    ltags = np.asarray(phys.get("line", np.zeros(len(lines), np.int64)))
+    ttags = np.asarray(phys["triangle"])
+    new_t, new_l = np.zeros_like(ttags), np.zeros_like(ltags)
+    for role in SURFACE_ROLES + CURVE_ROLES:
+        name = getattr(regions, role)
+        if name is None:
+            continue
+        if name not in names:
+            raise DeckContractError(f"{path}: geometry.regions.{role}: no physical group named {name!r} "
+                                    f"(the mesh has {', '.join(sorted(names)) or 'no named groups'})")
+        pid, dim = names[name]
+        want = 2 if role in SURFACE_ROLES else 1
+        if dim != want:
+            raise DeckContractError(f"{path}: geometry.regions.{role}: group {name!r} has dimension {dim}; "
+                                    f"the {role} must be a physical {'surface' if want == 2 else 'curve'}")
+        sel = (ttags == pid) if want == 2 else (ltags == pid)
+        if not sel.any():
+            raise DeckContractError(f"{path}: geometry.regions.{role}: group {name!r} has no elements")
+        (new_t if want == 2 else new_l)[sel] = ROLE_IDS[role]
+    if (new_t == 0).any():
+        left = sorted({int(t) for t in ttags[new_t == 0]})
+        inv = {v[0]: k for k, v in names.items() if v[1] == 2}
+        raise DeckContractError(f"{path}: triangles of physical group(s) "
+                                f"{', '.join(inv.get(t, str(t)) for t in left)} have no role in geometry.regions")
+    keep = new_l > 0
+    pts = np.asarray(m.points)[:, :2]
+    mesh = EMMesh(pts, tri.astype(np.int64), new_t, lines[keep].astype(np.int64), new_l[keep])
+    neg = mesh.areas() < 0
+    mesh.triangles[neg] = mesh.triangles[neg][:, [0, 2, 1]]
+    used = np.unique(np.concatenate([mesh.triangles.ravel(), mesh.lines.ravel()]))
+    if len(used) != len(pts):  # drop orphan nodes (construction points)
+        remap = np.full(len(pts), -1, np.int64)
+        remap[used] = np.arange(len(used))
+        mesh = EMMesh(pts[used], remap[mesh.triangles], mesh.tri_tags, remap[mesh.lines], mesh.line_tags)
+    return mesh
+
+
+def build_user_geometry(case, work: Path, em_dir: Path):
+    """The EM geometry of a user deck (no turn rectangles: user meshes are not remeshed), after the
+    deck passed the check (:func:`check_contract`, getdp runs in ``em_dir/contract_check``). gmsh and
+    getdp run under the case's time limits (:func:`time_limits`)."""
+    g = case.geometry
+    gmsh_limit, getdp_limit = time_limits(case)
+    mesh = read_deck_mesh(mesh_file(g, work, gmsh_limit), g.regions, name=g.mesh)
+    log.info("user EM mesh (%s): %d nodes, %d triangles", Path(g.mesh).name, mesh.n_nodes, len(mesh.triangles))
+    check_contract(make_solver(case, user_em_model(case), Path(em_dir)), mesh, Path(em_dir) / "contract_check",
+                   time_limit=getdp_limit)
+    return EMGeometry(mesh, {role: ROLE_IDS[role] for role in ("coil",) + g.conductor_roles()}, [])
+
+
+def log_summary(path: Path, n: int = 2, width: int = 160) -> str:
+    """The last ``n`` non-empty lines of a gmsh/getdp log, joined with `` | `` and shortened."""
+    try:
+        lines = [ln.strip() for ln in Path(path).read_text(errors="replace").splitlines()
+                 if ln.strip() and not ln.startswith("# argv:")]
+    except OSError:
+        return ""
+    return short(" | ".join(lines[-n:]), width)
+
+
+def check_user_deck(case) -> None:
+    """``pulseform check`` of a user deck: mesh it, map its groups to roles and run the contract
+    check in a temporary folder, which is removed whether the deck passes or not. Raises
+    :class:`DeckContractError` naming what is wrong; when that names a gmsh/getdp log of the
+    temporary folder, the message carries the log's last lines instead (an ``Error`` line of the
+    log is in the message already)."""
+    import tempfile
+
+    tmp = Path(tempfile.mkdtemp(prefix="pulseform_check_"))
+    try:
+        build_user_geometry(case, tmp / "em_mesh", tmp / "em")
+    except DeckContractError as exc:
+        if exc.log_path is None or not exc.log_path.is_relative_to(tmp):
+            raise
+        tail = "" if "Error" in exc.message else log_summary(exc.log_path)
+        raise DeckContractError(exc.message + (f"; log ends: {tail}" if tail else "")) from None
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+# ----------------------------------------------------------------------------- getdp
+def user_em_model(case):
+    """EMModel of a user-deck case: one stranded coil, the workpiece as massive conductor 1 (a die 2)."""
+    g = case.geometry
+    shell = None if g.shell_inner_radius is None else (g.shell_inner_radius, g.shell_outer_radius)
+    return em_model(case, shell)
+
+
+def make_solver(case, model, work_dir: Path, getdp_process: str = "per_step"):
+    """The EM solver on the user's deck (role ids, the case's parameters and ``PulseformLib``): one
+    getdp process per EM step, or with ``getdp_process = "persistent"`` one for the run (the deck
+    needs Resolution ``EM_Persistent``, which a deck on ``PulseformLib`` has)."""
+    g = case.geometry
+    numbers = {name: ROLE_IDS[role] for role, name in ROLE_NUMBERS.items()
+               if role not in OPTIONAL_ROLES or getattr(g.regions, role) is not None}
+    numbers.update({k: float(v) for k, v in (g.parameters or {}).items()})
+    lib = (DECK_DIR / "Lib_PulsedForming.pro").resolve()
+    return make_em_solver(model, work_dir, case.em.time_scheme, getdp_process, deck=g.pro, extra_numbers=numbers,
+                          preamble=[f'PulseformLib = "{lib}";'])
+
+
+def check_contract(solver, mesh, work: Path, time_limit: float = GETDP_TIME_LIMIT_S) -> DeckCheckReport:
+    """The deck check (:func:`pulseform.orchestrator.em.deck_check.check_deck`): a few one-step getdp
+    runs on the deck with the run's numbers (each stopped after ``time_limit`` s) prove that it
+    fulfils the contract, solves the model and carries its state, the first step's tables left in
+    ``work/out``. The carry is checked through the Init path (``Flag_InitA``), and through the
+    restart path too when ``solver`` steps implicit Euler (BDF2 runs use only the Init path).
+    Returns the :class:`~pulseform.orchestrator.em.deck_check.DeckCheckReport`; raises
+    :class:`DeckContractError` (one line) naming what failed."""
+    paths = ("init",) if getattr(solver, "time_scheme", "euler") == "bdf2" else ("init", "restart")
+    return check_deck(solver, mesh, Path(work), time_limit, carry_paths=paths)
+
+
+def user_deck_load(case, geometry, work_dir: Path, bodies, em_substeps: int):
+    """The load provider of a user-deck case: GetDPLoad on the user's deck (checked by
+    :func:`build_user_geometry`)."""
+    class UserDeckLoad(GetDPLoad):
+        """GetDPLoad whose solver runs the user's deck; user meshes are moved, never remeshed."""
+
+        def _remesh(self, positions):
+            raise DeckContractError("the EM mesh of a user deck degraded beyond em.remesh_quality and user meshes "
+                                    "are not remeshed: refine the .geo around the workpiece, lower "
+                                    "em.remesh_quality or shorten time.end")
+
+    model = user_em_model(case)
+    mode = case.em.getdp_process
+    if mode == "auto":  # the deck selects: the persistent getdp (BDF2 only) where it has EM_Persistent
+        mode = "per_step"
+        if case.em.time_scheme == "bdf2":
+            persistent = make_solver(case, model, Path(work_dir), "persistent")
+            persistent.timeout = case.limits.getdp_time_limit_s
+            if persistent.probe(geometry.mesh):
+                mode = "persistent"
+    solver = make_solver(case, model, Path(work_dir), mode)
+    if mode == "persistent" and case.em.getdp_process == "persistent":
+        solver.timeout = case.limits.getdp_time_limit_s
+        if not solver.probe(geometry.mesh):
+            raise DeckContractError(f"deck {case.geometry.pro}: em.getdp_process = 'persistent' needs Resolution "
+                                    "EM_Persistent (Include PulseformLib provides it), or set getdp_process = 'per_step'")
+    log.info("user deck: %s", "one persistent getdp process" if mode == "persistent" else "a getdp process per EM step")
+    load = UserDeckLoad(geometry, model, work_dir, bodies, keep_runs=case.em.keep_runs,
+                        remesh_quality=case.em.remesh_quality, sizes=(1.0, 1.0), em_substeps=em_substeps,
+                        time_scheme=case.em.time_scheme)
+    load.solver = solver
+    load.state = solver.initial_state(0.0)
+    return load

@@ -1,0 +1,49 @@
+"""Translate a validated :class:`Case` into the explicit DOLFINx solver's objects."""
+
+from __future__ import annotations
+
+from mpi4py import MPI
+
+from pulseform.solvers import dolfinx as mech
+
+from ..case.model import Case, CowperSymonds, Material
+from ..mesh.shapes import mesh_shape
+from .pulses import box_marker
+
+
+def solver_material(m: Material) -> "mech.Material":
+    """Case material -> solver material (SI units are the same on both sides)."""
+    rate = None
+    if isinstance(m.rate_law, CowperSymonds):
+        rate = mech.CowperSymonds(D=m.rate_law.D, p=m.rate_law.q)
+    elif m.rate_law is not None:
+        rate = mech.JohnsonCook(C=m.rate_law.C, eps_rate0=m.rate_law.reference_strain_rate)
+    return mech.Material(density=m.density, shear_modulus=m.shear_modulus,
+                         bulk_modulus=m.bulk_modulus, yield_stress=m.yield_stress,
+                         hardening_modulus=m.hardening_modulus, rate_law=rate)
+
+
+def build_solver(case: Case, comm: MPI.Comm = MPI.COMM_WORLD,
+                 region_meshes: dict | None = None, compiled_steps: bool = True) -> "mech.ExplicitSolver":
+    """Mesh every body (or take its region's mesh, cut from the EM mesh) and build the solver
+    (``compiled_steps``: the solver's compiled block path, else its Python step loop)."""
+    bodies = []
+    for b in case.bodies:
+        if b.region is not None:
+            mesh = (region_meshes or {})[b.region]
+        else:
+            mesh = mesh_shape(b.shape, b.mesh_size, comm, name=b.name, time_limit=case.limits.gmsh_time_limit_s)
+        fixed = tuple((box_marker(f.where), tuple(f.components)) for f in b.fixed)
+        bodies.append(mech.BodySpec(name=b.name, mesh=mesh, material=solver_material(case.materials[b.material]),
+                                    initial_velocity=tuple(b.initial_velocity), fixed=fixed))
+    pairs = tuple(mech.ContactPairSpec(slave=c.slave, master=c.master, stiffness=c.stiffness, h0=c.h0,
+                                       friction=c.friction, viscosity=c.viscosity, two_pass=c.two_pass)
+                  for c in case.contact)
+    walls = tuple(mech.RigidWallSpec(point=tuple(w.point), normal=tuple(w.normal),
+                                     bodies=tuple(w.bodies) or None, sliding=w.sliding) for w in case.walls)
+    mo = case.mechanics
+    return mech.ExplicitSolver(bodies, formulation=mo.formulation, contact_pairs=pairs, rigid_walls=walls,
+                               cfl=case.time.cfl, bulk_viscosity=mo.bulk_viscosity,
+                               bulk_linear=mo.bulk_viscosity_linear, bulk_quadratic=mo.bulk_viscosity_quadratic,
+                               thickness=mo.thickness, comm=comm, compiled_steps=compiled_steps,
+                               threads=mo.threads)

@@ -1,0 +1,123 @@
+"""EM geometries of the coupled cases, meshed with gmsh into one EM mesh with named regions.
+
+The workpiece is massive conductor 1 (physical id 201), a die or outer tube massive conductor 2
+(202), the coil is stranded coil 1 (101, all its turns in series), air 1, shell 2, axis (or
+symmetry plane) 11, outer boundary 12 (the ids of :mod:`pulseform.solvers.getdp.mesh`). The
+mechanical mesh of every conductor body is cut from this mesh (:mod:`.shared_mesh`), so both share
+its nodes and the force transfer is exact.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+
+from pulseform.solvers.getdp import EMMesh, Rect, coil_conductor_mesh, coil_tag, conductor_tag
+from pulseform.solvers.getdp.runner import call_in_child
+
+from ..case.model import FlatCoilSheet, Geometry, PlanarCoilBlankDie, SolenoidTube
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class EMGeometry:
+    """The meshed EM setup: mesh, region ids by role (coil and conductors), turn rectangles.
+
+    ``planar``: a plane half model (a_z, per metre of depth) instead of an axisymmetric one.
+    """
+
+    mesh: EMMesh
+    regions: dict[str, int]
+    turns: list[Rect]
+    planar: bool = False
+
+    def conductor_roles(self) -> list[str]:
+        """The conductor roles, in conductor order (physical ids 201, 202, ...)."""
+        return sorted((r for r in self.regions if r != "coil"), key=self.regions.__getitem__)
+
+
+def flat_coil_turns(g: FlatCoilSheet) -> list[Rect]:
+    """Turn cross-sections (m) of the flat spiral coil, modelled as coaxial rings."""
+    out = []
+    for k in range(g.turns):
+        r0 = g.coil_inner_radius + k * (g.turn_width + g.turn_gap)
+        out.append(Rect(r0, -g.turn_height, r0 + g.turn_width, 0.0))
+    return out
+
+
+def solenoid_turns(g: SolenoidTube) -> list[Rect]:
+    """Turn cross-sections (m) of the solenoid, stacked along z and centred on z = 0."""
+    pitch = g.turn_height + g.turn_gap
+    z0 = -0.5 * (g.turns * pitch - g.turn_gap)
+    return [Rect(g.coil_inner_radius, z0 + k * pitch, g.coil_inner_radius + g.turn_width,
+                 z0 + k * pitch + g.turn_height) for k in range(g.turns)]
+
+
+def planar_turns(g: PlanarCoilBlankDie) -> list[Rect]:
+    """Turn cross-sections (m) of the planar half model's coil, side by side above the blank."""
+    y0 = g.blank_thickness + g.coil_gap
+    return [Rect(g.coil_inner_x + k * (g.turn_width + g.turn_gap), y0,
+                 g.coil_inner_x + k * (g.turn_width + g.turn_gap) + g.turn_width, y0 + g.turn_height)
+            for k in range(g.turns)]
+
+
+def sheet_die_polygon(g: FlatCoilSheet, segments: int | None = None) -> np.ndarray:
+    """Counter-clockwise (r, z) outline (m) of the die above the sheet: block minus the cavity,
+    the cavity edge rounded with ``entry_radius`` (``segments`` chords; default: chords of about half
+    the die's element size, so the fillet does not make elements, and the stable step, smaller)."""
+    d = g.die
+    if segments is None:
+        segments = max(2, int(np.ceil(0.5 * np.pi * d.entry_radius / (0.5 * d.mesh_size))))
+    z = g.coil_gap + g.sheet_thickness + d.gap  # the die's lower face
+    rc, re = d.cavity_radius, d.entry_radius
+    pts = [(rc + re, z), (d.outer_radius, z), (d.outer_radius, z + d.height), (0.0, z + d.height),
+           (0.0, z + d.cavity_depth), (rc, z + d.cavity_depth), (rc, z + re)]
+    if re > 0.0:  # quarter arc from (rc, z + re) down to (rc + re, z), centre (rc + re, z + re)
+        a = np.linspace(np.pi, 1.5 * np.pi, segments + 1)[1:-1]
+        pts += [(rc + re + re * np.cos(t), z + re + re * np.sin(t)) for t in a]
+    return np.array(pts)
+
+
+def build_em_geometry(g: Geometry, time_limit: float | None = None) -> EMGeometry:
+    """Mesh the EM setup ``g`` (axisymmetric: r = x, z = y; planar: half model x >= 0).
+
+    gmsh runs in a child process under ``time_limit`` (s; None: no limit), see
+    :func:`~pulseform.solvers.getdp.runner.call_in_child`.
+    """
+    conductors, sizes = [], []
+    if isinstance(g, FlatCoilSheet):
+        turns = flat_coil_turns(g)
+        conductors.append(Rect(0.0, g.coil_gap, g.sheet_radius, g.coil_gap + g.sheet_thickness))
+        sizes.append(g.mesh_size_sheet)
+        if g.die is not None:
+            conductors.append(sheet_die_polygon(g))
+            sizes.append(g.die.mesh_size)
+    elif isinstance(g, SolenoidTube):
+        turns = solenoid_turns(g)
+        conductors.append(Rect(g.tube_inner_radius, -0.5 * g.tube_length, g.tube_inner_radius + g.tube_thickness,
+                               0.5 * g.tube_length))
+        sizes.append(g.mesh_size_tube)
+        o = g.outer_tube
+        if o is not None:
+            conductors.append(Rect(o.inner_radius, -0.5 * o.length, o.inner_radius + o.thickness, 0.5 * o.length))
+            sizes.append(o.mesh_size)
+    else:
+        assert isinstance(g, PlanarCoilBlankDie)
+        turns = planar_turns(g)
+        conductors.append(Rect(0.0, 0.0, g.blank_half_width, g.blank_thickness))
+        sizes.append(g.mesh_size_blank)
+        if g.die is not None:
+            conductors.append(np.array(g.die, dtype=float))
+            sizes.append(g.mesh_size_die)
+    regions = {"coil": coil_tag(1)}
+    regions.update({role: conductor_tag(k) for k, role in enumerate(g.conductor_roles(), start=1)})
+    mesh = call_in_child(coil_conductor_mesh, [turns], conductors, axisymmetric=not g.planar, half=True,
+                         r_domain=g.air_radius, r_shell=g.shell_radius, h_fine=g.mesh_size_coil,
+                         h_coarse=g.mesh_size_air, h_conductor=sizes, names={tag: role for role, tag in regions.items()},
+                         time_limit=time_limit, what=f"meshing the {g.type} EM geometry with gmsh")
+    log.info("EM mesh (%s): %d nodes, %d triangles, groups %s", g.type, mesh.n_nodes, len(mesh.triangles),
+             ", ".join(f"{n} ({t})" for t, n in sorted(mesh.names.items())))
+    return EMGeometry(mesh, regions, turns, planar=g.planar)

@@ -1,0 +1,1 @@
+"""One run: driver, runner, results folder, history, checkpoints, progress, signals, field output, plots, analyses."""

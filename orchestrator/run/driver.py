@@ -1,0 +1,387 @@
+"""Drive a case through the staggered loop into a results folder.
+
+A mechanics case is the loop with the pressure-pulse load provider and n = 1; a coupled case is
+the same loop with the GetDP eddy-current load and the case's n. The run stops at output milestones (every
+``output.field_interval``): there it writes fields, flushes ``history.csv`` and a checkpoint, so
+``pulseform run --resume`` continues from the last milestone to the same result.
+"""
+
+from __future__ import annotations
+
+import logging
+import sys
+import time as _time
+from dataclasses import dataclass, field
+
+import numpy as np
+from mpi4py import MPI
+
+from pulseform.solvers import dolfinx as mech
+from pulseform.solvers.dolfinx.cell_fields import j2_times_3_max, nodal_extremes
+
+from ..case.guards import check_steps_of_meshes
+from ..case.model import Case
+from ..coupling.interfaces import LoadProvider
+from ..coupling.loop import LoopOptions, StaggeredLoop
+from ..em.participant import GetDPLoad
+from ..em.solver import em_model
+from ..em.user_deck import build_user_geometry, user_deck_load
+from ..mech import probes as probe_mod
+from ..mech.model import build_solver
+from ..mech.participants import DolfinxMechanics, PressurePulses
+from ..mesh.em_geometry import build_em_geometry
+from ..mesh.shared import ConductorBody, conductor_submesh, match_nodes, to_dolfinx
+from . import interrupt
+from .analyses import create as create_analysis
+from .checkpoint import CHECKPOINT_NAME, load_checkpoint, save_checkpoint
+from .em_fields import EMFieldWriter, write_peak_snapshot
+from .history import History
+from .progress import Progress
+from .results import ResultsFolder
+
+log = logging.getLogger(__name__)
+
+
+class NothingToResume(FileNotFoundError):
+    """``--resume`` was asked for but the results folder has no usable checkpoint."""
+
+
+@dataclass
+class MechanicsRun:
+    """What a finished run hands back to the runner."""
+
+    solver: object
+    history: History
+    metrics: dict[str, float] = field(default_factory=dict)
+    shapes: list = field(default_factory=list)
+    analyses: list = field(default_factory=list)
+    wall_before_s: float = 0.0  # wall time of the earlier segments of a resumed run (s)
+    pictures_stopped_by: int | None = None  # a stop signal that ended the pictures (the run is complete)
+
+
+def milestones(end: float, interval: float) -> np.ndarray:
+    """Output times interval, 2·interval, ... up to and including ``end`` (s)."""
+    n = max(1, int(np.floor(end / interval + 1e-9)))
+    times = interval * np.arange(1, n + 1)
+    if end - times[-1] > 1e-12 * end:
+        times = np.append(times, end)
+    times[-1] = min(times[-1], end)
+    return times
+
+
+class CaseDriver:
+    """Participants, loop, history, fields and checkpoints of one case."""
+
+    def __init__(self, case: Case, results: ResultsFolder, comm: MPI.Comm) -> None:
+        self.case, self.results, self.comm = case, results, comm
+        t0 = self.wall_start = _time.perf_counter()
+        self.wall_before_s = 0.0
+        cp = case.coupling
+        if case.case.kind == "coupled":
+            self.solver, load = _coupled_participants(case, results, comm)
+            options = LoopOptions.from_coupling(cp)
+        else:
+            # the explicit mechanics alone has no step-ratio limit: full steps, one shorter step at a milestone
+            self.solver, options = build_solver(case, comm), LoopOptions(n=1, n_max=1, landing="last",
+                                                                       block=case.output.history_every)
+            load = _pressure_pulses(case)
+        check_steps_of_meshes(case, self.solver.stable_time_step())  # a user deck's mesh is known only now
+        self.setup_s = _time.perf_counter() - t0
+        self.mechanics = DolfinxMechanics(self.solver)
+        self.load: LoadProvider = load
+        self.loop = StaggeredLoop(load, self.mechanics, options, dt_max=case.time.dt_max)
+        self.probes = probe_mod.attach(self.solver, case.probes, comm)
+        self.analyses = [create_analysis(name, case) for name in case.analysis]
+        self.load_columns = self.load.columns
+        self.history = History(results.root / "history.csv")
+        self.part = 0
+        self._since_record = 0
+        self._last_row: dict[str, float] | None = None
+        self.shapes: list[tuple[float, dict[str, np.ndarray]]] = []  # rank 0: node positions per milestone
+        interval = case.output.field_interval or case.time.end / 20.0
+        self.stops = milestones(case.time.end, interval)
+
+    # ----------------------------------------------------------------- records
+    def record(self, step_row: dict[str, float] | None = None) -> None:
+        """Append the current state to the history."""
+        s = self.solver
+        row = {"time_s": s.time, "step": float(s.step_count),
+               "dt_s": step_row["dt_s"] if step_row else 0.0,
+               "substeps": step_row.get("substeps", 0.0) if step_row else 0.0,
+               "iterations": step_row.get("iterations", 0.0) if step_row else 0.0}
+        row.update({f"energy_{k}": float(v) for k, v in s.energies().items()})
+        row.update(probe_mod.sample(s, self.probes, self.comm))
+        row.update(body_extremes(s, self.comm))
+        for a in self.analyses:
+            row.update(a.record(s, row))
+        for key in self.load_columns:
+            row[key] = step_row.get(key, 0.0) if step_row else 0.0
+        self.history.record(row)
+
+    def initial_row(self) -> dict[str, float]:
+        """The load columns at t = 0 (the first history row): the provider's true initial values
+        (:meth:`pulseform.orchestrator.coupling.interfaces.LoadProvider.initial`; zeros for a provider
+        whose ``initial`` gives None)."""
+        row = {"dt_s": 0.0, "substeps": 0.0, "iterations": 0.0}
+        step = self.load.initial(self.mechanics)
+        if step is not None:
+            resultant = self.mechanics.total_force(step.forces) if step.forces else np.zeros(2)
+            row.update({"force_x_N": float(resultant[0]), "force_y_N": float(resultant[1]),
+                        "conservation_error_rel": 0.0, **step.values})
+        return row
+
+    def _on_em_step(self, row: dict[str, float]) -> None:
+        self._last_row = row
+        self._since_record += 1
+        if self._since_record >= self.case.output.history_every:
+            self._since_record = 0
+            self.record(row)
+
+    def _keep_shape(self) -> None:
+        """Gather every body's owned node positions on rank 0 (for the shapes plot)."""
+        local = {n: b.x[: b.n_owned].copy() for n, b in self.solver.bodies.items()}
+        gathered = self.comm.gather(local, root=0)
+        if self.comm.rank == 0:
+            self.shapes.append((self.solver.time, {n: np.vstack([g[n] for g in gathered]) for n in local}))
+
+    def _rank_file(self) -> str:
+        return CHECKPOINT_NAME if self.comm.size == 1 else f"checkpoint.rank{self.comm.rank}.npz"
+
+    def checkpoint(self) -> None:
+        """Write the checkpoint (one file per rank) and flush the history and the EM snapshot at the
+        peak coil current (the checkpoint's EM state counts it as written)."""
+        peak = self.load.take_peak_snapshot() if self.comm.rank == 0 else None
+        if peak is not None:
+            write_peak_snapshot(self.results.fields / "em", *peak)
+        arrays = {f"solver/{k}": v for k, v in self.mechanics.state_dict().items()}
+        arrays.update({f"loop/{k}": v for k, v in self.loop.counters.state_dict().items()})
+        arrays.update({f"load/{k}": v for k, v in self.load.checkpoint_state_dict().items()})
+        arrays["history/rows"] = self.history.array()
+        meta = {"columns": self.history.columns, "part": self.part, "ranks": self.comm.size,
+                "since_record": self._since_record,
+                "wall_time_s": self.wall_before_s + _time.perf_counter() - self.wall_start}
+        save_checkpoint(self.results.root / self._rank_file(), arrays, meta)
+        if self.comm.rank == 0:
+            self.history.flush()
+
+    def restore(self) -> None:
+        """Continue from the checkpoint in the results folder."""
+        path = self.results.root / self._rank_file()
+        if not path.is_file():
+            raise NothingToResume(f"{self.results.root}: no {path.name} to resume from")
+        arrays, meta = load_checkpoint(path)
+        if meta["ranks"] != self.comm.size:
+            raise NothingToResume(f"{path}: written by {meta['ranks']} ranks, resuming on {self.comm.size}")
+        self.mechanics.load_state_dict({k[7:]: v for k, v in arrays.items() if k.startswith("solver/")})
+        self.loop.counters.load_state_dict({k[5:]: v for k, v in arrays.items() if k.startswith("loop/")})
+        self.load.load_state_dict({k[5:]: v for k, v in arrays.items() if k.startswith("load/")})
+        self.history.columns = list(meta["columns"])
+        self.history.rows = [list(r) for r in arrays["history/rows"]]
+        self.part = int(meta["part"]) + 1
+        self._since_record = int(meta["since_record"])
+        self.wall_before_s = float(meta.get("wall_time_s", 0.0))
+        log.info("resumed at t = %.6g s, step %d (part %d)", self.solver.time, self.solver.step_count, self.part)
+
+    def _check_interrupt(self) -> None:
+        """Stop here if a stop signal reached any rank (all ranks stop at the same step)."""
+        signum = interrupt.pending() or 0
+        if self.comm.size > 1:
+            signum = self.comm.allreduce(signum, op=MPI.MAX)
+        if signum:
+            raise interrupt.RunInterrupted(signum)
+
+    # ----------------------------------------------------------------- loop
+    def run(self, quiet: bool) -> MechanicsRun:
+        """Integrate to ``time.end``; fields, history and checkpoint at every milestone."""
+        s, case = self.solver, self.case
+        prefix = self.results.fields / (case.case.name + (f"_part{self.part}" if self.part else ""))
+        writer = mech.FieldWriter(s, str(prefix))
+        em_writer = EMFieldWriter(self.results.fields / (f"em_part{self.part}" if self.part else "em")) \
+            if self.load.em_fields and self.comm.rank == 0 else None
+        if em_writer is not None:
+            self.load.request_fields(self.stops)  # whole-domain EM fields only on the snapshot steps
+        if not self.history.rows:
+            self.record(self.initial_row())
+        writer.write(s.time)
+        self._keep_shape()
+        stop = s.time
+
+        def on_step(row: dict[str, float]) -> None:
+            self._on_em_step(row)
+            bar.update_to(s.time)
+            if self.comm.size == 1 and interrupt.pending() is not None and s.time < stop * (1.0 - 1e-12):
+                interrupt.check()  # a step that reaches a milestone first writes its outputs
+
+        try:
+            self._check_interrupt()  # a signal during set-up (meshing, deck check)
+            with Progress(case.time.end, quiet=quiet or self.comm.rank != 0, desc=case.case.name) as bar:
+                bar.update_to(s.time)
+                for stop in self.stops:
+                    if s.time >= stop * (1.0 - 1e-12):
+                        continue
+                    self.loop.run_until(stop, on_step)
+                    if self.history.rows[-1][0] != s.time:
+                        self.record(self._last_row)  # the values of the step that reached the milestone
+                    # the milestone itself, not the sum of steps that reached it (6.0000000000000035e-05)
+                    t_out = stop if abs(s.time - stop) <= 1e-9 * stop else s.time
+                    writer.write(t_out)
+                    self._keep_shape()
+                    snap = self.load.snapshot() if em_writer is not None else None
+                    if snap is not None:
+                        em_writer.write(t_out, *snap)
+                    self.checkpoint()
+                    interrupt.rearm()  # a library (gmsh, at import) may have replaced the handlers
+                    self._check_interrupt()
+        except interrupt.RunInterrupted as exc:
+            exc.time = s.time
+            self.checkpoint()  # at an EM-step boundary: --resume continues exactly from here
+            log.info("interrupted at t = %.6g s (step %d); checkpoint written", s.time, s.step_count)
+            raise
+        except Exception as exc:
+            exc.add_note(f"at t = {s.time:.6g} s")
+            if self.comm.rank == 0:
+                try:
+                    self.history.flush()  # keep what was computed up to the failure
+                except OSError as write_error:  # a full disk: report the run's own failure
+                    log.debug("could not flush the history: %s", write_error)
+            raise
+        finally:
+            writer.close()
+            if sys.exc_info()[0] is not None:
+                self.load.close()  # a failed or interrupted run ends its persistent getdp too
+        c = self.loop.counters
+        log.info("mechanics: %d steps to t = %.4g s in %.2f s", s.step_count, s.time, c.mech_time_s)
+        metrics = {"mech_steps": float(s.step_count), "em_steps": float(c.em_steps), "n_final": float(c.n),
+                   "coupling_iterations_total": float(c.iterations),
+                   "coupling_iterations_max": float(c.iterations_max),
+                   "coupling_unconverged_steps": float(c.unconverged),
+                   "end_time_s": float(s.time), "setup_time_s": self.setup_s,
+                   "mech_time_s": c.mech_time_s, "load_time_s": c.em_time_s}
+        if case.loads or case.case.kind == "coupled":
+            metrics["force_impulse_Ns"] = float(np.linalg.norm(c.impulse))
+            metrics["force_impulse_z_Ns"] = float(c.impulse[1])
+        metrics.update(self.load.run_metrics(self.history, c))
+        metrics.update(mech_metrics(s, case, self.history))
+        for a in self.analyses:
+            metrics.update(a.metrics(s, self.history))
+        self.load.close()  # old getdp run folders are deleted in the background: wait for them
+        return MechanicsRun(s, self.history, metrics, self.shapes, self.analyses, self.wall_before_s)
+
+
+
+def _pressure_pulses(case: Case) -> PressurePulses:
+    """The case's pressure pulses with its damping options."""
+    mo = case.mechanics
+    return PressurePulses(case.loads, mo.mass_damping, mo.mass_damping_until, mo.mass_damping_from,
+                          mo.kinetic_damping_until)
+
+
+def _coupled_participants(case: Case, results: ResultsFolder, comm: MPI.Comm):
+    """Mesh the EM setup, cut the conductor bodies' mechanical meshes from it, build solver and GetDP load."""
+
+    if comm.size > 1:
+        raise NotImplementedError("coupled runs are serial for now (the GetDP participant and the force transfer run on one process)")
+    user_deck = case.geometry.type == "user_deck"  # a user's own .geo/.msh + .pro (orchestrator/em/user_deck.py)
+    if user_deck:
+
+        geometry = build_user_geometry(case, results.root / "em_mesh", results.root / "em")
+    else:
+        geometry = build_em_geometry(case.geometry, time_limit=case.limits.gmsh_time_limit_s)
+    roles = geometry.conductor_roles()
+    subs = {role: conductor_submesh(geometry.mesh, geometry.regions[role]) for role in roles}
+    solver = build_solver(case, comm, {role: to_dolfinx(sub, comm) for role, sub in subs.items()})
+    if case.coupling.load == "pressure":  # same meshes and loop, pressure pulses instead of GetDP
+        return solver, _pressure_pulses(case)
+    scale = float(np.abs(geometry.mesh.points).max())
+    bodies = []
+    for role in roles:
+        name = next(b.name for b in case.bodies if b.region == role)
+        bodies.append(ConductorBody(name, geometry.regions[role], subs[role],
+                                    match_nodes(solver.bodies[name].X0, geometry.mesh.points, 1e-12 * scale)))
+    g = case.geometry
+    if user_deck:
+
+        load = user_deck_load(case, geometry, results.root / "em", bodies, case.coupling.em_substeps)
+    else:
+        load = GetDPLoad(geometry, em_model(case, (g.air_radius, g.shell_radius)), results.root / "em", bodies,
+                         keep_runs=case.em.keep_runs, remesh_quality=case.em.remesh_quality,
+                         sizes=(g.mesh_size_coil, g.mesh_size_air), em_substeps=case.coupling.em_substeps,
+                         depth=case.mechanics.thickness, time_scheme=case.em.time_scheme,
+                         getdp_process=case.em.getdp_process)
+    load.solver.timeout = case.limits.getdp_time_limit_s
+    load.gmsh_time_limit = case.limits.gmsh_time_limit_s
+    return solver, load
+
+
+def body_extremes(solver, comm: MPI.Comm) -> dict[str, float]:
+    """Per body: largest |u_x| and |u_y| (m), largest speed (m/s), y-momentum Σ m v_y (N·s;
+    full ring in axisymmetry; velocities as the solver stores them, at the last half step) and
+    largest cell von Mises stress (Pa). The maxima in one compiled pass over the nodes."""
+    out = {}
+    serial = comm.size == 1
+
+    def reduce(value: float, op) -> float:
+        return value if serial else comm.allreduce(value, op=op)
+
+    for name, b in solver.bodies.items():
+        own = slice(0, b.n_owned)
+        ux, uy, sp = nodal_extremes(b.x, b.X0, b.v, b.n_owned) if b.n_owned else (0.0, 0.0, 0.0)
+        out[f"{name}_max_ux_m"] = reduce(ux, MPI.MAX)
+        out[f"{name}_max_uy_m"] = reduce(uy, MPI.MAX)
+        out[f"{name}_max_speed_m_s"] = reduce(sp, MPI.MAX)
+        out[f"{name}_momentum_y_Ns"] = reduce(float(b.mass[own] @ b.v[own, 1]), MPI.SUM)
+        out[f"{name}_max_von_mises_Pa"] = reduce(max_von_mises(b.cell_stress), MPI.MAX)
+    return out
+
+
+def max_von_mises(stress: np.ndarray) -> float:
+    """Largest von Mises stress (Pa) of cell stresses (C, 4: xx, yy, zz, xy), as ``body.von_mises``
+    but in less time (3 J2 = s·s + s_xy² − tr²/3: numpy's einsum for s·s, the rest in one compiled
+    pass; it runs at every history row)."""
+    if not len(stress):
+        return 0.0
+    q = j2_times_3_max(stress, np.einsum("ij,ij->i", stress, stress))
+    return float(np.sqrt(1.5 * max(float(q), 0.0)))
+
+
+def run_case_loop(case: Case, results: ResultsFolder, *, quiet: bool = False, resume: bool = False,
+                  comm: MPI.Comm = MPI.COMM_WORLD) -> MechanicsRun:
+    """Integrate ``case`` to ``time.end`` and write history, fields and checkpoints into ``results``."""
+    driver = CaseDriver(case, results, comm)
+    if resume:
+        driver.restore()
+    return driver.run(quiet)
+
+
+def mech_metrics(solver, case: Case, history: History) -> dict[str, float]:
+    """Scalars every mechanics run reports: energy balance, peak stresses, contact figures."""
+    e = solver.energies()
+    ke0 = history.column("energy_kinetic_J")[0]
+    scale = max(ke0, abs(e.get("external_work_J", 0.0)), 1e-300)
+    out = {
+        "energy_error_rel": abs(e["balance_error_J"]) / scale,
+        "kinetic_energy_final_J": e["kinetic_J"],
+        "plastic_work_J": e["plastic_J"],
+    }
+    local = max((float(np.max(b.von_mises)) for b in solver.bodies.values() if len(b.von_mises)), default=0.0)
+    out["von_mises_final_max_MPa"] = solver.comm.allreduce(local, op=MPI.MAX) / 1e6
+    for b in case.bodies:
+        out[f"{b.name}_max_ux_mm"] = float(history.column(f"{b.name}_max_ux_m").max()) * 1e3
+        out[f"{b.name}_max_uy_mm"] = float(history.column(f"{b.name}_max_uy_m").max()) * 1e3
+        out[f"{b.name}_max_speed_m_s"] = float(history.column(f"{b.name}_max_speed_m_s").max())
+        out[f"{b.name}_max_von_mises_MPa"] = float(history.column(f"{b.name}_max_von_mises_Pa").max()) / 1e6
+        if b.region == "workpiece" and case.geometry is not None:
+            if case.geometry.type == "flat_coil_sheet":
+                out["max_deflection_mm"] = out[f"{b.name}_max_uy_mm"]
+            elif case.geometry.type == "solenoid_tube":
+                out["max_radial_displacement_mm"] = out[f"{b.name}_max_ux_mm"]
+    for p in case.probes:
+        if p.quantity in ("contact_pressure", "wall_pressure"):
+            t = history.column("time_s")
+            s = history.column(f"{p.name}_{p.quantity}_Pa")
+            try:
+                out.update(mech.contact_stress_metrics(t, s))
+            except ValueError as exc:  # no contact, or not ended: say so in the log, report what is known
+                log.warning("contact metrics of probe %s: %s", p.name, exc)
+            break
+    return out

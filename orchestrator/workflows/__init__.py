@@ -1,0 +1,1 @@
+"""Workflows over runs: validate (and its registry), compare, sweep."""
