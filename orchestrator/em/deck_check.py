@@ -142,7 +142,7 @@ def check_deck(solver: GetDPSolver, mesh: EMMesh, work: Path, time_limit: float,
         if not diff <= CARRY_RTOL:
             how = ("Init path: Flag_InitA, InitA_List, Init_Vc, Init_I" if path == "init"
                    else "restart path: -restart -res em.res")
-            raise DeckContractError(f"deck {deck} does not carry its state ({how}): a step chained after another "
+            raise DeckContractError(f"deck {deck.name} does not carry its state ({how}): a step chained after another "
                                     f"differs from one two-step run by {diff:.2g} in the {what} "
                                     f"(tolerance {CARRY_RTOL:g})")
     report.wall_time_s = time.perf_counter() - start
@@ -170,12 +170,12 @@ def _run(solver: GetDPSolver, mesh: EMMesh, state: EMState, t_end: float, n_sub:
         result, error = None, exc
     text = short((str(error) or type(error).__name__).splitlines()[0], 200) if error is not None else ""
     if error is not None and not (run_dir / "getdp.log").is_file():  # refused before getdp ran
-        raise DeckContractError(f"deck {deck}: the check could not start getdp: {text}")
+        raise DeckContractError(f"deck {deck.name}: the check could not start getdp: {text}")
     _contract_tables(solver, run_dir, deck)
     _time_rows(run_dir / "out", deck, state.t, t_end, n_sub)
     if error is not None:
         _solves_the_model(solver, mesh, run_dir / "out", deck)  # names what is hollow, if that is why
-        raise DeckContractError(f"deck {deck}: its output cannot be read ({text})", log_path=run_dir / "getdp.log")
+        raise DeckContractError(f"deck {deck.name}: its output cannot be read ({text})", log_path=run_dir / "getdp.log")
     return result
 
 
@@ -190,7 +190,7 @@ def _getdp_failure(deck: Path, run_dir: Path, exc: Exception) -> DeckContractErr
     hint = ""
     if any("Resolution" in e and RESOLUTION in e for e in errs) or any("Unknown Resolution" in e for e in errs):
         hint = f"; the contract needs Resolution {RESOLUTION}"
-    return DeckContractError(f"deck {deck}: getdp failed on the contract check: {short(errs[0], 200)}{hint}",
+    return DeckContractError(f"deck {deck.name}: getdp failed on the contract check: {short(errs[0], 200)}{hint}",
                              log_path=log_file)
 
 
@@ -207,10 +207,10 @@ def _contract_tables(solver: GetDPSolver, run_dir: Path, deck: Path) -> None:
                      f"cond_F_{k}.txt": f"EM_Step: Print[F[Cond_{k}], OnGlobal]"})
     missing = [f for f in need if not (out / f).is_file()]
     if missing:
-        raise DeckContractError(f"deck {deck} breaks the deck contract: after one step OutDir lacks "
+        raise DeckContractError(f"deck {deck.name} breaks the deck contract: after one step OutDir lacks "
                                 + ", ".join(f"{f} ({need[f]})" for f in missing))
     if not (run_dir / "em.res").is_file():
-        raise DeckContractError(f"deck {deck} breaks the deck contract: no em.res (Resolution {RESOLUTION} must "
+        raise DeckContractError(f"deck {deck.name} breaks the deck contract: no em.res (Resolution {RESOLUTION} must "
                                 "SaveSolution its system every sub-step; the runner passes -name)")
 
 
@@ -234,7 +234,7 @@ def _time_rows(out: Path, deck: Path, t0: float, t_end: float, n_sub: int) -> No
         t = _read_rows(out / name)[:, 0]
         if len(t) != n_sub or not np.all(np.abs(t - want) <= 1e-6 * (t_end - t0) / n_sub):
             got = f"{len(t)} row(s) ending at t = {t[-1]:.3g} s" if len(t) else "no rows"
-            raise DeckContractError(f"deck {deck} overrides the time window: {name} has {got}, the runner asked for "
+            raise DeckContractError(f"deck {deck.name} overrides the time window: {name} has {got}, the runner asked for "
                                     f"{n_sub} ending at {t_end:.3g} s (TimeInit, TimeFinal, NbSteps are the runner's)")
 
 
@@ -275,7 +275,7 @@ def _solves_the_model(solver: GetDPSolver, mesh: EMMesh, out: Path, deck: Path) 
         regions_hollow = any(p.startswith(("force rows", "field state")) for p in problems)
         hint = ("its Region[]s must use the ids Phys_* the runner passes" if regions_hollow
                 else "the coil must be driven by the case's circuit or current (Flag_Circuit, Init_Vc, Coil_I0_1)")
-        raise DeckContractError(f"deck {deck} is hollow: after one step " + ", ".join(problems) + "; " + hint)
+        raise DeckContractError(f"deck {deck.name} is hollow: after one step " + ", ".join(problems) + "; " + hint)
     return DeckCheckReport(magnetic_energy=w, coil_current=cur, force_rows=len(ids), state_nodes=len(state_nodes))
 
 
