@@ -52,7 +52,8 @@ def force_map(cells: np.ndarray, n_nodes: int) -> tuple[np.ndarray, np.ndarray]:
 class ThreadArrays:
     """Per body: its cells' slices of the block arrays, the nodes shared by chunks (a flag per
     node row of the block, and their body-local indices), per-cell forces (nc, 7), the
-    :func:`force_map` (body-local node indices), a scratch and a result row per chunk."""
+    :func:`force_map` (body-local node indices), a scratch and a result row per chunk, the
+    body's first node row."""
 
     cells: list
     shared: list
@@ -64,7 +65,7 @@ class ThreadArrays:
     ent: list
     work: list
     parts: list
-    nodes: list
+    n0: list
 
     @classmethod
     def build(cls, B) -> "ThreadArrays":
@@ -93,17 +94,16 @@ class ThreadArrays:
             t.ent.append(ent)
             t.work.append(np.zeros((nch, WORK_SIZE)))
             t.parts.append(np.zeros((nch, 4)))
-            t.nodes.append((n0, n1))
+            t.n0.append(n0)
         return t
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _gather(off, ent, fe, f_int, n0, nodes, k0, k1, axi):
-    """f_int[n0 + i] += the forces of node i's cells in cell order, for i in nodes[k0:k1] (no
+def _gather(off, ent, fe, f_int, n0, nodes, axi):
+    """f_int[n0 + i] += the forces of node i's cells in cell order, for i in ``nodes`` (no
     fast-math: the serial kernel's order of additions)."""
     fef = fe.reshape(-1)
-    for k in range(k0, k1):
-        i = nodes[k]
+    for i in nodes:
         fx = f_int[n0 + i, 0]
         fy = f_int[n0 + i, 1]
         for j in range(off[i], off[i + 1]):
@@ -130,7 +130,7 @@ def element_step_threaded(cells, x, v, dt, prm, stress, eps_p, f_int, acc, share
         element_chunk(cells, x, v, dt, prm, stress, eps_p, f_int, fe, shared, k * CHUNK,
                       min(nc, (k + 1) * CHUNK), work[k], parts[k])
     axi = int(prm[P_MODE]) == MODE_AXISYMMETRIC
-    _gather(off, ent, fe, f_int, n0, gather, 0, gather.shape[0], axi)   # few nodes: one thread
+    _gather(off, ent, fe, f_int, n0, gather, axi)   # few nodes: one thread
     dtmin = 1e300
     wp = 0.0
     wv = 0.0
@@ -160,7 +160,7 @@ def run_steps_threaded(B, W, C, sc, dt: float, n_steps: int, ev, evf, T: ThreadA
             B.acc[:] = 0.0
             d = element_step_threaded(T.cells[ib], B.x, B.v, dt, B.prm[ib], T.stress[ib],
                                       T.eps_p[ib], B.f, B.acc, T.shared[ib], T.gather[ib], T.fe[ib],
-                                      T.off[ib], T.ent[ib], T.work[ib], T.parts[ib], T.nodes[ib][0])
+                                      T.off[ib], T.ent[ib], T.work[ib], T.parts[ib], T.n0[ib])
             dtc = after_kernel(B, sc, ib, d, dtc, ev)
             if ev[0] != EV_NONE:
                 return k
