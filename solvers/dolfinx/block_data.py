@@ -15,7 +15,7 @@ import numpy as np
 from .block import N_SC, SC, BodyArrays, WallArrays
 from .cell_list import new_grid
 from .contact_kernel import ContactArrays
-from .kernel_threads import ThreadArrays
+from .kernel_threads import thread_arrays
 from .kernels import N_PRM, WORK_SIZE
 
 if TYPE_CHECKING:
@@ -114,7 +114,7 @@ class BlockData:
         self.sc[SC["cfl"]] = solver.cfl
         self.sc[SC["n_contact"]] = len(solver.contact_pairs)
         #: the threaded kernel's arrays (``solver.threads > 1``), else None
-        self.threaded = ThreadArrays.build(self.B) if solver.threads > 1 else None
+        self.threaded = thread_arrays(self.B) if solver.threads > 1 else None
         self.ev = np.zeros(4, np.int64)
         self.evf = np.zeros(2)
 

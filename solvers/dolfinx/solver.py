@@ -62,7 +62,7 @@ class ExplicitSolver:
         with constant prescribed velocities and the numba kernel) instead of the Python step
         loop. Both give the same bits; the Python loop is kept for MPI and as the reference.
     threads : int
-        Threads of the element kernel (compiled block path only; default 1). The results do not
+        Threads of the compiled explicit steps (block path only; default 1). The results do not
         depend on it (:mod:`.kernel_threads`); at most the cores numba sees.
 
     Attributes
