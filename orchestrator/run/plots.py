@@ -163,7 +163,7 @@ def check_results_folder(results_dir: Path) -> Path:
 
 
 def draw_all(results_dir: Path, *, case=None, history: History | None = None, shapes: list | None = None,
-             analyses: list | None = None, stop=None) -> Drawn:
+             analyses: list | None = None, stop=None, renderer=None) -> Drawn:
     """Draw every picture of a results folder into its ``plots/`` (atomically, replacing old ones).
 
     Reads what is not given: the resolved ``case.toml``, ``history.csv``, the fields. The end of a
@@ -176,6 +176,8 @@ def draw_all(results_dir: Path, *, case=None, history: History | None = None, sh
     is reported in :attr:`Drawn.failed` and the others are still drawn. ``stop``: a function asked
     before each picture group; when it returns true the remaining groups are skipped
     (:attr:`Drawn.stopped`) and the 3D renderer is killed (a stop signal at the end of a run).
+    ``renderer``: a ``pictures_mech.Renderer`` the caller started earlier (the end of a run), used
+    for the 3D pictures instead of starting one now.
     """
     root = check_results_folder(results_dir)
     folder = root / "plots"
@@ -219,7 +221,8 @@ def draw_all(results_dir: Path, *, case=None, history: History | None = None, sh
     mech = _picture_module(*PICTURE_MODULES[0], skip)
     # the 3D pictures render in a child process while this one draws the rest
     finish_mech = None
-    finish_mech = attempt("mechanics pictures", mech, root, wait=False) if mech is not None else None
+    kw = {"renderer": renderer} if renderer is not None else {}
+    finish_mech = attempt("mechanics pictures", mech, root, wait=False, **kw) if mech is not None else None
     attempt("energies", plot_energies, history, folder, axis)
     attempt("time step", plot_time_step, history, folder, axis)
     attempt("history columns", plot_probes, history, folder, None, axis)

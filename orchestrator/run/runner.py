@@ -266,20 +266,40 @@ def _check_resumable(case: Case, out: Path) -> None:
 def _dispatch(case: Case, results: ResultsFolder, *, quiet: bool, resume: bool, comm: MPI.Comm):
     from .driver import run_case_loop
 
-    run = run_case_loop(case, results, quiet=quiet, resume=resume, comm=comm)
-    interrupt.check()  # a signal after the last step still ends with an honest status
-    if case.output.plots and comm.rank == 0:
-        from .plots import draw_all
+    # the 3D renderer starts now: its imports and graphics start-up (~1 s) overlap the run
+    renderer = _early_renderer() if case.output.plots and comm.rank == 0 else None
+    try:
+        run = run_case_loop(case, results, quiet=quiet, resume=resume, comm=comm)
+        interrupt.check()  # a signal after the last step still ends with an honest status
+        if case.output.plots and comm.rank == 0:
+            from .plots import draw_all
 
-        # the pictures `pulseform plot` draws from the folder, from what the run holds in memory; a stop
-        # signal now ends the drawing (the results are complete): PicturesInterrupted after the metrics
-        drawn = draw_all(results.root, case=case, history=run.history, shapes=run.shapes, analyses=run.analyses,
-                         stop=lambda: interrupt.pending() is not None)
+            # the pictures `pulseform plot` draws from the folder, from what the run holds in memory; a stop
+            # signal now ends the drawing (the results are complete): PicturesInterrupted after the metrics
+            drawn = draw_all(results.root, case=case, history=run.history, shapes=run.shapes,
+                             analyses=run.analyses, stop=lambda: interrupt.pending() is not None,
+                             renderer=renderer)
+    finally:
+        if renderer is not None:
+            renderer.close()
+    if case.output.plots and comm.rank == 0:
         log.info("%d pictures in %s", len(drawn.paths), results.plots)
         if drawn.stopped:
             log.info("pictures stopped by %s; the results are complete", signal.Signals(interrupt.pending()).name)
             run.pictures_stopped_by = interrupt.pending()
     return run
+
+
+def _early_renderer():
+    """A ``pictures_mech.Renderer`` started now, or None when the 3D pictures cannot be drawn here
+    (the module or a child process unavailable: the pictures then report it as before)."""
+    try:
+        from .pictures_mech import Renderer
+
+        return Renderer()
+    except (ImportError, OSError) as exc:
+        log.debug("no early 3D renderer: %s", exc)
+        return None
 
 
 @contextmanager

@@ -155,6 +155,32 @@ def test_demo_pictures(demo):
     _check_pictures(demo, len(DEMO_TIMES))
 
 
+@pytest.mark.parametrize("alive", [True, False])
+def test_pictures_from_a_renderer_started_early(bar, tmp_path, alive):
+    """The 3D renderer a run starts ahead of time (pictures_mech.Renderer) draws the same pictures;
+    one that died meanwhile is replaced by a new child, and the pictures are still drawn."""
+    import shutil
+
+    from pulseform.orchestrator.run.pictures_mech import Renderer, draw_mechanics
+
+    out = tmp_path / "bar"
+    shutil.copytree(bar, out)
+    shutil.rmtree(out / "plots")
+    renderer = Renderer()
+    waiting = renderer.child
+    if not alive:
+        waiting.kill()
+        waiting.wait()
+    try:
+        paths = draw_mechanics(out, renderer=renderer)
+    finally:
+        renderer.close()
+    assert renderer.child is None
+    assert waiting.returncode == (0 if alive else -9)
+    assert {p.name for p in paths} >= {"shapes.png", "deformed_von_mises.png", "deformed_plastic_strain.png"}
+    _check_pictures(out, len(BAR_TIMES))
+
+
 def test_a_crashing_renderer_is_a_warning_not_a_failed_run(tmp_path):
     """A pyvista that aborts the process (as a broken OpenGL stack would): the run still exits 0 with
     status ok, shapes.png is drawn, the log carries one warning."""
