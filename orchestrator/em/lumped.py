@@ -1,0 +1,123 @@
+"""Lumped-circuit model of coaxial loops: the reference of the ring checks and the jumping ring.
+
+A thin conducting ring coaxial with a coil, both idealised as circular filaments, couples through the
+mutual inductance M(z) of two coaxial loops (Maxwell's formula with complete elliptic integrals); the
+ring is an R-L circuit driven by -dPsi/dt = -d(M i_coil)/dt, and the axial force between the two is
+i_coil i_ring dM/dz. For a ring whose skin depth is several times its section, this is the model the
+finite-element solution must approach (issue 17): the ring's resistance R = 2 pi r / (sigma A) and its
+self-inductance from Rosa's formula with the geometric mean distance of its section.
+
+All quantities in SI units: lengths m, currents A, inductances H, resistances Ohm, forces N, time s.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+from scipy.special import ellipe, ellipk
+
+MU0 = 4e-7 * math.pi  # vacuum permeability, H/m (the value GetDP's decks use)
+
+__all__ = ["MU0", "mutual_inductance", "mutual_inductance_gradient", "ring_self_inductance",
+           "ring_resistance", "RingCircuit", "phasor_ring_current"]
+
+
+def _modulus(a: float, b: float, z):
+    """k^2 of two coaxial loops of radii a, b (m) at axial distance z (m)."""
+    return 4.0 * a * b / ((a + b) ** 2 + np.asarray(z, float) ** 2)
+
+
+def mutual_inductance(a: float, b: float, z):
+    """Mutual inductance (H) of two coaxial circular filaments of radii ``a`` and ``b`` (m) whose
+    planes are ``z`` (m) apart (Maxwell):
+
+    M = mu0 sqrt(a b) [(2/k - k) K(k) - (2/k) E(k)],  k^2 = 4 a b / ((a + b)^2 + z^2).
+    """
+    m = _modulus(a, b, z)
+    k = np.sqrt(m)
+    return MU0 * math.sqrt(a * b) * ((2.0 / k - k) * ellipk(m) - (2.0 / k) * ellipe(m))
+
+
+def mutual_inductance_gradient(a: float, b: float, z):
+    """dM/dz (H/m) of :func:`mutual_inductance`: the axial force between the loops is
+    ``i_a * i_b * dM/dz`` (N) on the loop at +z; negative (attraction) for currents in the same
+    sense, repulsion for opposite ones, zero at z = 0:
+
+    dM/dz = mu0 z k / (4 sqrt(a b) (1 - k^2)) [(2 - k^2) E(k) - 2 (1 - k^2) K(k)].
+    """
+    z = np.asarray(z, float)
+    m = _modulus(a, b, z)
+    k = np.sqrt(m)
+    return -MU0 * z * k / (4.0 * math.sqrt(a * b) * (1.0 - m)) * ((2.0 - m) * ellipe(m) - 2.0 * (1.0 - m) * ellipk(m))
+
+
+def ring_self_inductance(radius: float, width: float, height: float) -> float:
+    """Low-frequency self-inductance (H) of a ring of mean radius ``radius`` (m) and rectangular
+    section ``width`` x ``height`` (m): Rosa's formula L = mu0 R (ln(8 R / g) - 2) with the geometric
+    mean distance of the rectangle g = 0.2235 (width + height) (Rosa & Grover; good to O((section /
+    R)^2), i.e. for a thin ring)."""
+    if not (radius > 0.0 and width > 0.0 and height > 0.0):
+        raise ValueError(f"ring radius, width and height must be > 0 m, got {radius}, {width}, {height}")
+    g = 0.2235 * (width + height)
+    return MU0 * radius * (math.log(8.0 * radius / g) - 2.0)
+
+
+def ring_resistance(radius: float, width: float, height: float, sigma: float) -> float:
+    """DC resistance (Ohm) around a ring of mean radius ``radius`` and section ``width`` x ``height``
+    (m) of conductivity ``sigma`` (S/m): 2 pi R / (sigma w h) (thin ring: the 1/r current
+    distribution of a thick one is neglected)."""
+    return 2.0 * math.pi * radius / (sigma * width * height)
+
+
+def phasor_ring_current(omega: float, mutual: float, resistance: float, inductance: float) -> complex:
+    """Steady-state ring current per unit coil current (complex, A/A) at angular frequency
+    ``omega`` (rad/s): i_ring = -j omega M / (R + j omega L) i_coil."""
+    return -1j * omega * mutual / (resistance + 1j * omega * inductance)
+
+
+@dataclass
+class RingCircuit:
+    """A ring (R, L) coupled to a coil of given current i_coil(t) (A) through M(z) of coaxial loops
+    of radii ``coil_radius`` and ``ring_radius`` (m); the ring, of mass ``mass`` (kg), may move along
+    the axis under the magnetic force and gravity ``gravity`` (m/s^2, acting towards -z).
+
+    State (z, w, i): ring height over the coil plane (m), its axial velocity (m/s), ring current (A).
+    The ring's circuit: L di/dt + R i = -d(M(z) i_coil)/dt = -(M i_coil' + dM/dz w i_coil).
+    """
+
+    coil_radius: float
+    ring_radius: float
+    resistance: float
+    inductance: float
+    mass: float = float("inf")
+    gravity: float = 0.0
+
+    def force(self, z, i_coil, i_ring):
+        """Axial magnetic force on the ring (N)."""
+        return i_coil * i_ring * mutual_inductance_gradient(self.coil_radius, self.ring_radius, z)
+
+    def rhs(self, t: float, y: np.ndarray, coil: Callable[[float], tuple[float, float]]) -> np.ndarray:
+        """d(z, w, i)/dt; ``coil(t)`` returns (i_coil, di_coil/dt) in A and A/s."""
+        z, w, i = y
+        ic, dic = coil(t)
+        m = mutual_inductance(self.coil_radius, self.ring_radius, z)
+        dm = mutual_inductance_gradient(self.coil_radius, self.ring_radius, z)
+        di = (-(m * dic + dm * w * ic) - self.resistance * i) / self.inductance
+        if math.isinf(self.mass):
+            return np.array([0.0, 0.0, di])
+        return np.array([w, ic * i * dm / self.mass - self.gravity, di])
+
+    def solve(self, coil: Callable[[float], tuple[float, float]], t_end: float, z0: float, *,
+              w0: float = 0.0, i0: float = 0.0, t_eval: np.ndarray | None = None,
+              rtol: float = 1e-10, atol: float | None = None):
+        """Integrate to ``t_end`` (s) from height ``z0`` (m), velocity ``w0`` (m/s), ring current
+        ``i0`` (A) with a stiff-safe implicit Runge-Kutta (Radau); returns scipy's solution object
+        (``t``, ``y`` = rows z, w, i)."""
+        from scipy.integrate import solve_ivp
+
+        scale = np.array([max(abs(z0), self.ring_radius), 1.0, 1.0])
+        return solve_ivp(self.rhs, (0.0, t_end), [z0, w0, i0], method="Radau", args=(coil,), t_eval=t_eval,
+                         rtol=rtol, atol=atol if atol is not None else 1e-12 * scale, dense_output=t_eval is None)

@@ -1,0 +1,186 @@
+"""Rigid bodies: conductors that translate without deforming (actuator armatures, jumping rings,
+levitated plates, projectiles), integrated by the same central differences as the explicit solver.
+
+A rigid body carries its nodes (the EM mesh's nodes of that conductor follow them) and moves by one
+translation u(t): along the axis only in axisymmetry, in x and y in plane models (each component may
+be fixed). Forces are resultants: the sum of the nodal forces handed to :meth:`RigidBody.advance`,
+held from the current time on (as for the deformable bodies), plus gravity. A constant force is
+integrated exactly (central differences are exact for quadratic trajectories).
+
+End stops (:class:`EndStop`) are planes the body's translation cannot pass, e.g. the support a disk
+rests on or a limit of travel: a body on a stop that the forces push into it stays there at rest
+(the stop's reaction takes the pushing force, no drift, no penetration); a body that reaches a stop
+is put on it and its normal velocity reversed times the coefficient of restitution (0: it stays).
+
+Units: m, m/s, m/s^2, kg, N, s, J.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+__all__ = ["EndStop", "RigidBody"]
+
+
+@dataclass(frozen=True)
+class EndStop:
+    """A limit of a rigid body's translation: component ``axis`` (0: x or r, 1: y or z) of the
+    translation stays >= ``position`` (m) when ``side`` is +1 (a support below), <= when -1 (a stop
+    above); ``restitution`` in [0, 1] is the ratio of rebound to impact speed."""
+
+    axis: int
+    position: float
+    side: int = 1
+    restitution: float = 0.0
+
+    def __post_init__(self) -> None:
+        if self.axis not in (0, 1):
+            raise ValueError(f"end stop axis must be 0 (x/r) or 1 (y/z), got {self.axis}")
+        if self.side not in (1, -1):
+            raise ValueError(f"end stop side must be +1 (stays above) or -1 (stays below), got {self.side}")
+        if not 0.0 <= self.restitution <= 1.0:
+            raise ValueError(f"end stop restitution must be in [0, 1], got {self.restitution}")
+
+    def gap(self, u: np.ndarray) -> float:
+        """Signed distance (m) of the translation ``u`` from the stop; < 0: beyond it."""
+        return self.side * (float(u[self.axis]) - self.position)
+
+
+@dataclass
+class RigidBody:
+    """One rigid body.
+
+    Parameters
+    ----------
+    name : str
+        Body name (the key of its forces and positions).
+    nodes : ndarray (N, 2)
+        Node coordinates at zero translation, m.
+    mass : float
+        kg (an axisymmetric body: the whole ring's mass).
+    free : (bool, bool)
+        Which translation components move: (False, True) in axisymmetry (axial only).
+    gravity : (float, float)
+        Acceleration of gravity, m/s^2 (e.g. (0, -9.81)).
+    offset : (float, float)
+        Initial translation, m.
+    velocity : (float, float)
+        Initial velocity, m/s.
+    stops : tuple of EndStop
+        Limits of the translation.
+    """
+
+    name: str
+    nodes: np.ndarray
+    mass: float
+    free: tuple[bool, bool] = (False, True)
+    gravity: tuple[float, float] = (0.0, 0.0)
+    offset: tuple[float, float] = (0.0, 0.0)
+    velocity: tuple[float, float] = (0.0, 0.0)
+    stops: tuple[EndStop, ...] = ()
+    #: translation (m), velocity at the last half step (m/s), acceleration (m/s^2), applied force (N)
+    u: np.ndarray = field(init=False)
+    v: np.ndarray = field(init=False)
+    a: np.ndarray = field(init=False)
+    force: np.ndarray = field(init=False)
+    time: float = field(init=False, default=0.0)
+    step_count: int = field(init=False, default=0)
+    #: kinetic energy taken by impacts on the stops (J); work of the applied force and gravity over
+    #: the body's displacement (J)
+    stop_dissipated_J: float = field(init=False, default=0.0)
+    work_J: float = field(init=False, default=0.0)
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.mass) and self.mass > 0.0):
+            raise ValueError(f"rigid body {self.name!r}: mass must be > 0 kg, got {self.mass}")
+        self.nodes = np.asarray(self.nodes, float)[:, :2].copy()
+        self._mask = np.array(self.free, bool)
+        self.u = np.array(self.offset, float) * self._mask
+        self.v = np.array(self.velocity, float) * self._mask
+        self.force = np.zeros(2)
+        self._dt_prev = 0.0
+        for s in self.stops:
+            if s.gap(self.u) < -1e-15 * max(1.0, abs(s.position)):
+                raise ValueError(f"rigid body {self.name!r}: the initial offset {tuple(self.u)} m is beyond "
+                                 f"an end stop at {s.position} m (axis {s.axis})")
+        self.a = self._acceleration()
+
+    # ------------------------------------------------------------------ stepping
+    def stable_time_step(self) -> float:
+        """No stability limit (s): inf."""
+        return math.inf
+
+    def _acceleration(self) -> np.ndarray:
+        """(force / mass + gravity) on the free components, zero where a stop holds the body."""
+        a = (self.force / self.mass + np.asarray(self.gravity, float)) * self._mask
+        for s in self.stops:
+            if s.gap(self.u) <= 0.0 and s.side * a[s.axis] < 0.0 and s.side * self.v[s.axis] <= 0.0:
+                a[s.axis] = 0.0  # resting on the stop: its reaction takes the push
+        return a
+
+    def advance(self, dt: float, n_steps: int, force: np.ndarray | None = None) -> None:
+        """``n_steps`` central-difference steps of ``dt`` (s) with the resultant ``force`` (N, shape
+        (2,)) held from now on (None: no applied force)."""
+        self.force = np.zeros(2) if force is None else np.asarray(force, float).reshape(2).copy()
+        f_total = (self.force + self.mass * np.asarray(self.gravity, float)) * self._mask
+        for _ in range(int(n_steps)):
+            self.a = self._acceleration()
+            self.v = self.v + 0.5 * (self._dt_prev + dt) * self.a
+            u_old = self.u
+            self.u = self.u + dt * self.v
+            for s in self.stops:
+                if s.gap(self.u) < 0.0:
+                    i = s.axis
+                    self.u[i] = s.position
+                    vn = self.v[i]
+                    if s.side * vn < 0.0:
+                        ke = 0.5 * self.mass * vn * vn
+                        self.v[i] = -s.restitution * vn
+                        self.stop_dissipated_J += ke * (1.0 - s.restitution ** 2)
+            self.work_J += float(np.dot(f_total, self.u - u_old))
+            self._dt_prev = dt
+            self.time += dt
+            self.step_count += 1
+
+    # ------------------------------------------------------------------ outputs
+    def positions(self) -> np.ndarray:
+        """Node coordinates (N, 2), m."""
+        return self.nodes + self.u
+
+    def velocity_now(self) -> np.ndarray:
+        """Velocity at the current time (m/s): the last half-step velocity plus half a step of the
+        current acceleration (exact for a constant force)."""
+        return self.v + 0.5 * self._dt_prev * self._acceleration()
+
+    def kinetic_energy(self) -> float:
+        """J, from :meth:`velocity_now`."""
+        w = self.velocity_now()
+        return 0.5 * self.mass * float(np.dot(w, w))
+
+    def history(self) -> dict[str, float]:
+        """History values: translation (m), velocity (m/s), acceleration (m/s^2), applied force (N)
+        of each free component, named ``<body>_<quantity>_<x|y>_<unit>``."""
+        out = {}
+        for i, c in enumerate("xy"):
+            if self._mask[i]:
+                out[f"{self.name}_position_{c}_m"] = float(self.u[i])
+                out[f"{self.name}_velocity_{c}_m_s"] = float(self.velocity_now()[i])
+                out[f"{self.name}_acceleration_{c}_m_s2"] = float(self._acceleration()[i])
+                out[f"{self.name}_force_{c}_N"] = float(self.force[i])
+        return out
+
+    # ------------------------------------------------------------------ restart
+    def state_dict(self) -> dict[str, np.ndarray]:
+        """Everything :meth:`load_state_dict` needs to continue bit for bit."""
+        return {"vectors": np.concatenate([self.u, self.v, self.a, self.force]),
+                "scalars": np.array([self.time, self.step_count, self._dt_prev, self.stop_dissipated_J, self.work_J])}
+
+    def load_state_dict(self, d: dict[str, np.ndarray]) -> None:
+        """Restore a :meth:`state_dict`."""
+        vec, sc = np.asarray(d["vectors"], float), np.asarray(d["scalars"], float)
+        self.u, self.v, self.a, self.force = vec[0:2].copy(), vec[2:4].copy(), vec[4:6].copy(), vec[6:8].copy()
+        self.time, self.step_count, self._dt_prev = float(sc[0]), int(sc[1]), float(sc[2])
+        self.stop_dissipated_J, self.work_J = float(sc[3]), float(sc[4])
