@@ -16,11 +16,21 @@ from .runner import RunInfo
 # ----------------------------------------------------------------------------- model
 @dataclass
 class DampedSine:
-    """I(t) = I0 exp(-beta t) sin(omega t) (A)."""
+    """I(t) = I0 exp(-beta (t - t_on)) sin(omega (t - t_on) + phase) (A) from ``t_on`` (s) on, 0 before;
+    ``beta`` 1/s, ``omega`` rad/s, ``phase`` rad. A direct current I0 is omega = 0, phase = pi/2;
+    ``phase = t_on = 0`` is the pulse I0 exp(-beta t) sin(omega t)."""
 
     I0: float
     beta: float
     omega: float
+    phase: float = 0.0
+    t_on: float = 0.0
+
+    def __call__(self, t):
+        """I(t) (A) at times ``t`` (s), as the deck computes it."""
+        t = np.asarray(t, float)
+        s = t - self.t_on
+        return np.where(t >= self.t_on, self.I0 * np.exp(-self.beta * s) * np.sin(self.omega * s + self.phase), 0.0)
 
 
 @dataclass

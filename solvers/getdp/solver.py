@@ -307,7 +307,8 @@ class GetDPSolver:
             nb[f"Coil_sigma_{k}"] = c.sigma
             if isinstance(c.waveform, DampedSine):
                 nb.update({f"Coil_Wave_{k}": 0, f"Coil_I0_{k}": c.waveform.I0,
-                           f"Coil_beta_{k}": c.waveform.beta, f"Coil_omega_{k}": c.waveform.omega})
+                           f"Coil_beta_{k}": c.waveform.beta, f"Coil_omega_{k}": c.waveform.omega,
+                           f"Coil_phase_{k}": c.waveform.phase, f"Coil_ton_{k}": c.waveform.t_on})
             elif isinstance(c.waveform, CurrentTable):
                 nb.update({f"Coil_Wave_{k}": 1, f"Coil_I0_{k}": 1.0})
         for k, c in enumerate(m.conductors, start=1):
