@@ -43,7 +43,7 @@ CIRCUIT_TABLES = {"cir_U.txt": "EM_Step: Print[U, OnRegion Capacitance_Cir]",
 # ----------------------------------------------------------------------------- names a run sets
 #: lists ``run.pro`` defines before the deck is included: the Init path's nodal values
 #: (:meth:`GetDPSolver.step`) and the coil current tables (:meth:`GetDPSolver._table_lines`)
-RUN_PRO_LISTS = ("InitA_List", "InitA2_List", "Coil_Table_<k>", "PulseformPersistentLib")
+RUN_PRO_LISTS = ("InitA_List", "InitA2_List", "Coil_Table_<k>", "PulseformPersistentLib", "PulseformHarmonicLib")
 
 
 def _indexed(name: str) -> str:
