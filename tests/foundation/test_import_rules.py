@@ -5,7 +5,9 @@
 2. no import cycle among the orchestrator's rooms (its subpackages ``case/``, ``mesh/``, ...) through
    module-level imports, nor among its modules; an import inside a function is how a room reaches
    a heavier one only when needed (``TYPE_CHECKING`` blocks are not imports);
-3. no private name (``_name``) imported from another package of the product.
+3. no private name (``_name``) imported from another package of the product;
+4. each public class name is defined once in the product (a reader, or a ``grep``, finds one
+   ``Material``, one ``Body``, one ``Mechanics``).
 
 The rules cover the product (the three installed packages); tests may import private helpers to
 test them.
@@ -184,3 +186,13 @@ def test_no_private_name_imported_across_packages():
         if i.target.rsplit(".", 1)[-1].startswith("_") and not i.target.endswith("__"):
             bad.append(f"{MODULES[i.importer].relative_to(REPO)}:{i.line}: private module {i.target}")
     assert not bad, "\n".join(bad)
+
+
+def test_each_public_class_name_defined_once():
+    where: dict[str, list[str]] = {}
+    for module, path in MODULES.items():
+        for node in ast.parse(path.read_text(encoding="utf-8")).body:
+            if isinstance(node, ast.ClassDef) and not node.name.startswith("_"):
+                where.setdefault(node.name, []).append(f"{path.relative_to(REPO)}:{node.lineno}")
+    twice = {name: places for name, places in where.items() if len(places) > 1}
+    assert not twice, twice
