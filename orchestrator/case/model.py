@@ -13,6 +13,7 @@ import re
 from dataclasses import dataclass
 from typing import Literal
 
+from .analysis_names import ANALYSES
 from .em_model import (EM, CapacitorBank, DampedSineCurrent, FlatCoilSheet, Geometry, OuterTube, PlanarCoilBlankDie,
                       SheetDie, SolenoidTube)
 from .guards import check_resources
@@ -381,11 +382,9 @@ class Case:
             if ld.body not in names:
                 raise SchemaError(f"loads[{i}].body", f"got {ld.body!r}; allowed: {_choices(names)}")
         self._validate_coupled()
-        from ..run.analyses import REGISTRY  # light: no solver imports
-
         for i, name in enumerate(self.analysis):
-            if name not in REGISTRY:
-                raise SchemaError(f"analysis[{i}]", f"got {name!r}; allowed: {_choices(sorted(REGISTRY))}")
+            if name not in ANALYSES:
+                raise SchemaError(f"analysis[{i}]", f"got {name!r}; allowed: {_choices(sorted(ANALYSES))}")
         for i, ld in enumerate(self.loads):
             if ld.trigger == "rest" and i == 0:
                 raise SchemaError(f"loads[{i}].trigger", "the first pulse cannot wait for rest; use 'time'")
