@@ -8,7 +8,7 @@
    downwards (:data:`ROOM_LEVEL`), inside functions too;
 3. no private name (``_name``) imported from another package of the product;
 4. each public class name is defined once in the product (a reader, or a ``grep``, finds one
-   ``Material``, one ``Body``, one ``Mechanics``).
+   ``Material``, one ``Body``, one ``Mechanics``), and no module of the product is over 500 lines.
 
 The rules cover the product (the three installed packages); tests may import private helpers to
 test them.
@@ -210,3 +210,9 @@ def test_each_public_class_name_defined_once():
                 where.setdefault(node.name, []).append(f"{path.relative_to(REPO)}:{node.lineno}")
     twice = {name: places for name, places in where.items() if len(places) > 1}
     assert not twice, twice
+
+
+def test_no_module_over_500_lines():
+    long = {str(path.relative_to(REPO)): n for path in MODULES.values()
+            if (n := len(path.read_text(encoding="utf-8").splitlines())) > 500}
+    assert not long, long
