@@ -54,10 +54,13 @@ class PressureMechanics(Mechanics, Protocol):
 
 
 class DolfinxMechanics:
-    """The :class:`~.participants.Mechanics` protocol over ``pulseform.solvers.dolfinx.ExplicitSolver``."""
+    """The :class:`PressureMechanics` protocol (so also the loop's
+    :class:`~pulseform.orchestrator.coupling.interfaces.Mechanics`) over
+    ``pulseform.solvers.dolfinx.ExplicitSolver``; the only holder of the solver among the participants."""
 
     def __init__(self, solver) -> None:
         self.solver = solver
+        self._pulse_plan = None  # the compiled pulse block's data, built on its first use
 
     @property
     def time(self) -> float:
@@ -133,7 +136,7 @@ class DolfinxMechanics:
         where a step needs Python (MPI, callables: no compiled path)."""
         if getattr(self.solver, "compiled", None) is None:
             return None
-        self._pulse_plan = block_plan(self.solver, program, getattr(self, "_pulse_plan", None))
+        self._pulse_plan = block_plan(self.solver, program, self._pulse_plan)
         return run_pulse_block(self.solver, self._pulse_plan, shifts, t_stop, n_max, dt_max)
 
 
@@ -158,6 +161,7 @@ class PressurePulses(LoadCapabilities):
         self.kinetic_until = kinetic_until
         self.offsets = np.array([0.0 if ld.trigger == "time" else np.nan for ld in loads])
         self._masks: dict[int, np.ndarray] = {}
+        self._prog: PulseProgram | None = None  # the pulses as the compiled block takes them
 
     def _shift(self, i: int, t0: float, mechanics: PressureMechanics) -> float:
         """Time shift of pulse i; fixes it when a rest-triggered pulse fires."""
@@ -259,7 +263,7 @@ class PressurePulses(LoadCapabilities):
 
     def _program(self, mechanics: PressureMechanics) -> PulseProgram:
         """The pulses as the compiled block takes them, built once."""
-        if getattr(self, "_prog", None) is None:
+        if self._prog is None:
             rest = np.array([[ld.rest_speed, ld.rest_damping] for ld in self.loads]).reshape(-1, 2)
             self._prog = PulseProgram(pulse_table(self.loads), rest, tuple(ld.body for ld in self.loads),
                                       tuple(self._loaded_nodes(i, mechanics) for i in range(len(self.loads))),

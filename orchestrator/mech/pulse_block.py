@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numba
 import numpy as np
@@ -17,6 +18,9 @@ import numpy as np
 from pulseform.solvers.dolfinx.block import EV_NONE, SC, follower_pressure, step, switch_forces
 
 from .pulses import T_END, T_START, pulse_value
+
+if TYPE_CHECKING:
+    from pulseform.solvers.dolfinx import ExplicitSolver
 
 _T, _DTC, _CFL, _KDON = SC["time"], SC["dt_crit"], SC["cfl"], SC["kinetic_damping"]
 
@@ -85,7 +89,7 @@ class _Plan:
     has: np.ndarray
 
 
-def block_plan(solver, program: PulseProgram, plan: _Plan | None = None) -> _Plan:
+def block_plan(solver: ExplicitSolver, program: PulseProgram, plan: _Plan | None = None) -> _Plan:
     """The program's loaded segments (solver-wide node rows) and scratch; ``plan`` is reused when
     it was built for the same solver and program."""
     if plan is not None and plan.solver is solver and plan.program is program:
@@ -110,7 +114,7 @@ def block_plan(solver, program: PulseProgram, plan: _Plan | None = None) -> _Pla
                  np.zeros(len(names), np.uint8))
 
 
-def run_pulse_block(solver, plan: _Plan, shifts: np.ndarray, t_stop: float, n_max: int,
+def run_pulse_block(solver: ExplicitSolver, plan: _Plan, shifts: np.ndarray, t_stop: float, n_max: int,
                     dt_max: float | None) -> PulseBlock:
     """Up to ``n_max`` EM steps of one mechanical step each on the solver's compiled path (which
     must exist: ``solver.compiled``), as the loop, :meth:`.participants.PressurePulses.load` and the
