@@ -84,7 +84,7 @@ def reserved_listing(room: int = 10_000) -> str:
     ``Flag_{Axi,Circuit,...}``, ``Coil_{I0,Ns,...}_<k>``), cut to ``room`` characters (``, ...``)."""
     groups: dict[str, list[str]] = {}
     for n in reserved_parameter_names():
-        if n in ROLE_NUMBERS.values():
+        if n in ROLE_NUMBERS.values() or n.startswith("Phys_"):  # role ids, the built-in deck's ids
             groups["Phys_*"] = []
             continue
         groups.setdefault(re.match(r"[A-Z]+(?![a-z])_?|[A-Z][a-z]*[0-9]*_?|[A-Za-z]+", n).group(), []).append(n)

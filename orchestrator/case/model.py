@@ -13,14 +13,15 @@ import re
 from dataclasses import dataclass
 from typing import Literal
 
+from .analysis_names import ANALYSES
 from .em_model import (EM, CapacitorBank, DampedSineCurrent, FlatCoilSheet, Geometry, OuterTube, PlanarCoilBlankDie,
                       SheetDie, SolenoidTube)
 from .guards import check_resources
 from .schema import SchemaError, shorten, spec
 
-__all__ = ["Box", "Rectangle", "Polygon", "Shape", "CowperSymonds", "JohnsonCook", "Material", "FixedBoundary",
-           "Body", "ContactPair", "RigidWall", "PulseSin2", "PulseExp", "Load", "CaseInfo", "TimeControl",
-           "Mechanics", "Coupling", "Probe", "Output", "Limits", "Case", "EM", "CapacitorBank", "DampedSineCurrent",
+__all__ = ["Box", "Rectangle", "Polygon", "Shape", "CowperSymondsTable", "JohnsonCookTable", "MaterialTable", "FixedBoundary",
+           "BodyTable", "ContactPair", "RigidWall", "PulseSin2", "PulseExp", "Load", "CaseInfo", "TimeControl",
+           "MechanicsTable", "Coupling", "Probe", "Output", "Limits", "Case", "EM", "CapacitorBank", "DampedSineCurrent",
            "FlatCoilSheet", "Geometry", "SolenoidTube", "SheetDie", "OuterTube", "PlanarCoilBlankDie"]
 
 Vec2 = tuple[float, float]
@@ -75,7 +76,7 @@ Shape = Rectangle | Polygon
 
 # --------------------------------------------------------------------------- materials
 @dataclass(frozen=True, kw_only=True)
-class CowperSymonds:
+class CowperSymondsTable:
     """Cowper–Symonds rate law: σ_s · (1 + (ε̇_p / D)^(1/q))."""
 
     type: Literal["cowper_symonds"] = spec(doc="rate law kind")
@@ -84,7 +85,7 @@ class CowperSymonds:
 
 
 @dataclass(frozen=True, kw_only=True)
-class JohnsonCook:
+class JohnsonCookTable:
     """Johnson–Cook rate term: σ_s · (1 + C ln(ε̇_p / ε̇_0)) for ε̇_p > ε̇_0."""
 
     type: Literal["johnson_cook"] = spec(doc="rate law kind")
@@ -93,7 +94,7 @@ class JohnsonCook:
 
 
 @dataclass(frozen=True, kw_only=True)
-class Material:
+class MaterialTable:
     """Elastic–plastic material with linear isotropic hardening σ_s = σ0 + A ε_p (paper, sec. 4–5)."""
 
     density: float = spec(unit="kg/m^3", gt=0.0, doc="mass density ρ")
@@ -102,7 +103,7 @@ class Material:
     yield_stress: float = spec(unit="Pa", gt=0.0, doc="initial yield stress σ0")
     hardening_modulus: float = spec(0.0, unit="Pa", ge=0.0, doc="linear hardening modulus A")
     electrical_conductivity: float = spec(0.0, unit="S/m", ge=0.0, doc="σ for eddy currents (EM)")
-    rate_law: CowperSymonds | JohnsonCook | None = spec(None, doc="optional strain-rate hardening")
+    rate_law: CowperSymondsTable | JohnsonCookTable | None = spec(None, doc="optional strain-rate hardening")
 
 
 # --------------------------------------------------------------------------- bodies and contact
@@ -119,7 +120,7 @@ class FixedBoundary:
 
 
 @dataclass(frozen=True, kw_only=True)
-class Body:
+class BodyTable:
     """A deformable body meshed with P1 triangles."""
 
     name: str = spec(doc="unique body name")
@@ -246,7 +247,7 @@ class TimeControl:
 
 
 @dataclass(frozen=True, kw_only=True)
-class Mechanics:
+class MechanicsTable:
     """Mechanical model options."""
 
     formulation: Literal["plane_stress", "plane_strain", "axisymmetric"] = spec(
@@ -341,9 +342,9 @@ class Case:
 
     case: CaseInfo = spec(doc="[case] table")
     time: TimeControl = spec(doc="[time] table")
-    materials: dict[str, Material] = spec(doc="[materials.<name>] tables")
-    bodies: tuple[Body, ...] = spec(doc="[[bodies]] list")
-    mechanics: Mechanics = spec(Mechanics(), doc="[mechanics] table")
+    materials: dict[str, MaterialTable] = spec(doc="[materials.<name>] tables")
+    bodies: tuple[BodyTable, ...] = spec(doc="[[bodies]] list")
+    mechanics: MechanicsTable = spec(MechanicsTable(), doc="[mechanics] table")
     contact: tuple[ContactPair, ...] = spec((), doc="[[contact]] pairs")
     walls: tuple[RigidWall, ...] = spec((), doc="[[walls]] rigid half-spaces")
     loads: tuple[Load, ...] = spec((), doc="[[loads]] surface pressure pulses")
@@ -381,11 +382,9 @@ class Case:
             if ld.body not in names:
                 raise SchemaError(f"loads[{i}].body", f"got {ld.body!r}; allowed: {_choices(names)}")
         self._validate_coupled()
-        from ..run.analyses import REGISTRY  # light: no solver imports
-
         for i, name in enumerate(self.analysis):
-            if name not in REGISTRY:
-                raise SchemaError(f"analysis[{i}]", f"got {name!r}; allowed: {_choices(sorted(REGISTRY))}")
+            if name not in ANALYSES:
+                raise SchemaError(f"analysis[{i}]", f"got {name!r}; allowed: {_choices(sorted(ANALYSES))}")
         for i, ld in enumerate(self.loads):
             if ld.trigger == "rest" and i == 0:
                 raise SchemaError(f"loads[{i}].trigger", "the first pulse cannot wait for rest; use 'time'")
@@ -452,12 +451,12 @@ class Case:
         if len(set(regions)) != len(regions):
             raise SchemaError("bodies", "each geometry region may be used by one body only")
 
-    def body(self, name: str) -> Body:
+    def body(self, name: str) -> BodyTable:
         """The body called ``name``."""
         return next(b for b in self.bodies if b.name == name)
 
 
-def _refuse_damping(mo: Mechanics) -> None:
+def _refuse_damping(mo: MechanicsTable) -> None:
     """Damping acts through the pressure-pulse load provider; a GetDP-coupled run has none."""
     for key in ("mass_damping", "kinetic_damping_until"):
         if getattr(mo, key) > 0.0:

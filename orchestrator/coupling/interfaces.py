@@ -35,6 +35,30 @@ class LoadStep:
     values: dict[str, float] = field(default_factory=dict)
 
 
+@dataclass
+class StepBlock:
+    """EM steps of one mechanical step each that a load provider ran in one compiled block
+    (:meth:`LoadProvider.advance_block`), per step.
+
+    Attributes
+    ----------
+    t0, dt : ndarray (K,)
+        Start time and length of each step (s).
+    resultant : ndarray (K, 2)
+        Resultant of the held nodal forces (N).
+    values : dict
+        History scalars, name -> (K,) array (SI units in the names).
+    error : Exception or None
+        The event that stopped the block after the K steps (raised by the loop after their rows).
+    """
+
+    t0: np.ndarray
+    dt: np.ndarray
+    resultant: np.ndarray
+    values: dict[str, np.ndarray]
+    error: Exception | None = None
+
+
 class Mechanics(Protocol):
     """A mechanical participant."""
 
@@ -103,10 +127,19 @@ class LoadProvider(Protocol):
         continuation would differ from a resumed one (the persistent getdp) continues from the
         stored state here."""
 
-    # Optional for the loop: ``follow(t0, mechanics)``, the load's own mesh follows the mechanics
-    # before each load (step 2 of an EM step, :mod:`.loop`), and ``advance_block`` (compiled blocks of
-    # EM steps). The run's owner (run/driver.py) also uses the optional capabilities of
-    # :class:`LoadCapabilities`; a provider inherits their defaults from it.
+    def follow(self, t0: float, mechanics: Mechanics) -> None:
+        """Step 2 of an EM step (:mod:`.loop`): the load's own mesh follows the mechanics' current
+        positions before each :meth:`load` (t0 in s). Optional: no-op for a load without a mesh."""
+
+    def advance_block(self, mechanics: Mechanics, t_stop: float, n_max: int,
+                      dt_max: float | None) -> StepBlock | None:
+        """Up to ``n_max`` EM steps of one mechanical step each, load and mechanics together, in
+        compiled code, stopping before the step that lands on ``t_stop`` (s); ``dt_max`` (s) caps the
+        mechanical step. Optional: None (nothing done, the loop steps from Python)."""
+
+    # The optional methods (``initial``, ``checkpoint_state_dict``, ``follow``, ``advance_block``)
+    # and the run owner's optional capabilities (run/driver.py) have their defaults in
+    # :class:`LoadCapabilities`; a provider inherits them from it.
 
 
 class LoadCapabilities:
@@ -140,6 +173,14 @@ class LoadCapabilities:
 
     def snapshot(self) -> tuple | None:
         """The current EM field snapshot (None: nothing to write)."""
+        return None
+
+    def follow(self, t0: float, mechanics: Mechanics) -> None:
+        """No mesh of its own: nothing follows the mechanics (see :meth:`LoadProvider.follow`)."""
+
+    def advance_block(self, mechanics: Mechanics, t_stop: float, n_max: int,
+                      dt_max: float | None) -> StepBlock | None:
+        """No compiled blocks: None, the loop steps from Python (see :meth:`LoadProvider.advance_block`)."""
         return None
 
     def close(self) -> None:

@@ -225,10 +225,8 @@ class StaggeredLoop:
         return row
 
     def _follow(self, t0: float) -> None:
-        """Step 1: the load's mesh follows the mechanics (a load without a mesh of its own has no ``follow``)."""
-        follow = getattr(self.load, "follow", None)
-        if follow is not None:
-            follow(t0, self.mech)
+        """Step 2: the load's mesh follows the mechanics (a no-op for a load without a mesh of its own)."""
+        self.load.follow(t0, self.mech)
 
     def _iterate(self, saved, step, resultant, dt, k, t0, t1, t_mid):
         """Repeat the EM step on the end-of-step geometry until force and motion settle."""
@@ -288,20 +286,19 @@ class StaggeredLoop:
         """EM steps run by the load provider's compiled block (see ``LoopOptions.block``), with the
         counters and rows :meth:`em_step` would give them; None (or empty) where it cannot run."""
         o, c = self.options, self.counters
-        run = getattr(self.load, "advance_block", None)
-        if run is None or o.block < 2 or o.n != 1 or o.adaptive or o.iterate or o.landing != "last":
+        if o.block < 2 or o.n != 1 or o.adaptive or o.iterate or o.landing != "last":
             return None
         c0 = time.perf_counter()
-        blk = run(self.mech, t_stop, o.block - c.em_steps % o.block, self.dt_max)
+        blk = self.load.advance_block(self.mech, t_stop, o.block - c.em_steps % o.block, self.dt_max)
         if blk is None:
             return None
         c.mech_time_s += time.perf_counter() - c0
         rows = _Rows(error=blk.error)
-        for t0, dt, res, p in zip(blk.t0, blk.dt, blk.resultant, blk.pressure):
+        for j, (t0, dt, res) in enumerate(zip(blk.t0, blk.dt, blk.resultant)):
             dt, k = float(dt), 1
             t1 = float(t0) + dt * k
             resultant = res.copy()
-            values = {f"load{i}_pressure_Pa": float(v) for i, v in enumerate(p)}
+            values = {name: float(v[j]) for name, v in blk.values.items()}
             c.em_steps += 1
             c.last_em_step = dt * k
             c.impulse += resultant * (t1 - float(t0))

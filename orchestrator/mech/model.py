@@ -6,15 +6,15 @@ from mpi4py import MPI
 
 from pulseform.solvers import dolfinx as mech
 
-from ..case.model import Case, CowperSymonds, Material
+from ..case.model import Case, CowperSymondsTable, MaterialTable
 from ..mesh.shapes import mesh_shape
 from .pulses import box_marker
 
 
-def solver_material(m: Material) -> "mech.Material":
-    """Case material -> solver material (SI units are the same on both sides)."""
+def solver_material(m: MaterialTable) -> "mech.Material":
+    """Case material table -> solver material (SI units are the same on both sides)."""
     rate = None
-    if isinstance(m.rate_law, CowperSymonds):
+    if isinstance(m.rate_law, CowperSymondsTable):
         rate = mech.CowperSymonds(D=m.rate_law.D, p=m.rate_law.q)
     elif m.rate_law is not None:
         rate = mech.JohnsonCook(C=m.rate_law.C, eps_rate0=m.rate_law.reference_strain_rate)

@@ -1,33 +1,66 @@
-"""Participants built on the explicit DOLFINx solver: the mechanics adapter and pressure pulses."""
+"""Participants built on the explicit DOLFINx solver: the mechanics adapter and pressure pulses.
+
+The pressure pulses drive a :class:`PressureMechanics`: the mechanics participant owns its solver
+(bodies, follower pressure, damping switches, compiled steps); the pulses decide only what acts
+when, through that small interface.
+"""
 
 from __future__ import annotations
 
 import logging
-import math
-from dataclasses import dataclass
+from typing import Protocol
 
-import numba
 import numpy as np
 from mpi4py import MPI
 
-from pulseform.solvers.dolfinx.block import EV_NONE, SC, follower_pressure, step, switch_forces
-
 from ..case.model import Load
-from ..coupling.interfaces import LoadCapabilities, LoadStep
-from .pulses import T_END, T_START, box_marker, pulse_pressure, pulse_table, pulse_value
+from ..coupling.interfaces import LoadCapabilities, LoadStep, Mechanics, StepBlock
+from .pulse_block import PulseBlock, PulseProgram, block_plan, run_pulse_block
+from .pulses import box_marker, pulse_pressure, pulse_table
 
 log = logging.getLogger(__name__)
-
-_T, _DTC, _CFL, _KDON = SC["time"], SC["dt_crit"], SC["cfl"], SC["kinetic_damping"]
 
 ANALYSIS_PREFIX = "analysis/"  # checkpoint keys of the analyses' restart state
 
 
+class PressureMechanics(Mechanics, Protocol):
+    """A mechanics the pressure pulses can load: follower pressures on marked boundary facets,
+    mass-proportional and kinetic damping, and (optionally) whole blocks of pulse steps in
+    compiled code. Bodies are named as in :meth:`Mechanics.positions`."""
+
+    def reference_positions(self) -> dict[str, np.ndarray]:
+        """Node coordinates per body in the initial configuration (m), this rank's nodes."""
+
+    def max_speed(self, body: str) -> float:
+        """Largest nodal speed (m/s) of a body's last half-step velocity over all ranks (0 without nodes)."""
+
+    def pressure_forces(self, body: str, nodes: np.ndarray, pressure: float) -> np.ndarray:
+        """Consistent nodal forces (N) of a uniform follower pressure (Pa, positive pushes into
+        the body) on the boundary facets of ``body`` whose two nodes are marked in ``nodes`` (bool
+        per local node), on the current configuration."""
+
+    def mass_damping_forces(self, alpha: float) -> dict[str, np.ndarray]:
+        """Mass-proportional damping forces −α m v (N) per body, α in 1/s, v the last half-step velocity."""
+
+    def set_kinetic_damping(self, on: bool) -> None:
+        """Kinetic damping (velocities zeroed at each peak of a body's kinetic energy) on or off
+        from the next step on."""
+
+    def advance_pulses(self, program: PulseProgram, shifts: np.ndarray, t_stop: float, n_max: int,
+                       dt_max: float | None) -> PulseBlock | None:
+        """Up to ``n_max`` EM steps of one mechanical step each with the pulses of ``program``
+        (:mod:`.pulse_block`), stopping before the step that lands on ``t_stop`` (s); ``shifts``
+        (s per pulse, nan: waiting for rest) updated in place. None: no compiled path, nothing done."""
+
+
 class DolfinxMechanics:
-    """The :class:`~.participants.Mechanics` protocol over ``pulseform.solvers.dolfinx.ExplicitSolver``."""
+    """The :class:`PressureMechanics` protocol (so also the loop's
+    :class:`~pulseform.orchestrator.coupling.interfaces.Mechanics`) over
+    ``pulseform.solvers.dolfinx.ExplicitSolver``; the only holder of the solver among the participants."""
 
     def __init__(self, solver) -> None:
         self.solver = solver
+        self._pulse_plan = None  # the compiled pulse block's data, built on its first use
 
     @property
     def time(self) -> float:
@@ -73,6 +106,39 @@ class DolfinxMechanics:
         self.solver.load_state_dict({k: v for k, v in state.items() if not k.startswith(ANALYSIS_PREFIX)})
         self.solver.analysis_state = {k[n:]: np.asarray(v) for k, v in state.items() if k.startswith(ANALYSIS_PREFIX)}
 
+    # ----------------------------------------------------------------- for the pressure pulses
+    def reference_positions(self) -> dict[str, np.ndarray]:
+        """Node coordinates per body in the initial configuration (m), this rank's nodes."""
+        return {n: b.X0 for n, b in self.solver.bodies.items()}
+
+    def max_speed(self, body: str) -> float:
+        """Largest nodal speed (m/s) of the body's owned nodes over all ranks (0 without nodes)."""
+        b = self.solver.bodies[body]
+        local = float(np.sqrt((b.v[: b.n_owned] ** 2).sum(axis=1)).max()) if b.n_owned else 0.0
+        return self.solver.comm.allreduce(local, op=MPI.MAX)
+
+    def pressure_forces(self, body: str, nodes: np.ndarray, pressure: float) -> np.ndarray:
+        """Consistent nodal forces (N) of a uniform follower pressure (Pa) on the body's boundary
+        facets whose two nodes are marked (``nodes``: bool per local node); every row complete."""
+        return self.solver.pressure_nodal_forces(body, lambda x: nodes, pressure)
+
+    def mass_damping_forces(self, alpha: float) -> dict[str, np.ndarray]:
+        """−α m v (N) per body (α in 1/s; m the lumped mass, v the last half-step velocity)."""
+        return {name: -alpha * b.mass[:, None] * b.v for name, b in self.solver.bodies.items()}
+
+    def set_kinetic_damping(self, on: bool) -> None:
+        """The solver's kinetic damping on or off from the next step on."""
+        self.solver.kinetic_damping = on
+
+    def advance_pulses(self, program: PulseProgram, shifts: np.ndarray, t_stop: float, n_max: int,
+                       dt_max: float | None) -> PulseBlock | None:
+        """Pulse steps in the solver's compiled path (:func:`.pulse_block.run_pulse_block`); None
+        where a step needs Python (MPI, callables: no compiled path)."""
+        if getattr(self.solver, "compiled", None) is None:
+            return None
+        self._pulse_plan = block_plan(self.solver, program, self._pulse_plan)
+        return run_pulse_block(self.solver, self._pulse_plan, shifts, t_stop, n_max, dt_max)
+
 
 class PressurePulses(LoadCapabilities):
     """Load provider of the paper's pressure pulses (eq. 7, 8) as follower surface tractions, plus
@@ -95,8 +161,9 @@ class PressurePulses(LoadCapabilities):
         self.kinetic_until = kinetic_until
         self.offsets = np.array([0.0 if ld.trigger == "time" else np.nan for ld in loads])
         self._masks: dict[int, np.ndarray] = {}
+        self._prog: PulseProgram | None = None  # the pulses as the compiled block takes them
 
-    def _shift(self, i: int, t0: float, mechanics: DolfinxMechanics) -> float:
+    def _shift(self, i: int, t0: float, mechanics: PressureMechanics) -> float:
         """Time shift of pulse i; fixes it when a rest-triggered pulse fires."""
         if not np.isnan(self.offsets[i]):
             return float(self.offsets[i])
@@ -104,15 +171,13 @@ class PressurePulses(LoadCapabilities):
         prev_shift = self.offsets[i - 1]
         if np.isnan(prev_shift) or t0 < prev.t_end + prev_shift:
             return np.nan
-        body = mechanics.solver.bodies[self.loads[i].body]
-        local = float(np.sqrt((body.v[: body.n_owned] ** 2).sum(axis=1)).max()) if body.n_owned else 0.0
-        speed = mechanics.solver.comm.allreduce(local, op=MPI.MAX)
-        if speed < self.loads[i].rest_speed:
+        if mechanics.max_speed(self.loads[i].body) < self.loads[i].rest_speed:
             self.offsets[i] = t0 - self.loads[i].t_start
         return float(self.offsets[i])
 
-    def load(self, t0: float, t1: float, t_mid: float, mechanics: DolfinxMechanics) -> LoadStep:
-        """Nodal forces (N) per body for the step [t0, t1] (s)."""
+    def load(self, t0: float, t1: float, t_mid: float, mechanics: PressureMechanics) -> LoadStep:
+        """Nodal forces (N) per body for the step [t0, t1] (s); switches the mechanics' kinetic
+        damping for the step."""
         forces: dict[str, np.ndarray] = {}
         values: dict[str, float] = {}
         relax = 0.0
@@ -124,20 +189,18 @@ class PressurePulses(LoadCapabilities):
             values[f"load{i}_pressure_Pa"] = p
             if p == 0.0:
                 continue
-            f = mechanics.solver.pressure_nodal_forces(ld.body, self._material_marker(i, mechanics), p)
+            f = mechanics.pressure_forces(ld.body, self._loaded_nodes(i, mechanics), p)
             forces[ld.body] = forces[ld.body] + f if ld.body in forces else f
-        mechanics.solver.kinetic_damping = t_mid < self.kinetic_until
+        mechanics.set_kinetic_damping(t_mid < self.kinetic_until)
         alpha = relax + (self.damping if self.damping_from <= t_mid < self.damping_until else 0.0)
         if alpha > 0.0:
-            for name, b in mechanics.solver.bodies.items():
-                f = -alpha * b.mass[:, None] * b.v
-                forces[name] = forces[name] + f if name in forces else f
+            _add(forces, mechanics.mass_damping_forces(alpha))
         return LoadStep(forces, None, values)
 
-    def initial(self, mechanics: DolfinxMechanics) -> LoadStep:
+    def initial(self, mechanics: PressureMechanics) -> LoadStep:
         """Pressures and nodal forces (N) at t = 0, for the history's first row: each started
         pulse at t = 0 (eq. 8 starts at p0, eq. 7 at 0; a pulse waiting for rest at 0) plus the
-        mass damping if it acts at t = 0. Changes no state (the solver's kinetic damping flag is
+        mass damping if it acts at t = 0. Changes no state (the mechanics' kinetic damping is
         left to :meth:`load`)."""
         forces: dict[str, np.ndarray] = {}
         values: dict[str, float] = {}
@@ -146,12 +209,10 @@ class PressurePulses(LoadCapabilities):
             p = 0.0 if np.isnan(shift) else pulse_pressure(ld, 0.0 - float(shift))
             values[f"load{i}_pressure_Pa"] = p
             if p != 0.0:
-                f = mechanics.solver.pressure_nodal_forces(ld.body, self._material_marker(i, mechanics), p)
+                f = mechanics.pressure_forces(ld.body, self._loaded_nodes(i, mechanics), p)
                 forces[ld.body] = forces[ld.body] + f if ld.body in forces else f
         if self.damping > 0.0 and self.damping_from <= 0.0 < self.damping_until:
-            for name, b in mechanics.solver.bodies.items():
-                f = -self.damping * b.mass[:, None] * b.v
-                forces[name] = forces[name] + f if name in forces else f
+            _add(forces, mechanics.mass_damping_forces(self.damping))
         return LoadStep(forces, None, values)
 
     def _waiting(self, i: int, t0: float) -> bool:
@@ -159,30 +220,27 @@ class PressurePulses(LoadCapabilities):
         prev_shift = self.offsets[i - 1] if i > 0 else np.nan
         return not np.isnan(prev_shift) and t0 >= self.loads[i - 1].t_end + prev_shift
 
-    def _material_marker(self, i: int, mechanics: DolfinxMechanics):
-        """Facet marker of pulse i on the body's *initial* configuration (material surface): the
-        box picks the same facets however far the body has moved (e.g. a blank's upper face drawn
-        into a die). Cached per pulse; falls back to current coordinates for bodies without X0."""
+    def _loaded_nodes(self, i: int, mechanics: PressureMechanics) -> np.ndarray:
+        """Nodes of pulse i's box on the body's *initial* configuration (bool per local node:
+        the material surface): the box picks the same facets however far the body has moved
+        (e.g. a blank's upper face drawn into a die). Cached per pulse."""
         if i not in self._masks:
             ld = self.loads[i]
-            body = mechanics.solver.bodies[ld.body]
-            X0 = getattr(body, "X0", None)
-            if X0 is None:
-                return box_marker(ld.surface)
+            X0 = mechanics.reference_positions()[ld.body]
             x3 = np.zeros((3, X0.shape[0]))
             x3[:2] = X0.T
             self._masks[i] = np.asarray(box_marker(ld.surface)(x3), dtype=bool)
-        mask = self._masks[i]
-        return lambda x: mask
+        return self._masks[i]
 
     # ----------------------------------------------------------------- compiled blocks
-    def advance_block(self, mechanics: DolfinxMechanics, t_stop: float, n_max: int,
-                      dt_max: float | None) -> "PulseBlock | None":
+    def advance_block(self, mechanics: PressureMechanics, t_stop: float, n_max: int,
+                      dt_max: float | None) -> StepBlock | None:
         """Up to ``n_max`` EM steps of one mechanical step each (the mechanics-only loop:
         ``n = 1``, ``landing = "last"``) in compiled code, load evaluation included: per step the
         stable step, the pulses at ``t_mid = t0``, their follower-pressure nodal forces on the
         current configuration, the force switch and the explicit step — what :meth:`load` and
-        ``mechanics.advance`` do per step, with the same bits. Stops before the step that lands on
+        ``mechanics.advance`` do per step, with the same bits (:mod:`.pulse_block`, run by the
+        mechanics: :meth:`PressureMechanics.advance_pulses`). Stops before the step that lands on
         ``t_stop`` (left to the loop's own step) and at the first event. Mass damping (−α m v)
         is applied as in :meth:`load`.
 
@@ -191,63 +249,27 @@ class PressurePulses(LoadCapabilities):
         its ``rest_damping`` while it waits, as :meth:`load` does.
 
         Returns None (nothing done) where a step needs Python: no compiled solver path (MPI,
-        callables).
+        callables), or the first pulse waits.
         """
-        solver = mechanics.solver
-        bd = getattr(solver, "compiled", None)
-        if bd is None or n_max < 1 or (len(self.offsets) and np.isnan(self.offsets[0])):
+        if n_max < 1 or (len(self.offsets) and np.isnan(self.offsets[0])):
             return None
-        plan = self._block_plan(mechanics)
-        out = PulseBlock(np.zeros(n_max), np.zeros(n_max), np.zeros((n_max, 2)),
-                         np.zeros((n_max, len(self.loads))), None)
-        bd.load()
         offsets = self.offsets.copy()
-        done = _pulse_steps(bd.B, bd.W, bd.C, bd.sc, bd.ev, bd.evf, plan.table, offsets, plan.rest,
-                            plan.body, plan.seg_off, plan.segs, bd.node_off, plan.order,
-                            float(self.kinetic_until), float(self.damping), float(self.damping_from),
-                            float(self.damping_until), float(t_stop), int(n_max),
-                            math.inf if dt_max is None else float(dt_max),
-                            solver.mode == 2, plan.thickness, plan.new, plan.acc0, plan.acc1,
-                            plan.has, out.t0, out.dt, out.resultant, out.pressure)
-        bd.store()
+        blk = mechanics.advance_pulses(self._program(mechanics), offsets, t_stop, n_max, dt_max)
+        if blk is None:
+            return None
         self.offsets = offsets
-        last = done if bd.ev[0] != EV_NONE else done - 1
-        if last >= 0:
-            solver.kinetic_damping = bool(out.t0[last] + 0.0 * out.dt[last] < self.kinetic_until)
-        if bd.ev[0] != EV_NONE:
-            try:
-                solver.raise_event(float(out.dt[done]))
-            except Exception as exc:  # noqa: BLE001 - handed to the loop, raised after the rows
-                out.error = exc
-        return out.trimmed(done)
+        values = {f"load{i}_pressure_Pa": blk.pressure[:, i] for i in range(len(self.loads))}
+        return StepBlock(blk.t0, blk.dt, blk.resultant, values, blk.error)
 
-    def _block_plan(self, mechanics: DolfinxMechanics) -> "_Plan":
-        """The pulses' loaded segments (solver-wide node rows) and scratch, built once."""
-        solver = mechanics.solver
-        plan = getattr(self, "_plan", None)
-        if plan is not None and plan.solver is solver:
-            return plan
-        bd = solver.compiled
-        names = list(solver.bodies)
-        segs, seg_off, body = [], [0], []
-        for i, ld in enumerate(self.loads):
-            b = solver.bodies[ld.body]
-            ib = names.index(ld.body)
-            mask = self._material_marker(i, mechanics)(None)
-            sg = b.segments[mask[b.segments[:, 0]] & mask[b.segments[:, 1]]] if len(b.segments) \
-                else np.zeros((0, 2), np.int64)
-            segs.append(sg.astype(np.int64) + bd.node_off[ib])
-            seg_off.append(seg_off[-1] + len(sg))
-            body.append(ib)
-        ntot = int(bd.node_off[-1])
-        rest = np.array([[ld.rest_speed, ld.rest_damping] for ld in self.loads]).reshape(-1, 2)
-        self._plan = _Plan(solver, pulse_table(self.loads), rest,
-                           np.concatenate(segs).reshape(-1, 2) if segs else np.zeros((0, 2), np.int64),
-                           np.array(seg_off, np.int64), np.array(body, np.int64),
-                           np.zeros(len(names), np.int64), float(next(iter(solver.bodies.values())).thickness),
-                           np.zeros((ntot, 2)), np.zeros((ntot, 2)), np.zeros((ntot, 2)),
-                           np.zeros(len(names), np.uint8))
-        return self._plan
+    def _program(self, mechanics: PressureMechanics) -> PulseProgram:
+        """The pulses as the compiled block takes them, built once."""
+        if self._prog is None:
+            rest = np.array([[ld.rest_speed, ld.rest_damping] for ld in self.loads]).reshape(-1, 2)
+            self._prog = PulseProgram(pulse_table(self.loads), rest, tuple(ld.body for ld in self.loads),
+                                      tuple(self._loaded_nodes(i, mechanics) for i in range(len(self.loads))),
+                                      float(self.damping), float(self.damping_from), float(self.damping_until),
+                                      float(self.kinetic_until))
+        return self._prog
 
     @property
     def columns(self) -> tuple[str, ...]:
@@ -272,122 +294,7 @@ class PressurePulses(LoadCapabilities):
             self.offsets = np.array(state["offsets"], dtype=float)
 
 
-@dataclass
-class _Plan:
-    """Compiled-block data of the pulses for one solver (see :meth:`PressurePulses.advance_block`)."""
-
-    solver: object
-    table: np.ndarray      # pulse_table rows
-    rest: np.ndarray       # per pulse: rest_speed (m/s), rest_damping (1/s)
-    segs: np.ndarray       # (S, 2) loaded segments of every pulse, solver-wide node rows
-    seg_off: np.ndarray    # pulse i's segments: segs[seg_off[i]:seg_off[i + 1]]
-    body: np.ndarray       # body index per pulse
-    order: np.ndarray      # scratch: loaded bodies in the order the forces dict gets them
-    thickness: float
-    new: np.ndarray        # (N, 2) held forces of the step
-    acc0: np.ndarray
-    acc1: np.ndarray
-    has: np.ndarray
-
-
-@dataclass
-class PulseBlock:
-    """What :meth:`PressurePulses.advance_block` did, per EM step: start time t0 (s), step dt (s),
-    force resultant (N), pressure of each pulse (Pa); ``error`` the event that stopped it."""
-
-    t0: np.ndarray
-    dt: np.ndarray
-    resultant: np.ndarray
-    pressure: np.ndarray
-    error: Exception | None
-
-    def trimmed(self, n: int) -> "PulseBlock":
-        """The first ``n`` steps."""
-        return PulseBlock(self.t0[:n], self.dt[:n], self.resultant[:n], self.pressure[:n], self.error)
-
-
-@numba.njit(cache=True)
-def _pulse_steps(B, W, C, sc, ev, evf, table, shifts, rest, lbody, seg_off, segs, node_off, order,
-                 kin_until, damping, damping_from, damping_until, t_stop, n_max, dt_max, axisym, thickness, new, acc0, acc1, has,
-                 out_t0, out_dt, out_res, out_p):
-    """EM steps of one mechanical step each with the pulses' follower pressures, as
-    ``StaggeredLoop.em_step`` + ``PressurePulses.load`` + ``ExplicitSolver.advance`` do them
-    (same operations, same order). Returns the steps completed; on an event ``ev[0]`` is set and
-    ``out_dt[returned]`` is the failed step's dt."""
-    done = 0
-    while done < n_max:
-        dt = sc[_CFL] * sc[_DTC]
-        dt = min(dt, dt_max)
-        t0 = sc[_T]
-        remaining = t_stop - t0
-        if dt >= remaining * (1.0 - 1e-12):
-            break                      # the landing step: the loop's own
-        t_mid = t0 + 0.5 * 0 * dt
-        new[:] = 0.0
-        has[:] = 0
-        nl = 0
-        relax = 0.0
-        for i in range(table.shape[0]):
-            if math.isnan(shifts[i]):  # PressurePulses._shift: fire a waiting pulse at rest
-                ps = shifts[i - 1]
-                if not (math.isnan(ps) or t0 < table[i - 1, T_END] + ps):
-                    ib = lbody[i]
-                    speed = 0.0
-                    if node_off[ib + 1] > node_off[ib]:
-                        speed = -np.inf
-                        for j in range(node_off[ib], node_off[ib + 1]):
-                            sp = math.sqrt(B.v[j, 0] * B.v[j, 0] + B.v[j, 1] * B.v[j, 1])
-                            if sp > speed or math.isnan(sp):
-                                speed = sp
-                    if speed < rest[i, 0]:
-                        shifts[i] = t0 - table[i, T_START]
-            if math.isnan(shifts[i]) and rest[i, 1] > 0.0 and i > 0 and \
-                    not math.isnan(shifts[i - 1]) and t0 >= table[i - 1, T_END] + shifts[i - 1]:
-                relax = max(relax, rest[i, 1])
-            p = 0.0 if math.isnan(shifts[i]) else pulse_value(table[i], t_mid - shifts[i])
-            out_p[done, i] = p
-            if p == 0.0:
-                continue
-            ib = lbody[i]
-            follower_pressure(B.x, segs, seg_off[i], seg_off[i + 1], node_off[ib], node_off[ib + 1],
-                              p, axisym, thickness, acc0, acc1, new, has[ib] == 0)
-            if has[ib] == 0:
-                order[nl] = ib
-                nl += 1
-            has[ib] = 1
-        alpha = relax + (damping if damping_from <= t_mid < damping_until else 0.0)
-        if alpha > 0.0:                # mass damping on every body, after the pulses
-            for ib in range(node_off.shape[0] - 1):
-                for i in range(node_off[ib], node_off[ib + 1]):
-                    for c in range(2):
-                        f = -alpha * B.m[i] * B.v[i, c]
-                        new[i, c] = new[i, c] + f if has[ib] else f
-                if has[ib] == 0:
-                    order[nl] = ib
-                    nl += 1
-                has[ib] = 1
-        r0 = 0.0                       # DolfinxMechanics.total_force, bodies in the dict's order
-        r1 = 0.0
-        for k in range(nl):
-            ib = order[k]
-            if node_off[ib + 1] == node_off[ib]:
-                continue
-            n0 = node_off[ib]
-            s0 = new[n0, 0]
-            s1 = new[n0, 1]
-            for i in range(n0 + 1, node_off[ib + 1]):
-                s0 += new[i, 0]
-                s1 += new[i, 1]
-            r0 += s0
-            r1 += s1
-        sc[_KDON] = 1.0 if t_mid < kin_until else 0.0
-        switch_forces(B, sc, new)
-        out_t0[done] = t0
-        out_dt[done] = dt
-        step(B, W, C, sc, dt, ev, evf)
-        if ev[0] != EV_NONE:
-            return done
-        out_res[done, 0] = r0
-        out_res[done, 1] = r1
-        done += 1
-    return done
+def _add(forces: dict[str, np.ndarray], more: dict[str, np.ndarray]) -> None:
+    """Add nodal forces (N) per body into ``forces``, in ``more``'s body order."""
+    for name, f in more.items():
+        forces[name] = forces[name] + f if name in forces else f

@@ -188,7 +188,7 @@ class CaseDriver:
         if self.comm.size > 1:
             signum = self.comm.allreduce(signum, op=MPI.MAX)
         if signum:
-            raise interrupt.RunInterrupted(signum)
+            raise interrupt.StopRequested(signum)
 
     # ----------------------------------------------------------------- loop
     def run(self, quiet: bool) -> MechanicsRun:
@@ -232,7 +232,7 @@ class CaseDriver:
                     self.checkpoint()
                     interrupt.rearm()  # a library (gmsh, at import) may have replaced the handlers
                     self._check_interrupt()
-        except interrupt.RunInterrupted as exc:
+        except interrupt.StopRequested as exc:
             exc.time = s.time
             self.checkpoint()  # at an EM-step boundary: --resume continues exactly from here
             log.info("interrupted at t = %.6g s (step %d); checkpoint written", s.time, s.step_count)

@@ -2,7 +2,7 @@
 
 While :func:`signals_stop_run` is active, the first SIGINT or SIGTERM only records the signal; the
 driver asks :func:`check` at its safe points (after every EM step, after every milestone, after
-set-up) and :class:`RunInterrupted` then unwinds the loop, which writes a checkpoint, the history
+set-up) and :class:`StopRequested` then unwinds the loop, which writes a checkpoint, the history
 and a ``metrics.json`` with ``status = "interrupted"`` (``pulseform run --resume`` continues
 exactly). A second SIGINT stops at once (Python's KeyboardInterrupt): the last checkpoint stays.
 
@@ -26,7 +26,7 @@ STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 _pending: list[int] = []
 
 
-class RunInterrupted(Exception):
+class StopRequested(Exception):
     """A stop signal arrived; raised at a safe point. ``signum`` is the signal's number."""
 
     def __init__(self, signum: int) -> None:
@@ -48,9 +48,9 @@ def pending() -> int | None:
 
 
 def check() -> None:
-    """Raise :class:`RunInterrupted` if a stop signal arrived (call at safe points only)."""
+    """Raise :class:`StopRequested` if a stop signal arrived (call at safe points only)."""
     if _pending:
-        raise RunInterrupted(_pending[0])
+        raise StopRequested(_pending[0])
 
 
 def rearm() -> None:

@@ -264,7 +264,7 @@ def plot_force_density(s: Snapshot, box, axisymmetric: bool, path: Path) -> Path
 
 
 @dataclass
-class Surface:
+class FacingSurface:
     """The workpiece surface facing the coil: its sides, ordered along ``axis`` (0: x/r, 1: y/z)."""
 
     axis: int
@@ -278,7 +278,7 @@ class Surface:
         return 0.5 * (self.a[:, self.axis] + self.b[:, self.axis])
 
 
-def facing_surface(s: Snapshot) -> Surface | None:
+def facing_surface(s: Snapshot) -> FacingSurface | None:
     """Sides of workpiece triangles that border air and whose outward normal points towards the
     nearest coil node (n·(c − m) > 0), ordered along the surface's longer extent."""
     wp = np.flatnonzero(s.region == WORKPIECE)
@@ -325,10 +325,10 @@ def facing_surface(s: Snapshot) -> Surface | None:
     ext = np.vstack([a, b]).max(axis=0) - np.vstack([a, b]).min(axis=0)
     axis = int(np.argmax(ext))
     o = np.argsort(0.5 * (a[:, axis] + b[:, axis]))
-    return Surface(axis, a[o], b[o], n[o], air[o])
+    return FacingSurface(axis, a[o], b[o], n[o], air[o])
 
 
-def surface_pressure(s: Snapshot, surf: Surface, axisymmetric: bool) -> tuple[np.ndarray, np.ndarray]:
+def surface_pressure(s: Snapshot, surf: FacingSurface, axisymmetric: bool) -> tuple[np.ndarray, np.ndarray]:
     """(p_force, p_field) in Pa on each side of ``surf``.
 
     p_force: the workpiece's force density pushed away from the coil (f·(−n)) integrated through the

@@ -173,7 +173,7 @@ def _run_in(case: Case, results: ResultsFolder, *, resume: bool, quiet: bool, co
             if comm.rank == 0 and not resume:
                 results.write_text("case.toml", case_to_toml(case))
             run = _dispatch(case, results, quiet=quiet, resume=resume, comm=comm)
-        except interrupt.RunInterrupted as exc:
+        except interrupt.StopRequested as exc:
             _final_metrics(results, comm, {"status": "interrupted", "status_ok": 0.0,
                                            "end_time_s": exc.time if exc.time is not None else 0.0,
                                            "wall_time_s": time.perf_counter() - wall0})

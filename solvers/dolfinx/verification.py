@@ -1,6 +1,6 @@
-"""Set-ups of the verification problems (paper section 4 bar impact), shared by the tests, the
-MPI check and the viscosity study. Each returns plain histories; metrics come from
-:mod:`.analysis`."""
+"""Set-ups of the verification problems (paper section 4 bar impact), shared by ``pulseform validate``
+(its bar-impact entries), the solver's tests, the MPI check and the viscosity study
+(``studies/bar_impact/``). Each returns plain histories; metrics come from :mod:`.analysis`."""
 from __future__ import annotations
 
 import logging

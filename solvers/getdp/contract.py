@@ -8,7 +8,7 @@ from __future__ import annotations
 import re
 from functools import lru_cache
 
-from .mesh import AIR, AXIS, OUTER, SHELL, EMMesh, coil_tag, conductor_tag
+from .mesh import AIR, AXIS, OUTER, SHELL, EMMesh, coil_tag, conductor_tag, physical_numbers
 from .model import Circuit, Coil, Conductor, CurrentTable, DampedSine, EMModel
 from .solver import DECK_DIR, GetDPSolver
 
@@ -61,9 +61,10 @@ def runner_number_names() -> tuple[str, ...]:
     (the numbers and strings a step passes with ``-setnumber`` / ``-setstring``: ``TimeInit``,
     ``NbSteps``, ``Flag_*``, ``C_bank``, ``OutDir``, ...), (2) the numbers :meth:`GetDPSolver._numbers`
     computes from a model and mesh (evaluated here on small models with every option on: a
-    circuit or a prescribed current, a shell, a probe, a coil and two conductors) and (3)
-    :data:`RUN_PRO_LISTS`.  A user deck's own parameters may not reuse any of them
-    (``pulseform.orchestrator.case.deck_files``).
+    circuit or a prescribed current, a shell, a probe, a coil and two conductors), (3) the physical
+    ids the built-in deck receives (:func:`.mesh.physical_numbers`: ``Phys_Air``, ...,
+    ``Phys_Coil_Base``) and (4) :data:`RUN_PRO_LISTS`.  A user deck's own parameters may not reuse
+    any of them (``pulseform.orchestrator.case.deck_files``).
     """
     names = set()
     for deck in ("Lib_PulsedForming.pro", "Lib_Persistent.pro"):
@@ -81,5 +82,6 @@ def runner_number_names() -> tuple[str, ...]:
         solver = object.__new__(GetDPSolver)  # _numbers reads only the model (no work folder made)
         solver.model = model
         names.update(_indexed(n) for n in solver._numbers(mesh))
+    names.update(physical_numbers())
     names.update(RUN_PRO_LISTS)
     return tuple(sorted(names))

@@ -1,6 +1,7 @@
 """EM meshes for the GetDP runner: a small array container, the MSH 2.2 writer, builders.
 
-Physical ids (the contract with ``decks/em_case.pro``):
+Physical ids (defined here once; ``decks/em_case.pro`` receives them with ``-setnumber``,
+:func:`physical_numbers`):
 
 ====================  ==========================================
 1                     air
@@ -28,6 +29,7 @@ from typing import Any, Iterator
 import numpy as np
 
 AIR, SHELL, AXIS, OUTER, NEUMANN = 1, 2, 11, 12, 13
+COIL_BASE, CONDUCTOR_BASE = 100, 200  # coil k: COIL_BASE + k, massive conductor k: CONDUCTOR_BASE + k
 
 
 @contextmanager
@@ -66,17 +68,27 @@ def default_name(tag: int) -> str:
     fixed = {AIR: "air", SHELL: "shell", AXIS: "axis", OUTER: "outer", NEUMANN: "neumann"}
     if tag in fixed:
         return fixed[tag]
-    return f"coil_{tag - 100}" if 100 < tag < 200 else f"conductor_{tag - 200}"
+    return f"coil_{tag - COIL_BASE}" if COIL_BASE < tag < CONDUCTOR_BASE else f"conductor_{tag - CONDUCTOR_BASE}"
 
 
 def coil_tag(k: int) -> int:
     """Physical id of coil ``k`` (1-based)."""
-    return 100 + k
+    return COIL_BASE + k
 
 
 def conductor_tag(k: int) -> int:
     """Physical id of massive conductor ``k`` (1-based)."""
-    return 200 + k
+    return CONDUCTOR_BASE + k
+
+
+def physical_numbers() -> dict[str, int]:
+    """The physical ids as the built-in deck ``decks/em_case.pro`` receives them with ``-setnumber``
+    (its ``DefineConstant`` defaults repeat them, so the deck also runs alone): ``Phys_Air``,
+    ``Phys_Shell``, ``Phys_Axis``, ``Phys_Outer``, ``Phys_Neumann``, and the bases
+    ``Phys_Coil_Base`` / ``Phys_Cond_Base``: coil k is ``Phys_Coil_Base + k``, massive conductor k
+    ``Phys_Cond_Base + k`` (:func:`coil_tag`, :func:`conductor_tag`)."""
+    return {"Phys_Air": AIR, "Phys_Shell": SHELL, "Phys_Axis": AXIS, "Phys_Outer": OUTER, "Phys_Neumann": NEUMANN,
+            "Phys_Coil_Base": COIL_BASE, "Phys_Cond_Base": CONDUCTOR_BASE}
 
 
 @dataclass

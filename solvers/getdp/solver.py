@@ -10,7 +10,7 @@ import numpy as np
 
 from .bdf2 import bdf2_coefficients, match_rows, trapezoid_mean
 from .files import discard_folder, element_volumes, init_list_line, read_element_table, read_table
-from .mesh import EMMesh, coil_tag, conductor_tag, write_msh22
+from .mesh import AXIS, OUTER, EMMesh, coil_tag, conductor_tag, physical_numbers, write_msh22
 from .model import (Circuit, Coil, Conductor, CurrentTable, DampedSine, EMModel, EMState, EMStepResult,  # noqa: F401
                     mesh_signature)
 from .runner import GetDPError, RunInfo, run_getdp
@@ -62,6 +62,8 @@ class GetDPSolver:
         self.petsc_args = list(petsc_args)
         self.timeout = timeout
         self.deck = Path(deck).resolve()
+        #: the physical ids the built-in deck receives (a user's deck gets its role ids in ``extra_numbers``)
+        self.deck_numbers = physical_numbers() if self.deck == CASE_DECK.resolve() else {}
         if keep_runs is not None and keep_runs < 1:
             raise ValueError("keep_runs must be >= 1 (the last run holds the restart .res)")
         self.keep_runs = keep_runs
@@ -123,6 +125,7 @@ class GetDPSolver:
         msh = write_msh22(mesh, run_dir / "mesh.msh")
         sig = mesh_signature(mesh)
         numbers = self._numbers(mesh)
+        numbers.update(self.deck_numbers)
         numbers.update(self.extra_numbers)
         numbers.update(Flag_ElemOut={"all": 1, "last": 2, "none": 0}[element_output],
                        Flag_FieldOut=int(bool(field_output)))
@@ -287,10 +290,10 @@ class GetDPSolver:
 
     def _numbers(self, mesh: EMMesh) -> dict[str, float]:
         m = self.model
-        if m.axisymmetric and not np.any(mesh.line_tags == 11):
-            raise ValueError("axisymmetric mesh without axis lines (physical 11): a = 0 on the axis is mandatory")
-        if not np.any(np.isin(mesh.line_tags, [11, 12])):
-            raise ValueError("mesh has no Dirichlet boundary (physical 11 or 12)")
+        if m.axisymmetric and not np.any(mesh.line_tags == AXIS):
+            raise ValueError(f"axisymmetric mesh without axis lines (physical {AXIS}): a = 0 on the axis is mandatory")
+        if not np.any(np.isin(mesh.line_tags, [AXIS, OUTER])):
+            raise ValueError(f"mesh has no Dirichlet boundary (physical {AXIS} or {OUTER})")
         nb = {"Flag_Axi": int(m.axisymmetric), "NbCoils": len(m.coils), "NbConductors": len(m.conductors),
               "Flag_Circuit": int(m.circuit is not None), "H0_Neu": m.h0_step, "NbProbes": len(m.probes)}
         for i, (x, y) in enumerate(m.probes, start=1):

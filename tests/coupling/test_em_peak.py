@@ -1,11 +1,11 @@
-"""Which EM steps fetch their whole-domain fields on the persistent getdp (em_participant.peak_is_near):
+"""Which EM steps fetch their whole-domain fields on the persistent getdp (em/snapshots.peak_is_near):
 the peak-current snapshot needs the fields of the step of the largest |I|, and a persistent process
 holds a step's fields only until its next step, so rising steps near the peak fetch them."""
 
 import numpy as np
 import pytest
 
-from pulseform.orchestrator.em.participant import PEAK_LOOKAHEAD_STEPS, peak_is_near
+from pulseform.orchestrator.em.snapshots import PEAK_LOOKAHEAD_STEPS, peak_is_near
 
 
 def _flags(t, current):

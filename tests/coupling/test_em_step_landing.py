@@ -15,14 +15,14 @@ import pytest
 
 from pulseform.orchestrator.coupling.loop import LoopOptions, StaggeredLoop
 from pulseform.orchestrator.coupling.fakes import RigidAxialBody
-from pulseform.orchestrator.coupling.interfaces import LoadStep
+from pulseform.orchestrator.coupling.interfaces import LoadCapabilities, LoadStep
 from pulseform.solvers.getdp.bdf2 import bdf2_coefficients
 
 NODES = np.array([[0.0, 0.0], [1.0, 0.0], [0.5, 1.0]])
 DT_MECH = 2.2457e-8  # the demo's stable mechanical step (s)
 
 
-class BDF2Discharge:
+class BDF2Discharge(LoadCapabilities):
     """Load fake: series R-L-C discharge, x = (i, v_C), one variable-step BDF2 step per EM step.
 
     values: coil current, coil voltage L·(BDF2 derivative of i); force k·i² on body "b".

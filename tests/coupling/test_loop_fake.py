@@ -8,7 +8,7 @@ import pytest
 from pulseform.orchestrator.coupling.loop import StaggeredLoop
 from pulseform.orchestrator.mesh.motion import MeshMover, MeshQualityError, triangle_quality
 from pulseform.orchestrator.coupling.fakes import AnalyticForce, RigidAxialBody
-from pulseform.orchestrator.coupling.interfaces import LoadStep, plain_total
+from pulseform.orchestrator.coupling.interfaces import LoadCapabilities, LoadStep, plain_total
 from pulseform.orchestrator.coupling.transfer import cell_force_integral, cell_to_nodal_forces
 
 from .meshes import rect_mesh
@@ -103,7 +103,7 @@ class PrescribedMotion:
         pass
 
 
-class UniformDensityOnMovedMesh:
+class UniformDensityOnMovedMesh(LoadCapabilities):
     """Load fake: moves the whole EM mesh with the block (air smoothed), applies f = const on the block."""
 
     def __init__(self, x, cells, block_cells, block_nodes, fixed_nodes, f):
@@ -202,7 +202,7 @@ def test_adaptive_n_grows_after_the_pulse_and_stays_accurate():
     assert abs(y_fix - y_ref) / abs(y_ref) < 1e-9
 
 
-class Spring:
+class Spring(LoadCapabilities):
     """Load fake whose force depends on the geometry: F = −K y (a stiff EM-like feedback)."""
 
     def __init__(self, K):

@@ -1,5 +1,5 @@
 """Pressure pulses that wait for rest, mass-proportional damping forces and the kinetic damping
-window (fake solver)."""
+window (the mechanics participant over a fake solver)."""
 
 from types import SimpleNamespace
 
@@ -8,14 +8,16 @@ import pytest
 from mpi4py import MPI
 
 from pulseform.orchestrator.case.model import Box, PulseSin2
-from pulseform.orchestrator.mech.participants import PressurePulses
+from pulseform.orchestrator.mech.participants import DolfinxMechanics, PressurePulses
 
 
 def _fake(speed):
-    body = SimpleNamespace(v=np.array([[0.0, speed], [0.0, 0.0]]), n_owned=2, mass=np.array([2.0, 3.0]))
+    """The mechanics participant over a fake solver."""
+    body = SimpleNamespace(v=np.array([[0.0, speed], [0.0, 0.0]]), n_owned=2, mass=np.array([2.0, 3.0]),
+                           X0=np.zeros((2, 2)))
     solver = SimpleNamespace(bodies={"blank": body}, comm=MPI.COMM_WORLD,
                              pressure_nodal_forces=lambda name, marker, p: np.full((2, 2), p))
-    return SimpleNamespace(solver=solver)
+    return DolfinxMechanics(solver)
 
 
 def _pulse(t_start, t_end, trigger="time"):

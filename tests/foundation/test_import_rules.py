@@ -4,8 +4,11 @@
    each other — anywhere in a module, also inside functions: each is usable alone;
 2. no import cycle among the orchestrator's rooms (its subpackages ``case/``, ``mesh/``, ...) through
    module-level imports, nor among its modules; an import inside a function is how a room reaches
-   a heavier one only when needed (``TYPE_CHECKING`` blocks are not imports);
-3. no private name (``_name``) imported from another package of the product.
+   a heavier one only when needed (``TYPE_CHECKING`` blocks are not imports); the rooms import only
+   downwards (:data:`ROOM_LEVEL`), inside functions too;
+3. no private name (``_name``) imported from another package of the product;
+4. each public class name is defined once in the product (a reader, or a ``grep``, finds one
+   ``Material``, one ``Body``, one ``Mechanics``), and no module of the product is over 500 lines.
 
 The rules cover the product (the three installed packages); tests may import private helpers to
 test them.
@@ -24,6 +27,8 @@ PACKAGES = {"pulseform.orchestrator": REPO / "orchestrator", "pulseform.solvers.
             "pulseform.solvers.dolfinx": REPO / "solvers" / "dolfinx"}
 SOLVERS = ("pulseform.solvers.getdp", "pulseform.solvers.dolfinx")
 ORCH = "pulseform.orchestrator"
+#: the orchestrator's rooms from the bottom up (docs/architecture.md); "(top)": cli and the package
+ROOM_LEVEL = {"case": 0, "mesh": 1, "coupling": 2, "em": 3, "mech": 3, "run": 4, "workflows": 5, "(top)": 6}
 
 
 @dataclass(frozen=True)
@@ -163,6 +168,17 @@ def test_no_import_cycle_among_the_orchestrators_rooms():
     assert not _cycles(edges), f"room cycles: {_cycles(edges)}; edges: {edges}"
 
 
+def test_rooms_import_only_downwards_also_inside_functions():
+    bad = []
+    for i in IMPORTS:
+        if i.importer.startswith(ORCH + "."):
+            for t in _resolve(i):
+                if t.startswith(ORCH + ".") and ROOM_LEVEL[_room(t)] > ROOM_LEVEL[_room(i.importer)]:
+                    bad.append(f"{MODULES[i.importer].relative_to(REPO)}:{i.line}: {_room(i.importer)} imports "
+                               f"{t} ({_room(t)})")
+    assert not bad, "\n".join(bad)
+
+
 def test_no_import_cycle_among_modules():
     edges: dict[str, set[str]] = {}
     for i in IMPORTS:
@@ -184,3 +200,19 @@ def test_no_private_name_imported_across_packages():
         if i.target.rsplit(".", 1)[-1].startswith("_") and not i.target.endswith("__"):
             bad.append(f"{MODULES[i.importer].relative_to(REPO)}:{i.line}: private module {i.target}")
     assert not bad, "\n".join(bad)
+
+
+def test_each_public_class_name_defined_once():
+    where: dict[str, list[str]] = {}
+    for module, path in MODULES.items():
+        for node in ast.parse(path.read_text(encoding="utf-8")).body:
+            if isinstance(node, ast.ClassDef) and not node.name.startswith("_"):
+                where.setdefault(node.name, []).append(f"{path.relative_to(REPO)}:{node.lineno}")
+    twice = {name: places for name, places in where.items() if len(places) > 1}
+    assert not twice, twice
+
+
+def test_no_module_over_500_lines():
+    long = {str(path.relative_to(REPO)): n for path in MODULES.values()
+            if (n := len(path.read_text(encoding="utf-8").splitlines())) > 500}
+    assert not long, long

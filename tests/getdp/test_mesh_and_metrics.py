@@ -80,3 +80,17 @@ def test_package_imports_neither_orchestrator_nor_dolfinx():
             " 'dolfinx'))])")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "[]"
+
+
+def test_case_deck_defaults_are_the_mesh_ids():
+    """The physical ids are defined once (:mod:`pulseform.solvers.getdp.mesh`) and reach the built-in
+    deck with -setnumber; the deck's DefineConstant defaults (for a standalone run) repeat them."""
+    import re
+
+    from pulseform.solvers.getdp.mesh import coil_tag, conductor_tag, physical_numbers
+    from pulseform.solvers.getdp.solver import CASE_DECK
+
+    text = re.sub(r"//[^\n]*", "", CASE_DECK.read_text())
+    defaults = {name: float(v) for name, v in re.findall(r"(Phys_\w+)\s*=\s*([0-9.]+)\s*[,\]]", text)}
+    assert defaults == physical_numbers()
+    assert (coil_tag(3), conductor_tag(2)) == (defaults["Phys_Coil_Base"] + 3, defaults["Phys_Cond_Base"] + 2)

@@ -9,19 +9,18 @@ An analysis is a class with
 * ``metrics(self, solver, history) -> dict[str, float]``: added to ``metrics.json``,
 * ``plots(self, history, shapes, folder) -> None``: PNGs into ``plots/``.
 
-Register it in :data:`REGISTRY` by name (the module is imported lazily, so validating a case file
-does not import the solvers).
+Register it by name in :data:`pulseform.orchestrator.case.analysis_names.ANALYSES` (``REGISTRY``
+here; data only, so that validating a case file checks the names without importing the solvers: the
+module is imported when the analysis is created).
 """
 
 from __future__ import annotations
 
 import importlib
 
-REGISTRY: dict[str, str] = {
-    # name: "module:Class" inside pulseform.orchestrator.run.analyses
-    "corner_fill": "corner_fill:CornerFill",
-    "tube_press_fit": "tube_press_fit:TubePressFit",
-}
+from ...case.analysis_names import ANALYSES as REGISTRY  # name -> "module:Class" inside this package
+
+__all__ = ["REGISTRY", "create"]
 
 
 def create(name: str, case):

@@ -1,7 +1,7 @@
 """The paper's contact-viscosity study (section 4): bar impact with nu = 0, 1e4, 1e6 kg/m^3, the
 viscous contact stress -nu |v_n| v_n acting on the pair's relative normal velocity.
 
-Run: ``python -m pulseform.solvers.dolfinx.viscosity_study OUT_DIR [--nx 40 --ny 20]``; writes
+Run: ``.venv/bin/python studies/bar_impact/viscosity_study.py OUT_DIR [--nx 40 --ny 20]``; writes
 ``viscosity_study.png`` and ``viscosity_study.json`` (per nu: plateau, std, duration, the
 short-wave amplitude = rms of the stress minus its 0.1 ms running mean over the plateau window,
 first peak, minimum, contact dissipation).
@@ -17,7 +17,7 @@ from typing import Dict, Sequence
 
 import numpy as np
 
-from .verification import bar_impact
+from pulseform.solvers.dolfinx.verification import bar_impact
 
 __all__ = ["run_study", "short_wave_rms"]
 

@@ -1,0 +1,16 @@
+"""The case-specific analyses a case file may name in ``analysis = [...]``, and where each lives.
+
+Data only (no imports): the case model checks the names against it while validating a case file
+(which must not import the solvers), and :mod:`pulseform.orchestrator.run.analyses` creates an
+analysis from it, importing its module only then.
+"""
+
+from __future__ import annotations
+
+__all__ = ["ANALYSES"]
+
+#: name -> "module:Class" of its implementation inside ``pulseform.orchestrator.run.analyses``
+ANALYSES: dict[str, str] = {
+    "corner_fill": "corner_fill:CornerFill",
+    "tube_press_fit": "tube_press_fit:TubePressFit",
+}
