@@ -37,11 +37,12 @@ from pathlib import Path
 import numpy as np
 
 from .mech_fields import BodyFields, read_fields
+from .pictures_child import Renderer, spawn, warm_up
 from .units import time_axis
 
 log = logging.getLogger(__name__)
 
-__all__ = ["draw_mechanics", "PicturesFailed", "plot_shapes", "render_fields", "Renderer", "warm_up"]
+__all__ = ["draw_mechanics", "PicturesFailed", "plot_shapes", "render_fields"]
 
 #: (field in the files, file-name stem, colour-bar title, scale to the shown unit, colour map)
 QUANTITIES = (("von_mises_Pa", "von_mises", "von Mises stress [MPa]", 1e-6, "turbo"),
@@ -245,18 +246,6 @@ def _pick(n: int, k: int) -> list[int]:
     return sorted(set(np.linspace(1, n - 1, k).round().astype(int).tolist()))
 
 
-def warm_up() -> None:
-    """Import pyvista and render a tiny scene: the graphics stack's one-time start-up (~1 s with
-    Mesa's software renderer), done by a :class:`Renderer` before it is needed."""
-    import pyvista as pv
-
-    pv.OFF_SCREEN = True
-    p = pv.Plotter(off_screen=True, window_size=(64, 64))
-    p.add_mesh(pv.Sphere())
-    p.screenshot(None, return_img=True)
-    p.close()
-
-
 def render_fields(results_dir: Path) -> list[Path]:
     """The pyvista pictures (montages and frames; see the module docstring), in this process."""
     import pyvista as pv
@@ -367,55 +356,9 @@ def _screenshot(p, out: Path) -> Path:
 
 
 # --------------------------------------------------------------------------------------- entry
-class Renderer:
-    """A 3D-picture child process started ahead of time (at the start of a run): it imports
-    pyvista/VTK and renders one small scene to initialise the graphics stack (~1 s) while the run
-    computes, then waits for the results folder on its standard input. :func:`draw_mechanics`
-    hands it the folder; :meth:`close` ends it if it was never used (the run failed or draws no
-    pictures). It dies with its parent."""
-
-    def __init__(self) -> None:
-        self.child: subprocess.Popen | None = _spawn(["--wait"], stdin=subprocess.PIPE)
-
-    def take(self, results_dir: Path) -> subprocess.Popen | None:
-        """The waiting child, told to render ``results_dir``; None if it is gone (the caller then
-        starts a new one)."""
-        child, self.child = self.child, None
-        if child is None:
-            return None
-        try:
-            if child.poll() is not None:
-                raise OSError("the renderer ended")
-            child.stdin.write(f"{Path(results_dir).resolve()}\n")
-            child.stdin.close()
-            child.stdin = None  # communicate() must not touch it again
-        except OSError:  # it died meanwhile
-            child.kill()
-            child.communicate()
-            return None
-        return child
-
-    def close(self) -> None:
-        """End the child if it was not used."""
-        child, self.child = self.child, None
-        if child is not None:
-            child.kill()
-            child.communicate()
-
-
-def _spawn(args: list[str], stdin=None) -> subprocess.Popen:
-    """The child ``python -m pulseform.orchestrator.run.pictures_mech ARGS`` (off-screen, EGL)."""
-    env = dict(os.environ, PYVISTA_OFF_SCREEN="true")
-    if not env.get("DISPLAY"):  # straight to EGL (Mesa), without VTK's failed attempt at an X server
-        env.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
-    return subprocess.Popen([sys.executable, "-m", "pulseform.orchestrator.run.pictures_mech", *args],
-                            stdin=stdin, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
-                            preexec_fn=_preexec)
-
-
 def draw_mechanics(results_dir: Path, *, isolated: bool = True,
                    time_limit: float = RENDER_TIME_LIMIT_S, wait: bool = True,
-                   renderer: "Renderer | None" = None):
+                   renderer: Renderer | None = None):
     """Draw the mechanical pictures of a results folder from its field files (see the module
     docstring); returns the paths written. ``isolated``: render the 3D pictures in a child process
     (a crash or a hang of the graphics stack then raises :class:`PicturesFailed`). ``wait=False``
@@ -432,7 +375,7 @@ def draw_mechanics(results_dir: Path, *, isolated: bool = True,
     (root / "plots").mkdir(exist_ok=True)
     child = renderer.take(root) if renderer is not None else None
     if child is None:
-        child = _spawn([str(root)])
+        child = spawn([str(root)])
     deadline = time.monotonic() + time_limit
     try:
         bodies = read_fields(root)
@@ -478,12 +421,6 @@ def draw_mechanics(results_dir: Path, *, isolated: bool = True,
 
     finish.cancel = cancel
     return finish() if wait else finish
-
-
-def _preexec() -> None:
-    from pulseform.solvers.getdp.runner import die_with_parent
-
-    die_with_parent(signal.SIGTERM)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -294,7 +294,7 @@ def _early_renderer():
     """A ``pictures_mech.Renderer`` started now, or None when the 3D pictures cannot be drawn here
     (the module or a child process unavailable: the pictures then report it as before)."""
     try:
-        from .pictures_mech import Renderer
+        from .pictures_child import Renderer
 
         return Renderer()
     except (ImportError, OSError) as exc:

@@ -161,7 +161,8 @@ def test_pictures_from_a_renderer_started_early(bar, tmp_path, alive):
     one that died meanwhile is replaced by a new child, and the pictures are still drawn."""
     import shutil
 
-    from pulseform.orchestrator.run.pictures_mech import Renderer, draw_mechanics
+    from pulseform.orchestrator.run.pictures_child import Renderer
+    from pulseform.orchestrator.run.pictures_mech import draw_mechanics
 
     out = tmp_path / "bar"
     shutil.copytree(bar, out)
