@@ -21,8 +21,10 @@ import numba
 __all__ = ["cell_update", "batch_update", "BATCH", "ROW", "IN_ROWS", "OUT_ROWS",
            "MODE_PLANE_STRESS", "MODE_PLANE_STRAIN", "MODE_AXISYMMETRIC", "FM", "N_PRM"]
 
-# fast-math without 'nnan'/'ninf', so that NaN/inf checks (inverted cells, blow-ups) still work
-FM = {"contract", "arcp", "reassoc", "nsz"}
+# fast-math: only "no signed zeros". Reassociation, contraction (FMA) and reciprocal approximation let LLVM
+# optimise the kernel differently where numba inlines it (a caller compiled now or loaded from the cache):
+# results then depended on the cache state (docs/mechanics.md). No nnan/ninf: NaN/inf checks must work.
+FM = {"nsz"}
 
 MODE_PLANE_STRESS = 0
 MODE_PLANE_STRAIN = 1
