@@ -194,7 +194,7 @@ class GetDPLoad(EMSnapshots, LoadCapabilities):
         c1 = time.perf_counter()
         # after a remesh, keep carrying the state through the Init path: a -restart from the .res of an
         # Init-path run gave garbage fields near the axis (GetDP 3.2.0; seen in tests, see the issue notes)
-        fields = {"field_output": True} if self._wants_fields(t1) and _takes_field_output(self.solver) else {}
+        fields = {"field_output": True} if self._wants_fields(t1) else {}
         result, self.state = self.solver.step(mesh_k, self.state, t1, n_sub=self.em_substeps,
                                               material_points=self.material,
                                               force_init_path=self.remeshes > 0, **fields)
@@ -291,8 +291,7 @@ class GetDPLoad(EMSnapshots, LoadCapabilities):
     def close(self) -> None:
         """End a persistent getdp and wait until the old run folders are deleted (call once the run is
         over)."""
-        if hasattr(self.solver, "close"):
-            self.solver.close()
+        self.solver.close()
         for thread in self._deleting:
             thread.join()
         self._deleting = []
@@ -350,14 +349,3 @@ class GetDPLoad(EMSnapshots, LoadCapabilities):
         if "material" in d:
             self.material = np.array(d["material"])
         self._pinned = Path(self.state.res_path).parent if self.state.res_path else None
-
-
-def _takes_field_output(solver) -> bool:
-    """True if ``solver.step`` accepts ``field_output`` (GetDPSolver; not every stand-in does)."""
-    import inspect
-
-    try:
-        params = inspect.signature(solver.step).parameters
-    except (TypeError, ValueError):
-        return False
-    return "field_output" in params or any(p.kind is p.VAR_KEYWORD for p in params.values())

@@ -40,9 +40,6 @@ class EMSnapshots:
         (its run folder must still exist: the latest two are kept)."""
         if getattr(result, "b_cells", None) is not None or not self._post_fields_ok:
             return
-        if not hasattr(self.solver, "post_fields"):  # another solver (e.g. a study's adapter)
-            self._post_fields_ok = False
-            return
         c0 = time.perf_counter()
         try:
             self._post_fields_ok = self.solver.post_fields(result, mesh)
@@ -63,7 +60,7 @@ class EMSnapshots:
         if result.coil_current.shape[1] == 0:
             return
         current = float(result.coil_current[-1, 0])
-        expire = getattr(self.solver, "fields_expire", False)
+        expire = self.solver.fields_expire
         p = self._peak
         if p is not None and p["t"] == t1:  # a repeated (iterated) EM step replaces its earlier try
             self.peak_abs_current, self._peak = p["before"], p["previous"]

@@ -20,7 +20,6 @@ from .pulses import box_marker, pulse_pressure, pulse_table
 
 log = logging.getLogger(__name__)
 
-ANALYSIS_PREFIX = "analysis/"  # checkpoint keys of the analyses' restart state
 
 
 class PressureMechanics(Mechanics, Protocol):
@@ -92,19 +91,12 @@ class DolfinxMechanics:
         return self.solver.comm.allreduce(local)
 
     def state_dict(self) -> dict[str, np.ndarray]:
-        """The solver's exact-restart state, plus the analyses' restart state: arrays the case
-        analyses keep in ``solver.analysis_state`` (name -> array, e.g. the corner fill's "touched
-        so far" record), stored under ``analysis/<name>``."""
-        state = self.solver.state_dict()
-        for name, arr in getattr(self.solver, "analysis_state", {}).items():
-            state[f"{ANALYSIS_PREFIX}{name}"] = np.asarray(arr).copy()
-        return state
+        """The solver's exact-restart state."""
+        return self.solver.state_dict()
 
     def load_state_dict(self, state: dict[str, np.ndarray]) -> None:
-        """Restore :meth:`state_dict` (the analyses find theirs in ``solver.analysis_state``)."""
-        n = len(ANALYSIS_PREFIX)
-        self.solver.load_state_dict({k: v for k, v in state.items() if not k.startswith(ANALYSIS_PREFIX)})
-        self.solver.analysis_state = {k[n:]: np.asarray(v) for k, v in state.items() if k.startswith(ANALYSIS_PREFIX)}
+        """Restore :meth:`state_dict`."""
+        self.solver.load_state_dict(state)
 
     # ----------------------------------------------------------------- for the pressure pulses
     def reference_positions(self) -> dict[str, np.ndarray]:

@@ -156,6 +156,8 @@ class CaseDriver:
         arrays = {f"solver/{k}": v for k, v in self.mechanics.state_dict().items()}
         arrays.update({f"loop/{k}": v for k, v in self.loop.counters.state_dict().items()})
         arrays.update({f"load/{k}": v for k, v in self.load.checkpoint_state_dict().items()})
+        for name, a in zip(self.case.analysis, self.analyses):
+            arrays.update({f"analysis/{name}/{k}": v for k, v in a.state_dict().items()})
         arrays["history/rows"] = self.history.array()
         meta = {"columns": self.history.columns, "part": self.part, "ranks": self.comm.size,
                 "since_record": self._since_record,
@@ -172,7 +174,12 @@ class CaseDriver:
         arrays, meta = load_checkpoint(path)
         if meta["ranks"] != self.comm.size:
             raise NothingToResume(f"{path}: written by {meta['ranks']} ranks, resuming on {self.comm.size}")
-        self.mechanics.load_state_dict({k[7:]: v for k, v in arrays.items() if k.startswith("solver/")})
+        # analysis states: "analysis/<name>/..." (checkpoints before 2026-11-25: "solver/analysis/<name>/...")
+        for name, a in zip(self.case.analysis, self.analyses):
+            pre = [f"analysis/{name}/", f"solver/analysis/{name}/"]
+            a.load_state_dict({k[len(p):]: v for k, v in arrays.items() for p in pre if k.startswith(p)})
+        self.mechanics.load_state_dict({k[7:]: v for k, v in arrays.items()
+                                        if k.startswith("solver/") and not k.startswith("solver/analysis/")})
         self.loop.counters.load_state_dict({k[5:]: v for k, v in arrays.items() if k.startswith("loop/")})
         self.load.load_state_dict({k[5:]: v for k, v in arrays.items() if k.startswith("load/")})
         self.history.columns = list(meta["columns"])

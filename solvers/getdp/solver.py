@@ -196,6 +196,14 @@ class GetDPSolver:
                 discard_folder(self._runs.pop(0))
         return result, new_state
 
+    #: a step's whole-domain fields (:meth:`post_fields`) stay available after later steps (its run
+    #: folder holds the solution); the persistent solver's expire at its next step
+    fields_expire = False
+
+    def close(self) -> None:
+        """Release what the solver holds between steps (nothing here: every step is its own getdp
+        run; the persistent solver ends its process)."""
+
     def complete_state(self, state: EMState) -> EMState:
         """``state`` with everything a restart needs: here ``state`` itself (it names its ``.res``)."""
         return state

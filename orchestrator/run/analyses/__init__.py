@@ -7,7 +7,10 @@ An analysis is a class with
   units in names); ``row``: the row's columns so far (time, ``energy_*``, probes, body extremes),
   to reuse instead of computing them again (None: compute them),
 * ``metrics(self, solver, history) -> dict[str, float]``: added to ``metrics.json``,
-* ``plots(self, history, shapes, folder) -> None``: PNGs into ``plots/``.
+* ``plots(self, history, shapes, folder) -> None``: PNGs into ``plots/``,
+* ``state_dict(self) -> dict[str, np.ndarray]`` / ``load_state_dict(self, state)``: its restart
+  state (what it accumulates over the run), saved in the checkpoint under
+  ``analysis/<name>/<key>``; :class:`Analysis` gives the defaults (no state).
 
 Register it by name in :data:`pulseform.orchestrator.case.analysis_names.ANALYSES` (``REGISTRY``
 here; data only, so that validating a case file checks the names without importing the solvers: the
@@ -20,7 +23,18 @@ import importlib
 
 from ...case.analysis_names import ANALYSES as REGISTRY  # name -> "module:Class" inside this package
 
-__all__ = ["REGISTRY", "create"]
+__all__ = ["REGISTRY", "create", "Analysis"]
+
+
+class Analysis:
+    """Base of the analyses: the restart hooks' defaults (an analysis without state)."""
+
+    def state_dict(self) -> dict:
+        """Arrays to continue exactly after ``--resume`` (name -> array); none by default."""
+        return {}
+
+    def load_state_dict(self, state: dict) -> None:
+        """Take back :meth:`state_dict` from a checkpoint (before the first ``record``)."""
 
 
 def create(name: str, case):

@@ -14,7 +14,7 @@ whose slave is the blank). Definitions (documented in docs/cases.md):
   blank rings elastically on the die); ``fill_fraction``: length fraction touched at some recorded
   time so far (how far the blank has been formed into the die, insensitive to the ringing);
   ``unfilled_length_mm``: the profile length never touched. The "so far" record is restart state
-  (kept in ``solver.analysis_state``, which the checkpoint saves: ``--resume`` continues it).
+  (the analysis' restart state, :meth:`CornerFill.state_dict`: ``--resume`` continues it).
   ``fill_fraction_segments``: the former measure (a die segment counts as touched when its
   midpoint is), kept for comparison: it depends on the die's mesh (4 mm die segments count a
   whole 4 mm as touched when their midpoint is).
@@ -45,20 +45,21 @@ from pulseform.solvers.dolfinx.cell_fields import von_mises_max
 from pulseform.solvers.dolfinx.cell_list import new_grid
 
 from ..units import time_axis
+from . import Analysis
 from .corner_fill_kernel import (blank_motion, build_midpoint_grid, distances_within, min_distances,
                                  profile_samples)
 
 FILL_GAP_FACTOR = 2.0  # a profile point counts as touched when the blank is within 2 h0 of it
 FILL_SAMPLE_SPACING = 1.0e-4  # m: arc-length spacing of the profile samples (h0 of the case)
 CORNER_RADIUS = 1.0e-2  # m: blank nodes this close to the corner count for its kinetic energy
-STATE_KEY = "corner_fill/ever"  # restart state in solver.analysis_state (samples)
-STATE_KEY_SEGMENTS = "corner_fill/ever_segments"  # (profile segments, the former measure)
+STATE_KEY = "ever"  # restart state (state_dict): touched so far, per profile sample
+STATE_KEY_SEGMENTS = "ever_segments"  # (per profile segment, the former measure)
 
 
-def _saved_mask(solver, key: str, n: int) -> np.ndarray:
-    """The boolean record ``key`` of ``solver.analysis_state`` (restored from a checkpoint), or all False."""
-    saved = getattr(solver, "analysis_state", {}).get(key)
-    return np.asarray(saved, dtype=bool).copy() if saved is not None and len(saved) == n else np.zeros(n, dtype=bool)
+def _saved_mask(saved: dict, key: str, n: int) -> np.ndarray:
+    """The boolean record ``key`` restored from a checkpoint (:meth:`CornerFill.load_state_dict`), or all False."""
+    arr = saved.get(key)
+    return np.asarray(arr, dtype=bool).copy() if arr is not None and len(arr) == n else np.zeros(n, dtype=bool)
 
 
 def _segment_distances(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -86,10 +87,11 @@ def _yielded_fraction(body) -> float:
     return float(vol[body.eps_p > 0.0].sum() / vol.sum()) if len(vol) else 0.0
 
 
-class CornerFill:
+class CornerFill(Analysis):
     """History columns, metrics and plots of the corner-filling cases."""
 
     def __init__(self, case) -> None:
+        self._saved: dict = {}  # restart state from a checkpoint, used at the first record
         self.case = case
         self.pair = next(i for i, c in enumerate(case.contact) if c.slave == "blank" and c.master == "die")
         self.h0 = case.contact[self.pair].h0
@@ -215,14 +217,10 @@ class CornerFill:
         self._build_grid(blank)  # once for both measures
         touched = self._blank_distance(samples, blank, grid_ready=True) <= FILL_GAP_FACTOR * self.h0
         if self._ever is None:  # a fresh run, or the first record after --resume (checkpointed state)
-            self._ever = _saved_mask(solver, STATE_KEY, len(touched))
-            self._ever_segments = _saved_mask(solver, STATE_KEY_SEGMENTS, len(self._profile))
+            self._ever = _saved_mask(self._saved, STATE_KEY, len(touched))
+            self._ever_segments = _saved_mask(self._saved, STATE_KEY_SEGMENTS, len(self._profile))
         self._ever = self._ever | touched
         self._ever_segments = self._ever_segments | self._touched_segments(solver, grid_ready=True)
-        if not hasattr(solver, "analysis_state"):
-            solver.analysis_state = {}
-        solver.analysis_state[STATE_KEY] = self._ever
-        solver.analysis_state[STATE_KEY_SEGMENTS] = self._ever_segments
         vm = von_mises_max(die.cell_stress) if len(die.cells) else 0.0
         _, _, p, _ = solver.contact_pressure(self.pair)
         speed, rms, corner_ke = self._blank_motion(solver, samples)
@@ -248,6 +246,17 @@ class CornerFill:
             "blank_apex_gap_m": apex_gap,
             "kinetic_to_deformation_ratio": float(ratio),
         }
+
+    def state_dict(self) -> dict[str, np.ndarray]:
+        """The touched-so-far records (bool per profile sample and per segment), once recorded."""
+        if self._ever is None:
+            return {}
+        return {STATE_KEY: self._ever.copy(), STATE_KEY_SEGMENTS: self._ever_segments.copy()}
+
+    def load_state_dict(self, state: dict) -> None:
+        """The records of a checkpoint, taken up at the next :meth:`record`."""
+        self._saved = dict(state)
+        self._ever = self._ever_segments = None
 
     def metrics(self, solver, history) -> dict[str, float]:
         ff = history.column("fill_fraction")

@@ -18,6 +18,7 @@ end-state kinetic-to-elastic energy ratio (rest check). Serial runs only.
 from __future__ import annotations
 
 import numpy as np
+from . import Analysis
 
 
 VANISH = 0.02  # "near zero": below 2 % of the residual pressure at zero (the smallest) clearance
@@ -61,7 +62,7 @@ def critical_clearance(points: list[tuple[float, float]]) -> tuple[float, float]
     return float("nan"), float("nan")
 
 
-class TubePressFit:
+class TubePressFit(Analysis):
     """History columns, metrics and plots of the press-fitting case."""
 
     def __init__(self, case) -> None:
