@@ -52,20 +52,21 @@ def solve_harmonic(model: EMModel, mesh: EMMesh, frequency: float, currents: Seq
                    petsc_args: Sequence[str] = DEFAULT_PETSC_ARGS, timeout: float | None = None) -> HarmonicResult:
     """Solve ``model`` on ``mesh`` at ``frequency`` (Hz) with coil k carrying the current phasor
     ``currents[k]`` (A per turn, peak); the coils' waveforms are ignored and the model must have no
-    circuit. The run folder is ``work_dir`` (replaced)."""
+    circuit. The getdp run goes to ``work_dir/harmonic`` (that sub-folder is replaced; nothing else in
+    ``work_dir`` is touched)."""
     if model.circuit is not None:
         raise ValueError("a time-harmonic solve takes prescribed coil currents, not a capacitor-bank circuit")
     if len(currents) != len(model.coils):
         raise ValueError(f"{len(model.coils)} coils but {len(currents)} current phasors")
     if not frequency > 0.0:
         raise ValueError(f"frequency must be > 0 Hz, got {frequency}")
-    run_dir = Path(work_dir)
+    run_dir = Path(work_dir) / "harmonic"
     if run_dir.exists():
         shutil.rmtree(run_dir)
     out_dir = run_dir / "out"
     out_dir.mkdir(parents=True)
     msh = write_msh22(mesh, run_dir / "mesh.msh")
-    solver = GetDPSolver(model, run_dir / "unused", executable=executable, petsc_args=petsc_args, timeout=timeout)
+    solver = GetDPSolver(model, run_dir, executable=executable, petsc_args=petsc_args, timeout=timeout)
     numbers = solver._numbers(mesh)
     numbers.update(solver.deck_numbers)
     numbers.update(Flag_Harmonic=1, Harm_Freq=float(frequency), Flag_ElemOut=0, Flag_FieldOut=0)
