@@ -67,8 +67,7 @@ def solve_harmonic(model: EMModel, mesh: EMMesh, frequency: float, currents: Seq
     out_dir.mkdir(parents=True)
     msh = write_msh22(mesh, run_dir / "mesh.msh")
     solver = GetDPSolver(model, run_dir, executable=executable, petsc_args=petsc_args, timeout=timeout)
-    numbers = solver._numbers(mesh)
-    numbers.update(solver.deck_numbers)
+    numbers = solver.run_numbers(mesh)
     numbers.update(Flag_Harmonic=1, Harm_Freq=float(frequency), Flag_ElemOut=0, Flag_FieldOut=0)
     for k, cur in enumerate(currents, start=1):
         numbers.update({f"Coil_I0_{k}": abs(complex(cur)), f"Coil_phase_{k}": cmath.phase(complex(cur))})

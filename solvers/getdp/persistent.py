@@ -93,9 +93,7 @@ class PersistentGetDPSolver(GetDPSolver):
         fresh, or seeded with the BDF2 history interpolated from the material coordinates ``material``
         (m). ``extra_numbers`` go last (bench/em_step.py sets the self-clocked baseline's ``PF_Self*``)."""
         m = self.model
-        numbers = self._numbers(mesh)
-        numbers.update(self.deck_numbers)
-        numbers.update(self.extra_numbers)
+        numbers = self.run_numbers(mesh)
         numbers.update(Flag_ElemOut=0, PF_GlobalsSet=LEAN_GLOBALS, PF_T1=state.t, PF_Step0=state.step_index,
                        PF_DtPrev=0.0, PF_Seed=1)
         lines = [f'PulseformPersistentLib = "{PERSISTENT_LIB}";'] + self.preamble + self._table_lines()

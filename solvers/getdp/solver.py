@@ -124,9 +124,7 @@ class GetDPSolver:
         out_dir.mkdir()
         msh = write_msh22(mesh, run_dir / "mesh.msh")
         sig = mesh_signature(mesh)
-        numbers = self._numbers(mesh)
-        numbers.update(self.deck_numbers)
-        numbers.update(self.extra_numbers)
+        numbers = self.run_numbers(mesh)
         numbers.update(Flag_ElemOut={"all": 1, "last": 2, "none": 0}[element_output],
                        Flag_FieldOut=int(bool(field_output)))
         data_lines = self.preamble + self._table_lines()
@@ -295,6 +293,14 @@ class GetDPSolver:
         if result.force_density_start is None:
             warnings.warn("BDF2: no force density at the step's start on these elements; "
                           "force_density_mean falls back to the end value", RuntimeWarning, stacklevel=3)
+
+    def run_numbers(self, mesh: EMMesh) -> dict[str, float]:
+        """The ``-setnumber`` inputs every getdp run of this model on ``mesh`` gets: the model's
+        numbers, the built-in deck's physical ids, then the caller's ``extra_numbers`` (last: they win)."""
+        numbers = self._numbers(mesh)
+        numbers.update(self.deck_numbers)
+        numbers.update(self.extra_numbers)
+        return numbers
 
     def _numbers(self, mesh: EMMesh) -> dict[str, float]:
         m = self.model
