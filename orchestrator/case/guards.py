@@ -118,7 +118,7 @@ def estimated_steps(case) -> tuple[float, str]:
     """(estimated explicit steps to time.end, the key path of the size that sets the step)."""
     worst, key = math.inf, ""
     for region, b in zip(_body_regions(case), case.bodies):
-        if region is None:
+        if region is None or b.rigid:  # a rigid body has no stability limit
             continue
         m = case.materials[b.material]
         c_d = math.sqrt((m.bulk_modulus + 4.0 * m.shear_modulus / 3.0) / m.density)

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import math
 import os
-import re
 from dataclasses import dataclass
 from typing import Literal
 
@@ -17,62 +16,14 @@ from .analysis_names import ANALYSES
 from .em_model import (EM, CapacitorBank, DampedSineCurrent, FlatCoilSheet, Geometry, OuterTube, PlanarCoilBlankDie,
                       SheetDie, SolenoidTube)
 from .guards import check_resources
-from .schema import SchemaError, shorten, spec
+from .parts import (Box, BodyTable, ContactPair, EndStopTable, FixedBoundary, Polygon, Rectangle, RigidWall, Shape,
+                    Vec2, check_file_name, rigid_moves, validate_rigid)
+from .schema import SchemaError, spec
 
 __all__ = ["Box", "Rectangle", "Polygon", "Shape", "CowperSymondsTable", "JohnsonCookTable", "MaterialTable", "FixedBoundary",
-           "BodyTable", "ContactPair", "RigidWall", "PulseSin2", "PulseExp", "Load", "CaseInfo", "TimeControl",
+           "EndStopTable", "BodyTable", "ContactPair", "RigidWall", "PulseSin2", "PulseExp", "Load", "CaseInfo", "TimeControl",
            "MechanicsTable", "Coupling", "Probe", "Output", "Limits", "Case", "EM", "CapacitorBank", "DampedSineCurrent",
            "FlatCoilSheet", "Geometry", "SolenoidTube", "SheetDie", "OuterTube", "PlanarCoilBlankDie"]
-
-Vec2 = tuple[float, float]
-_NAME = re.compile(r"[A-Za-z0-9._-]{1,100}")
-
-
-# --------------------------------------------------------------------------- geometry primitives
-@dataclass(frozen=True, kw_only=True)
-class Box:
-    """Axis-aligned box selecting boundary nodes/facets whose points lie inside it (inclusive)."""
-
-    xmin: float = spec(-math.inf, unit="m", doc="lower x (or r) bound")
-    xmax: float = spec(math.inf, unit="m", doc="upper x (or r) bound")
-    ymin: float = spec(-math.inf, unit="m", doc="lower y (or z) bound")
-    ymax: float = spec(math.inf, unit="m", doc="upper y (or z) bound")
-
-    def validate(self, path: str) -> None:
-        if not self.xmin <= self.xmax:
-            raise SchemaError(f"{path}.xmax", f"got {self.xmax:g}; must be >= xmin = {self.xmin:g} (m)")
-        if not self.ymin <= self.ymax:
-            raise SchemaError(f"{path}.ymax", f"got {self.ymax:g}; must be >= ymin = {self.ymin:g} (m)")
-
-
-@dataclass(frozen=True, kw_only=True)
-class Rectangle:
-    """Rectangle with its lower-left corner at ``origin``."""
-
-    type: Literal["rectangle"] = spec(doc="shape kind")
-    origin: Vec2 = spec((0.0, 0.0), unit="m", doc="lower-left corner (x, y) or (r, z)")
-    width: float = spec(unit="m", gt=0.0, doc="extent along x (or r)")
-    height: float = spec(unit="m", gt=0.0, doc="extent along y (or z)")
-
-
-@dataclass(frozen=True, kw_only=True)
-class Polygon:
-    """Simple polygon given by its vertices in counter-clockwise order."""
-
-    type: Literal["polygon"] = spec(doc="shape kind")
-    points: tuple[Vec2, ...] = spec(unit="m", doc="vertices, counter-clockwise, >= 3")
-
-    def validate(self, path: str) -> None:
-        if len(self.points) < 3:
-            raise SchemaError(f"{path}.points", f"got {len(self.points)} points; need at least 3")
-        area = 0.5 * sum(x0 * y1 - x1 * y0 for (x0, y0), (x1, y1)
-                         in zip(self.points, self.points[1:] + self.points[:1]))
-        if area <= 0.0:
-            raise SchemaError(f"{path}.points", "vertices must be counter-clockwise with positive area")
-
-
-Shape = Rectangle | Polygon
-
 
 # --------------------------------------------------------------------------- materials
 @dataclass(frozen=True, kw_only=True)
@@ -104,74 +55,6 @@ class MaterialTable:
     hardening_modulus: float = spec(0.0, unit="Pa", ge=0.0, doc="linear hardening modulus A")
     electrical_conductivity: float = spec(0.0, unit="S/m", ge=0.0, doc="σ for eddy currents (EM)")
     rate_law: CowperSymondsTable | JohnsonCookTable | None = spec(None, doc="optional strain-rate hardening")
-
-
-# --------------------------------------------------------------------------- bodies and contact
-@dataclass(frozen=True, kw_only=True)
-class FixedBoundary:
-    """Zero displacement of the chosen components on boundary nodes inside ``where``."""
-
-    where: Box = spec(doc="box selecting the boundary nodes")
-    components: tuple[int, ...] = spec((0, 1), unit="-", ge=0, le=1, doc="0 = x (r), 1 = y (z)")
-
-    def validate(self, path: str) -> None:
-        if not self.components:
-            raise SchemaError(f"{path}.components", "got an empty list; allowed: [0], [1] or [0, 1]")
-
-
-@dataclass(frozen=True, kw_only=True)
-class BodyTable:
-    """A deformable body meshed with P1 triangles."""
-
-    name: str = spec(doc="unique body name")
-    material: str = spec(doc="key of a [materials.<name>] table")
-    shape: Shape | None = spec(None, doc="own geometry (rectangle or polygon); or give region")
-    region: Literal["workpiece", "die", "outer_tube"] | None = spec(
-        None, doc="the [geometry] conductor region this body is (its EM and mechanical meshes share nodes)")
-    mesh_size: float | None = spec(None, unit="m", gt=0.0, doc="target element size (with shape)")
-    initial_velocity: Vec2 = spec((0.0, 0.0), unit="m/s", doc="uniform initial velocity")
-    fixed: tuple[FixedBoundary, ...] = spec((), doc="clamped boundary parts")
-
-    def validate(self, path: str) -> None:
-        _check_file_name(self.name, f"{path}.name", "fields/<case>_<name>.xdmf")
-        if (self.shape is None) == (self.region is None):
-            raise SchemaError(f"{path}.shape", "give exactly one of shape (own geometry) or region "
-                              "(a [geometry] region such as 'workpiece')")
-        if self.shape is not None and self.mesh_size is None:
-            raise SchemaError(f"{path}.mesh_size", "missing required key (a number > 0, in m) for a body with shape")
-
-
-@dataclass(frozen=True, kw_only=True)
-class ContactPair:
-    """Soft contact, paper eq. (5): p = k (1/h − 1/h0) for h < h0, slave nodes on master segments."""
-
-    slave: str = spec(doc="body whose boundary nodes are checked")
-    master: str = spec(doc="body whose boundary segments repel")
-    stiffness: float = spec(unit="Pa·m", gt=0.0, doc="k per unit area")
-    h0: float = spec(unit="m", gt=0.0, doc="width of the force layer")
-    friction: float = spec(0.0, unit="-", ge=0.0, doc="Coulomb coefficient μ")
-    viscosity: float = spec(0.0, unit="Pa·s²/m²", ge=0.0,
-                            doc="paper's ν in ν|v|², on the pair's relative normal velocity")
-    two_pass: bool = spec(False, doc="also check master nodes against slave segments")
-
-    def validate(self, path: str) -> None:
-        if self.slave == self.master:
-            raise SchemaError(f"{path}.master", f"got {self.master!r}; must differ from slave")
-
-
-@dataclass(frozen=True, kw_only=True)
-class RigidWall:
-    """Rigid half-space: a node with (x − point)·normal < 0 is put back on the wall with v = 0."""
-
-    point: Vec2 = spec(unit="m", doc="a point on the wall")
-    normal: Vec2 = spec(unit="-", doc="normal pointing into the allowed side")
-    bodies: tuple[str, ...] = spec((), doc="bodies it acts on (empty = all)")
-    sliding: bool = spec(False, doc="frictionless: remove only the normal velocity (false: the paper's "
-                                    "rule v = 0, which also sticks the face tangentially)")
-
-    def validate(self, path: str) -> None:
-        if math.hypot(*self.normal) == 0.0:
-            raise SchemaError(f"{path}.normal", "got [0, 0]; must be a non-zero vector")
 
 
 # --------------------------------------------------------------------------- loads
@@ -234,7 +117,7 @@ class CaseInfo:
     def validate(self, path: str) -> None:
         if not self.name.strip():
             raise SchemaError(f"{path}.name", "got an empty string; must be a non-empty name")
-        _check_file_name(self.name, f"{path}.name", "results/<name>")
+        check_file_name(self.name, f"{path}.name", "results/<name>")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -264,6 +147,8 @@ class MechanicsTable:
         0.0, unit="s", ge=0.0,
         doc="kinetic damping (dynamic relaxation) for t < this time: a body's velocities are set to zero "
             "whenever its kinetic energy has passed a peak (quasi-static loading; 0: off)")
+    gravity: Vec2 = spec((0.0, 0.0), unit="m/s^2", doc="acceleration of gravity on the rigid bodies, e.g. "
+                         "[0, -9.81] (deformable bodies: not applied)")
     threads: int = spec(1, unit="-", ge=1,
                         doc="threads of the element kernel in serial GetDP-coupled runs (results do not depend on it; "
                             "worth it from ~10^4 cells, on cores no other process uses; mechanics-only pulse runs "
@@ -292,6 +177,10 @@ class Coupling:
     iterate: bool = spec(False, doc="repeat each EM step on its end geometry until force and motion settle")
     iterate_tol: float = spec(1e-3, unit="-", gt=0.0, doc="relative change that ends the iterations")
     iterate_max: int = spec(10, unit="-", ge=1, doc="most iterations per EM step")
+    steps_per_period: int = spec(40, unit="-", ge=4, doc="EM steps per period of the source when every body "
+                                 "is rigid (no stability limit): period 2π/ω of a prescribed current, "
+                                 "2π√((L_coil + L_ext) C) of a bank (L_coil from the turns' geometry); the "
+                                 "mechanical step is that EM step / n, capped by time.dt_max")
 
     def validate(self, path: str) -> None:
         if not self.n_min <= self.n <= self.n_max:
@@ -392,7 +281,7 @@ class Case:
         for i, p in enumerate(self.probes):
             if p.body not in names:
                 raise SchemaError(f"probes[{i}].body", f"got {p.body!r}; allowed: {_choices(names)}")
-            _check_file_name(p.name, f"probes[{i}].name", "history.csv columns and plots/<name>_<quantity>.png")
+            check_file_name(p.name, f"probes[{i}].name", "history.csv columns and plots/<name>_<quantity>.png")
             if p.name in probe_names:
                 raise SchemaError(f"probes[{i}].name", f"got {p.name!r}; probe names must be unique")
             probe_names.append(p.name)
@@ -448,8 +337,13 @@ class Case:
         elif regions:
             i = next(i for i, b in enumerate(self.bodies) if b.region is not None)
             raise SchemaError(f"bodies[{i}].region", "regions exist only in coupled cases; give a shape")
+        validate_rigid(self)
         if len(set(regions)) != len(regions):
             raise SchemaError("bodies", "each geometry region may be used by one body only")
+
+    def rigid_moves(self, b: BodyTable) -> tuple[int, ...]:
+        """The free translation components of rigid body ``b`` (see :func:`.parts.rigid_moves`)."""
+        return rigid_moves(b, self.mechanics.formulation)
 
     def body(self, name: str) -> BodyTable:
         """The body called ``name``."""
@@ -462,13 +356,6 @@ def _refuse_damping(mo: MechanicsTable) -> None:
         if getattr(mo, key) > 0.0:
             raise SchemaError(f"mechanics.{key}", "damping acts with pressure loads only (case.kind = 'mechanics' "
                               "or coupling.load = 'pressure'); a GetDP-coupled run would ignore it: remove it")
-
-
-def _check_file_name(name: str, path: str, names: str) -> None:
-    """A name that becomes part of a file or folder name: never a path."""
-    if not _NAME.fullmatch(name) or name in (".", ".."):
-        raise SchemaError(path, f"got {shorten(repr(name))}; must be a name, not a path: 1 to 100 letters, digits, "
-                          f"'.', '_' or '-', not '.' or '..' (it names {names})")
 
 
 def _shape_xmin(shape: Shape) -> float:

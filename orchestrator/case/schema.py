@@ -37,6 +37,8 @@ PLAUSIBLE: dict[str, tuple[float, float]] = {
     "Pa·m": (1e-6, 1e13),
     "Pa·s²/m²": (1e-12, 1e12),
     "m/s": (1e-12, 1e5),
+    "m/s^2": (1e-9, 1e12),
+    "kg": (1e-12, 1e6),
     "1/s": (1e-12, 1e12),
     "rad/s": (1e-6, 1e12),
     "S/m": (1e-12, 1e9),

@@ -25,10 +25,13 @@ from ..coupling.interfaces import LoadProvider
 from ..coupling.loop import LoopOptions, StaggeredLoop
 from ..em.participant import GetDPLoad
 from ..em.solver import em_model
+from ..em.time_scale import source_period
 from ..em.user_deck import build_user_geometry, user_deck_load
 from ..mech import probes as probe_mod
 from ..mech.model import build_solver
+from ..mech.mixed import MixedMechanics, rigid_bodies, rigid_metrics
 from ..mech.participants import DolfinxMechanics, PressurePulses
+from ..mech.rigid import RigidMechanics
 from ..mesh.em_geometry import build_em_geometry
 from ..mesh.shared import ConductorBody, conductor_submesh, match_nodes, to_dolfinx
 from . import interrupt
@@ -77,20 +80,22 @@ class CaseDriver:
         t0 = self.wall_start = _time.perf_counter()
         self.wall_before_s = 0.0
         cp = case.coupling
+        self.rigid: RigidMechanics | None = None  # the rigid bodies (coupled cases), None without
         if case.case.kind == "coupled":
-            self.solver, load = _coupled_participants(case, results, comm)
+            self.solver, load, self.rigid = _coupled_participants(case, results, comm)
             options = LoopOptions.from_coupling(cp)
         else:
             # the explicit mechanics alone has no step-ratio limit: full steps, one shorter step at a milestone
             self.solver, options = build_solver(case, comm), LoopOptions(n=1, n_max=1, landing="last",
                                                                        block=case.output.history_every)
             load = _pressure_pulses(case)
-        check_steps_of_meshes(case, self.solver.stable_time_step())  # a user deck's mesh is known only now
+        deformable = DolfinxMechanics(self.solver) if self.solver is not None else None
+        self.mechanics = deformable if self.rigid is None else MixedMechanics(deformable, self.rigid)
+        check_steps_of_meshes(case, self.mechanics.stable_time_step())  # a user deck's mesh is known only now
         self.setup_s = _time.perf_counter() - t0
-        self.mechanics = DolfinxMechanics(self.solver)
         self.load: LoadProvider = load
         self.loop = StaggeredLoop(load, self.mechanics, options, dt_max=case.time.dt_max)
-        self.probes = probe_mod.attach(self.solver, case.probes, comm)
+        self.probes = probe_mod.attach(self.solver, case.probes, comm) if self.solver is not None else []
         self.analyses = [create_analysis(name, case) for name in case.analysis]
         self.load_columns = self.load.columns
         self.history = History(results.root / "history.csv")
@@ -104,19 +109,27 @@ class CaseDriver:
     # ----------------------------------------------------------------- records
     def record(self, step_row: dict[str, float] | None = None) -> None:
         """Append the current state to the history."""
-        s = self.solver
-        row = {"time_s": s.time, "step": float(s.step_count),
+        s, m = self.solver, self.mechanics
+        row = {"time_s": m.time, "step": float(m.step_count),
                "dt_s": step_row["dt_s"] if step_row else 0.0,
                "substeps": step_row.get("substeps", 0.0) if step_row else 0.0,
                "iterations": step_row.get("iterations", 0.0) if step_row else 0.0}
-        row.update({f"energy_{k}": float(v) for k, v in s.energies().items()})
-        row.update(probe_mod.sample(s, self.probes, self.comm))
-        row.update(body_extremes(s, self.comm))
+        row.update({f"energy_{k}": float(v) for k, v in self.energies().items()})
+        if s is not None:
+            row.update(probe_mod.sample(s, self.probes, self.comm))
+            row.update(body_extremes(s, self.comm))
+        if self.rigid is not None:
+            row.update(self.rigid.history())
         for a in self.analyses:
             row.update(a.record(s, row))
         for key in self.load_columns:
             row[key] = step_row.get(key, 0.0) if step_row else 0.0
         self.history.record(row)
+
+    def energies(self) -> dict[str, float]:
+        """The run's energy ledger (J): the explicit solver's, with the rigid bodies' added."""
+        e = self.solver.energies() if self.solver is not None else None
+        return e if self.rigid is None else self.mechanics.energies(e)
 
     def initial_row(self) -> dict[str, float]:
         """The load columns at t = 0 (the first history row): the provider's true initial values
@@ -139,10 +152,12 @@ class CaseDriver:
 
     def _keep_shape(self) -> None:
         """Gather every body's owned node positions on rank 0 (for the shapes plot)."""
-        local = {n: b.x[: b.n_owned].copy() for n, b in self.solver.bodies.items()}
+        local = {n: b.x[: b.n_owned].copy() for n, b in self.solver.bodies.items()} if self.solver is not None else {}
+        if self.rigid is not None:
+            local.update(self.rigid.positions())  # coupled runs are serial
         gathered = self.comm.gather(local, root=0)
         if self.comm.rank == 0:
-            self.shapes.append((self.solver.time, {n: np.vstack([g[n] for g in gathered]) for n in local}))
+            self.shapes.append((self.mechanics.time, {n: np.vstack([g[n] for g in gathered]) for n in local}))
 
     def _rank_file(self) -> str:
         return CHECKPOINT_NAME if self.comm.size == 1 else f"checkpoint.rank{self.comm.rank}.npz"
@@ -187,7 +202,7 @@ class CaseDriver:
         self.part = int(meta["part"]) + 1
         self._since_record = int(meta["since_record"])
         self.wall_before_s = float(meta.get("wall_time_s", 0.0))
-        log.info("resumed at t = %.6g s, step %d (part %d)", self.solver.time, self.solver.step_count, self.part)
+        log.info("resumed at t = %.6g s, step %d (part %d)", self.mechanics.time, self.mechanics.step_count, self.part)
 
     def _check_interrupt(self) -> None:
         """Stop here if a stop signal reached any rank (all ranks stop at the same step)."""
@@ -200,9 +215,9 @@ class CaseDriver:
     # ----------------------------------------------------------------- loop
     def run(self, quiet: bool) -> MechanicsRun:
         """Integrate to ``time.end``; fields, history and checkpoint at every milestone."""
-        s, case = self.solver, self.case
+        s, case = self.mechanics, self.case
         prefix = self.results.fields / (case.case.name + (f"_part{self.part}" if self.part else ""))
-        writer = mech.FieldWriter(s, str(prefix))
+        writer = mech.FieldWriter(self.solver, str(prefix)) if self.solver is not None else _NoFieldWriter()
         em_writer = EMFieldWriter(self.results.fields / (f"em_part{self.part}" if self.part else "em")) \
             if self.load.em_fields and self.comm.rank == 0 else None
         if em_writer is not None:
@@ -268,12 +283,23 @@ class CaseDriver:
             metrics["force_impulse_Ns"] = float(np.linalg.norm(c.impulse))
             metrics["force_impulse_z_Ns"] = float(c.impulse[1])
         metrics.update(self.load.run_metrics(self.history, c))
-        metrics.update(mech_metrics(s, case, self.history))
+        metrics.update(mech_metrics(self.solver, case, self.history, self.energies()))
         for a in self.analyses:
-            metrics.update(a.metrics(s, self.history))
+            metrics.update(a.metrics(self.solver, self.history))
         self.load.close()  # old getdp run folders are deleted in the background: wait for them
         return MechanicsRun(s, self.history, metrics, self.shapes, self.analyses, self.wall_before_s)
 
+
+
+class _NoFieldWriter:
+    """The field writer of a run without deformable bodies: nothing to write (the rigid bodies' motion
+    is in history.csv, their moved EM mesh in fields/em/)."""
+
+    def write(self, t: float) -> None:
+        """Nothing (t in s)."""
+
+    def close(self) -> None:
+        """Nothing."""
 
 
 def _pressure_pulses(case: Case) -> PressurePulses:
@@ -296,15 +322,23 @@ def _coupled_participants(case: Case, results: ResultsFolder, comm: MPI.Comm):
         geometry = build_em_geometry(case.geometry, time_limit=case.limits.gmsh_time_limit_s)
     roles = geometry.conductor_roles()
     subs = {role: conductor_submesh(geometry.mesh, geometry.regions[role]) for role in roles}
-    solver = build_solver(case, comm, {role: to_dolfinx(sub, comm) for role, sub in subs.items()})
+    rigid_roles = {b.region for b in case.bodies if b.rigid}
+    solver = None
+    if len(rigid_roles) < len(roles):
+        solver = build_solver(case, comm, {role: to_dolfinx(sub, comm) for role, sub in subs.items()
+                                           if role not in rigid_roles})
     if case.coupling.load == "pressure":  # same meshes and loop, pressure pulses instead of GetDP
-        return solver, _pressure_pulses(case)
+        return solver, _pressure_pulses(case), None
+    rigid = None
+    if rigid_roles:
+        rigid = RigidMechanics(rigid_bodies(case, subs), _rigid_step(case, geometry, solver))
     scale = float(np.abs(geometry.mesh.points).max())
     bodies = []
     for role in roles:
         name = next(b.name for b in case.bodies if b.region == role)
-        bodies.append(ConductorBody(name, geometry.regions[role], subs[role],
-                                    match_nodes(solver.bodies[name].X0, geometry.mesh.points, 1e-12 * scale)))
+        nodes = subs[role].em_nodes if role in rigid_roles else \
+            match_nodes(solver.bodies[name].X0, geometry.mesh.points, 1e-12 * scale)
+        bodies.append(ConductorBody(name, geometry.regions[role], subs[role], nodes))
     g = case.geometry
     if user_deck:
 
@@ -317,7 +351,23 @@ def _coupled_participants(case: Case, results: ResultsFolder, comm: MPI.Comm):
                          getdp_process=case.em.getdp_process)
     load.solver.timeout = case.limits.getdp_time_limit_s
     load.gmsh_time_limit = case.limits.gmsh_time_limit_s
-    return solver, load
+    return solver, load, rigid
+
+
+def _rigid_step(case: Case, geometry, solver) -> float:
+    """The rigid bodies' mechanical step (s): the deformable bodies' stable step when there are any;
+    without them a period of the source over ``coupling.steps_per_period`` EM steps of ``coupling.n``
+    mechanical steps each (capped by ``time.dt_max``; :mod:`..em.time_scale`)."""
+    if solver is not None:
+        return solver.stable_time_step()
+    turns = [(t.x0, t.y0, t.x1, t.y1) for t in geometry.turns] or None
+    try:
+        dt = source_period(case, turns) / (case.coupling.steps_per_period * case.coupling.n)
+    except ValueError:  # no period to resolve (a user deck's coil on a bank): time.dt_max sets the step
+        if case.time.dt_max is None:
+            raise
+        return case.time.dt_max
+    return dt if case.time.dt_max is None else min(dt, case.time.dt_max)
 
 
 def body_extremes(solver, comm: MPI.Comm) -> dict[str, float]:
@@ -360,19 +410,25 @@ def run_case_loop(case: Case, results: ResultsFolder, *, quiet: bool = False, re
     return driver.run(quiet)
 
 
-def mech_metrics(solver, case: Case, history: History) -> dict[str, float]:
-    """Scalars every mechanics run reports: energy balance, peak stresses, contact figures."""
-    e = solver.energies()
+def mech_metrics(solver, case: Case, history: History, e: dict[str, float]) -> dict[str, float]:
+    """Scalars every mechanics run reports: energy balance (``e``: the run's energy ledger, J), peak
+    stresses, contact figures; the rigid bodies' travel, speed and force (:func:`rigid_metrics`)."""
     ke0 = history.column("energy_kinetic_J")[0]
     scale = max(ke0, abs(e.get("external_work_J", 0.0)), 1e-300)
     out = {
         "energy_error_rel": abs(e["balance_error_J"]) / scale,
         "kinetic_energy_final_J": e["kinetic_J"],
-        "plastic_work_J": e["plastic_J"],
     }
+    if "plastic_J" in e:  # deformable bodies
+        out["plastic_work_J"] = e["plastic_J"]
+    out.update(rigid_metrics(case, history))
+    if solver is None:
+        return out
     local = max((float(np.max(b.von_mises)) for b in solver.bodies.values() if len(b.von_mises)), default=0.0)
     out["von_mises_final_max_MPa"] = solver.comm.allreduce(local, op=MPI.MAX) / 1e6
     for b in case.bodies:
+        if b.rigid:
+            continue
         out[f"{b.name}_max_ux_mm"] = float(history.column(f"{b.name}_max_ux_m").max()) * 1e3
         out[f"{b.name}_max_uy_mm"] = float(history.column(f"{b.name}_max_uy_m").max()) * 1e3
         out[f"{b.name}_max_speed_m_s"] = float(history.column(f"{b.name}_max_speed_m_s").max())

@@ -117,6 +117,27 @@ def plot_time_step(history: History, folder: Path, axis: TimeAxis | None = None)
     return _save(fig, folder / "time_step.png")
 
 
+def plot_rigid_motion(history: History, folder: Path, body: str, axis: TimeAxis | None = None) -> Path:
+    """``<body>_motion.png``: a rigid body's translation (mm), velocity (m/s), acceleration (m/s²) and
+    applied Lorentz force (kN) per free component vs time (the run's time unit), stacked."""
+    axis = _time_axis(history, axis)
+    t = history.column("time_s") * axis.scale
+    quantities = ("position", "velocity", "acceleration", "force")
+    fig, axes = plt.subplots(len(quantities), 1, figsize=(7, 8.5), sharex=True)
+    fig.subplots_adjust(left=0.14, right=0.97, bottom=0.07, top=0.95, hspace=0.12)
+    for ax, q in zip(axes, quantities):
+        cols = [c for c in history.columns if c.startswith(f"{body}_{q}_")]
+        for c in cols:
+            ax.plot(t, shown(c, history.column(c)), lw=1.0, label=c.removeprefix(f"{body}_{q}_").split("_")[0])
+        ax.set_ylabel(f"{q} [{unit_of(cols[0]).shown}]" if cols else q)
+        ax.grid(alpha=0.3)
+        if len(cols) > 1:
+            ax.legend(fontsize=8)
+    axes[0].set_title(f"Rigid body {body}")
+    axes[-1].set_xlabel(axis.label)
+    return _save(fig, folder / f"{body}_motion.png")
+
+
 # ---------------------------------------------------------------------------------------------------
 # every picture of a results folder: the end of a run and `pulseform plot` call this
 
@@ -218,7 +239,11 @@ def draw_all(results_dir: Path, *, case=None, history: History | None = None, sh
         return done
     end = case.time.end if case is not None else float(history.column("time_s")[-1])
     axis = time_axis(end)
-    mech = _picture_module(*PICTURE_MODULES[0], skip)
+    deformable = case is None or any(not b.rigid for b in case.bodies)
+    mech = _picture_module(*PICTURE_MODULES[0], skip) if deformable else None
+    if not deformable:
+        skip("every body is rigid: no field files, no mechanics field pictures (the bodies' motion: "
+             "plots/<body>_motion.png)")
     # the 3D pictures render in a child process while this one draws the rest
     finish_mech = None
     kw = {"renderer": renderer} if renderer is not None else {}
@@ -226,6 +251,9 @@ def draw_all(results_dir: Path, *, case=None, history: History | None = None, sh
     attempt("energies", plot_energies, history, folder, axis)
     attempt("time step", plot_time_step, history, folder, axis)
     attempt("history columns", plot_probes, history, folder, None, axis)
+    for b in case.bodies if case is not None else ():
+        if b.rigid:
+            attempt(f"motion of {b.name}", plot_rigid_motion, history, folder, b.name, axis)
 
     if case is not None and analyses is None:
         analyses = [create(name, case) for name in case.analysis]

@@ -267,7 +267,8 @@ def _dispatch(case: Case, results: ResultsFolder, *, quiet: bool, resume: bool, 
     from .driver import run_case_loop
 
     # the 3D renderer starts now: its imports and graphics start-up (~1 s) overlap the run
-    renderer = _early_renderer() if case.output.plots and comm.rank == 0 else None
+    fields = any(not b.rigid for b in case.bodies)  # rigid bodies write no field files to render
+    renderer = _early_renderer() if case.output.plots and comm.rank == 0 and fields else None
     try:
         run = run_case_loop(case, results, quiet=quiet, resume=resume, comm=comm)
         interrupt.check()  # a signal after the last step still ends with an honest status

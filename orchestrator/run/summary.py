@@ -81,6 +81,13 @@ def headline(case, metrics: dict[str, float], history) -> list[Headline]:
         if disp:
             name = max(disp, key=disp.get)
             out.append(Headline("max displacement", disp[name], "mm", f"({name})"))
+    for b in case.bodies:  # a rigid body: its largest translation along each free component, and when
+        for c in "xy":
+            if f"{b.name}_max_position_{c}_mm" in metrics:
+                t = metrics[f"{b.name}_max_position_{c}_time_s"] * axis.scale
+                out.append(Headline(f"max travel in {'rz'[c == 'y'] if case.mechanics.formulation == 'axisymmetric' else c}",
+                                    metrics[f"{b.name}_max_position_{c}_mm"], "mm",
+                                    f"at {t:.4g} {axis.unit} ({b.name}, rigid)"))
     speeds = {n: metrics[f"{n}_max_speed_m_s"] for n in movers if f"{n}_max_speed_m_s" in metrics}
     if speeds:
         name = max(speeds, key=speeds.get)
@@ -120,5 +127,7 @@ def _energy_lines(bank: float | None, metrics: dict[str, float], history, cols: 
                          f"of the initial kinetic energy ({energy_text(plastic)})")]
     else:
         return []
-    return [Headline("peak kinetic energy", 100.0 * float(ke.max()) / ref, "%", f"{of} ({energy_text(ke.max())})"),
-            Headline("plastic work", 100.0 * plastic / ref, "%", f"{of} ({energy_text(plastic)})")]
+    out = [Headline("peak kinetic energy", 100.0 * float(ke.max()) / ref, "%", f"{of} ({energy_text(ke.max())})")]
+    if "energy_plastic_J" in cols or "plastic_work_J" in metrics:  # not for rigid bodies alone
+        out.append(Headline("plastic work", 100.0 * plastic / ref, "%", f"{of} ({energy_text(plastic)})"))
+    return out

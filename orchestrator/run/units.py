@@ -64,6 +64,7 @@ RULES: tuple[tuple[str, Unit], ...] = (
     (r"(.*_)?(fraction|eps_p|plastic_strain)" + _QUALIFIERS, DIMENSIONLESS),
     (r".*_over_[A-Za-z0-9]+|.*_to_[a-z]+", DIMENSIONLESS),   # clearance_over_R0, final_kinetic_to_elastic
     # --- endings: the unit is the end of the name (longer endings first)
+    (r".*_m_s2", _u("m/s²")),
     (r".*_m_s", _u("m/s")),
     (r".*_Ns", _u("N·s")),
     (r".*_N_m3", _u("N/m³")),
