@@ -22,7 +22,7 @@ from scipy.special import ellipe, ellipk
 MU0 = 4e-7 * math.pi  # vacuum permeability, H/m (the value GetDP's decks use)
 
 __all__ = ["MU0", "mutual_inductance", "mutual_inductance_gradient", "section_mutual_inductance", "ring_self_inductance",
-           "ring_resistance", "RingCircuit", "phasor_ring_current"]
+           "ring_resistance", "coil_inductance", "RingCircuit", "phasor_ring_current"]
 
 
 def _modulus(a, b, z):
@@ -91,6 +91,18 @@ def ring_self_inductance(radius: float, width: float, height: float) -> float:
         raise ValueError(f"ring radius, width and height must be > 0 m, got {radius}, {width}, {height}")
     g = 0.2235 * (width + height)
     return MU0 * radius * (math.log(8.0 * radius / g) - 2.0)
+
+
+def coil_inductance(turns: list[tuple[float, float, float, float]]) -> float:
+    """Low-frequency inductance (H) of coaxial turns in series, each ``(r0, z0, r1, z1)`` (m), one turn
+    each carrying its current uniformly: Σ_i L_i + Σ_(i≠j) M_ij, with Rosa's self-inductance of each
+    turn and Maxwell's mutual inductance averaged over the sections."""
+    total = 0.0
+    for i, a in enumerate(turns):
+        total += ring_self_inductance(0.5 * (a[0] + a[2]), a[2] - a[0], a[3] - a[1])
+        for b in turns[i + 1:]:
+            total += 2.0 * section_mutual_inductance(a, b, n=4)[0]
+    return total
 
 
 def ring_resistance(radius: float, width: float, height: float, sigma: float) -> float:

@@ -17,21 +17,9 @@ import math
 from typing import Sequence
 
 from ..case.model import Case
-from .lumped import ring_self_inductance, section_mutual_inductance
+from .lumped import coil_inductance
 
-__all__ = ["coil_inductance", "source_period"]
-
-
-def coil_inductance(turns: Sequence[tuple[float, float, float, float]]) -> float:
-    """Low-frequency inductance (H) of coaxial turns in series, each ``(r0, z0, r1, z1)`` (m), one turn
-    each carrying its current uniformly: Σ_i L_i + Σ_(i≠j) M_ij, with Rosa's self-inductance of each
-    turn and Maxwell's mutual inductance averaged over the sections (:mod:`.lumped`)."""
-    total = 0.0
-    for i, a in enumerate(turns):
-        total += ring_self_inductance(0.5 * (a[0] + a[2]), a[2] - a[0], a[3] - a[1])
-        for b in turns[i + 1:]:
-            total += 2.0 * section_mutual_inductance(a, b, n=4)[0]
-    return total
+__all__ = ["source_period"]
 
 
 def source_period(case: Case, turns: Sequence[tuple[float, float, float, float]] | None) -> float:

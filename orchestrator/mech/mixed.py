@@ -64,16 +64,17 @@ def rigid_bodies(case: Case, subs: dict[str, ConductorMesh]) -> list[RigidBody]:
     return out
 
 
-def rigid_metrics(case: Case, history) -> dict[str, float]:
-    """Per rigid body and free component c (x or y) from ``history`` (the run's history.csv columns of
-    :meth:`RigidBody.history`): the largest and smallest translation and the final one (mm), the
-    largest speed |v| (m/s) and the largest |force| of its Lorentz forces (N), and when the largest
-    translation was reached (s)."""
+def rigid_metrics(case: Case, history, masses: dict[str, float]) -> dict[str, float]:
+    """Per rigid body its mass (kg, ``masses``) and, per free component c (x or y), from ``history``
+    (the run's history.csv columns of :meth:`RigidBody.history`): the largest and smallest
+    translation and the final one (mm), the largest speed |v| (m/s) and the largest |force| of its
+    Lorentz forces (N), and when the largest translation was reached (s)."""
     out: dict[str, float] = {}
     t = history.column("time_s")
     for b in case.bodies:
         if not b.rigid:
             continue
+        out[f"{b.name}_mass_kg"] = float(masses[b.name])
         speed2 = np.zeros(len(t))
         for c in ("xy"[i] for i in case.rigid_moves(b)):
             u = history.column(f"{b.name}_position_{c}_m")

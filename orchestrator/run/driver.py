@@ -284,6 +284,8 @@ class CaseDriver:
             metrics["force_impulse_z_Ns"] = float(c.impulse[1])
         metrics.update(self.load.run_metrics(self.history, c))
         metrics.update(mech_metrics(self.solver, case, self.history, self.energies()))
+        if self.rigid is not None:
+            metrics.update(rigid_metrics(case, self.history, {n: b.mass for n, b in self.rigid.bodies.items()}))
         for a in self.analyses:
             metrics.update(a.metrics(self.solver, self.history))
         self.load.close()  # old getdp run folders are deleted in the background: wait for them
@@ -421,7 +423,6 @@ def mech_metrics(solver, case: Case, history: History, e: dict[str, float]) -> d
     }
     if "plastic_J" in e:  # deformable bodies
         out["plastic_work_J"] = e["plastic_J"]
-    out.update(rigid_metrics(case, history))
     if solver is None:
         return out
     local = max((float(np.max(b.von_mises)) for b in solver.bodies.values() if len(b.von_mises)), default=0.0)

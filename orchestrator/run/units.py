@@ -76,6 +76,7 @@ RULES: tuple[tuple[str, Unit], ...] = (
     (r".*_A", _u("A", "kA", 1e-3)),
     (r".*_kV", _u("kV")),
     (r".*_V", _u("V", "kV", 1e-3)),
+    (r".*_kg", _u("kg")),
     (r".*_kN", _u("kN")),
     (r".*_N", _u("N", "kN", 1e-3)),
     (r".*_J", _u("J")),
