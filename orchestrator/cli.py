@@ -334,8 +334,23 @@ def _cmd_info(_: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def entry() -> int:
+    """The ``pulseform`` console script (and ``python -m pulseform.orchestrator``): :func:`main` in a
+    process of its own. Started by itself (not by ``mpirun``), the process's MPI is a singleton: Open
+    MPI's settings for an isolated singleton (the ones getdp runs with, ``FAST_MPI_ENV``) cut its start
+    from ~0.4 s to ~0.07 s (measured: ``from mpi4py import MPI``). Set before mpi4py is imported, and
+    only where the user has not set them; under ``mpirun`` nothing changes."""
+    launched = any(k in os.environ for k in ("OMPI_COMM_WORLD_SIZE", "PMI_RANK", "PMIX_RANK", "PMI_SIZE"))
+    if not launched and "mpi4py.MPI" not in sys.modules:
+        from pulseform.solvers.getdp.runner import FAST_MPI_ENV
+
+        for key, value in FAST_MPI_ENV.items():
+            os.environ.setdefault(key, value)
+    return main()
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of the ``pulseform`` console script."""
+    """The ``pulseform`` command with arguments ``argv`` (default: the command line)."""
     args = _parser().parse_args(argv)
     _setup_logging(getattr(args, "quiet", False))
     handlers = {"run": _cmd_run, "check": _cmd_check, "sweep": _cmd_sweep, "info": _cmd_info,
