@@ -25,10 +25,13 @@ def solver_material(m: MaterialTable) -> "mech.Material":
 
 def build_solver(case: Case, comm: MPI.Comm = MPI.COMM_WORLD,
                  region_meshes: dict | None = None, compiled_steps: bool = True) -> "mech.ExplicitSolver":
-    """Mesh every body (or take its region's mesh, cut from the EM mesh) and build the solver
-    (``compiled_steps``: the solver's compiled block path, else its Python step loop)."""
+    """Mesh every deformable body (or take its region's mesh, cut from the EM mesh) and build the
+    solver (``compiled_steps``: the solver's compiled block path, else its Python step loop); rigid
+    bodies are not the solver's (:mod:`.mixed`)."""
     bodies = []
     for b in case.bodies:
+        if b.rigid:
+            continue
         if b.region is not None:
             mesh = (region_meshes or {})[b.region]
         else:

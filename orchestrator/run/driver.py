@@ -289,7 +289,7 @@ class CaseDriver:
         for a in self.analyses:
             metrics.update(a.metrics(self.solver, self.history))
         self.load.close()  # old getdp run folders are deleted in the background: wait for them
-        return MechanicsRun(s, self.history, metrics, self.shapes, self.analyses, self.wall_before_s)
+        return MechanicsRun(self.solver, self.history, metrics, self.shapes, self.analyses, self.wall_before_s)
 
 
 
