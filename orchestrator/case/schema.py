@@ -39,6 +39,8 @@ PLAUSIBLE: dict[str, tuple[float, float]] = {
     "m/s": (1e-12, 1e5),
     "1/s": (1e-12, 1e12),
     "rad/s": (1e-6, 1e12),
+    "Hz": (1e-6, 1e12),
+    "rad": (1e-12, 1e3),
     "S/m": (1e-12, 1e9),
     "V": (1e-6, 1e7),
     "A": (1e-6, 1e8),
