@@ -134,3 +134,18 @@ def test_two_coils_forces_obey_the_parallelogram_law(tmp_path):
         assert cross > 0.05  # the coils interact: the sign changes the force
         assert err < 1e-8
     assert np.all(plus.column("outer_current_A") == -minus.column("outer_current_A"))
+
+
+@pytest.mark.getdp
+def test_two_coils_in_series_on_a_bank(tmp_path):
+    """Both coils on one bank, the outer one reversed: one series current (the outer coil's is its negative,
+    exactly: the deck connects it the other way round), and the bank's charge goes into the discharge."""
+    def on_bank(d):
+        d["em"]["sources"] = [{"name": "bank", "type": "bank", "capacitance": 20e-6, "voltage": 3e3,
+                               "resistance": 5e-3, "inductance": 0.5e-6}]
+        d["em"]["coils"] = [{"name": "inner", "source": "bank"}, {"name": "outer", "source": "bank", "sign": -1}]
+
+    h = _run(tmp_path, "bank", on_bank)
+    inner, outer, vc = h.column("inner_current_A"), h.column("outer_current_A"), h.column("capacitor_voltage_V")
+    assert np.array_equal(inner, -outer) and np.abs(inner).max() > 1e3
+    assert vc[0] == 3e3 and vc[-1] < 3e3  # charged to V0, discharging
