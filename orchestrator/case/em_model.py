@@ -6,6 +6,7 @@ from dataclasses import dataclass
 from operator import attrgetter
 from typing import ClassVar, Literal
 
+from .em_sources import CoilConnection, Source, check_sources
 from .schema import SchemaError, spec
 
 def _check_open_boundary(path: str, extent: float, air: float, shell: float, what: str) -> None:
@@ -204,6 +205,96 @@ class PlanarCoilBlankDie(_ConductorRoles):
         _check_open_boundary(path, extent, self.air_radius, self.shell_radius, "coil/blank/die")
 
 
+Box4 = tuple[float, float, float, float]
+
+
+def _check_box(box: Box4, path: str) -> None:
+    """A rectangle [r0, z0, r1, z1] (m) in the half plane r >= 0 with positive extents."""
+    r0, z0, r1, z1 = box
+    if r0 < 0.0:
+        raise SchemaError(path, f"got r0 = {r0:g}; must be >= 0 (the axis is r = 0) (m)")
+    if r1 <= r0 or z1 <= z0:
+        raise SchemaError(path, f"got [{r0:g}, {z0:g}, {r1:g}, {z1:g}]; need r1 > r0 and z1 > z0 (m)")
+
+
+def _boxes_meet(a: Box4, b: Box4, touching: bool) -> bool:
+    """True if rectangles ``a`` and ``b`` overlap with positive area (or, with ``touching``, share any point)."""
+    if touching:
+        return a[0] <= b[2] and b[0] <= a[2] and a[1] <= b[3] and b[1] <= a[3]
+    return a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3]
+
+
+@dataclass(frozen=True, kw_only=True)
+class CoaxialCoil:
+    """One coil of ``coaxial_coils``: its turns in series, spread uniformly over its winding cross-sections."""
+
+    name: str = spec(doc="the coil's name ([[em.coils]] connects it to a source; history columns <name>_current_A, "
+                         "... with several coils)")
+    turns: int = spec(unit="-", ge=1, doc="turns in series over all its windings (uniform current density in them)")
+    windings: tuple[Box4, ...] = spec(unit="m", doc="winding cross-sections [r0, z0, r1, z1], r >= 0 (one or more)")
+
+
+@dataclass(frozen=True, kw_only=True)
+class CoaxialWorkpiece:
+    """The conducting workpiece of ``coaxial_coils``: a plate/disk (r0 = 0) or a ring, as its (r, z) rectangle."""
+
+    r0: float = spec(unit="m", ge=0.0, doc="inner radius (0: a plate or disk)")
+    z0: float = spec(unit="m", doc="lower face")
+    r1: float = spec(unit="m", gt=0.0, doc="outer radius")
+    z1: float = spec(unit="m", doc="upper face")
+    mesh_size: float = spec(unit="m", gt=0.0, doc="element size in the workpiece")
+
+    def validate(self, path: str) -> None:
+        _check_box((self.r0, self.z0, self.r1, self.z1), path)
+
+    @property
+    def box(self) -> Box4:
+        """[r0, z0, r1, z1] (m)."""
+        return (self.r0, self.z0, self.r1, self.z1)
+
+
+@dataclass(frozen=True, kw_only=True)
+class CoaxialCoils(_ConductorRoles):
+    """Axisymmetric: any number of coaxial coils, each of rectangular windings, and one conducting workpiece
+    (a plate or a ring; EM region ``workpiece``, conductor 1). Each coil is driven by the source that
+    ``[[em.coils]]`` gives it. Air fills a half-disk of radius ``air_radius``; a shell out to
+    ``shell_radius`` maps the open boundary to infinity.
+    """
+
+    type: Literal["coaxial_coils"] = spec(doc="geometry kind")
+    coils: tuple[CoaxialCoil, ...] = spec(doc="[[geometry.coils]] the coils (coil k is physical 100 + k, in this order)")
+    workpiece: CoaxialWorkpiece = spec(doc="[geometry.workpiece] the conducting workpiece")
+    air_radius: float = spec(unit="m", gt=0.0, doc="radius of the meshed air half-disk")
+    shell_radius: float = spec(unit="m", gt=0.0, doc="outer radius of the shell to infinity")
+    mesh_size_coil: float = spec(unit="m", gt=0.0, doc="element size in and near the coils")
+    mesh_size_air: float = spec(unit="m", gt=0.0, doc="element size far away in the air")
+
+    def validate(self, path: str) -> None:
+        if not self.coils:
+            raise SchemaError(f"{path}.coils", "got an empty list; give at least one [[geometry.coils]] entry")
+        names: list[str] = []
+        placed: list[tuple[str, Box4]] = []
+        work = self.workpiece.box
+        for i, c in enumerate(self.coils):
+            if c.name in names:
+                raise SchemaError(f"{path}.coils[{i}].name", f"got {c.name!r}; coil names must be unique")
+            names.append(c.name)
+            if not c.windings:
+                raise SchemaError(f"{path}.coils[{i}].windings", "got an empty list; give at least one [r0, z0, r1, z1]")
+            for j, w in enumerate(c.windings):
+                key = f"{path}.coils[{i}].windings[{j}]"
+                _check_box(w, key)
+                if _boxes_meet(w, work, touching=True):
+                    raise SchemaError(key, "overlaps or touches the workpiece; leave a gap (the workpiece moves, the "
+                                      "coils do not)")
+                for other, box in placed:
+                    if _boxes_meet(w, box, touching=False):
+                        raise SchemaError(key, f"overlaps {other}")
+                placed.append((f"coils[{i}].windings[{j}]", w))
+        corners = [abs(x) for _, b in placed for x in b] + [abs(x) for x in work]
+        _check_open_boundary(path, max(corners), self.air_radius, self.shell_radius, "coils/workpiece")
+
+
 @dataclass(frozen=True, kw_only=True)
 class DeckRegions:
     """Physical-group names of the user's mesh for each role (renumbered to the runner's ids)."""
@@ -253,7 +344,7 @@ class UserDeck(_ConductorRoles):
                               f"shell_inner_radius = {self.shell_inner_radius:g} (m)")
 
 
-Geometry = FlatCoilSheet | SolenoidTube | PlanarCoilBlankDie | UserDeck
+Geometry = FlatCoilSheet | SolenoidTube | PlanarCoilBlankDie | CoaxialCoils | UserDeck
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -282,8 +373,12 @@ class EM:
     coil_conductivity: float = spec(5.8e7, unit="S/m", gt=0.0, doc="coil conductor (copper)")
     coil_density: float = spec(8960.0, unit="kg/m^3", gt=0.0, doc="for the coil's adiabatic heating")
     coil_heat_capacity: float = spec(385.0, unit="J/(kg·K)", gt=0.0, doc="for the coil's adiabatic heating")
-    circuit: CapacitorBank | None = spec(None, doc="capacitor-bank discharge (give this or current)")
-    current: DampedSineCurrent | None = spec(None, doc="prescribed coil current (give this or circuit)")
+    circuit: CapacitorBank | None = spec(None, doc="capacitor-bank discharge (give this, current or sources)")
+    current: DampedSineCurrent | None = spec(None, doc="prescribed coil current (give this, circuit or sources)")
+    sources: tuple[Source, ...] = spec((), doc="[[em.sources]] named current sources and at most one bank (give "
+                                          "these with [[em.coils]], or circuit, or current)")
+    coils: tuple[CoilConnection, ...] = spec((), doc="[[em.coils]] each coil of the geometry on a source, with its "
+                                                 "orientation; coils on a bank are in series on it")
     keep_runs: bool = spec(False, doc="keep every getdp run folder (default: the last two)")
     time_scheme: Literal["euler", "bdf2"] = spec(
         "euler", doc="EM time scheme: 'euler' (implicit Euler, first order: damps the bank's ringing by "
@@ -298,8 +393,15 @@ class EM:
                                      "fraction of the fresh mesh's worst")
 
     def validate(self, path: str) -> None:
-        if (self.circuit is None) == (self.current is None):
-            raise SchemaError(f"{path}.circuit", "give exactly one of circuit (capacitor bank) or current")
+        given = [k for k in ("circuit", "current", "sources") if getattr(self, k)]
+        if len(given) != 1:
+            raise SchemaError(f"{path}.{given[1] if given else 'circuit'}", "give exactly one of circuit (capacitor "
+                              "bank), current or [[em.sources]] with [[em.coils]]")
+        if self.sources:
+            check_sources(self.sources, self.coils, path)
+        elif self.coils:
+            raise SchemaError(f"{path}.coils", "[[em.coils]] connect coils to [[em.sources]]: give the sources "
+                              "(or drop the coils and keep em.circuit / em.current)")
         if self.getdp_process == "persistent" and self.time_scheme != "bdf2":
             raise SchemaError(f"{path}.getdp_process", "got 'persistent'; the persistent getdp implements "
                               "em.time_scheme = 'bdf2' only: set it, or getdp_process = 'auto' or 'per_step'")

@@ -72,6 +72,14 @@ def _geometry_regions(g) -> list[Region]:
         if g.outer_tube is not None:
             o = g.outer_tube
             out.append(Region("geometry.outer_tube.mesh_size", o.thickness * o.length, o.mesh_size, o.thickness))
+    elif g.type == "coaxial_coils":
+        w = g.workpiece
+        windings = [b for c in g.coils for b in c.windings]
+        return [Region("geometry.workpiece.mesh_size", (w.r1 - w.r0) * (w.z1 - w.z0), w.mesh_size,
+                       min(w.r1 - w.r0, w.z1 - w.z0)),
+                Region("geometry.mesh_size_coil", sum((b[2] - b[0]) * (b[3] - b[1]) for b in windings),
+                       g.mesh_size_coil, min(min(b[2] - b[0], b[3] - b[1]) for b in windings)),
+                Region("geometry.mesh_size_air", air, g.mesh_size_air)]
     elif g.type == "planar_coil_blank_die":
         out = [Region("geometry.mesh_size_blank", g.blank_half_width * g.blank_thickness, g.mesh_size_blank,
                       g.blank_thickness)]
@@ -91,7 +99,7 @@ def _body_regions(case) -> list[Region]:
     g = case.geometry
     geo = {r.key: r for r in _geometry_regions(g)} if g is not None else {}
     key = {"workpiece": {"flat_coil_sheet": "mesh_size_sheet", "solenoid_tube": "mesh_size_tube",
-                         "planar_coil_blank_die": "mesh_size_blank"},
+                         "planar_coil_blank_die": "mesh_size_blank", "coaxial_coils": "workpiece.mesh_size"},
            "die": {"flat_coil_sheet": "die.mesh_size", "planar_coil_blank_die": "mesh_size_die"},
            "outer_tube": {"solenoid_tube": "outer_tube.mesh_size"}}
     out = []

@@ -10,6 +10,7 @@ from typing import Any
 import tomli_w
 
 from .deck_files import resolve_deck_paths
+from .em_sources import resolve_source_files
 from .errors import MAX_MESSAGE, CaseError, one_line  # noqa: F401  (the case-file API)
 from .model import Case
 from .schema import SchemaError, from_dict, shorten, to_dict
@@ -196,6 +197,7 @@ def load_case(path: str | Path, overrides: list[str] | tuple[str, ...] = ()) -> 
             raise
         raise CaseError(source, "geometry", f"cannot resolve mesh/pro: {getattr(exc, 'strerror', None) or exc}") \
             from None
+    resolve_source_files(data, file, source)
     try:
         case = from_dict(Case, data)
     except SchemaError as exc:

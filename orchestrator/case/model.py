@@ -15,6 +15,7 @@ from typing import Literal
 from .analysis_names import ANALYSES
 from .em_model import (EM, CapacitorBank, DampedSineCurrent, FlatCoilSheet, Geometry, OuterTube, PlanarCoilBlankDie,
                       SheetDie, SolenoidTube)
+from .em_sources import check_coils
 from .guards import check_resources
 from .parts import (Box, BodyTable, ContactPair, EndStopTable, FixedBoundary, Polygon, Rectangle, RigidWall, Shape,
                     Vec2, check_file_name, rigid_moves, validate_rigid)
@@ -331,6 +332,7 @@ class Case:
             if self.em.time_scheme == "bdf2" and self.coupling.em_substeps != 1:
                 raise SchemaError("coupling.em_substeps", f"got {self.coupling.em_substeps}; em.time_scheme = "
                                   "'bdf2' takes one step per getdp run: use 1 (and a smaller coupling.n)")
+            check_coils(self)
             if self.geometry.planar and self.em.circuit is not None:
                 raise SchemaError("em.circuit", "planar geometries are per metre of depth: give a prescribed "
                                   "em.current (a capacitor bank would need the coil's length)")

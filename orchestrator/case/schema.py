@@ -41,6 +41,8 @@ PLAUSIBLE: dict[str, tuple[float, float]] = {
     "kg": (1e-12, 1e6),
     "1/s": (1e-12, 1e12),
     "rad/s": (1e-6, 1e12),
+    "Hz": (1e-6, 1e12),
+    "rad": (1e-12, 1e3),
     "S/m": (1e-12, 1e9),
     "V": (1e-6, 1e7),
     "A": (1e-6, 1e8),

@@ -23,6 +23,7 @@ there the EM time step, not the hold, dominates the error at large n; BDF2 is se
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import logging
 import threading
@@ -55,6 +56,20 @@ LOAD_COLUMNS_COUPLED = ("force_x_N", "force_y_N", "conservation_error_rel", "coi
                         "capacitor_voltage_V", "coil_joule_heat_J", "coil_temperature_rise_K",
                         "magnetic_energy_J", "workpiece_joule_power_W", "getdp_force_z_N",
                         "em_mesh_min_quality", "em_remeshes")
+#: with several coils: the columns shared by all coils (coil_current_abs_max_A: the largest |current| of
+#: any coil over the EM step), then :data:`COIL_COLUMNS` per coil, prefixed by its name
+LOAD_COLUMNS_SHARED = ("force_x_N", "force_y_N", "conservation_error_rel", "coil_current_abs_max_A",
+                       "capacitor_voltage_V", "magnetic_energy_J", "workpiece_joule_power_W", "getdp_force_z_N",
+                       "em_mesh_min_quality", "em_remeshes")
+COIL_COLUMNS = ("current_A", "voltage_V", "joule_heat_J", "temperature_rise_K")
+
+
+def coupled_columns(coil_names: list[str]) -> tuple[str, ...]:
+    """History columns of a GetDP load: :data:`LOAD_COLUMNS_COUPLED` for one coil (today's names), else
+    :data:`LOAD_COLUMNS_SHARED` and ``<coil>_current_A``, ``<coil>_voltage_V``, ... per coil."""
+    if len(coil_names) <= 1:
+        return LOAD_COLUMNS_COUPLED
+    return LOAD_COLUMNS_SHARED + tuple(f"{n}_{c}" for n in coil_names for c in COIL_COLUMNS)
 
 
 class GetDPLoad(EMSnapshots, LoadCapabilities):
@@ -100,6 +115,9 @@ class GetDPLoad(EMSnapshots, LoadCapabilities):
         self.axisymmetric = not geometry.planar
         self.scale = 1.0 if self.axisymmetric else float(depth)
         self.solver = make_em_solver(model, work_dir, time_scheme, getdp_process)
+        #: coil names of the history columns (several coils: one column set per coil)
+        self.coil_names = [c.name or f"coil{k}" for k, c in enumerate(model.coils, start=1)]
+        self.columns = coupled_columns(self.coil_names)
         self.state = self.solver.initial_state(0.0)
         # the bodies' material coordinates
         self.X0 = {b.name: geometry.mesh.points[b.body_to_em].copy() for b in self.bodies}
@@ -128,10 +146,11 @@ class GetDPLoad(EMSnapshots, LoadCapabilities):
 
     def _set_mesh(self, mesh) -> None:
         """Use ``mesh`` (current configuration) as the reference of the mesh motion."""
-        self.geometry = EMGeometry(mesh, self.geometry.regions, self.geometry.turns, self.geometry.planar)
+        self.geometry = dataclasses.replace(self.geometry, mesh=mesh)
         self.x_ref = mesh.points.copy()
+        coil_tags = [tag for tag, _ in self.geometry.coil_turns()]
         fixed = np.unique(np.concatenate([
-            mesh.triangles[mesh.tri_tags == self.geometry.regions["coil"]].ravel(),
+            mesh.triangles[np.isin(mesh.tri_tags, coil_tags)].ravel(),
             mesh.triangles[mesh.tri_tags == SHELL_TAG].ravel(),
             mesh.lines[mesh.line_tags == OUTER_TAG].ravel()] + [b.body_to_em for b in self.bodies]))
         axis = np.unique(mesh.lines[mesh.line_tags == AXIS_TAG].ravel())  # slide along the axis/symmetry line
@@ -146,8 +165,8 @@ class GetDPLoad(EMSnapshots, LoadCapabilities):
             cur[b.body_to_em] = positions[b.name][:, :2]
             parts.append((cur[b.sub.em_nodes], b.sub.cells, b.tag))
         g = self.solver.model
-        mesh, indices = remesh_around(parts, self.geometry.regions["coil"], self.geometry.turns, g.shell[0],
-                                      g.shell[1], *self.sizes, time_limit=self.gmsh_time_limit)
+        mesh, indices = remesh_around(parts, self.geometry.coil_turns(), g.shell[0], g.shell[1], *self.sizes,
+                                      time_limit=self.gmsh_time_limit)
         mesh.names = dict(self.geometry.mesh.names)
         self.material = mesh.points.copy()
         for b, (pts, _, _), index in zip(self.bodies, parts, indices):
@@ -217,7 +236,9 @@ class GetDPLoad(EMSnapshots, LoadCapabilities):
         return LoadStep(forces, integral, self._values(result, getdp_total))
 
     def _values(self, result, getdp_total: np.ndarray) -> dict[str, float]:
-        """History values of an EM step (circuit, energies, the workpiece's GetDP force)."""
+        """History values of an EM step (circuit, energies, the workpiece's GetDP force; per coil with several)."""
+        if len(self.coil_names) > 1:
+            return self._coil_values(result, getdp_total)
         return {
             "coil_current_A": float(result.coil_current[-1, 0]),
             "coil_current_abs_max_A": float(np.abs(result.coil_current[:, 0]).max()),
@@ -232,12 +253,40 @@ class GetDPLoad(EMSnapshots, LoadCapabilities):
             "em_remeshes": float(self.remeshes),
         }
 
+    def _coil_values(self, result, getdp_total: np.ndarray) -> dict[str, float]:
+        """:meth:`_values` with several coils: the shared columns, then each coil's."""
+        out = {
+            "coil_current_abs_max_A": float(np.abs(result.coil_current).max()),
+            "capacitor_voltage_V": float(result.capacitor_voltage[-1]) if result.capacitor_voltage is not None else 0.0,
+            "magnetic_energy_J": float(result.magnetic_energy[-1]),
+            "workpiece_joule_power_W": float(result.conductor_power[-1, 0]),
+            "getdp_force_z_N": float(self.scale * getdp_total[1]),
+            "em_mesh_min_quality": float(self.mover.last_min_quality),
+            "em_remeshes": float(self.remeshes),
+        }
+        for k, name in enumerate(self.coil_names):
+            out.update({f"{name}_current_A": float(result.coil_current[-1, k]),
+                        f"{name}_voltage_V": float(result.coil_voltage[-1, k]),
+                        f"{name}_joule_heat_J": float(result.coil_heat[k]),
+                        f"{name}_temperature_rise_K": float(result.coil_temperature_rise[k])})
+        return out
+
     def initial(self, mechanics) -> LoadStep:
         """The EM state at t = 0 for the history's first row: the circuit as it starts (current 0,
         a bank charged to V0), no field yet (no force, magnetic energy or Joule power), the fresh
         mesh's quality. The coil voltage is the one before the switch closes (0 V): it jumps to
         about V0·L_coil/(L_coil + L_ext) as the discharge starts, which the first EM step shows."""
         s = self.state
+        if len(self.coil_names) > 1:
+            signs = [c.sign for c in self.solver.model.coils]
+            values = {"coil_current_abs_max_A": abs(float(s.current)), "capacitor_voltage_V": float(s.capacitor_voltage),
+                      "magnetic_energy_J": 0.0, "workpiece_joule_power_W": 0.0, "getdp_force_z_N": 0.0,
+                      "em_mesh_min_quality": float(self.mover.q_ref.min()), "em_remeshes": float(self.remeshes)}
+            for k, name in enumerate(self.coil_names):
+                values.update({f"{name}_current_A": signs[k] * float(s.current), f"{name}_voltage_V": 0.0,
+                               f"{name}_joule_heat_J": float(s.coil_heat[k]) if s.coil_heat else 0.0,
+                               f"{name}_temperature_rise_K": 0.0})
+            return LoadStep({}, None, values)
         return LoadStep({}, None, {
             "coil_current_A": float(s.current),
             "coil_current_abs_max_A": abs(float(s.current)),
@@ -253,20 +302,25 @@ class GetDPLoad(EMSnapshots, LoadCapabilities):
         })
 
     # ------------------------------------------------------------------ field snapshots
-    columns = LOAD_COLUMNS_COUPLED
+    columns = LOAD_COLUMNS_COUPLED  # the one-coil columns; an instance with several coils has its own
     em_fields = True
 
     def run_metrics(self, history, counters) -> dict[str, float]:
-        """EM figures of a coupled run from its history (current, heat, conservation) and the EM timers."""
+        """EM figures of a coupled run from its history (current, heat, conservation) and the EM timers;
+        with several coils the heat and temperature rise per coil (``<coil>_joule_heat_J``, ...) and the
+        peak current of each (``<coil>_current_peak_kA``, at the ends of the EM steps)."""
         current = history.column("coil_current_abs_max_A")
-        return {
-            "coil_current_peak_kA": float(np.abs(current).max()) / 1e3,
-            "coil_joule_heat_J": float(history.column("coil_joule_heat_J")[-1]),
-            "coil_temperature_rise_K": float(history.column("coil_temperature_rise_K")[-1]),
-            "conservation_error_rel": float(counters.ledger_max),
-            "em_time_s": float(counters.em_time_s),
-            **{f"em_{k}": v for k, v in self.timers.items()},
-        }
+        out = {"coil_current_peak_kA": float(np.abs(current).max()) / 1e3}
+        if len(self.coil_names) > 1:
+            for name in self.coil_names:
+                out[f"{name}_current_peak_kA"] = float(np.abs(history.column(f"{name}_current_A")).max()) / 1e3
+                for col in ("joule_heat_J", "temperature_rise_K"):
+                    out[f"{name}_{col}"] = float(history.column(f"{name}_{col}")[-1])
+        else:
+            out["coil_joule_heat_J"] = float(history.column("coil_joule_heat_J")[-1])
+            out["coil_temperature_rise_K"] = float(history.column("coil_temperature_rise_K")[-1])
+        return {**out, "conservation_error_rel": float(counters.ledger_max), "em_time_s": float(counters.em_time_s),
+                **{f"em_{k}": v for k, v in self.timers.items()}}
 
     def _prune(self, newest: Path) -> None:
         """Delete run folders older than the last two, except the one the last checkpoint needs."""

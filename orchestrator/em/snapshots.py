@@ -59,7 +59,8 @@ class EMSnapshots:
         candidate standing in should the prediction miss (logged)."""
         if result.coil_current.shape[1] == 0:
             return
-        current = float(result.coil_current[-1, 0])
+        last = result.coil_current[-1]
+        current = float(last[int(np.argmax(np.abs(last)))])  # the coil with the largest |current| (one coil: it)
         expire = self.solver.fields_expire
         p = self._peak
         if p is not None and p["t"] == t1:  # a repeated (iterated) EM step replaces its earlier try

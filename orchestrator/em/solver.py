@@ -2,25 +2,70 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
-from pulseform.solvers.getdp import Circuit, Coil, Conductor, DampedSine, EMModel, GetDPSolver
+from pulseform.solvers.getdp import Circuit, Coil, Conductor, CurrentTable, DampedSine, EMModel, GetDPSolver
 
+from ..case.em_sources import BankSource, DCSource, SineSource, TableSource, read_current_table
 from ..case.model import Case
 
 
+def source_waveform(source: SineSource | DCSource | TableSource) -> DampedSine | CurrentTable:
+    """The GetDP waveform of a prescribed ``[[em.sources]]`` entry (A over s): a sine is
+    I0 e^(−β (t − t_on)) sin(2π f (t − t_on) + φ), a direct current I is ω = 0, φ = π/2 (sin = 1 exactly),
+    a table is read from its CSV file (already checked by the case loader)."""
+    if isinstance(source, SineSource):
+        return DampedSine(I0=source.amplitude, beta=source.decay, omega=2.0 * math.pi * source.frequency,
+                          phase=source.phase, t_on=source.t_on)
+    if isinstance(source, DCSource):
+        return DampedSine(I0=source.current, beta=0.0, omega=0.0, phase=0.5 * math.pi, t_on=source.t_on)
+    if isinstance(source, TableSource):
+        return CurrentTable(*read_current_table(source.file))
+    raise TypeError(f"not a prescribed source: {source!r}")
+
+
+def _coils(case: Case) -> tuple[list[Coil], Circuit | None]:
+    """The coils of a coupled case in the mesh's coil order (coil k is physical 100 + k), and the circuit."""
+    em, g = case.em, case.geometry
+    kw = {"sigma": em.coil_conductivity, "density": em.coil_density, "heat_capacity": em.coil_heat_capacity}
+    if not em.sources:  # em.circuit or em.current: the geometry's one coil
+        wave = None
+        if em.current is not None:
+            wave = DampedSine(I0=em.current.amplitude, beta=em.current.beta, omega=em.current.omega)
+        circuit = None
+        if em.circuit is not None:
+            c = em.circuit
+            circuit = Circuit(C=c.capacitance, V0=c.voltage, R_ext=c.resistance, L_ext=c.inductance)
+        return [Coil(turns=g.turns, waveform=wave, **kw)], circuit
+    sources = {s.name: s for s in em.sources}
+    connection = {c.name: c for c in em.coils}
+    if g.type == "coaxial_coils":
+        shapes = [(c.name, c.turns) for c in g.coils]
+    else:
+        shapes = [(em.coils[0].name, g.turns)]
+    coils, circuit = [], None
+    for name, turns in shapes:
+        con = connection[name]
+        src = sources[con.source]
+        if isinstance(src, BankSource):
+            circuit = Circuit(C=src.capacitance, V0=src.voltage, R_ext=src.resistance, L_ext=src.inductance)
+            wave = None
+        else:
+            wave = source_waveform(src)
+        coils.append(Coil(turns=turns, waveform=wave, sign=con.sign, name=name, **kw))
+    return coils, circuit
+
+
 def em_model(case: Case, shell: tuple[float, float] | None) -> EMModel:
-    """The GetDP model of a coupled case: one stranded coil, the conductor bodies as massive
+    """The GetDP model of a coupled case: its stranded coils (the geometry's one coil on em.circuit or
+    em.current, or every coil on its [[em.sources]] entry with its sign), the conductor bodies as massive
     conductors 1, 2, ... in the geometry's conductor order (workpiece first).
 
     ``shell``: inner and outer radius (m) of the shell transformation to infinity, or None.
     """
-    em, g = case.em, case.geometry
-    wave = None
-    if em.current is not None:
-        wave = DampedSine(I0=em.current.amplitude, beta=em.current.beta, omega=em.current.omega)
-    coil = Coil(turns=g.turns, sigma=em.coil_conductivity, waveform=wave, density=em.coil_density,
-                heat_capacity=em.coil_heat_capacity)
+    g = case.geometry
+    coils, circuit = _coils(case)
     conductors = []
     for role in g.conductor_roles():
         body = next(b for b in case.bodies if b.region == role)
@@ -28,11 +73,7 @@ def em_model(case: Case, shell: tuple[float, float] | None) -> EMModel:
         if sigma <= 0.0:
             raise ValueError(f"materials.{body.material}.electrical_conductivity must be > 0 for the {role}")
         conductors.append(Conductor(sigma=sigma, name=body.name))
-    circuit = None
-    if em.circuit is not None:
-        c = em.circuit
-        circuit = Circuit(C=c.capacitance, V0=c.voltage, R_ext=c.resistance, L_ext=c.inductance)
-    return EMModel(axisymmetric=not g.planar, coils=[coil], conductors=conductors, circuit=circuit, shell=shell)
+    return EMModel(axisymmetric=not g.planar, coils=coils, conductors=conductors, circuit=circuit, shell=shell)
 
 
 def make_em_solver(model: EMModel, work_dir: Path, time_scheme: str, getdp_process: str, **kw) -> GetDPSolver:

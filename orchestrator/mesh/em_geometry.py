@@ -10,13 +10,14 @@ its nodes and the force transfer is exact.
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from pulseform.solvers.getdp import EMMesh, Rect, coil_conductor_mesh, coil_tag, conductor_tag
 from pulseform.solvers.getdp.runner import call_in_child
 
+from ..case.em_model import CoaxialCoils
 from ..case.model import FlatCoilSheet, Geometry, PlanarCoilBlankDie, SolenoidTube
 
 log = logging.getLogger(__name__)
@@ -24,8 +25,10 @@ log = logging.getLogger(__name__)
 
 @dataclass
 class EMGeometry:
-    """The meshed EM setup: mesh, region ids by role (coil and conductors), turn rectangles.
+    """The meshed EM setup: mesh, region ids by role (coil 1 and conductors), turn rectangles (m).
 
+    ``turns`` are coil 1's (``regions["coil"]``); ``more_coils`` the turn rectangles of coils 2, 3, ...
+    (physical ids ``coil_tag(2)``, ...), empty for the one-coil geometries.
     ``planar``: a plane half model (a_z, per metre of depth) instead of an axisymmetric one.
     """
 
@@ -33,10 +36,15 @@ class EMGeometry:
     regions: dict[str, int]
     turns: list[Rect]
     planar: bool = False
+    more_coils: list[list[Rect]] = field(default_factory=list)
 
     def conductor_roles(self) -> list[str]:
         """The conductor roles, in conductor order (physical ids 201, 202, ...)."""
         return sorted((r for r in self.regions if r != "coil"), key=self.regions.__getitem__)
+
+    def coil_turns(self) -> list[tuple[int, list[Rect]]]:
+        """(physical id, turn rectangles) of every coil, coil 1 first."""
+        return [(self.regions["coil"], self.turns)] + [(coil_tag(k), t) for k, t in enumerate(self.more_coils, start=2)]
 
 
 def flat_coil_turns(g: FlatCoilSheet) -> list[Rect]:
@@ -88,6 +96,8 @@ def build_em_geometry(g: Geometry, time_limit: float | None = None) -> EMGeometr
     :func:`~pulseform.solvers.getdp.runner.call_in_child`.
     """
     conductors, sizes = [], []
+    if isinstance(g, CoaxialCoils):
+        return _build_coaxial_coils(g, time_limit)
     if isinstance(g, FlatCoilSheet):
         turns = flat_coil_turns(g)
         conductors.append(Rect(0.0, g.coil_gap, g.sheet_radius, g.coil_gap + g.sheet_thickness))
@@ -121,3 +131,24 @@ def build_em_geometry(g: Geometry, time_limit: float | None = None) -> EMGeometr
     log.info("EM mesh (%s): %d nodes, %d triangles, groups %s", g.type, mesh.n_nodes, len(mesh.triangles),
              ", ".join(f"{n} ({t})" for t, n in sorted(mesh.names.items())))
     return EMGeometry(mesh, regions, turns, planar=g.planar)
+
+
+def coaxial_coil_turns(g: CoaxialCoils) -> list[list[Rect]]:
+    """The winding rectangles (m) of every coil of ``coaxial_coils``, in the geometry's coil order."""
+    return [[Rect(*w) for w in c.windings] for c in g.coils]
+
+
+def _build_coaxial_coils(g: CoaxialCoils, time_limit: float | None) -> EMGeometry:
+    """Mesh ``coaxial_coils``: coil k (its windings) is physical ``coil_tag(k)``, named after the coil; the
+    workpiece is conductor 1 (201, ``workpiece``)."""
+    coils = coaxial_coil_turns(g)
+    names = {coil_tag(k): c.name for k, c in enumerate(g.coils, start=1)}
+    names[conductor_tag(1)] = "workpiece"
+    mesh = call_in_child(coil_conductor_mesh, coils, [Rect(*g.workpiece.box)], axisymmetric=True, half=True,
+                         r_domain=g.air_radius, r_shell=g.shell_radius, h_fine=g.mesh_size_coil,
+                         h_coarse=g.mesh_size_air, h_conductor=[g.workpiece.mesh_size], names=names,
+                         time_limit=time_limit, what=f"meshing the {g.type} EM geometry with gmsh")
+    log.info("EM mesh (%s): %d nodes, %d triangles, %d coils, groups %s", g.type, mesh.n_nodes, len(mesh.triangles),
+             len(coils), ", ".join(f"{n} ({t})" for t, n in sorted(mesh.names.items())))
+    return EMGeometry(mesh, {"coil": coil_tag(1), "workpiece": conductor_tag(1)}, coils[0], planar=False,
+                      more_coils=coils[1:])

@@ -43,7 +43,7 @@ def boundary_loop(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
     return np.array(loop)
 
 
-def remesh_around(parts: list[tuple[np.ndarray, np.ndarray, int]], coil_tag: int, turns: list[Rect],
+def remesh_around(parts: list[tuple[np.ndarray, np.ndarray, int]], coils: list[tuple[int, list[Rect]]],
                   r_domain: float, r_shell: float, h_coil: float, h_air: float,
                   time_limit: float | None = None) -> tuple[EMMesh, list[np.ndarray]]:
     """New half-disk EM mesh (x >= 0) around conductor bodies in their current configuration.
@@ -55,8 +55,8 @@ def remesh_around(parts: list[tuple[np.ndarray, np.ndarray, int]], coil_tag: int
     ----------
     parts : list of (points, cells, tag)
         Each conductor body: its node coordinates (m), triangles, and physical id.
-    coil_tag, turns : int, list of Rect
-        The coil's physical id and turn rectangles (m).
+    coils : list of (int, list of Rect)
+        Each coil's physical id and turn rectangles (m).
     r_domain, r_shell : float
         Radii (m) of the air half-disk and of the shell's outer boundary.
     h_coil, h_air : float
@@ -67,14 +67,14 @@ def remesh_around(parts: list[tuple[np.ndarray, np.ndarray, int]], coil_tag: int
     (EMMesh, list of ndarray)
         The mesh, and per part, for each of its nodes (row of its ``points``) the node index in the mesh.
     """
-    mesh, indices = call_in_child(_remesh_with_gmsh, parts, coil_tag, turns, r_domain, r_shell, h_coil, h_air,
+    mesh, indices = call_in_child(_remesh_with_gmsh, parts, coils, r_domain, r_shell, h_coil, h_air,
                                   time_limit=time_limit, what="remeshing the EM air with gmsh")
     log.info("EM remesh: %d nodes, %d triangles (%d in the conductor bodies)", len(mesh.points), len(mesh.triangles),
              sum(len(c) for _, c, _ in parts))
     return mesh, indices
 
 
-def _remesh_with_gmsh(parts, coil_tag, turns, r_domain, r_shell, h_coil, h_air) -> tuple[EMMesh, list[np.ndarray]]:
+def _remesh_with_gmsh(parts, coils, r_domain, r_shell, h_coil, h_air) -> tuple[EMMesh, list[np.ndarray]]:
     """The gmsh part of :func:`remesh_around` (runs in the child process; does not log)."""
     loops = [boundary_loop(pts, cells) for pts, cells, _ in parts]
     segs = [np.linalg.norm(pts[np.roll(lp, -1)] - pts[lp], axis=1) for (pts, _, _), lp in zip(parts, loops)]
@@ -90,20 +90,24 @@ def _remesh_with_gmsh(parts, coil_tag, turns, r_domain, r_shell, h_coil, h_air) 
             pts = [occ.addPoint(x, y, 0.0, float(h)) for (x, y), h in zip(pts_all[lp], seg)]
             lines = [occ.addLine(pts[i], pts[(i + 1) % len(pts)]) for i in range(len(pts))]
             bodies.append(occ.addPlaneSurface([occ.addCurveLoop(lines)]))
-        coil = [occ.addRectangle(r.x0, r.y0, 0, r.x1 - r.x0, r.y1 - r.y0) for r in turns]
-        tools = [(2, w) for w in bodies] + [(2, c) for c in coil] + [(2, inner)]
+        coil = [(tag, occ.addRectangle(r.x0, r.y0, 0, r.x1 - r.x0, r.y1 - r.y0)) for tag, turns in coils for r in turns]
+        tools = [(2, w) for w in bodies] + [(2, c) for _, c in coil] + [(2, inner)]
         _, out_map = occ.fragment([(2, outer)], tools)
         occ.synchronize()
         nb = len(bodies)
         work_surfs = {p[1] for m in out_map[1:1 + nb] for p in m}
-        coil_surfs = {p[1] for m in out_map[1 + nb:1 + nb + len(coil)] for p in m}
+        by_coil: dict[int, set[int]] = {}
+        for (tag, _), m in zip(coil, out_map[1 + nb:1 + nb + len(coil)]):
+            by_coil.setdefault(tag, set()).update(p[1] for p in m)
+        coil_surfs = set().union(*by_coil.values()) if by_coil else set()
         inner_surfs = {p[1] for p in out_map[-1]}
         air, shell = [], []
         for _, s in gmsh.model.getEntities(2):
             if s in work_surfs or s in coil_surfs:
                 continue
             (air if s in inner_surfs else shell).append(s)
-        gmsh.model.addPhysicalGroup(2, sorted(coil_surfs), coil_tag)
+        for tag, surfs in by_coil.items():
+            gmsh.model.addPhysicalGroup(2, sorted(surfs), tag)
         gmsh.model.addPhysicalGroup(2, air, AIR)
         gmsh.model.addPhysicalGroup(2, shell, SHELL)
         tol = 1e-6 * r_shell  # OCC bounding boxes carry its tolerance (~1e-7)

@@ -54,6 +54,9 @@ class Coil:
 
     ``waveform`` is used without a circuit; with a circuit it must be None.
     ``density`` and ``heat_capacity`` (copper defaults) give the adiabatic temperature rise.
+    ``sign``: the coil's orientation, +1 or -1 (wound the other way): its current is ``sign`` times
+    its waveform, or ``sign`` times the circuit's current (the deck connects it the other way round).
+    ``name``: what the coil is called (history columns), free text.
     """
 
     turns: int
@@ -61,10 +64,14 @@ class Coil:
     waveform: DampedSine | CurrentTable | None = None
     density: float = 8960.0
     heat_capacity: float = 385.0
+    sign: int = 1
+    name: str = ""
 
     def __post_init__(self):
         if isinstance(self.waveform, dict):
             self.waveform = (CurrentTable if "times" in self.waveform else DampedSine)(**self.waveform)
+        if self.sign not in (1, -1):
+            raise ValueError(f"a coil's sign is +1 or -1, got {self.sign!r}")
 
 
 @dataclass

@@ -322,6 +322,8 @@ class GetDPSolver:
             nb[f"Coil_Ns_{k}"] = c.turns
             nb[f"Coil_Sc_{k}"] = area
             nb[f"Coil_sigma_{k}"] = c.sigma
+            if c.sign != 1:  # the deck's default is +1
+                nb[f"Coil_Sign_{k}"] = c.sign
             if isinstance(c.waveform, DampedSine):
                 nb.update({f"Coil_Wave_{k}": 0, f"Coil_I0_{k}": c.waveform.I0,
                            f"Coil_beta_{k}": c.waveform.beta, f"Coil_omega_{k}": c.waveform.omega,

@@ -59,3 +59,31 @@ def test_mechanical_mesh_shares_the_em_nodes(sheet_geometry):
     assert dm.topology.index_map(2).size_local == len(sub.rows)
     with pytest.raises(ValueError, match="do not share nodes"):
         match_nodes(x + 1e-6, m.points, tol=1e-9)
+
+
+def test_coaxial_coils_regions_and_a_remesh_keep_every_coil():
+    """coaxial_coils: coil k is physical 100 + k with exactly its windings' area, the workpiece 201 its
+    rectangle; a remesh around the (moved) workpiece meshes every coil again with the same areas."""
+    from pulseform.orchestrator.case.em_model import CoaxialCoils
+    from pulseform.orchestrator.case.schema import from_dict
+    from pulseform.orchestrator.mesh.remesh import remesh_around
+
+    g = from_dict(CoaxialCoils, {
+        "type": "coaxial_coils", "air_radius": 0.1, "shell_radius": 0.13, "mesh_size_coil": 2e-3,
+        "mesh_size_air": 0.02, "workpiece": {"r0": 5e-3, "z0": 1e-3, "r1": 40e-3, "z1": 2e-3, "mesh_size": 1e-3},
+        "coils": [{"name": "a", "turns": 3, "windings": [[8e-3, -3e-3, 14e-3, 0.0]]},
+                  {"name": "b", "turns": 2, "windings": [[20e-3, -3e-3, 24e-3, 0.0], [26e-3, -2e-3, 30e-3, 0.0]]}]},
+        "geometry")
+    geo = build_em_geometry(g)
+    m = geo.mesh
+    areas = {101: 6e-3 * 3e-3, 102: 4e-3 * 3e-3 + 4e-3 * 2e-3, 201: 35e-3 * 1e-3}
+    assert [t for t, _ in geo.coil_turns()] == [101, 102] and geo.conductor_roles() == ["workpiece"]
+    assert m.names[101] == "a" and m.names[102] == "b" and m.names[201] == "workpiece"
+    for tag, area in areas.items():
+        assert m.region_area(tag) == pytest.approx(area, rel=1e-12), tag
+    sub = conductor_submesh(m, 201)
+    moved = sub.points + np.array([0.0, 0.3e-3])  # the ring lifted by 0.3 mm
+    new, (index,) = remesh_around([(moved, sub.cells, 201)], geo.coil_turns(), 0.1, 0.13, 2e-3, 0.02)
+    for tag, area in areas.items():
+        assert new.region_area(tag) == pytest.approx(area, rel=1e-12), tag
+    assert np.array_equal(new.points[index], moved)

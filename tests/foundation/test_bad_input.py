@@ -156,6 +156,41 @@ BAD_COUPLED = [
     ("damping_with_getdp", "emf_sheet_bulge", ["mechanics.mass_damping=1e4"], "mechanics.mass_damping"),
     ("kinetic_damping_with_getdp", "emf_sheet_bulge", ["mechanics.kinetic_damping_until=1e-5"],
      "mechanics.kinetic_damping_until"),
+    # several coils on their own sources (cases/two_coils_plate: sources main, late; coils inner, outer)
+    ("coil_without_source", "two_coils_plate", ["em.coils[1]={name = 'outer', sign = -1}"], "em.coils[1].source"),
+    ("coil_source_unknown", "two_coils_plate", ["em.coils[1].source='nope'"], "em.coils[1].source"),
+    ("source_unused", "two_coils_plate", ["em.coils[1].source='main'"], "em.sources[1].name"),
+    ("source_names_twice", "two_coils_plate", ["em.sources[1].name='main'"], "em.sources[1].name"),
+    ("coil_names_twice", "two_coils_plate", ["em.coils[1].name='inner'"], "em.coils[1].name"),
+    ("geometry_coil_names_twice", "two_coils_plate", ["geometry.coils[1].name='inner'"], "geometry.coils[1].name"),
+    ("coil_not_in_geometry", "two_coils_plate", ["em.coils[1].name='middle'"], "em.coils[1].name"),
+    ("sign_zero", "two_coils_plate", ["em.coils[1].sign=0"], "em.coils[1].sign"),
+    ("two_banks", "two_coils_plate", ["em.sources[0]={name = 'main', type = 'bank', capacitance = 1e-5, voltage = 1e3}",
+                                      "em.sources[1]={name = 'late', type = 'bank', capacitance = 1e-5, voltage = 1e3}"],
+     "em.sources[1].type"),
+    ("bank_beside_a_sine", "two_coils_plate", ["em.sources[0]={name = 'main', type = 'bank', capacitance = 1e-5, "
+                                                "voltage = 1e3}"], "em.coils[1].source"),
+    ("sources_and_circuit", "two_coils_plate", ["em.circuit={capacitance = 1e-5, voltage = 1e3}"], "em.sources"),
+    ("frequency_zero", "two_coils_plate", ["em.sources[0].frequency=0"], "em.sources[0].frequency"),
+    ("winding_inverted", "two_coils_plate", ["geometry.coils[0].windings=[[16e-3, -3e-3, 8e-3, 0.0]]"],
+     "geometry.coils[0].windings[0]"),
+    ("winding_over_the_axis", "two_coils_plate", ["geometry.coils[0].windings=[[-1e-3, -3e-3, 8e-3, 0.0]]"],
+     "geometry.coils[0].windings[0]"),
+    ("windings_overlap", "two_coils_plate", ["geometry.coils[1].windings=[[15e-3, -3e-3, 20e-3, 0.0]]"],
+     "geometry.coils[1].windings[0]"),
+    ("winding_in_the_plate", "two_coils_plate", ["geometry.coils[0].windings=[[8e-3, -3e-3, 16e-3, 1.5e-3]]"],
+     "geometry.coils[0].windings[0]"),
+    ("winding_touches_the_plate", "two_coils_plate", ["geometry.coils[0].windings=[[8e-3, -3e-3, 16e-3, 1e-3]]"],
+     "geometry.coils[0].windings[0]"),
+    ("workpiece_inverted", "two_coils_plate", ["geometry.workpiece.z1=0.5e-3"], "geometry.workpiece"),
+    ("air_too_small", "two_coils_plate", ["geometry.air_radius=0.05"], "geometry.air_radius"),
+    ("no_geometry_coils", "two_coils_plate", ["geometry.coils=[]"], "geometry.coils"),
+    ("table_not_csv", "two_coils_plate", ["em.sources[0]={name = 'main', type = 'table', file = 'current.txt'}"],
+     "em.sources[0].file"),
+    ("table_missing", "two_coils_plate", ["em.sources[0]={name = 'main', type = 'table', file = 'missing.csv'}"],
+     "em.sources[0].file"),
+    ("table_outside", "two_coils_plate", ["em.sources[0]={name = 'main', type = 'table', file = '../../x.csv'}"],
+     "em.sources[0].file"),
 ]
 
 
@@ -405,3 +440,70 @@ def test_thin_part_caps_the_element_size_of_the_guards(capsys):
     code = main(["check", str(REPO / "cases/emf_sheet_bulge"), "--set", "geometry.sheet_thickness=1e-6",
                  "--set", "limits.max_em_steps=1e6"])
     assert code == 0, capsys.readouterr().err
+
+
+#: a ``table`` source's CSV file that the loader refuses: (id, file text, what the message says)
+BAD_TABLES = [
+    ("not_monotonic", "0,0\n2e-6,1e3\n1e-6,2e3\n", "strictly increasing"),
+    ("repeated_time", "0,0\n1e-6,1e3\n1e-6,2e3\n", "strictly increasing"),
+    ("not_numbers", "time,current\n0,0\n1e-6,lots\n", "not two numbers"),
+    ("three_columns", "0,0,1\n1e-6,1e3,1\n", "3 columns"),
+    ("one_row", "0,5\n", "at least 2"),
+    ("starts_late", "1e-6,0\n2e-6,1e3\n", "start at or before t = 0"),
+    ("not_finite", "0,0\n1e-6,nan\n", "finite"),
+    ("huge_current", "0,0\n1e-6,1e12\n", "current"),
+    ("empty", "", "0 data rows"),
+]
+
+
+@pytest.mark.parametrize("command", ["check", "run"])
+@pytest.mark.parametrize("name,text,says", BAD_TABLES, ids=[b[0] for b in BAD_TABLES])
+def test_bad_table_source(tmp_path, capsys, name, text, says, command):
+    """A table source's file: one line naming em.sources[0].file and what is wrong, exit 2, from check and run."""
+    data = tomllib.loads((REPO / "cases/two_coils_plate/case.toml").read_text())
+    data["em"]["sources"][0] = {"name": "main", "type": "table", "file": "current.csv"}
+    (tmp_path / "current.csv").write_text(text)
+    file = _write(tmp_path, data)
+    args = [command, str(file)] + (["--out", str(tmp_path / "out")] if command == "run" else [])
+    line = _assert_one_line_error(capsys, main(args), "em.sources[0].file", str(file))
+    assert says in line, line
+    assert not (tmp_path / "out").exists()
+
+
+def test_table_outside_the_case_folder_is_allowed_when_asked(tmp_path, capsys):
+    """allow_outside = true takes a table from another folder (as user decks' mesh/pro); the resolved case
+    holds its absolute path."""
+    (tmp_path / "tables").mkdir()
+    (tmp_path / "tables" / "i.csv").write_text("0,0\n1e-5,1e3\n")
+    (tmp_path / "case").mkdir()
+    data = tomllib.loads((REPO / "cases/two_coils_plate/case.toml").read_text())
+    data["em"]["sources"][0] = {"name": "main", "type": "table", "file": "../tables/i.csv"}
+    file = _write(tmp_path / "case", data)
+    _assert_one_line_error(capsys, main(["check", str(file)]), "em.sources[0].file", str(file))
+    data["em"]["sources"][0]["allow_outside"] = True
+    case, _ = load_case(_write(tmp_path / "case", data))
+    assert case.em.sources[0].file == str((tmp_path / "tables" / "i.csv").resolve())
+
+
+@pytest.mark.parametrize("name,case,sets,key", [b for b in BAD_COUPLED if b[1] == "two_coils_plate"][:4],
+                         ids=[b[0] for b in BAD_COUPLED if b[1] == "two_coils_plate"][:4])
+def test_bad_sources_refused_by_run(tmp_path, capsys, name, case, sets, key):
+    """``pulseform run`` refuses bad sources and coils like ``check`` (exit 2, one line), before any output."""
+    args = ["run", str(REPO / "cases" / case), "--out", str(tmp_path / "out")]
+    for s in sets:
+        args += ["--set", s]
+    _assert_one_line_error(capsys, main(args), key, "case.toml")
+    assert not (tmp_path / "out").exists()
+
+
+def test_two_coils_on_a_one_coil_geometry(tmp_path, capsys):
+    """The built-in geometries other than coaxial_coils have one coil: a second [[em.coils]] entry is refused."""
+    data = tomllib.loads((REPO / "cases/emf_sheet_bulge/case.toml").read_text())
+    del data["em"]["circuit"]
+    data["em"]["sources"] = [{"name": "a", "type": "dc", "current": 1e3}, {"name": "b", "type": "dc", "current": 1e3}]
+    data["em"]["coils"] = [{"name": "a", "source": "a"}, {"name": "b", "source": "b"}]
+    file = _write(tmp_path, data)
+    _assert_one_line_error(capsys, main(["check", str(file)]), "em.coils[1]", str(file))
+    data["em"]["sources"], data["em"]["coils"] = data["em"]["sources"][:1], data["em"]["coils"][:1]
+    case, _ = load_case(_write(tmp_path, data))  # one coil on a source: fine
+    assert case.em.coils[0].source == "a"
