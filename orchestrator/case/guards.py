@@ -13,6 +13,9 @@ Estimates (checked by ``Case.validate``, so ``pulseform check`` and every run se
   h is the region's element size, or its thickness where that is smaller (a 1 µm sheet meshed "at
   0.5 mm" gets 1 µm elements).
 - **EM steps** of a GetDP-coupled case: explicit steps / ``coupling.n`` (one getdp run each).
+- a case whose bodies are all **rigid** has no stability limit: its step is an upper bound of the
+  source's period over ``coupling.steps_per_period`` EM steps of ``coupling.n`` steps
+  (:mod:`.rigid_steps`), capped by ``time.dt_max``.
 
 The limits are the case's ``[limits]`` table (see :class:`~pulseform.orchestrator.case.model.Limits`).
 """
@@ -22,6 +25,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from .rigid_steps import all_rigid, period_upper_bound
 from .schema import SchemaError
 
 #: cells per (area / h²) of a mesh of equilateral triangles of side h
@@ -133,6 +137,10 @@ def estimated_steps(case) -> tuple[float, str]:
         dt = case.time.cfl * STEP_LENGTH_FRACTION * region.h / c_d
         if dt < worst:
             worst, key = dt, region.key + (" (capped by the part's thickness)" if region.thinnest < region.size else "")
+    if all_rigid(case) and case.case.kind == "coupled":  # no stability limit: a period of the source
+        period = period_upper_bound(case)
+        if period is not None:
+            worst, key = period / (case.coupling.steps_per_period * case.coupling.n), "coupling.steps_per_period"
     if case.time.dt_max is not None:
         if case.time.dt_max < worst:
             key = "time.dt_max"

@@ -19,6 +19,7 @@ from .em_sources import check_coils
 from .guards import check_resources
 from .parts import (Box, BodyTable, ContactPair, EndStopTable, FixedBoundary, Polygon, Rectangle, RigidWall, Shape,
                     Vec2, check_file_name, rigid_moves, validate_rigid)
+from .rigid_steps import check_rigid_time_scale
 from .schema import SchemaError, spec
 
 __all__ = ["Box", "Rectangle", "Polygon", "Shape", "CowperSymondsTable", "JohnsonCookTable", "MaterialTable", "FixedBoundary",
@@ -340,6 +341,7 @@ class Case:
             i = next(i for i, b in enumerate(self.bodies) if b.region is not None)
             raise SchemaError(f"bodies[{i}].region", "regions exist only in coupled cases; give a shape")
         validate_rigid(self)
+        check_rigid_time_scale(self)
         if len(set(regions)) != len(regions):
             raise SchemaError("bodies", "each geometry region may be used by one body only")
 

@@ -93,15 +93,17 @@ def ring_self_inductance(radius: float, width: float, height: float) -> float:
     return MU0 * radius * (math.log(8.0 * radius / g) - 2.0)
 
 
-def coil_inductance(turns: list[tuple[float, float, float, float]]) -> float:
-    """Low-frequency inductance (H) of coaxial turns in series, each ``(r0, z0, r1, z1)`` (m), one turn
-    each carrying its current uniformly: Σ_i L_i + Σ_(i≠j) M_ij, with Rosa's self-inductance of each
-    turn and Maxwell's mutual inductance averaged over the sections."""
+def coil_inductance(turns: list[tuple[float, float, float, float]], counts: list[float] | None = None) -> float:
+    """Low-frequency inductance (H) of coaxial windings in series, each ``(r0, z0, r1, z1)`` (m) with
+    ``counts`` turns (signed: −1 turns a winding the other way; default one each), each carrying its
+    current uniformly over its section: Σ_a n_a² L_a + Σ_(a≠b) n_a n_b M_ab, with Rosa's self-inductance
+    of each section and Maxwell's mutual inductance averaged over the sections."""
+    n = [1.0] * len(turns) if counts is None else [float(c) for c in counts]
     total = 0.0
     for i, a in enumerate(turns):
-        total += ring_self_inductance(0.5 * (a[0] + a[2]), a[2] - a[0], a[3] - a[1])
-        for b in turns[i + 1:]:
-            total += 2.0 * section_mutual_inductance(a, b, n=4)[0]
+        total += n[i] ** 2 * ring_self_inductance(0.5 * (a[0] + a[2]), a[2] - a[0], a[3] - a[1])
+        for j in range(i + 1, len(turns)):
+            total += 2.0 * n[i] * n[j] * section_mutual_inductance(a, turns[j], n=4)[0]
     return total
 
 

@@ -1,12 +1,13 @@
 """The time scale of a coupled case's sources: the EM step of a run whose bodies are all rigid.
 
 A deformable body sets the step through its stability limit; rigid bodies have none, so the EM step
-comes from the sources instead: a number of steps (``coupling.steps_per_period``) per period of
-the coil current. A prescribed current I0 e^(−βt) sin(ωt) has the period 2π/ω; a capacitor bank
-rings with 2π√((L_coil + L_ext) C), L_coil the coil's low-frequency inductance from its turns'
-geometry (:func:`coil_inductance`; the workpiece's eddy currents lower the effective inductance,
-so the true period is somewhat shorter — the step count per period is a resolution, not an
-exact figure).
+comes from the sources instead: a number of steps (``coupling.steps_per_period``) per period of the
+shortest-period coil current. A sine (or the prescribed current I0 e^(−βt) sin(ωt)) has the period
+1/f = 2π/ω; a capacitor bank rings with 2π√((L + L_ext) C), L the low-frequency inductance of the
+coils in series on it from their windings' geometry (:func:`coils_on_bank`, signs and turns included;
+the conductor's eddy currents lower the effective inductance, so the true period is somewhat
+shorter — the steps per period are a resolution, not an exact figure). Direct currents and tables
+have no period: such runs take ``time.dt_max`` (the case model asks for it).
 
 Units: s, H, m.
 """
@@ -14,30 +15,70 @@ Units: s, H, m.
 from __future__ import annotations
 
 import math
-from typing import Sequence
 
 from ..case.model import Case
+from ..mesh.em_geometry import coaxial_coil_turns, flat_coil_turns, planar_turns, solenoid_turns
 from .lumped import coil_inductance
 
-__all__ = ["source_period"]
+__all__ = ["coil_windings", "source_period"]
 
 
-def source_period(case: Case, turns: Sequence[tuple[float, float, float, float]] | None) -> float:
-    """Period (s) of the case's coil current: 2π/ω of a prescribed current, 2π√((L_coil + L_ext) C)
-    of a capacitor bank with the coil's ``turns`` (r0, z0, r1, z1) (m; axisymmetric, None when not
-    known: a user deck).
+def coil_windings(case: Case) -> list[list[tuple[float, float, float, float]]] | None:
+    """The winding sections (r0, z0, r1, z1) (m) of each coil of the case's built-in geometry, in coil
+    order; None for a user deck (its coils are known once meshed)."""
+    g = case.geometry
+    if g.type == "coaxial_coils":
+        rects = coaxial_coil_turns(g)
+    elif g.type == "flat_coil_sheet":
+        rects = [flat_coil_turns(g)]
+    elif g.type == "solenoid_tube":
+        rects = [solenoid_turns(g)]
+    elif g.type == "planar_coil_blank_die":
+        rects = [planar_turns(g)]
+    else:
+        return None
+    return [[(r.x0, r.y0, r.x1, r.y1) for r in coil] for coil in rects]
+
+
+def _bank_inductance(case: Case, coils: list[tuple[int, int]]) -> float:
+    """Inductance (H) of the coils ``(index, sign)`` in series: their turns spread over their windings by area."""
+    windings = coil_windings(case)
+    g = case.geometry
+    rects, counts = [], []
+    for k, sign in coils:
+        turns = g.coils[k].turns if g.type == "coaxial_coils" else g.turns
+        areas = [(w[2] - w[0]) * (w[3] - w[1]) for w in windings[k]]
+        rects += windings[k]
+        counts += [sign * turns * a / sum(areas) for a in areas]
+    return coil_inductance(rects, counts)
+
+
+def source_period(case: Case) -> float:
+    """The shortest period (s) of the case's coil currents (see the module docstring).
 
     Raises
     ------
     ValueError
-        The period cannot be known (a direct current, or a bank whose coil geometry is a user deck's):
-        the message asks for ``time.dt_max``.
+        No source has a period, or the bank's coils are a user deck's: the message asks for ``time.dt_max``.
     """
-    em = case.em
-    if em.current is not None:
-        return 2.0 * math.pi / em.current.omega
-    if turns is None:
-        raise ValueError("time.dt_max: every body is rigid and the coil is a user deck's, so the EM step cannot "
-                         "come from the bank's period; give time.dt_max (the mechanical step, s)")
-    c = em.circuit
-    return 2.0 * math.pi * math.sqrt((coil_inductance(turns) + c.inductance) * c.capacitance)
+    em, g = case.em, case.geometry
+    periods = []
+    if not em.sources:
+        if em.current is not None:
+            return 2.0 * math.pi / em.current.omega
+        if coil_windings(case) is not None:
+            c = em.circuit
+            periods.append(2.0 * math.pi * math.sqrt((_bank_inductance(case, [(0, 1)]) + c.inductance) * c.capacitance))
+    else:
+        order = [c.name for c in g.coils] if g.type == "coaxial_coils" else [c.name for c in em.coils]
+        for s in em.sources:
+            if s.type == "sine":
+                periods.append(1.0 / s.frequency)
+            elif s.type == "bank" and coil_windings(case) is not None:
+                on_bank = [(order.index(c.name), c.sign) for c in em.coils if c.source == s.name]
+                periods.append(2.0 * math.pi * math.sqrt((_bank_inductance(case, on_bank) + s.inductance)
+                                                         * s.capacitance))
+    if not periods:
+        raise ValueError("time.dt_max: every body is rigid and no source has a period to resolve (a direct current, "
+                         "a table, or a user deck's coil on a bank): give time.dt_max, the mechanical step (s)")
+    return min(periods)

@@ -333,7 +333,7 @@ def _coupled_participants(case: Case, results: ResultsFolder, comm: MPI.Comm):
         return solver, _pressure_pulses(case), None
     rigid = None
     if rigid_roles:
-        rigid = RigidMechanics(rigid_bodies(case, subs), _rigid_step(case, geometry, solver))
+        rigid = RigidMechanics(rigid_bodies(case, subs), _rigid_step(case, solver))
     scale = float(np.abs(geometry.mesh.points).max())
     bodies = []
     for role in roles:
@@ -356,18 +356,16 @@ def _coupled_participants(case: Case, results: ResultsFolder, comm: MPI.Comm):
     return solver, load, rigid
 
 
-def _rigid_step(case: Case, geometry, solver) -> float:
+def _rigid_step(case: Case, solver) -> float:
     """The rigid bodies' mechanical step (s): the deformable bodies' stable step when there are any;
     without them a period of the source over ``coupling.steps_per_period`` EM steps of ``coupling.n``
-    mechanical steps each (capped by ``time.dt_max``; :mod:`..em.time_scale`)."""
+    mechanical steps each (:mod:`..em.time_scale`), capped by ``time.dt_max`` (which alone sets it
+    when no source has a period)."""
     if solver is not None:
         return solver.stable_time_step()
-    turns = [(t.x0, t.y0, t.x1, t.y1) for t in geometry.turns] or None
     try:
-        dt = source_period(case, turns) / (case.coupling.steps_per_period * case.coupling.n)
-    except ValueError:  # no period to resolve (a user deck's coil on a bank): time.dt_max sets the step
-        if case.time.dt_max is None:
-            raise
+        dt = source_period(case) / (case.coupling.steps_per_period * case.coupling.n)
+    except ValueError:  # no period to resolve: the case model has made sure time.dt_max is given
         return case.time.dt_max
     return dt if case.time.dt_max is None else min(dt, case.time.dt_max)
 

@@ -153,3 +153,20 @@ def test_deformable_sheet_and_rigid_die_share_the_impulse(tmp_path, capsys):
     print(f"\nsheet {sheet:.9g} + die {die:.9g} = {sheet + die:.9g} N s; delivered {_delivered(hist):.9g} N s")
     assert die > 1e-5 * sheet > 0.0  # 6e-5 of the total: far above the tolerance below
     assert sheet + die == pytest.approx(_delivered(hist), rel=2e-9)  # history.csv's 10 digits
+
+
+def test_all_rigid_case_without_a_period_needs_dt_max(capsys):
+    sets = ["bodies.plate.rigid=true", "bodies.plate.fixed=[]",
+            'em.sources=[{name = "main", type = "dc", current = 100.0}, {name = "late", type = "dc", current = 50.0}]']
+    args = ["check", str(REPO / "cases/two_coils_plate")] + [a for s in sets for a in ("--set", s)]
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert "time.dt_max" in err and "rigid" in err and len(err.strip().splitlines()) == 1, err
+    assert main(args + ["--set", "time.dt_max=1e-6"]) == 0
+
+
+def test_all_rigid_case_too_long_for_its_source_is_refused(capsys):
+    """400 s of the actuator at 120 EM steps per period of its ~0.1 ms bank: ~5e8 EM steps."""
+    assert main(["check", str(CASE), "--set", "time.end=400.0"]) == 2
+    err = capsys.readouterr().err
+    assert "coupling.steps_per_period" in err and "limits.max" in err, err
