@@ -127,9 +127,12 @@ def plot_rigid_motion(history: History, folder: Path, body: str, axis: TimeAxis 
     fig.subplots_adjust(left=0.14, right=0.97, bottom=0.07, top=0.95, hspace=0.12)
     for ax, q in zip(axes, quantities):
         cols = [c for c in history.columns if c.startswith(f"{body}_{q}_")]
+        # a force below 1 kN in N (a levitated ring's is a few N), else the unit's usual scale
+        small = q == "force" and cols and max(np.abs(history.column(c)).max() for c in cols) < 1e3
         for c in cols:
-            ax.plot(t, shown(c, history.column(c)), lw=1.0, label=c.removeprefix(f"{body}_{q}_").split("_")[0])
-        ax.set_ylabel(f"{q} [{unit_of(cols[0]).shown}]" if cols else q)
+            y = history.column(c) if small else shown(c, history.column(c))
+            ax.plot(t, y, lw=1.0, label=c.removeprefix(f"{body}_{q}_").split("_")[0])
+        ax.set_ylabel(f"{q} [{'N' if small else unit_of(cols[0]).shown}]" if cols else q)
         ax.grid(alpha=0.3)
         if len(cols) > 1:
             ax.legend(fontsize=8)
