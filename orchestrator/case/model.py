@@ -12,7 +12,7 @@ import os
 from dataclasses import dataclass
 from typing import Literal
 
-from .analysis_names import ANALYSES
+from .analysis_names import ANALYSES, ANALYSIS_PAIRS
 from .em_model import (EM, CapacitorBank, DampedSineCurrent, FlatCoilSheet, Geometry, OuterTube, PlanarCoilBlankDie,
                       SheetDie, SolenoidTube)
 from .em_sources import check_coils
@@ -276,6 +276,12 @@ class Case:
         for i, name in enumerate(self.analysis):
             if name not in ANALYSES:
                 raise SchemaError(f"analysis[{i}]", f"got {name!r}; allowed: {_choices(sorted(ANALYSES))}")
+            slave, master = ANALYSIS_PAIRS[name]
+            if not any(c.slave == slave and c.master == master for c in self.contact) or \
+                    any(b.rigid for b in self.bodies if b.name in (slave, master)):
+                raise SchemaError(f"analysis[{i}]", f"got {name!r}; it reads the deformable bodies {slave!r} and "
+                                  f"{master!r} and their [[contact]] pair (slave {slave!r}, master {master!r}): "
+                                  "give them, or remove the analysis")
         for i, ld in enumerate(self.loads):
             if ld.trigger == "rest" and i == 0:
                 raise SchemaError(f"loads[{i}].trigger", "the first pulse cannot wait for rest; use 'time'")

@@ -170,3 +170,32 @@ def test_all_rigid_case_too_long_for_its_source_is_refused(capsys):
     assert main(["check", str(CASE), "--set", "time.end=400.0"]) == 2
     err = capsys.readouterr().err
     assert "coupling.steps_per_period" in err and "limits.max" in err, err
+
+
+@pytest.mark.getdp
+def test_planar_rigid_blank_moves_in_x_and_y_whatever_the_depth(tmp_path, capsys):
+    """cases/emf_corner_fill (plane strain, per metre of depth) with its blank rigid and free in x and y,
+    no contact, 6 µs: the forces and the mass both scale with mechanics.thickness, so the motion does not
+    depend on it (1e-9); the blank's momentum in x and y equals the impulse delivered of its own resultant."""
+    runs = {}
+    for depth in (1.0, 0.5):
+        out = tmp_path / f"d{depth}"
+        rc = main(["run", str(REPO / "cases/emf_corner_fill"), "--out", str(out), "--quiet", "--set", "time.end=6e-6",
+                   "--set", "output.field_interval=3e-6", "--set", "output.plots=false", "--set", "contact=[]",
+                   "--set", "bodies.blank.fixed=[]", "--set", "bodies.blank.rigid=true",
+                   "--set", "bodies.blank.moves=[0, 1]", "--set", f"mechanics.thickness={depth}", "--set", "analysis=[]"])
+        assert rc == 0, capsys.readouterr().err
+        runs[depth] = (json.loads((out / "metrics.json").read_text()),
+                       np.genfromtxt(out / "history.csv", delimiter=",", names=True)[1:])
+    (m1, h1), (m2, h2) = runs[1.0], runs[0.5]
+    assert m2["blank_mass_kg"] == pytest.approx(0.5 * m1["blank_mass_kg"], rel=1e-12)
+    for c in "xy":
+        u1, u2 = h1[f"blank_position_{c}_m"], h2[f"blank_position_{c}_m"]
+        assert np.abs(u1 - u2).max() <= 1e-9 * np.abs(u1).max(), c
+        f = np.repeat(h1[f"blank_force_{c}_N"], h1["substeps"].astype(int))
+        d = np.repeat(h1["dt_s"], h1["substeps"].astype(int))
+        delivered = float(f @ np.concatenate([[0.5 * d[0]], 0.5 * (d[:-1] + d[1:])]))
+        v_half = h1[f"blank_velocity_{c}_m_s"][-1] - 0.5 * d[-1] * h1[f"blank_acceleration_{c}_m_s2"][-1]
+        print(f"\n{c}: m v = {m1['blank_mass_kg'] * v_half:.9g} N s, delivered {delivered:.9g} N s")
+        assert abs(v_half) > 0.0
+        assert m1["blank_mass_kg"] * v_half == pytest.approx(delivered, rel=2e-9)
