@@ -259,9 +259,16 @@ class CoaxialCoils(_ConductorRoles):
     (a plate or a ring; EM region ``workpiece``, conductor 1). Each coil is driven by the source that
     ``[[em.coils]]`` gives it. Air fills a half-disk of radius ``air_radius``; a shell out to
     ``shell_radius`` maps the open boundary to infinity.
+
+    ``planar = true``: the plane equivalent, a half model x >= 0 with the symmetry plane x = 0 (a = 0
+    there: each winding's mirror image carries the opposite current, the cut through flat coils),
+    (r, z) read as (x, y); fields and forces per metre of depth, scaled by ``mechanics.thickness``;
+    prescribed sources only (a bank would need the coils' length).
     """
 
     type: Literal["coaxial_coils"] = spec(doc="geometry kind")
+    planar: bool = spec(False, doc="the plane half model x >= 0 (symmetry plane x = 0, per metre of depth; "
+                                   "windings and workpiece as [x0, y0, x1, y1]) instead of an axisymmetric one")
     coils: tuple[CoaxialCoil, ...] = spec(doc="[[geometry.coils]] the coils (coil k is physical 100 + k, in this order)")
     workpiece: CoaxialWorkpiece = spec(doc="[geometry.workpiece] the conducting workpiece")
     air_radius: float = spec(unit="m", gt=0.0, doc="radius of the meshed air half-disk")

@@ -144,11 +144,11 @@ def _build_coaxial_coils(g: CoaxialCoils, time_limit: float | None) -> EMGeometr
     coils = coaxial_coil_turns(g)
     names = {coil_tag(k): c.name for k, c in enumerate(g.coils, start=1)}
     names[conductor_tag(1)] = "workpiece"
-    mesh = call_in_child(coil_conductor_mesh, coils, [Rect(*g.workpiece.box)], axisymmetric=True, half=True,
+    mesh = call_in_child(coil_conductor_mesh, coils, [Rect(*g.workpiece.box)], axisymmetric=not g.planar, half=True,
                          r_domain=g.air_radius, r_shell=g.shell_radius, h_fine=g.mesh_size_coil,
                          h_coarse=g.mesh_size_air, h_conductor=[g.workpiece.mesh_size], names=names,
                          time_limit=time_limit, what=f"meshing the {g.type} EM geometry with gmsh")
     log.info("EM mesh (%s): %d nodes, %d triangles, %d coils, groups %s", g.type, mesh.n_nodes, len(mesh.triangles),
              len(coils), ", ".join(f"{n} ({t})" for t, n in sorted(mesh.names.items())))
-    return EMGeometry(mesh, {"coil": coil_tag(1), "workpiece": conductor_tag(1)}, coils[0], planar=False,
+    return EMGeometry(mesh, {"coil": coil_tag(1), "workpiece": conductor_tag(1)}, coils[0], planar=g.planar,
                       more_coils=coils[1:])
