@@ -32,6 +32,21 @@ CASE = REPO / "cases/emf_actuator_disk"
 BASE = tomllib.loads((CASE / "case.toml").read_text())
 
 
+def _delivered(hist, column: str = "force_y_N") -> float:
+    """The impulse (N s) central differences deliver to the half-step velocity of the held resultants
+    ``column`` (as the validation registry's free sheet, orchestrator/workflows/registry.py): the force
+    held over mechanical step s enters with the weight (dt_(s-1) + dt_s) / 2, the first with dt_0 / 2."""
+    f = np.repeat(hist[column], hist["substeps"].astype(int))
+    d = np.repeat(hist["dt_s"], hist["substeps"].astype(int))
+    return float(f @ np.concatenate([[0.5 * d[0]], 0.5 * (d[:-1] + d[1:])]))
+
+
+def _v_half(hist, body: str, c: str) -> float:
+    """The body's velocity (m/s) at the last half step: the history's velocity at the step's end less
+    half a step of its acceleration."""
+    return float(hist[f"{body}_velocity_{c}_m_s"][-1] - 0.5 * hist["dt_s"][-1] * hist[f"{body}_acceleration_{c}_m_s2"][-1])
+
+
 @pytest.mark.getdp
 def test_disk_momentum_equals_the_impulse_and_its_mass_the_volume(tmp_path, capsys):
     out = tmp_path / "run"
@@ -44,13 +59,7 @@ def test_disk_momentum_equals_the_impulse_and_its_mass_the_volume(tmp_path, caps
     mass = BASE["materials"]["al"]["density"] * math.pi * g["sheet_radius"] ** 2 * g["sheet_thickness"]
     assert m["disk_mass_kg"] == pytest.approx(mass, rel=1e-12)
     hist = np.genfromtxt(out / "history.csv", delimiter=",", names=True)[1:]
-    # the impulse central differences deliver to the half-step velocity (as the validation registry's free
-    # sheet, orchestrator/workflows/registry.py): the force held over mechanical step s enters with the
-    # weight (dt_(s-1) + dt_s) / 2, the first with dt_0 / 2
-    f = np.repeat(hist["force_y_N"], hist["substeps"].astype(int))
-    d = np.repeat(hist["dt_s"], hist["substeps"].astype(int))
-    delivered = float(f @ np.concatenate([[0.5 * d[0]], 0.5 * (d[:-1] + d[1:])]))
-    v_half = hist["disk_velocity_y_m_s"][-1] - 0.5 * d[-1] * hist["disk_acceleration_y_m_s2"][-1]
+    delivered, v_half = _delivered(hist), _v_half(hist, "disk", "y")
     print(f"\nm v = {mass * v_half:.12g} N s, impulse delivered {delivered:.12g} N s, v = {v_half:.4g} m/s")
     assert v_half > 1.0  # it is launched
     assert mass * v_half == pytest.approx(delivered, rel=2e-9)  # history.csv holds 10 significant digits
@@ -129,13 +138,6 @@ def test_rigid_body_in_a_mechanics_case_is_refused(capsys):
     assert rc == 2 and "bodies[0].rigid" in err and "coupled" in err, err
 
 
-def _delivered(hist) -> float:
-    """The impulse (N s) central differences deliver of the held resultants ``force_y_N`` (see above)."""
-    f = np.repeat(hist["force_y_N"], hist["substeps"].astype(int))
-    d = np.repeat(hist["dt_s"], hist["substeps"].astype(int))
-    return float(f @ np.concatenate([[0.5 * d[0]], 0.5 * (d[:-1] + d[1:])]))
-
-
 @pytest.mark.getdp
 def test_deformable_sheet_and_rigid_die_share_the_impulse(tmp_path, capsys):
     """cases/emf_sheet_die with a free sheet (deformable) and a free rigid die, no contact, 6 µs: the
@@ -147,8 +149,7 @@ def test_deformable_sheet_and_rigid_die_share_the_impulse(tmp_path, capsys):
     assert rc == 0, capsys.readouterr().err
     m = json.loads((out / "metrics.json").read_text())
     hist = np.genfromtxt(out / "history.csv", delimiter=",", names=True)[1:]
-    dt_last = hist["dt_s"][-1]
-    die = m["die_mass_kg"] * (hist["die_velocity_y_m_s"][-1] - 0.5 * dt_last * hist["die_acceleration_y_m_s2"][-1])
+    die = m["die_mass_kg"] * _v_half(hist, "die", "y")
     sheet = hist["sheet_momentum_y_Ns"][-1]
     print(f"\nsheet {sheet:.9g} + die {die:.9g} = {sheet + die:.9g} N s; delivered {_delivered(hist):.9g} N s")
     assert die > 1e-5 * sheet > 0.0  # 6e-5 of the total: far above the tolerance below
@@ -192,10 +193,7 @@ def test_planar_rigid_blank_moves_in_x_and_y_whatever_the_depth(tmp_path, capsys
     for c in "xy":
         u1, u2 = h1[f"blank_position_{c}_m"], h2[f"blank_position_{c}_m"]
         assert np.abs(u1 - u2).max() <= 1e-9 * np.abs(u1).max(), c
-        f = np.repeat(h1[f"blank_force_{c}_N"], h1["substeps"].astype(int))
-        d = np.repeat(h1["dt_s"], h1["substeps"].astype(int))
-        delivered = float(f @ np.concatenate([[0.5 * d[0]], 0.5 * (d[:-1] + d[1:])]))
-        v_half = h1[f"blank_velocity_{c}_m_s"][-1] - 0.5 * d[-1] * h1[f"blank_acceleration_{c}_m_s2"][-1]
+        delivered, v_half = _delivered(h1, f"blank_force_{c}_N"), _v_half(h1, "blank", c)
         print(f"\n{c}: m v = {m1['blank_mass_kg'] * v_half:.9g} N s, delivered {delivered:.9g} N s")
         assert abs(v_half) > 0.0
         assert m1["blank_mass_kg"] * v_half == pytest.approx(delivered, rel=2e-9)
