@@ -65,7 +65,9 @@ def headline(case, metrics: dict[str, float], history) -> list[Headline]:
         out.append(Headline("bank energy", bank, "J",
                             f"½ C V0², {circuit.capacitance * 1e6:.4g} µF at {circuit.voltage / 1e3:.4g} kV"))
     if "coil_current_peak_kA" in metrics:
-        out.append(Headline("peak coil current", metrics["coil_current_peak_kA"], "kA", at("coil_current_A")))
+        peak = metrics["coil_current_peak_kA"]  # an AC coil of a few amperes in A, a pulse in kA
+        out.append(Headline("peak coil current", *((peak, "kA") if peak >= 1.0 else (peak * 1e3, "A")),
+                            at("coil_current_A")))
     if "force_impulse_Ns" in metrics:
         out.append(Headline("force impulse", metrics["force_impulse_Ns"], "N·s"))
 
