@@ -260,7 +260,7 @@ def draw_all(results_dir: Path, *, case=None, history: History | None = None, sh
 
     if case is not None and analyses is None:
         analyses = [create(name, case) for name in case.analysis]
-    if shapes is None and case is not None and (analyses or mech is None):
+    if shapes is None and case is not None and (analyses or (mech is None and deformable)):
         shapes = read_shapes(root, case, skip)
     for a in analyses or []:
         before = _stamps(folder)
