@@ -236,6 +236,10 @@ def run_compare(case_path: str, out: Path, *, overrides: list[str] | None = None
     if case.case.kind != "coupled" or case.coupling.load != "getdp":
         raise CompareError(f"{case_path}: compare needs a coupled case with coupling.load = 'getdp' "
                            f"(got kind {case.case.kind!r}, load {case.coupling.load!r})")
+    rigid = [b.name for b in case.bodies if b.rigid]
+    if rigid:  # the pressure pulses act on deformable bodies (a rigid body's motion is the force's alone)
+        raise CompareError(f"{case_path}: compare loads deformable bodies with pressure pulses; {rigid[0]!r} is "
+                           "rigid (its motion follows from the force history in history.csv)")
     work = next(b for b in case.bodies if b.region == "workpiece")
     dies = [b.name for b in case.bodies if b.region != "workpiece"]  # own shapes, or the EM die/collar
     given = _given_loads(pressure_case) if pressure_case else None

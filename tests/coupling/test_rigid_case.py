@@ -197,3 +197,11 @@ def test_planar_rigid_blank_moves_in_x_and_y_whatever_the_depth(tmp_path, capsys
         print(f"\n{c}: m v = {m1['blank_mass_kg'] * v_half:.9g} N s, delivered {delivered:.9g} N s")
         assert abs(v_half) > 0.0
         assert m1["blank_mass_kg"] * v_half == pytest.approx(delivered, rel=2e-9)
+
+
+def test_compare_refuses_a_rigid_workpiece_before_running(tmp_path, capsys):
+    out = tmp_path / "cmp"
+    assert main(["compare", str(CASE), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "'disk' is rigid" in err and len(err.strip().splitlines()) == 1, err
+    assert not (out / "coupled").exists()  # refused before the coupled run
