@@ -26,6 +26,7 @@ and 0 (restart path).
 from __future__ import annotations
 
 import logging
+import re
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -190,6 +191,10 @@ def _getdp_failure(deck: Path, run_dir: Path, exc: Exception) -> DeckContractErr
     hint = ""
     if any("Resolution" in e and RESOLUTION in e for e in errs) or any("Unknown Resolution" in e for e in errs):
         hint = f"; the contract needs Resolution {RESOLUTION}"
+    coil = re.search(r"Unknown Group: Coil_(\d+)", errs[0])
+    if coil:  # a deck with fewer coil groups than the case's coil roles
+        k = coil.group(1)
+        hint = f"; the case has coil {k} ([[geometry.coils]]): define Coil_{k} = Region[{{Phys_Coil_{k}}}] and its Ns, Sc, sigma"
     return DeckContractError(f"deck {deck.name}: getdp failed on the contract check: {short(errs[0], 200)}{hint}",
                              log_path=log_file)
 
