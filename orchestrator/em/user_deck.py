@@ -156,7 +156,8 @@ def read_deck_mesh(path: Path, regions, name: str | Path | None = None, coils: S
         left = sorted({int(t) for t in ttags[new_t == 0]})
         inv = {v[0]: k for k, v in names.items() if v[1] == 2}
         raise DeckContractError(f"{path}: triangles of physical group(s) "
-                                f"{', '.join(inv.get(t, str(t)) for t in left)} have no role in geometry.regions")
+                                f"{', '.join(inv.get(t, str(t)) for t in left)} have no role in geometry.regions "
+                                f"(nor a coil of [[geometry.coils]])")
     keep = new_l > 0
     pts = np.asarray(m.points)[:, :2]
     mesh = EMMesh(pts, tri.astype(np.int64), new_t, lines[keep].astype(np.int64), new_l[keep])
