@@ -99,8 +99,9 @@ Source = SineSource | DCSource | TableSource | BankSource
 class CoilConnection:
     """A coil of the [geometry] connected to a source."""
 
-    name: str = spec(doc="the coil: a name of [[geometry.coils]] (coaxial_coils), free for the one coil of the "
-                         "other geometries; with several coils it names the history columns <name>_current_A, ...")
+    name: str = spec(doc="the coil: a name of [[geometry.coils]] (coaxial_coils, user_deck), free for the one coil "
+                         "of the other geometries (and of regions.coil); with several coils it names the history "
+                         "columns <name>_current_A, ...")
     source: str = spec(doc="name of the [[em.sources]] entry that drives it")
     sign: int = spec(1, unit="-", ge=-1, le=1, doc="orientation: +1, or -1 for a coil wound the other way (its "
                                                    "current is minus the source's, or minus the bank's in series)")
