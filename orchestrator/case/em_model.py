@@ -308,7 +308,6 @@ class DeckRegions:
     outer: str = spec(doc="the outer boundary, a = 0 (physical curve)")
     shell: str | None = spec(None, doc="shell transformation to infinity (physical surface)")
 
-
     def groups(self) -> dict[str, str]:
         """Role (``regions.<role>``) -> physical-group name, for the roles that are given."""
         return {f.name: getattr(self, f.name) for f in fields(self) if getattr(self, f.name) is not None}

@@ -194,7 +194,8 @@ def _getdp_failure(deck: Path, run_dir: Path, exc: Exception) -> DeckContractErr
     coil = re.search(r"Unknown Group: Coil_(\d+)", errs[0])
     if coil:  # a deck with fewer coil groups than the case's coil roles
         k = coil.group(1)
-        hint = f"; the case has coil {k} ([[geometry.coils]]): define Coil_{k} = Region[{{Phys_Coil_{k}}}] and its Ns, Sc, sigma"
+        hint = (f"; the case has coil {k} ([[geometry.coils]]): define Coil_{k} = Region[{{Phys_Coil_{k}}}] "
+                "and its Ns, Sc, sigma")
     return DeckContractError(f"deck {deck.name}: getdp failed on the contract check: {short(errs[0], 200)}{hint}",
                              log_path=log_file)
 
