@@ -71,7 +71,16 @@ EndFor
 
 Physical Surface("AIR", AIR) = {air()};
 Physical Surface("INF", INF) = {inf()};
-Physical Surface("COIL", COIL) = {coil()};
+If (Coil_Split > 0) // two coils: the first Coil_Split turns from the axis, and the others
+  inner() = Surface In BoundingBox{Coil_Rin - eps, -Turn_H - eps, -1,
+                                   Coil_Rin + Coil_Split*(Turn_W + Turn_Gap) - Turn_Gap + eps, eps, 1};
+  outer_turns() = coil();
+  outer_turns() -= {inner()};
+  Physical Surface("COIL_INNER", COIL_INNER) = {inner()};
+  Physical Surface("COIL_OUTER", COIL_OUTER) = {outer_turns()};
+Else
+  Physical Surface("COIL", COIL) = {coil()};
+EndIf
 Physical Surface("SHEET", SHEET) = {sheet()};
 If (Die)
   Physical Surface("DIE", DIE) = {die()};

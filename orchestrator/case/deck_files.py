@@ -11,7 +11,7 @@ import re
 from pathlib import Path
 from typing import Any
 
-from pulseform.solvers.getdp.contract import ROLE_NUMBERS, runner_number_names
+from pulseform.solvers.getdp.contract import COIL_NUMBERS, ROLE_NUMBERS, runner_number_names
 
 from .errors import MAX_MESSAGE, CaseError
 
@@ -62,9 +62,10 @@ _IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 
 def reserved_parameter_names() -> tuple[str, ...]:
     """Names a deck receives from the runner, which ``geometry.parameters`` may not reuse: the role
-    ids ``Phys_*`` (:data:`ROLE_NUMBERS`), the string ``PulseformLib`` and every name of a getdp run
+    ids ``Phys_*`` (:data:`ROLE_NUMBERS`, and ``Phys_Coil_<k>`` of the coils: :data:`COIL_NUMBERS`), the
+    string ``PulseformLib`` and every name of a getdp run
     (:func:`pulseform.solvers.getdp.contract.runner_number_names`; ``X_<k>`` stands for X_1, X_2, ...)."""
-    return tuple(ROLE_NUMBERS.values()) + ("PulseformLib",) + runner_number_names()
+    return tuple(ROLE_NUMBERS.values()) + (COIL_NUMBERS, "PulseformLib") + runner_number_names()
 
 
 def is_reserved_parameter(name: str) -> bool:

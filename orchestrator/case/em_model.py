@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from operator import attrgetter
 from typing import ClassVar, Literal
 
@@ -307,18 +307,36 @@ class DeckRegions:
     """Physical-group names of the user's mesh for each role (renumbered to the runner's ids)."""
 
     air: str = spec(doc="air (physical surface)")
-    coil: str = spec(doc="the stranded coil, all its turns (physical surface)")
+    coil: str | None = spec(None, doc="the one stranded coil, all its turns (physical surface; with geometry.turns), "
+                                      "or give [[geometry.coils]] instead")
     workpiece: str = spec(doc="the workpiece, a massive conductor (physical surface)")
     die: str | None = spec(None, doc="a die, massive conductor 2 (physical surface); needs a body with region = 'die'")
     axis: str = spec(doc="the symmetry axis r = 0, a = 0 (physical curve)")
     outer: str = spec(doc="the outer boundary, a = 0 (physical curve)")
     shell: str | None = spec(None, doc="shell transformation to infinity (physical surface)")
 
+    def groups(self) -> dict[str, str]:
+        """Role (``regions.<role>``) -> physical-group name, for the roles that are given."""
+        return {f.name: getattr(self, f.name) for f in fields(self) if getattr(self, f.name) is not None}
+
+
+@dataclass(frozen=True, kw_only=True)
+class DeckCoil:
+    """One coil role of a user deck: a named physical surface of the mesh, all of its turns in series
+    (stranded: uniform current density over the group)."""
+
+    name: str = spec(doc="the coil's name ([[em.coils]] connects it to a source; history columns <name>_current_A, "
+                         "... with several coils)")
+    group: str = spec(doc="the coil's physical-group name in the mesh (a physical surface)")
+    turns: int = spec(unit="-", ge=1, doc="turns in series over the group's cross-section")
+
 
 @dataclass(frozen=True, kw_only=True)
 class UserDeck(_ConductorRoles):
     """A user's own EM deck: a Gmsh .geo (meshed by the runner) or .msh, and a GetDP .pro that
-    honours the deck contract (docs/workflow.md). Axisymmetric, one coil, the workpiece, optionally a die."""
+    honours the deck contract (docs/workflow.md). Axisymmetric; one coil (``regions.coil`` with
+    ``turns``) or several (``[[geometry.coils]]``: coil k is physical 100 + k, in their order); the
+    workpiece, optionally a die."""
 
     type: Literal["user_deck"] = spec(doc="geometry kind")
     mesh: str = spec(doc=".geo (meshed with gmsh, MSH 2.2) or .msh, relative to the case folder")
@@ -329,7 +347,10 @@ class UserDeck(_ConductorRoles):
                                     "Python in the .pro; also in their Includes); a deck is code: allow only decks "
                                     "you trust")
     regions: DeckRegions = spec(doc="physical-group names of the roles")
-    turns: int = spec(unit="-", ge=1, doc="number of turns of the coil region")
+    turns: int | None = spec(None, unit="-", ge=1, doc="number of turns of the coil region regions.coil (one coil; "
+                                                 "[[geometry.coils]] give their own)")
+    coils: tuple[DeckCoil, ...] = spec((), doc="[[geometry.coils]] several coil roles instead of regions.coil: coil k "
+                                          "is renumbered to physical 100 + k and is Coil_k of the deck, in this order")
     shell_inner_radius: float | None = spec(None, unit="m", gt=0.0, doc="shell transformation: inner radius")
     shell_outer_radius: float | None = spec(None, unit="m", gt=0.0, doc="shell transformation: outer radius")
     parameters: dict[str, float] | None = spec(None, doc="numbers passed with -setnumber to gmsh (.geo) and getdp: "
@@ -349,6 +370,41 @@ class UserDeck(_ConductorRoles):
         if self.shell_inner_radius is not None and self.shell_outer_radius <= self.shell_inner_radius:
             raise SchemaError(f"{path}.shell_outer_radius", f"got {self.shell_outer_radius:g}; must be > "
                               f"shell_inner_radius = {self.shell_inner_radius:g} (m)")
+        self._validate_coils(path)
+
+    def _validate_coils(self, path: str) -> None:
+        """One coil (``regions.coil`` with ``turns``) or ``[[geometry.coils]]``, never both; unique coil names;
+        no physical group in two roles."""
+        if self.coils:
+            if self.regions.coil is not None:
+                raise SchemaError(f"{path}.regions.coil", "give either regions.coil (one coil, with turns) or "
+                                  "[[geometry.coils]] (each with its group and turns), not both")
+            if self.turns is not None:
+                raise SchemaError(f"{path}.turns", "with [[geometry.coils]] each coil gives its own turns; remove "
+                                  "geometry.turns")
+        elif self.regions.coil is None:
+            raise SchemaError(f"{path}.regions.coil", "missing: give the coil's physical-group name (and turns), or "
+                              "[[geometry.coils]] entries (name, group, turns) for several coils")
+        elif self.turns is None:
+            raise SchemaError(f"{path}.turns", "missing: the number of turns of the coil regions.coil (an integer "
+                              ">= 1)")
+        seen = {group: f"{path}.regions.{role}" for role, group in self.regions.groups().items()}
+        names: list[str] = []
+        for i, c in enumerate(self.coils):
+            if c.name in names:
+                raise SchemaError(f"{path}.coils[{i}].name", f"got {c.name!r}; coil names must be unique")
+            names.append(c.name)
+            if c.group in seen:
+                raise SchemaError(f"{path}.coils[{i}].group", f"got {c.group!r}, which is already {seen[c.group]}; "
+                                  "a physical group has one role")
+            seen[c.group] = f"{path}.coils[{i}].group"
+
+    def coil_groups(self) -> list[tuple[str, str, str, int]]:
+        """(key, name, physical-group name, turns) of every coil in coil order (coil k becomes physical
+        100 + k); ``key`` is the case-file key of its group, ``name`` None for the one coil of ``regions.coil``."""
+        if self.coils:
+            return [(f"geometry.coils[{i}].group", c.name, c.group, c.turns) for i, c in enumerate(self.coils)]
+        return [("geometry.regions.coil", None, self.regions.coil, self.turns)]
 
 
 Geometry = FlatCoilSheet | SolenoidTube | PlanarCoilBlankDie | CoaxialCoils | UserDeck

@@ -99,8 +99,9 @@ Source = SineSource | DCSource | TableSource | BankSource
 class CoilConnection:
     """A coil of the [geometry] connected to a source."""
 
-    name: str = spec(doc="the coil: a name of [[geometry.coils]] (coaxial_coils), free for the one coil of the "
-                         "other geometries; with several coils it names the history columns <name>_current_A, ...")
+    name: str = spec(doc="the coil: a name of [[geometry.coils]] (coaxial_coils, user_deck), free for the one coil "
+                         "of the other geometries (and of regions.coil); with several coils it names the history "
+                         "columns <name>_current_A, ...")
     source: str = spec(doc="name of the [[em.sources]] entry that drives it")
     sign: int = spec(1, unit="-", ge=-1, le=1, doc="orientation: +1, or -1 for a coil wound the other way (its "
                                                    "current is minus the source's, or minus the bank's in series)")
@@ -148,17 +149,18 @@ def check_sources(sources: tuple, coils: tuple, path: str) -> None:
 
 def check_coils(case: Any) -> None:
     """The case-level checks of ``[[em.coils]]`` against the geometry (a coupled case with [em] and
-    [geometry]): coaxial_coils needs sources and exactly one connection per coil of the geometry; the
-    other geometries have one coil; a planar geometry takes no bank (per metre of depth)."""
+    [geometry]): a geometry with named coils (``[[geometry.coils]]`` of coaxial_coils or of a user deck)
+    needs sources and exactly one connection per coil of the geometry; the other geometries (and a
+    user deck's ``regions.coil``) have one coil; a planar geometry takes no bank (per metre of depth)."""
     em, g = case.em, case.geometry
-    coaxial = g.type == "coaxial_coils"
+    named = tuple(getattr(g, "coils", ()))
     if not em.sources:
-        if coaxial:
-            raise SchemaError("em.sources", "the coaxial_coils geometry needs [[em.sources]] and [[em.coils]] "
-                              "(em.circuit and em.current drive a geometry's one coil)")
+        if named:
+            raise SchemaError("em.sources", f"the coils of geometry.coils ({g.type}) need [[em.sources]] and "
+                              "[[em.coils]] (em.circuit and em.current drive a geometry's one coil)")
         return
-    if coaxial:
-        want = [c.name for c in g.coils]
+    if named:
+        want = [c.name for c in named]
         for i, c in enumerate(em.coils):
             if c.name not in want:
                 raise SchemaError(f"em.coils[{i}].name", f"got {c.name!r}; the coils of geometry.coils are "
@@ -169,8 +171,10 @@ def check_coils(case: Any) -> None:
             raise SchemaError("em.coils", f"geometry coil {missing[0]!r} has no [[em.coils]] entry (give it a "
                               "source)")
     elif len(em.coils) != 1:
+        several = ("[[geometry.coils]] with a group each" if g.type == "user_deck"
+                   else "geometry type 'coaxial_coils'")
         raise SchemaError("em.coils[1]", f"got {len(em.coils)} coils; the {g.type} geometry has one coil "
-                          "(several coils: geometry type 'coaxial_coils')")
+                          f"(several coils: {several})")
     if g.planar and any(isinstance(s, BankSource) for s in em.sources):
         i = next(i for i, s in enumerate(em.sources) if isinstance(s, BankSource))
         raise SchemaError(f"em.sources[{i}].type", "planar geometries are per metre of depth: give a prescribed "

@@ -26,6 +26,7 @@ and 0 (restart path).
 from __future__ import annotations
 
 import logging
+import re
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -33,7 +34,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from pulseform.solvers.getdp.contract import CIRCUIT_TABLES, REQUIRED_TABLES
+from pulseform.solvers.getdp.contract import CIRCUIT_TABLES, REQUIRED_TABLES, coil_tables
 
 from ..case.deck_files import short
 
@@ -70,7 +71,7 @@ class DeckCheckReport:
     magnetic_energy : float
         Magnetic energy (J, per radian in axisymmetry) after the first step.
     coil_current : float
-        Coil current (A) after the first step.
+        Coil current (A) after the first step (with several coils the one of largest magnitude).
     force_rows : int
         Per-element force rows of the first step (= workpiece and die elements).
     state_nodes : int
@@ -190,6 +191,11 @@ def _getdp_failure(deck: Path, run_dir: Path, exc: Exception) -> DeckContractErr
     hint = ""
     if any("Resolution" in e and RESOLUTION in e for e in errs) or any("Unknown Resolution" in e for e in errs):
         hint = f"; the contract needs Resolution {RESOLUTION}"
+    coil = re.search(r"Unknown Group: Coil_(\d+)", errs[0])
+    if coil:  # a deck with fewer coil groups than the case's coil roles
+        k = coil.group(1)
+        hint = (f"; the case has coil {k} ([[geometry.coils]]): define Coil_{k} = Region[{{Phys_Coil_{k}}}] "
+                "and its Ns, Sc, sigma")
     return DeckContractError(f"deck {deck.name}: getdp failed on the contract check: {short(errs[0], 200)}{hint}",
                              log_path=log_file)
 
@@ -202,6 +208,8 @@ def _contract_tables(solver: GetDPSolver, run_dir: Path, deck: Path) -> None:
     need = dict(REQUIRED_TABLES)
     if solver.model.circuit is not None:
         need.update(CIRCUIT_TABLES)
+    for k in range(2, len(solver.model.coils) + 1):  # coils 2, 3, ... of [[geometry.coils]]
+        need.update(coil_tables(k))
     for k in range(2, len(solver.model.conductors) + 1):  # a die: massive conductor 2
         need.update({f"cond_P_{k}.txt": f"EM_Step: Print[P[Cond_{k}], OnGlobal]",
                      f"cond_F_{k}.txt": f"EM_Step: Print[F[Cond_{k}], OnGlobal]"})
@@ -251,8 +259,12 @@ def _solves_the_model(solver: GetDPSolver, mesh: EMMesh, out: Path, deck: Path) 
     w = float(w_rows[-1, 1]) if len(w_rows) and w_rows.shape[1] > 1 else 0.0
     if not (np.isfinite(w) and w != 0.0):
         problems.append(f"W = {w:g}")
-    i_rows = _read_rows(out / "coil_I_1.txt")
-    cur = float(i_rows[-1, -1]) if len(i_rows) else 0.0
+    cur = 0.0  # the largest |current| of any coil (a coil's source may switch on later)
+    for k in range(1, max(len(model.coils), 1) + 1):
+        i_rows = _read_rows(out / f"coil_I_{k}.txt") if (out / f"coil_I_{k}.txt").is_file() else np.zeros((0, 2))
+        value = float(i_rows[-1, -1]) if len(i_rows) else 0.0
+        if not np.isfinite(value) or abs(value) > abs(cur):
+            cur = value
     if not (np.isfinite(cur) and cur != 0.0):
         problems.append(f"coil current {cur:g} A")
     tags = [conductor_tag(k) for k in range(1, len(model.conductors) + 1)]

@@ -26,7 +26,8 @@ def source_waveform(source: SineSource | DCSource | TableSource) -> DampedSine |
 
 
 def _coils(case: Case) -> tuple[list[Coil], Circuit | None]:
-    """The coils of a coupled case in the mesh's coil order (coil k is physical 100 + k), and the circuit."""
+    """The coils of a coupled case in the mesh's coil order (coil k is physical 100 + k: the order of
+    ``[[geometry.coils]]`` where the geometry names its coils), and the circuit (None without a bank)."""
     em, g = case.em, case.geometry
     kw = {"sigma": em.coil_conductivity, "density": em.coil_density, "heat_capacity": em.coil_heat_capacity}
     if not em.sources:  # em.circuit or em.current: the geometry's one coil
@@ -40,7 +41,7 @@ def _coils(case: Case) -> tuple[list[Coil], Circuit | None]:
         return [Coil(turns=g.turns, waveform=wave, **kw)], circuit
     sources = {s.name: s for s in em.sources}
     connection = {c.name: c for c in em.coils}
-    if g.type == "coaxial_coils":
+    if getattr(g, "coils", ()):  # named coils: coaxial_coils, a user deck's [[geometry.coils]]
         shapes = [(c.name, c.turns) for c in g.coils]
     else:
         shapes = [(em.coils[0].name, g.turns)]

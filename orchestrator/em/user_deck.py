@@ -10,8 +10,9 @@ The runner
 2. meshes a ``.geo`` with ``gmsh -2 -format msh22 -setnumber <parameters>`` under a time limit
    (``limits.gmsh_time_limit_s``), or reads the ``.msh``;
 3. renumbers the physical groups named in ``[geometry.regions]`` to the runner's ids (1 air, 2 shell,
-   101 coil, 201 workpiece, 202 die, 11 axis, 12 outer) and tells the deck these ids with
-   ``-setnumber Phys_Air, Phys_Shell, Phys_Coil_1, Phys_Cond_1, Phys_Cond_2, Phys_Axis, Phys_Outer``;
+   101 coil, 201 workpiece, 202 die, 11 axis, 12 outer) -- or, with ``[[geometry.coils]]``, coil k of
+   that list to 100 + k -- and tells the deck these ids with ``-setnumber Phys_Air, Phys_Shell,
+   Phys_Coil_1 (Phys_Coil_2, ...), Phys_Cond_1, Phys_Cond_2, Phys_Axis, Phys_Outer``;
 4. runs getdp on the deck exactly like the built-in ``em_case.pro`` (every number of the library's
    ``DefineConstant`` list with ``-setnumber``, ``OutDir`` with ``-setstring``, resolution
    ``EM_Transient``), with the string ``PulseformLib`` (absolute path of ``Lib_PulsedForming.pro``)
@@ -30,15 +31,16 @@ from __future__ import annotations
 import logging
 import shutil
 import subprocess
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
-from pulseform.solvers.getdp import EMMesh
+from pulseform.solvers.getdp import EMMesh, coil_tag
 from pulseform.solvers.getdp.runner import child_preexec
 from pulseform.solvers.getdp.solver import DECK_DIR
 from pulseform.solvers.getdp.contract import (CIRCUIT_TABLES, CURVE_ROLES, OPTIONAL_ROLES, REQUIRED_TABLES,  # noqa: F401
-                                              ROLE_IDS, ROLE_NUMBERS, SURFACE_ROLES)
+                                              ROLE_IDS, ROLE_NUMBERS, SURFACE_ROLES, coil_number_name)
 
 from ..case.deck_files import (MAX_PARAMETER_NAME, check_parameters, deck_tokens, find_program_call,  # noqa: F401
                                is_reserved_parameter, reserved_listing, reserved_parameter_names,
@@ -103,11 +105,26 @@ def mesh_file(g, work: Path, time_limit: float = GMSH_TIME_LIMIT_S) -> Path:
     return out
 
 
-def read_deck_mesh(path: Path, regions, name: str | Path | None = None) -> EMMesh:
-    """Read ``path`` (MSH 2.2 with named physical groups) and renumber the roles to the runner's ids.
+def group_map(regions, coils: Sequence = ()) -> list[tuple[str, str, int, int]]:
+    """(case-file key, physical-group name, dimension, the runner's id) of every mapped group: the
+    roles of ``regions`` that are given, then coil k of ``coils`` (``[[geometry.coils]]``, k = 1, 2, ...)
+    as physical ``coil_tag(k)`` = 100 + k (``regions.coil``, when given, is coil 1 = 101)."""
+    out = []
+    for role in SURFACE_ROLES + CURVE_ROLES:
+        group = getattr(regions, role)
+        if group is not None:
+            out.append((f"geometry.regions.{role}", group, 2 if role in SURFACE_ROLES else 1, ROLE_IDS[role]))
+    out += [(f"geometry.coils[{i}].group", c.group, 2, coil_tag(i + 1)) for i, c in enumerate(coils)]
+    return out
+
+
+def read_deck_mesh(path: Path, regions, name: str | Path | None = None, coils: Sequence = ()) -> EMMesh:
+    """Read ``path`` (MSH 2.2 with named physical groups) and renumber the roles to the runner's ids
+    (:func:`group_map`: ``regions`` and the coil roles ``coils``, ``[[geometry.coils]]``).
 
     Every triangle must belong to a mapped surface group; curves of unmapped groups are dropped.
-    Messages name ``name`` (the user's .geo when ``path`` is the mesh made from it), else ``path``.
+    Messages name ``name`` (the user's .geo when ``path`` is the mesh made from it), else ``path``,
+    and the case-file key of the group (``geometry.regions.<role>``, ``geometry.coils[<i>].group``).
     """
     import meshio
 
@@ -122,27 +139,25 @@ def read_deck_mesh(path: Path, regions, name: str | Path | None = None) -> EMMes
     ltags = np.asarray(phys.get("line", np.zeros(len(lines), np.int64)))
     ttags = np.asarray(phys["triangle"])
     new_t, new_l = np.zeros_like(ttags), np.zeros_like(ltags)
-    for role in SURFACE_ROLES + CURVE_ROLES:
-        name = getattr(regions, role)
-        if name is None:
-            continue
+    for key, name, want, new_id in group_map(regions, coils):
+        role = key.rsplit(".", 1)[-1] if key.startswith("geometry.regions.") else "coil"
         if name not in names:
-            raise DeckContractError(f"{path}: geometry.regions.{role}: no physical group named {name!r} "
+            raise DeckContractError(f"{path}: {key}: no physical group named {name!r} "
                                     f"(the mesh has {', '.join(sorted(names)) or 'no named groups'})")
         pid, dim = names[name]
-        want = 2 if role in SURFACE_ROLES else 1
         if dim != want:
-            raise DeckContractError(f"{path}: geometry.regions.{role}: group {name!r} has dimension {dim}; "
+            raise DeckContractError(f"{path}: {key}: group {name!r} has dimension {dim}; "
                                     f"the {role} must be a physical {'surface' if want == 2 else 'curve'}")
         sel = (ttags == pid) if want == 2 else (ltags == pid)
         if not sel.any():
-            raise DeckContractError(f"{path}: geometry.regions.{role}: group {name!r} has no elements")
-        (new_t if want == 2 else new_l)[sel] = ROLE_IDS[role]
+            raise DeckContractError(f"{path}: {key}: group {name!r} has no elements")
+        (new_t if want == 2 else new_l)[sel] = new_id
     if (new_t == 0).any():
         left = sorted({int(t) for t in ttags[new_t == 0]})
         inv = {v[0]: k for k, v in names.items() if v[1] == 2}
         raise DeckContractError(f"{path}: triangles of physical group(s) "
-                                f"{', '.join(inv.get(t, str(t)) for t in left)} have no role in geometry.regions")
+                                f"{', '.join(inv.get(t, str(t)) for t in left)} have no role in geometry.regions "
+                                f"(nor a coil of [[geometry.coils]])")
     keep = new_l > 0
     pts = np.asarray(m.points)[:, :2]
     mesh = EMMesh(pts, tri.astype(np.int64), new_t, lines[keep].astype(np.int64), new_l[keep])
@@ -162,11 +177,15 @@ def build_user_geometry(case, work: Path, em_dir: Path):
     getdp run under the case's time limits (:func:`time_limits`)."""
     g = case.geometry
     gmsh_limit, getdp_limit = time_limits(case)
-    mesh = read_deck_mesh(mesh_file(g, work, gmsh_limit), g.regions, name=g.mesh)
-    log.info("user EM mesh (%s): %d nodes, %d triangles", Path(g.mesh).name, mesh.n_nodes, len(mesh.triangles))
+    mesh = read_deck_mesh(mesh_file(g, work, gmsh_limit), g.regions, name=g.mesh, coils=g.coils)
+    log.info("user EM mesh (%s): %d nodes, %d triangles, %d coil(s)", Path(g.mesh).name, mesh.n_nodes,
+             len(mesh.triangles), len(g.coil_groups()))
     check_contract(make_solver(case, user_em_model(case), Path(em_dir)), mesh, Path(em_dir) / "contract_check",
                    time_limit=getdp_limit)
-    return EMGeometry(mesh, {role: ROLE_IDS[role] for role in ("coil",) + g.conductor_roles()}, [])
+    # coils 2, 3, ... (physical 102, ...) have no turn rectangles either: user meshes are never remeshed,
+    # but the mesh motion keeps every coil's nodes fixed (EMGeometry.coil_turns lists their ids)
+    return EMGeometry(mesh, {role: ROLE_IDS[role] for role in ("coil",) + g.conductor_roles()}, [],
+                      more_coils=[[] for _ in g.coil_groups()[1:]])
 
 
 def log_summary(path: Path, n: int = 2, width: int = 160) -> str:
@@ -201,7 +220,8 @@ def check_user_deck(case) -> None:
 
 # ----------------------------------------------------------------------------- getdp
 def user_em_model(case):
-    """EMModel of a user-deck case: one stranded coil, the workpiece as massive conductor 1 (a die 2)."""
+    """EMModel of a user-deck case: its stranded coils (``regions.coil``, or ``[[geometry.coils]]`` in their
+    order), the workpiece as massive conductor 1 (a die 2)."""
     g = case.geometry
     shell = None if g.shell_inner_radius is None else (g.shell_inner_radius, g.shell_outer_radius)
     return em_model(case, shell)
@@ -210,10 +230,13 @@ def user_em_model(case):
 def make_solver(case, model, work_dir: Path, getdp_process: str = "per_step"):
     """The EM solver on the user's deck (role ids, the case's parameters and ``PulseformLib``): one
     getdp process per EM step, or with ``getdp_process = "persistent"`` one for the run (the deck
-    needs Resolution ``EM_Persistent``, which a deck on ``PulseformLib`` has)."""
+    needs Resolution ``EM_Persistent``, which a deck on ``PulseformLib`` has). Coil k's id is
+    ``Phys_Coil_<k>`` = 100 + k (``Phys_Coil_1`` = 101 for ``regions.coil`` or the first of
+    ``[[geometry.coils]]``); ``NbCoils`` and the per-coil numbers come from the model."""
     g = case.geometry
     numbers = {name: ROLE_IDS[role] for role, name in ROLE_NUMBERS.items()
                if role not in OPTIONAL_ROLES or getattr(g.regions, role) is not None}
+    numbers.update({coil_number_name(k): coil_tag(k) for k in range(2, len(g.coil_groups()) + 1)})
     numbers.update({k: float(v) for k, v in (g.parameters or {}).items()})
     lib = (DECK_DIR / "Lib_PulsedForming.pro").resolve()
     return make_em_solver(model, work_dir, case.em.time_scheme, getdp_process, deck=g.pro, extra_numbers=numbers,

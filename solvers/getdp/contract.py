@@ -13,7 +13,7 @@ from .model import Circuit, Coil, Conductor, CurrentTable, DampedSine, EMModel
 from .solver import DECK_DIR, GetDPSolver
 
 __all__ = ["ROLE_IDS", "ROLE_NUMBERS", "SURFACE_ROLES", "CURVE_ROLES", "OPTIONAL_ROLES", "REQUIRED_TABLES",
-           "CIRCUIT_TABLES", "RUN_PRO_LISTS", "runner_number_names"]
+           "CIRCUIT_TABLES", "RUN_PRO_LISTS", "COIL_NUMBERS", "coil_number_name", "coil_tables", "runner_number_names"]
 
 #: role -> the runner's physical id, and the -setnumber name the deck receives it under
 ROLE_IDS = {"air": AIR, "shell": SHELL, "coil": coil_tag(1), "workpiece": conductor_tag(1),
@@ -22,6 +22,16 @@ ROLE_NUMBERS = {"air": "Phys_Air", "shell": "Phys_Shell", "coil": "Phys_Coil_1",
                 "die": "Phys_Cond_2", "axis": "Phys_Axis", "outer": "Phys_Outer"}
 SURFACE_ROLES, CURVE_ROLES = ("air", "shell", "coil", "workpiece", "die"), ("axis", "outer")
 OPTIONAL_ROLES = ("shell", "die")
+#: the family of -setnumber names of the coil ids: coil k (k = 1, 2, ...) is physical ``coil_tag(k)`` = 100 + k,
+#: received as ``Phys_Coil_<k>`` (``Phys_Coil_1`` is the role ``coil``'s :data:`ROLE_NUMBERS` entry)
+COIL_NUMBERS = "Phys_Coil_<k>"
+
+
+def coil_number_name(k: int) -> str:
+    """The ``-setnumber`` name under which a deck receives the physical id of coil ``k`` (1-based)."""
+    if k < 1:
+        raise ValueError(f"coil numbers start at 1, got {k}")
+    return f"Phys_Coil_{k}"
 
 
 #: output tables the contract requires after one step (k = 1: one coil, one conductor)
@@ -38,6 +48,15 @@ REQUIRED_TABLES = {
 }
 CIRCUIT_TABLES = {"cir_U.txt": "EM_Step: Print[U, OnRegion Capacitance_Cir]",
                   "cir_I.txt": "EM_Step: Print[I, OnRegion Capacitance_Cir]"}
+
+
+def coil_tables(k: int) -> dict[str, str]:
+    """The per-coil output tables of coil ``k`` (1-based) the contract requires, with what prints them
+    (coil 1's are in :data:`REQUIRED_TABLES`)."""
+    return {f"coil_I_{k}.txt": f"EM_Step: Print[I, OnRegion Coil_{k}]",
+            f"coil_U_{k}.txt": f"EM_Step: Print[U, OnRegion Coil_{k}]",
+            f"coil_P_{k}.txt": f"EM_Step: Print[P[Coil_{k}], OnGlobal]",
+            f"coil_F_{k}.txt": f"EM_Step: Print[F[Coil_{k}], OnGlobal]"}
 
 
 # ----------------------------------------------------------------------------- names a run sets

@@ -274,7 +274,7 @@ def test_every_shipped_deck_passes_the_check_with_a_runs_numbers(tmp_path, toml,
 
     case, _ = load_case(toml, [f"em.time_scheme='{scheme}'"])
     g = case.geometry
-    mesh = ud.read_deck_mesh(ud.mesh_file(g, tmp_path / "mesh"), g.regions)
+    mesh = ud.read_deck_mesh(ud.mesh_file(g, tmp_path / "mesh"), g.regions, coils=g.coils)
     model = ud.user_em_model(case)
     report = ud.check_contract(ud.make_solver(case, model, tmp_path / "em"), mesh, tmp_path / "em/contract_check")
     tags = [conductor_tag(k) for k in range(1, len(model.conductors) + 1)]
@@ -290,6 +290,10 @@ def test_every_shipped_deck_passes_the_check_with_a_runs_numbers(tmp_path, toml,
     checked = numbers(report.argv)
     for name in ud.ROLE_NUMBERS.values():
         assert (name in checked) == (name != "Phys_Cond_2" or len(tags) == 2), name
+    n_coils = len(model.coils)  # two_coils.toml: [[geometry.coils]] inner, outer -> 101, 102
+    assert checked["NbCoils"] == n_coils == max(len(g.coils), 1)
+    assert [checked[f"Phys_Coil_{k}"] for k in range(1, n_coils + 1)] == [100 + k for k in range(1, n_coils + 1)]
+    assert f"Phys_Coil_{n_coils + 1}" not in checked
     assert {k: float(v) for k, v in g.parameters.items()}.items() <= checked.items()
     run = ud.make_solver(case, model, tmp_path / "run")  # a run's first EM step, per-step getdp
     result, _ = run.step(mesh, run.initial_state(0.0), 1e-7)

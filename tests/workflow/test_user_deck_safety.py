@@ -161,9 +161,9 @@ def test_the_docs_list_every_reserved_name():
 
 
 def test_names_that_only_look_like_runner_numbers_pass():
-    for ok in ("Coil_Gap", "Coil_Ns", "C_bank2", "Phys_Coil_9", "TimeEnd", "Lc_Sheet"):
+    for ok in ("Coil_Gap", "Coil_Ns", "C_bank2", "Phys_Coil_x", "Coil_Split", "TimeEnd", "Lc_Sheet"):
         assert not user_deck.is_reserved_parameter(ok), ok
-    for bad in ("Coil_Ns_12", "Cond_sigma_1", "Val_Rint"):
+    for bad in ("Coil_Ns_12", "Cond_sigma_1", "Val_Rint", "Phys_Coil_9"):  # Phys_Coil_<k>: coil k's id
         assert user_deck.is_reserved_parameter(bad), bad
 
 
