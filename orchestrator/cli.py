@@ -57,6 +57,25 @@ def _parser() -> argparse.ArgumentParser:
                        help="run the members through mpi4py.futures: start under mpirun -n N (N >= 2): rank 0 "
                             "manages, ranks 1..N-1 run the members")
 
+    conv = sub.add_parser("converge", help="run a case on refined meshes and report the grid convergence index",
+                          description="Run CASE on LEVELS meshes (every element size divided by RATIO per level; or "
+                                      "the EM step with --refine em_step), each its own `pulseform run` process in "
+                                      "OUT/level_<k>/, and compute per metric the observed order, the extrapolated "
+                                      "value and the GCI of the three finest (Celik et al. 2008). Writes "
+                                      "OUT/converge.json, OUT/report.md and OUT/plots/converge_*.png.")
+    conv.add_argument("case", metavar="CASE")
+    conv.add_argument("--ratio", type=float, default=2.0, help="refinement ratio per level (default 2)")
+    conv.add_argument("--levels", type=int, default=3, help="levels, >= 3 (default 3)")
+    conv.add_argument("--refine", choices=("mesh", "em_step"), default="mesh",
+                      help="what is refined: every element size (default) or the EM step (coupling.n)")
+    conv.add_argument("--metric", action="append", default=[], metavar="NAME",
+                      help="a metrics.json key to study (repeatable; default: the headline metrics the runs have)")
+    conv.add_argument("--set", metavar="KEY.PATH=VALUE", action="append", default=[], dest="overrides",
+                      help="override applied to every level")
+    conv.add_argument("--out", metavar="DIR", type=Path, help="study folder (default: results/<case>_converge)")
+    conv.add_argument("--jobs", type=int, default=1, metavar="N", help="levels run at the same time (default 1)")
+    conv.add_argument("--force", action="store_true", help="replace an existing study folder")
+
     val = sub.add_parser("validate", help="run the validation registry and write a report",
                          description="Run the validation entries of a suite (each: a case or set-up, a quantity, "
                                      "a reference with provenance, a tolerance); write OUT/report.md, "
@@ -249,6 +268,35 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     return EXIT_FAILED if failed else EXIT_OK
 
 
+def _cmd_converge(args: argparse.Namespace) -> int:
+    from .case.io import CaseError, load_case
+    from .run.results import ResultsExistError
+    from .workflows.converge import ConvergeError, run_converge
+
+    if args.jobs < 1:
+        return _error(f"--jobs: got {args.jobs}; must be >= 1", EXIT_BAD_INPUT)
+    try:
+        case, _ = load_case(args.case, args.overrides)
+        out = args.out or Path("results") / f"{case.case.name}_converge"
+        report = run_converge(args.case, out, ratio=args.ratio, levels=args.levels, refine=args.refine,
+                              metrics=args.metric or None, jobs=args.jobs, force=args.force, overrides=args.overrides)
+    except (CaseError, ConvergeError, ResultsExistError) as exc:
+        return _error(str(exc), EXIT_BAD_INPUT)
+    print(f"{'metric':<28} {'fine':>12} {'medium':>12} {'coarse':>12} {'order':>7} {'extrapolated':>13} {'GCI':>8}")
+    for name, r in report["metrics"].items():
+        if "error" in r:
+            print(f"{name:<28} {r['error']}")
+            continue
+        v = r["values"]
+        print(f"{name:<28} {v[0]:12.6g} {v[1]:12.6g} {v[2]:12.6g} {r['order']:7.3g} {r['extrapolated']:13.6g} "
+              f"{100 * r['gci_fine']:7.3g}%  {r['convergence']}")
+    failed = [lv for lv in report["levels"] if lv["returncode"] != 0]
+    for lv in failed:
+        print(f"level {lv['level']}: {lv['error']}", file=sys.stderr)
+    print(f"report: {out / 'report.md'}")
+    return EXIT_FAILED if failed else EXIT_OK
+
+
 def _cmd_validate(args: argparse.Namespace) -> int:
     from .run.results import ResultsExistError
     from .workflows.validate import SelectionError, run_validation, select
@@ -353,7 +401,7 @@ def main(argv: list[str] | None = None) -> int:
     """The ``pulseform`` command with arguments ``argv`` (default: the command line)."""
     args = _parser().parse_args(argv)
     _setup_logging(getattr(args, "quiet", False))
-    handlers = {"run": _cmd_run, "check": _cmd_check, "sweep": _cmd_sweep, "info": _cmd_info,
+    handlers = {"run": _cmd_run, "check": _cmd_check, "sweep": _cmd_sweep, "converge": _cmd_converge, "info": _cmd_info,
                 "validate": _cmd_validate, "compare": _cmd_compare, "plot": _cmd_plot}
     try:
         return handlers[args.command](args)

@@ -306,11 +306,13 @@ class GetDPLoad(EMSnapshots, LoadCapabilities):
     em_fields = True
 
     def run_metrics(self, history, counters) -> dict[str, float]:
-        """EM figures of a coupled run from its history (current, heat, conservation) and the EM timers;
+        """EM figures of a coupled run from its history (current, peak force, heat, conservation) and the EM timers;
         with several coils the heat and temperature rise per coil (``<coil>_joule_heat_J``, ...) and the
         peak current of each (``<coil>_current_peak_kA``, at the ends of the EM steps)."""
         current = history.column("coil_current_abs_max_A")
-        out = {"coil_current_peak_kA": float(np.abs(current).max()) / 1e3}
+        out = {"coil_current_peak_kA": float(np.abs(current).max()) / 1e3,
+               # the workpiece's axial (r-z: z; planar: y) Lorentz force, GetDP's integral at the end of each EM step
+               "force_peak_N": float(np.abs(history.column("getdp_force_z_N")).max())}
         if len(self.coil_names) > 1:
             for name in self.coil_names:
                 out[f"{name}_current_peak_kA"] = float(np.abs(history.column(f"{name}_current_A")).max()) / 1e3

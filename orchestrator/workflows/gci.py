@@ -14,7 +14,8 @@ Reporting of Uncertainty Due to Discretization in CFD Applications", J. Fluids E
 - the fine-grid convergence index GCI = Fs e_a / (r21^p − 1), safety factor Fs = 1.25 for three grids.
 
 ε32/ε21 > 0 is monotone convergence; < 0 oscillatory convergence (the procedure then uses |·| and
-s = −1, and the result is to be read with caution); ε21 = 0 or ε32 = 0 leaves p undefined.
+s = −1, and the result is to be read with caution); ε21 = ε32 = 0 is a grid-independent ("constant")
+quantity, one of them zero leaves p undefined.
 """
 
 from __future__ import annotations
@@ -48,7 +49,7 @@ class GCIResult:
     gci_fine : float
         Fs e_a / (r21^p − 1): the fine grid's relative uncertainty band.
     convergence : str
-        "monotone", "oscillatory" or "undefined" (a zero difference).
+        "monotone", "oscillatory", "constant" (the three values equal) or "undefined" (one zero difference).
     """
 
     r21: float
@@ -101,6 +102,8 @@ def grid_convergence(h: Sequence[float], phi: Sequence[float], safety: float = S
     r21, r32 = h2 / h1, h3 / h2
     e21, e32 = p2 - p1, p3 - p2
     e_a = abs((p1 - p2) / p1) if p1 != 0.0 else math.inf
+    if e21 == 0.0 and e32 == 0.0:  # independent of the grid (e.g. a prescribed quantity): no error band
+        return GCIResult(r21, r32, math.nan, p1, 0.0, 0.0, 0.0, "constant")
     if e21 == 0.0 or e32 == 0.0:
         nan = math.nan
         return GCIResult(r21, r32, nan, nan, e_a, nan, nan, "undefined")

@@ -58,3 +58,8 @@ def test_zero_difference_is_undefined():
 def test_bad_input(h, phi):
     with pytest.raises(ValueError):
         grid_convergence(h, phi)
+
+
+def test_grid_independent_quantity_is_constant():
+    r = grid_convergence([1.0, 2.0, 4.0], [17.1744, 17.1744, 17.1744])
+    assert r.convergence == "constant" and r.gci_fine == 0.0 and r.extrapolated == 17.1744

@@ -1,0 +1,191 @@
+"""Convergence studies: a case on systematically refined meshes (or EM steps), the grid convergence
+index of its headline metrics (:mod:`.gci`).
+
+``pulseform converge CASE`` runs the case on ``levels`` (>= 3) meshes refined by a constant ``ratio``:
+level 0 is the case as given, level k divides **every** element size of the case by ratio^k (the keys
+named ``mesh_size*`` of ``[geometry]`` and its nested tables, and each body's ``mesh_size``), so the
+meshes are refined alike everywhere, as the GCI procedure asks. With ``refine = "em_step"`` it
+divides ``coupling.n`` instead (the EM step, the mechanical step fixed). Each level is its own
+``pulseform run`` process (``jobs`` at a time, as the members of a sweep). For each metric it computes,
+on the three finest levels, the observed order, the Richardson-extrapolated value and the GCI
+(Celik et al. 2008), and writes:
+
+- ``converge.json``: the levels (their relative size h = ratio^−k, overrides, metrics) and per metric
+  the values and the GCI result;
+- ``report.md``: a table (metric, fine/medium/coarse values, observed order, extrapolated value, GCI
+  of the finest level, convergence type);
+- ``plots/converge_<metric>.png``: the values against h, the extrapolated value at h = 0 and the
+  finest level's GCI band.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+import tomllib
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+from ..case.io import CaseError, case_to_toml, load_case
+from ..run.results import ResultsFolder
+from ..run.units import label
+from .gci import grid_convergence
+from .sweep import Member, run_member
+
+log = logging.getLogger(__name__)
+
+__all__ = ["refinement_keys", "study_levels", "run_converge", "DEFAULT_METRICS"]
+
+#: the headline metrics a study reports when the caller names none (those the runs have)
+DEFAULT_METRICS = ("force_peak_N", "force_impulse_Ns", "coil_current_peak_kA", "max_deflection_mm",
+                   "max_radial_displacement_mm")
+
+
+class ConvergeError(ValueError):
+    """A study that cannot be made (one line)."""
+
+
+def refinement_keys(resolved: dict) -> dict[str, float]:
+    """The element sizes (m) of a resolved case (the TOML of :func:`case_to_toml`), by ``--set`` key
+    path: ``geometry.mesh_size*`` (also in nested tables such as ``geometry.die``) and
+    ``bodies.<name>.mesh_size``."""
+    out: dict[str, float] = {}
+
+    def walk(table: dict, path: str) -> None:
+        for k, v in table.items():
+            if isinstance(v, dict):
+                walk(v, f"{path}.{k}")
+            elif k.startswith("mesh_size") and isinstance(v, (int, float)) and not isinstance(v, bool):
+                out[f"{path}.{k}"] = float(v)
+
+    walk(resolved.get("geometry", {}), "geometry")
+    for b in resolved.get("bodies", []):
+        if isinstance(b.get("mesh_size"), (int, float)):
+            out[f"bodies.{b['name']}.mesh_size"] = float(b["mesh_size"])
+    return out
+
+
+def study_levels(resolved: dict, ratio: float, levels: int, refine: str) -> list[dict[str, str]]:
+    """The ``--set`` values of each level (level 0: the case as given), as TOML literals."""
+    if refine == "mesh":
+        keys = refinement_keys(resolved)
+        if not keys:
+            raise ConvergeError("the case has no element size to refine (no mesh_size key: a user deck's mesh is "
+                                "its .geo's; refine its [geometry.parameters] with sweep)")
+        return [{k: repr(v / ratio ** i) for k, v in keys.items()} for i in range(levels)]
+    n = int(resolved.get("coupling", {}).get("n", 10))
+    out = []
+    for i in range(levels):
+        value = n / ratio ** i
+        if abs(value - round(value)) > 1e-9 or round(value) < 1:
+            raise ConvergeError(f"--refine em_step: coupling.n = {n} divided by {ratio:g}^{i} is {value:g}, not a whole "
+                                "number >= 1; choose coupling.n and --ratio so that every level's n is whole")
+        out.append({"coupling.n": str(int(round(value)))})
+    return out
+
+
+def run_converge(case: str, out: Path, *, ratio: float = 2.0, levels: int = 3, refine: str = "mesh",
+                 metrics: list[str] | None = None, jobs: int = 1, force: bool = False,
+                 overrides: list[str] | None = None) -> dict:
+    """Run the study of ``case`` into ``out``; returns the ``converge.json`` content (see the module
+    docstring). Raises :class:`ConvergeError` (or the loader's ``CaseError``) before anything runs for
+    bad arguments or a level whose case is invalid; a level whose run fails leaves its metrics out."""
+    if not (math.isfinite(ratio) and ratio >= 1.1):
+        raise ConvergeError(f"--ratio: got {ratio:g}; must be >= 1.1 (Celik et al. recommend > 1.3)")
+    if levels < 3:
+        raise ConvergeError(f"--levels: got {levels}; the GCI needs at least 3")
+    if refine not in ("mesh", "em_step"):
+        raise ConvergeError(f"--refine: got {refine!r}; allowed: 'mesh', 'em_step'")
+    base, _ = load_case(case, list(overrides or []))
+    resolved = tomllib.loads(case_to_toml(base))
+    plan = study_levels(resolved, ratio, levels, refine)
+    results = ResultsFolder(out, force=force)
+    members = [Member(i, values, results.root / f"level_{i}") for i, values in enumerate(plan)]
+    for m in members:  # every level valid before anything runs (a finer mesh may exceed [limits])
+        try:
+            load_case(case, list(overrides or []) + m.overrides)
+        except CaseError as exc:
+            raise ConvergeError(f"level {m.index} (sizes / {ratio:g}^{m.index}): {exc}") from None
+    extra = [a for s in (overrides or []) for a in ("--set", s)]
+    with ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
+        list(pool.map(lambda m: run_member(case, m, extra), members))
+    report = summarise(members, ratio, metrics, refine)
+    (results.root / "converge.json").write_text(json.dumps(report, indent=1) + "\n")
+    (results.root / "report.md").write_text(report_markdown(report, case))
+    plot_study(report, results.plots)
+    return report
+
+
+def summarise(members: list[Member], ratio: float, metrics: list[str] | None, refine: str) -> dict:
+    """The study's record: the levels and, per metric present in every level's run, the GCI of the
+    three finest levels."""
+    ok = [m for m in members if m.returncode == 0 and m.metrics]
+    names = list(metrics) if metrics else [k for k in DEFAULT_METRICS if all(k in m.metrics for m in ok)]
+    out = {"refine": refine, "ratio": ratio,
+           "levels": [{"level": m.index, "h_rel": ratio ** -m.index, "overrides": m.values, "returncode": m.returncode,
+                       "error": m.error, "metrics": m.metrics} for m in members],
+           "metrics": {}}
+    fine = sorted(ok, key=lambda m: m.index)[-3:][::-1]  # finest first
+    for name in names:
+        if len(fine) < 3 or not all(name in m.metrics for m in fine):
+            out["metrics"][name] = {"error": "not in the runs of the three finest levels"}
+            continue
+        h = [ratio ** -m.index for m in fine]
+        phi = [float(m.metrics[name]) for m in fine]
+        out["metrics"][name] = {"values": phi, "h_rel": h, **grid_convergence(h, phi).to_dict()}
+    return out
+
+
+def report_markdown(report: dict, case: str) -> str:
+    """``report.md``: one row per metric."""
+    what = "element sizes" if report["refine"] == "mesh" else "EM step (coupling.n)"
+    lines = [f"# Convergence study of {case}", "",
+             f"{len(report['levels'])} levels, {what} divided by {report['ratio']:g} per level; the GCI of the "
+             "three finest (Celik et al., J. Fluids Eng. 130 (2008) 078001; safety factor 1.25).", "",
+             "| metric | fine | medium | coarse | observed order | extrapolated | GCI fine | convergence |",
+             "|---|---|---|---|---|---|---|---|"]
+    for name, r in report["metrics"].items():
+        if "error" in r:
+            lines.append(f"| {name} | - | - | - | - | - | - | {r['error']} |")
+            continue
+        v = r["values"]
+        lines.append(f"| {name} | {v[0]:.6g} | {v[1]:.6g} | {v[2]:.6g} | {r['order']:.3g} | {r['extrapolated']:.6g} "
+                     f"| {100 * r['gci_fine']:.3g} % | {r['convergence']} |")
+    failed = [lv for lv in report["levels"] if lv["returncode"] != 0]
+    for lv in failed:
+        lines.append(f"\nlevel {lv['level']} failed: {lv['error']}")
+    return "\n".join(lines) + "\n"
+
+
+def plot_study(report: dict, folder: Path) -> list[Path]:
+    """``converge_<metric>.png``: values vs relative size h, the extrapolated value at h = 0 and the
+    finest level's GCI band."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    paths = []
+    for name, r in report["metrics"].items():
+        if "error" in r:
+            continue
+        fig, ax = plt.subplots(figsize=(6.5, 4))
+        ax.plot(r["h_rel"], r["values"], "o-", label="runs (three finest)")
+        if math.isfinite(r["extrapolated"]):
+            ax.plot([0.0], [r["extrapolated"]], "*", ms=12, label=f"extrapolated, p = {r['order']:.2f}")
+            band = r["gci_fine"] * abs(r["values"][0])
+            ax.errorbar([r["h_rel"][0]], [r["values"][0]], yerr=[band], fmt="none", capsize=5,
+                        label=f"GCI fine {100 * r['gci_fine']:.2g} %")
+        ax.set_xlim(left=0.0)
+        ax.set_xlabel("relative size h (finest refined level: smallest)")
+        ax.set_ylabel(label(name))
+        ax.set_title(f"{name}: {r['convergence']} convergence")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
+        fig.tight_layout()
+        path = folder / f"converge_{name}.png"
+        fig.savefig(path, dpi=100)
+        plt.close(fig)
+        paths.append(path)
+    return paths
