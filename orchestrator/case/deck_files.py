@@ -295,6 +295,15 @@ def _named(tokens: list, i: int, next_word: str) -> str | None:
     return None
 
 
+def _in_system_block(tokens: list, i: int) -> bool:
+    """``tokens[i]`` (a ``Name``) lies in a Resolution's ``System { ... }`` list, not in a PostProcessing
+    (both name a formulation with ``NameOfFormulation``): the nearest of the two keywords before it."""
+    for kind, tok, _ in reversed(tokens[:i]):
+        if kind == "id" and tok in ("System", "PostProcessing"):
+            return tok == "System"
+    return False
+
+
 def check_template_deck(g: dict[str, Any], source: str, wrapper_names: tuple[str, ...]) -> None:
     """A ``library = "getdp_template"`` deck: its formulation (``Name F; Type FemEquation``) and a
     system on it (``Name S; NameOfFormulation F``) exist in the .pro or its Includes, it does not
@@ -326,7 +335,7 @@ def check_template_deck(g: dict[str, Any], source: str, wrapper_names: tuple[str
         raise CaseError(source, "geometry.template.formulation", f"got {formulation!r}; {deck} (with its Includes) "
                         f"defines no such Formulation (it has {', '.join(forms) or 'none'})")
     systems = sorted({s for i in range(len(toks)) if (s := _named(toks, i, "NameOfFormulation")) is not None
-                      and i + 4 < len(toks) and toks[i + 4][1] == formulation})
+                      and i + 4 < len(toks) and toks[i + 4][1] == formulation and _in_system_block(toks, i)})
     if system not in systems:
         raise CaseError(source, "geometry.template.system", f"got {system!r}; {deck} (with its Includes) has no "
                         f"System {system!r} on formulation {formulation} (systems on it: {', '.join(systems) or 'none'})")

@@ -130,20 +130,20 @@ def check_deck_values(case, model, out: Path) -> dict[str, float]:
         cir = model.circuit
         want += [("C", f"{bank}.capacitance", cir.C, "F"), ("R", f"{bank}.resistance", cir.R_ext, "Ohm"),
                  ("L", f"{bank}.inductance", cir.L_ext, "H"), ("V0", f"{bank}.voltage", cir.V0, "V")]
-    deck_names = {"sigma": "sigma[] on conductor {k}", "turns": "integral of js0[] . e_z over coil {k} (Ns/Sc x area)",
-                  "C": "Capacitance[] of Capacitance_Cir", "R": "Resistance[] of Resistance_Cir",
-                  "L": "Inductance[] of Inductance_Cir", "V0": "the Init of Capacitance_Cir's voltage"}
+    groups = [case.geometry.regions.workpiece, case.geometry.regions.die]
+    coils = [c[2] for c in g.coil_groups()]
     diffs = []
     for vkey, ckey, expected, unit in want:
         got = vals[vkey]
         if not np.isfinite(got) or abs(got - expected) > VALUE_RTOL * max(abs(expected), 1e-300):
             base, _, k = vkey.partition("_")
-            what = deck_names[base].format(k=k)
+            what = {"sigma": f"sigma[] on {groups[int(k or 1) - 1]}", "turns": f"js0[] over {coils[int(k or 1) - 1]}",
+                    "C": "Capacitance[]", "R": "Resistance[]", "L": "Inductance[]",
+                    "V0": "Init of the capacitor's voltage"}[base]
             diffs.append(f"{ckey} = {expected:.6g} {unit}, the deck's {what} = {got:.6g} {unit}")
     if diffs:
         raise DeckContractError(f"deck {Path(g.pro).name} and the case differ: " + "; ".join(diffs)
-                                + " (a template deck keeps its own values: make them agree, e.g. pass the case's "
-                                  "through [geometry.parameters] to the deck's DefineConstant)")
+                                + " (the deck's own values are used: make them agree)")
     log.info("template deck %s agrees with the case: %s", Path(g.pro).name,
              ", ".join(f"{k} = {v:.6g}" for k, v in vals.items()))
     return vals
