@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from pulseform.solvers.getdp.contract import COIL_NUMBERS, ROLE_NUMBERS, runner_number_names
+from pulseform.solvers.getdp.template import WRAPPER_NAMES
 
 from .errors import MAX_MESSAGE, CaseError
 
@@ -39,6 +40,7 @@ def resolve_deck_paths(data: dict[str, Any], file: Path, source: str) -> None:
             raise CaseError(source, f"geometry.{key}", f"got {value!r}: file not found ({p})")
         g[key] = str(p)
     check_parameters(g.get("parameters"), source)
+    check_template_deck(g, source, WRAPPER_NAMES)
     if g.get("allow_system_calls") is True:
         return
     for key, language in (("mesh", "geo"), ("pro", "pro")):
@@ -259,3 +261,86 @@ def find_program_call(path: Path, language: str) -> tuple[str, str] | None:
     return None
 
 
+
+
+# ----------------------------------------------------------------------------- decks on GetDP's template
+#: the file name of GetDP's template a 'getdp_template' deck includes
+TEMPLATE_FILE = "Lib_Magnetodynamics2D_av_Cir.pro"
+
+
+def deck_files_tokens(path: Path) -> list[tuple[Path, list]]:
+    """(file, tokens) of the deck ``path`` and of every file it ``Include``s by a string literal
+    (relative to the including file; missing files and cycles are skipped), in reading order."""
+    seen: set = set()
+    out: list[tuple[Path, list]] = []
+    first = _read_deck(path, seen)
+    stack = [] if first is None else [first]
+    while stack and len(out) < MAX_DECK_FILES:
+        path, tokens = stack.pop()
+        out.append((path, tokens))
+        for i, (kind, tok, _) in enumerate(tokens):
+            name = _file_argument(tokens, i) if kind == "id" and tok == "Include" else None
+            nxt = None if name is None else _read_deck(path.parent / name, seen)
+            if nxt is not None:
+                stack.append(nxt)
+    return out
+
+
+def _named(tokens: list, i: int, next_word: str) -> str | None:
+    """``X`` if ``tokens[i:]`` reads ``Name X ; <next_word>``, else None."""
+    if tokens[i][1] != "Name" or i + 3 >= len(tokens):
+        return None
+    if tokens[i + 1][0] == "id" and tokens[i + 2][1] == ";" and tokens[i + 3][1] == next_word:
+        return tokens[i + 1][1]
+    return None
+
+
+def _in_system_block(tokens: list, i: int) -> bool:
+    """``tokens[i]`` (a ``Name``) lies in a Resolution's ``System { ... }`` list, not in a PostProcessing
+    (both name a formulation with ``NameOfFormulation``): the nearest of the two keywords before it."""
+    for kind, tok, _ in reversed(tokens[:i]):
+        if kind == "id" and tok in ("System", "PostProcessing"):
+            return tok == "System"
+    return False
+
+
+def check_template_deck(g: dict[str, Any], source: str, wrapper_names: tuple[str, ...]) -> None:
+    """A ``library = "getdp_template"`` deck: its formulation (``Name F; Type FemEquation``) and a
+    system on it (``Name S; NameOfFormulation F``) exist in the .pro or its Includes, it does not
+    include pulseform's library, and it defines none of the wrapper's names (``wrapper_names``);
+    a ``library = "pulseform"`` deck that includes GetDP's template and not ``PulseformLib`` is
+    told to set the library. Raises :class:`CaseError` (one line)."""
+    pro = g.get("pro")
+    if not isinstance(pro, str) or not Path(pro).is_file():
+        return
+    files = deck_files_tokens(Path(pro))
+    toks = [t for _, tokens in files for t in tokens]
+    uses_lib = any(a[1] == "Include" and b[1] in RUNNER_LIBRARIES for a, b in zip(toks, toks[1:]))
+    on_template = any(Path(t[1]).name == TEMPLATE_FILE for t in toks if t[0] == "str")
+    if g.get("library", "pulseform") != "getdp_template":
+        if on_template and not uses_lib:
+            raise CaseError(source, "geometry.library", f"the deck includes GetDP's {TEMPLATE_FILE} and not "
+                            "PulseformLib: set geometry.library = 'getdp_template'")
+        return
+    if uses_lib:
+        raise CaseError(source, "geometry.library", "got 'getdp_template' but the deck includes PulseformLib "
+                        "(pulseform's own library): drop geometry.library (or the Include)")
+    spec = g.get("template") if isinstance(g.get("template"), dict) else {}
+    formulation = spec.get("formulation", "Magnetodynamics2D_av")
+    system = spec.get("system", "A")
+    forms = [f for i in range(len(toks)) if (f := _named(toks, i, "Type")) is not None
+             and i + 4 < len(toks) and toks[i + 4][1] == "FemEquation"]
+    deck = Path(pro).name
+    if formulation not in forms:
+        raise CaseError(source, "geometry.template.formulation", f"got {formulation!r}; {deck} (with its Includes) "
+                        f"defines no such Formulation (it has {', '.join(forms) or 'none'})")
+    systems = sorted({s for i in range(len(toks)) if (s := _named(toks, i, "NameOfFormulation")) is not None
+                      and i + 4 < len(toks) and toks[i + 4][1] == formulation and _in_system_block(toks, i)})
+    if system not in systems:
+        raise CaseError(source, "geometry.template.system", f"got {system!r}; {deck} (with its Includes) has no "
+                        f"System {system!r} on formulation {formulation} (systems on it: {', '.join(systems) or 'none'})")
+    for i in range(len(toks)):
+        if toks[i][1] == "Name" and i + 1 < len(toks) and toks[i + 1][1] in wrapper_names:
+            where = next(f for f, tokens in files if toks[i] in tokens)
+            raise CaseError(source, "geometry.pro", f"{where.name}:{toks[i][2]}: defines {toks[i + 1][1]}, a name of "
+                            "pulseform's wrapper for template decks; rename it")

@@ -332,6 +332,17 @@ class DeckCoil:
 
 
 @dataclass(frozen=True, kw_only=True)
+class DeckTemplate:
+    """What pulseform drives in a deck written on GetDP's template ``Lib_Magnetodynamics2D_av_Cir.pro``
+    (``geometry.library = "getdp_template"``): the user's formulation and the system pulseform's own
+    Resolution solves (docs/workflow.md, "Decks on GetDP's template")."""
+
+    formulation: str = spec("Magnetodynamics2D_av", doc="the deck's Formulation (the template's "
+                                                        "quantities a, ur, ir, Is, Us, Iz, Uz)")
+    system: str = spec("A", doc="the system of the deck's Resolution on that formulation")
+
+
+@dataclass(frozen=True, kw_only=True)
 class UserDeck(_ConductorRoles):
     """A user's own EM deck: a Gmsh .geo (meshed by the runner) or .msh, and a GetDP .pro that
     honours the deck contract (docs/workflow.md). Axisymmetric; one coil (``regions.coil`` with
@@ -355,6 +366,12 @@ class UserDeck(_ConductorRoles):
     shell_outer_radius: float | None = spec(None, unit="m", gt=0.0, doc="shell transformation: outer radius")
     parameters: dict[str, float] | None = spec(None, doc="numbers passed with -setnumber to gmsh (.geo) and getdp: "
                                                    "identifiers, finite, none of the names the runner sets")
+    library: Literal["pulseform", "getdp_template"] = spec(
+        "pulseform", doc="what the .pro is written on: 'pulseform' (Include PulseformLib, the deck contract) or "
+                         "'getdp_template' (Include Lib_Magnetodynamics2D_av_Cir.pro, unchanged: pulseform adds its "
+                         "own PostProcessing and Resolution; its own physical ids are kept)")
+    template: DeckTemplate | None = spec(None, doc="[geometry.template] the formulation and system of a "
+                                                   "'getdp_template' deck (defaults Magnetodynamics2D_av, A)")
 
     _second: ClassVar[tuple[str, str]] = ("die", "regions.die")
 
@@ -371,6 +388,13 @@ class UserDeck(_ConductorRoles):
             raise SchemaError(f"{path}.shell_outer_radius", f"got {self.shell_outer_radius:g}; must be > "
                               f"shell_inner_radius = {self.shell_inner_radius:g} (m)")
         self._validate_coils(path)
+        if self.template is not None and self.library != "getdp_template":
+            raise SchemaError(f"{path}.template", "[geometry.template] is for library = 'getdp_template' (a deck "
+                              "on GetDP's template); remove it or set geometry.library")
+
+    def template_spec(self) -> DeckTemplate:
+        """The ``[geometry.template]`` table, or its defaults."""
+        return self.template if self.template is not None else DeckTemplate()
 
     def _validate_coils(self, path: str) -> None:
         """One coil (``regions.coil`` with ``turns``) or ``[[geometry.coils]]``, never both; unique coil names;

@@ -125,9 +125,14 @@ def check_deck(solver: GetDPSolver, mesh: EMMesh, work: Path, time_limit: float,
 
     work = Path(work).resolve()
     deck = Path(solver.deck)
-    check = GetDPSolver(solver.model, work.parent, deck=deck, extra_numbers=solver.extra_numbers,
-                        preamble=solver.preamble, petsc_args=solver.petsc_args, executable=solver.executable,
-                        timeout=time_limit, time_scheme="euler")
+    kwargs = dict(deck=deck, extra_numbers=solver.extra_numbers, preamble=solver.preamble,
+                  petsc_args=solver.petsc_args, executable=solver.executable, timeout=time_limit, time_scheme="euler")
+    if getattr(solver, "deck_ids", None) is not None:  # a deck on GetDP's template: the same wrapper and ids
+        from pulseform.solvers.getdp.template import TemplateDeckSolver
+
+        check = TemplateDeckSolver(solver.model, work.parent, spec=solver.spec, deck_ids=solver.deck_ids, **kwargs)
+    else:
+        check = GetDPSolver(solver.model, work.parent, **kwargs)
     dt = CHECK_STEP_S
     start = time.perf_counter()
     state0 = check.initial_state(0.0)

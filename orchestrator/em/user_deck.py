@@ -48,6 +48,7 @@ from ..case.deck_files import (MAX_PARAMETER_NAME, check_parameters, deck_tokens
 from ..mesh.em_geometry import EMGeometry
 from .deck_check import DeckCheckReport, DeckContractError, check_deck  # noqa: F401  (DeckContractError: the API)
 from .participant import GetDPLoad
+from .template_deck import DeckGeometry, check_deck_values, deck_physical_ids, template_solver
 from .solver import em_model, make_em_solver
 
 log = logging.getLogger(__name__)
@@ -174,18 +175,28 @@ def read_deck_mesh(path: Path, regions, name: str | Path | None = None, coils: S
 def build_user_geometry(case, work: Path, em_dir: Path):
     """The EM geometry of a user deck (no turn rectangles: user meshes are not remeshed), after the
     deck passed the check (:func:`check_contract`, getdp runs in ``em_dir/contract_check``). gmsh and
-    getdp run under the case's time limits (:func:`time_limits`)."""
+    getdp run under the case's time limits (:func:`time_limits`). A deck on GetDP's template
+    (``library = "getdp_template"``) gets a :class:`~.template_deck.DeckGeometry` with its own
+    physical ids, and its own values are compared with the case's (:mod:`.template_deck`)."""
     g = case.geometry
     gmsh_limit, getdp_limit = time_limits(case)
-    mesh = read_deck_mesh(mesh_file(g, work, gmsh_limit), g.regions, name=g.mesh, coils=g.coils)
+    msh = mesh_file(g, work, gmsh_limit)
+    mesh = read_deck_mesh(msh, g.regions, name=g.mesh, coils=g.coils)
     log.info("user EM mesh (%s): %d nodes, %d triangles, %d coil(s)", Path(g.mesh).name, mesh.n_nodes,
              len(mesh.triangles), len(g.coil_groups()))
-    check_contract(make_solver(case, user_em_model(case), Path(em_dir)), mesh, Path(em_dir) / "contract_check",
+    template = getattr(g, "library", "pulseform") == "getdp_template"
+    deck_ids = deck_physical_ids(msh, group_map(g.regions, g.coils)) if template else None
+    model = user_em_model(case)
+    check_contract(make_solver(case, model, Path(em_dir), deck_ids=deck_ids), mesh, Path(em_dir) / "contract_check",
                    time_limit=getdp_limit)
     # coils 2, 3, ... (physical 102, ...) have no turn rectangles either: user meshes are never remeshed,
     # but the mesh motion keeps every coil's nodes fixed (EMGeometry.coil_turns lists their ids)
-    return EMGeometry(mesh, {role: ROLE_IDS[role] for role in ("coil",) + g.conductor_roles()}, [],
-                      more_coils=[[] for _ in g.coil_groups()[1:]])
+    regions = {role: ROLE_IDS[role] for role in ("coil",) + g.conductor_roles()}
+    more = [[] for _ in g.coil_groups()[1:]]
+    if template:
+        check_deck_values(case, model, Path(em_dir) / "contract_check" / "out")
+        return DeckGeometry(mesh, regions, [], more_coils=more, deck_ids=deck_ids)
+    return EMGeometry(mesh, regions, [], more_coils=more)
 
 
 def log_summary(path: Path, n: int = 2, width: int = 160) -> str:
@@ -227,17 +238,21 @@ def user_em_model(case):
     return em_model(case, shell)
 
 
-def make_solver(case, model, work_dir: Path, getdp_process: str = "per_step"):
+def make_solver(case, model, work_dir: Path, getdp_process: str = "per_step", deck_ids: dict[int, int] | None = None):
     """The EM solver on the user's deck (role ids, the case's parameters and ``PulseformLib``): one
     getdp process per EM step, or with ``getdp_process = "persistent"`` one for the run (the deck
     needs Resolution ``EM_Persistent``, which a deck on ``PulseformLib`` has). Coil k's id is
     ``Phys_Coil_<k>`` = 100 + k (``Phys_Coil_1`` = 101 for ``regions.coil`` or the first of
-    ``[[geometry.coils]]``); ``NbCoils`` and the per-coil numbers come from the model."""
+    ``[[geometry.coils]]``); ``NbCoils`` and the per-coil numbers come from the model. With
+    ``deck_ids`` (a deck on GetDP's template: runner's id -> the deck's own) the solver is a
+    :class:`~pulseform.solvers.getdp.template.TemplateDeckSolver` (per step, implicit Euler)."""
     g = case.geometry
     numbers = {name: ROLE_IDS[role] for role, name in ROLE_NUMBERS.items()
                if role not in OPTIONAL_ROLES or getattr(g.regions, role) is not None}
     numbers.update({coil_number_name(k): coil_tag(k) for k in range(2, len(g.coil_groups()) + 1)})
     numbers.update({k: float(v) for k, v in (g.parameters or {}).items()})
+    if deck_ids is not None:  # a deck on GetDP's template: pulseform's wrapper, the deck's own ids
+        return template_solver(case, model, work_dir, deck_ids, numbers)
     lib = (DECK_DIR / "Lib_PulsedForming.pro").resolve()
     return make_em_solver(model, work_dir, case.em.time_scheme, getdp_process, deck=g.pro, extra_numbers=numbers,
                           preamble=[f'PulseformLib = "{lib}";'])
@@ -252,6 +267,8 @@ def check_contract(solver, mesh, work: Path, time_limit: float = GETDP_TIME_LIMI
     Returns the :class:`~pulseform.orchestrator.em.deck_check.DeckCheckReport`; raises
     :class:`DeckContractError` (one line) naming what failed."""
     paths = ("init",) if getattr(solver, "time_scheme", "euler") == "bdf2" else ("init", "restart")
+    if getattr(solver, "deck_ids", None) is not None:  # a template deck: its state travels by -restart only
+        paths = ("restart",)
     return check_deck(solver, mesh, Path(work), time_limit, carry_paths=paths)
 
 
@@ -268,20 +285,27 @@ def user_deck_load(case, geometry, work_dir: Path, bodies, em_substeps: int):
 
     model = user_em_model(case)
     mode = case.em.getdp_process
-    if mode == "auto":  # the deck selects: the persistent getdp (BDF2 only) where it has EM_Persistent
+    deck_ids = getattr(geometry, "deck_ids", None)
+    if deck_ids is not None:  # a template deck: per step, implicit Euler (the case loader refused BDF2)
+        solver = make_solver(case, model, Path(work_dir), deck_ids=deck_ids)
+        log.info("user deck on GetDP's template: a getdp process per EM step (-restart carry)")
+        mode = None
+    elif mode == "auto":  # the deck selects: the persistent getdp (BDF2 only) where it has EM_Persistent
         mode = "per_step"
         if case.em.time_scheme == "bdf2":
             persistent = make_solver(case, model, Path(work_dir), "persistent")
             persistent.timeout = case.limits.getdp_time_limit_s
             if persistent.probe(geometry.mesh):
                 mode = "persistent"
-    solver = make_solver(case, model, Path(work_dir), mode)
+    if mode is not None:
+        solver = make_solver(case, model, Path(work_dir), mode)
     if mode == "persistent" and case.em.getdp_process == "persistent":
         solver.timeout = case.limits.getdp_time_limit_s
         if not solver.probe(geometry.mesh):
             raise DeckContractError(f"deck {case.geometry.pro}: em.getdp_process = 'persistent' needs Resolution "
                                     "EM_Persistent (Include PulseformLib provides it), or set getdp_process = 'per_step'")
-    log.info("user deck: %s", "one persistent getdp process" if mode == "persistent" else "a getdp process per EM step")
+    if mode is not None:
+        log.info("user deck: %s", "one persistent getdp process" if mode == "persistent" else "a getdp process per EM step")
     load = UserDeckLoad(geometry, model, work_dir, bodies, keep_runs=case.em.keep_runs,
                         remesh_quality=case.em.remesh_quality, sizes=(1.0, 1.0), em_substeps=em_substeps,
                         time_scheme=case.em.time_scheme)

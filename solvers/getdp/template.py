@@ -1,0 +1,289 @@
+"""Users' decks written on GetDP's standard template ``Lib_Magnetodynamics2D_av_Cir.pro``.
+
+A GetDP user's deck defines its own groups (on its own physical ids), functions and constraints,
+then includes the template, whose formulation ``Magnetodynamics2D_av`` (system ``A`` in its
+Resolution) solves the transient a-v problem with an optional circuit.  Such a deck knows nothing
+of pulseform: :class:`TemplateDeckSolver` runs it unchanged by writing a ``run.pro`` that
+includes the deck and then appends pulseform's own part (:func:`wrapper_text`):
+
+* groups ``PF_Coil_<k>`` / ``PF_Cond_<k>`` on the deck's own physical ids of coil k / conductor k
+  (the mesh each run writes keeps the deck's ids: :attr:`TemplateDeckSolver.deck_ids`);
+* a PostProcessing ``PF_Template`` on the user's formulation, using the template's quantities
+  ``{a}``, ``{ur}``, ``{ir}``, ``{Is}``, ``{Us}``, ``{Iz}``, ``{Uz}`` and functions ``nu``,
+  ``sigma``, ``js0``, ``CoefGeos``: in the massive conductors j = -sigma (Dt[{a}] + {ur}/CoefGeos[])
+  (the template's ``j``), in the stranded coils js = (js0[] . e_z) {ir}; the Lorentz force density
+  f = j x b, its per-element integrals, Joule power, magnetic energy, coil and circuit current and
+  voltage, the nodal unknown r a_phi, whole-domain fields;
+* the PostOperations ``EM_Step``, ``EM_Elem``, ``EM_State``, ``EM_Field`` writing exactly the
+  tables of the deck contract (:mod:`.contract`), and ``EM_Values`` (the deck's own conductivity,
+  turns and bank, compared with the case's by the orchestrator's deck check);
+* a Resolution ``EM_Transient`` on the user's formulation (system name from the case): ``SetTime``,
+  ``InitSolution``, ``NbSteps`` implicit-Euler steps from ``TimeInit`` to ``TimeFinal``.
+
+The state is carried between getdp runs by ``-restart -res <previous em.res>`` only (same
+connectivity; a user mesh is never remeshed).  The Init path of the built-in library cannot carry a
+template deck's circuit: measured on GetDP 3.2.0, an ``Init`` constraint the wrapper adds to the
+template's ``Hregion_Z`` (``FunctionSpace { { Append 1; ... } }``) loses against the deck's own
+``Voltage_Cir`` Init of the bank (the capacitor restarts at the charging voltage), and a
+``Constraint { { Append 1; Name MagneticVectorPotential_2D; ... } }`` block had no effect at all.
+:meth:`TemplateDeckSolver.step` therefore refuses a step that would need the Init path.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+
+from .mesh import EMMesh, coil_tag, conductor_tag, write_msh22
+from .model import EMModel, EMState, EMStepResult, mesh_signature
+from .solver import GetDPSolver
+
+__all__ = ["TemplateSpec", "TemplateDeckSolver", "TemplateDeckError", "wrapper_text", "VALUE_TABLES",
+           "WRAPPER_NAMES"]
+
+#: objects the wrapper defines after the user's deck (a deck must not define them itself)
+WRAPPER_NAMES = ("PF_Template", "PF_Plane", "EM_Transient", "EM_Step", "EM_Elem", "EM_State", "EM_Field",
+                 "EM_Values")
+#: tables of ``EM_Values`` (first run from rest): the deck's own values the case must agree with
+VALUE_TABLES = {"cond_sigma_<k>.txt": "integral of sigma[] over conductor k, then its area (S/m m^2, m^2)",
+                "coil_turns_<k>.txt": "integral of js0[] . e_z over coil k (ampere-turns per ampere)",
+                "cir_C.txt": "Capacitance[] of Capacitance_Cir (F)", "cir_R.txt": "Resistance[] (Ohm)",
+                "cir_L.txt": "Inductance[] (H)", "cir_V0.txt": "U of Capacitance_Cir at TimeInit (V)"}
+
+
+class TemplateDeckError(ValueError):
+    """A template deck asked for something this path does not do (one line)."""
+
+
+@dataclass(frozen=True)
+class TemplateSpec:
+    """Which formulation of the user's deck pulseform drives.
+
+    Attributes
+    ----------
+    formulation : str
+        Name of the user's ``Formulation`` (the template's ``Magnetodynamics2D_av``).
+    system : str
+        Name of the system in pulseform's Resolution (the template's ``A``).
+    """
+
+    formulation: str = "Magnetodynamics2D_av"
+    system: str = "A"
+
+
+def _group(ids: Sequence[int]) -> str:
+    return "Region[{" + ", ".join(str(int(i)) for i in ids) + "}]"
+
+
+def wrapper_text(spec: TemplateSpec, coil_ids: Sequence[int], conductor_ids: Sequence[int], circuit: bool,
+                 axisymmetric: bool = True) -> str:
+    """pulseform's part of ``run.pro`` after the user's template deck.
+
+    Parameters
+    ----------
+    spec : TemplateSpec
+        The user's formulation and pulseform's system name.
+    coil_ids, conductor_ids : sequence of int
+        The deck's own physical id of coil k / massive conductor k (k = 1, 2, ...).
+    circuit : bool
+        The case has a capacitor bank: print ``cir_U.txt`` / ``cir_I.txt`` on ``Capacitance_Cir``.
+    axisymmetric : bool
+        Integrals are multiplied by 2 pi (totals per revolution) and the nodal unknown is r a_phi.
+
+    Returns
+    -------
+    str
+        GetDP text: groups, a Jacobian, PostProcessing ``PF_Template``, PostOperations and the
+        Resolution ``EM_Transient`` (the names of :data:`WRAPPER_NAMES`).
+    """
+    f, sys_ = spec.formulation, spec.system
+    coef = "2*Pi" if axisymmetric else "1"
+    raz = "X[] * CompZ[{a}]" if axisymmetric else "CompZ[{a}]"
+    jc = "(-sigma[] * (Dt[{a}] + {ur}/CoefGeos[]))"
+    js = "((js0[]*Vector[0,0,1]) * {ir})"
+    lines = ["", "// ---- pulseform's wrapper (pulseform.solvers.getdp.template): the deck above is the user's, unchanged",
+             "DefineConstant[ NbSteps = 1, Flag_ElemOut = 1, Flag_FieldOut = 0, Flag_Values = 0, OutDir = \"\" ];",
+             "Group {"]
+    for k, i in enumerate(coil_ids, start=1):
+        lines.append(f"  PF_Coil_{k} = {_group([i])};")
+    for k, i in enumerate(conductor_ids, start=1):
+        lines.append(f"  PF_Cond_{k} = {_group([i])};")
+    nc, nk = len(coil_ids), len(conductor_ids)
+    cs = ", ".join([f"PF_Coil_{k}" for k in range(1, nc + 1)] + [f"PF_Cond_{k}" for k in range(1, nk + 1)])
+    conds = ", ".join(f"PF_Cond_{k}" for k in range(1, nk + 1))
+    lines += [f"  PF_CS = Region[{{{cs}}}];", f"  PF_C = Region[{{{conds}}}];", "}",
+              "Jacobian { { Name PF_Plane; Case { { Region All; Jacobian Vol; } } } }",
+              f"PF_CoefGeo = {coef};",
+              "PostProcessing {",
+              f"  {{ Name PF_Template; NameOfFormulation {f};",
+              "    PostQuantity {",
+              f"      {{ Name raz; Value {{ Term {{ [ {raz} ]; In Vol_Mag; Jacobian Vol; }} }} }}",
+              "      { Name b; Value { Term { [ {d a} ]; In Vol_Mag; Jacobian Vol; } } }",
+              f"      {{ Name f; Value {{ Term {{ [ {jc} /\\ {{d a}} ]; In Vol_C_Mag; Jacobian Vol; }}",
+              f"          Term {{ [ {js} /\\ {{d a}} ]; In Vol_S_Mag; Jacobian Vol; }} }} }}",
+              f"      {{ Name F; Value {{ Integral {{ [ PF_CoefGeo * {jc} /\\ {{d a}} ];",
+              "            In Vol_C_Mag; Jacobian Vol; Integration Gauss_v; }",
+              f"          Integral {{ [ PF_CoefGeo * {js} /\\ {{d a}} ]; In Vol_S_Mag; Jacobian Vol; "
+              "Integration Gauss_v; } } }",
+              "      { Name P; Value { Integral { [ PF_CoefGeo * sigma[] * SquNorm[Dt[{a}] + {ur}/CoefGeos[]] ];",
+              "            In Vol_C_Mag; Jacobian Vol; Integration Gauss_v; }",
+              f"          Integral {{ [ PF_CoefGeo * SquNorm[{js}] / sigma[] ]; In Vol_S_Mag; Jacobian Vol; "
+              "Integration Gauss_v; } } }",
+              "      { Name W; Value { Integral { [ PF_CoefGeo * 0.5 * nu[] * SquNorm[{d a}] ];",
+              "            In Vol_Mag; Jacobian Vol; Integration Gauss_v; } } }",
+              "      { Name I; Value { Term { [ {Is} ]; In Vol_S_Mag; }",
+              "          If(Flag_CircuitCoupling) Term { [ {Iz} ]; In Domain_Cir; } EndIf } }",
+              "      { Name U; Value { Term { [ {Us} ]; In Vol_S_Mag; }",
+              "          If(Flag_CircuitCoupling) Term { [ {Uz} ]; In Domain_Cir; } EndIf } }",
+              "      { Name sigma_A; Value { Integral { [ sigma[] ]; In PF_C; Jacobian PF_Plane; "
+              "Integration Gauss_v; } } }",
+              "      { Name area; Value { Integral { [ 1 ]; In PF_CS; Jacobian PF_Plane; Integration Gauss_v; } } }",
+              "      { Name turns; Value { Integral { [ js0[]*Vector[0,0,1] ]; In Vol_S_Mag; Jacobian PF_Plane; "
+              "Integration Gauss_v; } } }",
+              "      If(Flag_CircuitCoupling)",
+              "        { Name cir_C; Value { Term { Type Global; [ Capacitance[] ]; In Capacitance_Cir; } } }",
+              "        { Name cir_R; Value { Term { Type Global; [ Resistance[] ]; In Resistance_Cir; } } }",
+              "        { Name cir_L; Value { Term { Type Global; [ Inductance[] ]; In Inductance_Cir; } } }",
+              "      EndIf",
+              "    }", "  }", "}"]
+    step = []
+    for k in range(1, nc + 1):
+        step += [f'      Print[ I, OnRegion PF_Coil_{k}, Format Table, File > StrCat[OutDir, "coil_I_{k}.txt"] ];',
+                 f'      Print[ U, OnRegion PF_Coil_{k}, Format Table, File > StrCat[OutDir, "coil_U_{k}.txt"] ];',
+                 f'      Print[ P[PF_Coil_{k}], OnGlobal, Format Table, File > StrCat[OutDir, "coil_P_{k}.txt"] ];',
+                 f'      Print[ F[PF_Coil_{k}], OnGlobal, Format Table, File > StrCat[OutDir, "coil_F_{k}.txt"] ];']
+    for k in range(1, nk + 1):
+        step += [f'      Print[ P[PF_Cond_{k}], OnGlobal, Format Table, File > StrCat[OutDir, "cond_P_{k}.txt"] ];',
+                 f'      Print[ F[PF_Cond_{k}], OnGlobal, Format Table, File > StrCat[OutDir, "cond_F_{k}.txt"] ];']
+    if circuit:
+        step += ['      Print[ U, OnRegion Capacitance_Cir, Format Table, File > StrCat[OutDir, "cir_U.txt"] ];',
+                 '      Print[ I, OnRegion Capacitance_Cir, Format Table, File > StrCat[OutDir, "cir_I.txt"] ];']
+    elem = [f'      Print[ {q}, OnElementsOf PF_C, Depth 0, Format ElementTable, File > StrCat[OutDir, "elem_{q}.txt"] ];'
+            for q in ("f", "F", "P", "b")]
+    values = [f'      Print[ sigma_A[PF_Cond_{k}], OnGlobal, Format Table, File StrCat[OutDir, "cond_sigma_{k}.txt"] ];\n'
+              f'      Print[ area[PF_Cond_{k}], OnGlobal, Format Table, File > StrCat[OutDir, "cond_sigma_{k}.txt"] ];'
+              for k in range(1, nk + 1)]
+    values += [f'      Print[ turns[PF_Coil_{k}], OnGlobal, Format Table, File StrCat[OutDir, "coil_turns_{k}.txt"] ];'
+               for k in range(1, nc + 1)]
+    if circuit:
+        values += [f'      Print[ cir_{q}, OnRegion {g}, Format Table, File StrCat[OutDir, "cir_{q}.txt"] ];'
+                   for q, g in (("C", "Capacitance_Cir"), ("R", "Resistance_Cir"), ("L", "Inductance_Cir"))]
+        values.append('      Print[ U, OnRegion Capacitance_Cir, Format Table, File StrCat[OutDir, "cir_V0.txt"] ];')
+    post = ["PostOperation {",
+            "  { Name EM_Step; NameOfPostProcessing PF_Template; LastTimeStepOnly 1;",
+            "    Operation {",
+            '      Print[ W[Vol_Mag], OnGlobal, Format Table, File > StrCat[OutDir, "W.txt"] ];'] + step + [
+            "    }", "  }",
+            "  { Name EM_Elem; NameOfPostProcessing PF_Template; LastTimeStepOnly 1;",
+            "    Operation {"] + elem + ["    }", "  }",
+            "  { Name EM_State; NameOfPostProcessing PF_Template; LastTimeStepOnly 1;",
+            '    Operation { Print[ raz, OnElementsOf PF_CS, Format NodeTable, File StrCat[OutDir, "nodes_a.txt"] ]; }',
+            "  }",
+            "  { Name EM_Field; NameOfPostProcessing PF_Template; LastTimeStepOnly 1;",
+            "    Operation {",
+            '      Print[ b, OnElementsOf Vol_Mag, Depth 0, Format ElementTable, File StrCat[OutDir, "field_b.txt"] ];',
+            '      Print[ raz, OnElementsOf Vol_Mag, Format NodeTable, File StrCat[OutDir, "field_a.txt"] ];',
+            "    }", "  }",
+            "  { Name EM_Values; NameOfPostProcessing PF_Template; LastTimeStepOnly 1;",
+            "    Operation {"] + values + ["    }", "  }", "}"]
+    res = ["Resolution {",
+           "  { Name EM_Transient;",
+           f"    System {{ {{ Name {sys_}; NameOfFormulation {f}; }} }}",
+           "    Operation {",
+           "      SetTime[TimeInit]; // before InitSolution: restarted time derivatives need it",
+           f"      InitSolution[{sys_}];",
+           "      If(Flag_Values) PostOperation[EM_Values]; EndIf",
+           "      TimeLoopTheta[TimeInit, TimeFinal - 0.5*(TimeFinal - TimeInit)/NbSteps,",
+           "                    (TimeFinal - TimeInit)/NbSteps, 1] {",
+           f"        Generate[{sys_}]; Solve[{sys_}]; SaveSolution[{sys_}];",
+           "        PostOperation[EM_Step];",
+           "        If(Flag_ElemOut == 1) PostOperation[EM_Elem]; EndIf",
+           "      }",
+           "      If(Flag_ElemOut == 2) PostOperation[EM_Elem]; EndIf",
+           "      PostOperation[EM_State];",
+           "      If(Flag_FieldOut) PostOperation[EM_Field]; EndIf",
+           "    }", "  }", "}", ""]
+    return "\n".join(lines + post + res)
+
+
+class TemplateDeckSolver(GetDPSolver):
+    """:class:`GetDPSolver` on a user's deck written on ``Lib_Magnetodynamics2D_av_Cir.pro``.
+
+    Parameters
+    ----------
+    model : EMModel
+        The case's EM model (coils, conductors, circuit: they select the tables).
+    work_dir : str or Path
+        Folder of the run folders.
+    deck : str or Path
+        The user's .pro, included unchanged.
+    spec : TemplateSpec
+        The user's formulation and pulseform's system name.
+    deck_ids : dict of int to int
+        The runner's physical id (1 air, 101 coil 1, 201 workpiece, 11 axis, ...) -> the deck's own id
+        of that group; every run writes its mesh with the deck's ids.
+    **kwargs
+        Passed to :class:`GetDPSolver` (``time_scheme`` must be ``"euler"``).
+    """
+
+    def __init__(self, model: EMModel, work_dir: str | Path, *, deck: str | Path, spec: TemplateSpec,
+                 deck_ids: dict[int, int], **kwargs):
+        if kwargs.get("time_scheme", "euler") != "euler":
+            raise TemplateDeckError("a template deck steps implicit Euler only (em.time_scheme = 'euler'): its "
+                                    "state is carried by -restart, BDF2 needs the Init path")
+        extra = dict(kwargs.pop("extra_numbers", None) or {})
+        extra.setdefault("Flag_FrequencyDomain", 0.0)
+        super().__init__(model, work_dir, deck=deck, extra_numbers=extra, **kwargs)
+        self.spec = spec
+        self.deck_ids = {int(k): int(v) for k, v in deck_ids.items()}
+        missing = [coil_tag(k) for k in range(1, len(model.coils) + 1) if coil_tag(k) not in self.deck_ids]
+        missing += [conductor_tag(k) for k in range(1, len(model.conductors) + 1)
+                    if conductor_tag(k) not in self.deck_ids]
+        if missing:
+            raise TemplateDeckError(f"deck_ids lacks the runner's ids {missing}")
+        self._lut = None
+        self._first_run = False
+
+    def _write_mesh(self, mesh: EMMesh, path: Path) -> Path:
+        """The run's mesh with the deck's own physical ids (same nodes and elements in the same order)."""
+        top = int(max(int(mesh.tri_tags.max(initial=0)), int(mesh.line_tags.max(initial=0)))) + 1
+        lut = np.arange(max(top, max(self.deck_ids) + 1), dtype=np.int64)
+        for runner_id, own in self.deck_ids.items():
+            lut[runner_id] = own
+        return write_msh22(EMMesh(mesh.points, mesh.triangles, lut[mesh.tri_tags], mesh.lines, lut[mesh.line_tags]),
+                           path)
+
+    def _run_pro_text(self, data_lines: list[str]) -> str:
+        model = self.model
+        text = super()._run_pro_text(data_lines)
+        if self._first_run:
+            text += "Flag_Values = 1; // the first run from rest prints the deck's own values (EM_Values)\n"
+        return text + wrapper_text(self.spec, [self.deck_ids[coil_tag(k)] for k in range(1, len(model.coils) + 1)],
+                                   [self.deck_ids[conductor_tag(k)] for k in range(1, len(model.conductors) + 1)],
+                                   model.circuit is not None, model.axisymmetric)
+
+    def step(self, mesh: EMMesh, state: EMState, t_end: float, n_sub: int = 1, *,
+             material_points: np.ndarray | None = None, run_name: str | None = None,
+             force_init_path: bool = False, element_output: str = "all",
+             field_output: bool = False) -> tuple[EMStepResult, EMState]:
+        """:meth:`GetDPSolver.step`, refusing a step that would need the Init path (a new connectivity,
+        nodes that are not the previous material points, ``force_init_path``): a template deck's state
+        travels by ``-restart`` only (module docstring)."""
+        if state.res_path is not None:
+            same = state.mesh_signature == mesh_signature(mesh) and Path(state.res_path).exists()
+            if same and material_points is not None:
+                same = self._nodes_are_material(mesh, np.asarray(material_points, float), state)
+            if force_init_path or not same:
+                raise TemplateDeckError("a template deck carries its state by -restart -res only (same mesh "
+                                        "connectivity, nodes moving with the material); this step would need the "
+                                        "Init path (InitA_List), which a template deck's circuit does not follow")
+        self._first_run = state.res_path is None
+        try:
+            return super().step(mesh, state, t_end, n_sub, material_points=material_points, run_name=run_name,
+                                force_init_path=force_init_path, element_output=element_output,
+                                field_output=field_output)
+        finally:
+            self._first_run = False
