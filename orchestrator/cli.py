@@ -223,9 +223,22 @@ def _cmd_check(args: argparse.Namespace) -> int:
         except DeckContractError as exc:
             return _error(str(exc), EXIT_BAD_INPUT)
         print(f"# {case.geometry.pro}: honours the deck contract")
+    for line in _mesh_advice(case):
+        print(f"pulseform: warning: {line}", file=sys.stderr)
     print(f"# {file}: valid")
     print(case_to_toml(case), end="")
     return EXIT_OK
+
+
+def _mesh_advice(case) -> list[str]:
+    """The skin-depth advice of a case (:func:`~.em.skin_depth.mesh_advice`); advice never stops a check."""
+    from .em.skin_depth import mesh_advice
+
+    try:
+        return mesh_advice(case)
+    except (ArithmeticError, ValueError) as exc:  # an extreme but valid case: no advice rather than a failure
+        logging.getLogger(__name__).debug("no mesh advice: %s", exc)
+        return []
 
 
 def _cmd_sweep(args: argparse.Namespace) -> int:

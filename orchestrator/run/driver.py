@@ -25,6 +25,7 @@ from ..coupling.interfaces import LoadProvider
 from ..coupling.loop import LoopOptions, StaggeredLoop
 from ..em.participant import GetDPLoad
 from ..em.solver import em_model
+from ..em.skin_depth import mesh_advice
 from ..em.time_scale import source_period
 from ..em.user_deck import build_user_geometry, user_deck_load
 from ..mech import probes as probe_mod
@@ -89,6 +90,8 @@ class CaseDriver:
             self.solver, options = build_solver(case, comm), LoopOptions(n=1, n_max=1, landing="last",
                                                                        block=case.output.history_every)
             load = _pressure_pulses(case)
+        for line in mesh_advice(case) if case.case.kind == "coupled" and comm.rank == 0 else ():
+            log.warning("%s", line)  # elements coarse for the skin depth: a warning, the run goes on
         deformable = DolfinxMechanics(self.solver) if self.solver is not None else None
         self.mechanics = deformable if self.rigid is None else MixedMechanics(deformable, self.rigid)
         check_steps_of_meshes(case, self.mechanics.stable_time_step())  # a user deck's mesh is known only now
