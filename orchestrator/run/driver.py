@@ -90,8 +90,6 @@ class CaseDriver:
             self.solver, options = build_solver(case, comm), LoopOptions(n=1, n_max=1, landing="last",
                                                                        block=case.output.history_every)
             load = _pressure_pulses(case)
-        for line in mesh_advice(case) if case.case.kind == "coupled" and comm.rank == 0 else ():
-            log.warning("%s", line)  # elements coarse for the skin depth: a warning, the run goes on
         deformable = DolfinxMechanics(self.solver) if self.solver is not None else None
         self.mechanics = deformable if self.rigid is None else MixedMechanics(deformable, self.rigid)
         check_steps_of_meshes(case, self.mechanics.stable_time_step())  # a user deck's mesh is known only now
@@ -219,6 +217,10 @@ class CaseDriver:
     def run(self, quiet: bool) -> MechanicsRun:
         """Integrate to ``time.end``; fields, history and checkpoint at every milestone."""
         s, case = self.mechanics, self.case
+        # elements coarse for the skin depth: a warning on the console (run.log only with --quiet, where a
+        # failing run must stay one line), and the run goes on
+        for line in mesh_advice(case) if case.case.kind == "coupled" and self.comm.rank == 0 else ():
+            log.log(logging.INFO if quiet else logging.WARNING, "%s", line)
         prefix = self.results.fields / (case.case.name + (f"_part{self.part}" if self.part else ""))
         writer = mech.FieldWriter(self.solver, str(prefix)) if self.solver is not None else _NoFieldWriter()
         em_writer = EMFieldWriter(self.results.fields / (f"em_part{self.part}" if self.part else "em")) \

@@ -41,3 +41,13 @@ def test_check_warns_and_passes(capsys):
     assert main(["check", str(DISK)]) == 0
     err = capsys.readouterr().err
     assert err.startswith("pulseform: warning: geometry.mesh_size_sheet") and len(err.strip().splitlines()) == 1
+
+
+@pytest.mark.getdp
+def test_quiet_run_keeps_the_advice_in_its_log(tmp_path, capsys):
+    """With --quiet the advice goes to run.log only (a failing run's stderr stays one line)."""
+    out = tmp_path / "run"
+    assert main(["run", str(DISK), "--out", str(out), "--quiet", "--set", "time.end=1e-6",
+                 "--set", "output.field_interval=1e-6"]) == 0
+    assert "coarser than" not in capsys.readouterr().err
+    assert "geometry.mesh_size_sheet = 0.5 mm is coarser than" in (out / "run.log").read_text()
