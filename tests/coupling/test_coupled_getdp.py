@@ -12,6 +12,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from .resume_check import sigint_then_resume
+
 pytestmark = pytest.mark.getdp
 
 REPO = Path(__file__).resolve().parents[2]
@@ -104,18 +106,8 @@ def test_sigint_between_outputs_then_resume_is_bitwise(tmp_path, process):
     out = tmp_path / "stopped"
     args = [EXE, "run", str(REPO / "cases/emf_sheet_bulge"), "--out", str(out), *SHORT,
             "--set", f"em.getdp_process={process}"]
-    proc = subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-    deadline = time.time() + 300
-    while not (out / "checkpoint.npz").exists() and proc.poll() is None and time.time() < deadline:
-        time.sleep(0.005)
-    time.sleep(0.2)
-    proc.send_signal(signal.SIGINT)
-    _, err = proc.communicate(timeout=300)
-    if proc.returncode == 0:
-        pytest.skip("the run finished before the signal")
+    proc, err, stopped, r = sigint_then_resume(args, out)
     assert proc.returncode == 130 and "interrupted at t = " in err, err
-    stopped = json.loads((out / "metrics.json").read_text())
-    r = subprocess.run(args + ["--resume"], capture_output=True, text=True)
     assert r.returncode == 0, r.stderr[-3000:]
     got = json.loads((out / "metrics.json").read_text())
     want = json.loads((ref / "metrics.json").read_text())
