@@ -17,15 +17,21 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
-#: Open MPI / hwloc settings that cut a getdp start from ~0.4 s to ~0.1 s without
-#: changing results (measured, see SOLVER_NOTES.md).  Set in the child's env only.
+#: Open MPI / hwloc settings of an isolated singleton (one process, no launcher) that cut a getdp
+#: start from ~0.4 s to ~0.1 s without changing results (measured, see SOLVER_NOTES.md and
+#: docs/getdp.md "Performance").  The last two (no hwloc I/O discovery; only the collective components
+#: a singleton uses instead of dlopen-ing all ten) cut its CPU time at start by ~10-15 % more (74-82 ->
+#: 60-68 ms, ``perf stat -r 20`` of a getdp on an empty deck, loaded machine).  Restricting Open MPI's
+#: ``schizo`` framework breaks MPI_Init (tried).  Set in the child's env only (and by ``pulseform`` for
+#: itself when not under ``mpirun``).
 FAST_MPI_ENV = {
     "OMPI_MCA_ess_singleton_isolated": "1",
     "OMPI_MCA_pml": "ob1",
     "OMPI_MCA_btl": "self",
     "OMPI_MCA_mtl": "^ofi,psm,psm2",
     "OMPI_MCA_osc": "sm",
-    "HWLOC_COMPONENTS": "-pci,-opencl,-gl,-cuda,-nvml",
+    "HWLOC_COMPONENTS": "-pci,-opencl,-gl,-cuda,-nvml,-linuxio",
+    "OMPI_MCA_coll": "self,basic,libnbc",
 }
 
 #: ``prctl`` option that sends the child a signal when the thread that started it dies
