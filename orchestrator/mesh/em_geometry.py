@@ -11,11 +11,12 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass, field
+from typing import Callable
 
 import numpy as np
 
 from pulseform.solvers.getdp import EMMesh, Rect, coil_conductor_mesh, coil_tag, conductor_tag
-from pulseform.solvers.getdp.runner import call_in_child
+from pulseform.solvers.getdp.runner import ChildCall
 
 from ..case.em_model import CoaxialCoils
 from ..case.model import FlatCoilSheet, Geometry, PlanarCoilBlankDie, SolenoidTube
@@ -89,15 +90,51 @@ def sheet_die_polygon(g: FlatCoilSheet, segments: int | None = None) -> np.ndarr
     return np.array(pts)
 
 
+class PendingEMGeometry:
+    """The EM mesh of a geometry being made by gmsh in a child process (:func:`start_em_geometry`):
+    :meth:`result` waits for it; :meth:`cancel` ends the child when the mesh is no longer wanted."""
+
+    def __init__(self, call: ChildCall, finish: Callable[[EMMesh], EMGeometry]) -> None:
+        self._call, self._finish = call, finish
+
+    def result(self) -> EMGeometry:
+        """The meshed geometry (raises what meshing raised: ``TimeLimitExceeded``, ``ChildFailed``, ...)."""
+        return self._finish(self._call.result())
+
+    def cancel(self) -> None:
+        self._call.cancel()
+
+
 def build_em_geometry(g: Geometry, time_limit: float | None = None) -> EMGeometry:
     """Mesh the EM setup ``g`` (axisymmetric: r = x, z = y; planar: half model x >= 0).
 
     gmsh runs in a child process under ``time_limit`` (s; None: no limit), see
     :func:`~pulseform.solvers.getdp.runner.call_in_child`.
     """
-    conductors, sizes = [], []
+    return start_em_geometry(g, time_limit).result()
+
+
+def start_em_geometry(g: Geometry, time_limit: float | None = None) -> PendingEMGeometry:
+    """:func:`build_em_geometry` started in a child process now, collected later: a run starts it
+    before importing DOLFINx, so that gmsh (its import ~0.4 s and the meshing) runs on the other core."""
+    what = f"meshing the {g.type} EM geometry with gmsh"
+    common = dict(axisymmetric=not g.planar, half=True, r_domain=g.air_radius, r_shell=g.shell_radius,
+                  h_fine=g.mesh_size_coil, h_coarse=g.mesh_size_air, time_limit=time_limit, what=what)
     if isinstance(g, CoaxialCoils):
-        return _build_coaxial_coils(g, time_limit)
+        coils = coaxial_coil_turns(g)
+        names = {coil_tag(k): c.name for k, c in enumerate(g.coils, start=1)}
+        names[conductor_tag(1)] = "workpiece"
+        call = ChildCall(coil_conductor_mesh, coils, [Rect(*g.workpiece.box)], h_conductor=[g.workpiece.mesh_size],
+                         names=names, **common)
+
+        def finish_coaxial(mesh: EMMesh) -> EMGeometry:
+            log.info("EM mesh (%s): %d nodes, %d triangles, %d coils, groups %s", g.type, mesh.n_nodes,
+                     len(mesh.triangles), len(coils), ", ".join(f"{n} ({t})" for t, n in sorted(mesh.names.items())))
+            return EMGeometry(mesh, {"coil": coil_tag(1), "workpiece": conductor_tag(1)}, coils[0], planar=g.planar,
+                              more_coils=coils[1:])
+
+        return PendingEMGeometry(call, finish_coaxial)
+    conductors, sizes = [], []
     if isinstance(g, FlatCoilSheet):
         turns = flat_coil_turns(g)
         conductors.append(Rect(0.0, g.coil_gap, g.sheet_radius, g.coil_gap + g.sheet_thickness))
@@ -124,31 +161,17 @@ def build_em_geometry(g: Geometry, time_limit: float | None = None) -> EMGeometr
             sizes.append(g.mesh_size_die)
     regions = {"coil": coil_tag(1)}
     regions.update({role: conductor_tag(k) for k, role in enumerate(g.conductor_roles(), start=1)})
-    mesh = call_in_child(coil_conductor_mesh, [turns], conductors, axisymmetric=not g.planar, half=True,
-                         r_domain=g.air_radius, r_shell=g.shell_radius, h_fine=g.mesh_size_coil,
-                         h_coarse=g.mesh_size_air, h_conductor=sizes, names={tag: role for role, tag in regions.items()},
-                         time_limit=time_limit, what=f"meshing the {g.type} EM geometry with gmsh")
-    log.info("EM mesh (%s): %d nodes, %d triangles, groups %s", g.type, mesh.n_nodes, len(mesh.triangles),
-             ", ".join(f"{n} ({t})" for t, n in sorted(mesh.names.items())))
-    return EMGeometry(mesh, regions, turns, planar=g.planar)
+    call = ChildCall(coil_conductor_mesh, [turns], conductors, h_conductor=sizes,
+                     names={tag: role for role, tag in regions.items()}, **common)
+
+    def finish(mesh: EMMesh) -> EMGeometry:
+        log.info("EM mesh (%s): %d nodes, %d triangles, groups %s", g.type, mesh.n_nodes, len(mesh.triangles),
+                 ", ".join(f"{n} ({t})" for t, n in sorted(mesh.names.items())))
+        return EMGeometry(mesh, regions, turns, planar=g.planar)
+
+    return PendingEMGeometry(call, finish)
 
 
 def coaxial_coil_turns(g: CoaxialCoils) -> list[list[Rect]]:
     """The winding rectangles (m) of every coil of ``coaxial_coils``, in the geometry's coil order."""
     return [[Rect(*w) for w in c.windings] for c in g.coils]
-
-
-def _build_coaxial_coils(g: CoaxialCoils, time_limit: float | None) -> EMGeometry:
-    """Mesh ``coaxial_coils``: coil k (its windings) is physical ``coil_tag(k)``, named after the coil; the
-    workpiece is conductor 1 (201, ``workpiece``)."""
-    coils = coaxial_coil_turns(g)
-    names = {coil_tag(k): c.name for k, c in enumerate(g.coils, start=1)}
-    names[conductor_tag(1)] = "workpiece"
-    mesh = call_in_child(coil_conductor_mesh, coils, [Rect(*g.workpiece.box)], axisymmetric=not g.planar, half=True,
-                         r_domain=g.air_radius, r_shell=g.shell_radius, h_fine=g.mesh_size_coil,
-                         h_coarse=g.mesh_size_air, h_conductor=[g.workpiece.mesh_size], names=names,
-                         time_limit=time_limit, what=f"meshing the {g.type} EM geometry with gmsh")
-    log.info("EM mesh (%s): %d nodes, %d triangles, %d coils, groups %s", g.type, mesh.n_nodes, len(mesh.triangles),
-             len(coils), ", ".join(f"{n} ({t})" for t, n in sorted(mesh.names.items())))
-    return EMGeometry(mesh, {"coil": coil_tag(1), "workpiece": conductor_tag(1)}, coils[0], planar=g.planar,
-                      more_coils=coils[1:])

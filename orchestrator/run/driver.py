@@ -33,7 +33,7 @@ from ..mech.model import build_solver
 from ..mech.mixed import MixedMechanics, rigid_bodies, rigid_metrics
 from ..mech.participants import DolfinxMechanics, PressurePulses
 from ..mech.rigid import RigidMechanics
-from ..mesh.em_geometry import build_em_geometry
+from ..mesh.em_geometry import PendingEMGeometry, build_em_geometry
 from ..mesh.shared import ConductorBody, conductor_submesh, match_nodes, to_dolfinx
 from . import interrupt
 from .analyses import create as create_analysis
@@ -76,14 +76,18 @@ def milestones(end: float, interval: float) -> np.ndarray:
 class CaseDriver:
     """Participants, loop, history, fields and checkpoints of one case."""
 
-    def __init__(self, case: Case, results: ResultsFolder, comm: MPI.Comm) -> None:
+    def __init__(self, case: Case, results: ResultsFolder, comm: MPI.Comm,
+                 em_geometry: PendingEMGeometry | None = None, wall_start: float | None = None) -> None:
         self.case, self.results, self.comm = case, results, comm
-        t0 = self.wall_start = _time.perf_counter()
+        t0 = _time.perf_counter()
+        # the run's wall clock (time.perf_counter, s) starts where the runner's does: a checkpoint's
+        # wall time then counts the imports and meshing before this driver too, as metrics.json does
+        self.wall_start = t0 if wall_start is None else wall_start
         self.wall_before_s = 0.0
         cp = case.coupling
         self.rigid: RigidMechanics | None = None  # the rigid bodies (coupled cases), None without
         if case.case.kind == "coupled":
-            self.solver, load, self.rigid = _coupled_participants(case, results, comm)
+            self.solver, load, self.rigid = _coupled_participants(case, results, comm, em_geometry)
             options = LoopOptions.from_coupling(cp)
         else:
             # the explicit mechanics alone has no step-ratio limit: full steps, one shorter step at a milestone
@@ -316,8 +320,10 @@ def _pressure_pulses(case: Case) -> PressurePulses:
                           mo.kinetic_damping_until)
 
 
-def _coupled_participants(case: Case, results: ResultsFolder, comm: MPI.Comm):
-    """Mesh the EM setup, cut the conductor bodies' mechanical meshes from it, build solver and GetDP load."""
+def _coupled_participants(case: Case, results: ResultsFolder, comm: MPI.Comm,
+                          em_geometry: PendingEMGeometry | None = None):
+    """Mesh the EM setup (or take the mesh ``em_geometry`` started earlier, :func:`start_em_geometry`),
+    cut the conductor bodies' mechanical meshes from it, build solver and GetDP load."""
 
     if comm.size > 1:
         raise NotImplementedError("coupled runs are serial for now (the GetDP participant and the force transfer run on one process)")
@@ -325,6 +331,8 @@ def _coupled_participants(case: Case, results: ResultsFolder, comm: MPI.Comm):
     if user_deck:
 
         geometry = build_user_geometry(case, results.root / "em_mesh", results.root / "em")
+    elif em_geometry is not None:
+        geometry = em_geometry.result()
     else:
         geometry = build_em_geometry(case.geometry, time_limit=case.limits.gmsh_time_limit_s)
     roles = geometry.conductor_roles()
@@ -407,9 +415,12 @@ def max_von_mises(stress: np.ndarray) -> float:
 
 
 def run_case_loop(case: Case, results: ResultsFolder, *, quiet: bool = False, resume: bool = False,
-                  comm: MPI.Comm = MPI.COMM_WORLD) -> MechanicsRun:
-    """Integrate ``case`` to ``time.end`` and write history, fields and checkpoints into ``results``."""
-    driver = CaseDriver(case, results, comm)
+                  comm: MPI.Comm = MPI.COMM_WORLD, em_geometry: PendingEMGeometry | None = None,
+                  wall_start: float | None = None) -> MechanicsRun:
+    """Integrate ``case`` to ``time.end`` and write history, fields and checkpoints into ``results``
+    (``em_geometry``: the EM mesh of a coupled case, started before, :func:`start_em_geometry`;
+    ``wall_start``: ``time.perf_counter()`` at the run's start, the origin of its wall time)."""
+    driver = CaseDriver(case, results, comm, em_geometry, wall_start)
     if resume:
         driver.restore()
     return driver.run(quiet)

@@ -172,7 +172,7 @@ def _run_in(case: Case, results: ResultsFolder, *, resume: bool, quiet: bool, co
         try:
             if comm.rank == 0 and not resume:
                 results.write_text("case.toml", case_to_toml(case))
-            run = _dispatch(case, results, quiet=quiet, resume=resume, comm=comm)
+            run = _dispatch(case, results, quiet=quiet, resume=resume, comm=comm, wall_start=wall0)
         except interrupt.StopRequested as exc:
             _final_metrics(results, comm, {"status": "interrupted", "status_ok": 0.0,
                                            "end_time_s": exc.time if exc.time is not None else 0.0,
@@ -263,14 +263,18 @@ def _check_resumable(case: Case, out: Path) -> None:
                           "resume needs the same case and --set overrides")
 
 
-def _dispatch(case: Case, results: ResultsFolder, *, quiet: bool, resume: bool, comm: MPI.Comm):
+def _dispatch(case: Case, results: ResultsFolder, *, quiet: bool, resume: bool, comm: MPI.Comm,
+              wall_start: float | None = None):
+    # gmsh meshes the EM setup in a child process while this one imports DOLFINx (the other core)
+    em_geometry = _early_em_geometry(case, comm)
     from .driver import run_case_loop
 
     # the 3D renderer starts now: its imports and graphics start-up (~1 s) overlap the run
     fields = any(not b.rigid for b in case.bodies)  # rigid bodies write no field files to render
     renderer = _early_renderer() if case.output.plots and comm.rank == 0 and fields else None
     try:
-        run = run_case_loop(case, results, quiet=quiet, resume=resume, comm=comm)
+        run = run_case_loop(case, results, quiet=quiet, resume=resume, comm=comm, em_geometry=em_geometry,
+                            wall_start=wall_start)
         interrupt.check()  # a signal after the last step still ends with an honest status
         if case.output.plots and comm.rank == 0:
             from .plots import draw_all
@@ -283,12 +287,25 @@ def _dispatch(case: Case, results: ResultsFolder, *, quiet: bool, resume: bool, 
     finally:
         if renderer is not None:
             renderer.close()
+        if em_geometry is not None:
+            em_geometry.cancel()  # a run that failed before it took the mesh
     if case.output.plots and comm.rank == 0:
         log.info("%d pictures in %s", len(drawn.paths), results.plots)
         if drawn.stopped:
             log.info("pictures stopped by %s; the results are complete", signal.Signals(interrupt.pending()).name)
             run.pictures_stopped_by = interrupt.pending()
     return run
+
+
+def _early_em_geometry(case: Case, comm: MPI.Comm):
+    """The EM mesh of a coupled case on a built-in geometry, started now in a child process
+    (``mesh.em_geometry.start_em_geometry``); None for other cases (and under MPI: coupled runs
+    are serial and say so)."""
+    if case.case.kind != "coupled" or case.geometry.type == "user_deck" or comm.size > 1:
+        return None
+    from ..mesh.em_geometry import start_em_geometry
+
+    return start_em_geometry(case.geometry, time_limit=case.limits.gmsh_time_limit_s)
 
 
 def _early_renderer():

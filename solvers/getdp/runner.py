@@ -13,6 +13,7 @@ import shutil
 import signal
 import subprocess
 import time
+import weakref
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
@@ -83,60 +84,104 @@ def call_in_child(fn: Callable[..., Any], *args: Any, time_limit: float | None, 
     and raised as :class:`TimeLimitExceeded`. The result (or the exception) travels back pickled;
     ``fn`` must not log or use MPI (a forked child shares neither safely).
     """
-    r, w = os.pipe()
-    pid = os.fork()
-    if pid == 0:  # the child: compute, send, leave without running the parent's exit handlers
-        code = 0
-        try:
-            os.close(r)
-            child_preexec()
-            signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    return ChildCall(fn, *args, time_limit=time_limit, what=what, **kwargs).result()
+
+
+class ChildCall:
+    """``fn(*args, **kwargs)`` started now in a forked child (:func:`call_in_child`), its answer
+    collected later by :meth:`result`: the parent works on meanwhile (e.g. imports DOLFINx while
+    gmsh meshes on the other core). The time limit (s) counts from the start; an answer complete
+    before the parent asks is taken even if the parent asks after the limit. :meth:`cancel` (also
+    on garbage collection) kills and reaps a child whose answer is no longer wanted."""
+
+    def __init__(self, fn: Callable[..., Any], *args: Any, time_limit: float | None, what: str, **kwargs: Any) -> None:
+        self.what, self.time_limit = what, time_limit
+        self.deadline = None if time_limit is None else time.monotonic() + time_limit
+        r, w = os.pipe()
+        pid = os.fork()
+        if pid == 0:  # the child: compute, send, leave without running the parent's exit handlers
+            code = 0
             try:
-                payload = pickle.dumps((True, fn(*args, **kwargs)))
-            except BaseException as exc:  # noqa: BLE001 - every failure goes back to the parent
+                os.close(r)
+                child_preexec()
+                signal.signal(signal.SIGTERM, signal.SIG_DFL)
                 try:
-                    payload = pickle.dumps((False, exc))
-                except Exception:  # noqa: BLE001 - an exception that cannot be pickled
-                    payload = pickle.dumps((False, RuntimeError(f"{type(exc).__name__}: {exc}")))
-            with os.fdopen(w, "wb") as fh:
-                fh.write(payload)
-        except BaseException:  # noqa: BLE001
-            code = 1
-        finally:
-            os._exit(code)
-    os.close(w)
-    data = bytearray()
-    deadline = None if time_limit is None else time.monotonic() + time_limit
-    try:
-        while True:
-            remaining = None if deadline is None else deadline - time.monotonic()
-            if remaining is not None and remaining <= 0:
-                raise TimeLimitExceeded(what, time_limit)
-            if select.select([r], [], [], remaining)[0]:
+                    payload = pickle.dumps((True, fn(*args, **kwargs)))
+                except BaseException as exc:  # noqa: BLE001 - every failure goes back to the parent
+                    try:
+                        payload = pickle.dumps((False, exc))
+                    except Exception:  # noqa: BLE001 - an exception that cannot be pickled
+                        payload = pickle.dumps((False, RuntimeError(f"{type(exc).__name__}: {exc}")))
+                with os.fdopen(w, "wb") as fh:
+                    fh.write(payload)
+            except BaseException:  # noqa: BLE001
+                code = 1
+            finally:
+                os._exit(code)
+        os.close(w)
+        self.pid: int | None = pid
+        self._r = r
+        self._finalizer = weakref.finalize(self, _reap, pid, r)
+
+    def result(self) -> Any:
+        """Wait for the child's answer (the value, or its exception raised here)."""
+        if self.pid is None:
+            raise RuntimeError(f"{self.what}: the answer was already taken or cancelled")
+        pid, r = self.pid, self._r
+        self.pid = None
+        self._finalizer.detach()
+        data = bytearray()
+        try:
+            while True:
+                remaining = None if self.deadline is None else max(self.deadline - time.monotonic(), 0.0)
+                if not select.select([r], [], [], remaining)[0]:
+                    raise TimeLimitExceeded(self.what, self.time_limit)
                 chunk = os.read(r, 1 << 20)
                 if not chunk:
                     break
                 data += chunk
-    finally:
+        finally:
+            os.close(r)
+            if not data or self.deadline is not None and time.monotonic() >= self.deadline:
+                try:
+                    os.kill(pid, signal.SIGKILL)
+                except ProcessLookupError:
+                    pass
+            _, status = os.waitpid(pid, 0)
+        if not data:
+            how = (f"killed by signal {signal.Signals(os.WTERMSIG(status)).name}" if os.WIFSIGNALED(status)
+                   else f"exit code {os.WEXITSTATUS(status)}")
+            sig = os.WTERMSIG(status) if os.WIFSIGNALED(status) else 0
+            hint = {signal.SIGKILL: " (often the out-of-memory killer)",
+                    signal.SIGABRT: " (an abort, e.g. std::bad_alloc when memory runs out; its message went to "
+                                    "standard error)"}.get(sig, "")
+            raise ChildFailed(f"{self.what} died before it finished: {how}{hint}")
+        ok, value = pickle.loads(bytes(data))
+        if not ok:
+            raise value
+        return value
+
+    def cancel(self) -> None:
+        """Kill and reap the child if its answer was not taken."""
+        if self.pid is not None:
+            self.pid = None
+            self._finalizer()
+
+
+def _reap(pid: int, r: int) -> None:
+    """Finalizer of a :class:`ChildCall` whose answer nobody took: kill, reap, close."""
+    try:
+        os.kill(pid, signal.SIGKILL)
+    except ProcessLookupError:
+        pass
+    try:
+        os.waitpid(pid, 0)
+    except ChildProcessError:
+        pass
+    try:
         os.close(r)
-        if not data or deadline is not None and time.monotonic() >= deadline:
-            try:
-                os.kill(pid, signal.SIGKILL)
-            except ProcessLookupError:
-                pass
-        _, status = os.waitpid(pid, 0)
-    if not data:
-        how = (f"killed by signal {signal.Signals(os.WTERMSIG(status)).name}" if os.WIFSIGNALED(status)
-               else f"exit code {os.WEXITSTATUS(status)}")
-        sig = os.WTERMSIG(status) if os.WIFSIGNALED(status) else 0
-        hint = {signal.SIGKILL: " (often the out-of-memory killer)",
-                signal.SIGABRT: " (an abort, e.g. std::bad_alloc when memory runs out; its message went to "
-                                "standard error)"}.get(sig, "")
-        raise ChildFailed(f"{what} died before it finished: {how}{hint}")
-    ok, value = pickle.loads(bytes(data))
-    if not ok:
-        raise value
-    return value
+    except OSError:
+        pass
 
 
 _ERROR_PATTERN = re.compile(
