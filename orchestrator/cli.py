@@ -155,10 +155,12 @@ def _error(msg: str, code: int) -> int:
 
 def _cmd_run(args: argparse.Namespace) -> int:
     from .case.io import CaseError, load_case
+    from .em.skin_depth import resolve_defaults
     from .run.results import ResultsExistError
 
     try:
-        case, _ = load_case(args.case, args.overrides)
+        case, file = load_case(args.case, args.overrides)
+        resolve_defaults(case, file, args.overrides)  # its errors are bad input; the run fills the defaults in
     except CaseError as exc:
         return _error(str(exc), EXIT_BAD_INPUT)
     out = args.out or Path("results") / case.case.name
@@ -210,11 +212,14 @@ def _summary(case, metrics: dict, out: Path) -> list[str]:
 
 def _cmd_check(args: argparse.Namespace) -> int:
     from .case.io import CaseError, case_to_toml, load_case
+    from .em.skin_depth import default_sizes, resolve_defaults
 
     try:
-        case, file = load_case(args.case, args.overrides)
+        loaded, file = load_case(args.case, args.overrides)
+        case = resolve_defaults(loaded, file, args.overrides)
     except CaseError as exc:
         return _error(str(exc), EXIT_BAD_INPUT)
+    filled = default_sizes(loaded)
     if case.geometry is not None and case.geometry.type == "user_deck":
         from .em.user_deck import DeckContractError, check_user_deck
 
@@ -226,6 +231,8 @@ def _cmd_check(args: argparse.Namespace) -> int:
     for line in _mesh_advice(case):
         print(f"pulseform: warning: {line}", file=sys.stderr)
     print(f"# {file}: valid")
+    for d in filled:
+        print(f"# {d.text()}")
     print(case_to_toml(case), end="")
     return EXIT_OK
 
