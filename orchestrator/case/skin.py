@@ -4,9 +4,10 @@ The eddy currents of a conductor flow within about a skin depth δ = sqrt(2 / (�
 the drive's angular frequency. Elements coarser than a fraction of δ through the conductor under-resolve
 the current layer and the force. The rule (one home: this module):
 
-- :data:`SKIN_FRACTION`: elements no coarser than δ / 3. Chosen from the study of docs/getdp.md
-  ("Skin depth and the conductor's element size"): on the issue-19 disk the peak force is 0.4 % below
-  the converged value at δ / 3, 2.9 % at 0.75 δ;
+- :data:`SKIN_FRACTION`: elements no coarser than δ / 3. Chosen from the study in docs/workflow.md
+  ("Conductor element sizes from the skin depth"): on the issue-19 disk the peak force is 0.26 % below
+  the independent 15.18 kN and the impulse 0.75 % below its converged value at δ / 3, 2.6 % and 4.2 %
+  at 0.74 δ (two layers);
 - :data:`MIN_LAYERS`: and at least two elements through the conductor's thickness (when δ / 3 exceeds
   half of it, e.g. at low frequency): the mechanics shares these elements, and one P1 layer cannot bend.
 
