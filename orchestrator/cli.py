@@ -319,7 +319,7 @@ def _cmd_converge(args: argparse.Namespace) -> int:
 
 def _cmd_validate(args: argparse.Namespace) -> int:
     from .run.results import ResultsExistError
-    from .workflows.validate import SelectionError, run_validation, select
+    from .workflows.validate import SelectionError, criterion, run_validation, select
 
     try:
         entries = select(args.suite, args.only)
@@ -327,7 +327,8 @@ def _cmd_validate(args: argparse.Namespace) -> int:
         return _error(str(exc), EXIT_BAD_INPUT)
     if args.list:
         for e in entries:
-            print(f"{e.name:<48} {e.quantity} [{e.unit}]  tol {e.tolerance:g}  ref {e.reference.describe()}")
+            tol = f"tol {e.tolerance:g}" if e.gci is None else criterion(e)
+            print(f"{e.name:<48} {e.quantity} [{e.unit}]  {tol}  ref {e.reference.describe()}")
         return EXIT_OK
     if args.reference_root is not None and not args.reference_root.is_dir():
         return _error(f"--reference-root: {args.reference_root} is not a folder", EXIT_BAD_INPUT)
@@ -339,7 +340,8 @@ def _cmd_validate(args: argparse.Namespace) -> int:
         return _error(str(exc), EXIT_BAD_INPUT)
     for o in outcomes:
         err = "-" if o.error is None else f"{o.error:.3g}"
-        print(f"{o.status:<5} {o.entry.name:<48} error {err:<10} tol {o.entry.tolerance:g}"
+        tol = f"tol {o.entry.tolerance:g}" if o.entry.gci is None else criterion(o.entry)
+        print(f"{o.status:<5} {o.entry.name:<48} error {err:<10} {tol}"
               + (f"  ({o.message})" if o.message and not o.passed else ""))
     failed = [o for o in outcomes if not o.passed]
     known = sum(1 for o in outcomes if o.passed and not o.met)
