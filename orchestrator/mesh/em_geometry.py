@@ -122,6 +122,7 @@ def build_em_geometry(g: Geometry, time_limit: float | None = None) -> EMGeometr
         if g.die is not None:
             conductors.append(np.array(g.die, dtype=float))
             sizes.append(g.mesh_size_die)
+    _require_sizes(sizes)
     regions = {"coil": coil_tag(1)}
     regions.update({role: conductor_tag(k) for k, role in enumerate(g.conductor_roles(), start=1)})
     mesh = call_in_child(coil_conductor_mesh, [turns], conductors, axisymmetric=not g.planar, half=True,
@@ -131,6 +132,14 @@ def build_em_geometry(g: Geometry, time_limit: float | None = None) -> EMGeometr
     log.info("EM mesh (%s): %d nodes, %d triangles, groups %s", g.type, mesh.n_nodes, len(mesh.triangles),
              ", ".join(f"{n} ({t})" for t, n in sorted(mesh.names.items())))
     return EMGeometry(mesh, regions, turns, planar=g.planar)
+
+
+def _require_sizes(sizes: list[float | None]) -> None:
+    """Conductor sizes a case leaves to the skin depth are filled in before meshing (``pulseform run`` does
+    it: ``orchestrator/em/skin_depth.with_default_sizes``); meshing without them is a programming error."""
+    if any(s is None for s in sizes):
+        raise ValueError("a conductor element size is unset: fill the case's defaults in first "
+                         "(em.skin_depth.with_default_sizes)")
 
 
 def coaxial_coil_turns(g: CoaxialCoils) -> list[list[Rect]]:
@@ -144,6 +153,7 @@ def _build_coaxial_coils(g: CoaxialCoils, time_limit: float | None) -> EMGeometr
     coils = coaxial_coil_turns(g)
     names = {coil_tag(k): c.name for k, c in enumerate(g.coils, start=1)}
     names[conductor_tag(1)] = "workpiece"
+    _require_sizes([g.workpiece.mesh_size])
     mesh = call_in_child(coil_conductor_mesh, coils, [Rect(*g.workpiece.box)], axisymmetric=not g.planar, half=True,
                          r_domain=g.air_radius, r_shell=g.shell_radius, h_fine=g.mesh_size_coil,
                          h_coarse=g.mesh_size_air, h_conductor=[g.workpiece.mesh_size], names=names,
