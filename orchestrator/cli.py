@@ -155,10 +155,12 @@ def _error(msg: str, code: int) -> int:
 
 def _cmd_run(args: argparse.Namespace) -> int:
     from .case.io import CaseError, load_case
+    from .em.skin_depth import resolve_defaults
     from .run.results import ResultsExistError
 
     try:
-        case, _ = load_case(args.case, args.overrides)
+        case, file = load_case(args.case, args.overrides)
+        resolve_defaults(case, file, args.overrides)  # its errors are bad input; the run fills the defaults in
     except CaseError as exc:
         return _error(str(exc), EXIT_BAD_INPUT)
     out = args.out or Path("results") / case.case.name
@@ -210,11 +212,14 @@ def _summary(case, metrics: dict, out: Path) -> list[str]:
 
 def _cmd_check(args: argparse.Namespace) -> int:
     from .case.io import CaseError, case_to_toml, load_case
+    from .em.skin_depth import default_sizes, resolve_defaults
 
     try:
-        case, file = load_case(args.case, args.overrides)
+        loaded, file = load_case(args.case, args.overrides)
+        case = resolve_defaults(loaded, file, args.overrides)
     except CaseError as exc:
         return _error(str(exc), EXIT_BAD_INPUT)
+    filled = default_sizes(loaded)
     if case.geometry is not None and case.geometry.type == "user_deck":
         from .em.user_deck import DeckContractError, check_user_deck
 
@@ -226,6 +231,8 @@ def _cmd_check(args: argparse.Namespace) -> int:
     for line in _mesh_advice(case):
         print(f"pulseform: warning: {line}", file=sys.stderr)
     print(f"# {file}: valid")
+    for d in filled:
+        print(f"# {d.text()}")
     print(case_to_toml(case), end="")
     return EXIT_OK
 
@@ -312,7 +319,7 @@ def _cmd_converge(args: argparse.Namespace) -> int:
 
 def _cmd_validate(args: argparse.Namespace) -> int:
     from .run.results import ResultsExistError
-    from .workflows.validate import SelectionError, run_validation, select
+    from .workflows.validate import SelectionError, criterion, run_validation, select
 
     try:
         entries = select(args.suite, args.only)
@@ -320,7 +327,8 @@ def _cmd_validate(args: argparse.Namespace) -> int:
         return _error(str(exc), EXIT_BAD_INPUT)
     if args.list:
         for e in entries:
-            print(f"{e.name:<48} {e.quantity} [{e.unit}]  tol {e.tolerance:g}  ref {e.reference.describe()}")
+            tol = f"tol {e.tolerance:g}" if e.gci is None else criterion(e)
+            print(f"{e.name:<48} {e.quantity} [{e.unit}]  {tol}  ref {e.reference.describe()}")
         return EXIT_OK
     if args.reference_root is not None and not args.reference_root.is_dir():
         return _error(f"--reference-root: {args.reference_root} is not a folder", EXIT_BAD_INPUT)
@@ -332,7 +340,8 @@ def _cmd_validate(args: argparse.Namespace) -> int:
         return _error(str(exc), EXIT_BAD_INPUT)
     for o in outcomes:
         err = "-" if o.error is None else f"{o.error:.3g}"
-        print(f"{o.status:<5} {o.entry.name:<48} error {err:<10} tol {o.entry.tolerance:g}"
+        tol = f"tol {o.entry.tolerance:g}" if o.entry.gci is None else criterion(o.entry)
+        print(f"{o.status:<5} {o.entry.name:<48} error {err:<10} {tol}"
               + (f"  ({o.message})" if o.message and not o.passed else ""))
     failed = [o for o in outcomes if not o.passed]
     known = sum(1 for o in outcomes if o.passed and not o.met)

@@ -78,7 +78,8 @@ class OuterTube:
     inner_radius: float = spec(unit="m", gt=0.0, doc="inner radius")
     thickness: float = spec(unit="m", gt=0.0, doc="wall thickness")
     length: float = spec(unit="m", gt=0.0, doc="length")
-    mesh_size: float = spec(unit="m", gt=0.0, doc="element size in the outer tube")
+    mesh_size: float | None = spec(
+        None, unit="m", gt=0.0, doc="element size in the outer tube (unset: from the skin depth)")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -101,7 +102,8 @@ class FlatCoilSheet(_ConductorRoles):
     sheet_thickness: float = spec(unit="m", gt=0.0, doc="sheet thickness")
     air_radius: float = spec(unit="m", gt=0.0, doc="radius of the meshed air half-disk")
     shell_radius: float = spec(unit="m", gt=0.0, doc="outer radius of the shell to infinity")
-    mesh_size_sheet: float = spec(unit="m", gt=0.0, doc="element size in the sheet")
+    mesh_size_sheet: float | None = spec(
+        None, unit="m", gt=0.0, doc="element size in the sheet (unset: from the skin depth)")
     mesh_size_coil: float = spec(unit="m", gt=0.0, doc="element size in and near the coil")
     mesh_size_air: float = spec(unit="m", gt=0.0, doc="element size far away in the air")
     die: SheetDie | None = spec(None, doc="[geometry.die] optional conducting die above the sheet")
@@ -137,7 +139,8 @@ class SolenoidTube(_ConductorRoles):
     tube_length: float = spec(unit="m", gt=0.0, doc="tube length")
     air_radius: float = spec(unit="m", gt=0.0, doc="radius of the meshed air half-disk")
     shell_radius: float = spec(unit="m", gt=0.0, doc="outer radius of the shell to infinity")
-    mesh_size_tube: float = spec(unit="m", gt=0.0, doc="element size in the tube")
+    mesh_size_tube: float | None = spec(
+        None, unit="m", gt=0.0, doc="element size in the tube (unset: from the skin depth)")
     mesh_size_coil: float = spec(unit="m", gt=0.0, doc="element size in and near the coil")
     mesh_size_air: float = spec(unit="m", gt=0.0, doc="element size far away in the air")
     outer_tube: OuterTube | None = spec(None, doc="[geometry.outer_tube] optional second tube (press fit)")
@@ -184,7 +187,8 @@ class PlanarCoilBlankDie(_ConductorRoles):
         None, unit="m", doc="die polygon: vertices (x, y), counter-clockwise, below the blank (y < 0)")
     air_radius: float = spec(unit="m", gt=0.0, doc="radius of the meshed air half-disk")
     shell_radius: float = spec(unit="m", gt=0.0, doc="outer radius of the shell to infinity")
-    mesh_size_blank: float = spec(unit="m", gt=0.0, doc="element size in the blank")
+    mesh_size_blank: float | None = spec(
+        None, unit="m", gt=0.0, doc="element size in the blank (unset: from the skin depth)")
     mesh_size_die: float = spec(1e-3, unit="m", gt=0.0, doc="element size in the die")
     mesh_size_coil: float = spec(unit="m", gt=0.0, doc="element size in and near the coil")
     mesh_size_air: float = spec(unit="m", gt=0.0, doc="element size far away in the air")
@@ -242,7 +246,8 @@ class CoaxialWorkpiece:
     z0: float = spec(unit="m", doc="lower face")
     r1: float = spec(unit="m", gt=0.0, doc="outer radius")
     z1: float = spec(unit="m", doc="upper face")
-    mesh_size: float = spec(unit="m", gt=0.0, doc="element size in the workpiece")
+    mesh_size: float | None = spec(
+        None, unit="m", gt=0.0, doc="element size in the workpiece (unset: from the skin depth)")
 
     def validate(self, path: str) -> None:
         _check_box((self.r0, self.z0, self.r1, self.z1), path)

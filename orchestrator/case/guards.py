@@ -27,6 +27,7 @@ from dataclasses import dataclass
 
 from .rigid_steps import all_rigid, period_upper_bound
 from .schema import SchemaError
+from .skin import provisional_size
 
 #: cells per (area / h²) of a mesh of equilateral triangles of side h
 CELLS_PER_AREA_OVER_H2 = 4.0 / math.sqrt(3.0)
@@ -60,32 +61,43 @@ def _shape_area(shape) -> float:
     return 0.5 * abs(sum(x0 * y1 - x1 * y0 for (x0, y0), (x1, y1) in zip(pts, pts[1:] + pts[:1])))
 
 
-def _geometry_regions(g) -> list[Region]:
-    """Meshed regions of a built-in EM geometry (conductors, coil, air); none for a user deck."""
+def _geometry_regions(case) -> list[Region]:
+    """Meshed regions of a built-in EM geometry (conductors, coil, air); none for a user deck. A conductor
+    size the case leaves unset is estimated from the skin depth (:func:`.skin.provisional_size`)."""
+    g = case.geometry
+
+    def size(key: str, value: float | None) -> float:
+        return value if value is not None else provisional_size(case, key)
+
     air = 0.5 * math.pi * g.air_radius ** 2 if hasattr(g, "air_radius") else 0.0
     turn = g.turn_width * g.turn_height if hasattr(g, "turn_width") else 0.0
     if g.type == "flat_coil_sheet":
-        out = [Region("geometry.mesh_size_sheet", g.sheet_radius * g.sheet_thickness, g.mesh_size_sheet,
+        out = [Region("geometry.mesh_size_sheet", g.sheet_radius * g.sheet_thickness,
+                      size("geometry.mesh_size_sheet", g.mesh_size_sheet),
                       g.sheet_thickness)]
         if g.die is not None:
             d = g.die
             out.append(Region("geometry.die.mesh_size", d.outer_radius * d.height, d.mesh_size))
     elif g.type == "solenoid_tube":
-        out = [Region("geometry.mesh_size_tube", g.tube_thickness * g.tube_length, g.mesh_size_tube,
+        out = [Region("geometry.mesh_size_tube", g.tube_thickness * g.tube_length,
+                      size("geometry.mesh_size_tube", g.mesh_size_tube),
                       g.tube_thickness)]
         if g.outer_tube is not None:
             o = g.outer_tube
-            out.append(Region("geometry.outer_tube.mesh_size", o.thickness * o.length, o.mesh_size, o.thickness))
+            out.append(Region("geometry.outer_tube.mesh_size", o.thickness * o.length,
+                              size("geometry.outer_tube.mesh_size", o.mesh_size), o.thickness))
     elif g.type == "coaxial_coils":
         w = g.workpiece
         windings = [b for c in g.coils for b in c.windings]
-        return [Region("geometry.workpiece.mesh_size", (w.r1 - w.r0) * (w.z1 - w.z0), w.mesh_size,
+        return [Region("geometry.workpiece.mesh_size", (w.r1 - w.r0) * (w.z1 - w.z0),
+                       size("geometry.workpiece.mesh_size", w.mesh_size),
                        min(w.r1 - w.r0, w.z1 - w.z0)),
                 Region("geometry.mesh_size_coil", sum((b[2] - b[0]) * (b[3] - b[1]) for b in windings),
                        g.mesh_size_coil, min(min(b[2] - b[0], b[3] - b[1]) for b in windings)),
                 Region("geometry.mesh_size_air", air, g.mesh_size_air)]
     elif g.type == "planar_coil_blank_die":
-        out = [Region("geometry.mesh_size_blank", g.blank_half_width * g.blank_thickness, g.mesh_size_blank,
+        out = [Region("geometry.mesh_size_blank", g.blank_half_width * g.blank_thickness,
+                      size("geometry.mesh_size_blank", g.mesh_size_blank),
                       g.blank_thickness)]
         if g.die is not None:
             pts = list(g.die)
@@ -101,7 +113,7 @@ def _geometry_regions(g) -> list[Region]:
 def _body_regions(case) -> list[Region]:
     """Each body's meshed region, in the order of ``case.bodies`` (None where unknown before meshing)."""
     g = case.geometry
-    geo = {r.key: r for r in _geometry_regions(g)} if g is not None else {}
+    geo = {r.key: r for r in _geometry_regions(case)} if g is not None else {}
     key = {"workpiece": {"flat_coil_sheet": "mesh_size_sheet", "solenoid_tube": "mesh_size_tube",
                          "planar_coil_blank_die": "mesh_size_blank", "coaxial_coils": "workpiece.mesh_size"},
            "die": {"flat_coil_sheet": "die.mesh_size", "planar_coil_blank_die": "mesh_size_die"},
@@ -120,7 +132,7 @@ def estimated_cells(case) -> tuple[float, Region | None]:
     """(estimated cells of all meshes, the region contributing most)."""
     regions = [r for r, b in zip(_body_regions(case), case.bodies) if r is not None and b.shape is not None]
     if case.geometry is not None:
-        regions += _geometry_regions(case.geometry)
+        regions += _geometry_regions(case)
     if not regions:
         return 0.0, None
     return sum(r.cells for r in regions), max(regions, key=lambda r: r.cells)

@@ -1,13 +1,14 @@
-"""The skin depth of a coupled case's conductors, and advice when their elements are too coarse for it.
+"""The skin depth of a coupled case's conductors: their default element sizes, and advice when a set
+size is too coarse for it.
 
-The eddy currents of a conductor flow within about a skin depth δ = sqrt(2 / (ω μ0 σ)) of its surface,
-ω the drive's angular frequency (a prescribed current's ω, a sine's 2π f, a bank's ringing 2π / its
-period from C and the coils' inductance: :func:`~.time_scale.source_period`). Elements coarser than a
-fraction of δ through the conductor under-resolve the current layer and the force: measured with
-``pulseform converge`` (docs/workflow.md), the issue-19 disk (δ = 0.67 mm) has its peak force 2.9 % low
-at 0.75 δ, 0.4 % at 0.37 δ, 0.05 % at 0.19 δ; the demo's sheet (δ ≈ 0.8 mm) its max deflection 6.9 % low
-at 0.6 δ and within 0.7 % at 0.3 δ. Hence the advice: elements no coarser than δ / 3
-(:data:`SKIN_FRACTION`) — a warning naming δ and the size, not an error (a coarse mesh is a choice).
+The rule (a conductor's elements no coarser than δ / 3, at least two through its thickness) and the
+study behind it live in :mod:`~pulseform.orchestrator.case.skin`; here ω, the drive's angular frequency,
+is known: a prescribed current's ω, a sine's 2π f, a bank's ringing 2π / its period from C and the coils'
+inductance (:func:`~.time_scale.source_period`), all before the run. :func:`with_default_sizes` fills the
+conductor sizes a case leaves out (``pulseform check`` shows them; a run logs them and writes them into its
+``case.toml``);
+:func:`mesh_advice` names each set size coarser than the rule (a warning, not an error: a coarse mesh is a
+choice, and ``pulseform converge`` measures what it costs).
 
 Units: m, rad/s, S/m.
 """
@@ -15,20 +16,17 @@ Units: m, rad/s, S/m.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
+from pathlib import Path
 
+from ..case.io import CaseError
 from ..case.model import Case
-from .lumped import MU0
+from ..case.schema import SchemaError, from_dict, to_dict
+from ..case.skin import SKIN_FRACTION, conductor_sizes, default_size, region_sigma, skin_depth
 from .time_scale import source_period
 
-__all__ = ["SKIN_FRACTION", "skin_depth", "drive_omega", "mesh_advice"]
-
-#: largest element size through a conductor, as a fraction of its skin depth (see the module docstring)
-SKIN_FRACTION = 1.0 / 3.0
-
-
-def skin_depth(omega: float, sigma: float) -> float:
-    """δ = sqrt(2 / (ω μ0 σ)) (m) at angular frequency ``omega`` (rad/s), conductivity ``sigma`` (S/m)."""
-    return math.sqrt(2.0 / (omega * MU0 * sigma))
+__all__ = ["SKIN_FRACTION", "skin_depth", "drive_omega", "DefaultSize", "default_sizes", "with_default_sizes",
+           "resolve_defaults", "mesh_advice"]
 
 
 def drive_omega(case: Case) -> float | None:
@@ -40,30 +38,81 @@ def drive_omega(case: Case) -> float | None:
         return None
 
 
-def _conductor_sizes(case: Case) -> list[tuple[str, float, float, str]]:
-    """(key path, element size (m), thickness it resolves (m; inf: none), region) of each conductor of a
-    built-in geometry."""
-    g = case.geometry
-    inf = math.inf
-    if g.type == "flat_coil_sheet":
-        out = [("geometry.mesh_size_sheet", g.mesh_size_sheet, g.sheet_thickness, "workpiece")]
-        if g.die is not None:
-            out.append(("geometry.die.mesh_size", g.die.mesh_size, inf, "die"))
-        return out
-    if g.type == "solenoid_tube":
-        out = [("geometry.mesh_size_tube", g.mesh_size_tube, g.tube_thickness, "workpiece")]
-        if g.outer_tube is not None:
-            out.append(("geometry.outer_tube.mesh_size", g.outer_tube.mesh_size, g.outer_tube.thickness, "outer_tube"))
-        return out
-    if g.type == "planar_coil_blank_die":
-        out = [("geometry.mesh_size_blank", g.mesh_size_blank, g.blank_thickness, "workpiece")]
-        if g.die is not None:
-            out.append(("geometry.mesh_size_die", g.mesh_size_die, inf, "die"))
-        return out
-    if g.type == "coaxial_coils":
-        w = g.workpiece
-        return [("geometry.workpiece.mesh_size", w.mesh_size, min(w.r1 - w.r0, w.z1 - w.z0), "workpiece")]
-    return []
+@dataclass(frozen=True)
+class DefaultSize:
+    """A conductor size the case left unset, as filled in: key path, size (m), skin depth (m; inf for a
+    non-conductor), drive angular frequency (rad/s; None without one)."""
+
+    key: str
+    size: float
+    delta: float
+    omega: float | None
+
+    def text(self) -> str:
+        """One line for the log and ``pulseform check``."""
+        if not math.isfinite(self.delta):
+            return f"{self.key} = {self.size * 1e3:.3g} mm (default: half the thickness; a non-conductor)"
+        rule = "δ/3" if self.size >= SKIN_FRACTION * self.delta * (1 - 1e-9) else "half the thickness, finer than δ/3"
+        return (f"{self.key} = {self.size * 1e3:.3g} mm (default: {rule}; skin depth {self.delta * 1e3:.3g} mm at "
+                f"ω = {self.omega:.3g} rad/s)")
+
+
+def default_sizes(case: Case) -> list[DefaultSize]:
+    """The conductor sizes of a coupled case's built-in geometry that the case leaves unset, with the values
+    the rule of :mod:`~pulseform.orchestrator.case.skin` gives them.
+
+    Raises
+    ------
+    SchemaError
+        An unset size of a conductor whose drive has no frequency (direct currents, tables): the key must
+        then be given.
+    """
+    if case.geometry is None or case.em is None:
+        return []
+    unset = [c for c in conductor_sizes(case.geometry) if c[1] is None]
+    if not unset:
+        return []
+    omega = drive_omega(case)
+    out = []
+    for key, _, thickness, region in unset:
+        sigma = region_sigma(case, region)
+        if sigma > 0.0 and omega is None:
+            raise SchemaError(key, "missing: no source has a frequency to take the skin depth from (a direct "
+                              "current or a table), so there is no default; give the element size (a number > 0, in m)")
+        delta = skin_depth(omega, sigma) if sigma > 0.0 else math.inf
+        out.append(DefaultSize(key, default_size(delta, thickness), delta, omega))
+    return out
+
+
+def with_default_sizes(case: Case) -> Case:
+    """``case`` with its unset conductor sizes filled in (:func:`default_sizes`), validated
+    again with them (the resource guards then see the real sizes); ``case`` itself when none is unset.
+
+    Raises
+    ------
+    SchemaError
+        As :func:`default_sizes`, or the case with the defaults exceeds its ``[limits]``.
+    """
+    filled = default_sizes(case)
+    if not filled:
+        return case
+    data = to_dict(case)
+    for d in filled:
+        *tables, name = d.key.split(".")
+        node = data
+        for t in tables:
+            node = node[t]
+        node[name] = d.size
+    return from_dict(Case, data)
+
+
+def resolve_defaults(case: Case, file: str | Path, overrides: list[str] | tuple[str, ...] = ()) -> Case:
+    """:func:`with_default_sizes` of a case loaded from ``file`` (with ``overrides``), its errors as a
+    :class:`~pulseform.orchestrator.case.errors.CaseError` (one line naming the file and the key)."""
+    try:
+        return with_default_sizes(case)
+    except SchemaError as exc:
+        raise CaseError(f"{file}" + (" (with --set overrides)" if overrides else ""), exc.path, exc.message) from None
 
 
 def mesh_advice(case: Case) -> list[str]:
@@ -72,14 +121,13 @@ def mesh_advice(case: Case) -> list[str]:
     Empty for other cases, user decks and drives without a frequency."""
     if case.case.kind != "coupled" or case.geometry is None or case.em is None or case.coupling.load != "getdp":
         return []
-    sizes = _conductor_sizes(case)
+    sizes = [c for c in conductor_sizes(case.geometry) if c[1] is not None]
     omega = drive_omega(case) if sizes else None
     if omega is None:
         return []
     out = []
     for key, size, thickness, region in sizes:
-        body = next((b for b in case.bodies if b.region == region), None)
-        sigma = case.materials[body.material].electrical_conductivity if body is not None else 0.0
+        sigma = region_sigma(case, region)
         if sigma <= 0.0:
             continue
         delta = skin_depth(omega, sigma)

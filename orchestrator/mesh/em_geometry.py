@@ -124,6 +124,7 @@ def start_em_geometry(g: Geometry, time_limit: float | None = None) -> PendingEM
         coils = coaxial_coil_turns(g)
         names = {coil_tag(k): c.name for k, c in enumerate(g.coils, start=1)}
         names[conductor_tag(1)] = "workpiece"
+        _require_sizes([g.workpiece.mesh_size])
         call = ChildCall(coil_conductor_mesh, coils, [Rect(*g.workpiece.box)], h_conductor=[g.workpiece.mesh_size],
                          names=names, **common)
 
@@ -159,6 +160,7 @@ def start_em_geometry(g: Geometry, time_limit: float | None = None) -> PendingEM
         if g.die is not None:
             conductors.append(np.array(g.die, dtype=float))
             sizes.append(g.mesh_size_die)
+    _require_sizes(sizes)
     regions = {"coil": coil_tag(1)}
     regions.update({role: conductor_tag(k) for k, role in enumerate(g.conductor_roles(), start=1)})
     call = ChildCall(coil_conductor_mesh, [turns], conductors, h_conductor=sizes,
@@ -170,6 +172,14 @@ def start_em_geometry(g: Geometry, time_limit: float | None = None) -> PendingEM
         return EMGeometry(mesh, regions, turns, planar=g.planar)
 
     return PendingEMGeometry(call, finish)
+
+
+def _require_sizes(sizes: list[float | None]) -> None:
+    """Conductor sizes a case leaves to the skin depth are filled in before meshing (``pulseform run`` does
+    it: ``orchestrator/em/skin_depth.with_default_sizes``); meshing without them is a programming error."""
+    if any(s is None for s in sizes):
+        raise ValueError("a conductor element size is unset: fill the case's defaults in first "
+                         "(em.skin_depth.with_default_sizes)")
 
 
 def coaxial_coil_turns(g: CoaxialCoils) -> list[list[Rect]]:

@@ -16,6 +16,7 @@ from mpi4py import MPI
 
 from ..case.io import case_to_toml
 from ..case.model import Case
+from ..em.skin_depth import DefaultSize, default_sizes, with_default_sizes
 from . import interrupt
 from .results import DISK_FULL_ERRNOS, ResultsFolder, refuse_if_in_use
 
@@ -149,7 +150,12 @@ def run_case(case: Case, out: Path, *, force: bool = False, resume: bool = False
         ``out`` exists and neither ``force`` nor ``resume`` is set.
     RunFailed
         The solver failed; the log, history so far and partial metrics stay in ``out``.
+    SchemaError
+        A conductor size left to the skin depth has no frequency to take it from, or its default exceeds
+        ``[limits]`` (the CLI refuses both before: :func:`~..em.skin_depth.resolve_defaults`).
     """
+    filled = default_sizes(case)  # conductor sizes the case leaves to the skin depth
+    case = with_default_sizes(case)
     if resume:
         refuse_if_in_use(Path(out))  # "in use" before "nothing to resume yet"
         _check_resumable(case, Path(out))
@@ -160,15 +166,18 @@ def run_case(case: Case, out: Path, *, force: bool = False, resume: bool = False
     try:
         with interrupt.signals_stop_run(), \
                 native_stderr_to(results.log_file) if native_stderr_to_log and comm.rank == 0 else _nullcontext():
-            return _run_in(case, results, resume=resume, quiet=quiet, comm=comm)
+            return _run_in(case, results, resume=resume, quiet=quiet, comm=comm, filled=filled)
     finally:
         results.release()
 
 
-def _run_in(case: Case, results: ResultsFolder, *, resume: bool, quiet: bool, comm: MPI.Comm) -> dict[str, float]:
+def _run_in(case: Case, results: ResultsFolder, *, resume: bool, quiet: bool, comm: MPI.Comm,
+            filled: list[DefaultSize] | tuple = ()) -> dict[str, float]:
     wall0 = time.perf_counter()
     with run_log(results.log_file) if comm.rank == 0 else _nullcontext():
         log.info("case %s -> %s", case.case.name, results.root)
+        for d in filled:
+            log.info("%s", d.text())
         try:
             if comm.rank == 0 and not resume:
                 results.write_text("case.toml", case_to_toml(case))

@@ -28,6 +28,7 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 from ..case.io import CaseError, case_to_toml, load_case
+from ..em.skin_depth import resolve_defaults
 from ..run.results import ResultsFolder
 from ..run.units import label
 from .gci import grid_convergence
@@ -97,7 +98,8 @@ def run_converge(case: str, out: Path, *, ratio: float = 2.0, levels: int = 3, r
         raise ConvergeError(f"--levels: got {levels}; the GCI needs at least 3")
     if refine not in ("mesh", "em_step"):
         raise ConvergeError(f"--refine: got {refine!r}; allowed: 'mesh', 'em_step'")
-    base, _ = load_case(case, list(overrides or []))
+    base, file = load_case(case, list(overrides or []))
+    base = resolve_defaults(base, file, list(overrides or []))  # level 0: conductor sizes left to the skin depth
     resolved = tomllib.loads(case_to_toml(base))
     plan = study_levels(resolved, ratio, levels, refine)
     results = ResultsFolder(out, force=force)

@@ -17,12 +17,15 @@ import csv
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
 from ..run.children import run_pulseform
 from ..run.results import read_metrics
+
+if TYPE_CHECKING:
+    from .gci_band import GciBand
 
 REPO = Path(__file__).resolve().parents[2]
 PROVENANCE_KEYS = ("source", "figure", "units", "obtained")
@@ -114,7 +117,8 @@ class Entry:
     die less than the single pulse". ``known_deviation``: why our result is known to differ from
     the reference (docs/cases.md); such an entry is expected to fail its comparison and is reported
     as "known deviation (xfail)"; if it passes, it is reported as XPASS and fails the suite
-    (strict: the registry must then be updated).
+    (strict: the registry must then be updated). ``gci`` (scalar, "equal"): judged on the computed
+    value's GCI band instead of ``tolerance`` (:mod:`.gci_band`).
     """
 
     name: str
@@ -135,6 +139,7 @@ class Entry:
     compare: str = "equal"  # "equal" | "below" | "above"
     reference_run: str | None = None
     known_deviation: str = ""
+    gci: GciBand | None = None
 
 
 REGISTRY: dict[str, Entry] = {}
@@ -149,6 +154,8 @@ def register(entry: Entry) -> Entry:
             raise ValueError(f"validation entry {entry.name!r}: unknown run {key!r}")
     if entry.compare not in ("equal", "below", "above"):
         raise ValueError(f"validation entry {entry.name!r}: compare must be equal, below or above")
+    if entry.gci is not None and (entry.kind, entry.compare) != ("scalar", "equal"):
+        raise ValueError(f"validation entry {entry.name!r}: a GCI band judges scalar 'equal' entries only")
     REGISTRY[entry.name] = entry
     return entry
 

@@ -19,6 +19,7 @@ import numpy as np
 
 from .. import __version__
 from ..run.results import ResultsFolder, atomic_write_text
+from .gci_band import judge
 from .info import collect
 from .registry import REGISTRY, REPO, RUNS, Analytic, CsvCurve, Entry, ReferenceError_, RunOutput
 
@@ -43,6 +44,7 @@ class Outcome:
     provenance: dict[str, str] = field(default_factory=dict)
     plot: str = ""
     met: bool = False  # the comparison itself succeeded (``passed`` also counts an expected known deviation)
+    band: dict = field(default_factory=dict)  # a GCI-band entry's band and verdict (:mod:`.gci_band`)
 
     @property
     def status(self) -> str:
@@ -60,11 +62,14 @@ class Outcome:
                 "tolerance": e.tolerance, "compare": e.compare, "criterion": criterion(e), "pass": self.passed,
                 "status": self.status, "known_deviation": e.known_deviation, "message": self.message,
                 "provenance": self.provenance, "run": e.run, "reference_run": e.reference_run, "note": e.note,
-                "plot": self.plot}
+                "plot": self.plot, "gci_band": self.band}
 
 
 def criterion(e: Entry) -> str:
     """The pass condition on the error, as text."""
+    if e.gci is not None:
+        u = f"{100 * e.gci.uncertainty:g} %" if e.error == "rel" else f"{e.gci.uncertainty:g} {e.unit}"
+        return f"reference within computed ± GCI ± {u}"
     return {"equal": f"|error| <= {e.tolerance:g}", "below": f"error <= -{e.tolerance:g}",
             "above": f"error >= {e.tolerance:g}"}[e.compare]
 
@@ -145,9 +150,16 @@ def _evaluate(e: Entry, run: RunOutput | Exception, root: Path, plots: Path,
         ok = {"equal": lambda x: x <= e.tolerance, "below": lambda x: x <= -e.tolerance,
               "above": lambda x: x >= e.tolerance}[e.compare if e.kind == "scalar" else "equal"]
         o.met = bool(np.isfinite(o.error) and ok(o.error))
+        if e.gci is not None:  # the computed value's own error band instead of the tolerance
+            verdict = judge(e.gci, run, o.reference, e.error)
+            o.band = verdict.to_dict()
+            o.met = verdict.met
+            o.provenance["reference uncertainty"] = e.gci.uncertainty_source
         o.passed = o.met != bool(e.known_deviation)
         if not o.met:
             o.message = f"error {o.error:.3g} does not satisfy {criterion(e)}"
+        if o.band:
+            o.message = f"{o.message}: {verdict.text()}" if not o.met else verdict.text()
         if e.known_deviation:
             o.message = ("known deviation (xfail); " if not o.met else
                          "XPASS: the known deviation is no longer seen, update the registry (docs/cases.md); ") + o.message
@@ -226,7 +238,7 @@ def _write_report(outcomes: list[Outcome], runs: dict, root: Path) -> None:
     for o in outcomes:
         e = o.entry
         err = _fmt(o.error) + ("" if o.error is None else (" (abs)" if e.error == "abs" and e.kind != "curve" else " (rel)"))
-        tol = f"{e.tolerance:g}" if e.compare == "equal" else criterion(e)
+        tol = f"{e.tolerance:g}" if e.compare == "equal" and e.gci is None else criterion(e)
         lines.append(f"| {e.case} | {e.quantity} [{e.unit}] | {e.reference.describe()} | {_fmt(o.reference)} | "
                      f"{_fmt(o.computed)} | {err} | {tol} | {o.status} |")
     lines += ["", "## Details", ""]
