@@ -4,11 +4,12 @@ size is too coarse for it.
 The rule (a conductor's elements no coarser than δ / 3, at least two through its thickness) and the
 study behind it live in :mod:`~pulseform.orchestrator.case.skin`; here ω, the drive's angular frequency,
 is known: a prescribed current's ω, a sine's 2π f, a bank's ringing 2π / its period from C and the coils'
-inductance (:func:`~.time_scale.source_period`), all before the run. :func:`with_default_sizes` fills the
-conductor sizes a case leaves out (``pulseform check`` shows them; a run logs them and writes them into its
-``case.toml``);
-:func:`mesh_advice` names each set size coarser than the rule (a warning, not an error: a coarse mesh is a
-choice, and ``pulseform converge`` measures what it costs).
+inductance (:func:`~.time_scale.source_period`), all before the run.
+
+- :func:`with_default_sizes` fills in the conductor sizes a case leaves out (``pulseform check`` shows
+  them; a run logs them and writes them into its ``case.toml``; ``pulseform converge`` starts from them);
+- :func:`mesh_advice` names each set size coarser than the rule (a warning, not an error: a coarse mesh
+  is a choice, and ``pulseform converge`` measures what it costs).
 
 Units: m, rad/s, S/m.
 """

@@ -147,3 +147,20 @@ def test_default_mesh_peak_force_within_one_percent(tmp_path):
     force = json.loads((out / "metrics.json").read_text())["force_peak_N"]
     assert force == pytest.approx(15.18e3, rel=0.01)
     assert "geometry.mesh_size_sheet = 0.225 mm (default" in (out / "run.log").read_text()
+
+
+def test_converge_starts_from_the_default(tmp_path, monkeypatch):
+    """`pulseform converge` on a case that leaves the sheet size out: level 0 is the default δ/3, level k
+    δ/3 / 2^k (the levels' runs replaced by a stub: only the plan is checked here)."""
+    from pulseform.orchestrator.workflows import converge
+
+    def stub(case, member, extra):
+        member.returncode, member.metrics = 0, {"force_peak_N": 1.0 + 0.1 * 0.5 ** member.index}
+        return member
+
+    monkeypatch.setattr(converge, "run_member", stub)
+    report = converge.run_converge(str(_without(DISK, tmp_path, "mesh_size_sheet")), tmp_path / "study",
+                                   metrics=["force_peak_N"])
+    sizes = [float(lv["overrides"]["geometry.mesh_size_sheet"]) for lv in report["levels"]]
+    delta = skin_depth(1e5, 3.5e7)
+    assert sizes == pytest.approx([delta / 3, delta / 6, delta / 12], rel=1e-12)
