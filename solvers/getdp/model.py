@@ -47,6 +47,10 @@ class CurrentTable:
             raise ValueError("CurrentTable needs >= 2 strictly increasing times and as many values")
         self.times, self.values = t.tolist(), v.tolist()
 
+    def __call__(self, t):
+        """I(t) (A) at times ``t`` (s), as the runner's deck computes it (the end values held beyond the table)."""
+        return np.interp(np.asarray(t, float), self.times, self.values)
+
 
 @dataclass
 class Coil:

@@ -38,11 +38,11 @@ from typing import Sequence
 import numpy as np
 
 from .mesh import EMMesh, coil_tag, conductor_tag, write_msh22
-from .model import EMModel, EMState, EMStepResult, mesh_signature
+from .model import Coil, DampedSine, EMModel, EMState, EMStepResult, mesh_signature
 from .solver import GetDPSolver
 
-__all__ = ["TemplateSpec", "TemplateDeckSolver", "TemplateDeckError", "wrapper_text", "VALUE_TABLES",
-           "WRAPPER_NAMES"]
+__all__ = ["TemplateSpec", "TemplateDeckSolver", "TemplateDeckError", "wrapper_text", "current_mismatch",
+           "VALUE_TABLES", "WRAPPER_NAMES", "CURRENT_RTOL"]
 
 #: objects the wrapper defines after the user's deck (a deck must not define them itself)
 WRAPPER_NAMES = ("PF_Template", "PF_Plane", "EM_Transient", "EM_Step", "EM_Elem", "EM_State", "EM_Field",
@@ -51,7 +51,11 @@ WRAPPER_NAMES = ("PF_Template", "PF_Plane", "EM_Transient", "EM_Step", "EM_Elem"
 VALUE_TABLES = {"cond_sigma_<k>.txt": "integral of sigma[] over conductor k, then its area (S/m m^2, m^2)",
                 "coil_turns_<k>.txt": "integral of js0[] . e_z over coil k (ampere-turns per ampere)",
                 "cir_C.txt": "Capacitance[] of Capacitance_Cir (F)", "cir_R.txt": "Resistance[] (Ohm)",
-                "cir_L.txt": "Inductance[] (H)", "cir_V0.txt": "U of Capacitance_Cir at TimeInit (V)"}
+                "cir_L.txt": "Inductance[] (H)", "cir_V0.txt": "U of Capacitance_Cir at TimeInit (V)",
+                "geo_<region>.txt": "over coil / conductor k: integral of 1 with the deck's Jacobian Vol, its area, "
+                                    "integral of x, integral of CoefGeos[] (m^2 or m^3)"}
+#: largest relative difference between a coil current the deck prescribes and the case's source
+CURRENT_RTOL = 1e-6
 
 
 class TemplateDeckError(ValueError):
@@ -143,6 +147,10 @@ def wrapper_text(spec: TemplateSpec, coil_ids: Sequence[int], conductor_ids: Seq
               "      { Name area; Value { Integral { [ 1 ]; In PF_CS; Jacobian PF_Plane; Integration Gauss_v; } } }",
               "      { Name turns; Value { Integral { [ js0[]*Vector[0,0,1] ]; In Vol_S_Mag; Jacobian PF_Plane; "
               "Integration Gauss_v; } } }",
+              "      { Name vol; Value { Integral { [ 1 ]; In PF_CS; Jacobian Vol; Integration Gauss_v; } } }",
+              "      { Name xarea; Value { Integral { [ X[] ]; In PF_CS; Jacobian PF_Plane; Integration Gauss_v; } } }",
+              "      { Name coefgeos; Value { Integral { [ CoefGeos[] ]; In PF_CS; Jacobian PF_Plane; "
+              "Integration Gauss_v; } } }",
               "      If(Flag_CircuitCoupling)",
               "        { Name cir_C; Value { Term { Type Global; [ Capacitance[] ]; In Capacitance_Cir; } } }",
               "        { Name cir_R; Value { Term { Type Global; [ Resistance[] ]; In Resistance_Cir; } } }",
@@ -168,6 +176,9 @@ def wrapper_text(spec: TemplateSpec, coil_ids: Sequence[int], conductor_ids: Seq
               for k in range(1, nk + 1)]
     values += [f'      Print[ turns[PF_Coil_{k}], OnGlobal, Format Table, File StrCat[OutDir, "coil_turns_{k}.txt"] ];'
                for k in range(1, nc + 1)]
+    for reg in [f"Coil_{k}" for k in range(1, nc + 1)] + [f"Cond_{k}" for k in range(1, nk + 1)]:
+        values += [f'      Print[ {q}[PF_{reg}], OnGlobal, Format Table, File {"> " if q != "vol" else ""}'
+                   f'StrCat[OutDir, "geo_{reg.lower()}.txt"] ];' for q in ("vol", "area", "xarea", "coefgeos")]
     if circuit:
         values += [f'      Print[ cir_{q}, OnRegion {g}, Format Table, File StrCat[OutDir, "cir_{q}.txt"] ];'
                    for q, g in (("C", "Capacitance_Cir"), ("R", "Resistance_Cir"), ("L", "Inductance_Cir"))]
@@ -209,6 +220,32 @@ def wrapper_text(spec: TemplateSpec, coil_ids: Sequence[int], conductor_ids: Seq
     return "\n".join(lines + post + res)
 
 
+def current_mismatch(coil: Coil, times: np.ndarray, currents: np.ndarray) -> tuple[float, float, float] | None:
+    """The first time at which a coil's current differs from its prescribed source, or None.
+
+    Parameters
+    ----------
+    coil : Coil
+        The case's coil (its ``waveform`` (A over s) and ``sign``); a coil on a bank is never a mismatch.
+    times, currents : ndarray
+        Times (s) and the coil current (A) the deck computed there (its ``Current_2D``).
+
+    Returns
+    -------
+    tuple of float or None
+        ``(t, wanted, got)`` (s, A, A) of the first time where ``|got - sign * waveform(t)|`` exceeds
+        :data:`CURRENT_RTOL` times the larger of ``max |sign * waveform|`` over ``times`` and the
+        source's amplitude.
+    """
+    if coil.waveform is None:
+        return None
+    times, got = np.asarray(times, float), np.asarray(currents, float)
+    want = coil.sign * np.asarray(coil.waveform(times), float)
+    amp = abs(coil.waveform.I0) if isinstance(coil.waveform, DampedSine) else float(np.abs(coil.waveform.values).max())
+    bad = np.flatnonzero(~(np.abs(got - want) <= CURRENT_RTOL * max(float(np.abs(want).max(initial=0.0)), amp)))
+    return None if not len(bad) else (float(times[bad[0]]), float(want[bad[0]]), float(got[bad[0]]))
+
+
 class TemplateDeckSolver(GetDPSolver):
     """:class:`GetDPSolver` on a user's deck written on ``Lib_Magnetodynamics2D_av_Cir.pro``.
 
@@ -225,12 +262,17 @@ class TemplateDeckSolver(GetDPSolver):
     deck_ids : dict of int to int
         The runner's physical id (1 air, 101 coil 1, 201 workpiece, 11 axis, ...) -> the deck's own id
         of that group; every run writes its mesh with the deck's ids.
+    check_currents : bool
+        After every step, compare each prescribed coil current the deck computed (its own
+        ``Current_2D``) with the model's source (:func:`current_mismatch`) and raise
+        :class:`TemplateDeckError` on a difference (the orchestrator's deck check turns it off: it
+        names the case's keys itself).
     **kwargs
         Passed to :class:`GetDPSolver` (``time_scheme`` must be ``"euler"``).
     """
 
     def __init__(self, model: EMModel, work_dir: str | Path, *, deck: str | Path, spec: TemplateSpec,
-                 deck_ids: dict[int, int], **kwargs):
+                 deck_ids: dict[int, int], check_currents: bool = True, **kwargs):
         if kwargs.get("time_scheme", "euler") != "euler":
             raise TemplateDeckError("a template deck steps implicit Euler only (em.time_scheme = 'euler'): its "
                                     "state is carried by -restart, BDF2 needs the Init path")
@@ -246,6 +288,7 @@ class TemplateDeckSolver(GetDPSolver):
             raise TemplateDeckError(f"deck_ids lacks the runner's ids {missing}")
         self._lut = None
         self._first_run = False
+        self.check_currents = check_currents
 
     def _write_mesh(self, mesh: EMMesh, path: Path) -> Path:
         """The run's mesh with the deck's own physical ids (same nodes and elements in the same order)."""
@@ -282,8 +325,15 @@ class TemplateDeckSolver(GetDPSolver):
                                         "Init path (InitA_List), which a template deck's circuit does not follow")
         self._first_run = state.res_path is None
         try:
-            return super().step(mesh, state, t_end, n_sub, material_points=material_points, run_name=run_name,
-                                force_init_path=force_init_path, element_output=element_output,
-                                field_output=field_output)
+            result, new_state = super().step(mesh, state, t_end, n_sub, material_points=material_points,
+                                             run_name=run_name, force_init_path=force_init_path,
+                                             element_output=element_output, field_output=field_output)
         finally:
             self._first_run = False
+        for k, coil in enumerate(self.model.coils if self.check_currents else [], start=1):  # the deck's own
+            bad = current_mismatch(coil, result.times, result.coil_current[:, k - 1])
+            if bad is not None:
+                raise TemplateDeckError(f"coil {k}: the deck's Current_2D gives {bad[2]:.6g} A at t = {bad[0]:.6g} s, "
+                                        f"the case's source {bad[1]:.6g} A (the deck's own current is used: make "
+                                        "them agree)")
+        return result, new_state
