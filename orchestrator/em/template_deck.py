@@ -67,7 +67,7 @@ def deck_physical_ids(path: Path, groups: list[tuple[str, str, int, int]]) -> di
 
 def template_solver(case, model, work_dir: Path, deck_ids: dict[int, int], numbers: dict[str, float]
                     ) -> TemplateDeckSolver:
-    """The per-step getdp solver on the case's template deck (implicit Euler, ``-restart`` carry).
+    """The per-step getdp solver on the case's template deck (``em.time_scheme``, both carried by ``-restart``).
 
     ``numbers``: the ``-setnumber`` extras of a user deck (role ids, ``[geometry.parameters]``)."""
     g = case.geometry

@@ -287,7 +287,7 @@ def user_deck_load(case, geometry, work_dir: Path, bodies, em_substeps: int):
     model = user_em_model(case)
     mode = case.em.getdp_process
     deck_ids = getattr(geometry, "deck_ids", None)
-    if deck_ids is not None:  # a template deck: per step, implicit Euler (the case loader refused BDF2)
+    if deck_ids is not None:  # a template deck: per step (the case loader refused the persistent getdp)
         solver = make_solver(case, model, Path(work_dir), deck_ids=deck_ids)
         log.info("user deck on GetDP's template: a getdp process per EM step (-restart carry)")
         mode = None

@@ -175,6 +175,8 @@ class EMState:
     coil_power: list | None = None
     force_density: list | None = None
     force_points: list | None = None
+    # BDF2 by restart (a template deck, :mod:`.template`): a .res whose last solution is the whole x_{n-1}
+    res_prev_path: str | None = None
 
     def to_dict(self) -> dict:
         """The fields as a dict for JSON: lists are shared, not copied (``dataclasses.asdict``'s
