@@ -350,7 +350,7 @@ class DeckTemplate:
 @dataclass(frozen=True, kw_only=True)
 class UserDeck(_ConductorRoles):
     """A user's own EM deck: a Gmsh .geo (meshed by the runner) or .msh, and a GetDP .pro that
-    honours the deck contract (docs/workflow.md). Axisymmetric; one coil (``regions.coil`` with
+    honours the deck contract (docs/workflow.md). Axisymmetric, or plane with ``planar = true``; one coil (``regions.coil`` with
     ``turns``) or several (``[[geometry.coils]]``: coil k is physical 100 + k, in their order); the
     workpiece, optionally a die."""
 
@@ -363,6 +363,9 @@ class UserDeck(_ConductorRoles):
                                     "Python in the .pro; also in their Includes); a deck is code: allow only decks "
                                     "you trust")
     regions: DeckRegions = spec(doc="physical-group names of the roles")
+    planar: bool = spec(False, doc="a plane deck (Flag_Axi = 0): the mesh's (x, y) a plane section, the axis role a "
+                                   "symmetry plane (a = 0), per metre of depth scaled by mechanics.thickness; "
+                                   "prescribed sources only")
     turns: int | None = spec(None, unit="-", ge=1, doc="number of turns of the coil region regions.coil (one coil; "
                                                  "[[geometry.coils]] give their own)")
     coils: tuple[DeckCoil, ...] = spec((), doc="[[geometry.coils]] several coil roles instead of regions.coil: coil k "

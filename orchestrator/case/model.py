@@ -340,10 +340,10 @@ class Case:
                 raise SchemaError("coupling.em_substeps", f"got {self.coupling.em_substeps}; em.time_scheme = "
                                   "'bdf2' takes one step per getdp run: use 1 (and a smaller coupling.n)")
             check_coils(self)
-            if getattr(self.geometry, "library", None) == "getdp_template" and self.em.time_scheme != "euler":
-                raise SchemaError("em.time_scheme", f"got {self.em.time_scheme!r}; a deck on GetDP's template "
-                                  "(geometry.library = 'getdp_template') steps implicit Euler only, its state "
-                                  "carried by -restart: set em.time_scheme = 'euler'")
+            if getattr(self.geometry, "library", None) == "getdp_template" and self.em.getdp_process == "persistent":
+                raise SchemaError("em.getdp_process", "got 'persistent'; a deck on GetDP's template runs a getdp "
+                                  "process per EM step (its state carried by -restart): set em.getdp_process = "
+                                  "'per_step' or 'auto'")
             if self.geometry.planar and self.em.circuit is not None:
                 raise SchemaError("em.circuit", "planar geometries are per metre of depth: give a prescribed "
                                   "em.current (a capacitor bank would need the coil's length)")

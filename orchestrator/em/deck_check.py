@@ -130,7 +130,8 @@ def check_deck(solver: GetDPSolver, mesh: EMMesh, work: Path, time_limit: float,
     if getattr(solver, "deck_ids", None) is not None:  # a deck on GetDP's template: the same wrapper and ids
         from pulseform.solvers.getdp.template import TemplateDeckSolver
 
-        check = TemplateDeckSolver(solver.model, work.parent, spec=solver.spec, deck_ids=solver.deck_ids, **kwargs)
+        check = TemplateDeckSolver(solver.model, work.parent, spec=solver.spec, deck_ids=solver.deck_ids,
+                                   check_currents=False, **kwargs)  # the values: template_deck.check_deck_values
     else:
         check = GetDPSolver(solver.model, work.parent, **kwargs)
     dt = CHECK_STEP_S

@@ -11,9 +11,10 @@ The deck (its own groups on its own physical ids, functions, constraints, then `
    ``[geometry.template]``;
 3. checks the deck like any user deck (:mod:`.deck_check`; the state carry through the restart
    path only) and then compares the deck's own values with the case's (:func:`check_deck_values`):
-   the conductivity of every conductor, the turns of every coil (the ampere-turns per ampere of
-   ``js0``), and the bank (C, R, L, charging voltage): a template deck keeps its own numbers, so a
-   case that says otherwise is refused, naming both values.
+   axisymmetric or planar (the deck's Jacobian ``Vol``) and its ``CoefGeos[]``, the conductivity of
+   every conductor, the turns of every coil (the ampere-turns per ampere of ``js0``), the bank (C, R,
+   L, charging voltage) or the current a coil's ``Current_2D`` prescribes: a template deck keeps its
+   own numbers, so a case that says otherwise is refused, naming both values.
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pulseform.solvers.getdp.template import TemplateDeckSolver, TemplateSpec
+from pulseform.solvers.getdp.template import TemplateDeckSolver, TemplateSpec, current_mismatch
 
 from ..mesh.em_geometry import EMGeometry
 from .deck_check import DeckContractError
@@ -33,6 +34,9 @@ log = logging.getLogger(__name__)
 
 #: largest relative difference between a deck's own value and the case's
 VALUE_RTOL = 1e-6
+#: relative tolerance of the geometry kind (:func:`_geometry_kind`): axisymmetric and planar differ by the
+#: region's mean x in metres (0.04 for the example's die)
+KIND_RTOL = 1e-3
 
 
 @dataclass
@@ -63,7 +67,7 @@ def deck_physical_ids(path: Path, groups: list[tuple[str, str, int, int]]) -> di
 
 def template_solver(case, model, work_dir: Path, deck_ids: dict[int, int], numbers: dict[str, float]
                     ) -> TemplateDeckSolver:
-    """The per-step getdp solver on the case's template deck (implicit Euler, ``-restart`` carry).
+    """The per-step getdp solver on the case's template deck (``em.time_scheme``, both carried by ``-restart``).
 
     ``numbers``: the ``-setnumber`` extras of a user deck (role ids, ``[geometry.parameters]``)."""
     g = case.geometry
@@ -85,18 +89,35 @@ def _conductivity_key(case, k: int) -> str:
     return f"materials.{body.material}.electrical_conductivity"
 
 
-def deck_values(out: Path, n_coils: int, n_conductors: int, circuit: bool) -> dict[str, float]:
+def _geometry_kind(rows: np.ndarray) -> tuple[str, float]:
+    """(``"axisymmetric"``, ``"planar"``, ``"either"`` or ``"neither"``, mean CoefGeos[]) of one region's
+    ``geo_*.txt`` rows: the integral of 1 with the deck's Jacobian ``Vol``, the area, the integral of x
+    (m^2), the integral of CoefGeos[]. ``VolAxiSqu`` integrates 1 to the integral of x (per radian; to
+    9e-7 relative on the die of cases/template_sheet_bulge/with_die.toml, whose curved edge its
+    quadrature does not follow exactly), ``Vol`` to the area: :data:`KIND_RTOL` tells them apart
+    unless the region's mean x is within it of 1 m ("either")."""
+    vol, area, xarea, coef = (float(v) for v in rows[:4, -1])
+    axi, plane = abs(vol - xarea) <= KIND_RTOL * abs(xarea), abs(vol - area) <= KIND_RTOL * abs(area)
+    kind = "either" if axi and plane else "axisymmetric" if axi else "planar" if plane else "neither"
+    return kind, coef / area
+
+
+def deck_values(out: Path, n_coils: int, n_conductors: int, circuit: bool) -> dict[str, float | str]:
     """The deck's own values printed by the first run from rest (``EM_Values`` into ``out``).
 
     Returns
     -------
     dict
         ``"sigma_<k>"`` (S/m, mean over conductor k), ``"turns_<k>"`` (the integral of js0 . e_z over
-        coil k: ampere-turns per ampere), and with a circuit ``"C"`` (F), ``"R"`` (Ohm), ``"L"`` (H)
+        coil k: ampere-turns per ampere), with a circuit ``"C"`` (F), ``"R"`` (Ohm), ``"L"`` (H)
         summed over the template's ``Capacitance_Cir`` / ``Resistance_Cir`` / ``Inductance_Cir``
-        regions, and ``"V0"`` (V, the capacitor's voltage at the start).
+        regions, and ``"V0"`` (V, the capacitor's voltage at the start); ``"kind_<region>"``
+        (``"axisymmetric"``, ``"planar"`` or ``"neither"``: the deck's Jacobian ``Vol`` there) and
+        ``"coefgeos_<region>"`` (mean CoefGeos[]) for every coil (``coil_<k>``) and conductor (``cond_<k>``).
     """
-    vals: dict[str, float] = {}
+    vals: dict[str, float | str] = {}
+    for reg in [f"coil_{k}" for k in range(1, n_coils + 1)] + [f"cond_{k}" for k in range(1, n_conductors + 1)]:
+        vals[f"kind_{reg}"], vals[f"coefgeos_{reg}"] = _geometry_kind(_last(out / f"geo_{reg}.txt"))
     for k in range(1, n_conductors + 1):
         rows = _last(out / f"cond_sigma_{k}.txt")
         vals[f"sigma_{k}"] = float(rows[0, -1] / rows[1, -1])
@@ -109,16 +130,59 @@ def deck_values(out: Path, n_coils: int, n_conductors: int, circuit: bool) -> di
     return vals
 
 
-def check_deck_values(case, model, out: Path) -> dict[str, float]:
+def _source_key(case, k: int) -> str:
+    """The case-file key of coil k's prescribed source (``em.current``, ``em.sources[i]``)."""
+    em = case.em
+    if not em.sources:
+        return "em.current"
+    name = case.geometry.coils[k - 1].name if case.geometry.coils else em.coils[0].name
+    source = next(c.source for c in em.coils if c.name == name)
+    i = next(i for i, src in enumerate(em.sources) if src.name == source)
+    return f"em.sources[{i}] ({source})"
+
+
+def current_differences(case, model, out: Path) -> list[str]:
+    """Coil k's current in the deck (``coil_I_<k>.txt`` of a check run) against the case's prescribed
+    source times the coil's sign (:func:`pulseform.solvers.getdp.template.current_mismatch`), as the
+    phrases of :func:`check_deck_values`; coils on a bank are the circuit's and not compared."""
+    diffs = []
+    coils = [c[2] for c in case.geometry.coil_groups()]
+    for k, coil in enumerate(model.coils, start=1):
+        if coil.waveform is None:
+            continue
+        rows = _last(out / f"coil_I_{k}.txt")
+        bad = current_mismatch(coil, rows[:, 0], rows[:, -1])
+        if bad is not None:
+            t, want, got = bad
+            diffs.append(f"{_source_key(case, k)} gives {want:.6g} A at t = {t:.3g} s, the deck's Current_2D on "
+                         f"{coils[k - 1]} = {got:.6g} A")
+    return diffs
+
+
+def check_deck_values(case, model, out: Path) -> dict[str, float | str]:
     """Refuse a template deck whose own values differ from the case's (relative :data:`VALUE_RTOL`).
 
-    Compares conductor k's mean conductivity with its material's ``electrical_conductivity``, coil
-    k's ampere-turns per ampere with its turns (``geometry.turns`` / ``geometry.coils[i].turns``) and,
-    with a bank, its C, R, L and charging voltage with ``em.circuit`` (or the bank source). Returns
-    the deck's values; raises :class:`DeckContractError` listing every difference in one line.
+    Compares the deck's geometry (its Jacobian ``Vol`` axisymmetric or planar as ``geometry.planar``
+    says, ``CoefGeos[]`` = 2 pi or 1 per metre of depth on every coil and conductor), conductor k's
+    mean conductivity with its material's ``electrical_conductivity``, coil k's ampere-turns per ampere
+    with its turns (``geometry.turns`` / ``geometry.coils[i].turns``), with a bank its C, R, L and
+    charging voltage with ``em.circuit`` (or the bank source), and a prescribed coil current at the
+    check's step with its source (:func:`current_differences`). Returns the deck's values; raises
+    :class:`DeckContractError` listing every difference in one line.
     """
     g = case.geometry
     vals = deck_values(out, len(model.coils), len(model.conductors), model.circuit is not None)
+    names = {f"coil_{k}": c[2] for k, c in enumerate(g.coil_groups(), start=1)}
+    names.update({f"cond_{k}": getattr(g.regions, role) for k, role in enumerate(g.conductor_roles(), start=1)})
+    kind, coef = ("planar", 1.0) if g.planar else ("axisymmetric", 2.0 * np.pi)
+    diffs = []
+    for reg, group in names.items():
+        if vals[f"kind_{reg}"] not in (kind, "either"):
+            diffs.append(f"geometry.planar = {str(g.planar).lower()} ({kind}), the deck's Jacobian Vol on {group} is "
+                         f"{vals[f'kind_{reg}']} (Flag_Axi)")
+        elif abs(vals[f"coefgeos_{reg}"] - coef) > VALUE_RTOL * coef:
+            diffs.append(f"geometry.planar = {str(g.planar).lower()} (CoefGeos[] = {coef:.6g}), the deck's CoefGeos[] "
+                         f"on {group} = {vals[f'coefgeos_{reg}']:.6g}")
     want: list[tuple[str, str, float, str]] = []  # (value key, case key, case value, unit)
     for k, c in enumerate(model.conductors, start=1):
         want.append((f"sigma_{k}", _conductivity_key(case, k), c.sigma, "S/m"))
@@ -130,20 +194,18 @@ def check_deck_values(case, model, out: Path) -> dict[str, float]:
         cir = model.circuit
         want += [("C", f"{bank}.capacitance", cir.C, "F"), ("R", f"{bank}.resistance", cir.R_ext, "Ohm"),
                  ("L", f"{bank}.inductance", cir.L_ext, "H"), ("V0", f"{bank}.voltage", cir.V0, "V")]
-    groups = [case.geometry.regions.workpiece, case.geometry.regions.die]
-    coils = [c[2] for c in g.coil_groups()]
-    diffs = []
     for vkey, ckey, expected, unit in want:
         got = vals[vkey]
         if not np.isfinite(got) or abs(got - expected) > VALUE_RTOL * max(abs(expected), 1e-300):
             base, _, k = vkey.partition("_")
-            what = {"sigma": f"sigma[] on {groups[int(k or 1) - 1]}", "turns": f"js0[] over {coils[int(k or 1) - 1]}",
+            what = {"sigma": f"sigma[] on {names.get(f'cond_{k}')}", "turns": f"js0[] over {names.get(f'coil_{k}')}",
                     "C": "Capacitance[]", "R": "Resistance[]", "L": "Inductance[]",
                     "V0": "Init of the capacitor's voltage"}[base]
             diffs.append(f"{ckey} = {expected:.6g} {unit}, the deck's {what} = {got:.6g} {unit}")
+    diffs += current_differences(case, model, out)
     if diffs:
         raise DeckContractError(f"deck {Path(g.pro).name} and the case differ: " + "; ".join(diffs)
                                 + " (the deck's own values are used: make them agree)")
     log.info("template deck %s agrees with the case: %s", Path(g.pro).name,
-             ", ".join(f"{k} = {v:.6g}" for k, v in vals.items()))
+             ", ".join(f"{k} = {v:.6g}" if isinstance(v, float) else f"{k} = {v}" for k, v in vals.items()))
     return vals

@@ -76,6 +76,7 @@ def mesh_file(g, work: Path, time_limit: float = GMSH_TIME_LIMIT_S) -> Path:
     src = Path(g.mesh)
     if src.suffix == ".msh":
         return src
+    work = Path(work).resolve()  # gmsh runs in the .geo's folder: a relative -o would land there
     work.mkdir(parents=True, exist_ok=True)
     out = work / (src.stem + ".msh")
     exe = shutil.which("gmsh")
@@ -195,8 +196,8 @@ def build_user_geometry(case, work: Path, em_dir: Path):
     more = [[] for _ in g.coil_groups()[1:]]
     if template:
         check_deck_values(case, model, Path(em_dir) / "contract_check" / "out")
-        return DeckGeometry(mesh, regions, [], more_coils=more, deck_ids=deck_ids)
-    return EMGeometry(mesh, regions, [], more_coils=more)
+        return DeckGeometry(mesh, regions, [], more_coils=more, deck_ids=deck_ids, planar=g.planar)
+    return EMGeometry(mesh, regions, [], more_coils=more, planar=g.planar)
 
 
 def log_summary(path: Path, n: int = 2, width: int = 160) -> str:
@@ -286,7 +287,7 @@ def user_deck_load(case, geometry, work_dir: Path, bodies, em_substeps: int):
     model = user_em_model(case)
     mode = case.em.getdp_process
     deck_ids = getattr(geometry, "deck_ids", None)
-    if deck_ids is not None:  # a template deck: per step, implicit Euler (the case loader refused BDF2)
+    if deck_ids is not None:  # a template deck: per step (the case loader refused the persistent getdp)
         solver = make_solver(case, model, Path(work_dir), deck_ids=deck_ids)
         log.info("user deck on GetDP's template: a getdp process per EM step (-restart carry)")
         mode = None

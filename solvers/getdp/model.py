@@ -47,6 +47,10 @@ class CurrentTable:
             raise ValueError("CurrentTable needs >= 2 strictly increasing times and as many values")
         self.times, self.values = t.tolist(), v.tolist()
 
+    def __call__(self, t):
+        """I(t) (A) at times ``t`` (s), as the runner's deck computes it (the end values held beyond the table)."""
+        return np.interp(np.asarray(t, float), self.times, self.values)
+
 
 @dataclass
 class Coil:
@@ -171,6 +175,8 @@ class EMState:
     coil_power: list | None = None
     force_density: list | None = None
     force_points: list | None = None
+    # BDF2 by restart (a template deck, :mod:`.template`): a .res whose last solution is the whole x_{n-1}
+    res_prev_path: str | None = None
 
     def to_dict(self) -> dict:
         """The fields as a dict for JSON: lists are shared, not copied (``dataclasses.asdict``'s

@@ -133,13 +133,17 @@ class GetDPSolver:
         pts = mesh.points if material_points is None else np.asarray(material_points, float)
         if pts.shape != mesh.points.shape:
             raise ValueError(f"material_points shape {pts.shape} != mesh points {mesh.points.shape}")
-        restart = (has_field and not force_init_path and not bdf2 and state.mesh_signature == sig
+        restart = (has_field and not force_init_path and (not bdf2 or self.bdf2_by_restart)
+                   and state.mesh_signature == sig
                    and Path(state.res_path).exists()
                    and (material_points is None or self._nodes_are_material(mesh, pts, state)))
         reuse_pre = False
         init_vc, init_i, a_prev = state.capacitor_voltage, state.current, None
         if restart:
-            extra += ["-restart", "-res", str(Path(state.res_path).resolve())]
+            res = state.res_path
+            if bdf2:  # a subclass's BDF2 by restart: one implicit-Euler step of gamma*dt from x_tilde
+                t_init, res = self._bdf2_restart(run_dir, state, float(t_end))
+            extra += ["-restart", "-res", str(Path(res).resolve())]
             if self.reuse_pre and state.pre_path and Path(state.pre_path).exists():
                 shutil.copyfile(state.pre_path, run_dir / "em.pre")   # same dofs: skip pre-processing
                 reuse_pre = True
@@ -192,6 +196,9 @@ class GetDPSolver:
             while len(self._runs) > self.keep_runs:
                 discard_folder(self._runs.pop(0))
         return result, new_state
+
+    #: BDF2 by restart from a synthetic x_tilde (a subclass's ``_bdf2_restart``), not the Init path
+    bdf2_by_restart = False
 
     #: a step's whole-domain fields (:meth:`post_fields`) stay available after later steps (its run
     #: folder holds the solution); the persistent solver's expire at its next step

@@ -20,13 +20,19 @@ includes the deck and then appends pulseform's own part (:func:`wrapper_text`):
 * a Resolution ``EM_Transient`` on the user's formulation (system name from the case): ``SetTime``,
   ``InitSolution``, ``NbSteps`` implicit-Euler steps from ``TimeInit`` to ``TimeFinal``.
 
-The state is carried between getdp runs by ``-restart -res <previous em.res>`` only (same
-connectivity; a user mesh is never remeshed).  The Init path of the built-in library cannot carry a
-template deck's circuit: measured on GetDP 3.2.0, an ``Init`` constraint the wrapper adds to the
-template's ``Hregion_Z`` (``FunctionSpace { { Append 1; ... } }``) loses against the deck's own
-``Voltage_Cir`` Init of the bank (the capacitor restarts at the charging voltage), and a
-``Constraint { { Append 1; Name MagneticVectorPotential_2D; ... } }`` block had no effect at all.
-:meth:`TemplateDeckSolver.step` therefore refuses a step that would need the Init path.
+The state is carried between getdp runs by ``-restart -res`` only (same connectivity; a user mesh
+is never remeshed).  The Init path of the built-in library cannot carry a template deck's circuit:
+measured on GetDP 3.2.0, an ``Init`` constraint the wrapper adds to the template's ``Hregion_Z``
+(``FunctionSpace { { Append 1; ... } }``) loses against the deck's own ``Voltage_Cir`` Init of the
+bank (the capacitor restarts at the charging voltage), and a ``Constraint { { Append 1; Name
+MagneticVectorPotential_2D; ... } }`` block had no effect at all; a restarted solution does win over
+the deck's Init.  :meth:`TemplateDeckSolver.step` therefore refuses a step that would need the Init
+path.  BDF2 (:mod:`.bdf2`: one implicit-Euler step of gamma dt from x_tilde = c1 x_{n-1} - c2 x_{n-2})
+is done by restart too (:attr:`GetDPSolver.bdf2_by_restart`): pulseform writes x_tilde, the whole
+solution vector combined from the last solutions of the two previous ``.res`` files
+(:func:`read_solutions`, :func:`write_solution`; the same connectivity numbers the unknowns the
+same), as a ``.res`` at t_n - gamma dt and restarts from it; the first run from rest saves x_0 (the
+deck's own initial state, ``PF_SaveInit``).
 """
 
 from __future__ import annotations
@@ -37,12 +43,13 @@ from typing import Sequence
 
 import numpy as np
 
+from .bdf2 import bdf2_coefficients
 from .mesh import EMMesh, coil_tag, conductor_tag, write_msh22
-from .model import EMModel, EMState, EMStepResult, mesh_signature
+from .model import Coil, DampedSine, EMModel, EMState, EMStepResult, mesh_signature
 from .solver import GetDPSolver
 
-__all__ = ["TemplateSpec", "TemplateDeckSolver", "TemplateDeckError", "wrapper_text", "VALUE_TABLES",
-           "WRAPPER_NAMES"]
+__all__ = ["TemplateSpec", "TemplateDeckSolver", "TemplateDeckError", "wrapper_text", "current_mismatch",
+           "VALUE_TABLES", "WRAPPER_NAMES", "CURRENT_RTOL"]
 
 #: objects the wrapper defines after the user's deck (a deck must not define them itself)
 WRAPPER_NAMES = ("PF_Template", "PF_Plane", "EM_Transient", "EM_Step", "EM_Elem", "EM_State", "EM_Field",
@@ -51,7 +58,39 @@ WRAPPER_NAMES = ("PF_Template", "PF_Plane", "EM_Transient", "EM_Step", "EM_Elem"
 VALUE_TABLES = {"cond_sigma_<k>.txt": "integral of sigma[] over conductor k, then its area (S/m m^2, m^2)",
                 "coil_turns_<k>.txt": "integral of js0[] . e_z over coil k (ampere-turns per ampere)",
                 "cir_C.txt": "Capacitance[] of Capacitance_Cir (F)", "cir_R.txt": "Resistance[] (Ohm)",
-                "cir_L.txt": "Inductance[] (H)", "cir_V0.txt": "U of Capacitance_Cir at TimeInit (V)"}
+                "cir_L.txt": "Inductance[] (H)", "cir_V0.txt": "U of Capacitance_Cir at TimeInit (V)",
+                "geo_<region>.txt": "over coil / conductor k: integral of 1 with the deck's Jacobian Vol, its area, "
+                                    "integral of x, integral of CoefGeos[] (m^2 or m^3)"}
+#: largest relative difference between a coil current the deck prescribes and the case's source
+CURRENT_RTOL = 1e-6
+
+
+def read_solutions(path: str | Path) -> list[tuple[float, np.ndarray]]:
+    """The solutions of a GetDP 3.2.0 ASCII ``.res`` (``$Solution`` blocks of one DofData, real).
+
+    Returns
+    -------
+    list of tuple
+        (time (s), the solution vector) of every ``$Solution`` block, in the file's order.
+    """
+    out = []
+    for block in Path(path).read_text().split("$Solution")[1:]:
+        lines = block.split("$EndSolution")[0].splitlines()[1:]
+        head = lines[0].split()
+        if head[0] != "0":
+            raise TemplateDeckError(f"{path}: a solution of DofData {head[0]}; BDF2 by restart needs one system")
+        out.append((float(head[1]), np.array([float(v) for v in lines[1:] if v.strip()])))
+    if not out:
+        raise TemplateDeckError(f"{path}: no $Solution block")
+    return out
+
+
+def write_solution(path: str | Path, time: float, values: np.ndarray) -> Path:
+    """Write one real solution at ``time`` (s) as a GetDP ASCII ``.res`` (what ``-restart -res`` reads)."""
+    body = "\n".join(f"{v:.17g}" for v in np.asarray(values, float))
+    Path(path).write_text("$ResFormat /* GetDP 3.2.0, ascii */\n1.1 0\n$EndResFormat\n"
+                          f"$Solution  /* DofData #0 */\n0 {time:.17g} 0 0\n{body}\n$EndSolution\n")
+    return Path(path)
 
 
 class TemplateDeckError(ValueError):
@@ -105,7 +144,8 @@ def wrapper_text(spec: TemplateSpec, coil_ids: Sequence[int], conductor_ids: Seq
     jc = "(-sigma[] * (Dt[{a}] + {ur}/CoefGeos[]))"
     js = "((js0[]*Vector[0,0,1]) * {ir})"
     lines = ["", "// ---- pulseform's wrapper (pulseform.solvers.getdp.template): the deck above is the user's, unchanged",
-             "DefineConstant[ NbSteps = 1, Flag_ElemOut = 1, Flag_FieldOut = 0, Flag_Values = 0, OutDir = \"\" ];",
+             "DefineConstant[ NbSteps = 1, Flag_ElemOut = 1, Flag_FieldOut = 0, Flag_Values = 0, PF_SaveInit = 0, "
+             "OutDir = \"\" ];",
              "Group {"]
     for k, i in enumerate(coil_ids, start=1):
         lines.append(f"  PF_Coil_{k} = {_group([i])};")
@@ -143,6 +183,10 @@ def wrapper_text(spec: TemplateSpec, coil_ids: Sequence[int], conductor_ids: Seq
               "      { Name area; Value { Integral { [ 1 ]; In PF_CS; Jacobian PF_Plane; Integration Gauss_v; } } }",
               "      { Name turns; Value { Integral { [ js0[]*Vector[0,0,1] ]; In Vol_S_Mag; Jacobian PF_Plane; "
               "Integration Gauss_v; } } }",
+              "      { Name vol; Value { Integral { [ 1 ]; In PF_CS; Jacobian Vol; Integration Gauss_v; } } }",
+              "      { Name xarea; Value { Integral { [ X[] ]; In PF_CS; Jacobian PF_Plane; Integration Gauss_v; } } }",
+              "      { Name coefgeos; Value { Integral { [ CoefGeos[] ]; In PF_CS; Jacobian PF_Plane; "
+              "Integration Gauss_v; } } }",
               "      If(Flag_CircuitCoupling)",
               "        { Name cir_C; Value { Term { Type Global; [ Capacitance[] ]; In Capacitance_Cir; } } }",
               "        { Name cir_R; Value { Term { Type Global; [ Resistance[] ]; In Resistance_Cir; } } }",
@@ -168,6 +212,9 @@ def wrapper_text(spec: TemplateSpec, coil_ids: Sequence[int], conductor_ids: Seq
               for k in range(1, nk + 1)]
     values += [f'      Print[ turns[PF_Coil_{k}], OnGlobal, Format Table, File StrCat[OutDir, "coil_turns_{k}.txt"] ];'
                for k in range(1, nc + 1)]
+    for reg in [f"Coil_{k}" for k in range(1, nc + 1)] + [f"Cond_{k}" for k in range(1, nk + 1)]:
+        values += [f'      Print[ {q}[PF_{reg}], OnGlobal, Format Table, File {"> " if q != "vol" else ""}'
+                   f'StrCat[OutDir, "geo_{reg.lower()}.txt"] ];' for q in ("vol", "area", "xarea", "coefgeos")]
     if circuit:
         values += [f'      Print[ cir_{q}, OnRegion {g}, Format Table, File StrCat[OutDir, "cir_{q}.txt"] ];'
                    for q, g in (("C", "Capacitance_Cir"), ("R", "Resistance_Cir"), ("L", "Inductance_Cir"))]
@@ -195,6 +242,7 @@ def wrapper_text(spec: TemplateSpec, coil_ids: Sequence[int], conductor_ids: Seq
            "    Operation {",
            "      SetTime[TimeInit]; // before InitSolution: restarted time derivatives need it",
            f"      InitSolution[{sys_}];",
+           f"      If(PF_SaveInit) SaveSolution[{sys_}]; EndIf // BDF2's x_0: the deck's own initial state",
            "      If(Flag_Values) PostOperation[EM_Values]; EndIf",
            "      TimeLoopTheta[TimeInit, TimeFinal - 0.5*(TimeFinal - TimeInit)/NbSteps,",
            "                    (TimeFinal - TimeInit)/NbSteps, 1] {",
@@ -207,6 +255,32 @@ def wrapper_text(spec: TemplateSpec, coil_ids: Sequence[int], conductor_ids: Seq
            "      If(Flag_FieldOut) PostOperation[EM_Field]; EndIf",
            "    }", "  }", "}", ""]
     return "\n".join(lines + post + res)
+
+
+def current_mismatch(coil: Coil, times: np.ndarray, currents: np.ndarray) -> tuple[float, float, float] | None:
+    """The first time at which a coil's current differs from its prescribed source, or None.
+
+    Parameters
+    ----------
+    coil : Coil
+        The case's coil (its ``waveform`` (A over s) and ``sign``); a coil on a bank is never a mismatch.
+    times, currents : ndarray
+        Times (s) and the coil current (A) the deck computed there (its ``Current_2D``).
+
+    Returns
+    -------
+    tuple of float or None
+        ``(t, wanted, got)`` (s, A, A) of the first time where ``|got - sign * waveform(t)|`` exceeds
+        :data:`CURRENT_RTOL` times the larger of ``max |sign * waveform|`` over ``times`` and the
+        source's amplitude.
+    """
+    if coil.waveform is None:
+        return None
+    times, got = np.asarray(times, float), np.asarray(currents, float)
+    want = coil.sign * np.asarray(coil.waveform(times), float)
+    amp = abs(coil.waveform.I0) if isinstance(coil.waveform, DampedSine) else float(np.abs(coil.waveform.values).max())
+    bad = np.flatnonzero(~(np.abs(got - want) <= CURRENT_RTOL * max(float(np.abs(want).max(initial=0.0)), amp)))
+    return None if not len(bad) else (float(times[bad[0]]), float(want[bad[0]]), float(got[bad[0]]))
 
 
 class TemplateDeckSolver(GetDPSolver):
@@ -225,15 +299,17 @@ class TemplateDeckSolver(GetDPSolver):
     deck_ids : dict of int to int
         The runner's physical id (1 air, 101 coil 1, 201 workpiece, 11 axis, ...) -> the deck's own id
         of that group; every run writes its mesh with the deck's ids.
+    check_currents : bool
+        After every step, compare each prescribed coil current the deck computed (its own
+        ``Current_2D``) with the model's source (:func:`current_mismatch`) and raise
+        :class:`TemplateDeckError` on a difference (the orchestrator's deck check turns it off: it
+        names the case's keys itself).
     **kwargs
-        Passed to :class:`GetDPSolver` (``time_scheme`` must be ``"euler"``).
+        Passed to :class:`GetDPSolver` (``time_scheme`` ``"euler"`` or ``"bdf2"``: both by restart).
     """
 
     def __init__(self, model: EMModel, work_dir: str | Path, *, deck: str | Path, spec: TemplateSpec,
-                 deck_ids: dict[int, int], **kwargs):
-        if kwargs.get("time_scheme", "euler") != "euler":
-            raise TemplateDeckError("a template deck steps implicit Euler only (em.time_scheme = 'euler'): its "
-                                    "state is carried by -restart, BDF2 needs the Init path")
+                 deck_ids: dict[int, int], check_currents: bool = True, **kwargs):
         extra = dict(kwargs.pop("extra_numbers", None) or {})
         extra.setdefault("Flag_FrequencyDomain", 0.0)
         super().__init__(model, work_dir, deck=deck, extra_numbers=extra, **kwargs)
@@ -246,6 +322,8 @@ class TemplateDeckSolver(GetDPSolver):
             raise TemplateDeckError(f"deck_ids lacks the runner's ids {missing}")
         self._lut = None
         self._first_run = False
+        self.check_currents = check_currents
+        self.bdf2_by_restart = True  # the Init path would lose against the deck's own circuit Init
 
     def _write_mesh(self, mesh: EMMesh, path: Path) -> Path:
         """The run's mesh with the deck's own physical ids (same nodes and elements in the same order)."""
@@ -261,9 +339,30 @@ class TemplateDeckSolver(GetDPSolver):
         text = super()._run_pro_text(data_lines)
         if self._first_run:
             text += "Flag_Values = 1; // the first run from rest prints the deck's own values (EM_Values)\n"
+            if self.time_scheme == "bdf2":
+                text += "PF_SaveInit = 1; // and saves its initial state (x_0 of the BDF2 history)\n"
         return text + wrapper_text(self.spec, [self.deck_ids[coil_tag(k)] for k in range(1, len(model.coils) + 1)],
                                    [self.deck_ids[conductor_tag(k)] for k in range(1, len(model.conductors) + 1)],
                                    model.circuit is not None, model.axisymmetric)
+
+    def _bdf2_restart(self, run_dir: Path, state: EMState, t_end: float) -> tuple[float, str]:
+        """BDF2 by restart (:mod:`.bdf2`): write ``run_dir/bdf2_start.res`` holding x_tilde = c1 x_{n-1}
+        - c2 x_{n-2} (every unknown: the nodal a, the coils' and the circuit's currents and voltages)
+        at t_end - gamma dt, and ``run_dir/bdf2_prev.res`` holding x_{n-1} for the next step.
+
+        Returns
+        -------
+        tuple
+            (t_end - gamma dt (s), the path of ``bdf2_start.res``).
+        """
+        dt = t_end - state.t
+        _, x1 = read_solutions(state.res_path)[-1]
+        hist = state.res_prev_path is not None and Path(state.res_prev_path).is_file() and state.dt_prev
+        gamma, c1, c2 = bdf2_coefficients(dt, state.dt_prev if hist else None)
+        x = c1 * x1 - c2 * read_solutions(state.res_prev_path)[-1][1] if hist else x1
+        t_init = t_end - gamma * dt
+        write_solution(run_dir / "bdf2_prev.res", state.t, x1)
+        return t_init, str(write_solution(run_dir / "bdf2_start.res", t_init, x))
 
     def step(self, mesh: EMMesh, state: EMState, t_end: float, n_sub: int = 1, *,
              material_points: np.ndarray | None = None, run_name: str | None = None,
@@ -282,8 +381,21 @@ class TemplateDeckSolver(GetDPSolver):
                                         "Init path (InitA_List), which a template deck's circuit does not follow")
         self._first_run = state.res_path is None
         try:
-            return super().step(mesh, state, t_end, n_sub, material_points=material_points, run_name=run_name,
-                                force_init_path=force_init_path, element_output=element_output,
-                                field_output=field_output)
+            result, new_state = super().step(mesh, state, t_end, n_sub, material_points=material_points,
+                                             run_name=run_name, force_init_path=force_init_path,
+                                             element_output=element_output, field_output=field_output)
         finally:
             self._first_run = False
+        if self.time_scheme == "bdf2":  # the whole x_{n-1} (x_0 after a start from rest) for the next step
+            run_dir = Path(result.path)
+            prev = run_dir / "bdf2_prev.res"
+            if state.res_path is None:
+                write_solution(prev, *read_solutions(run_dir / "em.res")[0])
+            new_state.res_prev_path = str(prev)
+        for k, coil in enumerate(self.model.coils if self.check_currents else [], start=1):  # the deck's own
+            bad = current_mismatch(coil, result.times, result.coil_current[:, k - 1])
+            if bad is not None:
+                raise TemplateDeckError(f"coil {k}: the deck's Current_2D gives {bad[2]:.6g} A at t = {bad[0]:.6g} s, "
+                                        f"the case's source {bad[1]:.6g} A (the deck's own current is used: make "
+                                        "them agree)")
+        return result, new_state
