@@ -210,11 +210,11 @@ class ExplicitSolver(PythonSteps):
             raise ValueError(f"n_steps must be a positive integer, got {n_steps!r}")
         fext = {}
         for n, b in self.bodies.items():
-            f = np.zeros((b.n_local, 2))
+            f = np.zeros_like(b.x)
             if external_forces is not None and n in external_forces:
                 arr = np.asarray(external_forces[n], dtype=float)
-                if arr.shape != (b.n_local, 2):
-                    raise ValueError(f"external_forces[{n!r}] must have shape {(b.n_local, 2)}")
+                if arr.shape != b.x.shape:
+                    raise ValueError(f"external_forces[{n!r}] must have shape {b.x.shape}")
                 f[: b.n_owned] = arr[: b.n_owned]
             fext[n] = f
         if external_forces is not None:
