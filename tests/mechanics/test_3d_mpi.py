@@ -1,0 +1,26 @@
+"""``mpirun -n 2`` gives the serial 3D results (issue 20): the coarse 3D bar impact (metrics, energy
+ledger, reduced fields) and a plastic 100 m/s impact, to 1e-10 relative (the 2D check's bound,
+tests/mechanics/test_mpi.py: the runs differ by summation order only)."""
+import shutil
+import sys
+from pathlib import Path
+
+import pytest
+
+from test_mpi import _run   # this folder is on sys.path (rootdir conftest / rootless test modules)
+
+SCRIPT = Path(__file__).with_name("mpi_bar3d_metrics.py")
+
+
+@pytest.mark.mpi
+def test_two_ranks_match_serial_3d():
+    mpirun = shutil.which("mpirun")
+    if mpirun is None:
+        pytest.skip("mpirun not found")
+    serial = _run([sys.executable, str(SCRIPT)])
+    par = _run([mpirun, "-n", "2", sys.executable, str(SCRIPT)])
+    assert serial["plastic"]["eps_p_max"] > 1e-2
+    for case in serial:
+        for key, val in serial[case].items():
+            print(f"{case} {key}: serial {val!r} mpi {par[case][key]!r}")
+            assert par[case][key] == pytest.approx(val, rel=1e-10, abs=1e-9), (case, key)
