@@ -4,7 +4,8 @@ The step, the energy ledger, restart, the rigid walls and the MPI ghost exchange
 solver's (:class:`~.solver.ExplicitSolver`, :class:`~.python_steps.PythonSteps`,
 :mod:`.restart`): they work on (N, gdim) nodal arrays. What is 3D: the bodies
 (:class:`~.body3d.Body3D`) and the element kernel (:func:`.tet_kernel.tet_step`). Soft contact
-between bodies is not available in 3D yet (rigid walls are).
+between bodies is not available in 3D yet; rigid walls and soft planes (eq. 5 against a rigid
+plane, :mod:`.soft_plane`) are.
 """
 from __future__ import annotations
 
@@ -17,8 +18,9 @@ from mpi4py import MPI
 from . import restart
 from .body import BodySpec
 from .body3d import Body3D
-from .contact import RigidWallSpec
+from .contact import ContactPenetrationError, RigidWallSpec
 from .kernels import pack_parameters
+from .soft_plane import SoftPlaneSpec, soft_plane_forces
 from .solver import ExplicitSolver
 from .tet_kernel import MODE_SOLID, tet_critical_dt, tet_step
 
@@ -46,6 +48,8 @@ class ExplicitSolver3D(ExplicitSolver):
         The bodies (unique names), each on a 3D tetrahedral mesh.
     rigid_walls : sequence of RigidWallSpec
         Rigid half-space walls (3-component ``point`` and ``normal``).
+    soft_planes : sequence of SoftPlaneSpec
+        Rigid planes with the soft contact layer of eq. (5) (:mod:`.soft_plane`).
     cfl : float
         Safety factor on the critical time step (0 < cfl <= 1).
     bulk_viscosity : bool
@@ -57,7 +61,7 @@ class ExplicitSolver3D(ExplicitSolver):
     """
 
     def __init__(self, bodies: Sequence[BodySpec], rigid_walls: Sequence[RigidWallSpec] = (),
-                 cfl: float = 0.5, bulk_viscosity: bool = True, bulk_linear: float = 0.06,
+                 soft_planes: Sequence[SoftPlaneSpec] = (), cfl: float = 0.5, bulk_viscosity: bool = True, bulk_linear: float = 0.06,
                  bulk_quadratic: float = 1.2, comm=MPI.COMM_WORLD):
         if not 0 < cfl <= 1:
             raise ValueError(f"cfl must be in (0, 1], got {cfl}")
@@ -93,6 +97,14 @@ class ExplicitSolver3D(ExplicitSolver):
             for nm in (w.bodies or ()):
                 if nm not in self.bodies:
                     raise ValueError(f"rigid wall names unknown body {nm!r}")
+        self.soft_planes = tuple(soft_planes)
+        for sp in self.soft_planes:
+            if not isinstance(sp, SoftPlaneSpec):
+                raise TypeError("soft_planes takes SoftPlaneSpec entries")
+            for nm in (sp.bodies or ()):
+                if nm not in self.bodies:
+                    raise ValueError(f"soft plane names unknown body {nm!r}")
+        self._soft_out = [dict() for _ in self.soft_planes]
         self._surf = {}
         ext = max(float(np.abs(b.X0).max()) if b.X0.size else 0.0 for b in self.bodies.values())
         self._wall_tol = 1e-12 * max(self.comm.allreduce(ext, op=MPI.MAX), 1e-300)
@@ -106,7 +118,9 @@ class ExplicitSolver3D(ExplicitSolver):
         self.kinetic_damping = False
         self._ke_half = {n: 0.0 for n in self.bodies}
         self._contact_out = []
-        self._fsurf_prev = {}
+        # contact forces of the previous step per body (trapezoidal work; saved by restart)
+        self._fsurf_prev = ({n: np.zeros_like(b.x) for n, b in self.bodies.items()}
+                            if self.soft_planes else {})
         self._contact_work = 0.0
         self._active = {}
         self._wall_out = [dict() for _ in self.rigid_walls]
@@ -137,8 +151,51 @@ class ExplicitSolver3D(ExplicitSolver):
         """
         return self.cfl * self._dt_crit
 
+    def _contact(self, ftot, dt: float) -> None:
+        """Soft planes, eq. (5): add p A n to the nodal forces (owned and ghost rows alike, from
+        completed areas, so that ghosts move with their owners); the work of the contact forces
+        by the trapezoidal rule and the stored layer energy feed the ledger as in 2D."""
+        if not self.soft_planes:
+            return
+        stored = 0.0
+        work = 0.0
+        bad = None
+        for n, b in self.bodies.items():
+            fc = np.zeros_like(b.x)
+            for i, sp in enumerate(self.soft_planes):
+                if sp.bodies is not None and n not in sp.bodies:
+                    continue
+                area = b.wall_tributary_areas(b.x, sp.unit_normal())
+                area = b.complete_nodal(np.repeat(area[:, None], 3, axis=1))[:, 0]
+                rows, h, p, force, e = soft_plane_forces(sp, b.x, area)
+                if np.any(h <= 0.0) and bad is None:
+                    j = rows[np.argmin(h)]
+                    bad = (f"t={self.time:.6e} s: node {int(b.global_ids[j])} of body {n!r} at "
+                           f"({b.x[j, 0]:.6g}, {b.x[j, 1]:.6g}, {b.x[j, 2]:.6g}) m reached "
+                           f"h={h.min():.3e} m <= 0 against soft plane {i}")
+                fc[rows] += force
+                own = rows < b.n_owned
+                stored += float(np.sum(e[own]))
+                self._soft_out[i][n] = (rows, p)
+            ftot[n] += fc
+            no = b.n_owned
+            if dt > 0:
+                work += dt * float(np.sum(b.v[:no] * 0.5 * (self._fsurf_prev[n][:no] + fc[:no])))
+            self._fsurf_prev[n][...] = fc
+        if self.comm.allreduce(bad is not None, op=MPI.LOR):
+            raise ContactPenetrationError(bad or "penetration of a soft plane on another rank")
+        self._contact_work += self._sum(work)
+        self._contact_stored = self._sum(stored)
+
+    def soft_plane_pressure(self, plane_index: int, body: str):
+        """Contact stress of eq. (5) on the body's nodes inside the layer of a soft plane at the
+        current time: (local node rows, reference coords (M, 3), pressure Pa) on this rank."""
+        rows, p = self._soft_out[plane_index].get(body, (np.zeros(0, int), np.zeros(0)))
+        return rows, self.bodies[body].X0[rows], p
+
     def contact_pressure(self, pair_index: int):
         """Not available: no soft contact between 3D bodies yet."""
-        raise NotImplementedError("soft contact between 3D bodies is not implemented (rigid walls are)")
+        raise NotImplementedError("soft contact between 3D bodies is not implemented "
+                                  "(rigid walls and soft planes are)")
 
     contact_pressure_at = contact_pressure

@@ -1,5 +1,5 @@
-"""``mpirun -n 2`` gives the serial 3D results (issue 20): the coarse 3D bar impact (metrics, energy
-ledger, reduced fields) and a plastic 100 m/s impact, to 1e-10 relative (the 2D check's bound,
+"""``mpirun -n 2`` gives the serial 3D results (issue 20): the coarse 3D bar impact on a wall and
+on a soft plane (metrics, energy ledger, reduced fields) and a plastic 100 m/s impact, to 1e-10 relative (the 2D check's bound,
 tests/mechanics/test_mpi.py: the runs differ by summation order only)."""
 import shutil
 import sys

@@ -1,6 +1,6 @@
 """3D solver (issue 20): exact restart and field files.
 
-* A plastic impact (a quarter bar at 100 m/s on a frictionless wall: rho c_d v ~ 1.7 GPa, far
+* A plastic impact (a quarter bar at 100 m/s on a frictionless wall, or on a soft plane: rho c_d v ~ 1.7 GPa, far
   beyond the 0.24 GPa yield) stopped and restarted from ``state_dict`` continues bit for bit like
   the uninterrupted run (positions, velocities, accelerations, stresses, plastic strains, ledger).
 * ``FieldWriter`` writes one XDMF + HDF5 per 3D body that meshio reads back (points, tetrahedra,
@@ -12,17 +12,23 @@ import numpy as np
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
-from pulseform.solvers.dolfinx import BodySpec, ExplicitSolver3D, FieldWriter, RigidWallSpec
+import pytest
+
+from pulseform.solvers.dolfinx import (BodySpec, ExplicitSolver3D, FieldWriter, RigidWallSpec,
+                                       SoftPlaneSpec)
 from pulseform.solvers.dolfinx.verification import PAPER_BAR_MATERIAL as MAT
 
 
-def _solver():
+def _solver(soft=False):
     msh = dmesh.create_box(MPI.COMM_SELF, [np.zeros(3), np.array([1.0, 0.25, 0.25])], [16, 4, 4],
                            dmesh.CellType.tetrahedron)
     fixed = ((lambda x: np.isclose(x[1], 0.0), (1,)), (lambda x: np.isclose(x[2], 0.0), (2,)))
-    wall = RigidWallSpec(point=(1.0, 0.0, 0.0), normal=(-1.0, 0.0, 0.0), sliding=True)
+    walls, planes = (RigidWallSpec(point=(1.0, 0.0, 0.0), normal=(-1.0, 0.0, 0.0), sliding=True),), ()
+    if soft:     # the soft layer of eq. (5) instead (contact forces of the last step in the state)
+        walls, planes = (), (SoftPlaneSpec((1.01, 0, 0), (-1, 0, 0), stiffness=1e8, h0=0.01),)
     return ExplicitSolver3D([BodySpec("bar", msh, MAT, initial_velocity=(100.0, 0.0, 0.0),
-                                      fixed=fixed)], rigid_walls=(wall,), comm=MPI.COMM_SELF)
+                                      fixed=fixed)], rigid_walls=walls, soft_planes=planes,
+                            comm=MPI.COMM_SELF)
 
 
 def _run(s, n):
@@ -30,12 +36,13 @@ def _run(s, n):
         s.advance(s.stable_time_step())
 
 
-def test_restart_is_bitwise():
-    ref = _solver()
+@pytest.mark.parametrize("soft", [False, True], ids=["wall", "soft_plane"])
+def test_restart_is_bitwise(soft):
+    ref = _solver(soft)
     _run(ref, 60)
     state = ref.state_dict()
     _run(ref, 60)
-    again = _solver()
+    again = _solver(soft)
     _run(again, 7)                      # some other state, overwritten by the load
     again.load_state_dict(state)
     _run(again, 60)
