@@ -22,11 +22,21 @@ from .contact import ContactPenetrationError, RigidWallSpec
 from .kernels import pack_parameters
 from .soft_plane import SoftPlaneSpec, soft_plane_forces
 from .solver import ExplicitSolver
+from .element_math import P_RATE
+from .tet_batch import TET_WORK_SIZE, tet_step_batched
 from .tet_kernel import MODE_SOLID, tet_critical_dt, tet_step
 
 __all__ = ["ExplicitSolver3D"]
 
 log = logging.getLogger(__name__)
+
+
+def _tet_kernel(cells, x, v, dt, prm, stress, eps_p, f_int, acc, work):
+    """The 3D element kernel of a body: the vectorised batches for a rate-independent material,
+    the scalar kernel for a rate law (both give the same bits where both apply)."""
+    if prm[P_RATE] == 0:
+        return tet_step_batched(cells, x, v, dt, prm, stress, eps_p, f_int, acc, work)
+    return tet_step(cells, x, v, dt, prm, stress, eps_p, f_int, acc, work)
 
 
 class ExplicitSolver3D(ExplicitSolver):
@@ -74,8 +84,8 @@ class ExplicitSolver3D(ExplicitSolver):
         self.mode = MODE_SOLID
         self.cfl = float(cfl)
         self.comm = comm
-        self._kernel = tet_step
-        self._work = np.zeros(0)
+        self._kernel = _tet_kernel
+        self._work = np.zeros(TET_WORK_SIZE)
         self.bodies = {}
         for spec in bodies:
             if spec.name in self.bodies:
