@@ -4,7 +4,7 @@ rotation, and the elastic-plastic update against an independent matrix implement
 References: a P1 element reproduces a linear velocity field exactly, so every cell of a distorted
 mesh under a homogeneous motion must carry the stress of one material point, which is integrated
 here independently with 3x3 matrices (numpy ``solve`` for the Cayley rotation, the radial return of
-J2 plasticity with linear hardening and the Cowper-Symonds factor); a uniform stress gives zero
+J2 plasticity with linear hardening and the Cowper-Symonds / Johnson-Cook factors); a uniform stress gives zero
 internal force at interior nodes (patch test). A rigid rotation of a prestressed body must rotate
 the stress exactly: sigma = R sigma_0 R^T (the Hughes-Winget rotation is the Cayley transform of
 the exact increment)."""
@@ -15,7 +15,8 @@ import pytest
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
-from pulseform.solvers.dolfinx import BodySpec, CowperSymonds, ExplicitSolver3D, Material
+from pulseform.solvers.dolfinx import (BodySpec, CowperSymonds, ExplicitSolver3D, JohnsonCook,
+                                       Material)
 from pulseform.solvers.dolfinx.kernels import pack_parameters
 from pulseform.solvers.dolfinx.tet_kernel import MODE_SOLID, tet_step
 
@@ -23,6 +24,7 @@ ALL = lambda x: np.ones(x.shape[1], dtype=bool)  # noqa: E731
 ELASTIC = Material(7800.0, 80e9, 170e9, 1e12, 0.0)
 PLASTIC = Material(7800.0, 80e9, 170e9, 300e6, 2e9)
 RATE = Material(7800.0, 80e9, 170e9, 300e6, 2e9, rate_law=CowperSymonds(D=40.0, p=5.0))
+JC = Material(7800.0, 80e9, 170e9, 300e6, 2e9, rate_law=JohnsonCook(C=0.05, eps_rate0=1.0))
 
 
 def distorted_cube(n=4, seed=1):
@@ -55,9 +57,11 @@ def material_point(F_of_t, times, mat, sig0=np.zeros((3, 3))):
         sig = Q @ sig @ Q.T
         fac = 1.0
         e = D - np.trace(D) / 3 * np.eye(3)
-        if mat.rate_law is not None:
-            rate = math.sqrt(2 / 3 * np.sum(e * e))
+        rate = math.sqrt(2 / 3 * np.sum(e * e))
+        if isinstance(mat.rate_law, CowperSymonds):
             fac = 1 + (rate / mat.rate_law.D) ** (1 / mat.rate_law.p)
+        elif isinstance(mat.rate_law, JohnsonCook):
+            fac = 1 + mat.rate_law.C * math.log(max(rate / mat.rate_law.eps_rate0, 1.0))
         trial = sig + lam * np.trace(D) * dt * np.eye(3) + 2 * G * D * dt
         p = np.trace(trial) / 3
         s = trial - p * np.eye(3)
@@ -75,7 +79,8 @@ def voigt(S):
     return np.array([S[0, 0], S[1, 1], S[2, 2], S[0, 1], S[1, 2], S[0, 2]])
 
 
-@pytest.mark.parametrize("mat", [ELASTIC, PLASTIC, RATE], ids=["elastic", "plastic", "rate"])
+@pytest.mark.parametrize("mat", [ELASTIC, PLASTIC, RATE, JC],
+                         ids=["elastic", "plastic", "cowper_symonds", "johnson_cook"])
 def test_patch_test_homogeneous_motion(mat):
     """x = (I + t Gd) X with a non-symmetric Gd (stretch, shear and spin) on a distorted mesh,
     all nodes prescribed: every tetrahedron has the material point's stress and plastic strain

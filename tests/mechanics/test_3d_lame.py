@@ -78,6 +78,11 @@ def test_thick_cylinder_lame_3d_sector():
           f"MPa vs {hoop_ref / 1e6:.2f} ({hoop.mean() / hoop_ref - 1:+.3%}), radial "
           f"{rad.mean() / 1e6:.2f} vs {rad_ref / 1e6:.2f} ({rad.mean() / rad_ref - 1:+.3%}), "
           f"oscillation u(a) +- {np.std(ur_a) / ua:.2%}")
+    # energy ledger: the work of the follower pressure = kinetic + elastic + bulk-viscous
+    e = s.energies()
+    print(f"ledger: external work {e['external_work_J']:.4g} J, elastic {e['elastic_J']:.4g} J, "
+          f"balance error {e['balance_error_J'] / e['external_work_J']:.2e} of the work")
+    assert abs(e["balance_error_J"]) < 0.01 * e["external_work_J"]
     assert ua == pytest.approx(u(A_IN), rel=0.01)
     assert ub == pytest.approx(u(B_OUT), rel=0.01)
     assert hoop.mean() == pytest.approx(hoop_ref, rel=0.01)
