@@ -3,9 +3,9 @@
 The step, the energy ledger, restart, the rigid walls and the MPI ghost exchange are the 2D
 solver's (:class:`~.solver.ExplicitSolver`, :class:`~.python_steps.PythonSteps`,
 :mod:`.restart`): they work on (N, gdim) nodal arrays. What is 3D: the bodies
-(:class:`~.body3d.Body3D`) and the element kernel (:func:`.tet_kernel.tet_step`). Soft contact
-between bodies is not available in 3D yet; rigid walls and soft planes (eq. 5 against a rigid
-plane, :mod:`.soft_plane`) are.
+(:class:`~.body3d.Body3D`), the element kernels (:mod:`.tet_kernel`, :mod:`.tet_batch`) and the
+contact passes: node to triangle face between bodies (:mod:`.contact3d`) and soft rigid planes
+(:mod:`.soft_plane`); rigid walls are the 2D code's.
 """
 from __future__ import annotations
 
@@ -18,7 +18,8 @@ from mpi4py import MPI
 from . import restart
 from .body import BodySpec
 from .body3d import Body3D
-from .contact import ContactPenetrationError, RigidWallSpec
+from .contact import ContactPairSpec, ContactPenetrationError, RigidWallSpec, Surface
+from .contact3d import soft_contact_pass_3d
 from .kernels import pack_parameters
 from .soft_plane import SoftPlaneSpec, soft_plane_forces
 from .solver import ExplicitSolver
@@ -60,6 +61,8 @@ class ExplicitSolver3D(ExplicitSolver):
         Rigid half-space walls (3-component ``point`` and ``normal``).
     soft_planes : sequence of SoftPlaneSpec
         Rigid planes with the soft contact layer of eq. (5) (:mod:`.soft_plane`).
+    contact_pairs : sequence of ContactPairSpec
+        Soft contact between bodies, node to triangle face (:mod:`.contact3d`).
     cfl : float
         Safety factor on the critical time step (0 < cfl <= 1).
     bulk_viscosity : bool
@@ -71,7 +74,9 @@ class ExplicitSolver3D(ExplicitSolver):
     """
 
     def __init__(self, bodies: Sequence[BodySpec], rigid_walls: Sequence[RigidWallSpec] = (),
-                 soft_planes: Sequence[SoftPlaneSpec] = (), cfl: float = 0.5, bulk_viscosity: bool = True, bulk_linear: float = 0.06,
+                 soft_planes: Sequence[SoftPlaneSpec] = (),
+                 contact_pairs: Sequence[ContactPairSpec] = (), cfl: float = 0.5,
+                 bulk_viscosity: bool = True, bulk_linear: float = 0.06,
                  bulk_quadratic: float = 1.2, comm=MPI.COMM_WORLD):
         if not 0 < cfl <= 1:
             raise ValueError(f"cfl must be in (0, 1], got {cfl}")
@@ -98,7 +103,11 @@ class ExplicitSolver3D(ExplicitSolver):
                      for n, b in self.bodies.items()}
         self._cidx = {n: np.flatnonzero(b.constrained_mask().ravel())
                       for n, b in self.bodies.items()}
-        self.contact_pairs = ()
+        self.contact_pairs = tuple(contact_pairs)
+        for cp in self.contact_pairs:
+            for nm in (cp.slave, cp.master):
+                if nm not in self.bodies:
+                    raise ValueError(f"contact pair names unknown body {nm!r}")
         self.rigid_walls = tuple(rigid_walls)
         for w in self.rigid_walls:
             if np.asarray(w.point).shape != (3,) or np.asarray(w.normal).shape != (3,):
@@ -115,7 +124,8 @@ class ExplicitSolver3D(ExplicitSolver):
                 if nm not in self.bodies:
                     raise ValueError(f"soft plane names unknown body {nm!r}")
         self._soft_out = [dict() for _ in self.soft_planes]
-        self._surf = {}
+        names = {cp.slave for cp in self.contact_pairs} | {cp.master for cp in self.contact_pairs}
+        self._surf = {n: Surface(self.bodies[n]) for n in sorted(names)}
         ext = max(float(np.abs(b.X0).max()) if b.X0.size else 0.0 for b in self.bodies.values())
         self._wall_tol = 1e-12 * max(self.comm.allreduce(ext, op=MPI.MAX), 1e-300)
         self.time = 0.0
@@ -127,10 +137,10 @@ class ExplicitSolver3D(ExplicitSolver):
         self._fext_nonzero = {n: False for n in self.bodies}
         self.kinetic_damping = False
         self._ke_half = {n: 0.0 for n in self.bodies}
-        self._contact_out = []
-        # contact forces of the previous step per body (trapezoidal work; saved by restart)
+        self._contact_out = [None] * len(self.contact_pairs)
+        # contact forces of the previous step per body, on local rows (trapezoidal work; restart)
         self._fsurf_prev = ({n: np.zeros_like(b.x) for n, b in self.bodies.items()}
-                            if self.soft_planes else {})
+                            if self.soft_planes or self.contact_pairs else {})
         self._contact_work = 0.0
         self._active = {}
         self._wall_out = [dict() for _ in self.rigid_walls]
@@ -139,9 +149,11 @@ class ExplicitSolver3D(ExplicitSolver):
         self._E0 = self._stored_energy()
         self._contact_stored0 = self._contact_stored
         self._block = None
-        log.info("ExplicitSolver3D: %d bodies, %d cells, %d walls, stable dt %.4g s",
+        log.info("ExplicitSolver3D: %d bodies, %d cells, %d walls, %d soft planes, %d contact "
+                 "pairs, stable dt %.4g s",
                  len(self.bodies), self.comm.allreduce(sum(len(b.cells) for b in self.bodies.values())),
-                 len(self.rigid_walls), self.stable_time_step())
+                 len(self.rigid_walls), len(self.soft_planes), len(self.contact_pairs),
+                 self.stable_time_step())
 
     def _initial_dt_crit(self) -> float:
         dmin = np.inf
@@ -162,16 +174,18 @@ class ExplicitSolver3D(ExplicitSolver):
         return self.cfl * self._dt_crit
 
     def _contact(self, ftot, dt: float) -> None:
-        """Soft planes, eq. (5): add p A n to the nodal forces (owned and ghost rows alike, from
-        completed areas, so that ghosts move with their owners); the work of the contact forces
-        by the trapezoidal rule and the stored layer energy feed the ledger as in 2D."""
-        if not self.soft_planes:
+        """Soft contact, eq. (5): pairs of bodies (global surfaces on every rank, as in 2D) and
+        soft planes (owned and ghost rows alike, from completed areas, so that ghosts move with
+        their owners); the work of all contact forces by the trapezoidal rule and the stored layer
+        energy feed the ledger as in 2D."""
+        if not (self.soft_planes or self.contact_pairs):
             return
         stored = 0.0
         work = 0.0
-        bad = None
+        fcs = {n: np.zeros_like(b.x) for n, b in self.bodies.items()}
+        stored_pairs, bad = self._pair_forces(fcs, dt)
         for n, b in self.bodies.items():
-            fc = np.zeros_like(b.x)
+            fc = fcs[n]
             for i, sp in enumerate(self.soft_planes):
                 if sp.bodies is not None and n not in sp.bodies:
                     continue
@@ -195,7 +209,42 @@ class ExplicitSolver3D(ExplicitSolver):
         if self.comm.allreduce(bad is not None, op=MPI.LOR):
             raise ContactPenetrationError(bad or "penetration of a soft plane on another rank")
         self._contact_work += self._sum(work)
-        self._contact_stored = self._sum(stored)
+        self._contact_stored = self._sum(stored) + stored_pairs
+
+    def _pair_forces(self, fcs, dt: float):
+        """Node-to-face contact of every pair on the gathered (global) surfaces, added to the
+        local rows of ``fcs``; returns (stored layer energy J, penetration message or None)."""
+        if not self.contact_pairs:
+            return 0.0, None
+        data = {}
+        fsurf = {}
+        for n, sf in self._surf.items():
+            data[n] = (sf.gather(self.bodies[n].x), sf.gather(self.bodies[n].v))
+            fsurf[n] = np.zeros_like(data[n][0])
+        stored = 0.0
+        for ip, cp in enumerate(self.contact_pairs):
+            passes = [(cp.slave, cp.master)] + ([(cp.master, cp.slave)] if cp.two_pass else [])
+            wgt = 0.5 if cp.two_pass else 1.0
+            for k, (sn, mn) in enumerate(passes):
+                (Xs, Vs), (Xm, Vm) = data[sn], data[mn]
+                ss, ms = self._surf[sn], self._surf[mn]
+                res = soft_contact_pass_3d(Xs, Vs, ss.seg, Xm, Vm, ms.seg, cp, wgt, Ms=ss.M,
+                                           Mm=ms.M, dt=dt, previous=self._active.get((ip, k)),
+                                           tri_key=ms.seg_key)
+                if res.penetration is not None:
+                    i, h = res.penetration
+                    return 0.0, (f"t={self.time:.6e} s: node {int(ss.gids[i])} of body {sn!r} at "
+                                 f"({Xs[i, 0]:.6g}, {Xs[i, 1]:.6g}, {Xs[i, 2]:.6g}) m reached "
+                                 f"h={h:.3e} m <= 0 against body {mn!r} (contact pair {ip})")
+                self._active[(ip, k)] = res.active
+                fsurf[sn] += res.F_slave
+                fsurf[mn] += res.F_master
+                stored += res.stored
+                if k == 0:
+                    self._contact_out[ip] = (res.pressure, res.gap, Xs)
+        for n, sf in self._surf.items():
+            sf.scatter_add(fsurf[n], fcs[n])
+        return stored, None
 
     def soft_plane_pressure(self, plane_index: int, body: str):
         """Contact stress of eq. (5) on the body's nodes inside the layer of a soft plane at the
@@ -203,9 +252,3 @@ class ExplicitSolver3D(ExplicitSolver):
         rows, p = self._soft_out[plane_index].get(body, (np.zeros(0, int), np.zeros(0)))
         return rows, self.bodies[body].X0[rows], p
 
-    def contact_pressure(self, pair_index: int):
-        """Not available: no soft contact between 3D bodies yet."""
-        raise NotImplementedError("soft contact between 3D bodies is not implemented "
-                                  "(rigid walls and soft planes are)")
-
-    contact_pressure_at = contact_pressure
