@@ -1,6 +1,7 @@
 """3D solver (issue 20): exact restart and field files.
 
-* A plastic impact (a quarter bar at 100 m/s on a frictionless wall, or on a soft plane: rho c_d v ~ 1.7 GPa, far
+* A plastic impact (a quarter bar at 100 m/s on a frictionless wall, on a soft plane, or on a
+  second bar across a node-to-face soft contact with friction: rho c_d v ~ 1.7 GPa, far
   beyond the 0.24 GPa yield) stopped and restarted from ``state_dict`` continues bit for bit like
   the uninterrupted run (positions, velocities, accelerations, stresses, plastic strains, ledger).
 * ``FieldWriter`` writes one XDMF + HDF5 per 3D body that meshio reads back (points, tetrahedra,
@@ -14,20 +15,26 @@ from mpi4py import MPI
 
 import pytest
 
-from pulseform.solvers.dolfinx import (BodySpec, ExplicitSolver3D, FieldWriter, RigidWallSpec,
-                                       SoftPlaneSpec)
+from pulseform.solvers.dolfinx import (BodySpec, ContactPairSpec, ExplicitSolver3D, FieldWriter,
+                                       RigidWallSpec, SoftPlaneSpec)
 from pulseform.solvers.dolfinx.verification import PAPER_BAR_MATERIAL as MAT
 
 
-def _solver(soft=False):
+def _solver(kind="wall"):
     msh = dmesh.create_box(MPI.COMM_SELF, [np.zeros(3), np.array([1.0, 0.25, 0.25])], [16, 4, 4],
                            dmesh.CellType.tetrahedron)
     fixed = ((lambda x: np.isclose(x[1], 0.0), (1,)), (lambda x: np.isclose(x[2], 0.0), (2,)))
-    walls, planes = (RigidWallSpec(point=(1.0, 0.0, 0.0), normal=(-1.0, 0.0, 0.0), sliding=True),), ()
-    if soft:     # the soft layer of eq. (5) instead (contact forces of the last step in the state)
+    walls, planes, pairs = (RigidWallSpec(point=(1.0, 0.0, 0.0), normal=(-1.0, 0.0, 0.0),
+                                          sliding=True),), (), ()
+    bodies = [BodySpec("bar", msh, MAT, initial_velocity=(100.0, 0.0, 0.0), fixed=fixed)]
+    if kind == "soft":   # the soft layer of eq. (5) instead (contact forces of the last step in the state)
         walls, planes = (), (SoftPlaneSpec((1.01, 0, 0), (-1, 0, 0), stiffness=1e8, h0=0.01),)
-    return ExplicitSolver3D([BodySpec("bar", msh, MAT, initial_velocity=(100.0, 0.0, 0.0),
-                                      fixed=fixed)], rigid_walls=walls, soft_planes=planes,
+    elif kind == "pair":     # a second bar, node-to-face contact (active pairs in the state)
+        other = dmesh.create_box(MPI.COMM_SELF, [np.array([1.01, 0, 0]), np.array([2.01, 0.25, 0.25])],
+                                 [16, 4, 4], dmesh.CellType.tetrahedron)
+        bodies.append(BodySpec("other", other, MAT, initial_velocity=(0.0, 0.0, 0.0), fixed=fixed))
+        walls, pairs = (), (ContactPairSpec("bar", "other", stiffness=1e8, h0=0.01, friction=0.2),)
+    return ExplicitSolver3D(bodies, rigid_walls=walls, soft_planes=planes, contact_pairs=pairs,
                             comm=MPI.COMM_SELF)
 
 
@@ -36,24 +43,25 @@ def _run(s, n):
         s.advance(s.stable_time_step())
 
 
-@pytest.mark.parametrize("soft", [False, True], ids=["wall", "soft_plane"])
-def test_restart_is_bitwise(soft):
-    ref = _solver(soft)
+@pytest.mark.parametrize("kind", ["wall", "soft", "pair"])
+def test_restart_is_bitwise(kind):
+    ref = _solver(kind)
     _run(ref, 60)
     state = ref.state_dict()
     _run(ref, 60)
-    again = _solver(soft)
+    again = _solver(kind)
     _run(again, 7)                      # some other state, overwritten by the load
     again.load_state_dict(state)
     _run(again, 60)
-    b0, b1 = ref.bodies["bar"], again.bodies["bar"]
+    b0 = ref.bodies["bar"]
     assert b0.eps_p.max() > 1e-3        # plastic
-    for key in ("x", "v", "a", "cell_stress", "eps_p"):
-        assert np.array_equal(getattr(b0, key), getattr(b1, key)), key
+    for n in ref.bodies:
+        for key in ("x", "v", "a", "cell_stress", "eps_p"):
+            assert np.array_equal(getattr(ref.bodies[n], key), getattr(again.bodies[n], key)), key
     assert ref.time == again.time and ref.step_count == again.step_count
     assert ref.energies() == again.energies()
     e = ref.energies()
-    print(f"\nrestart: eps_p max {b0.eps_p.max():.3f}, plastic {e['plastic_J']:.4g} J, "
+    print(f"\nrestart ({kind}): eps_p max {b0.eps_p.max():.3f}, plastic {e['plastic_J']:.4g} J, "
           f"balance error {e['balance_error_J'] / ref.initial_energy:.2e} of the initial energy")
 
 
