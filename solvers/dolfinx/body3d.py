@@ -67,7 +67,11 @@ class Body3D(Body):
         n_cells_owned = msh.topology.index_map(3).size_local
         dofs = self.V.dofmap.list.array.reshape(-1, 4)
         cells = np.array(dofs[:n_cells_owned], dtype=np.int32, copy=True)
-        X = self.V.tabulate_dof_coordinates()[:, :3].copy()
+        # node coordinates straight from the mesh geometry (P1 dofs and geometry nodes share the
+        # cells' vertex order): ``tabulate_dof_coordinates`` evaluates the geometry map and gives
+        # round-off (1e-15 m) that depends on which cell, hence on the partition
+        X = np.empty((self.n_local, 3))
+        X[dofs.ravel()] = msh.geometry.x[msh.geometry.dofmap.array.reshape(-1, 4).ravel(), :3]
         vol = tet_volumes(cells, X)
         if np.any(vol == 0.0):
             raise ValueError(f"body {spec.name!r}: degenerate cell")

@@ -92,6 +92,12 @@ def bar_impact(nx: int = 40, ny: int = 20, formulation: str = "plane_stress",
     return {"t": t, "stress": s, "energies": es, "ke0": ke0, "metrics": metrics, "solver": solver}
 
 
+def _box(comm, lo, hi, n):
+    """``create_box`` of tetrahedra (six per brick) from ``lo`` to ``hi`` (m), ``n`` bricks."""
+    return dmesh.create_box(comm, [np.array(lo, float), np.array(hi, float)], n,
+                            dmesh.CellType.tetrahedron)
+
+
 def bar_impact_3d(nx: int = 40, ny: int = 10, quarter: bool = True, t_end: Optional[float] = None,
                   h0: float = 0.01, speed: float = 5.0, soft_plane: bool = False,
                   two_body: bool = False, stiffness: float = 1e8, viscosity: float = 0.0,
@@ -138,17 +144,14 @@ def bar_impact_3d(nx: int = 40, ny: int = 10, quarter: bool = True, t_end: Optio
     if t_end is None:
         t_end = 2.2e-3 if (soft_plane or two_body) else 2.0e-3 + 0.5 * h0 / speed
     side = 1.0 if quarter else 2.0
-    msh = dmesh.create_box(comm, [np.array([0.0, 0.0, 0.0]), np.array([4.0, side, side])],
-                           [nx, ny, ny], dmesh.CellType.tetrahedron)
+    msh = _box(comm, [0.0, 0.0, 0.0], [4.0, side, side], [nx, ny, ny])
     fixed = ()
     if quarter:
         fixed = ((lambda x: np.isclose(x[1], 0.0), (1,)), (lambda x: np.isclose(x[2], 0.0), (2,)))
     walls, planes, pairs = (), (), ()
     bodies = []
     if two_body:
-        right = dmesh.create_box(comm, [np.array([4.0 + h0, 0.0, 0.0]),
-                                        np.array([8.0 + h0, side, side])],
-                                 [nx, ny, ny], dmesh.CellType.tetrahedron)
+        right = _box(comm, [4.0 + h0, 0.0, 0.0], [8.0 + h0, side, side], [nx, ny, ny])
         bodies.append(BodySpec("right", right, material, initial_velocity=(0.0, 0.0, 0.0),
                                fixed=fixed))
         pairs = (ContactPairSpec("bar", "right", stiffness=stiffness, h0=h0, viscosity=viscosity),)
