@@ -105,3 +105,49 @@ def test_crossing_the_layer_is_reported_between_bodies():
         s = _blocks(600.0, k=1e4)
         for _ in range(500):
             s.advance(s.stable_time_step())
+
+
+@pytest.mark.parametrize("mu", [0.1, 0.3])
+def test_sliding_block_deceleration_3d(mu):
+    """Coulomb friction in 3D (the 2D check of tests/mechanics/test_friction.py): a block pressed on
+    a fixed base by a follower pressure p and sliding diagonally at v0 (along (1, 1, 0)/sqrt 2, so
+    that the tangent is not a mesh direction) decelerates at mu p A / m along its velocity and
+    keeps its direction; the regularisation velocity 1e-3 m/s is far below the sliding speed.
+    Reference: rigid-body mechanics, mu N / m; 3 % as in 2D."""
+    comm = MPI.COMM_SELF
+    k, h0 = 1e5, 1e-3
+    L, H = 0.1, 0.02
+    pres = 2e6
+    h_eq = 1.0 / (pres / k + 1.0 / h0)            # gap where k (1/h - 1/h0) = pres
+    base = dmesh.create_box(comm, [np.array([-0.1, -0.1, -0.02]), np.array([0.35, 0.35, 0.0])],
+                            [18, 18, 1], dmesh.CellType.tetrahedron)
+    block = dmesh.create_box(comm, [np.array([0.0, 0.0, h_eq]), np.array([L, L, h_eq + H])],
+                             [5, 5, 1], dmesh.CellType.tetrahedron)
+    allnodes = lambda x: np.full(x.shape[1], True)  # noqa: E731
+    v0 = 1.0
+    d = np.array([1.0, 1.0, 0.0]) / np.sqrt(2.0)
+    s = ExplicitSolver3D([BodySpec("block", block, MAT, initial_velocity=tuple(v0 * d)),
+                          BodySpec("base", base, MAT, initial_velocity=(0, 0, 0),
+                                   fixed=((allnodes, (0, 1, 2)),))],
+                         contact_pairs=(ContactPairSpec("block", "base", k, h0, friction=mu),),
+                         comm=comm)
+    b = s.bodies["block"]
+    top = lambda x: x[2] > h_eq + H - 1e-4  # noqa: E731 (current coordinates)
+    expected = -mu * pres * L * L / (MAT.density * L * L * H)
+    t_stop = v0 / -expected
+    dt = s.stable_time_step()
+    ts, vs = [], []
+    while s.time < 0.7 * t_stop:
+        s.advance(dt, 10, external_forces={"block": s.pressure_nodal_forces("block", top, pres)})
+        ts.append(s.time)
+        vs.append((b.mass[:, None] * b.v).sum(axis=0) / b.mass.sum())
+    t, v = np.array(ts), np.array(vs)
+    speed = v @ d
+    slope = np.polyfit(t, speed, 1)[0]
+    drift = np.abs(v[:, 0] - v[:, 1]).max()
+    print(f"\n3D mu={mu}: deceleration {slope:.2f} m/s^2 vs {expected:.2f} "
+          f"({slope / expected - 1:+.2%}), v({t[-1] * 1e3:.3f} ms) = {speed[-1]:.4f} m/s, "
+          f"direction drift {drift:.1e} m/s")
+    assert slope == pytest.approx(expected, rel=0.03)
+    assert speed[-1] > 0
+    assert drift < 1e-3 * v0
