@@ -88,3 +88,41 @@ def test_xdmf_fields_read_by_meshio(tmp_path):
     p = points[cells[0].data]
     vol = np.einsum("ij,ij->i", p[:, 1] - p[:, 0], np.cross(p[:, 2] - p[:, 0], p[:, 3] - p[:, 0]))
     assert np.all(vol > 0)
+
+
+def test_xdmf_fields_read_by_vtk(tmp_path):
+    """VTK's XDMF reader (the ParaView family's, ``vtkXdmfReader``) opens the 3D file as an
+    unstructured grid of VTK_TETRA cells with every field, and its last time step holds the
+    solver's displacement, velocity, von Mises stress and plastic strain.
+
+    Not checked: the stress tensor's components. VTK expands the XDMF ``Tensor6`` attribute in
+    XDMF's order (XX XY XZ YY YZ ZZ), while the field files store xx yy zz xy yz xz (the format of
+    output.py, shared with 2D): VTK's 9-component tensor then shows the stored yy as XY, zz as XZ,
+    xy as YY, xz as ZZ (only xx and yz in place). Reported
+    in docs/mechanics.md (3D mechanics, not done); the format is not changed here."""
+    vtk = pytest.importorskip("vtk")
+    from vtk.util.numpy_support import vtk_to_numpy
+
+    s = _solver()
+    b = s.bodies["bar"]
+    with FieldWriter(s, tmp_path / "fields") as fw:
+        fw.write(0.0)
+        _run(s, 30)
+        fw.write(s.time)
+    r = vtk.vtkXdmfReader()
+    r.SetFileName(str(tmp_path / "fields_bar.xdmf"))
+    r.UpdateInformation()
+    times = r.GetOutputInformation(0).Get(vtk.vtkStreamingDemandDrivenPipeline.TIME_STEPS())
+    assert len(times) == 2
+    r.UpdateTimeStep(times[-1])
+    grid = r.GetOutputDataObject(0)
+    assert grid.GetNumberOfCells() == len(b.cells) and grid.GetNumberOfPoints() == b.n_owned
+    assert all(grid.GetCellType(i) == vtk.VTK_TETRA for i in range(grid.GetNumberOfCells()))
+    cd, pd = grid.GetCellData(), grid.GetPointData()
+    assert cd.GetArray("stress_Pa").GetNumberOfComponents() == 9      # expanded by VTK
+    assert np.array_equal(vtk_to_numpy(pd.GetArray("displacement_m")), b.x - b.X0)
+    assert np.array_equal(vtk_to_numpy(pd.GetArray("velocity_m_s")), b.v)
+    assert np.array_equal(vtk_to_numpy(cd.GetArray("von_mises_Pa")), b.von_mises)
+    assert np.array_equal(vtk_to_numpy(cd.GetArray("plastic_strain")), b.eps_p)
+    full = vtk_to_numpy(cd.GetArray("stress_Pa"))
+    assert np.array_equal(full[:, 0], b.cell_stress[:, 0])               # xx is first in both
