@@ -77,8 +77,10 @@ def _tunnelled(Xs, Xm, trim, previous, xi_tol):
     return int(si[k]), float(h[k])
 
 
-def soft_contact_pass_3d(Xs, Vs, slave_tris, Xm, Vm, trim, spec: ContactPairSpec,
-                         weight: float = 1.0, xi_tol: float = 0.02, Ms=None, Mm=None,
+def soft_contact_pass_3d(Xs: np.ndarray, Vs: np.ndarray, slave_tris: np.ndarray, Xm: np.ndarray,
+                         Vm: np.ndarray, trim: np.ndarray, spec: ContactPairSpec,
+                         weight: float = 1.0, xi_tol: float = 0.02,
+                         Ms: Optional[np.ndarray] = None, Mm: Optional[np.ndarray] = None,
                          dt: float = 0.0, previous: Optional[tuple] = None,
                          tri_key: Optional[np.ndarray] = None) -> ContactResult:
     """Node-to-face soft contact of slave surface nodes against master triangles.

@@ -6,16 +6,12 @@ term, no deformable master yet.
 """
 from __future__ import annotations
 
-import logging
 from dataclasses import dataclass
-from typing import Optional, Sequence
+from typing import Optional, Sequence, Tuple
 
 import numpy as np
 
 __all__ = ["SoftPlaneSpec", "soft_plane_forces"]
-
-log = logging.getLogger(__name__)
-
 
 @dataclass(frozen=True)
 class SoftPlaneSpec:
@@ -55,7 +51,8 @@ class SoftPlaneSpec:
         return n / np.linalg.norm(n)
 
 
-def soft_plane_forces(plane: SoftPlaneSpec, x: np.ndarray, area: np.ndarray):
+def soft_plane_forces(plane: SoftPlaneSpec, x: np.ndarray, area: np.ndarray
+                      ) -> Tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Eq. (5) against ``plane`` for nodes at ``x`` (N, 3) with plane-facing areas ``area`` (N,).
 
     Returns

@@ -87,3 +87,38 @@ def test_thick_cylinder_lame_3d_sector():
     assert ub == pytest.approx(u(B_OUT), rel=0.01)
     assert hoop.mean() == pytest.approx(hoop_ref, rel=0.01)
     assert rad.mean() == pytest.approx(rad_ref, rel=0.03)
+
+
+def test_kinetic_damping_relaxes_the_3d_sector_to_lame():
+    """The 2D kinetic-damping check (tests/mechanics/test_kinetic_damping.py) on the 3D sector: a
+    step pressure, held, relaxes to Lamé's static u(a) within 1 %, with the kinetic energy gone
+    and the removed energy closing the ledger; static: external work = 2 x elastic (Clapeyron)."""
+    tol = 1e-9
+    fixed = ((lambda x: np.abs(x[0]) < tol, (0,)), (lambda x: np.abs(x[1]) < tol, (1,)),
+             (lambda x: np.isclose(x[2], 0.0) | np.isclose(x[2], H), (2,)))
+    s = ExplicitSolver3D([BodySpec("tube", quarter_tube(), MAT, initial_velocity=(0, 0, 0),
+                                   fixed=fixed)], comm=MPI.COMM_SELF)
+    s.kinetic_damping = True
+    b = s.bodies["tube"]
+    inner = lambda x: x[0] ** 2 + x[1] ** 2 < (A_IN + 1e-3) ** 2  # noqa: E731
+    R0 = np.hypot(b.X0[:, 0], b.X0[:, 1])
+    ia = np.flatnonzero(np.isclose(R0, A_IN))
+    dt = 0.9 * s.stable_time_step()
+    ua = []
+    for _ in range(300):
+        s.advance(dt, 10, external_forces={"tube": s.pressure_nodal_forces("tube", inner, P0)})
+        ua.append((np.hypot(b.x[ia, 0], b.x[ia, 1]) - R0[ia]).mean())
+    E, nu = MAT.youngs_modulus, MAT.poisson_ratio
+    Al = P0 * A_IN ** 2 / (B_OUT ** 2 - A_IN ** 2)
+    Bl = P0 * A_IN ** 2 * B_OUT ** 2 / (B_OUT ** 2 - A_IN ** 2)
+    ref = (1 + nu) / E * ((1 - 2 * nu) * Al * A_IN + Bl / A_IN)
+    e = s.energies()
+    ua = np.array(ua)
+    print(f"\nkinetic damping, 3D sector: u(a) {ua[-1] * 1e6:.3f} um vs static {ref * 1e6:.3f} "
+          f"({ua[-1] / ref - 1:+.3%}), kinetic/elastic {e['kinetic_J'] / e['elastic_J']:.1e}, "
+          f"removed {e['kinetic_damping_J']:.4g} J of {e['external_work_J']:.4g} J")
+    assert ua[-1] == pytest.approx(ref, rel=0.01)
+    assert np.abs(ua[-20:] / ref - 1).max() < 0.01
+    assert e["kinetic_J"] < 1e-4 * e["elastic_J"]
+    assert abs(e["balance_error_J"]) < 1e-3 * e["external_work_J"]
+    assert e["elastic_J"] == pytest.approx(0.5 * e["external_work_J"], rel=0.02)
