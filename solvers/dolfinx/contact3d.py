@@ -52,6 +52,10 @@ def triangle_contact_areas(tris: np.ndarray, X: np.ndarray, nodes: np.ndarray,
     n_nodes = X.shape[0]
     nm = np.zeros((n_nodes, 3))
     nm[nodes] = normals
+    # only the triangles that touch one of the nodes (the per-node sums keep their order: same bits)
+    touched = np.zeros(n_nodes, dtype=bool)
+    touched[nodes] = True
+    tris = tris[touched[tris].any(axis=1)]
     av = 0.5 * np.cross(X[tris[:, 1]] - X[tris[:, 0]], X[tris[:, 2]] - X[tris[:, 0]])
     A = np.zeros(n_nodes)
     for k in range(3):
@@ -128,15 +132,22 @@ def soft_contact_pass_3d(Xs: np.ndarray, Vs: np.ndarray, slave_tris: np.ndarray,
     near = np.flatnonzero(np.all((Xs >= lo) & (Xs <= hi), axis=1))
     if near.size == 0:
         return empty
-    nt = trim.shape[0]
-    kq = min(_N_CANDIDATES, nt)
-    _, idx = cKDTree(cen).query(Xs[near], k=kq, distance_upper_bound=radius)
+    # the tree holds only faces whose centroid can be within the radius of a candidate slave node
+    # (the others are never returned by the bounded query: same candidates, a smaller tree)
+    slo = Xs[near].min(axis=0) - radius
+    shi = Xs[near].max(axis=0) + radius
+    keep = np.flatnonzero(np.all((cen >= slo) & (cen <= shi), axis=1))
+    nt = keep.size
+    if nt == 0:
+        return empty
+    kq = min(_N_CANDIDATES, trim.shape[0])
+    _, idx = cKDTree(cen[keep]).query(Xs[near], k=kq, distance_upper_bound=radius)
     idx = np.asarray(idx).reshape(near.size, kq)
     found = idx < nt
     if not found.any():
         return empty
     si = np.repeat(near, kq).reshape(near.size, kq)[found]
-    mj = idx[found].astype(np.int64)
+    mj = keep[idx[found]].astype(np.int64)
     e1, e2 = p1[mj] - p0[mj], p2[mj] - p0[mj]
     nv = np.cross(e1, e2)
     two_area = np.linalg.norm(nv, axis=1)

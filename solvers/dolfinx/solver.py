@@ -193,9 +193,10 @@ class ExplicitSolver(PythonSteps):
         n_steps : int
             Number of steps.
         external_forces : dict, optional
-            Body name -> nodal forces (n_local_nodes, 2), N (planar: for the solver's thickness;
-            axisymmetric: total over the 2 pi ring), held constant over the steps. Each row is the
-            complete force on that node; rows of ghost nodes (MPI) are ignored.
+            Body name -> nodal forces (n_local_nodes, 2) ((n_local_nodes, 3) for 3D bodies), N
+            (planar: for the solver's thickness; axisymmetric: total over the 2 pi ring), held
+            constant over the steps. Each row is the complete force on that node; rows of ghost
+            nodes (MPI) are ignored.
 
         Raises
         ------
@@ -372,7 +373,7 @@ class ExplicitSolver(PythonSteps):
 
         Returns
         -------
-        (n_local_nodes, 2) array
+        (n_local_nodes, 2) array ((n_local_nodes, 3) for 3D bodies)
             Nodal forces, N (planar: times thickness; axisymmetric: the full 2 pi ring); every row
             (ghosts too) holds the complete force of its node.
         """
