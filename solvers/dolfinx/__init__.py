@@ -2,7 +2,8 @@
 ``pulseform.solvers.dolfinx``).
 
 Public API: :class:`Material` (+ :class:`CowperSymonds`, :class:`JohnsonCook`), :class:`BodySpec`,
-:class:`ContactPairSpec`, :class:`RigidWallSpec`, :class:`ExplicitSolver`, :class:`FieldWriter`,
+:class:`ContactPairSpec`, :class:`RigidWallSpec`, :class:`ExplicitSolver`, :class:`ExplicitSolver3D`
+(3D bodies on tetrahedra) with :class:`SoftPlaneSpec`, :class:`FieldWriter`,
 :class:`ContactPenetrationError`, and the metrics helpers in :mod:`.analysis`.
 """
 from .analysis import bar_impact_metrics, contact_stress_metrics, energy_error_rel
@@ -11,7 +12,9 @@ from .contact import ContactPairSpec, ContactPenetrationError, RigidWallSpec
 from .material import CowperSymonds, JohnsonCook, Material
 from .output import FieldWriter
 from .solver import ExplicitSolver
+from .soft_plane import SoftPlaneSpec
+from .solver3d import ExplicitSolver3D
 
 __all__ = ["Material", "CowperSymonds", "JohnsonCook", "BodySpec", "ContactPairSpec",
-           "RigidWallSpec", "ContactPenetrationError", "ExplicitSolver", "FieldWriter",
+           "RigidWallSpec", "ContactPenetrationError", "ExplicitSolver", "ExplicitSolver3D", "SoftPlaneSpec", "FieldWriter",
            "contact_stress_metrics", "energy_error_rel", "bar_impact_metrics"]

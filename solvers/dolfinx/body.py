@@ -33,21 +33,22 @@ class BodySpec:
     name : str
         Unique body name.
     mesh : dolfinx.mesh.Mesh
-        2D mesh of P1 triangles (x = r, y = z in axisymmetry), m.
+        2D mesh of P1 triangles (x = r, y = z in axisymmetry), m; or, for
+        :class:`~.solver3d.ExplicitSolver3D`, a 3D mesh of P1 tetrahedra.
     material : Material
         Its material.
-    initial_velocity : (float, float)
-        Uniform initial velocity, m/s.
+    initial_velocity : (float, float) or (float, float, float)
+        Uniform initial velocity, m/s (three components in 3D).
     fixed : sequence
         Velocity constraints ``(marker, components)`` or ``(marker, components, value)``:
         ``marker(x) -> bool array`` over node coordinates of shape (3, N) (initial configuration),
-        ``components`` a tuple of 0/1, ``value`` the prescribed velocity in m/s (float, or callable
+        ``components`` a tuple of 0/1 (0/1/2 in 3D), ``value`` the prescribed velocity in m/s (float, or callable
         ``value(t) -> float``; default 0).
     motion : sequence
         Prescribed motions ``(marker, func)`` with ``func(X, t) -> x`` mapping reference coordinates
-        (N, 2) to current positions (N, 2) at time t; matched nodes follow it exactly.
-    initial_stress : (float, float, float, float), optional
-        Uniform initial Cauchy stress [xx, yy, zz, xy], Pa.
+        (N, 2) to current positions (N, 2) at time t ((N, 3) in 3D); matched nodes follow it exactly.
+    initial_stress : tuple of 4 (2D) or 6 (3D) floats, optional
+        Uniform initial Cauchy stress [xx, yy, zz, xy] (3D: [xx, yy, zz, xy, yz, xz]), Pa.
     """
 
     name: str
@@ -72,6 +73,7 @@ class Body:
             raise ValueError(f"body {spec.name!r}: need an affine (P1) geometry")
         self.name = spec.name
         self.spec = spec
+        self.gdim = 2
         self.mesh = msh
         self.material = spec.material
         self.comm = msh.comm
@@ -162,7 +164,7 @@ class Body:
 
     def _build_constraints(self):
         X3 = np.zeros((3, self.n_local))
-        X3[:2] = self.X0.T
+        X3[:self.gdim] = self.X0.T
         out = []
         for entry in self.spec.fixed:
             if len(entry) == 2:
@@ -173,8 +175,8 @@ class Body:
             else:
                 raise ValueError("fixed entries are (marker, components[, value])")
             comps = tuple(int(c) for c in comps)
-            if not comps or any(c not in (0, 1) for c in comps):
-                raise ValueError(f"fixed components must be 0/1, got {comps}")
+            if not comps or any(not 0 <= c < self.gdim for c in comps):
+                raise ValueError(f"fixed components must be in 0..{self.gdim - 1}, got {comps}")
             nodes = np.flatnonzero(np.asarray(marker(X3), dtype=bool))
             out.append(("fix", nodes, comps, value))
         for marker, func in self.spec.motion:
@@ -199,8 +201,8 @@ class Body:
             self.v[self.axis_nodes, 0] = 0.0
 
     def constrained_mask(self) -> np.ndarray:
-        """(N, 2) bool: components whose velocity is prescribed."""
-        m = np.zeros((self.n_local, 2), dtype=bool)
+        """(N, gdim) bool: components whose velocity is prescribed."""
+        m = np.zeros((self.n_local, self.gdim), dtype=bool)
         for kind, nodes, a, _ in self._constraints:
             if kind == "fix":
                 for c in a:
@@ -219,7 +221,7 @@ class Body:
         arr[:] = f.ravel()
         self._buf.x.scatter_reverse(ScatterMode.add)
         self._buf.x.scatter_forward()
-        f[:] = arr.reshape(-1, 2)
+        f[:] = arr.reshape(-1, self.gdim)
         return f
 
     def total_mass(self) -> float:
@@ -248,6 +250,12 @@ class Body:
         n = x.shape[0]
         return (np.bincount(segs[:, 0], weights=wa, minlength=n)
                 + np.bincount(segs[:, 1], weights=wb, minlength=n))
+
+    def wall_tributary_areas(self, x: np.ndarray, normal: np.ndarray) -> np.ndarray:
+        """Per-node area (m^2) that turns a rigid wall's reaction into a pressure: in 2D the full
+        tributary area of the boundary segments (:meth:`tributary_areas`; ``normal`` unused);
+        :class:`~.body3d.Body3D` projects it on the wall."""
+        return self.tributary_areas(self.segments, x)
 
     def pressure_forces(self, facet_marker, pressure: float) -> np.ndarray:
         """Consistent nodal forces (N) of a uniform follower pressure (Pa, positive pushes into

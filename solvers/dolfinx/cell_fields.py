@@ -123,10 +123,14 @@ def nodal_extremes(x: np.ndarray, X0: np.ndarray, v: np.ndarray, n: int) -> tupl
 @numba.njit(cache=True)
 def kinetic_sum(mass: np.ndarray, v: np.ndarray, a: np.ndarray, hdt: float, n: int,
                 scratch: np.ndarray) -> float:
-    """sum over nodes i < n of m_i |v_i + hdt a_i|^2 (kg m^2/s^2), as
+    """sum over nodes i < n of m_i |v_i + hdt a_i|^2 (kg m^2/s^2; 2 or 3 components), as
     ``np.sum(m * np.sum((v + hdt * a) ** 2, axis=1))``; ``scratch`` holds >= n floats."""
     for i in range(n):
         w0 = v[i, 0] + hdt * a[i, 0]
         w1 = v[i, 1] + hdt * a[i, 1]
-        scratch[i] = mass[i] * (w0 * w0 + w1 * w1)
+        s = w0 * w0 + w1 * w1
+        for c in range(2, v.shape[1]):     # 3D bodies
+            w = v[i, c] + hdt * a[i, c]
+            s += w * w
+        scratch[i] = mass[i] * s
     return np_sum(scratch, n)

@@ -102,7 +102,8 @@ class RigidWallSpec:
 
 
 class Surface:
-    """Global boundary of a body (all ranks): node global ids, segments, gathered positions."""
+    """Global boundary of a body (all ranks): node global ids, segments (triangles of a 3D body),
+    gathered positions."""
 
     def __init__(self, body):
         self.body = body
@@ -123,8 +124,12 @@ class Surface:
         self.M = self.gather(body.mass[:, None])[:, 0]
         # partition-independent rank of each segment (by its reference midpoint), used to break
         # ties between equally distant candidate segments identically in serial and parallel
-        mid = 0.5 * (self.X0[self.seg[:, 0]] + self.X0[self.seg[:, 1]])
-        order = np.lexsort((mid[:, 1], mid[:, 0]))
+        if self.seg.shape[1] == 2:
+            mid = 0.5 * (self.X0[self.seg[:, 0]] + self.X0[self.seg[:, 1]])
+            order = np.lexsort((mid[:, 1], mid[:, 0]))
+        else:    # triangles of a 3D body: by centroid
+            mid = self.X0[self.seg].mean(axis=1)
+            order = np.lexsort((mid[:, 2], mid[:, 1], mid[:, 0]))
         self.seg_key = np.empty(len(order), dtype=np.int64)
         self.seg_key[order] = np.arange(len(order))
 

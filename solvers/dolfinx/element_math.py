@@ -18,7 +18,7 @@ import math
 
 import numba
 
-__all__ = ["cell_update", "batch_update", "BATCH", "ROW", "IN_ROWS", "OUT_ROWS",
+__all__ = ["cell_update", "batch_update", "rate_factor_at", "BATCH", "ROW", "IN_ROWS", "OUT_ROWS",
            "MODE_PLANE_STRESS", "MODE_PLANE_STRAIN", "MODE_AXISYMMETRIC", "FM", "N_PRM"]
 
 # fast-math: only "no signed zeros". Reassociation, contraction (FMA) and reciprocal approximation let LLVM
@@ -59,6 +59,16 @@ def rate_factor(rid, r1, r2, dxx, dyy, dzz, dxy):
     m = (dxx + dyy + dzz) / 3.0
     exx, eyy, ezz = dxx - m, dyy - m, dzz - m
     rate = math.sqrt(2.0 / 3.0 * (exx * exx + eyy * eyy + ezz * ezz + 2.0 * dxy * dxy))
+    return rate_factor_at(rid, r1, r2, rate)
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy", fastmath=FM)
+def rate_factor_at(rid, r1, r2, rate):
+    """Yield-stress factor of the rate law ``rid`` (0 none, 1 Cowper-Symonds, 2 Johnson-Cook) at
+    the equivalent strain rate ``rate`` = sqrt(2/3 e:e) (1/s), e the deviatoric rate of deformation
+    (shared by the 2D and the 3D kernels)."""
+    if rid == 0:
+        return 1.0
     if rid == 1:
         return 1.0 + (rate / r1) ** (1.0 / r2)
     if rate > r2:

@@ -5,15 +5,18 @@ File layout (``<prefix>_<body>.h5``; h5py reads it by name, no XDMF needed)::
     /                     attrs: format, body, formulation, coordinates ("r z" or "x y"),
                                  stress_components
     /Mesh/points          (N, 3) float64, m: reference coordinates (x, y, 0); x = r, y = z in axisymmetry
-    /Mesh/triangles       (C, 3) int64: node indices of each triangle
+    /Mesh/triangles       (C, 3) int64: node indices of each triangle (2D bodies), or
+    /Mesh/tetrahedra      (C, 4) int64: node indices of each tetrahedron (3D bodies,
+                          formulation "3d", coordinates "x y z", points (x, y, z))
     /times                (T,) float64, s: the output times (exact: milestones rounded to 12 digits)
     /Step_0000/           attrs: time (s); one group per output time, in time order
-        displacement_m    (N, 3) at nodes: (u_x, u_y, 0) = current - reference position
+        displacement_m    (N, 3) at nodes: (u_x, u_y, 0) = current - reference position ((u_x, u_y, u_z) in 3D)
         velocity_m_s      (N, 3) at nodes: (v_x, v_y, 0) (the solver's last half-step velocity)
         stress_Pa         (C, 6) per cell: Cauchy stress, components xx, yy, zz, xy, yz, xz
                           (ParaView's order and names XX YY ZZ XY YZ XZ for a symmetric tensor;
                           zz is the hoop stress in axisymmetry, the out-of-plane stress in plane
                           strain, 0 in plane stress; yz = xz = 0), equal to ``Body.cell_stress``
+                          (3D: all six, the solver's own order)
         von_mises_Pa      (C,) per cell
         plastic_strain    (C,) per cell: equivalent plastic strain (-)
 
@@ -58,14 +61,18 @@ def output_time(t: float) -> float:
 
 def _vec3(a: np.ndarray) -> np.ndarray:
     out = np.zeros((a.shape[0], 3))
-    out[:, :2] = a
+    out[:, :a.shape[1]] = a
     return out
 
 
 def _tensor6(s: np.ndarray) -> np.ndarray:
     out = np.zeros((s.shape[0], 6))
-    out[:, :4] = s  # the solver's [xx, yy, zz, xy]
+    out[:, :s.shape[1]] = s  # the 2D solver's [xx, yy, zz, xy]; the 3D solver's six
     return out
+
+
+#: cell dataset and XDMF topology by vertices per cell
+_CELLS = {3: ("triangles", "Triangle"), 4: ("tetrahedra", "Tetrahedron")}
 
 
 class _BodyFile:
@@ -79,18 +86,20 @@ class _BodyFile:
         self.h5_path = path_xdmf.with_suffix(".h5")
         self.body = body
         self.n_points, self.n_cells = points.shape[0], triangles.shape[0]
+        self.n_vertices = triangles.shape[1]
+        self.cell_set, self.topology = _CELLS[self.n_vertices]
         _ensure_space(self.h5_path, points.nbytes + triangles.nbytes)
         self.h5 = h5py.File(self.h5_path, "w")
         a = self.h5.attrs
         a["format"] = FORMAT
         a["body"] = body
         a["formulation"] = formulation
-        a["coordinates"] = "r z" if formulation == "axisymmetric" else "x y"
+        a["coordinates"] = {"axisymmetric": "r z", "3d": "x y z"}.get(formulation, "x y")
         a["stress_components"] = " ".join(STRESS_COMPONENTS)
         pts = self.h5.create_dataset("Mesh/points", data=points)
         pts.attrs["unit"] = "m"
         pts.attrs["description"] = "reference (initial) coordinates; current = points + displacement_m"
-        self.h5.create_dataset("Mesh/triangles", data=triangles.astype(np.int64))
+        self.h5.create_dataset(f"Mesh/{self.cell_set}", data=triangles.astype(np.int64))
         self.h5.create_dataset("times", shape=(0,), maxshape=(None,), dtype="f8").attrs["unit"] = "s"
         self.times: list[float] = []
         self.h5.flush()
@@ -132,9 +141,9 @@ class _BodyFile:
         for k, t in enumerate(self.times):
             grid = ET.SubElement(coll, "Grid", Name=self.body if k == 0 else f"{self.body}_{k:04d}",
                                  GridType="Uniform")
-            topo = ET.SubElement(grid, "Topology", TopologyType="Triangle",
+            topo = ET.SubElement(grid, "Topology", TopologyType=self.topology,
                                  NumberOfElements=str(self.n_cells))
-            item(topo, "/Mesh/triangles", (self.n_cells, 3), np.int64)
+            item(topo, f"/Mesh/{self.cell_set}", (self.n_cells, self.n_vertices), np.int64)
             geo = ET.SubElement(grid, "Geometry", GeometryType="XYZ")
             item(geo, "/Mesh/points", (self.n_points, 3), np.float64)
             ET.SubElement(grid, "Time", Value=repr(t))
@@ -178,7 +187,7 @@ class FieldWriter:
 
     Parameters
     ----------
-    solver : ExplicitSolver
+    solver : ExplicitSolver or ExplicitSolver3D
         The solver whose bodies are written.
     path_prefix : str or Path
         Files are ``<path_prefix>_<body>.xdmf`` + ``.h5``.
@@ -196,10 +205,11 @@ class FieldWriter:
             parts = self.comm.gather((own, b.X0[: b.n_owned], b.global_ids[b.cells]), root=0)
             if self.comm.rank == 0:
                 n_glob = b.V.dofmap.index_map.size_global
-                X = np.zeros((n_glob, 2))
+                X = np.zeros((n_glob, b.X0.shape[1]))
                 for gid, x, _ in parts:
                     X[gid] = x
-                tris = np.vstack([c.reshape(-1, 3) for _, _, c in parts]).astype(np.int64)
+                nv = b.cells.shape[1]
+                tris = np.vstack([c.reshape(-1, nv) for _, _, c in parts]).astype(np.int64)
                 path = prefix.parent / f"{prefix.name}_{n}.xdmf"
                 self._files[n] = _BodyFile(path, n, solver.formulation, _vec3(X), tris)
 
@@ -213,12 +223,12 @@ class FieldWriter:
             if self.comm.rank != 0:
                 continue
             f = self._files[n]
-            u = np.zeros((f.n_points, 2))
-            v = np.zeros((f.n_points, 2))
+            u = np.zeros((f.n_points, b.x.shape[1]))
+            v = np.zeros((f.n_points, b.x.shape[1]))
             for gid, ui, vi, *_ in parts:
                 u[gid] = ui
                 v[gid] = vi
-            s = np.vstack([p[3].reshape(-1, 4) for p in parts])
+            s = np.vstack([p[3].reshape(-1, b.cell_stress.shape[1]) for p in parts])
             vm = np.concatenate([p[4] for p in parts])
             ep = np.concatenate([p[5] for p in parts])
             f.write(t, {"displacement_m": _vec3(u), "velocity_m_s": _vec3(v)},

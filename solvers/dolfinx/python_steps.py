@@ -88,7 +88,6 @@ class PythonSteps:
     def _wall_reactions(self, n: str, b: Body, f: np.ndarray) -> None:
         """Cancel the force of wall nodes pushed into the wall (all of it for a sticking wall, the
         normal part for a sliding one) and record the reaction per unit area (Pa)."""
-        area = None
         for iw, w in enumerate(self.rigid_walls):
             on = self._wall_out[iw].get("on", {}).get(n)
             if on is None:
@@ -101,16 +100,15 @@ class PythonSteps:
                 f[rows] -= fn[push, None] * nrm
             else:
                 f[rows] = 0.0
-            if area is None:
-                area = b.tributary_areas(b.segments, b.x)
-                area = b.complete_nodal(np.stack([area, area], axis=1))[:, 0]
+            area = b.wall_tributary_areas(b.x, nrm)
+            area = b.complete_nodal(np.repeat(area[:, None], b.gdim, axis=1))[:, 0]
             self._wall_out[iw].setdefault("p", {})[n] = (rows, -fn[push] / area[rows])
 
     def _compute_forces(self, dt: float, update_state: bool) -> None:
         dtc = np.inf
         ftot = {}
         for n, b in self.bodies.items():
-            f = np.zeros((b.n_local, 2))
+            f = np.zeros_like(b.x)
             acc = np.zeros(3)
             if update_state:
                 d = self._kernel(b.cells, b.x, b.v, dt, self._prm[n], b.cell_stress, b.eps_p,

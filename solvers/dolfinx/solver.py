@@ -193,9 +193,10 @@ class ExplicitSolver(PythonSteps):
         n_steps : int
             Number of steps.
         external_forces : dict, optional
-            Body name -> nodal forces (n_local_nodes, 2), N (planar: for the solver's thickness;
-            axisymmetric: total over the 2 pi ring), held constant over the steps. Each row is the
-            complete force on that node; rows of ghost nodes (MPI) are ignored.
+            Body name -> nodal forces (n_local_nodes, 2) ((n_local_nodes, 3) for 3D bodies), N
+            (planar: for the solver's thickness; axisymmetric: total over the 2 pi ring), held
+            constant over the steps. Each row is the complete force on that node; rows of ghost
+            nodes (MPI) are ignored.
 
         Raises
         ------
@@ -210,11 +211,11 @@ class ExplicitSolver(PythonSteps):
             raise ValueError(f"n_steps must be a positive integer, got {n_steps!r}")
         fext = {}
         for n, b in self.bodies.items():
-            f = np.zeros((b.n_local, 2))
+            f = np.zeros_like(b.x)
             if external_forces is not None and n in external_forces:
                 arr = np.asarray(external_forces[n], dtype=float)
-                if arr.shape != (b.n_local, 2):
-                    raise ValueError(f"external_forces[{n!r}] must have shape {(b.n_local, 2)}")
+                if arr.shape != b.x.shape:
+                    raise ValueError(f"external_forces[{n!r}] must have shape {b.x.shape}")
                 f[: b.n_owned] = arr[: b.n_owned]
             fext[n] = f
         if external_forces is not None:
@@ -372,7 +373,7 @@ class ExplicitSolver(PythonSteps):
 
         Returns
         -------
-        (n_local_nodes, 2) array
+        (n_local_nodes, 2) array ((n_local_nodes, 3) for 3D bodies)
             Nodal forces, N (planar: times thickness; axisymmetric: the full 2 pi ring); every row
             (ghosts too) holds the complete force of its node.
         """

@@ -1,0 +1,208 @@
+"""A deformable 3D body on P1 tetrahedra: the 3D counterpart of :class:`~.body.Body`, from which it
+takes the velocity constraints, prescribed motions and the ghost exchange (``complete_nodal``).
+Nodal arrays are (N, 3), indexed by the block dofs of the P1 vector space (owned nodes first,
+then ghosts); the boundary is a set of outward-oriented triangles."""
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+import ufl
+from dolfinx import cpp as _cpp
+from dolfinx import fem
+from dolfinx import mesh as dmesh
+from dolfinx.fem.petsc import assemble_vector
+from petsc4py import PETSc
+
+from .body import Body, BodySpec
+from .tet_kernel import tet_elastic_energy_density, tet_volumes, tet_von_mises
+
+__all__ = ["Body3D"]
+
+log = logging.getLogger(__name__)
+
+
+class Body3D(Body):
+    """Runtime state of a 3D body (created by :class:`~.solver3d.ExplicitSolver3D`).
+
+    Attributes
+    ----------
+    cells : int32 array (nc, 4)
+        Owned tetrahedra as node rows, positively oriented in the reference configuration.
+    segments : int32 array (nf, 3)
+        Owned exterior facets (triangles) as node rows, ordered so that
+        (x1 - x0) x (x2 - x0) points out of the body (the name is the 2D body's: the boundary
+        pieces that walls and loads use).
+    cell_stress : float64 array (nc, 6)
+        Cauchy stress [xx, yy, zz, xy, yz, xz], Pa.
+    """
+
+    def __init__(self, spec: BodySpec):  # noqa: D107 (Body's __init__ is for 2D meshes)
+        if not isinstance(spec.name, str) or not spec.name:
+            raise ValueError("BodySpec.name must be a non-empty string")
+        msh = spec.mesh
+        if msh.topology.dim != 3 or msh.topology.cell_type != dmesh.CellType.tetrahedron:
+            raise ValueError(f"body {spec.name!r}: need a 3D tetrahedral mesh")
+        if msh.geometry.cmap.degree != 1:
+            raise ValueError(f"body {spec.name!r}: need an affine (P1) geometry")
+        if len(spec.initial_velocity) != 3:
+            raise ValueError(f"body {spec.name!r}: initial_velocity needs 3 components in 3D")
+        if spec.initial_stress is not None and len(spec.initial_stress) != 6:
+            raise ValueError(f"body {spec.name!r}: initial_stress needs 6 components in 3D "
+                             "[xx, yy, zz, xy, yz, xz]")
+        self.name = spec.name
+        self.spec = spec
+        self.gdim = 3
+        self.mesh = msh
+        self.material = spec.material
+        self.comm = msh.comm
+        self.axisymmetric = False
+        self.thickness = 1.0
+        self.V = fem.VectorFunctionSpace(msh, ("Lagrange", 1))
+        imap = self.V.dofmap.index_map
+        self.n_owned = imap.size_local
+        self.n_local = imap.size_local + imap.num_ghosts
+        self.global_ids = np.asarray(imap.local_to_global(np.arange(self.n_local, dtype=np.int32)),
+                                     dtype=np.int64)
+        n_cells_owned = msh.topology.index_map(3).size_local
+        dofs = self.V.dofmap.list.array.reshape(-1, 4)
+        cells = np.array(dofs[:n_cells_owned], dtype=np.int32, copy=True)
+        # node coordinates straight from the mesh geometry (P1 dofs and geometry nodes share the
+        # cells' vertex order): ``tabulate_dof_coordinates`` evaluates the geometry map and gives
+        # round-off (1e-15 m) that depends on which cell, hence on the partition
+        X = np.empty((self.n_local, 3))
+        X[dofs.ravel()] = msh.geometry.x[msh.geometry.dofmap.array.reshape(-1, 4).ravel(), :3]
+        vol = tet_volumes(cells, X)
+        if np.any(vol == 0.0):
+            raise ValueError(f"body {spec.name!r}: degenerate cell")
+        neg = vol < 0
+        cells[neg, 1], cells[neg, 2] = cells[neg, 2].copy(), cells[neg, 1].copy()
+        self.cells = cells
+        self.X0 = X
+        self.x = X.copy()
+        self.v = np.zeros((self.n_local, 3))
+        self.v[:] = np.asarray(spec.initial_velocity, dtype=float)
+        self.a = np.zeros((self.n_local, 3))
+        nc = cells.shape[0]
+        self.cell_stress = np.zeros((nc, 6))
+        if spec.initial_stress is not None:
+            self.cell_stress[:] = np.asarray(spec.initial_stress, dtype=float)
+        self.eps_p = np.zeros(nc)
+        self._buf = fem.Function(self.V)
+        self.mass = self._lumped_mass()
+        if np.any(self.mass <= 0):
+            raise ValueError(f"body {spec.name!r}: non-positive lumped mass")
+        self.segments = self._exterior_triangles(dofs)
+        self._constraints = self._build_constraints()
+        self.axis_nodes = np.zeros(0, dtype=np.int64)
+        log.info("body %s (3D): %d owned nodes, %d cells, %d boundary triangles, mass %.6g kg",
+                 self.name, self.n_owned, nc, len(self.segments), self.total_mass())
+
+    # ------------------------------------------------------------------ setup helpers
+    def _lumped_mass(self) -> np.ndarray:
+        """Row-sum lumped mass via DOLFINx assembly, kg (each node gets rho V / 4 of its cells)."""
+        w = ufl.TestFunction(self.V)
+        one = ufl.as_vector((1.0, 1.0, 1.0))
+        form = fem.form(self.material.density * ufl.inner(one, w) * ufl.dx)
+        vec = assemble_vector(form)
+        vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        vec.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+        with vec.localForm() as loc:
+            m = loc.array.reshape(-1, 3)[:, 0].copy()
+        vec.destroy()
+        return m
+
+    def _exterior_triangles(self, dofs: np.ndarray) -> np.ndarray:
+        """Exterior facets of the owned cells as (n, 3) node rows, outward oriented."""
+        msh = self.mesh
+        top = msh.topology
+        top.create_connectivity(2, 3)
+        facets = dmesh.exterior_facet_indices(top).astype(np.int32)
+        if len(facets) == 0:
+            return np.zeros((0, 3), np.int32)
+        f2c = top.connectivity(2, 3)
+        gd = msh.geometry.dofmap.array.reshape(-1, 4)
+        geo2dof = np.full(msh.geometry.x.shape[0], -1, dtype=np.int64)
+        geo2dof[gd.ravel()] = dofs.ravel()
+        fg = _cpp.mesh.entities_to_geometry(msh._mesh, 2, facets, False)
+        tris = geo2dof[fg].astype(np.int32).reshape(-1, 3)
+        cell = np.array([f2c.links(f)[0] for f in facets], dtype=np.int64)
+        n_own = top.index_map(3).size_local
+        keep = cell < n_own
+        tris, cell = tris[keep], cell[keep]
+        cd = dofs[cell]
+        # the cell's fourth node: the node of the cell that is not on the facet
+        fourth = cd[~(cd[:, :, None] == tris[:, None, :]).any(axis=2)]
+        p0, p1, p2, p3 = self.X0[tris[:, 0]], self.X0[tris[:, 1]], self.X0[tris[:, 2]], self.X0[fourth]
+        inward = np.einsum("ij,ij->i", np.cross(p1 - p0, p2 - p0), p3 - p0) > 0
+        tris[inward] = tris[inward][:, [0, 2, 1]]
+        return np.ascontiguousarray(tris)
+
+    # ------------------------------------------------------------------ boundary helpers
+    @staticmethod
+    def _area_vectors(tris: np.ndarray, x: np.ndarray) -> np.ndarray:
+        """Outward area vectors (n, 3) of triangles at positions x: |a| = area, m^2."""
+        p0 = x[tris[:, 0]]
+        return 0.5 * np.cross(x[tris[:, 1]] - p0, x[tris[:, 2]] - p0)
+
+    def tributary_areas(self, segs: np.ndarray, x: np.ndarray) -> np.ndarray:
+        """Per-node tributary boundary area (a third of each adjacent triangle), m^2, at
+        positions x, summed over this rank's triangles (complete with :meth:`complete_nodal`)."""
+        a = np.linalg.norm(self._area_vectors(segs, x), axis=1) / 3.0
+        n = x.shape[0]
+        return (np.bincount(segs[:, 0], weights=a, minlength=n)
+                + np.bincount(segs[:, 1], weights=a, minlength=n)
+                + np.bincount(segs[:, 2], weights=a, minlength=n))
+
+    def wall_tributary_areas(self, x: np.ndarray, normal: np.ndarray) -> np.ndarray:
+        """Per-node boundary area facing a wall with unit normal ``normal`` (into the allowed
+        half-space), m^2: a third of each adjacent triangle's area projected on the wall plane,
+        sum A/3 max(0, -n_f . normal), so that a node on an edge or on a symmetry plane is not
+        given the area of the sides that do not face the wall."""
+        av = self._area_vectors(self.segments, x)
+        a = np.maximum(0.0, -(av @ np.asarray(normal, float))) / 3.0
+        n = x.shape[0]
+        tris = self.segments
+        return (np.bincount(tris[:, 0], weights=a, minlength=n)
+                + np.bincount(tris[:, 1], weights=a, minlength=n)
+                + np.bincount(tris[:, 2], weights=a, minlength=n))
+
+    def pressure_forces(self, facet_marker, pressure: float) -> np.ndarray:
+        """Consistent nodal forces (N) of a uniform follower pressure (Pa, positive pushes into
+        the body) on the exterior triangles whose three vertices satisfy ``facet_marker``
+        (evaluated on current coordinates (3, N)): -p A n / 3 per vertex; complete on every local
+        row (ghosts too)."""
+        tris = self.segments
+        f = np.zeros((self.n_local, 3))
+        if tris.shape[0]:
+            mark = np.asarray(facet_marker(self.x.T.copy()), dtype=bool)
+            tris = tris[mark[tris[:, 0]] & mark[tris[:, 1]] & mark[tris[:, 2]]]
+        if tris.shape[0]:
+            av = self._area_vectors(tris, self.x)
+            for c in range(3):
+                w = -pressure * av[:, c] / 3.0
+                for k in range(3):
+                    f[:, c] += np.bincount(tris[:, k], weights=w, minlength=self.n_local)
+        return self.complete_nodal(f)
+
+    # ------------------------------------------------------------------ derived fields
+    @property
+    def von_mises(self) -> np.ndarray:
+        """Von Mises stress per owned cell, Pa."""
+        return tet_von_mises(self.cell_stress)
+
+    def cell_volumes(self) -> np.ndarray:
+        """Current cell volumes, m^3."""
+        return tet_volumes(self.cells, self.x)
+
+    def elastic_energy(self) -> float:
+        """Elastic strain energy of the owned cells, sum of (s:s / 4G + p^2 / 2K) V, J."""
+        w = tet_elastic_energy_density(self.cell_stress, float(self.material.shear_modulus),
+                                       float(self.material.bulk_modulus))
+        return float(np.dot(w, self.cell_volumes()))
+
+    def sync_mesh_geometry(self) -> None:
+        """Write the current node positions into ``mesh.geometry.x``."""
+        gdofs = self.mesh.geometry.dofmap.array.reshape(-1, 4)
+        vd = self.V.dofmap.list.array.reshape(-1, 4)
+        self.mesh.geometry.x[gdofs.ravel(), :3] = self.x[vd.ravel()]
