@@ -78,8 +78,7 @@ class OuterTube:
     inner_radius: float = spec(unit="m", gt=0.0, doc="inner radius")
     thickness: float = spec(unit="m", gt=0.0, doc="wall thickness")
     length: float = spec(unit="m", gt=0.0, doc="length")
-    mesh_size: float | None = spec(
-        None, unit="m", gt=0.0, doc="element size in the outer tube (unset: from the skin depth)")
+    mesh_size: float | None = spec(None, unit="m", gt=0.0, doc="element size in the outer tube (unset: skin depth)")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -246,8 +245,7 @@ class CoaxialWorkpiece:
     z0: float = spec(unit="m", doc="lower face")
     r1: float = spec(unit="m", gt=0.0, doc="outer radius")
     z1: float = spec(unit="m", doc="upper face")
-    mesh_size: float | None = spec(
-        None, unit="m", gt=0.0, doc="element size in the workpiece (unset: from the skin depth)")
+    mesh_size: float | None = spec(None, unit="m", gt=0.0, doc="element size in the workpiece (unset: skin depth)")
 
     def validate(self, path: str) -> None:
         _check_box((self.r0, self.z0, self.r1, self.z1), path)
@@ -363,9 +361,8 @@ class UserDeck(_ConductorRoles):
                                     "Python in the .pro; also in their Includes); a deck is code: allow only decks "
                                     "you trust")
     regions: DeckRegions = spec(doc="physical-group names of the roles")
-    planar: bool = spec(False, doc="a plane deck (Flag_Axi = 0): the mesh's (x, y) a plane section, the axis role a "
-                                   "symmetry plane (a = 0), per metre of depth scaled by mechanics.thickness; "
-                                   "prescribed sources only")
+    planar: bool = spec(False, doc="a plane deck (Flag_Axi = 0): the mesh's (x, y) a plane section, the axis role a symmetry "
+                                   "plane (a = 0), per metre of depth scaled by mechanics.thickness; prescribed sources only")
     turns: int | None = spec(None, unit="-", ge=1, doc="number of turns of the coil region regions.coil (one coil; "
                                                  "[[geometry.coils]] give their own)")
     coils: tuple[DeckCoil, ...] = spec((), doc="[[geometry.coils]] several coil roles instead of regions.coil: coil k "
