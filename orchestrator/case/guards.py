@@ -5,7 +5,8 @@ Estimates (checked by ``Case.validate``, so ``pulseform check`` and every run se
 - **cells**: per meshed region, its 2D area over its element size squared, times 2.31 (equilateral
   triangles of side h cover 0.433 h² each): the bodies' own shapes, and for built-in EM geometries the
   conductors, the coil turns and the air half-disk at its far-field size (a lower estimate: the graded
-  air near the conductors adds more). User decks are meshed by their own ``.geo``: gmsh's time limit
+  air near the conductors adds more); a 3D body (tetrahedra): its volume over h³ times 8.49 (regular
+  tetrahedra of edge h fill 0.118 h³ each). User decks are meshed by their own ``.geo``: gmsh's time limit
   guards those.
 - **explicit steps**: ``time.end`` over the smallest estimated stable step of the undeformed meshes,
   ``cfl · 0.5 h / c_d`` with the dilatational wave speed ``c_d = sqrt((K + 4G/3) / ρ)`` (a well-shaped
@@ -31,18 +32,22 @@ from .skin import provisional_size
 
 #: cells per (area / h²) of a mesh of equilateral triangles of side h
 CELLS_PER_AREA_OVER_H2 = 4.0 / math.sqrt(3.0)
+#: cells per (volume / h³) of a mesh of regular tetrahedra of edge h (3D cases)
+CELLS_PER_VOLUME_OVER_H3 = 6.0 * math.sqrt(2.0)
 #: stable-step length of an element of size h, as a fraction of h (see the module docstring)
 STEP_LENGTH_FRACTION = 0.5
 
 
 @dataclass(frozen=True)
 class Region:
-    """One meshed region: where its size is set (key path), its 2D area (m²) and element size (m)."""
+    """One meshed region: where its size is set (key path), its 2D area (m²) and element size (m); a
+    3D region (tetrahedra) gives its volume (m³) instead."""
 
     key: str
     area: float
     size: float
     thinnest: float = math.inf  # the region's smallest extent (m): a sheet's thickness caps its elements
+    volume: float | None = None
 
     @property
     def h(self) -> float:
@@ -51,6 +56,8 @@ class Region:
 
     @property
     def cells(self) -> float:
+        if self.volume is not None:
+            return CELLS_PER_VOLUME_OVER_H3 * self.volume / self.h ** 3
         return CELLS_PER_AREA_OVER_H2 * self.area / self.h ** 2
 
 
@@ -120,7 +127,9 @@ def _body_regions(case) -> list[Region]:
            "outer_tube": {"solenoid_tube": "outer_tube.mesh_size"}}
     out = []
     for i, b in enumerate(case.bodies):
-        if b.shape is not None and b.mesh_size is not None:
+        if b.shape is not None and b.mesh_size is not None and hasattr(b.shape, "volume"):  # 3D solids
+            out.append(Region(f"bodies[{i}].mesh_size", 0.0, b.mesh_size, b.shape.thinnest(), b.shape.volume()))
+        elif b.shape is not None and b.mesh_size is not None:
             thin = min(b.shape.width, b.shape.height) if b.shape.type == "rectangle" else math.inf
             out.append(Region(f"bodies[{i}].mesh_size", _shape_area(b.shape), b.mesh_size, thin))
         else:

@@ -18,11 +18,12 @@ from .em_model import (EM, CapacitorBank, DampedSineCurrent, FlatCoilSheet, Geom
 from .em_sources import check_coils
 from .guards import check_resources
 from .parts import (Box, BodyTable, ContactPair, EndStopTable, FixedBoundary, Polygon, Rectangle, RigidWall, Shape,
-                    Vec2, check_file_name, rigid_moves, validate_rigid)
+                    Vec, Vec2, check_file_name, rigid_moves, validate_rigid)
 from .rigid_steps import check_rigid_time_scale
 from .schema import SchemaError, spec
+from .solid3d import SolidBox, SolidCylinder, SymmetryPlane, validate_dimension
 
-__all__ = ["Box", "Rectangle", "Polygon", "Shape", "CowperSymondsTable", "JohnsonCookTable", "MaterialTable", "FixedBoundary",
+__all__ = ["Box", "Rectangle", "Polygon", "SolidBox", "SolidCylinder", "SymmetryPlane", "Shape", "CowperSymondsTable", "JohnsonCookTable", "MaterialTable", "FixedBoundary",
            "EndStopTable", "BodyTable", "ContactPair", "RigidWall", "PulseSin2", "PulseExp", "Load", "CaseInfo", "TimeControl",
            "MechanicsTable", "Coupling", "Probe", "Output", "Limits", "Case", "EM", "CapacitorBank", "DampedSineCurrent",
            "FlatCoilSheet", "Geometry", "SolenoidTube", "SheetDie", "OuterTube", "PlanarCoilBlankDie"]
@@ -135,8 +136,8 @@ class TimeControl:
 class MechanicsTable:
     """Mechanical model options."""
 
-    formulation: Literal["plane_stress", "plane_strain", "axisymmetric"] = spec(
-        "plane_strain", doc="2D kinematics")
+    formulation: Literal["plane_stress", "plane_strain", "axisymmetric", "3d"] = spec(
+        "plane_strain", doc="kinematics: 2D (triangles), or '3d' (tetrahedra; mechanics-only cases for now)")
     thickness: float = spec(1.0, unit="m", gt=0.0, doc="out-of-plane thickness (planar only)")
     bulk_viscosity: bool = spec(True, doc="linear + quadratic artificial bulk viscosity")
     bulk_viscosity_linear: float = spec(0.06, unit="-", ge=0.0, doc="linear coefficient")
@@ -195,7 +196,7 @@ class Probe:
 
     name: str = spec(doc="column prefix in history.csv and plots/<name>_<quantity>.png: 1 to 100 letters, digits, ._-")
     body: str = spec(doc="body the point belongs to")
-    point: Vec2 = spec(unit="m", doc="initial (material) position")
+    point: Vec = spec(unit="m", doc="initial (material) position ([x, y, z] in 3D)")
     quantity: Literal["contact_pressure", "wall_pressure", "von_mises", "velocity", "displacement"] = spec(
         doc="recorded quantity (Pa, Pa, Pa, m/s, m); wall_pressure: reaction per area of the first wall")
 
@@ -238,6 +239,7 @@ class Case:
     mechanics: MechanicsTable = spec(MechanicsTable(), doc="[mechanics] table")
     contact: tuple[ContactPair, ...] = spec((), doc="[[contact]] pairs")
     walls: tuple[RigidWall, ...] = spec((), doc="[[walls]] rigid half-spaces")
+    symmetry: tuple[SymmetryPlane, ...] = spec((), doc="[[symmetry]] planes of a 3D model (a quarter, a sector)")
     loads: tuple[Load, ...] = spec((), doc="[[loads]] surface pressure pulses")
     coupling: Coupling = spec(Coupling(), doc="[coupling] table")
     geometry: Geometry | None = spec(None, doc="[geometry] EM setup (coupled cases)")
@@ -248,6 +250,7 @@ class Case:
     limits: Limits = spec(Limits(), doc="[limits] resource guards")
 
     def validate(self, path: str) -> None:
+        validate_dimension(self)
         if not self.materials:
             raise SchemaError("materials", "no material defined; add a [materials.<name>] table")
         if not self.bodies:

@@ -9,8 +9,11 @@ from dataclasses import dataclass
 from typing import Literal
 
 from .schema import SchemaError, shorten, spec
+from .solid3d import SolidBox, SolidCylinder
 
 Vec2 = tuple[float, float]
+#: a vector of a 2D case (x, y) or of a 3D case (x, y, z); :mod:`.solid3d` checks which
+Vec = tuple[float, float] | tuple[float, float, float]
 _NAME = re.compile(r"[A-Za-z0-9._-]{1,100}")
 
 
@@ -57,7 +60,7 @@ class Polygon:
             raise SchemaError(f"{path}.points", "vertices must be counter-clockwise with positive area")
 
 
-Shape = Rectangle | Polygon
+Shape = Rectangle | Polygon | SolidBox | SolidCylinder
 
 
 
@@ -92,11 +95,12 @@ class BodyTable:
 
     name: str = spec(doc="unique body name")
     material: str = spec(doc="key of a [materials.<name>] table")
-    shape: Shape | None = spec(None, doc="own geometry (rectangle or polygon); or give region")
+    shape: Shape | None = spec(None, doc="own geometry (rectangle or polygon; box or cylinder in 3D); or "
+                                                "give region")
     region: Literal["workpiece", "die", "outer_tube"] | None = spec(
         None, doc="the [geometry] conductor region this body is (its EM and mechanical meshes share nodes)")
     mesh_size: float | None = spec(None, unit="m", gt=0.0, doc="target element size (with shape)")
-    initial_velocity: Vec2 = spec((0.0, 0.0), unit="m/s", doc="uniform initial velocity")
+    initial_velocity: Vec = spec((0.0, 0.0), unit="m/s", doc="uniform initial velocity ([vx, vy, vz] in 3D)")
     fixed: tuple[FixedBoundary, ...] = spec((), doc="clamped boundary parts")
     rigid: bool = spec(False, doc="a rigid body (coupled cases, with region): it translates without deforming "
                                   "under the resultant of its Lorentz forces and gravity; no stability limit")
@@ -161,15 +165,15 @@ class ContactPair:
 class RigidWall:
     """Rigid half-space: a node with (x − point)·normal < 0 is put back on the wall with v = 0."""
 
-    point: Vec2 = spec(unit="m", doc="a point on the wall")
-    normal: Vec2 = spec(unit="-", doc="normal pointing into the allowed side")
+    point: Vec = spec(unit="m", doc="a point on the wall ([x, y, z] in 3D)")
+    normal: Vec = spec(unit="-", doc="normal pointing into the allowed side")
     bodies: tuple[str, ...] = spec((), doc="bodies it acts on (empty = all)")
     sliding: bool = spec(False, doc="frictionless: remove only the normal velocity (false: the paper's "
                                     "rule v = 0, which also sticks the face tangentially)")
 
     def validate(self, path: str) -> None:
         if math.hypot(*self.normal) == 0.0:
-            raise SchemaError(f"{path}.normal", "got [0, 0]; must be a non-zero vector")
+            raise SchemaError(f"{path}.normal", f"got {list(self.normal)}; must be a non-zero vector")
 
 
 def check_file_name(name: str, path: str, names: str) -> None:

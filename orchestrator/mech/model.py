@@ -8,6 +8,7 @@ from pulseform.solvers import dolfinx as mech
 
 from ..case.model import Case, CowperSymondsTable, MaterialTable
 from ..mesh.shapes import mesh_shape
+from .model3d import build_solver_3d
 from .pulses import box_marker
 
 
@@ -28,6 +29,8 @@ def build_solver(case: Case, comm: MPI.Comm = MPI.COMM_WORLD,
     """Mesh every deformable body (or take its region's mesh, cut from the EM mesh) and build the
     solver (``compiled_steps``: the solver's compiled block path, else its Python step loop); rigid
     bodies are not the solver's (:mod:`.mixed`)."""
+    if case.mechanics.formulation == "3d":  # tetrahedra (mechanics-only cases for now)
+        return build_solver_3d(case, comm, solver_material)
     bodies = []
     for b in case.bodies:
         if b.rigid:

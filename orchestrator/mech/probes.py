@@ -26,10 +26,14 @@ class AttachedProbe:
     pair: int = -1  # contact pair whose slave surface holds a contact_pressure probe
 
 
-def _nearest_global(points: np.ndarray, target: tuple[float, float], n_owned: int,
+def _nearest_global(points: np.ndarray, target: tuple[float, ...], n_owned: int,
                     comm: MPI.Comm) -> int:
-    """Local index of the owned point nearest ``target`` on the rank holding the global nearest, else -1."""
-    d = np.hypot(points[:n_owned, 0] - target[0], points[:n_owned, 1] - target[1])
+    """Local index of the owned point nearest ``target`` (2 or 3 coordinates, m) on the rank holding
+    the global nearest, else -1."""
+    if len(target) == 3:
+        d = np.linalg.norm(points[:n_owned, :3] - np.asarray(target, float), axis=1)
+    else:
+        d = np.hypot(points[:n_owned, 0] - target[0], points[:n_owned, 1] - target[1])
     local_best = (float(d.min()) if d.size else np.inf, comm.rank)
     best = comm.allreduce(local_best, op=MPI.MINLOC)
     return int(np.argmin(d)) if best[1] == comm.rank and d.size else -1
@@ -61,7 +65,7 @@ def attach(solver, probes: tuple[Probe, ...], comm: MPI.Comm) -> list[AttachedPr
             raise ValueError(f"probe {p.name!r}: wall_pressure needs a [[walls]] entry")
         if p.quantity in ("velocity", "displacement"):
             unit = "m_s" if p.quantity == "velocity" else "m"
-            cols = (f"{p.name}_{p.quantity}_x_{unit}", f"{p.name}_{p.quantity}_y_{unit}")
+            cols = tuple(f"{p.name}_{p.quantity}_{c}_{unit}" for c in "xyz"[:body.gdim])
         else:
             cols = (f"{p.name}_{p.quantity}_Pa",)
         out.append(AttachedProbe(p, idx, cols))
@@ -80,9 +84,9 @@ def sample(solver, attached: list[AttachedProbe], comm: MPI.Comm) -> dict[str, f
         elif a.index < 0:
             local.extend([0.0] * len(a.columns))
         elif q == "velocity":
-            local.extend(float(v) for v in body.v[a.index, :2])
+            local.extend(float(v) for v in body.v[a.index, :len(a.columns)])
         elif q == "displacement":
-            local.extend(float(v) for v in body.u[a.index, :2])
+            local.extend(float(v) for v in body.u[a.index, :len(a.columns)])
         elif q == "von_mises":
             local.append(float(body.von_mises[a.index]))
         elif q == "wall_pressure":

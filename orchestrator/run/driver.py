@@ -39,6 +39,7 @@ from . import interrupt
 from .analyses import create as create_analysis
 from .checkpoint import CHECKPOINT_NAME, load_checkpoint, save_checkpoint
 from .em_fields import EMFieldWriter, write_peak_snapshot
+from .extremes3d import body_extremes_3d
 from .history import History
 from .progress import Progress
 from .results import ResultsFolder
@@ -394,6 +395,9 @@ def body_extremes(solver, comm: MPI.Comm) -> dict[str, float]:
         return value if serial else comm.allreduce(value, op=op)
 
     for name, b in solver.bodies.items():
+        if b.gdim == 3:
+            out.update(body_extremes_3d(name, b, reduce))
+            continue
         own = slice(0, b.n_owned)
         ux, uy, sp = nodal_extremes(b.x, b.X0, b.v, b.n_owned) if b.n_owned else (0.0, 0.0, 0.0)
         out[f"{name}_max_ux_m"] = reduce(ux, MPI.MAX)
@@ -446,6 +450,8 @@ def mech_metrics(solver, case: Case, history: History, e: dict[str, float]) -> d
             continue
         out[f"{b.name}_max_ux_mm"] = float(history.column(f"{b.name}_max_ux_m").max()) * 1e3
         out[f"{b.name}_max_uy_mm"] = float(history.column(f"{b.name}_max_uy_m").max()) * 1e3
+        if f"{b.name}_max_uz_m" in history.columns:
+            out[f"{b.name}_max_uz_mm"] = float(history.column(f"{b.name}_max_uz_m").max()) * 1e3
         out[f"{b.name}_max_speed_m_s"] = float(history.column(f"{b.name}_max_speed_m_s").max())
         out[f"{b.name}_max_von_mises_MPa"] = float(history.column(f"{b.name}_max_von_mises_Pa").max()) / 1e6
         if b.region == "workpiece" and case.geometry is not None:

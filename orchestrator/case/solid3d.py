@@ -1,0 +1,177 @@
+"""Case-file keys of 3D cases (``mechanics.formulation = "3d"``, issue 20): solid shapes meshed with
+tetrahedra, symmetry planes, and the checks that keep 2D-only keys out of 3D cases and 3D-only keys
+out of 2D cases.
+
+3D cases are mechanics-only for now (the explicit solver on tetrahedra, rigid walls, symmetry
+planes); the keys are chosen so that the coupled 3D cases can add to them: a body's ``shape`` is a
+``box`` or a ``cylinder`` (a sector of one with ``angle``), vectors (velocities, wall points and
+normals, probe points) take three components, and ``[[symmetry]]`` planes cut a quarter or a sector.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Literal
+
+from .schema import SchemaError, spec
+
+Vec3 = tuple[float, float, float]
+
+#: the formulation value of 3D cases
+FORMULATION_3D = "3d"
+
+
+@dataclass(frozen=True, kw_only=True)
+class SolidBox:
+    """Axis-aligned box (3D cases), meshed with tetrahedra by gmsh (OpenCASCADE)."""
+
+    type: Literal["box"] = spec(doc="shape kind (3D)")
+    origin: Vec3 = spec((0.0, 0.0, 0.0), unit="m", doc="corner with the smallest x, y, z")
+    size: Vec3 = spec(unit="m", gt=0.0, doc="extents along x, y, z")
+
+    def volume(self) -> float:
+        """Volume, m^3."""
+        return self.size[0] * self.size[1] * self.size[2]
+
+    def thinnest(self) -> float:
+        """Smallest extent, m."""
+        return min(self.size)
+
+
+@dataclass(frozen=True, kw_only=True)
+class SolidCylinder:
+    """Circular cylinder or a sector of one (3D cases), meshed with tetrahedra by gmsh (OpenCASCADE);
+    a sector starts at OpenCASCADE's local x direction (for an axis along z: from +x towards +y)."""
+
+    type: Literal["cylinder"] = spec(doc="shape kind (3D)")
+    base: Vec3 = spec((0.0, 0.0, 0.0), unit="m", doc="centre of the base face")
+    axis: Vec3 = spec(unit="m", doc="axis vector: direction and length of the cylinder")
+    radius: float = spec(unit="m", gt=0.0, doc="radius")
+    angle: float = spec(2.0 * math.pi, unit="rad", gt=0.0, le=2.0 * math.pi,
+                        doc="sector angle about the axis (2π: the whole cylinder; π/2: a quarter)")
+
+    def validate(self, path: str) -> None:
+        if math.hypot(*self.axis) == 0.0:
+            raise SchemaError(f"{path}.axis", "got [0, 0, 0]; must be a non-zero vector (m)")
+
+    def volume(self) -> float:
+        """Volume, m^3."""
+        return 0.5 * self.angle * self.radius ** 2 * math.hypot(*self.axis)
+
+    def thinnest(self) -> float:
+        """Smallest extent, m."""
+        return min(self.radius, math.hypot(*self.axis))
+
+
+@dataclass(frozen=True, kw_only=True)
+class SymmetryPlane:
+    """A symmetry plane of a 3D model (a quarter, a sector): boundary nodes on it keep their normal
+    velocity at zero (a frictionless roller). Planes normal to x, y or z for now."""
+
+    point: Vec3 = spec((0.0, 0.0, 0.0), unit="m", doc="a point on the plane")
+    normal: Vec3 = spec(unit="-", doc="normal: along x, y or z, e.g. [0, 1, 0]")
+    bodies: tuple[str, ...] = spec((), doc="bodies it acts on (empty = all)")
+
+    def validate(self, path: str) -> None:
+        if sum(1 for c in self.normal if c != 0.0) != 1:
+            raise SchemaError(f"{path}.normal", f"got {list(self.normal)}; allowed: a normal along x, y or z "
+                              "([1, 0, 0], [0, 1, 0], [0, 0, 1] or their negatives)")
+
+    def component(self) -> int:
+        """The axis (0, 1, 2) the plane is normal to."""
+        return next(i for i, c in enumerate(self.normal) if c != 0.0)
+
+
+SOLID_TYPES = ("box", "cylinder")
+
+
+def check_explicit_2d_keys(data: dict[str, Any]) -> None:
+    """Refuse, in the raw case mapping, 2D-only keys whose defaults are harmless but whose presence in a
+    3D case says the user means a 2D model (``mechanics.thickness``, ``mechanics.gravity``)."""
+    mech = data.get("mechanics")
+    if not isinstance(mech, dict) or mech.get("formulation") != FORMULATION_3D:
+        return
+    for key, why in (("thickness", "the out-of-plane thickness of plane models"),
+                     ("gravity", "the 2D gravity of rigid bodies")):
+        if key in mech:
+            raise SchemaError(f"mechanics.{key}", f"a 2D-only key ({why}); a 3D case "
+                              "(mechanics.formulation = '3d') has none: remove it")
+
+
+def validate_dimension(case) -> None:
+    """2D-only keys in a 3D case and 3D-only keys in a 2D case: one :class:`SchemaError` naming the key."""
+    if case.mechanics.formulation == FORMULATION_3D:
+        _validate_3d(case)
+    else:
+        _validate_2d(case)
+
+
+def _validate_3d(case) -> None:
+    if case.case.kind != "mechanics":
+        raise SchemaError("case.kind", f"got {case.case.kind!r}; 3D cases (mechanics.formulation = '3d') are "
+                          "mechanics-only for now: a coupled EM load in 3D is not yet supported (issue 20)")
+    mo = case.mechanics
+    if mo.threads != 1:
+        raise SchemaError("mechanics.threads", f"got {mo.threads}; the 3D element kernel runs on one thread: 1")
+    if tuple(mo.gravity) != (0.0, 0.0):
+        raise SchemaError("mechanics.gravity", "a 2D-only key (rigid bodies of coupled cases); remove it")
+    if case.loads:
+        raise SchemaError("loads", "pressure pulses are 2D-only for now; a 3D case takes initial velocities, "
+                          "rigid walls and symmetry planes")
+    if case.analysis:
+        raise SchemaError("analysis", f"got {list(case.analysis)}; the case analyses are 2D-only for now")
+    for i, b in enumerate(case.bodies):
+        if b.shape is not None and b.shape.type not in SOLID_TYPES:
+            raise SchemaError(f"bodies[{i}].shape.type", f"got {b.shape.type!r}, a 2D shape; a 3D case "
+                              f"(mechanics.formulation = '3d') allows: {', '.join(map(repr, SOLID_TYPES))}")
+        if b.fixed:
+            raise SchemaError(f"bodies[{i}].fixed", "a 2D-only key (its box selects by x and y); in a 3D case "
+                              "hold the body with [[symmetry]] planes or [[walls]]")
+        if len(b.initial_velocity) != 3 and any(b.initial_velocity):
+            raise SchemaError(f"bodies[{i}].initial_velocity", f"got {len(b.initial_velocity)} components; a 3D "
+                              "case needs [vx, vy, vz] (m/s)")
+    for i, w in enumerate(case.walls):
+        for key in ("point", "normal"):
+            if len(getattr(w, key)) != 3:
+                raise SchemaError(f"walls[{i}].{key}", f"got {len(getattr(w, key))} components; a 3D case needs "
+                                  "[x, y, z]")
+    for i, p in enumerate(case.probes):
+        if len(p.point) != 3:
+            raise SchemaError(f"probes[{i}].point", f"got {len(p.point)} components; a 3D case needs [x, y, z] (m)")
+        if p.quantity == "contact_pressure":
+            raise SchemaError(f"probes[{i}].quantity", "got 'contact_pressure'; body-to-body contact is not yet "
+                              "wired into 3D cases: use 'wall_pressure', 'von_mises', 'velocity' or 'displacement'")
+    if case.contact:
+        raise SchemaError("contact", "body-to-body contact is not yet wired into 3D cases; use [[walls]] "
+                          "(a frictionless wall is the symmetry plane of a two-body impact)")
+    names = [b.name for b in case.bodies]
+    for i, s in enumerate(case.symmetry):
+        for j, n in enumerate(s.bodies):
+            if n not in names:
+                raise SchemaError(f"symmetry[{i}].bodies[{j}]", f"got {n!r}; allowed: "
+                                  + ", ".join(repr(x) for x in names))
+
+
+def _validate_2d(case) -> None:
+    f = case.mechanics.formulation
+    if case.symmetry:
+        raise SchemaError("symmetry", f"a 3D-only key; with mechanics.formulation = {f!r} use [[bodies.fixed]] "
+                          "or set mechanics.formulation = '3d'")
+    for i, b in enumerate(case.bodies):
+        if b.shape is not None and b.shape.type in SOLID_TYPES:
+            raise SchemaError(f"bodies[{i}].shape.type", f"got {b.shape.type!r}, a 3D shape; with "
+                              f"mechanics.formulation = {f!r} allowed: 'rectangle', 'polygon' (or set "
+                              "mechanics.formulation = '3d')")
+        if len(b.initial_velocity) != 2:
+            raise SchemaError(f"bodies[{i}].initial_velocity", f"got 3 components, a 3D vector; with "
+                              f"mechanics.formulation = {f!r} give [vx, vy] (m/s)")
+    for i, w in enumerate(case.walls):
+        for key in ("point", "normal"):
+            if len(getattr(w, key)) != 2:
+                raise SchemaError(f"walls[{i}].{key}", f"got 3 components, a 3D vector; with "
+                                  f"mechanics.formulation = {f!r} give [x, y]")
+    for i, p in enumerate(case.probes):
+        if len(p.point) != 2:
+            raise SchemaError(f"probes[{i}].point", f"got 3 components, a 3D point; with "
+                              f"mechanics.formulation = {f!r} give [x, y] (m)")

@@ -1,0 +1,46 @@
+"""Translate a validated 3D case (``mechanics.formulation = "3d"``) into the explicit solver on
+tetrahedra, :class:`~pulseform.solvers.dolfinx.solver3d.ExplicitSolver3D`: bodies meshed by gmsh
+(:mod:`..mesh.solids`), symmetry planes as roller conditions, rigid walls."""
+
+from __future__ import annotations
+
+from typing import Callable
+
+import numpy as np
+from mpi4py import MPI
+
+from pulseform.solvers import dolfinx as mech
+from pulseform.solvers.dolfinx.solver3d import ExplicitSolver3D
+
+from ..case.model import Case
+from ..case.solid3d import SymmetryPlane
+from ..mesh.solids import mesh_solid
+
+
+def plane_marker(plane: SymmetryPlane, tol: float) -> Callable[[np.ndarray], np.ndarray]:
+    """Marker of the nodes on ``plane``: |(x - point) . n| <= tol (m), x given as (3, N)."""
+    c = plane.component()
+    x0 = float(plane.point[c])
+    return lambda x: np.abs(x[c] - x0) <= tol
+
+
+def build_solver_3d(case: Case, comm: MPI.Comm = MPI.COMM_WORLD,
+                    solver_material: Callable | None = None) -> ExplicitSolver3D:
+    """Mesh every body with tetrahedra and build the 3D solver: symmetry planes hold the normal
+    velocity of the nodes on them at zero (each body's own planes), walls are the case's
+    (``solver_material``: case material table -> solver material)."""
+    bodies = []
+    for b in case.bodies:
+        mesh = mesh_solid(b.shape, b.mesh_size, comm, name=b.name, time_limit=case.limits.gmsh_time_limit_s)
+        tol = 1e-9 * max(float(comm.allreduce(np.abs(mesh.geometry.x).max(initial=0.0), op=MPI.MAX)), 1.0)
+        fixed = tuple((plane_marker(s, tol), (s.component(),)) for s in case.symmetry
+                      if not s.bodies or b.name in s.bodies)
+        v0 = tuple(b.initial_velocity) if len(b.initial_velocity) == 3 else (0.0, 0.0, 0.0)
+        bodies.append(mech.BodySpec(name=b.name, mesh=mesh, material=solver_material(case.materials[b.material]),
+                                    initial_velocity=v0, fixed=fixed))
+    walls = tuple(mech.RigidWallSpec(point=tuple(w.point), normal=tuple(w.normal),
+                                     bodies=tuple(w.bodies) or None, sliding=w.sliding) for w in case.walls)
+    mo = case.mechanics
+    return ExplicitSolver3D(bodies, rigid_walls=walls, cfl=case.time.cfl, bulk_viscosity=mo.bulk_viscosity,
+                            bulk_linear=mo.bulk_viscosity_linear, bulk_quadratic=mo.bulk_viscosity_quadratic,
+                            comm=comm)

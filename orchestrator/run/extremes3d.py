@@ -1,0 +1,26 @@
+"""History columns of a 3D body (tetrahedra): the 2D body's extremes (``driver.body_extremes``) plus
+the z displacement, with the speed and von Mises stress from all three components."""
+
+from __future__ import annotations
+
+from typing import Callable
+
+import numpy as np
+from mpi4py import MPI
+
+
+def body_extremes_3d(name: str, b, reduce: Callable[[float, object], float]) -> dict[str, float]:
+    """Largest |u_x|, |u_y|, |u_z| (m), largest speed (m/s), y-momentum Σ m v_y (N·s) and largest cell
+    von Mises stress (Pa) of the 3D body ``b`` (a ``Body3D``), reduced over the ranks by ``reduce``
+    (value, MPI op) -> value."""
+    n = b.n_owned
+    u = b.x[:n] - b.X0[:n]
+    ext = np.abs(u).max(axis=0) if n else np.zeros(3)
+    speed = float(np.sqrt((b.v[:n] ** 2).sum(axis=1)).max()) if n else 0.0
+    vm = float(b.von_mises.max()) if len(b.cells) else 0.0
+    return {f"{name}_max_ux_m": reduce(float(ext[0]), MPI.MAX),
+            f"{name}_max_uy_m": reduce(float(ext[1]), MPI.MAX),
+            f"{name}_max_uz_m": reduce(float(ext[2]), MPI.MAX),
+            f"{name}_max_speed_m_s": reduce(speed, MPI.MAX),
+            f"{name}_momentum_y_Ns": reduce(float(b.mass[:n] @ b.v[:n, 1]), MPI.SUM),
+            f"{name}_max_von_mises_Pa": reduce(vm, MPI.MAX)}
