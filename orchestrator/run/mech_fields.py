@@ -28,13 +28,18 @@ class BodyFields:
     body: str
     formulation: str
     points: np.ndarray          # (N, 3) reference coordinates, m (x = r, y = z in axisymmetry)
-    triangles: np.ndarray       # (C, 3) node indices
+    triangles: np.ndarray       # (C, 3) node indices; (C, 4) tetrahedra of a 3D body
     times: np.ndarray           # (T,) output times, s, increasing
     _where: list = field(default_factory=list, repr=False)  # per time: (h5 path, group name)
 
     @property
     def axisymmetric(self) -> bool:
         return self.formulation == "axisymmetric"
+
+    @property
+    def solid(self) -> bool:
+        """A 3D body (tetrahedra, points (x, y, z))."""
+        return self.formulation == "3d"
 
     def read(self, k: int, names: tuple[str, ...] | None = None) -> dict[str, np.ndarray]:
         """Fields of output ``k`` (all, or ``names``): displacement_m, velocity_m_s (N, 3);
@@ -64,7 +69,7 @@ def _read_file(path: Path):
         body = str(f.attrs["body"])
         form = str(f.attrs["formulation"])
         pts = f["Mesh/points"][...]
-        tris = f["Mesh/triangles"][...]
+        tris = f["Mesh/triangles" if "Mesh/triangles" in f else "Mesh/tetrahedra"][...]
         steps = sorted((float(f[g].attrs["time"]), g) for g in f if g.startswith("Step_"))
     return body, form, pts, tris, steps
 

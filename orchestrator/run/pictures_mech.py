@@ -38,6 +38,7 @@ import numpy as np
 
 from .mech_fields import BodyFields, read_fields
 from .pictures_child import Renderer, spawn, warm_up
+from .pictures_solid import boundary_faces, solid_camera, solid_surface
 from .units import time_axis
 
 log = logging.getLogger(__name__)
@@ -201,16 +202,19 @@ class _Scene:
     def __init__(self, bodies: dict[str, BodyFields]):
         self.bodies = bodies
         self.axi = next(iter(bodies.values())).axisymmetric
-        self.edges = {n: boundary_edges(b.triangles) for n, b in bodies.items()}
+        self.solid = next(iter(bodies.values())).solid  # 3D bodies: the surface of the tetrahedra
+        self.edges = {n: (boundary_faces if self.solid else boundary_edges)(b.triangles) for n, b in bodies.items()}
 
     def surface(self, name: str, k: int, field: str, scale: float):
         import pyvista as pv
 
         b = self.bodies[name]
         d = b.read(k, ("displacement_m", field))
-        x = (b.points[:, :2] + d["displacement_m"][:, :2]) * 1e3
         vals = np.asarray(d[field], dtype=float).ravel() * scale
-        if self.axi:
+        x = (b.points[:, :2] + d["displacement_m"][:, :2]) * 1e3
+        if self.solid:
+            pts, faces, v = solid_surface((b.points + d["displacement_m"]) * 1e3, *self.edges[name], vals)
+        elif self.axi:
             pts, faces, v = _revolved(x, b.triangles, *self.edges[name], vals)
         else:
             pts, faces, v = _planar(x, b.triangles, vals)
@@ -220,6 +224,8 @@ class _Scene:
 
     def camera(self, plotter, bounds) -> None:
         """3/4 view into the open quarter (axisymmetric) or the x-y plane (planar)."""
+        if self.solid:
+            return solid_camera(plotter, bounds)
         xmin, xmax, ymin, ymax, zmin, zmax = bounds
         centre = np.array([(xmin + xmax) / 2, (ymin + ymax) / 2, (zmin + zmax) / 2])
         size = max(xmax - xmin, ymax - ymin, zmax - zmin, 1e-9)
@@ -263,7 +269,7 @@ def render_fields(results_dir: Path) -> list[Path]:
     frames_dir = folder / "mechanics"
     frames_dir.mkdir(parents=True, exist_ok=True)
     paths: list[Path] = []
-    where = "revolved 270° about the z axis" if scene.axi else "x-y plane"
+    where = "revolved 270° about the z axis" if scene.axi else "3D" if scene.solid else "x-y plane"
 
     def tlabel(t: float) -> str:
         return f"t = {t * axis.scale:.4g} {axis.unit}"
@@ -356,6 +362,14 @@ def _screenshot(p, out: Path) -> Path:
 
 
 # --------------------------------------------------------------------------------------- entry
+def _outlines(bodies: dict[str, BodyFields], root: Path) -> list[Path]:
+    """[shapes.png] of 2D bodies; none for 3D bodies (their deformed surfaces are the 3D pictures)."""
+    if any(b.solid for b in bodies.values()):
+        log.info("shapes.png (outlines of 2D bodies) not drawn for 3D bodies")
+        return []
+    return [plot_shapes(bodies, workpieces(root, list(bodies)), root / "plots", _run_name(root))]
+
+
 def draw_mechanics(results_dir: Path, *, isolated: bool = True,
                    time_limit: float = RENDER_TIME_LIMIT_S, wait: bool = True,
                    renderer: Renderer | None = None):
@@ -370,7 +384,7 @@ def draw_mechanics(results_dir: Path, *, isolated: bool = True,
     if not isolated:
         bodies = read_fields(root)
         (root / "plots").mkdir(exist_ok=True)
-        return [plot_shapes(bodies, workpieces(root, list(bodies)), root / "plots", _run_name(root))] \
+        return _outlines(bodies, root) \
             + render_fields(root)
     (root / "plots").mkdir(exist_ok=True)
     child = renderer.take(root) if renderer is not None else None
@@ -379,7 +393,7 @@ def draw_mechanics(results_dir: Path, *, isolated: bool = True,
     deadline = time.monotonic() + time_limit
     try:
         bodies = read_fields(root)
-        paths = [plot_shapes(bodies, workpieces(root, list(bodies)), root / "plots", _run_name(root))]
+        paths = _outlines(bodies, root)
     except BaseException:
         child.kill()
         child.communicate()
