@@ -236,6 +236,11 @@ def convert(tp: Any, value: Any, path: str, meta: dict[str, Any] | None = None) 
             return convert(parts[0], value, path, meta)
         if all(dataclasses.is_dataclass(a) for a in parts):
             return _convert_tagged(parts, value, path)
+        if isinstance(value, (list, tuple)):  # fixed-length lists told apart by length: the element's error
+            sized = [a for a in parts if get_origin(a) is tuple and Ellipsis not in get_args(a)
+                     and len(get_args(a)) == len(value)]
+            if len(sized) == 1:
+                return convert(sized[0], value, path, meta)
         for a in parts:
             try:
                 return convert(a, value, path, meta)

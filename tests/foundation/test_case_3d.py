@@ -135,3 +135,27 @@ def test_2d_and_3d_keys_refuse_each_other(capsys, case, sets, says):
     assert lines[0].startswith("pulseform: error: ") and "case.toml" in lines[0], lines[0]
     assert says in lines[0], lines[0]
     print(lines[0])
+
+
+@pytest.mark.parametrize("shape,exact,rel", [
+    ({"type": "box", "origin": [1.0, -2.0, 0.5], "size": [4.0, 1.0, 0.5]}, 2.0, 1e-12),
+    # quarter of a cylinder r = 0.5 m, length 1 m: pi r^2 L / 4 = 0.19635 m^3; the faceted arc with
+    # 0.05 m chords (angle 0.1 rad) loses (1 - sin(0.1) / 0.1) = 0.17 % of the area
+    ({"type": "cylinder", "axis": [0.0, 0.0, 1.0], "radius": 0.5, "angle": np.pi / 2}, np.pi * 0.25 / 4, 3e-3),
+], ids=["box", "quarter_cylinder"])
+def test_solid_shapes_mesh_their_volume(shape, exact, rel):
+    """gmsh's tetrahedra of a case shape fill its analytic volume (the cylinder up to its facets)
+    and lie inside its bounds."""
+    from pulseform.orchestrator.case.schema import convert
+    from pulseform.orchestrator.case.parts import Shape
+    from pulseform.orchestrator.mesh.solids import mesh_solid
+    from pulseform.solvers.dolfinx.tet_kernel import tet_volumes
+
+    s = convert(Shape, shape, "shape")
+    msh = mesh_solid(s, 0.05, name="solid")
+    x = msh.geometry.x
+    cells = msh.geometry.dofmap.array.reshape(-1, 4).astype(np.int32)
+    vol = np.abs(tet_volumes(cells, x)).sum()
+    print(f"\n{shape['type']}: {len(cells)} tets, volume {vol:.6f} m^3 vs {exact:.6f} ({vol / exact - 1:+.2e})")
+    assert vol == pytest.approx(exact, rel=rel)
+    assert vol <= exact * (1 + 1e-12)   # facets inside the curved surface, never outside
