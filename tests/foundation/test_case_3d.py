@@ -10,6 +10,7 @@ the 2D cases (tests/foundation/test_cases_bar.py) and the solver-level 3D test
 from __future__ import annotations
 
 import json
+import os
 import signal
 import subprocess
 import sys
@@ -72,6 +73,28 @@ def test_outputs_are_3d(run3d):
     pngs = {p.name for p in (out / "plots").glob("*.png")}
     assert {"energies.png", "wall_mid_wall_pressure_Pa.png", "deformed_von_mises.png"} <= pngs
     assert (out / "checkpoint.npz").is_file()
+
+
+@pytest.mark.mpi
+def test_two_ranks_match_serial(run3d, tmp_path):
+    """``mpirun -n 2 pulseform run`` gives the serial metrics (the runs differ by summation order
+    only; the 2D and solver-level bound 1e-10, tests/mechanics/test_3d_mpi.py)."""
+    import shutil
+
+    mpirun = shutil.which("mpirun")
+    if mpirun is None:
+        pytest.skip("mpirun not found")
+    out = tmp_path / "mpi"
+    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
+               OMPI_MCA_rmaps_base_oversubscribe="1")
+    r = subprocess.run([mpirun, "-n", "2", EXE, "run", CASE, "--out", str(out), "--quiet", "--set",
+                        "output.plots=false"], capture_output=True, text=True, env=env)
+    assert r.returncode == 0, r.stderr[-2000:]
+    got = json.loads((out / "metrics.json").read_text())
+    _, want = run3d
+    for k, v in want.items():
+        if isinstance(v, float) and (not k.endswith("_s") or k == "end_time_s"):
+            assert got[k] == pytest.approx(v, rel=1e-10, abs=1e-300), k
 
 
 def test_sigint_then_resume_equals_uninterrupted(tmp_path):
