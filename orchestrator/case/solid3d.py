@@ -3,7 +3,7 @@ tetrahedra, symmetry planes, and the checks that keep 2D-only keys out of 3D cas
 out of 2D cases.
 
 3D cases are mechanics-only for now (the explicit solver on tetrahedra, rigid walls, symmetry
-planes); the keys are chosen so that the coupled 3D cases can add to them: a body's ``shape`` is a
+planes, soft contact between bodies); the keys are chosen so that the coupled 3D cases can add to them: a body's ``shape`` is a
 ``box`` or a ``cylinder`` (a sector of one with ``angle``), vectors (velocities, wall points and
 normals, probe points) take three components, and ``[[symmetry]]`` planes cut a quarter or a sector.
 """
@@ -139,12 +139,6 @@ def _validate_3d(case) -> None:
     for i, p in enumerate(case.probes):
         if len(p.point) != 3:
             raise SchemaError(f"probes[{i}].point", f"got {len(p.point)} components; a 3D case needs [x, y, z] (m)")
-        if p.quantity == "contact_pressure":
-            raise SchemaError(f"probes[{i}].quantity", "got 'contact_pressure'; body-to-body contact is not yet "
-                              "wired into 3D cases: use 'wall_pressure', 'von_mises', 'velocity' or 'displacement'")
-    if case.contact:
-        raise SchemaError("contact", "body-to-body contact is not yet wired into 3D cases; use [[walls]] "
-                          "(a frictionless wall is the symmetry plane of a two-body impact)")
     names = [b.name for b in case.bodies]
     for i, s in enumerate(case.symmetry):
         for j, n in enumerate(s.bodies):

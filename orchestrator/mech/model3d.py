@@ -1,6 +1,7 @@
 """Translate a validated 3D case (``mechanics.formulation = "3d"``) into the explicit solver on
 tetrahedra, :class:`~pulseform.solvers.dolfinx.solver3d.ExplicitSolver3D`: bodies meshed by gmsh
-(:mod:`..mesh.solids`), symmetry planes as roller conditions, rigid walls."""
+(:mod:`..mesh.solids`), symmetry planes as roller conditions, rigid walls, soft contact between
+bodies (eq. (5), node to triangle face)."""
 
 from __future__ import annotations
 
@@ -40,7 +41,10 @@ def build_solver_3d(case: Case, comm: MPI.Comm = MPI.COMM_WORLD,
                                     initial_velocity=v0, fixed=fixed))
     walls = tuple(mech.RigidWallSpec(point=tuple(w.point), normal=tuple(w.normal),
                                      bodies=tuple(w.bodies) or None, sliding=w.sliding) for w in case.walls)
+    pairs = tuple(mech.ContactPairSpec(slave=c.slave, master=c.master, stiffness=c.stiffness, h0=c.h0,
+                                       friction=c.friction, viscosity=c.viscosity, two_pass=c.two_pass)
+                  for c in case.contact)
     mo = case.mechanics
-    return ExplicitSolver3D(bodies, rigid_walls=walls, cfl=case.time.cfl, bulk_viscosity=mo.bulk_viscosity,
+    return ExplicitSolver3D(bodies, rigid_walls=walls, contact_pairs=pairs, cfl=case.time.cfl, bulk_viscosity=mo.bulk_viscosity,
                             bulk_linear=mo.bulk_viscosity_linear, bulk_quadratic=mo.bulk_viscosity_quadratic,
                             comm=comm)

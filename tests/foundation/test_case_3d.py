@@ -53,6 +53,23 @@ def test_case_matches_the_paper(run3d):
     assert m["status_ok"] == 1.0
 
 
+def test_two_bodies_match_the_paper_and_the_wall(run3d, tmp_path):
+    """The paper's own set-up, two bars across the soft layer of eq. (5) (node to triangle face):
+    70 MPa +-3 %, 1.6 ms +-4 %, and the wall run's plateau within 2 % (the 2D cases' check,
+    tests/foundation/test_cases_bar.py)."""
+    out = tmp_path / "two"
+    r = subprocess.run([EXE, "run", str(REPO / "cases/bar_impact_3d/two_bodies.toml"), "--out", str(out),
+                        "--quiet", "--set", "output.plots=false"], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr[-2000:]
+    m = json.loads((out / "metrics.json").read_text())
+    print(f"\n3D two bars: plateau {m['contact_stress_plateau_MPa']:.2f} MPa, duration "
+          f"{m['contact_duration_ms']:.4f} ms, energy error {m['energy_error_rel']:.2e}")
+    assert m["contact_stress_plateau_MPa"] == pytest.approx(RHO_C_V_2_MPA, rel=0.03)
+    assert m["contact_duration_ms"] == pytest.approx(DURATION_MS, rel=0.04)
+    assert m["energy_error_rel"] < 0.01
+    assert run3d[1]["contact_stress_plateau_MPa"] == pytest.approx(m["contact_stress_plateau_MPa"], rel=0.02)
+
+
 def test_outputs_are_3d(run3d):
     """history.csv carries the z displacement, the field file holds tetrahedra with (x, y, z)
     displacements, and the pictures include the deformed 3D surface."""
