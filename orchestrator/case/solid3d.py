@@ -145,6 +145,26 @@ def _validate_3d(case) -> None:
             if n not in names:
                 raise SchemaError(f"symmetry[{i}].bodies[{j}]", f"got {n!r}; allowed: "
                                   + ", ".join(repr(x) for x in names))
+        _check_plane_touches(case, i, s)
+
+
+def _check_plane_touches(case, i: int, plane: SymmetryPlane) -> None:
+    """A symmetry plane must lie on a face of a box it acts on (a cylinder is taken on trust)."""
+    c = plane.component()
+    v = plane.point[c]
+    faces = []
+    for b in case.bodies:
+        if plane.bodies and b.name not in plane.bodies:
+            continue
+        if not isinstance(b.shape, SolidBox):
+            return
+        lo, hi = b.shape.origin[c], b.shape.origin[c] + b.shape.size[c]
+        tol = 1e-9 * max(abs(lo), abs(hi), 1.0)
+        if abs(v - lo) <= tol or abs(v - hi) <= tol:
+            return
+        faces.append(f"{b.name!r}: {lo:g}, {hi:g}")
+    raise SchemaError(f"symmetry[{i}].point", f"the plane {'xyz'[c]} = {v:g} m touches no body it acts on "
+                      f"(box faces along {'xyz'[c]}: {'; '.join(faces)} m): move it onto a face or set its bodies")
 
 
 def _validate_2d(case) -> None:
