@@ -1,0 +1,213 @@
+"""3D EM meshes (tetrahedra) for the 3D deck: a sector of ring coils and disks/rings about the z-axis.
+
+The geometry generator :func:`ring_sector_mesh` builds, with gmsh's OpenCASCADE kernel, the sector
+0 <= phi <= ``sector_deg`` of an axisymmetric arrangement: ring turns of rectangular cross-section
+(one stranded coil), massive rings or disks (conductors), an air sphere and optionally a spherical
+shell (transformation to infinity). The two meridian faces are symmetry planes of type n x a = 0
+(B tangential to a meridian plane when every current is azimuthal). Used by the 3D verification
+(static Biot-Savart, fixed disk vs the axisymmetric solver).
+
+Physical ids (as in 2D where they exist, :mod:`.mesh`):
+
+====================  ==================================================================
+1                     air
+2                     shell (transformation to infinity)
+100 + k               coil k, all its turns
+200 + k               massive conductor k
+12                    outer boundary (n x a = 0)
+14                    symmetry planes of type n x a = 0 (the meridian faces of a sector)
+15                    symmetry planes of type n x h = 0 (natural: nothing imposed)
+400 + k               skin of conductor k (the tree of the gauge starts there)
+====================  ==================================================================
+"""
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .mesh import AIR, OUTER, SHELL, Rect, coil_tag, conductor_tag, gmsh_session
+
+logger = logging.getLogger(__name__)
+
+SYM_A, SYM_H, SKIN_BASE = 14, 15, 400
+
+
+def skin_tag(k: int) -> int:
+    """Physical id of the skin (boundary surface) of massive conductor ``k`` (1-based)."""
+    return SKIN_BASE + k
+
+
+@dataclass
+class Mesh3D:
+    """A tetrahedral mesh as written to MSH 2.2 for GetDP.
+
+    ``points`` (n, 3) m; ``tets`` (m, 4) 0-based node rows; ``tet_ids`` the element ids in the
+    MSH file (GetDP reports them); ``tet_tags`` the physical id of each tetrahedron; ``path`` the
+    .msh file; ``sector_deg`` the modelled sector angle (degrees).
+    """
+
+    points: np.ndarray
+    tets: np.ndarray
+    tet_ids: np.ndarray
+    tet_tags: np.ndarray
+    path: Path
+    sector_deg: float
+
+    @property
+    def n_tets(self) -> int:
+        return int(self.tets.shape[0])
+
+    @property
+    def n_nodes(self) -> int:
+        return int(self.points.shape[0])
+
+    @property
+    def n_edges(self) -> int:
+        """Number of distinct edges (the unknowns of lowest-order edge elements, before constraints)."""
+        e = self.tets[:, [0, 0, 0, 1, 1, 2, 1, 2, 3, 2, 3, 3]].reshape(-1, 6, 2)
+        e = np.sort(e.reshape(-1, 2), axis=1)
+        return int(np.unique(e[:, 0] * self.n_nodes + e[:, 1]).size)
+
+    def volumes(self, rows: np.ndarray | None = None) -> np.ndarray:
+        """Volumes (m^3) of the tetrahedra ``rows`` (all by default)."""
+        t = self.tets if rows is None else self.tets[rows]
+        p = self.points[t]
+        return np.abs(np.einsum("ij,ij->i", np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), p[:, 3] - p[:, 0])) / 6
+
+    def centroids(self, rows: np.ndarray | None = None) -> np.ndarray:
+        """Centroids (m) of the tetrahedra ``rows`` (all by default)."""
+        t = self.tets if rows is None else self.tets[rows]
+        return self.points[t].mean(axis=1)
+
+    def rows_of_ids(self, ids: np.ndarray) -> np.ndarray:
+        """Rows of ``tets`` for MSH element ids."""
+        order = np.argsort(self.tet_ids)
+        pos = np.searchsorted(self.tet_ids, ids, sorter=order)
+        rows = order[np.clip(pos, 0, len(order) - 1)]
+        if not np.array_equal(self.tet_ids[rows], ids):
+            raise KeyError("element ids not in the mesh")
+        return rows
+
+
+def ring_sector_mesh(
+    path: str | Path,
+    coil_turns: list[Rect],
+    conductors: list[Rect],
+    *,
+    sector_deg: float = 90.0,
+    r_air: float = 0.1,
+    r_shell: float | None = 0.125,
+    h_coil: float = 2e-3,
+    h_conductor: float = 1e-3,
+    h_air: float = 0.02,
+    h_centre: float | None = None,
+    grading: float = 0.3,
+) -> Mesh3D:
+    """Tetrahedral mesh of a sector of ring turns (one coil) and conductor rings/disks about the z-axis.
+
+    Parameters
+    ----------
+    path : MSH 2.2 file to write.
+    coil_turns : the turns' cross-sections, ``Rect(r0, z0, r1, z1)`` (m) in the meridian plane.
+    conductors : massive conductors, ``Rect(r0, z0, r1, z1)`` (m); ``r0 = 0`` is a disk.
+    sector_deg : sector angle (degrees, 0 < angle <= 180); its two meridian faces are id 14.
+    r_air, r_shell : radius of the air sphere (m) and of the shell region 2 (m, or None).
+    h_coil, h_conductor, h_air : element sizes (m) in the turns, the conductors, at the sphere.
+    h_centre : element size at the origin (m), growing by ``grading`` per metre of distance (the
+        region where the centre field is probed); None: no local refinement.
+    """
+    if not 0 < sector_deg <= 180:
+        raise ValueError("sector_deg must be in (0, 180]")
+    alpha = math.radians(sector_deg)
+    path = Path(path).resolve()
+    with gmsh_session("pulseform_em3d") as gmsh:
+        occ = gmsh.model.occ
+
+        def ring(rc: Rect) -> int:
+            outer = occ.addCylinder(0, 0, rc.y0, 0, 0, rc.y1 - rc.y0, rc.x1, angle=alpha)
+            if rc.x0 <= 0:
+                return outer
+            inner = occ.addCylinder(0, 0, rc.y0, 0, 0, rc.y1 - rc.y0, rc.x0, angle=alpha)
+            return occ.cut([(3, outer)], [(3, inner)])[0][0][1]
+
+        turn_vols = [ring(t) for t in coil_turns]
+        cond_vols = [ring(c) for c in conductors]
+        sphere = occ.addSphere(0, 0, 0, r_air, angle3=alpha)
+        tools = [(3, v) for v in turn_vols + cond_vols]
+        objects = [(3, sphere)]
+        if r_shell:
+            objects.append((3, occ.addSphere(0, 0, 0, r_shell, angle3=alpha)))
+        out, out_map = occ.fragment(objects, tools)
+        occ.synchronize()
+        model = gmsh.model
+        n_obj = len(objects)
+        # out_map follows the input order: objects, then tools
+        shell_parts = set()
+        if r_shell:
+            shell_parts = {t for d, t in out_map[1]} - {t for d, t in out_map[0]}
+        turn_parts = [t for m in out_map[n_obj:n_obj + len(turn_vols)] for d, t in m]
+        cond_parts = [[t for d, t in m] for m in out_map[n_obj + len(turn_vols):]]
+        used = set(turn_parts) | {t for c in cond_parts for t in c} | shell_parts
+        air_parts = [t for d, t in out if d == 3 and t not in used]
+        model.addPhysicalGroup(3, air_parts, AIR)
+        if shell_parts:
+            model.addPhysicalGroup(3, sorted(shell_parts), SHELL)
+        model.addPhysicalGroup(3, turn_parts, coil_tag(1))
+        for k, parts in enumerate(cond_parts, start=1):
+            model.addPhysicalGroup(3, parts, conductor_tag(k))
+            skin = model.getBoundary([(3, t) for t in parts], combined=True, oriented=False)
+            model.addPhysicalGroup(2, [abs(t) for d, t in skin], skin_tag(k))
+        # boundary faces of the whole domain: meridian planes and the outer sphere
+        sym, outer = [], []
+        r_out = r_shell or r_air
+        n0 = np.array([0.0, 1.0, 0.0])                        # normal of the plane phi = 0
+        n1 = np.array([-math.sin(alpha), math.cos(alpha), 0.0])  # normal of the plane phi = alpha
+        for d, t in model.getBoundary([(3, v) for v in {t for d, t in out if d == 3}], combined=True,
+                                      oriented=False):
+            c = np.array(occ.getCenterOfMass(2, abs(t)))
+            lo, hi = model.getParametrizationBounds(2, abs(t))
+            nrm = np.array(model.getNormal(abs(t), [0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1])]))
+            on_plane = any(abs(c @ n) < 1e-6 * r_out and abs(nrm @ n) > 1 - 1e-9 for n in (n0, n1))
+            (sym if on_plane else outer).append(abs(t))
+        model.addPhysicalGroup(2, sym, SYM_A)
+        model.addPhysicalGroup(2, outer, OUTER)
+        # sizes: points of each part, then the refinement at the centre (the minimum wins)
+        gmsh.option.setNumber("Mesh.MeshSizeExtendFromBoundary", 1)
+        gmsh.option.setNumber("Mesh.MeshSizeMax", h_air)
+        for tags, h in ((air_parts + sorted(shell_parts), h_air), (turn_parts, h_coil),
+                        ([t for c in cond_parts for t in c], h_conductor)):
+            pts = model.getBoundary([(3, t) for t in tags], combined=False, oriented=False, recursive=True)
+            model.mesh.setSize([p for p in pts if p[0] == 0], h)
+        if h_centre is not None:
+            fid = model.mesh.field.add("MathEval")
+            model.mesh.field.setString(fid, "F", f"{h_centre} + {grading} * Sqrt(x*x + y*y + z*z)")
+            model.mesh.field.setAsBackgroundMesh(fid)
+        gmsh.option.setNumber("Mesh.Algorithm3D", 1)
+        gmsh.option.setNumber("Mesh.Optimize", 1)
+        model.mesh.generate(3)
+        gmsh.option.setNumber("Mesh.MshFileVersion", 2.2)
+        gmsh.option.setNumber("Mesh.Binary", 0)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        gmsh.write(str(path))
+        node_tags, coords, _ = model.mesh.getNodes()
+        points = coords.reshape(-1, 3)
+        index = np.zeros(int(node_tags.max()) + 1, dtype=np.int64)
+        index[node_tags.astype(np.int64)] = np.arange(len(node_tags))
+        ids, tets, tags = [], [], []
+        for dim, phys in model.getPhysicalGroups(3):
+            for ent in model.getEntitiesForPhysicalGroup(dim, phys):
+                etypes, etags, enodes = model.mesh.getElements(3, ent)
+                for et, eg, en in zip(etypes, etags, enodes):
+                    if et != 4:
+                        raise RuntimeError(f"unexpected 3D element type {et}")
+                    ids.append(eg.astype(np.int64))
+                    tets.append(index[en.astype(np.int64)].reshape(-1, 4))
+                    tags.append(np.full(len(eg), phys, dtype=np.int64))
+    mesh = Mesh3D(points=points, tets=np.concatenate(tets), tet_ids=np.concatenate(ids),
+                  tet_tags=np.concatenate(tags), path=path, sector_deg=float(sector_deg))
+    logger.info("3D mesh %s: %d tetrahedra, %d nodes", path.name, mesh.n_tets, mesh.n_nodes)
+    return mesh
