@@ -106,6 +106,8 @@ def ring_sector_mesh(
     h_air: float = 0.02,
     h_centre: float | None = None,
     grading: float = 0.3,
+    conductor_layers: int | None = None,
+    fine_box: tuple[tuple[float, float, float, float, float, float], float] | None = None,
 ) -> Mesh3D:
     """Tetrahedral mesh of a sector of ring turns (one coil) and conductor rings/disks about the z-axis.
 
@@ -134,8 +136,24 @@ def ring_sector_mesh(
             inner = occ.addCylinder(0, 0, rc.y0, 0, 0, rc.y1 - rc.y0, rc.x0, angle=alpha)
             return occ.cut([(3, outer)], [(3, inner)])[0][0][1]
 
+        def layered(rc: Rect) -> int:
+            """The sector of the ring/disk rc as its face at z = y0 extruded in conductor_layers layers."""
+            z = rc.y0
+            arc = lambda r: (occ.addPoint(r, 0, z), occ.addPoint(r * math.cos(alpha), r * math.sin(alpha), z))
+            centre = occ.addPoint(0, 0, z)
+            a1, b1 = arc(rc.x1)
+            if rc.x0 <= 0:
+                curves = [occ.addLine(centre, a1), occ.addCircleArc(a1, centre, b1), occ.addLine(b1, centre)]
+            else:
+                a0, b0 = arc(rc.x0)
+                curves = [occ.addLine(a0, a1), occ.addCircleArc(a1, centre, b1), occ.addLine(b1, b0),
+                          occ.addCircleArc(b0, centre, a0)]
+            face = occ.addPlaneSurface([occ.addCurveLoop(curves)])
+            ext = occ.extrude([(2, face)], 0, 0, rc.y1 - rc.y0, numElements=[conductor_layers], recombine=False)
+            return [t for d, t in ext if d == 3][0]
+
         turn_vols = [ring(t) for t in coil_turns]
-        cond_vols = [ring(c) for c in conductors]
+        cond_vols = [layered(c) if conductor_layers else ring(c) for c in conductors]
         sphere = occ.addSphere(0, 0, 0, r_air, angle3=alpha)
         tools = [(3, v) for v in turn_vols + cond_vols]
         objects = [(3, sphere)]
@@ -182,10 +200,19 @@ def ring_sector_mesh(
                         ([t for c in cond_parts for t in c], h_conductor)):
             pts = model.getBoundary([(3, t) for t in tags], combined=False, oriented=False, recursive=True)
             model.mesh.setSize([p for p in pts if p[0] == 0], h)
+        fields = []
         if h_centre is not None:
-            fid = model.mesh.field.add("MathEval")
-            model.mesh.field.setString(fid, "F", f"{h_centre} + {grading} * Sqrt(x*x + y*y + z*z)")
-            model.mesh.field.setAsBackgroundMesh(fid)
+            fields.append(model.mesh.field.add("MathEval"))
+            model.mesh.field.setString(fields[-1], "F", f"{h_centre} + {grading} * Sqrt(x*x + y*y + z*z)")
+        if fine_box is not None:
+            (x0, x1, y0, y1, z0, z1), hb = fine_box
+            fields.append(model.mesh.field.add("MathEval"))   # h_b + grading * (distance to the box)
+            d = [f"Max(Max({lo} - {v}, {v} - {hi}), 0)" for v, lo, hi in (("x", x0, x1), ("y", y0, y1), ("z", z0, z1))]
+            model.mesh.field.setString(fields[-1], "F", f"{hb} + {grading} * Sqrt(({d[0]})^2 + ({d[1]})^2 + ({d[2]})^2)")
+        if fields:
+            fmin = model.mesh.field.add("Min")
+            model.mesh.field.setNumbers(fmin, "FieldsList", fields)
+            model.mesh.field.setAsBackgroundMesh(fmin)
         gmsh.option.setNumber("Mesh.Algorithm3D", 1)
         gmsh.option.setNumber("Mesh.Optimize", 1)
         model.mesh.generate(3)
