@@ -97,7 +97,7 @@ class EM3DModel:
 class EM3DResult:
     """Histories of one 3D transient run (modelled part unless stated; SI units).
 
-    ``times`` (n,) s; ``coil_current``, ``coil_voltage`` (n, n_coils) A, V (the whole coil);
+    ``times`` (n,) s; ``coil_current``, ``coil_voltage`` (n, n_coils) A, V (the whole coil; the drop along the current);
     ``coil_power`` (n, n_coils) W; ``coil_force``, ``conductor_force`` (n, n_*, 3) N;
     ``conductor_power`` (n, n_cond) W; ``magnetic_energy`` (n,) J; ``capacitor_voltage``,
     ``circuit_current`` (n,) or None; ``probe_b`` (n, n_probes, 3) T; ``elements`` rows of
@@ -263,7 +263,8 @@ def read_results3d(model: EM3DModel, mesh: Mesh3D, out_dir: Path, n_steps: int, 
         times=times,
         magnetic_energy=glob("W.txt", 1)[:, 0],
         coil_current=np.stack([glob(f"coil_I_{k}.txt", 1)[:, 0] for k in range(1, nc + 1)], 1) if nc else np.zeros((n_steps, 0)),
-        coil_voltage=np.stack([glob(f"coil_U_{k}.txt", 1)[:, 0] for k in range(1, nc + 1)], 1) if nc else np.zeros((n_steps, 0)),
+        # GetDP's Us is the generator-convention voltage: the drop along the current is -Us (as in 2D)
+        coil_voltage=-np.stack([glob(f"coil_U_{k}.txt", 1)[:, 0] for k in range(1, nc + 1)], 1) if nc else np.zeros((n_steps, 0)),
         coil_power=np.stack([glob(f"coil_P_{k}.txt", 1)[:, 0] for k in range(1, nc + 1)], 1) if nc else np.zeros((n_steps, 0)),
         coil_force=np.stack([glob(f"coil_F_{k}.txt", 3) for k in range(1, nc + 1)], 1) if nc else np.zeros((n_steps, 0, 3)),
         conductor_force=np.stack([glob(f"cond_F_{k}.txt", 3) for k in range(1, nk + 1)], 1) if nk else np.zeros((n_steps, 0, 3)),
