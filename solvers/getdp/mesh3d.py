@@ -18,6 +18,8 @@ Physical ids (as in 2D where they exist, :mod:`.mesh`):
 14                    symmetry planes of type n x a = 0 (the meridian faces of a sector)
 15                    symmetry planes of type n x h = 0 (natural: nothing imposed)
 400 + k               skin of conductor k (the tree of the gauge starts there)
+500 + k, 600 + k      faces of coil k on the planes phi = 0 and phi = angle: the electrodes
+                      (current in, out) of the electrokinetic pre-solve of its direction
 ====================  ==================================================================
 """
 from __future__ import annotations
@@ -33,7 +35,7 @@ from .mesh import AIR, OUTER, SHELL, Rect, coil_tag, conductor_tag, gmsh_session
 
 logger = logging.getLogger(__name__)
 
-SYM_A, SYM_H, SKIN_BASE = 14, 15, 400
+SYM_A, SYM_H, SKIN_BASE, ELEC_IN_BASE, ELEC_OUT_BASE = 14, 15, 400, 500, 600
 
 
 def skin_tag(k: int) -> int:
@@ -56,6 +58,7 @@ class Mesh3D:
     tet_tags: np.ndarray
     path: Path
     sector_deg: float
+    electrode_area: dict[int, float] | None = None  # coil k -> area (m^2) of its faces on phi = 0
 
     @property
     def n_tets(self) -> int:
@@ -91,6 +94,27 @@ class Mesh3D:
         if not np.array_equal(self.tet_ids[rows], ids):
             raise KeyError("element ids not in the mesh")
         return rows
+
+
+def read_msh22_tets(path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(points (n, 3) m, tets (m, 4) 0-based, element ids, physical ids) of the tetrahedra of an ASCII
+    MSH 2.2 file. Read from the file, not from gmsh's API: gmsh renumbers the elements it writes
+    once per physical group (a face in two groups is written twice), and GetDP reports the file's ids."""
+    text = Path(path).read_text()
+    nodes = text.split("$Nodes\n", 1)[1].split("$EndNodes", 1)[0].split("\n", 1)[1]
+    nd = np.array(nodes.split(), dtype=float).reshape(-1, 4)
+    index = np.zeros(int(nd[:, 0].max()) + 1, dtype=np.int64)
+    index[nd[:, 0].astype(np.int64)] = np.arange(len(nd))
+    body = text.split("$Elements\n", 1)[1].split("$EndElements", 1)[0].split("\n", 1)[1]
+    rows = [r.split() for r in body.splitlines() if r]
+    tet = np.array([[int(v) for v in r] for r in rows if r[1] == "4"], dtype=np.int64)
+    if tet.size == 0:
+        raise ValueError(f"{path}: no tetrahedra")
+    ntag = tet[:, 2]
+    if np.any(ntag != ntag[0]):
+        raise ValueError(f"{path}: tetrahedra with different numbers of tags")
+    conn = tet[:, 3 + ntag[0]: 7 + ntag[0]]
+    return nd[:, 1:], index[conn], tet[:, 0], tet[:, 3]
 
 
 def ring_sector_mesh(
@@ -193,6 +217,17 @@ def ring_sector_mesh(
             (sym if on_plane else outer).append(abs(t))
         model.addPhysicalGroup(2, sym, SYM_A)
         model.addPhysicalGroup(2, outer, OUTER)
+        # the coil's faces on the two planes: electrodes of the electrokinetic pre-solve
+        faces_in, faces_out = [], []
+        for d, t in model.getBoundary([(3, v) for v in turn_parts], combined=False, oriented=False):
+            c = np.array(occ.getCenterOfMass(2, abs(t)))
+            if abs(c @ n0) < 1e-6 * r_out and abs(c @ n1) > 1e-6 * r_out:
+                faces_in.append(abs(t))
+            elif abs(c @ n1) < 1e-6 * r_out:
+                faces_out.append(abs(t))
+        model.addPhysicalGroup(2, sorted(set(faces_in)), ELEC_IN_BASE + 1)
+        model.addPhysicalGroup(2, sorted(set(faces_out)), ELEC_OUT_BASE + 1)
+        electrode_area = {1: float(sum(occ.getMass(2, t) for t in set(faces_in)))}
         # sizes: points of each part, then the refinement at the centre (the minimum wins)
         gmsh.option.setNumber("Mesh.MeshSizeExtendFromBoundary", 1)
         gmsh.option.setNumber("Mesh.MeshSizeMax", h_air)
@@ -220,21 +255,8 @@ def ring_sector_mesh(
         gmsh.option.setNumber("Mesh.Binary", 0)
         path.parent.mkdir(parents=True, exist_ok=True)
         gmsh.write(str(path))
-        node_tags, coords, _ = model.mesh.getNodes()
-        points = coords.reshape(-1, 3)
-        index = np.zeros(int(node_tags.max()) + 1, dtype=np.int64)
-        index[node_tags.astype(np.int64)] = np.arange(len(node_tags))
-        ids, tets, tags = [], [], []
-        for dim, phys in model.getPhysicalGroups(3):
-            for ent in model.getEntitiesForPhysicalGroup(dim, phys):
-                etypes, etags, enodes = model.mesh.getElements(3, ent)
-                for et, eg, en in zip(etypes, etags, enodes):
-                    if et != 4:
-                        raise RuntimeError(f"unexpected 3D element type {et}")
-                    ids.append(eg.astype(np.int64))
-                    tets.append(index[en.astype(np.int64)].reshape(-1, 4))
-                    tags.append(np.full(len(eg), phys, dtype=np.int64))
-    mesh = Mesh3D(points=points, tets=np.concatenate(tets), tet_ids=np.concatenate(ids),
-                  tet_tags=np.concatenate(tags), path=path, sector_deg=float(sector_deg))
+    points, tets, ids, tags = read_msh22_tets(path)
+    mesh = Mesh3D(points=points, tets=tets, tet_ids=ids, tet_tags=tags, path=path, sector_deg=float(sector_deg),
+                  electrode_area=electrode_area)
     logger.info("3D mesh %s: %d tetrahedra, %d nodes", path.name, mesh.n_tets, mesh.n_nodes)
     return mesh

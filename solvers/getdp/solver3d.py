@@ -36,15 +36,21 @@ RESOLUTION3D = "EM_Transient3D"
 DEFAULT_PETSC_ARGS_3D = ("-ksp_type", "preonly", "-pc_type", "lu", "-pc_factor_mat_solver_type", "mumps")
 
 
+#: ``Coil3D.direction`` -> the deck's ``Coil_DirType``
+DIRECTIONS = {"azimuthal": 0, "deck": 1, "electrokinetic": 2}
+
+
 @dataclass
 class Coil3D:
     """A stranded coil (physical region 100+k): ``turns`` in series, uniform current density.
 
     ``direction``: ``"azimuthal"`` (about the z-parallel axis through ``axis`` = (x, y), m: ring or
-    circular coils; a positive current flows along +e_phi) or ``"deck"`` (the case deck defines
-    ``CoilDir[Coil~{k}]``). ``section``: conductor cross-section of all turns (m^2); None: from the
-    mesh, sum over the coil's tetrahedra of V / (r alpha) (the ring's meridian section, alpha the
-    sector angle; azimuthal coils only). ``waveform`` without a circuit (A); ``sign`` +1 or -1.
+    circular coils; a positive current flows along +e_phi), ``"electrokinetic"`` (-grad v / |grad v|
+    of a pre-solve in the coil, v = 1 on its electrode 500+k, 0 on 600+k: the current enters at 500+k)
+    or ``"deck"`` (the case deck defines ``CoilDir[Coil~{k}]``). ``section``: conductor cross-section
+    of all turns (m^2); None: from the mesh -- azimuthal: sum over the coil's tetrahedra of
+    V / (r alpha) (the ring's meridian section, alpha the sector angle); electrokinetic: the area of
+    the electrode where the current enters (``Mesh3D.electrode_area``). ``waveform`` without a circuit (A); ``sign`` +1 or -1.
     """
 
     turns: int
@@ -58,8 +64,8 @@ class Coil3D:
     def __post_init__(self) -> None:
         if self.sign not in (1, -1):
             raise ValueError(f"a coil's sign is +1 or -1, got {self.sign!r}")
-        if self.direction not in ("azimuthal", "deck"):
-            raise ValueError(f"coil direction is 'azimuthal' or 'deck', got {self.direction!r}")
+        if self.direction not in DIRECTIONS:
+            raise ValueError(f"coil direction is one of {sorted(DIRECTIONS)}, got {self.direction!r}")
         if self.direction == "deck" and self.section is None:
             raise ValueError("a coil whose direction comes from the deck needs its section (m^2)")
 
@@ -159,9 +165,15 @@ def model_numbers(model: EM3DModel, mesh: Mesh3D) -> tuple[dict[str, float], lis
                   Val_Cy=model.shell_centre[1], Val_Cz=model.shell_centre[2])
     lines = []
     for k, c in enumerate(model.coils, start=1):
-        section = c.section if c.section is not None else coil_section_from_mesh(mesh, k, c.axis)
+        section = c.section
+        if section is None and c.direction == "electrokinetic":
+            if not mesh.electrode_area or not mesh.electrode_area.get(k):
+                raise ValueError(f"coil {k}: electrokinetic direction but the mesh has no electrode {k}")
+            section = mesh.electrode_area[k]
+        elif section is None:
+            section = coil_section_from_mesh(mesh, k, c.axis)
         nb.update({f"Coil_Ns_{k}": c.turns, f"Coil_Sc_{k}": section, f"Coil_sigma_{k}": c.sigma,
-                   f"Coil_Sign_{k}": c.sign, f"Coil_DirType_{k}": 0 if c.direction == "azimuthal" else 1,
+                   f"Coil_Sign_{k}": c.sign, f"Coil_DirType_{k}": DIRECTIONS[c.direction],
                    f"Coil_Cx_{k}": c.axis[0], f"Coil_Cy_{k}": c.axis[1]})
         if isinstance(c.waveform, DampedSine):
             w = c.waveform
@@ -188,12 +200,14 @@ _DOFS = re.compile(r"System \d+/\d+: (\d+) Dofs")
 
 
 def _timers(log_text: str) -> tuple[int, float, float]:
-    """(dofs, wall after pre-processing, wall at the end of the time loop) from a ``-v 5`` log."""
+    """(dofs of the magnetic system, the last one listed; wall after pre-processing; wall at the end of
+    the time loop) from a ``-v 5`` log."""
     walls = [float(m.group(1)) for m in _WALL.finditer(log_text)]
-    dofs = _DOFS.search(log_text)
+    found = _DOFS.findall(log_text)
+    dofs = int(found[-1]) if found else 0
     if len(walls) < 2:
-        return (int(dofs.group(1)) if dofs else 0), math.nan, math.nan
-    return (int(dofs.group(1)) if dofs else 0), walls[0], walls[-1]
+        return dofs, math.nan, math.nan
+    return dofs, walls[0], walls[-1]
 
 
 def ball_average(mesh: Mesh3D, values: np.ndarray, centre: Sequence[float], radius: float) -> tuple[np.ndarray, int]:
