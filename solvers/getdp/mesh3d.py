@@ -132,6 +132,7 @@ def ring_sector_mesh(
     grading: float = 0.3,
     conductor_layers: int | None = None,
     fine_box: tuple[tuple[float, float, float, float, float, float], float] | None = None,
+    z_cut: float | None = None,
 ) -> Mesh3D:
     """Tetrahedral mesh of a sector of ring turns (one coil) and conductor rings/disks about the z-axis.
 
@@ -179,10 +180,25 @@ def ring_sector_mesh(
         turn_vols = [ring(t) for t in coil_turns]
         cond_vols = [layered(c) if conductor_layers else ring(c) for c in conductors]
         sphere = occ.addSphere(0, 0, 0, r_air, angle3=alpha)
-        tools = [(3, v) for v in turn_vols + cond_vols]
         objects = [(3, sphere)]
         if r_shell:
             objects.append((3, occ.addSphere(0, 0, 0, r_shell, angle3=alpha)))
+        if z_cut is not None:   # keep z >= z_cut: cut what reaches below, one volume at a time
+            big = 4 * (r_shell or r_air)
+            box = occ.addBox(-big, -big, -big, 2 * big, 2 * big, z_cut + big)
+
+            def above(v: int) -> int | None:
+                occ.synchronize()
+                if gmsh.model.getBoundingBox(3, v)[2] >= z_cut:
+                    return v
+                kept = [t for d, t in occ.cut([(3, v)], [(3, box)], removeTool=False)[0] if d == 3]
+                return kept[0] if kept else None
+
+            turn_vols = [t for t in map(above, turn_vols) if t is not None]
+            cond_vols = [t for t in map(above, cond_vols) if t is not None]
+            objects = [(3, above(t)) for d, t in objects]
+            occ.remove([(3, box)], recursive=True)
+        tools = [(3, v) for v in turn_vols + cond_vols]
         out, out_map = occ.fragment(objects, tools)
         occ.synchronize()
         model = gmsh.model
@@ -204,7 +220,7 @@ def ring_sector_mesh(
             skin = model.getBoundary([(3, t) for t in parts], combined=True, oriented=False)
             model.addPhysicalGroup(2, [abs(t) for d, t in skin], skin_tag(k))
         # boundary faces of the whole domain: meridian planes and the outer sphere
-        sym, outer = [], []
+        sym, sym_h, outer = [], [], []
         r_out = r_shell or r_air
         n0 = np.array([0.0, 1.0, 0.0])                        # normal of the plane phi = 0
         n1 = np.array([-math.sin(alpha), math.cos(alpha), 0.0])  # normal of the plane phi = alpha
@@ -214,8 +230,13 @@ def ring_sector_mesh(
             lo, hi = model.getParametrizationBounds(2, abs(t))
             nrm = np.array(model.getNormal(abs(t), [0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1])]))
             on_plane = any(abs(c @ n) < 1e-6 * r_out and abs(nrm @ n) > 1 - 1e-9 for n in (n0, n1))
-            (sym if on_plane else outer).append(abs(t))
+            if z_cut is not None and abs(c[2] - z_cut) < 1e-6 * r_out and abs(nrm[2]) > 1 - 1e-9:
+                sym_h.append(abs(t))
+            else:
+                (sym if on_plane else outer).append(abs(t))
         model.addPhysicalGroup(2, sym, SYM_A)
+        if sym_h:
+            model.addPhysicalGroup(2, sym_h, SYM_H)
         model.addPhysicalGroup(2, outer, OUTER)
         # the coil's faces on the two planes: electrodes of the electrokinetic pre-solve
         faces_in, faces_out = [], []

@@ -17,7 +17,8 @@ at the centre: the average measures the centre field, not a smoothed one.
 
 Observed (this mesh generator, azimuthal direction): -0.47 % (4.1k tetrahedra), -0.79 % (6.3k),
 -0.54 % (9.6k), -0.43 % (25.9k; 2D axisymmetric on the same shell: -0.09 %); electrokinetic
-direction on the 9.6k mesh: -0.51 %. The issue's bar is 1 %.
+direction on the 9.6k mesh: -0.51 %; the upper half (n x h = 0 on the mid-plane), 6.7k: -0.48 %.
+The issue's bar is 1 %. (The half ball of the half model has the same mean: B_z is even in z - z_c.)
 """
 import numpy as np
 import pytest
@@ -40,27 +41,32 @@ def demo_coil_turns() -> list:
 
 @pytest.mark.getdp
 @needs_getdp
-@pytest.mark.parametrize("direction", ["azimuthal", "electrokinetic"])
-def test_centre_field_vs_biot_savart_3d_sector(work, direction):
+@pytest.mark.parametrize("direction, half", [("azimuthal", False), ("electrokinetic", False), ("azimuthal", True)])
+def test_centre_field_vs_biot_savart_3d_sector(work, direction, half):
     """The coil's current direction from the geometry (e_phi) or from the electrokinetic pre-solve
-    (-grad v / |grad v|, v = 1 / 0 on the turns' faces on the two symmetry planes)."""
+    (-grad v / |grad v|, v = 1 / 0 on the turns' faces on the two symmetry planes); ``half``: only
+    z >= z_c is meshed, the coil's mid-plane z = z_c being a symmetry plane of type n x h = 0 (B normal
+    to it: nothing imposed), so the model is 1/24 of the coil."""
     turns = demo_coil_turns()
     mesh = ring_sector_mesh(work / "coil3d.msh", turns, [], sector_deg=30.0, r_air=0.1, r_shell=0.125,
-                            h_coil=1.5e-3, h_air=0.015, h_centre=0.7e-3)
+                            h_coil=1.5e-3, h_air=0.015, h_centre=0.7e-3, z_cut=Z_CENTRE if half else None)
+    part = 0.5 if half else 1.0
     # mesh section of the rings (sum V / (r alpha)) vs the exact rectangles: the faceted rings
-    assert coil_section_from_mesh(mesh, 1) == pytest.approx(5 * 12e-6, rel=2e-3)
-    assert mesh.electrode_area[1] == pytest.approx(5 * 12e-6, rel=1e-12)   # the turns' plane faces
-    model = EM3DModel(coils=[Coil3D(5, waveform=DampedSine(I_TURN, 0.0, 0.0, np.pi / 2), direction=direction)],
-                      shell=(0.1, 0.125), sector_deg=30.0)
+    assert coil_section_from_mesh(mesh, 1) == pytest.approx(part * 5 * 12e-6, rel=2e-3)
+    assert mesh.electrode_area[1] == pytest.approx(part * 5 * 12e-6, rel=1e-12)   # the turns' plane faces
+    coil = Coil3D(5, waveform=DampedSine(I_TURN, 0.0, 0.0, np.pi / 2), direction=direction,
+                  section=5 * 12e-6 if half else None)   # a cut coil keeps its whole section
+    model = EM3DModel(coils=[coil], shell=(0.1, 0.125), sector_deg=30.0, symmetry_factor=12 / part)
     res = solve_transient3d(model, mesh, 1e-6, 1, work / "run", field_output=True)
     assert np.allclose(res.coil_current[-1, 0], I_TURN, rtol=1e-12)
     b, n = ball_average(mesh, res.b_cells, (0.0, 0.0, Z_CENTRE), 4e-3)
     ref = biot_savart(turns, I_TURN, 1e-6, Z_CENTRE)[1]
     err = b[2] / ref - 1
-    print(f"\n{direction}: 3D sector 30 deg, {mesh.n_tets} tets, {res.n_dofs} dofs: B_z centre {b[2]:.6f} T "
+    print(f"\n{direction}{' half (n x h = 0)' if half else ''}: 3D sector 30 deg, {mesh.n_tets} tets, {res.n_dofs} dofs: B_z centre {b[2]:.6f} T "
           f"(mean of {n} tets), Biot-Savart {ref:.6f} T, rel. error {err:+.3%}; "
           f"{res.wall_per_step:.2f} s per step")
     assert abs(err) < 0.01
     # B_r is odd in z - z_c about the coil's mid-plane (B_r ~ -(r/2)(z - z_c) d2B_z/dz2 near the centre),
-    # so its mean over the ball vanishes: what is left is discretisation noise
-    assert abs(b[0]) < 0.02 * ref and abs(b[1]) < 0.02 * ref
+    # so its mean over the (whole) ball vanishes: what is left is discretisation noise
+    if not half:
+        assert abs(b[0]) < 0.02 * ref and abs(b[1]) < 0.02 * ref
