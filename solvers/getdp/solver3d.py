@@ -110,7 +110,8 @@ class EM3DResult:
     ``mesh.tets`` in the conductors; ``force_density`` (n_out, n_el, 3) N/m^3 and ``joule_density``
     (n_out, n_el) W/m^3 as element averages (element integral / volume); ``flux_density``
     (n_out, n_el, 3) T at the centroids; ``b_cells`` (n_tets, 3) T, B of every tetrahedron (rows of
-    ``mesh.tets``) after the last step (``field_output=True``); ``n_dofs``; ``wall_pre``, ``wall_loop`` s (getdp's own
+    ``mesh.tets``) after the last step (``field_output=True``); ``res_path`` getdp's solution file
+    (``restart_res`` of a following run); ``n_dofs``; ``wall_pre``, ``wall_loop`` s (getdp's own
     timers: pre-processing, the time loop) and ``wall_per_step`` s.
     """
 
@@ -131,6 +132,7 @@ class EM3DResult:
     joule_density: np.ndarray | None = None
     flux_density: np.ndarray | None = None
     b_cells: np.ndarray | None = None
+    res_path: Path | None = None
     n_dofs: int = 0
     wall_pre: float = math.nan
     wall_loop: float = math.nan
@@ -223,9 +225,17 @@ def ball_average(mesh: Mesh3D, values: np.ndarray, centre: Sequence[float], radi
 
 
 def solve_transient3d(model: EM3DModel, mesh: Mesh3D, t_end: float, n_steps: int, work_dir: str | Path, *,
-                      t0: float = 0.0, element_output: str = "all", field_output: bool = False, executable: str = "getdp",
+                      t0: float = 0.0, element_output: str = "all", field_output: bool = False,
+                      restart_res: str | Path | None = None, circuit_state: tuple[float, float] | None = None,
+                      executable: str = "getdp",
                       petsc_args: Sequence[str] = DEFAULT_PETSC_ARGS_3D, timeout: float | None = None) -> EM3DResult:
-    """Run the 3D deck from ``t0`` to ``t_end`` (s) in ``n_steps`` implicit Euler steps, fields zero at t0.
+    """Run the 3D deck from ``t0`` to ``t_end`` (s) in ``n_steps`` implicit Euler steps.
+
+    The fields start from zero at ``t0``, or with ``restart_res`` (the ``res_path`` of a previous run
+    that ended at ``t0`` on a mesh of the same connectivity, nodes possibly moved) from its last state:
+    ``getdp -restart -res``. ``circuit_state`` = (capacitor voltage V, current A) at ``t0`` (default:
+    ``Circuit.V0`` and no current), e.g. the previous result's last ``capacitor_voltage`` and
+    ``circuit_current``.
 
     ``element_output``: ``"all"`` (per-tetrahedron tables every step), ``"last"`` or ``"none"``;
     ``field_output``: also B on every tetrahedron after the last step (``b_cells``).
@@ -243,10 +253,17 @@ def solve_transient3d(model: EM3DModel, mesh: Mesh3D, t_end: float, n_steps: int
     numbers, lines = model_numbers(model, mesh)
     numbers.update(TimeInit=float(t0), TimeFinal=float(t_end), NbSteps=int(n_steps), Flag_ElemOut=flag_elem,
                    Flag_FieldOut=int(field_output))
+    restart: list[str] = []
+    if restart_res is not None:
+        restart = ["-restart", "-res", str(Path(restart_res).resolve())]
+    if circuit_state is not None:
+        if model.circuit is None:
+            raise ValueError("circuit_state given but the model has no circuit")
+        numbers.update(Init_Vc=float(circuit_state[0]), Init_I=float(circuit_state[1]))
     wrapper = run_dir / "run3d.pro"
     wrapper.write_text("\n".join(lines + [f'Include "{DECK3D}";', ""]))
     info = run_getdp(wrapper, mesh.path, run_dir, resolution=RESOLUTION3D, numbers=numbers,
-                     strings={"OutDir": str(out_dir) + "/"}, extra_args=list(petsc_args),
+                     strings={"OutDir": str(out_dir) + "/"}, extra_args=restart + list(petsc_args),
                      executable=executable, timeout=timeout, verbosity=5)
     res = read_results3d(model, mesh, out_dir, int(n_steps), flag_elem)
     if field_output:
@@ -254,6 +271,7 @@ def solve_transient3d(model: EM3DModel, mesh: Mesh3D, t_end: float, n_steps: int
         res.b_cells = np.full((mesh.n_tets, 3), np.nan)
         res.b_cells[mesh.rows_of_ids(ids)] = b[0]
     res.run = info
+    res.res_path = run_dir / "em.res"
     res.n_dofs, res.wall_pre, wall_end = _timers(info.log_path.read_text(errors="replace"))
     res.wall_loop = wall_end - res.wall_pre
     res.wall_per_step = res.wall_loop / n_steps
