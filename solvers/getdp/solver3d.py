@@ -23,8 +23,8 @@ from typing import Sequence
 import numpy as np
 
 from .files import read_element_table, read_table
-from .mesh import coil_tag, conductor_tag
-from .mesh3d import Mesh3D, skin_tag
+from .mesh import AIR, COIL_BASE, CONDUCTOR_BASE, OUTER, SHELL, coil_tag, conductor_tag
+from .mesh3d import ELEC_IN_BASE, ELEC_OUT_BASE, SKIN_BASE, SYM_A, Mesh3D, skin_tag
 from .model import Circuit, Conductor, CurrentTable, DampedSine
 from .runner import RunInfo, run_getdp
 
@@ -112,7 +112,8 @@ class EM3DResult:
     (n_out, n_el, 3) T at the centroids; ``b_cells`` (n_tets, 3) T, B of every tetrahedron (rows of
     ``mesh.tets``) after the last step (``field_output=True``); ``res_path`` getdp's solution file
     (``restart_res`` of a following run); ``n_dofs``; ``wall_pre``, ``wall_loop`` s (getdp's own
-    timers: pre-processing, the time loop) and ``wall_per_step`` s.
+    timers: pre-processing, the time loop), ``wall_per_step`` and ``cpu_per_step`` s (CPU time of the
+    time loop per step: what a loaded machine does not inflate).
     """
 
     times: np.ndarray
@@ -137,6 +138,7 @@ class EM3DResult:
     wall_pre: float = math.nan
     wall_loop: float = math.nan
     wall_per_step: float = math.nan
+    cpu_per_step: float = math.nan
     run: RunInfo | None = None
 
 
@@ -153,11 +155,15 @@ def coil_section_from_mesh(mesh: Mesh3D, k: int, axis: tuple[float, float] = (0.
 
 
 def model_numbers(model: EM3DModel, mesh: Mesh3D) -> tuple[dict[str, float], list[str]]:
-    """The ``-setnumber`` inputs of the 3D deck for ``model`` on ``mesh``, and the lines of tables
-    (current tables) for the run's wrapper deck."""
+    """The ``-setnumber`` inputs of the 3D deck for ``model`` on ``mesh`` (the physical ids of
+    :mod:`.mesh3d` too: defined once in Python), and the lines of tables (current tables) for the
+    run's wrapper deck."""
     if abs(model.sector_deg - mesh.sector_deg) > 1e-9:
         raise ValueError(f"model sector {model.sector_deg} deg but mesh sector {mesh.sector_deg} deg")
-    nb: dict[str, float] = {"NbCoils": len(model.coils), "NbConductors": len(model.conductors),
+    nb: dict[str, float] = {"Phys_Air": AIR, "Phys_Shell": SHELL, "Phys_Outer": OUTER, "Phys_SymA": SYM_A,
+                            "Phys_Coil_Base": COIL_BASE, "Phys_Cond_Base": CONDUCTOR_BASE, "Phys_Skin_Base": SKIN_BASE,
+                            "Phys_ElecIn_Base": ELEC_IN_BASE, "Phys_ElecOut_Base": ELEC_OUT_BASE,
+                            "NbCoils": len(model.coils), "NbConductors": len(model.conductors),
                             "Flag_Circuit": int(model.circuit is not None), "NbProbes": len(model.probes),
                             "SymmetryFactor": float(model.symmetry_factor)}
     for i, (x, y, z) in enumerate(model.probes, start=1):
@@ -197,19 +203,19 @@ def model_numbers(model: EM3DModel, mesh: Mesh3D) -> tuple[dict[str, float], lis
     return nb, lines
 
 
-_WALL = re.compile(r"^Info\s*:\s*\(Wall = ([0-9.eE+-]+)s", re.M)
+_WALL = re.compile(r"^Info\s*:\s*\(Wall = ([0-9.eE+-]+)s, CPU = ([0-9.eE+-]+)s", re.M)
 _DOFS = re.compile(r"System \d+/\d+: (\d+) Dofs")
 
 
-def _timers(log_text: str) -> tuple[int, float, float]:
+def _timers(log_text: str) -> tuple[int, float, float, float]:
     """(dofs of the magnetic system, the last one listed; wall after pre-processing; wall at the end of
-    the time loop) from a ``-v 5`` log."""
-    walls = [float(m.group(1)) for m in _WALL.finditer(log_text)]
+    the time loop; CPU time of the time loop) from a ``-v 5`` log (s)."""
+    marks = [(float(m.group(1)), float(m.group(2))) for m in _WALL.finditer(log_text)]
     found = _DOFS.findall(log_text)
     dofs = int(found[-1]) if found else 0
-    if len(walls) < 2:
-        return dofs, math.nan, math.nan
-    return dofs, walls[0], walls[-1]
+    if len(marks) < 2:
+        return dofs, math.nan, math.nan, math.nan
+    return dofs, marks[0][0], marks[-1][0], marks[-1][1] - marks[0][1]
 
 
 def ball_average(mesh: Mesh3D, values: np.ndarray, centre: Sequence[float], radius: float) -> tuple[np.ndarray, int]:
@@ -272,11 +278,13 @@ def solve_transient3d(model: EM3DModel, mesh: Mesh3D, t_end: float, n_steps: int
         res.b_cells[mesh.rows_of_ids(ids)] = b[0]
     res.run = info
     res.res_path = run_dir / "em.res"
-    res.n_dofs, res.wall_pre, wall_end = _timers(info.log_path.read_text(errors="replace"))
+    res.n_dofs, res.wall_pre, wall_end, cpu_loop = _timers(info.log_path.read_text(errors="replace"))
     res.wall_loop = wall_end - res.wall_pre
     res.wall_per_step = res.wall_loop / n_steps
-    logger.info("3D EM run %s: %d tets, %d dofs, %d steps, %.2f s per step (pre-processing %.2f s)",
-                run_dir.name, mesh.n_tets, res.n_dofs, n_steps, res.wall_per_step, res.wall_pre)
+    res.cpu_per_step = cpu_loop / n_steps
+    logger.info("3D EM run %s: %d tets, %d dofs, %d steps, %.2f s wall / %.2f s CPU per step (pre-processing "
+                "%.2f s)", run_dir.name, mesh.n_tets, res.n_dofs, n_steps, res.wall_per_step, res.cpu_per_step,
+                res.wall_pre)
     return res
 
 
