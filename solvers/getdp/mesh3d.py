@@ -224,6 +224,7 @@ def ring_sector_mesh(
         r_out = r_shell or r_air
         n0 = np.array([0.0, 1.0, 0.0])                        # normal of the plane phi = 0
         n1 = np.array([-math.sin(alpha), math.cos(alpha), 0.0])  # normal of the plane phi = alpha
+        e0, e1 = np.array([1.0, 0.0, 0.0]), np.array([math.cos(alpha), math.sin(alpha), 0.0])  # their radial directions
         for d, t in model.getBoundary([(3, v) for v in {t for d, t in out if d == 3}], combined=True,
                                       oriented=False):
             c = np.array(occ.getCenterOfMass(2, abs(t)))
@@ -241,10 +242,10 @@ def ring_sector_mesh(
         # the coil's faces on the two planes: electrodes of the electrokinetic pre-solve
         faces_in, faces_out = [], []
         for d, t in model.getBoundary([(3, v) for v in turn_parts], combined=False, oriented=False):
-            c = np.array(occ.getCenterOfMass(2, abs(t)))
-            if abs(c @ n0) < 1e-6 * r_out and abs(c @ n1) > 1e-6 * r_out:
+            c = np.array(occ.getCenterOfMass(2, abs(t)))   # on a plane, on its side of the axis
+            if abs(c @ n0) < 1e-6 * r_out and c @ e0 > 0:
                 faces_in.append(abs(t))
-            elif abs(c @ n1) < 1e-6 * r_out:
+            elif abs(c @ n1) < 1e-6 * r_out and c @ e1 > 0:
                 faces_out.append(abs(t))
         model.addPhysicalGroup(2, sorted(set(faces_in)), ELEC_IN_BASE + 1)
         model.addPhysicalGroup(2, sorted(set(faces_out)), ELEC_OUT_BASE + 1)
