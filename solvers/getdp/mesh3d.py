@@ -60,6 +60,24 @@ class Mesh3D:
     sector_deg: float
     electrode_area: dict[int, float] | None = None  # coil k -> area (m^2) of its faces on phi = 0
 
+    def moved(self, points: np.ndarray, path: str | Path) -> "Mesh3D":
+        """The same mesh (connectivity, element ids, physical groups) with the nodes at ``points``
+        (n, 3) m, written to ``path`` (MSH 2.2): the mesh of a following step whose run restarts from
+        this one's solution."""
+        points = np.asarray(points, float)
+        if points.shape != self.points.shape or not np.all(np.isfinite(points)):
+            raise ValueError(f"points must be finite and of shape {self.points.shape}")
+        text = Path(self.path).read_text()
+        head, rest = text.split("$Nodes\n", 1)
+        count, rest = rest.split("\n", 1)
+        ids = np.array(rest.split("$EndNodes", 1)[0].split(), dtype=float).reshape(-1, 4)[:, 0].astype(np.int64)
+        tail = rest.split("$EndNodes", 1)[1]
+        rows = "\n".join(f"{i} {x!r} {y!r} {z!r}" for i, (x, y, z) in zip(ids.tolist(), points.tolist()))
+        path = Path(path).resolve()
+        path.write_text(f"{head}$Nodes\n{count}\n{rows}\n$EndNodes{tail}")
+        return Mesh3D(points=points.copy(), tets=self.tets, tet_ids=self.tet_ids, tet_tags=self.tet_tags, path=path,
+                      sector_deg=self.sector_deg, electrode_area=self.electrode_area)
+
     @property
     def n_tets(self) -> int:
         return int(self.tets.shape[0])
