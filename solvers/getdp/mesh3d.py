@@ -151,6 +151,7 @@ def ring_sector_mesh(
     conductor_layers: int | None = None,
     fine_box: tuple[tuple[float, float, float, float, float, float], float] | None = None,
     z_cut: float | None = None,
+    racetrack: float = 0.0,
 ) -> Mesh3D:
     """Tetrahedral mesh of a sector of ring turns (one coil) and conductor rings/disks about the z-axis.
 
@@ -167,6 +168,8 @@ def ring_sector_mesh(
     """
     if not 0 < sector_deg <= 180:
         raise ValueError("sector_deg must be in (0, 180]")
+    if racetrack and sector_deg != 90:
+        raise ValueError("racetrack turns need a quarter model (sector_deg = 90)")
     alpha = math.radians(sector_deg)
     path = Path(path).resolve()
     with gmsh_session("pulseform_em3d") as gmsh:
@@ -178,6 +181,15 @@ def ring_sector_mesh(
                 return outer
             inner = occ.addCylinder(0, 0, rc.y0, 0, 0, rc.y1 - rc.y0, rc.x0, angle=alpha)
             return occ.cut([(3, outer)], [(3, inner)])[0][0][1]
+
+        def racetrack_turn(rc: Rect) -> int:
+            """Quarter racetrack turn: straight bar along y, then a quarter ring about (0, racetrack)."""
+            h = rc.y1 - rc.y0
+            bar = occ.addBox(rc.x0, 0, rc.y0, rc.x1 - rc.x0, racetrack, h)
+            arc = occ.addCylinder(0, racetrack, rc.y0, 0, 0, h, rc.x1, angle=math.pi / 2)
+            hole = occ.addCylinder(0, racetrack, rc.y0, 0, 0, h, rc.x0, angle=math.pi / 2)
+            arc = occ.cut([(3, arc)], [(3, hole)])[0][0][1]
+            return occ.fuse([(3, bar)], [(3, arc)])[0][0][1]
 
         def layered(rc: Rect) -> int:
             """The sector of the ring/disk rc as its face at z = y0 extruded in conductor_layers layers."""
@@ -195,7 +207,7 @@ def ring_sector_mesh(
             ext = occ.extrude([(2, face)], 0, 0, rc.y1 - rc.y0, numElements=[conductor_layers], recombine=False)
             return [t for d, t in ext if d == 3][0]
 
-        turn_vols = [ring(t) for t in coil_turns]
+        turn_vols = [racetrack_turn(t) if racetrack else ring(t) for t in coil_turns]
         cond_vols = [layered(c) if conductor_layers else ring(c) for c in conductors]
         sphere = occ.addSphere(0, 0, 0, r_air, angle3=alpha)
         objects = [(3, sphere)]
