@@ -11,7 +11,8 @@ steps with disk elements of 0.125 mm (its disk-size convergence at these steps: 
 15096, 15143 N at 0.5, 0.25, 0.125 mm). The 3D run: a 1.25 degree sector with its meridian planes
 as n x a = 0 symmetry planes; the disk is extruded in 8 layers (0.125 mm) from triangles of
 0.35 mm over the coil (r < 46 mm), coarser beyond; the full device's axial force is 288 x the
-sector's. Checked: peak F_z and impulse (sum of F_z dt over the 30 steps) within 2 % (the issue's bar).
+sector's. Checked: peak F_z and impulse (sum of F_z dt over the 30 steps) within 2 % (the issue's bar), and
+the disk's Joule heat (sum of P dt) with the same bar.
 
 Observed while choosing the mesh (same steps; peak / impulse vs this reference; sector, disk layers,
 in-plane size over the coil, tetrahedra): 10 deg, free tets 0.5 mm, 47.7k: -3.8 % / -5.2 %;
@@ -42,14 +43,14 @@ def axisymmetric_force(work):
     model = EMModel(True, coils=[Coil(5, waveform=WAVE)], conductors=[Conductor(SIGMA)], shell=(0.1, 0.125))
     solver = GetDPSolver(model, work / "axi")
     res, _ = solver.step(mesh, solver.initial_state(), T_END, N_STEPS, element_output="none")
-    return res.times, res.conductor_force[:, 0, 1], mesh.n_nodes
+    return res.times, res.conductor_force[:, 0, 1], mesh.n_nodes, res.conductor_power[:, 0]
 
 
 @pytest.mark.slow
 @pytest.mark.getdp
 @needs_getdp
 def test_fixed_disk_force_history_vs_axisymmetric(work):
-    t2, f2, nodes2 = axisymmetric_force(work)
+    t2, f2, nodes2, p2 = axisymmetric_force(work)
     sector = 1.25
     mesh = ring_sector_mesh(work / "disk3d.msh", demo_coil_turns(), [DISK], sector_deg=sector, r_air=0.1,
                             r_shell=0.125, h_coil=1.5e-3, h_conductor=1.5e-3, h_air=0.015, conductor_layers=8,
@@ -73,6 +74,13 @@ def test_fixed_disk_force_history_vs_axisymmetric(work):
     assert f2.max() > 1e4                       # the disk is repelled (+z) with ~15 kN
     assert abs(peak_err) < 0.02
     assert abs(imp_err) < 0.02
+    # Joule heat of the disk (sum of P dt): the same comparison for the power the coupling receives
+    p3 = res.conductor_power[:, 0] * model.symmetry_factor
+    heat_err = p3.sum() / p2.sum() - 1
+    print(f"disk Joule heat: 2D {p2.sum() * dt:.4f} J, 3D {p3.sum() * dt:.4f} J ({heat_err:+.2%})")
+    assert abs(heat_err) < 0.02
+    p_el = res.joule_density[-1] @ mesh.volumes(res.elements)
+    assert p_el == pytest.approx(res.conductor_power[-1, 0], rel=1e-9)
     # per-tetrahedron force densities add up to the conductor's force (the coupling's input)
     f_el = (res.force_density[-1] * mesh.volumes(res.elements)[:, None]).sum(0)
     np.testing.assert_allclose(f_el, res.conductor_force[-1, 0], rtol=1e-9, atol=1e-9 * f2.max())
