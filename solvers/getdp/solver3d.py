@@ -233,7 +233,7 @@ def ball_average(mesh: Mesh3D, values: np.ndarray, centre: Sequence[float], radi
 def solve_transient3d(model: EM3DModel, mesh: Mesh3D, t_end: float, n_steps: int, work_dir: str | Path, *,
                       t0: float = 0.0, element_output: str = "all", field_output: bool = False,
                       restart_res: str | Path | None = None, circuit_state: tuple[float, float] | None = None,
-                      executable: str = "getdp",
+                      time_scheme: str = "euler", executable: str = "getdp",
                       petsc_args: Sequence[str] = DEFAULT_PETSC_ARGS_3D, timeout: float | None = None) -> EM3DResult:
     """Run the 3D deck from ``t0`` to ``t_end`` (s) in ``n_steps`` implicit Euler steps.
 
@@ -245,6 +245,8 @@ def solve_transient3d(model: EM3DModel, mesh: Mesh3D, t_end: float, n_steps: int
 
     ``element_output``: ``"all"`` (per-tetrahedron tables every step), ``"last"`` or ``"none"``;
     ``field_output``: also B on every tetrahedron after the last step (``b_cells``).
+    ``time_scheme``: ``"euler"`` (implicit Euler) or ``"bdf2"`` (second order, equal steps, the first one
+    implicit Euler; from zero fields only: no ``restart_res``).
     One getdp process in ``work_dir`` (created; its log ``getdp.log``); ``timeout`` in s.
     Raises :class:`~.runner.GetDPError` when getdp fails.
     """
@@ -259,6 +261,10 @@ def solve_transient3d(model: EM3DModel, mesh: Mesh3D, t_end: float, n_steps: int
     numbers, lines = model_numbers(model, mesh)
     numbers.update(TimeInit=float(t0), TimeFinal=float(t_end), NbSteps=int(n_steps), Flag_ElemOut=flag_elem,
                    Flag_FieldOut=int(field_output))
+    if time_scheme not in ("euler", "bdf2"):
+        raise ValueError(f"time_scheme is 'euler' or 'bdf2', got {time_scheme!r}")
+    if time_scheme == "bdf2" and (restart_res is not None or circuit_state is not None):
+        raise ValueError("bdf2 starts from zero fields: its restart (two history states) is not done")
     restart: list[str] = []
     if restart_res is not None:
         restart = ["-restart", "-res", str(Path(restart_res).resolve())]
@@ -268,7 +274,8 @@ def solve_transient3d(model: EM3DModel, mesh: Mesh3D, t_end: float, n_steps: int
         numbers.update(Init_Vc=float(circuit_state[0]), Init_I=float(circuit_state[1]))
     wrapper = run_dir / "run3d.pro"
     wrapper.write_text("\n".join(lines + [f'Include "{DECK3D}";', ""]))
-    info = run_getdp(wrapper, mesh.path, run_dir, resolution=RESOLUTION3D, numbers=numbers,
+    resolution = RESOLUTION3D if time_scheme == "euler" else RESOLUTION3D + "_BDF2"
+    info = run_getdp(wrapper, mesh.path, run_dir, resolution=resolution, numbers=numbers,
                      strings={"OutDir": str(out_dir) + "/"}, extra_args=restart + list(petsc_args),
                      executable=executable, timeout=timeout, verbosity=5)
     res = read_results3d(model, mesh, out_dir, int(n_steps), flag_elem)
