@@ -357,9 +357,6 @@ def remesh_air_error(deck: Any) -> str | None:
             what = f"which is {roles[name]}" if name in roles else "which is not the group of regions.air or regions.shell"
             return (f"got {name!r}, {what}; only the air ({', '.join(sorted(air))}) may be meshed again, every "
                     "other region keeps its elements")
-    if deck.remesh_air and deck.library == "getdp_template":
-        return ("a deck on GetDP's template carries its state by -restart only (the same mesh connectivity), so its "
-                "mesh cannot be meshed again; remove remesh_air or write the deck on pulseform's library")
     if len(set(deck.remesh_air)) != len(deck.remesh_air):
         return "names a group twice"
     return None

@@ -9,9 +9,10 @@ pairs, and the deck's physical names and ids are untouched (the deck itself is n
 changed). The EM state then travels as after a built-in remesh, through the Init path with the
 nodes' material coordinates (:meth:`GetDPSolver.step` with ``force_init_path``, or a new persistent
 getdp seeded with both BDF2 history states): the coil and conductor nodes are the same nodes, so their
-values are carried without interpolation. Without ``remesh_air`` a degraded user mesh stops the run
-with a one-line message, as before. A deck on GetDP's template carries its state by ``-restart``
-only (same connectivity), so ``remesh_air`` is refused for it when the case is loaded.
+values are carried without interpolation. A deck on GetDP's template carries its state by
+``-restart`` only: its last ``.res`` is renumbered to the new mesh's dofs
+(:meth:`~pulseform.solvers.getdp.template.TemplateDeckSolver.carry_to_mesh`) and the restarts go on.
+Without ``remesh_air`` a degraded user mesh stops the run with a one-line message, as before.
 """
 
 from __future__ import annotations
@@ -70,6 +71,12 @@ class UserDeckLoad(GetDPLoad):
             mesh, node_map, row_map = retriangulate_air(moved, self.air_ids, time_limit=self.gmsh_time_limit)
         except AirRemeshError as exc:
             raise DeckContractError(f"the user mesh's air could not be meshed again: {exc}") from None
+        carry = getattr(self.solver, "carry_to_mesh", None)  # a template deck: its .res renumbered to the new mesh
+        if carry is not None:
+            old_node = np.full(len(mesh.points), -1, dtype=np.int64)
+            old_node[node_map[node_map >= 0]] = np.flatnonzero(node_map >= 0)
+            self.state = carry(self.state, moved, mesh, old_node, f"remesh_{self.remeshes + 1:03d}")
+            self.init_after_remesh = False
         material = mesh.points.copy()  # new air nodes: their current position (air values carry no state)
         kept = node_map >= 0
         material[node_map[kept]] = self.material[kept]
