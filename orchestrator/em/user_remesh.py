@@ -24,7 +24,7 @@ import numpy as np
 
 from pulseform.solvers.getdp.contract import ROLE_IDS
 
-from ..mesh.air_remesh import AirRemeshError, retriangulate_air
+from ..mesh.air_remesh import AirRemeshError, SizeField, retriangulate_air
 from ..mesh.shared import ConductorMesh
 from .deck_check import DeckContractError
 from .participant import GetDPLoad
@@ -55,6 +55,8 @@ class UserDeckLoad(GetDPLoad):
     def __init__(self, *args, air_ids: Sequence[int] = (), **kwargs) -> None:
         super().__init__(*args, **kwargs)
         self.air_ids = [int(t) for t in air_ids]
+        # element sizes of every remesh: the deck's fresh air mesh's (no drift over repeated remeshes)
+        self.air_sizes = SizeField(self.geometry.mesh, self.air_ids) if self.air_ids else None
 
     def _remesh(self, positions: dict[str, np.ndarray]) -> None:
         """Re-triangulate the air groups around the bodies' current shapes and keep everything else."""
@@ -68,7 +70,8 @@ class UserDeckLoad(GetDPLoad):
             u[b.body_to_em] = positions[b.name][:, :2] - self.x_ref[b.body_to_em]
         moved = self.geometry.mesh.with_points(self.x_ref + self.mover.displace(u))
         try:
-            mesh, node_map, row_map = retriangulate_air(moved, self.air_ids, time_limit=self.gmsh_time_limit)
+            mesh, node_map, row_map = retriangulate_air(moved, self.air_ids, time_limit=self.gmsh_time_limit,
+                                                         sizes=self.air_sizes)
         except AirRemeshError as exc:
             raise DeckContractError(f"the user mesh's air could not be meshed again: {exc}") from None
         carry = getattr(self.solver, "carry_to_mesh", None)  # a template deck: its .res renumbered to the new mesh

@@ -9,8 +9,11 @@ for the coils, conductors and any other region) are meshed again with gmsh:
 * every boundary edge of a removed region is a transfinite line with its two end nodes only, so
   gmsh puts no node on it and the new triangles stitch to the kept ones node for node (the
   boundary line groups — axis, outer boundary — keep their node pairs);
-* element sizes follow the old local edge lengths: a gmsh ``PostView`` background field holds, at
-  every old air node, the mean length of its air edges in the moved configuration;
+* element sizes follow the local edge lengths of a reference air mesh (the deck's fresh one:
+  :class:`SizeField`; else the mesh being replaced): a gmsh ``PostView`` background field on the
+  old air triangles holds that size at each of their nodes. Sizes from the mesh being replaced
+  would drift, since gmsh's edges come out a few per cent shorter than asked (measured: +3 % air
+  triangles per remesh), so repeated remeshes keep to the fresh mesh's sizes instead;
 * every other triangle (coils, conductors, shell, air groups not named) and every node that is
   not inside a removed region keeps its coordinates and its order; the physical id of each
   remeshed group is kept.
@@ -104,8 +107,43 @@ def node_sizes(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
     return np.divide(total, count, out=np.zeros(len(points)), where=count > 0)
 
 
-def retriangulate_air(mesh: EMMesh, air_tags: Sequence[int], time_limit: float | None = None
-                      ) -> tuple[EMMesh, np.ndarray, np.ndarray]:
+class SizeField:
+    """Element sizes (m) of a reference air mesh as a function of position: the mean length of the air
+    edges at each node (:func:`node_sizes`), linear on the reference air triangles, the nearest
+    reference node's value outside them (where a body moved away).
+
+    Parameters
+    ----------
+    mesh : EMMesh
+        The reference mesh (the deck's fresh mesh), its triangles valid (counter-clockwise).
+    air_tags : sequence of int
+        Physical ids of its air regions.
+    """
+
+    def __init__(self, mesh: EMMesh, air_tags: Sequence[int]) -> None:
+        pts = np.asarray(mesh.points, float)[:, :2]
+        cells = mesh.triangles[np.isin(mesh.tri_tags, list(air_tags))]
+        nodes = np.unique(cells)
+        local = np.full(len(pts), -1, dtype=np.int64)
+        local[nodes] = np.arange(len(nodes))
+        self.points, self.cells = pts[nodes], local[cells]
+        self.sizes = node_sizes(pts, cells)[nodes]
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        """Sizes (m) at the points ``x`` (K, 2) (m)."""
+        import matplotlib.tri as mtri
+        from scipy.spatial import cKDTree
+
+        tri = mtri.Triangulation(self.points[:, 0], self.points[:, 1], self.cells)
+        h = np.asarray(mtri.LinearTriInterpolator(tri, self.sizes)(x[:, 0], x[:, 1]).filled(np.nan))
+        miss = np.isnan(h)
+        if miss.any():
+            h[miss] = self.sizes[cKDTree(self.points).query(x[miss])[1]]
+        return h
+
+
+def retriangulate_air(mesh: EMMesh, air_tags: Sequence[int], time_limit: float | None = None,
+                      sizes: SizeField | None = None) -> tuple[EMMesh, np.ndarray, np.ndarray]:
     """The mesh with the triangles of physical ids ``air_tags`` meshed again (module docstring).
 
     gmsh runs in a child process (:func:`~pulseform.solvers.getdp.runner.call_in_child`) under
@@ -120,6 +158,8 @@ def retriangulate_air(mesh: EMMesh, air_tags: Sequence[int], time_limit: float |
         Physical ids of the surfaces to re-triangulate.
     time_limit : float, optional
         Wall-time limit of the gmsh run (s).
+    sizes : SizeField, optional
+        Element sizes (m) by position (default: the local edge lengths of ``mesh``'s own air).
 
     Returns
     -------
@@ -150,7 +190,11 @@ def retriangulate_air(mesh: EMMesh, air_tags: Sequence[int], time_limit: float |
     interior &= ~on_boundary
     if interior[mesh.lines.ravel()].any() or interior[kept_tri.ravel()].any():
         raise AirRemeshError("a line element or a kept triangle has a node inside the remeshed air")
-    new_pts, new_tri, new_tags = call_in_child(_mesh_air, pts, mesh.triangles, mesh.tri_tags, air_tags,
+    h = node_sizes(pts, mesh.triangles[air])
+    if sizes is not None:
+        used = np.unique(mesh.triangles[air])
+        h[used] = sizes(pts[used])
+    new_pts, new_tri, new_tags = call_in_child(_mesh_air, pts, mesh.triangles, mesh.tri_tags, air_tags, h,
                                                time_limit=time_limit, what="re-triangulating the user mesh's air with gmsh")
     keep = ~interior
     old_to_new = np.full(len(pts), -1, dtype=np.int64)
@@ -178,14 +222,14 @@ def _with_columns(p: np.ndarray, ncol: int) -> np.ndarray:
     return p if ncol == 2 else np.hstack([p, np.zeros((len(p), ncol - 2))])
 
 
-def _mesh_air(pts: np.ndarray, triangles: np.ndarray, tri_tags: np.ndarray, air_tags: list[int]
+def _mesh_air(pts: np.ndarray, triangles: np.ndarray, tri_tags: np.ndarray, air_tags: list[int], h: np.ndarray
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The gmsh part of :func:`retriangulate_air` (runs in the child process; does not log).
+    """The gmsh part of :func:`retriangulate_air` (runs in the child process; does not log); ``h``: the
+    element size (m) at each node.
 
     Returns the new interior nodes (M, 2), the new triangles indexing [old nodes, then new nodes],
     and their physical ids."""
     air = np.isin(tri_tags, air_tags)
-    h = node_sizes(pts, triangles[air])
     with gmsh_session("pulseform_air_remesh") as gmsh:
         geo = gmsh.model.geo
         point_tag: dict[int, int] = {}

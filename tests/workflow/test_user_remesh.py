@@ -85,24 +85,41 @@ def test_air_remesh_keeps_every_other_element_and_node(tmp_path):
     assert q_new.min() > threshold
 
 
+def test_repeated_air_remeshes_keep_the_fresh_sizes(tmp_path):
+    """Ten remeshes in a row with the fresh mesh's sizes (SizeField, as the participant does) keep the
+    air's triangle count within 2 % of the first remesh's; sizing each remesh from the mesh it replaces
+    drifts (gmsh's edges come out shorter than asked), which the docstring of air_remesh states."""
+    from pulseform.orchestrator.mesh.air_remesh import SizeField
+
+    _, fresh, moved = _bulged_mesh(tmp_path)
+    sizes = SizeField(fresh, [AIR])
+    counts, mesh, own = [], moved, moved
+    for _ in range(10):
+        mesh, _, _ = retriangulate_air(mesh, [AIR], time_limit=120, sizes=sizes)
+        own, _, _ = retriangulate_air(own, [AIR], time_limit=120)
+        counts.append(((mesh.tri_tags == AIR).sum(), (own.tri_tags == AIR).sum()))
+    print(f"\nair triangles over 10 remeshes: fresh sizes {[c[0] for c in counts]}, own sizes {[c[1] for c in counts]}")
+    assert max(abs(c[0] / counts[0][0] - 1) for c in counts) < 0.02
+
+
 TEMPLATE_DIE_CASE = REPO / "cases/template_sheet_bulge/with_die.toml"
 
 
-def _run_forced(case_file, out, every: bool, monkeypatch) -> tuple[dict, float]:
+def _run_forced(case_file, out, every: bool, monkeypatch, extra: tuple[str, ...] = ()) -> tuple[dict, float]:
     """Run ``case_file`` for 3 us in this process; ``every``: remesh the air at every EM step from the
     third on (the mover's threshold set above any quality), else never (remesh_air = [])."""
     from pulseform.orchestrator.em.user_remesh import UserDeckLoad
     from pulseform.orchestrator.run.runner import run_case
 
     overrides = ["time.end=3e-6", "output.field_interval=3e-6", "output.plots=false",
-                 "geometry.remesh_air=" + ('["AIR"]' if every else "[]")]
+                 "geometry.remesh_air=" + ('["AIR"]' if every else "[]"), *extra]
     case, _ = load_case(case_file, overrides)
-    seen = {"steps": 0, "remeshes": 0}
+    seen = {"t0": set(), "remeshes": 0}
     follow = UserDeckLoad.follow
 
     def forced(self, t0, mechanics):
-        seen["steps"] += 1
-        if every and seen["steps"] >= 3 and (self._moved is None or self._moved[0] != t0):
+        if every and self.state.step_index >= 2 and t0 not in seen["t0"]:  # once per EM step from the third
+            seen["t0"].add(t0)
             self.mover.min_quality = 2.0  # every element is "too poor": remesh now
         follow(self, t0, mechanics)
         seen["remeshes"] = self.remeshes
@@ -127,3 +144,19 @@ def test_remeshing_every_step_keeps_impulse_and_current(tmp_path, monkeypatch, c
     assert got["force_impulse_Ns"] == pytest.approx(ref["force_impulse_Ns"], rel=1e-2)
     assert got["coil_current_peak_kA"] == pytest.approx(ref["coil_current_peak_kA"], rel=1e-2)
     assert got["conservation_error_rel"] <= 1e-10
+
+
+@pytest.mark.getdp
+def test_template_and_library_decks_carry_a_remesh_alike(tmp_path, monkeypatch):
+    """Two independent carries across the same remeshes: the library deck (its Init path: r a_phi on the
+    kept coil and conductor nodes, the circuit by Init_Vc / Init_I) and the template deck (the whole
+    solution vector renumbered through both .pre files, then -restart), both implicit Euler with
+    coupling.n = 4 and remeshed at every EM step from the third (gmsh meshes the same air the same way).
+    Unremeshed, the two decks agree to ~1e-15 (reference/with_die_equivalence.csv); here to 1e-9."""
+    loop = ("coupling.n=4", "coupling.em_substeps=1", "em.time_scheme='euler'")
+    lib, n_lib = _run_forced(DIE_CASE, tmp_path / "library", True, monkeypatch, loop)
+    tpl, n_tpl = _run_forced(TEMPLATE_DIE_CASE, tmp_path / "template", True, monkeypatch)
+    assert n_lib == n_tpl >= 5
+    for key in ("force_impulse_Ns", "coil_current_peak_kA", "force_peak_N", "sheet_max_uy_mm"):
+        print(f"{key}: template {tpl[key]:.12g}, library {lib[key]:.12g} ({tpl[key] / lib[key] - 1:+.2e})")
+        assert tpl[key] == pytest.approx(lib[key], rel=1e-9), key
