@@ -58,6 +58,12 @@ class UserDeckLoad(GetDPLoad):
         # element sizes of every remesh: the deck's fresh air mesh's (no drift over repeated remeshes)
         self.air_sizes = SizeField(self.geometry.mesh, self.air_ids) if self.air_ids else None
 
+    @property
+    def init_after_remesh(self) -> bool:
+        """False for a template deck: its remesh carries the ``.res`` and the restarts go on (also after a
+        resume, which restores the remeshed mesh and the state's ``.res``)."""
+        return getattr(self.solver, "carry_to_mesh", None) is None
+
     def _remesh(self, positions: dict[str, np.ndarray]) -> None:
         """Re-triangulate the air groups around the bodies' current shapes and keep everything else."""
         if not self.air_ids:
@@ -79,7 +85,6 @@ class UserDeckLoad(GetDPLoad):
             old_node = np.full(len(mesh.points), -1, dtype=np.int64)
             old_node[node_map[node_map >= 0]] = np.flatnonzero(node_map >= 0)
             self.state = carry(self.state, moved, mesh, old_node, f"remesh_{self.remeshes + 1:03d}")
-            self.init_after_remesh = False
         material = mesh.points.copy()  # new air nodes: their current position (air values carry no state)
         kept = node_map >= 0
         material[node_map[kept]] = self.material[kept]

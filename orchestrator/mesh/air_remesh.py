@@ -12,7 +12,7 @@ for the coils, conductors and any other region) are meshed again with gmsh:
 * element sizes follow the local edge lengths of a reference air mesh (the deck's fresh one:
   :class:`SizeField`; else the mesh being replaced): a gmsh ``PostView`` background field on the
   old air triangles holds that size at each of their nodes. Sizes from the mesh being replaced
-  would drift, since gmsh's edges come out a few per cent shorter than asked (measured: +3 % air
+  would drift, since gmsh's edges come out a few per cent shorter than asked (measured: +3 to +8 % air
   triangles per remesh), so repeated remeshes keep to the fresh mesh's sizes instead;
 * every other triangle (coils, conductors, shell, air groups not named) and every node that is
   not inside a removed region keeps its coordinates and its order; the physical id of each

@@ -20,8 +20,9 @@ includes the deck and then appends pulseform's own part (:func:`wrapper_text`):
 * a Resolution ``EM_Transient`` on the user's formulation (system name from the case): ``SetTime``,
   ``InitSolution``, ``NbSteps`` implicit-Euler steps from ``TimeInit`` to ``TimeFinal``.
 
-The state is carried between getdp runs by ``-restart -res`` only (same connectivity; a user mesh
-is never remeshed).  The Init path of the built-in library cannot carry a template deck's circuit:
+The state is carried between getdp runs by ``-restart -res`` only; after a remesh (a new
+connectivity) :meth:`TemplateDeckSolver.carry_to_mesh` renumbers the last ``.res`` to the new mesh's
+dofs (:mod:`.res_remap`, from a ``-pre`` run) and the restarts go on.  The Init path of the built-in library cannot carry a template deck's circuit:
 measured on GetDP 3.2.0, an ``Init`` constraint the wrapper adds to the template's ``Hregion_Z``
 (``FunctionSpace { { Append 1; ... } }``) loses against the deck's own ``Voltage_Cir`` Init of the
 bank (the capacitor restarts at the charging voltage), and a ``Constraint { { Append 1; Name
