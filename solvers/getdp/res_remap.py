@@ -7,12 +7,15 @@ Harmonic Type ...``; types 1 (unknown) and 5 (unknown with an Init value) carry 
 number in the fifth field); a ``-pre`` run on the new mesh gives the new numbering. Every unknown
 of the new mesh then takes the value of the same dof of the old one:
 
-* a function space whose entities are the same in both ``.pre`` files (global quantities: the
-  regions' currents and voltages, the circuit's; or nodes numbered the same) keeps each value by key;
+* a function space of global quantities (the regions' currents and voltages, the circuit's: the
+  same entities in both ``.pre`` files, and fewer than :data:`MAX_GLOBAL` unknowns) keeps each
+  value by key; where the node map keeps every one of its entities (node k stays node k) the two
+  readings agree anyway;
 * any other space is nodal: its entity is a mesh node (1-based), mapped through ``old_node`` (the
   old node of each new node, -1 for a new node); a new node takes the value of the nearest old node
-  of that space (``fill_from``) — only nodes in the air are new, and air values do not enter an
-  implicit step's time derivatives (sigma = 0 there).
+  of that space — only nodes in the air are new, and air values do not enter an implicit step's
+  time derivatives (sigma = 0 there). A nodal space with fewer than :data:`MAX_GLOBAL` unknowns and
+  the same entities in both meshes would be read as global: meshes that are remeshed have more nodes.
 
 An unknown of a global space missing from the old numbering raises :class:`RemapError`.
 """
@@ -23,7 +26,10 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["RemapError", "read_pre_dofs", "remap_solution"]
+__all__ = ["RemapError", "read_pre_dofs", "remap_solution", "MAX_GLOBAL"]
+
+#: a function space with the same entities in both numberings and fewer unknowns is one of global quantities
+MAX_GLOBAL = 64
 
 
 class RemapError(ValueError):
@@ -82,7 +88,10 @@ def remap_solution(old: dict[tuple[int, int, int], int], new: dict[tuple[int, in
     for fs in sorted(spaces):
         ent_old = {k[1] for k in old if k[0] == fs}
         keys = [k for k in new if k[0] == fs]
-        if {k[1] for k in keys} == ent_old:
+        ents = np.array(sorted({k[1] for k in keys}), dtype=np.int64)
+        same = set(ents.tolist()) == ent_old
+        kept = bool(len(ents)) and ents.max() <= len(old_node) and bool(np.all(old_node[ents - 1] == ents - 1))
+        if same and (len(keys) < MAX_GLOBAL or kept):
             for k in keys:
                 x[new[k]] = x_old[old[k]]
             continue
