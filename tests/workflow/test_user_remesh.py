@@ -160,3 +160,19 @@ def test_template_and_library_decks_carry_a_remesh_alike(tmp_path, monkeypatch):
     for key in ("force_impulse_Ns", "coil_current_peak_kA", "force_peak_N", "sheet_max_uy_mm"):
         print(f"{key}: template {tpl[key]:.12g}, library {lib[key]:.12g} ({tpl[key] / lib[key] - 1:+.2e})")
         assert tpl[key] == pytest.approx(lib[key], rel=1e-9), key
+
+
+@pytest.mark.parametrize("names, says", [
+    ('["AIRR"]', ["'AIRR'", "not the group of regions.air or regions.shell"]),  # no such group
+    ('["SHEET"]', ["'SHEET'", "geometry.regions.workpiece"]),  # a conductor's group
+    ('["COIL"]', ["'COIL'", "geometry.regions.coil"]),
+    ('["AXIS"]', ["'AXIS'", "geometry.regions.axis"]),  # a curve
+    ('["AIR", "AIR"]', ["names a group twice"]),
+])
+def test_bad_remesh_air_is_one_line_exit_2(tmp_path, names, says):
+    """Refused when the case is loaded (before gmsh or getdp), naming the key and the group's role."""
+    r = pulseform("run", str(DIE_CASE), "--out", str(tmp_path / "out"), "--set", f"geometry.remesh_air={names}")
+    assert r.returncode == 2
+    line = one_line_error(r)
+    assert "geometry.remesh_air" in line and all(s in line for s in says), line
+    assert not (tmp_path / "out").exists()
