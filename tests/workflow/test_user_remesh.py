@@ -176,3 +176,39 @@ def test_bad_remesh_air_is_one_line_exit_2(tmp_path, names, says):
     line = one_line_error(r)
     assert "geometry.remesh_air" in line and all(s in line for s in says), line
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.getdp
+def test_resume_after_a_template_deck_remesh_repeats_the_run(tmp_path, monkeypatch):
+    """A template-deck run remeshed at every step, stopped by a failure after its checkpoint at 1.5 us
+    and resumed (--resume: the remeshed mesh and the carried .res come back from the checkpoint),
+    ends with the metrics of the uninterrupted run (docs/coupling.md: resume repeats a run exactly)."""
+    from pulseform.orchestrator.em.user_remesh import UserDeckLoad
+    from pulseform.orchestrator.run.runner import RunFailed, run_case
+
+    overrides = ["time.end=3e-6", "output.field_interval=1.5e-6", "output.plots=false", 'geometry.remesh_air=["AIR"]']
+    case, _ = load_case(TEMPLATE_DIE_CASE, overrides)
+    follow = UserDeckLoad.follow
+    stop = {"at": None}
+
+    def forced(self, t0, mechanics):
+        if stop["at"] is not None and t0 > stop["at"]:
+            raise RuntimeError("stopped by the test")
+        if self.state.step_index >= 2:
+            self.mover.min_quality = 2.0  # remesh at every EM step from the third
+        follow(self, t0, mechanics)
+
+    monkeypatch.setattr(UserDeckLoad, "follow", forced)
+    whole = run_case(case, tmp_path / "whole", quiet=True)
+    stop["at"] = 2.0e-6  # after the checkpoint at 1.5 us
+    with pytest.raises(RunFailed):
+        run_case(case, tmp_path / "resumed", quiet=True)
+    stop["at"] = None
+    resumed = run_case(case, tmp_path / "resumed", quiet=True, resume=True)
+    h = np.genfromtxt(tmp_path / "whole/history.csv", delimiter=",", names=True)
+    hr = np.genfromtxt(tmp_path / "resumed/history.csv", delimiter=",", names=True)
+    assert h["em_remeshes"][h["time_s"] <= 1.5e-6][-1] >= 5  # the checkpoint holds a remeshed mesh
+    assert np.array_equal(hr["em_remeshes"], h["em_remeshes"])
+    assert "resumed at t = 1.5e-06 s" in (tmp_path / "resumed/run.log").read_text()
+    for key in ("force_impulse_Ns", "coil_current_peak_kA", "force_peak_N", "sheet_max_uy_mm", "em_steps"):
+        assert resumed[key] == whole[key], key
