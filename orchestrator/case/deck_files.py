@@ -354,7 +354,8 @@ def remesh_air_error(deck: Any) -> str | None:
     air = {deck.regions.air, deck.regions.shell} - {None}
     for name in deck.remesh_air:
         if name not in air:
-            what = f"which is {roles[name]}" if name in roles else "which is not the group of regions.air or regions.shell"
+            what = (f"which is {roles[name]}" if name in roles
+                    else "which is not the group of regions.air or regions.shell")
             return (f"got {name!r}, {what}; only the air ({', '.join(sorted(air))}) may be meshed again, every "
                     "other region keeps its elements")
     if len(set(deck.remesh_air)) != len(deck.remesh_air):

@@ -195,7 +195,8 @@ def retriangulate_air(mesh: EMMesh, air_tags: Sequence[int], time_limit: float |
         used = np.unique(mesh.triangles[air])
         h[used] = sizes(pts[used])
     new_pts, new_tri, new_tags = call_in_child(_mesh_air, pts, mesh.triangles, mesh.tri_tags, air_tags, h,
-                                               time_limit=time_limit, what="re-triangulating the user mesh's air with gmsh")
+                                               time_limit=time_limit,
+                                               what="re-triangulating the user mesh's air with gmsh")
     keep = ~interior
     old_to_new = np.full(len(pts), -1, dtype=np.int64)
     old_to_new[keep] = np.arange(int(keep.sum()))

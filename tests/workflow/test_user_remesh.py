@@ -14,7 +14,6 @@ against the uninterrupted run (exactly equal).
 
 from __future__ import annotations
 
-import json
 import numpy as np
 import pytest
 
@@ -188,7 +187,8 @@ def test_bad_remesh_air_is_one_line_exit_2(tmp_path, names, says):
 @pytest.mark.getdp
 def test_resume_after_a_template_deck_remesh_repeats_the_run(tmp_path, monkeypatch):
     """(Slow, ~45 s; the default tier's check of the template carry is the test above.) A template-deck
-    run remeshed at every step, stopped by a failure after its checkpoint at 1.5 us and resumed (--resume: the remeshed mesh and the carried .res come back from the checkpoint),
+    run remeshed at every step, stopped by a failure after its checkpoint at 1.5 us and resumed
+    (--resume: the remeshed mesh and the carried .res come back from the checkpoint),
     ends with the metrics of the uninterrupted run (docs/coupling.md: resume repeats a run exactly)."""
     from pulseform.orchestrator.em.user_remesh import UserDeckLoad
     from pulseform.orchestrator.run.runner import RunFailed, run_case
