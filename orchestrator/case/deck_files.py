@@ -344,3 +344,20 @@ def check_template_deck(g: dict[str, Any], source: str, wrapper_names: tuple[str
             where = next(f for f, tokens in files if toks[i] in tokens)
             raise CaseError(source, "geometry.pro", f"{where.name}:{toks[i][2]}: defines {toks[i + 1][1]}, a name of "
                             "pulseform's wrapper for template decks; rename it")
+
+
+def remesh_air_error(deck: Any) -> str | None:
+    """Why ``geometry.remesh_air`` of a user deck is wrong (one phrase), or None: every name must be the
+    group of ``regions.air`` or ``regions.shell`` (a coil, conductor or curve is never re-triangulated)."""
+    roles = {name: f"geometry.regions.{role}" for role, name in deck.regions.groups().items()}
+    roles.update({c.group: f"geometry.coils[{i}].group" for i, c in enumerate(deck.coils)})
+    air = {deck.regions.air, deck.regions.shell} - {None}
+    for name in deck.remesh_air:
+        if name not in air:
+            what = (f"which is {roles[name]}" if name in roles
+                    else "which is not the group of regions.air or regions.shell")
+            return (f"got {name!r}, {what}; only the air ({', '.join(sorted(air))}) may be meshed again, every "
+                    "other region keeps its elements")
+    if len(set(deck.remesh_air)) != len(deck.remesh_air):
+        return "names a group twice"
+    return None

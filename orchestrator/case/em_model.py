@@ -6,6 +6,7 @@ from dataclasses import dataclass, fields
 from operator import attrgetter
 from typing import ClassVar, Literal
 
+from .deck_files import remesh_air_error
 from .em_sources import CoilConnection, Source, check_sources
 from .schema import SchemaError, spec
 
@@ -310,8 +311,7 @@ class DeckRegions:
     """Physical-group names of the user's mesh for each role (renumbered to the runner's ids)."""
 
     air: str = spec(doc="air (physical surface)")
-    coil: str | None = spec(None, doc="the one stranded coil, all its turns (physical surface; with geometry.turns), "
-                                      "or give [[geometry.coils]] instead")
+    coil: str | None = spec(None, doc="the one stranded coil (physical surface; with geometry.turns), or [[geometry.coils]]")
     workpiece: str = spec(doc="the workpiece, a massive conductor (physical surface)")
     die: str | None = spec(None, doc="a die, massive conductor 2 (physical surface); needs a body with region = 'die'")
     axis: str = spec(doc="the symmetry axis r = 0, a = 0 (physical curve)")
@@ -325,8 +325,7 @@ class DeckRegions:
 
 @dataclass(frozen=True, kw_only=True)
 class DeckCoil:
-    """One coil role of a user deck: a named physical surface of the mesh, all of its turns in series
-    (stranded: uniform current density over the group)."""
+    """One coil role of a user deck: a named physical surface, its turns in series (stranded: uniform current density)."""
 
     name: str = spec(doc="the coil's name ([[em.coils]] connects it to a source; history columns <name>_current_A, "
                          "... with several coils)")
@@ -347,19 +346,17 @@ class DeckTemplate:
 
 @dataclass(frozen=True, kw_only=True)
 class UserDeck(_ConductorRoles):
-    """A user's own EM deck: a Gmsh .geo (meshed by the runner) or .msh, and a GetDP .pro that
-    honours the deck contract (docs/workflow.md). Axisymmetric, or plane with ``planar = true``; one coil (``regions.coil`` with
-    ``turns``) or several (``[[geometry.coils]]``: coil k is physical 100 + k, in their order); the
-    workpiece, optionally a die."""
+    """A user's own EM deck: a Gmsh .geo (meshed by the runner) or .msh and a GetDP .pro (docs/workflow.md): axisymmetric
+    or planar; one coil (``regions.coil``, ``turns``) or several (``[[geometry.coils]]``: coil k is physical 100 + k); the
+    workpiece, optionally a die; ``remesh_air``: the air groups meshed again when the moved mesh degrades."""
 
     type: Literal["user_deck"] = spec(doc="geometry kind")
     mesh: str = spec(doc=".geo (meshed with gmsh, MSH 2.2) or .msh, relative to the case folder")
     pro: str = spec(doc="GetDP .pro deck, relative to the case folder")
     allow_outside: bool = spec(False, doc="allow mesh/pro paths outside the case folder")
-    allow_system_calls: bool = spec(False, doc="run decks that run programs (SystemCall, System, "
-                                    "NonBlockingSystemCall, OnelabRun, Merge of a .py in the .geo; SystemCommand, "
-                                    "Python in the .pro; also in their Includes); a deck is code: allow only decks "
-                                    "you trust")
+    allow_system_calls: bool = spec(False, doc="run decks that run programs (SystemCall, System, NonBlockingSystemCall, "
+                                    "OnelabRun, Merge of a .py in the .geo; SystemCommand, Python in the .pro; also in "
+                                    "their Includes); a deck is code: allow only decks you trust")
     regions: DeckRegions = spec(doc="physical-group names of the roles")
     planar: bool = spec(False, doc="a plane deck (Flag_Axi = 0): the mesh's (x, y) a plane section, the axis role a symmetry "
                                    "plane (a = 0), per metre of depth scaled by mechanics.thickness; prescribed sources only")
@@ -377,6 +374,8 @@ class UserDeck(_ConductorRoles):
                          "own PostProcessing and Resolution; its own physical ids are kept)")
     template: DeckTemplate | None = spec(None, doc="[geometry.template] the formulation and system of a "
                                                    "'getdp_template' deck (defaults Magnetodynamics2D_av, A)")
+    remesh_air: tuple[str, ...] = spec((), doc="physical surfaces (the groups of regions.air / regions.shell) meshed again "
+                                               "when the moved mesh degrades; empty: never remeshed (the run stops)")
 
     _second: ClassVar[tuple[str, str]] = ("die", "regions.die")
 
@@ -394,8 +393,10 @@ class UserDeck(_ConductorRoles):
                               f"shell_inner_radius = {self.shell_inner_radius:g} (m)")
         self._validate_coils(path)
         if self.template is not None and self.library != "getdp_template":
-            raise SchemaError(f"{path}.template", "[geometry.template] is for library = 'getdp_template' (a deck "
-                              "on GetDP's template); remove it or set geometry.library")
+            raise SchemaError(f"{path}.template", "[geometry.template] is for library = 'getdp_template' (a deck on "
+                              "GetDP's template); remove it or set geometry.library")
+        if (why := remesh_air_error(self)) is not None:
+            raise SchemaError(f"{path}.remesh_air", why)
 
     def template_spec(self) -> DeckTemplate:
         """The ``[geometry.template]`` table, or its defaults."""

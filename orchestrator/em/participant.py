@@ -216,7 +216,7 @@ class GetDPLoad(EMSnapshots, LoadCapabilities):
         fields = {"field_output": True} if self._wants_fields(t1) else {}
         result, self.state = self.solver.step(mesh_k, self.state, t1, n_sub=self.em_substeps,
                                               material_points=self.material,
-                                              force_init_path=self.remeshes > 0, **fields)
+                                              force_init_path=self.remeshes > 0 and self.init_after_remesh, **fields)
         self.last = (x_em, result, self.geometry.mesh)
         self._track_peak(t1, x_em, result)
         self._prune(Path(result.path))
@@ -300,6 +300,10 @@ class GetDPLoad(EMSnapshots, LoadCapabilities):
             "em_mesh_min_quality": float(self.mover.q_ref.min()),
             "em_remeshes": float(self.remeshes),
         })
+
+    #: after a remesh, every step carries the state through the Init path (False: the remesh carried a
+    #: ``.res`` to the new mesh and restarts go on, :class:`~.user_remesh.UserDeckLoad` on a template deck)
+    init_after_remesh = True
 
     # ------------------------------------------------------------------ field snapshots
     columns = LOAD_COLUMNS_COUPLED  # the one-coil columns; an instance with several coils has its own

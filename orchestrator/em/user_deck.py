@@ -47,9 +47,9 @@ from ..case.deck_files import (MAX_PARAMETER_NAME, check_parameters, deck_tokens
                                resolve_deck_paths, short)
 from ..mesh.em_geometry import EMGeometry
 from .deck_check import DeckCheckReport, DeckContractError, check_deck  # noqa: F401  (DeckContractError: the API)
-from .participant import GetDPLoad
 from .template_deck import DeckGeometry, check_deck_values, deck_physical_ids, template_solver
 from .solver import em_model, make_em_solver
+from .user_remesh import UserDeckLoad, remesh_air_ids
 
 log = logging.getLogger(__name__)
 
@@ -174,7 +174,7 @@ def read_deck_mesh(path: Path, regions, name: str | Path | None = None, coils: S
 
 
 def build_user_geometry(case, work: Path, em_dir: Path):
-    """The EM geometry of a user deck (no turn rectangles: user meshes are not remeshed), after the
+    """The EM geometry of a user deck (no turn rectangles: the built-in remesh does not apply), after the
     deck passed the check (:func:`check_contract`, getdp runs in ``em_dir/contract_check``). gmsh and
     getdp run under the case's time limits (:func:`time_limits`). A deck on GetDP's template
     (``library = "getdp_template"``) gets a :class:`~.template_deck.DeckGeometry` with its own
@@ -190,8 +190,8 @@ def build_user_geometry(case, work: Path, em_dir: Path):
     model = user_em_model(case)
     check_contract(make_solver(case, model, Path(em_dir), deck_ids=deck_ids), mesh, Path(em_dir) / "contract_check",
                    time_limit=getdp_limit)
-    # coils 2, 3, ... (physical 102, ...) have no turn rectangles either: user meshes are never remeshed,
-    # but the mesh motion keeps every coil's nodes fixed (EMGeometry.coil_turns lists their ids)
+    # coils 2, 3, ... (physical 102, ...) have no turn rectangles either (a user mesh is remeshed only in its
+    # geometry.remesh_air groups), but the mesh motion keeps every coil's nodes fixed (EMGeometry.coil_turns lists their ids)
     regions = {role: ROLE_IDS[role] for role in ("coil",) + g.conductor_roles()}
     more = [[] for _ in g.coil_groups()[1:]]
     if template:
@@ -274,16 +274,8 @@ def check_contract(solver, mesh, work: Path, time_limit: float = GETDP_TIME_LIMI
 
 
 def user_deck_load(case, geometry, work_dir: Path, bodies, em_substeps: int):
-    """The load provider of a user-deck case: GetDPLoad on the user's deck (checked by
-    :func:`build_user_geometry`)."""
-    class UserDeckLoad(GetDPLoad):
-        """GetDPLoad whose solver runs the user's deck; user meshes are moved, never remeshed."""
-
-        def _remesh(self, positions):
-            raise DeckContractError("the EM mesh of a user deck degraded beyond em.remesh_quality and user meshes "
-                                    "are not remeshed: refine the .geo around the workpiece, lower "
-                                    "em.remesh_quality or shorten time.end")
-
+    """The load provider of a user-deck case: :class:`~.user_remesh.UserDeckLoad` on the user's deck (checked by
+    :func:`build_user_geometry`), its ``geometry.remesh_air`` groups meshed again when the mesh degrades."""
     model = user_em_model(case)
     mode = case.em.getdp_process
     deck_ids = getattr(geometry, "deck_ids", None)
@@ -309,7 +301,9 @@ def user_deck_load(case, geometry, work_dir: Path, bodies, em_substeps: int):
         log.info("user deck: %s", "one persistent getdp process" if mode == "persistent" else "a getdp process per EM step")
     load = UserDeckLoad(geometry, model, work_dir, bodies, keep_runs=case.em.keep_runs,
                         remesh_quality=case.em.remesh_quality, sizes=(1.0, 1.0), em_substeps=em_substeps,
-                        time_scheme=case.em.time_scheme)
+                        time_scheme=case.em.time_scheme,
+                        air_ids=remesh_air_ids(case.geometry.regions, case.geometry.remesh_air))
+    load.gmsh_time_limit = time_limits(case)[0]
     load.solver = solver
     load.state = solver.initial_state(0.0)
     return load

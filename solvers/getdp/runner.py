@@ -271,11 +271,13 @@ def run_getdp(
     allowed_warnings: tuple[str, ...] = (),
     reuse_pre: bool = False,
     post_operation: str | None = None,
+    pre_only: bool = False,
 ) -> RunInfo:
     """Run ``getdp deck -msh mesh -name run_dir/name -setnumber ... -solve resolution``.
 
     With ``post_operation``, run ``-pos post_operation`` instead of ``-solve`` (post-processing of a
     saved solution, which ``extra_args`` name with ``-res FILE``).
+    With ``pre_only``, run ``-pre resolution`` only: the dof numbering in ``run_dir/<name>.pre``.
 
     All paths are made absolute; the process runs in ``run_dir`` with stdout and
     stderr in one log file there.  Raises :class:`GetDPError` on a missing binary,
@@ -300,7 +302,9 @@ def run_getdp(
     argv += list(extra_args)
     # -cal: processing only, with the pre-processing data (dof numbering) already in
     # run_dir/<name>.pre (copied from a run on the same connectivity)
-    if post_operation is not None:
+    if pre_only:
+        argv += ["-pre", resolution]
+    elif post_operation is not None:
         argv += ["-pos", post_operation]
     else:
         argv += ["-cal"] if reuse_pre else ["-solve", resolution]

@@ -20,8 +20,9 @@ includes the deck and then appends pulseform's own part (:func:`wrapper_text`):
 * a Resolution ``EM_Transient`` on the user's formulation (system name from the case): ``SetTime``,
   ``InitSolution``, ``NbSteps`` implicit-Euler steps from ``TimeInit`` to ``TimeFinal``.
 
-The state is carried between getdp runs by ``-restart -res`` only (same connectivity; a user mesh
-is never remeshed).  The Init path of the built-in library cannot carry a template deck's circuit:
+The state is carried between getdp runs by ``-restart -res`` only; after a remesh (a new
+connectivity) :meth:`TemplateDeckSolver.carry_to_mesh` renumbers the last ``.res`` to the new mesh's
+dofs (:mod:`.res_remap`, from a ``-pre`` run) and the restarts go on.  The Init path of the built-in library cannot carry a template deck's circuit:
 measured on GetDP 3.2.0, an ``Init`` constraint the wrapper adds to the template's ``Hregion_Z``
 (``FunctionSpace { { Append 1; ... } }``) loses against the deck's own ``Voltage_Cir`` Init of the
 bank (the capacitor restarts at the charging voltage), and a ``Constraint { { Append 1; Name
@@ -363,6 +364,58 @@ class TemplateDeckSolver(GetDPSolver):
         t_init = t_end - gamma * dt
         write_solution(run_dir / "bdf2_prev.res", state.t, x1)
         return t_init, str(write_solution(run_dir / "bdf2_start.res", t_init, x))
+
+    def carry_to_mesh(self, state: EMState, old_mesh: EMMesh, new_mesh: EMMesh, old_node: np.ndarray,
+                      run_name: str) -> EMState:
+        """``state`` on a new connectivity (a remesh that kept the coil and conductor nodes), still carried
+        by ``-restart``: a ``-pre`` run on ``new_mesh`` in ``work_dir/run_name`` numbers its dofs, and the
+        last solution of ``state.res_path`` (with BDF2 also ``state.res_prev_path``) is renumbered from
+        the ``.pre`` beside it (:mod:`.res_remap`) into ``carried.res`` (``bdf2_prev.res``) there.
+
+        Parameters
+        ----------
+        state : EMState
+            The state after the last step on ``old_mesh``.
+        old_mesh, new_mesh : EMMesh
+            The meshes before and after the remesh, at the same time (m).
+        old_node : ndarray of int
+            For each node of ``new_mesh``, its node in ``old_mesh`` (-1: a new air node).
+        run_name : str
+            Folder (under the solver's ``work_dir``) of the ``-pre`` run and the carried ``.res``.
+        """
+        from dataclasses import replace
+
+        from .res_remap import read_pre_dofs, remap_solution
+        from .runner import run_getdp
+        from .solver import RESOLUTION
+
+        if state.res_path is None:
+            return state
+        run_dir = self.work_dir / run_name
+        run_dir.mkdir(parents=True, exist_ok=True)
+        msh = self._write_mesh(new_mesh, run_dir / "mesh.msh")
+        numbers = self.run_numbers(new_mesh)
+        numbers.update(Flag_ElemOut=0, Flag_FieldOut=0, TimeInit=state.t, TimeFinal=state.t, NbSteps=1)
+        if self.model.circuit is not None:
+            numbers.update(Init_Vc=state.capacitor_voltage, Init_I=state.current)
+        wrapper = run_dir / "run.pro"
+        wrapper.write_text(self._run_pro_text(self.preamble + self._table_lines()))
+        run_getdp(wrapper, msh, run_dir, resolution=RESOLUTION, numbers=numbers,
+                  strings={"OutDir": str(run_dir) + "/"}, extra_args=self.petsc_args, executable=self.executable,
+                  timeout=self.timeout, pre_only=True)
+        new = read_pre_dofs(run_dir / "em.pre")
+
+        def carry(res: str, name: str) -> str:
+            old = read_pre_dofs(Path(res).parent / "em.pre")
+            t, x = read_solutions(res)[-1]
+            x_new = remap_solution(old, new, x, old_node, old_mesh.points, new_mesh.points)
+            return str(write_solution(run_dir / name, t, x_new))
+
+        prev = None
+        if state.res_prev_path is not None and Path(state.res_prev_path).is_file():
+            prev = carry(state.res_prev_path, "bdf2_prev.res")
+        return replace(state, res_path=carry(state.res_path, "carried.res"), res_prev_path=prev,
+                       mesh_signature=mesh_signature(new_mesh), pre_path=None)
 
     def step(self, mesh: EMMesh, state: EMState, t_end: float, n_sub: int = 1, *,
              material_points: np.ndarray | None = None, run_name: str | None = None,
