@@ -251,11 +251,6 @@ def draw_all(results_dir: Path, *, case=None, history: History | None = None, sh
     finish_mech = None
     kw = {"renderer": renderer} if renderer is not None else {}
     finish_mech = attempt("mechanics pictures", mech, root, wait=False, **kw) if mech is not None else None
-    # the EM pictures (matplotlib, ~1 s on the demo) draw in a forked child meanwhile: this process
-    # draws the history plots, the renderer child the 3D pictures
-    coupled = case is not None and case.case.kind == "coupled"
-    em = _picture_module(*PICTURE_MODULES[1], skip) if coupled else None
-    em_call = _start_em_pictures(em, root) if em is not None else None
     attempt("energies", plot_energies, history, folder, axis)
     attempt("time step", plot_time_step, history, folder, axis)
     attempt("history columns", plot_probes, history, folder, None, axis)
@@ -271,36 +266,14 @@ def draw_all(results_dir: Path, *, case=None, history: History | None = None, sh
         before = _stamps(folder)
         attempt(f"analysis {type(a).__name__}", a.plots, history, shapes or [], folder)
         done.paths.extend(p for p, s in _stamps(folder).items() if before.get(p) != s)
-    if em_call is not None:
-        if done.stopped:
-            em_call.cancel()
-        else:
-            attempt("EM pictures", em_call.result)
-    elif em is not None:
-        attempt("EM pictures", em, root)
+    if case is not None and case.case.kind == "coupled":
+        em = _picture_module(*PICTURE_MODULES[1], skip)
+        if em is not None:
+            attempt("EM pictures", em, root)
     if finish_mech is not None:  # shapes.png (workpiece outlines) and the 3D pictures, from fields/
         attempt("mechanics pictures", finish_mech)
     done.paths = list(dict.fromkeys(done.paths))
     return done
-
-
-def _start_em_pictures(draw_em, root: Path):
-    """``draw_em(root)`` started in a forked child (``solvers/getdp/runner.ChildCall``; its result:
-    the paths), or None when no child can be forked (then the caller draws in this process)."""
-    from pulseform.solvers.getdp.runner import ChildCall
-
-    try:
-        return ChildCall(_quietly, draw_em, root, time_limit=None, what="drawing the EM pictures")
-    except OSError as exc:
-        log.debug("EM pictures in this process: %s", exc)
-        return None
-
-
-def _quietly(fn, *args):
-    """``fn(*args)`` with logging off: a forked child must not take the log handlers' locks (another
-    thread of the parent may have held one at the fork)."""
-    logging.disable(logging.CRITICAL)
-    return fn(*args)
 
 
 def _stamps(folder: Path) -> dict[Path, int]:
