@@ -93,23 +93,8 @@ class Body:
         xe = X[cells]
         area2 = ((xe[:, 1, 0] - xe[:, 0, 0]) * (xe[:, 2, 1] - xe[:, 0, 1])
                  - (xe[:, 2, 0] - xe[:, 0, 0]) * (xe[:, 1, 1] - xe[:, 0, 1]))
-        if np.any(area2 == 0.0):
-            raise ValueError(f"body {spec.name!r}: degenerate cell")
-        neg = area2 < 0
-        cells[neg, 1], cells[neg, 2] = cells[neg, 2].copy(), cells[neg, 1].copy()
-        self.cells = cells
-        self.X0 = X
-        self.x = X.copy()
-        self.v = np.zeros((self.n_local, 2))
-        self.v[:] = np.asarray(spec.initial_velocity, dtype=float)
-        self.a = np.zeros((self.n_local, 2))
+        self._init_state(spec, cells, X, area2, 4)
         nc = cells.shape[0]
-        self.cell_stress = np.zeros((nc, 4))
-        if spec.initial_stress is not None:
-            self.cell_stress[:] = np.asarray(spec.initial_stress, dtype=float)
-        self.eps_p = np.zeros(nc)
-        self._buf = fem.Function(self.V)
-        self.mass = self._lumped_mass()
         if np.any(self.mass <= 0):
             raise ValueError(f"body {spec.name!r}: non-positive lumped mass (nodes on the axis with "
                              "no adjacent cell?)")
@@ -121,6 +106,31 @@ class Body:
                  self.total_mass())
 
     # ------------------------------------------------------------------ setup helpers
+    def _init_state(self, spec: BodySpec, cells: np.ndarray, X: np.ndarray, signed: np.ndarray,
+                    n_stress: int) -> None:
+        """Orient the cells (``signed``: their signed area or volume; vertices 1 and 2 of a negative one
+        are swapped; a zero one is an error), then the reference and current positions ``X`` (m), the
+        initial velocity (m/s) and stress (Pa, ``n_stress`` components), zero acceleration and plastic
+        strain, and the lumped mass (kg): the state every body starts from, 2D or 3D."""
+        if np.any(signed == 0.0):
+            raise ValueError(f"body {spec.name!r}: degenerate cell")
+        neg = signed < 0
+        cells[neg, 1], cells[neg, 2] = cells[neg, 2].copy(), cells[neg, 1].copy()
+        self.cells = cells
+        self.X0 = X
+        self.x = X.copy()
+        dim = X.shape[1]
+        self.v = np.zeros((self.n_local, dim))
+        self.v[:] = np.asarray(spec.initial_velocity, dtype=float)
+        self.a = np.zeros((self.n_local, dim))
+        nc = cells.shape[0]
+        self.cell_stress = np.zeros((nc, n_stress))
+        if spec.initial_stress is not None:
+            self.cell_stress[:] = np.asarray(spec.initial_stress, dtype=float)
+        self.eps_p = np.zeros(nc)
+        self._buf = fem.Function(self.V)
+        self.mass = self._lumped_mass()
+
     def _lumped_mass(self) -> np.ndarray:
         """Row-sum lumped mass via DOLFINx assembly (r-weighted with 2 pi in axisymmetry), kg."""
         w = ufl.TestFunction(self.V)

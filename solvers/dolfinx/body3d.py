@@ -72,24 +72,8 @@ class Body3D(Body):
         # round-off (1e-15 m) that depends on which cell, hence on the partition
         X = np.empty((self.n_local, 3))
         X[dofs.ravel()] = msh.geometry.x[msh.geometry.dofmap.array.reshape(-1, 4).ravel(), :3]
-        vol = tet_volumes(cells, X)
-        if np.any(vol == 0.0):
-            raise ValueError(f"body {spec.name!r}: degenerate cell")
-        neg = vol < 0
-        cells[neg, 1], cells[neg, 2] = cells[neg, 2].copy(), cells[neg, 1].copy()
-        self.cells = cells
-        self.X0 = X
-        self.x = X.copy()
-        self.v = np.zeros((self.n_local, 3))
-        self.v[:] = np.asarray(spec.initial_velocity, dtype=float)
-        self.a = np.zeros((self.n_local, 3))
+        self._init_state(spec, cells, X, tet_volumes(cells, X), 6)
         nc = cells.shape[0]
-        self.cell_stress = np.zeros((nc, 6))
-        if spec.initial_stress is not None:
-            self.cell_stress[:] = np.asarray(spec.initial_stress, dtype=float)
-        self.eps_p = np.zeros(nc)
-        self._buf = fem.Function(self.V)
-        self.mass = self._lumped_mass()
         if np.any(self.mass <= 0):
             raise ValueError(f"body {spec.name!r}: non-positive lumped mass")
         self.segments = self._exterior_triangles(dofs)
