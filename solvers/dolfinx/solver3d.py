@@ -155,14 +155,7 @@ class ExplicitSolver3D(ExplicitSolver):
                  len(self.rigid_walls), len(self.soft_planes), len(self.contact_pairs),
                  self.stable_time_step())
 
-    def _initial_dt_crit(self) -> float:
-        dmin = np.inf
-        for n, b in self.bodies.items():
-            d = tet_critical_dt(b.cells, b.x, self._prm[n])
-            if d < 0:
-                raise ValueError(f"body {n!r}: inverted cell in the initial mesh")
-            dmin = min(dmin, d)
-        return self.comm.allreduce(dmin, op=MPI.MIN)
+    _element_dt = staticmethod(tet_critical_dt)
 
     def stable_time_step(self) -> float:
         """Stable step of the current configuration: cfl x smallest element critical step, s.
