@@ -126,29 +126,9 @@ class ExplicitSolver(PythonSteps):
             for nm in (w.bodies or ()):
                 if nm not in self.bodies:
                     raise ValueError(f"rigid wall names unknown body {nm!r}")
-        names = {cp.slave for cp in self.contact_pairs} | {cp.master for cp in self.contact_pairs}
-        self._surf = {n: Surface(self.bodies[n]) for n in sorted(names)}
-        ext = max(float(np.abs(b.X0).max()) if b.X0.size else 0.0 for b in self.bodies.values())
-        self._wall_tol = 1e-12 * max(self.comm.allreduce(ext, op=MPI.MAX), 1e-300)
-        self.time = 0.0
-        self.step_count = 0
-        self._dt_prev = 0.0
-        self._acc = {k: 0.0 for k in _ACC_KEYS}
-        self._contact_stored = 0.0
-        self._fext = {n: np.zeros((b.n_local, 2)) for n, b in self.bodies.items()}
-        self._fext_nonzero = {n: False for n in self.bodies}
-        self.kinetic_damping = False
-        self._ke_half = {n: 0.0 for n in self.bodies}
-        self._contact_out = [None] * len(self.contact_pairs)
+        self._init_run_state()
         self._fsurf_prev = {n: np.zeros((len(sf.gids), 2)) for n, sf in self._surf.items()}
-        self._contact_work = 0.0
-        self._active = {}
-        self._wall_out = [dict() for _ in self.rigid_walls]
-        self._dt_crit = self._initial_dt_crit()
-        # forces at t = 0 (initial stress, contact layers) without changing the state
-        self._compute_forces(0.0, update_state=False)
-        self._E0 = self._stored_energy()
-        self._contact_stored0 = self._contact_stored
+        self._init_start()
         why = block_supported(self) if kernel == "numba" else "the numpy kernel"
         if self.threads > 1 and (why or not compiled_steps):
             raise ValueError(f"threads = {self.threads} needs the compiled block path, not available here "
@@ -162,6 +142,35 @@ class ExplicitSolver(PythonSteps):
         log.info("ExplicitSolver: %s, %d bodies, %d contact pairs, %d walls, stable dt %.4g s",
                  formulation, len(self.bodies), len(self.contact_pairs), len(self.rigid_walls),
                  self.stable_time_step())
+
+    def _init_run_state(self) -> None:
+        """The run's state before its first step (2D and 3D): contact surfaces, the walls' tolerance (m),
+        time, counters, energy accumulators, external forces, kinetic damping off."""
+        names = {cp.slave for cp in self.contact_pairs} | {cp.master for cp in self.contact_pairs}
+        self._surf = {n: Surface(self.bodies[n]) for n in sorted(names)}
+        ext = max(float(np.abs(b.X0).max()) if b.X0.size else 0.0 for b in self.bodies.values())
+        self._wall_tol = 1e-12 * max(self.comm.allreduce(ext, op=MPI.MAX), 1e-300)
+        self.time = 0.0
+        self.step_count = 0
+        self._dt_prev = 0.0
+        self._acc = {k: 0.0 for k in _ACC_KEYS}
+        self._contact_stored = 0.0
+        self._fext = {n: np.zeros_like(b.x) for n, b in self.bodies.items()}
+        self._fext_nonzero = {n: False for n in self.bodies}
+        self.kinetic_damping = False
+        self._ke_half = {n: 0.0 for n in self.bodies}
+        self._contact_out = [None] * len(self.contact_pairs)
+
+    def _init_start(self) -> None:
+        """The critical step and the forces and stored energy at t = 0 (initial stress, contact layers),
+        without changing the state (2D and 3D)."""
+        self._contact_work = 0.0
+        self._active = {}
+        self._wall_out = [dict() for _ in self.rigid_walls]
+        self._dt_crit = self._initial_dt_crit()
+        self._compute_forces(0.0, update_state=False)
+        self._E0 = self._stored_energy()
+        self._contact_stored0 = self._contact_stored
 
     # ------------------------------------------------------------------ time step
     #: the compiled critical time step of one body's cells (s): triangles here, tetrahedra in 3D

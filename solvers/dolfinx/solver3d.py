@@ -15,10 +15,9 @@ from typing import Sequence
 import numpy as np
 from mpi4py import MPI
 
-from . import restart
 from .body import BodySpec
 from .body3d import Body3D
-from .contact import ContactPairSpec, ContactPenetrationError, RigidWallSpec, Surface
+from .contact import ContactPairSpec, ContactPenetrationError, RigidWallSpec
 from .contact3d import soft_contact_pass_3d
 from .kernels import pack_parameters
 from .soft_plane import SoftPlaneSpec, soft_plane_forces
@@ -124,30 +123,11 @@ class ExplicitSolver3D(ExplicitSolver):
                 if nm not in self.bodies:
                     raise ValueError(f"soft plane names unknown body {nm!r}")
         self._soft_out = [dict() for _ in self.soft_planes]
-        names = {cp.slave for cp in self.contact_pairs} | {cp.master for cp in self.contact_pairs}
-        self._surf = {n: Surface(self.bodies[n]) for n in sorted(names)}
-        ext = max(float(np.abs(b.X0).max()) if b.X0.size else 0.0 for b in self.bodies.values())
-        self._wall_tol = 1e-12 * max(self.comm.allreduce(ext, op=MPI.MAX), 1e-300)
-        self.time = 0.0
-        self.step_count = 0
-        self._dt_prev = 0.0
-        self._acc = {k: 0.0 for k in restart._ACC_KEYS}
-        self._contact_stored = 0.0
-        self._fext = {n: np.zeros_like(b.x) for n, b in self.bodies.items()}
-        self._fext_nonzero = {n: False for n in self.bodies}
-        self.kinetic_damping = False
-        self._ke_half = {n: 0.0 for n in self.bodies}
-        self._contact_out = [None] * len(self.contact_pairs)
+        self._init_run_state()
         # contact forces of the previous step per body, on local rows (trapezoidal work; restart)
         self._fsurf_prev = ({n: np.zeros_like(b.x) for n, b in self.bodies.items()}
                             if self.soft_planes or self.contact_pairs else {})
-        self._contact_work = 0.0
-        self._active = {}
-        self._wall_out = [dict() for _ in self.rigid_walls]
-        self._dt_crit = self._initial_dt_crit()
-        self._compute_forces(0.0, update_state=False)
-        self._E0 = self._stored_energy()
-        self._contact_stored0 = self._contact_stored
+        self._init_start()
         self._block = None
         log.info("ExplicitSolver3D: %d bodies, %d cells, %d walls, %d soft planes, %d contact "
                  "pairs, stable dt %.4g s",
