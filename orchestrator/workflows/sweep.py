@@ -22,7 +22,12 @@ from ..run.units import label
 
 log = logging.getLogger(__name__)
 
-MAIN_METRICS = ("max_deflection_mm", "force_impulse_Ns", "em_time_s", "mech_time_s", "wall_time_s")
+# what the plots show against each swept parameter, in this order, where the members report it: the
+# coupled results, the contact results of a mechanics case (2D or 3D), each body's peak von Mises
+# stress (any metric ending so), then the costs
+MAIN_METRICS = ("max_deflection_mm", "force_impulse_Ns", "contact_stress_plateau_MPa", "contact_duration_ms",
+                "em_time_s", "mech_time_s", "wall_time_s")
+MAIN_SUFFIXES = ("_max_von_mises_MPa",)
 
 
 @dataclass
@@ -198,6 +203,15 @@ def write_table(todo: list[Member], grid: dict[str, list[str]], path: Path) -> N
     write_csv(path, header, rows)
 
 
+def main_metrics(members: list[Member]) -> list[str]:
+    """The metrics the sweep plots show, in :data:`MAIN_METRICS` order with each body's
+    ``*_max_von_mises_MPa`` after the contact results, those the members report."""
+    seen = {k for m in members for k in m.metrics}
+    by_suffix = sorted(k for k in seen if k.endswith(MAIN_SUFFIXES))
+    names = [k for k in MAIN_METRICS[:4] if k in seen] + by_suffix + [k for k in MAIN_METRICS[4:] if k in seen]
+    return names
+
+
 def plot_sweep(todo: list[Member], grid: dict[str, list[str]], folder: Path) -> None:
     """Main metrics against each numeric swept parameter (successful members only)."""
     import matplotlib
@@ -211,7 +225,7 @@ def plot_sweep(todo: list[Member], grid: dict[str, list[str]], folder: Path) -> 
             xs = [float(m.values[key]) for m in ok]
         except ValueError:
             continue
-        shown = [k for k in MAIN_METRICS if any(k in m.metrics for m in ok)]
+        shown = main_metrics(ok)
         if not xs or not shown:
             continue
         fig, axes = plt.subplots(len(shown), 1, figsize=(6, 2.2 * len(shown)), sharex=True, squeeze=False)
