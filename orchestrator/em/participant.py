@@ -368,12 +368,16 @@ class GetDPLoad(EMSnapshots, LoadCapabilities):
 
     def checkpoint_state_dict(self) -> dict[str, np.ndarray]:
         """:meth:`state_dict` at a checkpoint: the state the solver stores there is also the one the
-        next step continues from (:meth:`GetDPSolver.checkpoint_state`), so that a ``--resume`` from
-        this checkpoint repeats the uninterrupted run exactly."""
+        next step continues from (:meth:`GetDPSolver.checkpoint_state`), and the persistent getdp's
+        replay log (``replay_*``, :meth:`PersistentGetDPSolver.replay_arrays`), so that a ``--resume``
+        from this checkpoint repeats the uninterrupted run exactly."""
         if self.state.res_path:
             self._pinned = Path(self.state.res_path).parent
         self.state = self.solver.checkpoint_state(self.state)
-        return self._state_arrays(self.state)
+        d = self._state_arrays(self.state)
+        replay = getattr(self.solver, "replay_arrays", None)  # the persistent getdp's segment log
+        d.update({f"replay_{k}": v for k, v in (replay() if replay is not None else {}).items()})
+        return d
 
     def _state_arrays(self, state: EMState) -> dict[str, np.ndarray]:
         blob = json.dumps({"state": state.to_dict(), "runs": [str(p) for p in self._runs],
@@ -408,4 +412,7 @@ class GetDPLoad(EMSnapshots, LoadCapabilities):
             self._set_mesh(mesh)
         if "material" in d:
             self.material = np.array(d["material"])
+        replay = {k[7:]: v for k, v in d.items() if k.startswith("replay_")}  # a checkpoint's getdp log
+        if replay and hasattr(self.solver, "load_replay"):
+            self.solver.load_replay(replay)
         self._pinned = Path(self.state.res_path).parent if self.state.res_path else None

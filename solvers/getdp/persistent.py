@@ -17,6 +17,7 @@ not computed (NaN).  B and Joule power per element are fetched only when read (a
 """
 from __future__ import annotations
 
+import json
 import logging
 import warnings
 from pathlib import Path
@@ -30,6 +31,7 @@ from .mesh import EMMesh, coil_tag, conductor_tag
 from .model import EMModel, EMState, EMStepResult
 from .persistent_process import (FLAG_COND_FIELDS, FLAG_ELEM, FLAG_FIELDS, FLAG_STATE, LEAN_GLOBALS, PERSISTENT_LIB,
                                  PersistentProcess, StepAnswer, nodal_dof_map, read_binary_res)
+from .replay import ReplayLog, connectivity_signature, segment_length
 from .runner import GetDPError, RunInfo, log_tail
 from .solver import CASE_DECK, DEFAULT_PETSC_ARGS, GetDPSolver
 
@@ -85,6 +87,9 @@ class PersistentGetDPSolver(GetDPSolver):
         self._last: tuple | None = None  # (step_index, t) of the last step's start: a repeat is a redo
         self._hist: dict | None = None  # Python-side history at the start of the current step
         self._result: PersistentStepResult | None = None
+        self.replay_log: ReplayLog | None = None  # the running segment's seed and messages
+        self._pending: ReplayLog | None = None  # a checkpoint's log, replayed at the first step
+        self.replayed_steps = 0
 
     # ------------------------------------------------------------------ processes
     def make_process(self, mesh: EMMesh, material: np.ndarray, state: EMState, run_dir: Path,
@@ -120,9 +125,11 @@ class PersistentGetDPSolver(GetDPSolver):
         self.close()
         self.segment += 1
         m = self.model
+        seed = EMState.from_dict(json.loads(json.dumps(state.to_dict())))  # a copy, as a checkpoint stores it
         self.proc = self.make_process(mesh, material, state, self.work_dir / f"persistent_{self.segment:03d}")
         self.startup_s += self.proc.start(state.step_index, state.t)
         self.material = np.array(material, float)
+        self.replay_log = ReplayLog(seed, self.material.copy(), connectivity_signature(mesh.triangles, mesh.tri_tags))
         self.mass_cp = np.array([c.density * c.heat_capacity * self._volume(mesh, coil_tag(k), True)
                                  for k, c in enumerate(m.coils, start=1)])
         self.coil_joule = np.array([self._volume(mesh, coil_tag(k), True) / c.sigma
@@ -181,6 +188,8 @@ class PersistentGetDPSolver(GetDPSolver):
         if not t_end > state.t:
             raise ValueError(f"t_end={t_end} must be after state.t={state.t}")
         mat = mesh.points if material_points is None else np.asarray(material_points, float)
+        if self._pending is not None:
+            self._replay(mesh, state)
         redo = False
         p = self.proc
         if p is not None and p.alive and self._same_mesh(mesh):
@@ -188,11 +197,14 @@ class PersistentGetDPSolver(GetDPSolver):
                 redo = True
             elif p.k != state.step_index or abs(p.t - state.t) > 1e-12 * max(abs(state.t), 1e-300):
                 self._start(mesh, mat, state)  # a state from elsewhere (restored): start from it
+            elif len(self.replay_log) >= segment_length(mesh.n_nodes):  # the segment is full: seed a new one
+                self._start(mesh, mat, self.complete_state(state))
         elif p is not None and p.alive:  # remesh: carry the history of the old process
             full = self.complete_state(state)
             self._start(mesh, mat, full)
         else:
             self._start(mesh, mat, state)
+        self.replay_log.add(mesh.points, t_end, state.step_index, field_output)
         if redo:
             self._f_prev, self.elements = self._hist["f_prev"], self._hist["elements"]
         else:
@@ -310,14 +322,49 @@ class PersistentGetDPSolver(GetDPSolver):
         return result.b_cells is not None and result.a_nodes is not None
 
     def checkpoint_state(self, state: EMState) -> EMState:
-        """:meth:`complete_state`, and the process ends:
-        the next step starts a new process seeded from exactly that state, as a ``--resume`` from
-        the checkpoint does, so a resumed run repeats the uninterrupted run's operations bit for bit
-        (a continuing process differs from a seeded one at round-off, 1e-15 on the first step:
-        docs/getdp.md). Cost: one getdp start per checkpoint."""
-        full = self.complete_state(state)  # plain floats and lists: what JSON gives back, bit for bit
-        self.close()
-        return full
+        """:meth:`complete_state`; the process continues. A checkpoint also stores
+        :meth:`replay_arrays`, from which a ``--resume`` brings a new process into this process's state
+        bit for bit (a process seeded with the state itself would differ at round-off, 1e-15 on the
+        first step: docs/getdp.md); the state is the fallback when the log cannot be replayed."""
+        return self.complete_state(state)  # plain floats and lists: what JSON gives back, bit for bit
+
+    def replay_arrays(self) -> dict[str, np.ndarray]:
+        """The running segment's :class:`~.replay.ReplayLog` as arrays (for a checkpoint); empty if
+        no process runs."""
+        if self.proc is None or not self.proc.alive or self.replay_log is None or not len(self.replay_log):
+            return {}
+        return self.replay_log.to_arrays()
+
+    def load_replay(self, arrays: dict[str, np.ndarray]) -> None:
+        """A checkpoint's :meth:`replay_arrays`: the next :meth:`step` from the checkpoint's state first
+        replays the segment in a new process."""
+        self._pending = ReplayLog.from_arrays(arrays) if arrays else None
+
+    def _replay(self, mesh: EMMesh, state: EMState) -> None:
+        """Replay the pending log if ``state`` is where it ends, on ``mesh``'s connectivity: a new
+        process from the segment's seed, sent the same messages; its state is checked against
+        ``state`` (circuit scalars bit for bit). Otherwise, or on a mismatch, the caller seeds a
+        process from ``state`` (exact to round-off)."""
+        rec, self._pending = self._pending, None
+        end = rec.ends_at()
+        if end is None or end[0] != state.step_index or end[1] != state.t \
+                or not np.array_equal(rec.signature, connectivity_signature(mesh.triangles, mesh.tri_tags)):
+            _log_fallback("the checkpoint's getdp log does not end at the resumed state")
+            return
+        states = {rec.seed.step_index: rec.seed}
+        new = rec.seed
+        for points, t_end, base, fields in zip(rec.points, rec.t_end, rec.base, rec.fields):
+            _, new = self.step(mesh.with_points(points), states[base], t_end, material_points=rec.material,
+                               field_output=fields)
+            states[new.step_index] = new
+        self.replayed_steps += len(rec)
+        log.info("persistent getdp: %d EM steps replayed from the checkpoint's log", len(rec))
+        same = (new.step_index, new.t, new.capacitor_voltage, new.current) == \
+            (state.step_index, state.t, state.capacitor_voltage, state.current)
+        if not same:
+            _log_fallback(f"replaying {len(rec)} EM steps gave another state (I = {new.current!r} A vs "
+                          f"{state.current!r} A)")
+            self.close()
 
     def complete_state(self, state: EMState) -> EMState:
         """``state`` (the one the last step returned) with the nodal BDF2 history and the start values
@@ -349,3 +396,7 @@ class PersistentGetDPSolver(GetDPSolver):
             full.force_density = np.asarray(self._f_prev[0]).tolist()
             full.force_points = self.material[p.mesh.triangles[self.elements]].mean(axis=1).tolist()
         return full
+
+
+def _log_fallback(why: str) -> None:
+    log.warning("persistent getdp: %s; continuing from the stored state (equal to round-off, not bit for bit)", why)

@@ -246,8 +246,9 @@ class PersistentProcess:
         vec = self._vec
         vec[self.u_index[self._has_u]] = du[self._has_u]
         k = self.k if redo else self.k + 1
+        c0 = time.perf_counter()
         self._send(vec, float(t_end), flags | (FLAG_REDO if redo else 0), k)
-        answer = self._answer(k)
+        answer = self._answer(k, c0)
         self.points += du  # what getdp computed: x + (x_new - x), the same IEEE operations
         self.k, self.t = k, float(t_end)
         return answer
@@ -255,11 +256,13 @@ class PersistentProcess:
     def query(self, flags: int) -> StepAnswer:
         """Outputs of the current solution without a step (``flags``: FLAG_COND_FIELDS, FLAG_FIELDS,
         FLAG_STATE, FLAG_ELEM)."""
-        self._send(np.zeros(self.n_u), self.t, flags | FLAG_QUERY | FLAG_NO_GLOBALS, self.k)
-        return self._answer(self.k)
-
-    def _answer(self, k: int) -> StepAnswer:
         c0 = time.perf_counter()
+        self._send(np.zeros(self.n_u), self.t, flags | FLAG_QUERY | FLAG_NO_GLOBALS, self.k)
+        return self._answer(self.k, c0)
+
+    def _answer(self, k: int, c0: float) -> StepAnswer:
+        """getdp's answer to message ``k``; its wall time counts from ``c0``, before the message was sent
+        (closing the FIFO's write end can hand the core to getdp at once: that time is getdp's)."""
         lines = self._wait_done(k)
         wall = time.perf_counter() - c0
         return self._parse(lines, k, wall)

@@ -57,11 +57,13 @@ class Bulge:
         return self.mesh.with_points(self.mover.moved(u))
 
 
-def _march(solver, meshes, times, restart_at=None, redo_at=None, fields_at=None, checkpoint_at=None):
+def _march(solver, meshes, times, restart_at=None, redo_at=None, fields_at=None, checkpoint_at=None,
+           replay=False):
     """Step ``solver`` through ``times``; ``meshes(k, t)`` gives the moved mesh; returns per step
     (current, capacitor voltage, energy, heat, conductor force, trapezoid force density) and the fields.
     ``checkpoint_at``: the state a checkpoint stores, and the same solver continues from it;
-    ``restart_at``: that state through JSON into a new solver (a --resume)."""
+    ``restart_at``: that state through JSON into a new solver (a --resume), with the checkpoint's
+    replay log when ``replay`` (else seeded from the state alone: the fallback)."""
     state, out, fields = solver.initial_state(), [], None
     for k, t in enumerate(times):
         if k == checkpoint_at:
@@ -69,9 +71,12 @@ def _march(solver, meshes, times, restart_at=None, redo_at=None, fields_at=None,
         if k == restart_at:  # a checkpoint: the state through JSON, then a new solver
             full = solver.checkpoint_state(state)
             state = EMState.from_dict(json.loads(json.dumps(full.to_dict())))
+            log = {k: v.copy() for k, v in solver.replay_arrays().items()} if replay else {}
             solver.close() if hasattr(solver, "close") else None
             solver = type(solver)(solver.model, solver.work_dir.parent / (solver.work_dir.name + "_b"),
                                   time_scheme="bdf2")
+            if log:
+                solver.load_replay(log)
         mesh, material = meshes(k, t)
         if k == redo_at:  # coupling.iterate: the step on another geometry first, then again
             solver.step(meshes(k, 0.5 * t)[0], state, t, material_points=material)
@@ -109,7 +114,9 @@ def test_same_results_as_one_process_per_step(work):
 
 def test_restart_remesh_and_redo(work):
     """A restart from a checkpointed state continues the run (1e-12, measured 1.8e-14: the seed is exact,
-    a continuing process differs at round-off, docs/getdp.md); a remesh mid-run (another connectivity: a new
+    a continuing process differs at round-off, docs/getdp.md); a resume that replays the checkpoint's
+    log (the segment's seed and messages, solvers/getdp/replay.py) repeats the uninterrupted run bit
+    for bit, and writing a checkpoint does not perturb the run; a remesh mid-run (another connectivity: a new
     process seeded with both BDF2 states interpolated in material coordinates) agrees with the
     per-step path doing the same; a redone step (coupling.iterate) equals stepping directly."""
     mesh, other = _mesh(), _mesh(0.9)
@@ -125,10 +132,13 @@ def test_restart_remesh_and_redo(work):
     print(f"\nrestart {_rel(base, restarted):.2g}, redo {_rel(base, redone):.2g}")
     assert _rel(base, restarted) < 1e-12
     assert _rel(base, redone) < 1e-12
-    # a run that writes a checkpoint continues from exactly what it stored: a resume repeats it bitwise
+    # a run that writes a checkpoint continues unperturbed, and a resume replaying the checkpoint's log
+    # repeats it bit for bit; seeded from the state alone it would not (what the test guards against)
     checkpointed, _ = _march(PersistentGetDPSolver(MODEL, work / "checkpointed"), moving, TIMES, checkpoint_at=6)
-    assert all(np.array_equal(a, b) for a, b in zip(checkpointed, restarted))
-    assert not all(np.array_equal(a, b) for a, b in zip(base, restarted))  # (what the test guards against)
+    resumed, _ = _march(PersistentGetDPSolver(MODEL, work / "resumed"), moving, TIMES, restart_at=6, replay=True)
+    assert all(np.array_equal(a, b) for a, b in zip(checkpointed, base))
+    assert all(np.array_equal(a, b) for a, b in zip(resumed, base))
+    assert not all(np.array_equal(a, b) for a, b in zip(base, restarted))
 
     def remeshed(k, t):
         return (b1(t), mesh.points) if k < 6 else (b2(t), other.points)
@@ -140,6 +150,30 @@ def test_restart_remesh_and_redo(work):
     scalars = lambda rows: [r[:5] for r in rows]  # noqa: E731 - the element arrays change size at the remesh
     print(f"remesh: persistent vs per-step {_rel(scalars(ref), scalars(got)):.2g}")
     assert _rel(scalars(ref), scalars(got)) < 1e-12
+
+
+def test_segments_end_and_a_resume_replays_the_last(work, monkeypatch):
+    """A persistent segment ends after a number of steps set by the node count (here 4, to see it): the
+    next step seeds a new process with the exact state, the run stays within round-off of one long
+    segment (1e-12), and a resume between segment ends replays only the last segment's log and
+    repeats the run bit for bit (the segment ends fall on the same steps in both)."""
+    from pulseform.solvers.getdp import persistent
+
+    mesh = _mesh()
+    b1 = Bulge(mesh)
+
+    def moving(k, t):
+        return b1(t), mesh.points
+
+    one, _ = _march(PersistentGetDPSolver(MODEL, work / "one_segment"), moving, TIMES)
+    monkeypatch.setattr(persistent, "segment_length", lambda n_nodes: 4)
+    solver = PersistentGetDPSolver(MODEL, work / "segments")
+    segmented, _ = _march(solver, moving, TIMES)
+    assert solver.segment == 3  # steps 0-3, 4-7, 8-11
+    resumed, _ = _march(PersistentGetDPSolver(MODEL, work / "seg_resumed"), moving, TIMES, restart_at=6, replay=True)
+    print(f"\nsegments of 4 vs one segment: {_rel(one, segmented):.2g}")
+    assert _rel(one, segmented) < 1e-12
+    assert all(np.array_equal(a, b) for a, b in zip(resumed, segmented))
 
 
 def _fake_getdp(tmp_path, body: str):
