@@ -39,8 +39,11 @@ def build_solver_3d(case: Case, comm: MPI.Comm = MPI.COMM_WORLD,
         mesh = mesh_solid(b.shape, b.mesh_size, comm, name=b.name, time_limit=case.limits.gmsh_time_limit_s)
         tol = 1e-9 * max(float(comm.allreduce(np.abs(mesh.geometry.x).max(initial=0.0), op=MPI.MAX)), 1.0)
         own = [s for s in case.symmetry if not s.bodies or b.name in s.bodies]
-        fixed = tuple((plane_marker(s, tol), (s.component(),)) for s in own if s.axis_aligned())
-        sliding = tuple((plane_marker(s, tol), tuple(s.normal)) for s in own if not s.axis_aligned())
+        # axis-aligned planes alone: rollers on one component; with an oblique one all of the body's
+        # planes slide (a node on two planes then moves along their common line)
+        aligned = all(s.axis_aligned() for s in own)
+        fixed = tuple((plane_marker(s, tol), (s.component(),)) for s in own) if aligned else ()
+        sliding = () if aligned else tuple((plane_marker(s, tol), tuple(s.normal)) for s in own)
         v0 = tuple(b.initial_velocity) if len(b.initial_velocity) == 3 else (0.0, 0.0, 0.0)
         bodies.append(mech.BodySpec(name=b.name, mesh=mesh, material=solver_material(case.materials[b.material]),
                                     initial_velocity=v0, fixed=fixed, sliding=sliding))
