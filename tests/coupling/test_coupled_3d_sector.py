@@ -11,11 +11,15 @@ checked as the impulse being positive and of the force history's trapezoid.
 """
 from pathlib import Path
 
+import json
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 
 from pulseform.orchestrator.case.io import load_case
-from pulseform.orchestrator.run.coupled3d import SectorOptions, build_sector
+from pulseform.orchestrator.run.coupled3d import DEMO_SECTOR, SectorOptions, build_sector, run_sector
 from pulseform.orchestrator.coupling.loop import LoopOptions, StaggeredLoop
 from pulseform.orchestrator.mech.participants import DolfinxMechanics
 from pulseform.solvers.getdp.solver3d import solve_transient3d
@@ -53,3 +57,29 @@ def test_a_few_coupled_em_steps_of_the_3d_sector(tmp_path):
     assert ledger < 1e-12
     assert err < 1e-3 and err_held < 1e-3
     assert abs(loop.counters.impulse[2] - np.sum(trap * np.diff(np.r_[0.0, ref.times]))) < 1e-3 * abs(loop.counters.impulse[2])
+
+
+@pytest.mark.slow
+@pytest.mark.getdp
+def test_3d_sector_of_the_demo_vs_the_axisymmetric_run(tmp_path):
+    """Issue 20 case (a): the demo as a coupled 1.25 degree sector (60 µs, ~6-7 min on 2 shared cores)
+    against `pulseform run cases/emf_sheet_bulge` on the 0.25 mm mesh (the axisymmetric reference:
+    cases/emf_sheet_bulge/reference/convergence.md finds it within 0.7 % of converged; the shipped
+    0.5 mm mesh is 6.9 % low in deflection itself). The issue's bars: max deflection 3 %, impulse
+    2 % (the sector's axial impulse times 360 / 1.25), ledger at round-off."""
+    case, _ = load_case(REPO / "cases/emf_sheet_bulge/case.toml")
+    m3 = run_sector(case, tmp_path / "sector", DEMO_SECTOR)
+    exe = str(Path(sys.executable).with_name("pulseform"))
+    subprocess.run([exe, "run", str(REPO / "cases/emf_sheet_bulge"), "--out", str(tmp_path / "axi"), "--quiet",
+                    "--set", "output.plots=false", "--set", "geometry.mesh_size_sheet=0.25e-3",
+                    "--set", "geometry.mesh_size_coil=0.5e-3", "--set", "geometry.mesh_size_air=0.01"], check=True)
+    m2 = json.loads((tmp_path / "axi" / "metrics.json").read_text())
+    d = m3["max_deflection_mm"] / m2["max_deflection_mm"] - 1
+    i = m3["impulse_device_Ns"] / m2["force_impulse_z_Ns"] - 1
+    print(f"\n3D sector ({m3['em_tets']} EM tets, {m3['sheet_tets']} sheet tets, {m3['em_steps']} EM / "
+          f"{m3['mech_steps']} mechanical steps, {m3['wall_s']:.0f} s) vs axisymmetric 0.25 mm: deflection "
+          f"{m3['max_deflection_mm']:.4f} vs {m2['max_deflection_mm']:.4f} mm ({d:+.2%}), impulse "
+          f"{m3['impulse_device_Ns']:.5f} vs {m2['force_impulse_z_Ns']:.5f} N s ({i:+.2%}), ledger "
+          f"{m3['conservation_error_rel']:.1e}")
+    assert abs(d) < 0.03 and abs(i) < 0.02
+    assert m3["conservation_error_rel"] < 1e-12
