@@ -67,19 +67,24 @@ class SolidCylinder:
 @dataclass(frozen=True, kw_only=True)
 class SymmetryPlane:
     """A symmetry plane of a 3D model (a quarter, a sector): boundary nodes on it keep their normal
-    velocity at zero (a frictionless roller). Planes normal to x, y or z for now."""
+    velocity at zero (a frictionless roller). Any orientation: a plane normal to x, y or z holds one
+    velocity component, an oblique one (the second face of a sector) projects the nodes' velocity
+    and acceleration onto the plane (``BodySpec.sliding``)."""
 
     point: Vec3 = spec((0.0, 0.0, 0.0), unit="m", doc="a point on the plane")
-    normal: Vec3 = spec(unit="-", doc="normal: along x, y or z, e.g. [0, 1, 0]")
+    normal: Vec3 = spec(unit="-", doc="normal (any non-zero vector), e.g. [0, 1, 0] or [-sin(a), cos(a), 0]")
     bodies: tuple[str, ...] = spec((), doc="bodies it acts on (empty = all)")
 
     def validate(self, path: str) -> None:
-        if sum(1 for c in self.normal if c != 0.0) != 1:
-            raise SchemaError(f"{path}.normal", f"got {list(self.normal)}; allowed: a normal along x, y or z "
-                              "([1, 0, 0], [0, 1, 0], [0, 0, 1] or their negatives)")
+        if len(self.normal) != 3 or math.hypot(*self.normal) == 0.0:
+            raise SchemaError(f"{path}.normal", f"got {list(self.normal)}; must be a non-zero vector [nx, ny, nz]")
+
+    def axis_aligned(self) -> bool:
+        """True for a plane normal to x, y or z."""
+        return sum(1 for c in self.normal if c != 0.0) == 1
 
     def component(self) -> int:
-        """The axis (0, 1, 2) the plane is normal to."""
+        """The axis (0, 1, 2) the plane is normal to (axis-aligned planes)."""
         return next(i for i, c in enumerate(self.normal) if c != 0.0)
 
 
@@ -149,7 +154,10 @@ def _validate_3d(case) -> None:
 
 
 def _check_plane_touches(case, i: int, plane: SymmetryPlane) -> None:
-    """A symmetry plane must lie on a face of a box it acts on (a cylinder is taken on trust)."""
+    """A symmetry plane must lie on a face of a box it acts on (a cylinder or an oblique plane is taken
+    on trust)."""
+    if not plane.axis_aligned():
+        return
     c = plane.component()
     v = plane.point[c]
     faces = []

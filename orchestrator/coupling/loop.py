@@ -211,11 +211,14 @@ class StaggeredLoop:
         err = ledger_error(resultant[None, :], step.reference_integral) if step.reference_integral is not None else 0.0
         c.em_steps += 1
         c.last_em_step = dt * k
+        if c.impulse.shape != resultant.shape and not c.impulse.any():   # 3D: three components
+            c.impulse = np.zeros(resultant.shape)
         c.impulse += resultant * (t1 - t0)
         c.ledger_max = max(c.ledger_max, err)
         c.iterations += iterations
         c.iterations_max = max(c.iterations_max, iterations)
         row = {"force_x_N": float(resultant[0]), "force_y_N": float(resultant[1]),
+               **({"force_z_N": float(resultant[2])} if resultant.shape[0] > 2 else {}),
                "conservation_error_rel": err, "substeps": float(k), "dt_s": dt, "iterations": float(iterations),
                **step.values}
         if self.options.adaptive:

@@ -19,10 +19,14 @@ from ..mesh.solids import mesh_solid
 
 
 def plane_marker(plane: SymmetryPlane, tol: float) -> Callable[[np.ndarray], np.ndarray]:
-    """Marker of the nodes on ``plane``: |(x - point) . n| <= tol (m), x given as (3, N)."""
-    c = plane.component()
-    x0 = float(plane.point[c])
-    return lambda x: np.abs(x[c] - x0) <= tol
+    """Marker of the nodes on ``plane``: |(x - point) . n| <= tol (m, n the unit normal), x given as (3, N)."""
+    if plane.axis_aligned():
+        c = plane.component()
+        x0 = float(plane.point[c])
+        return lambda x: np.abs(x[c] - x0) <= tol
+    n = np.asarray(plane.normal, float) / np.linalg.norm(plane.normal)
+    p0 = np.asarray(plane.point, float)
+    return lambda x: np.abs(n @ (x - p0[:, None])) <= tol
 
 
 def build_solver_3d(case: Case, comm: MPI.Comm = MPI.COMM_WORLD,
@@ -34,11 +38,15 @@ def build_solver_3d(case: Case, comm: MPI.Comm = MPI.COMM_WORLD,
     for b in case.bodies:
         mesh = mesh_solid(b.shape, b.mesh_size, comm, name=b.name, time_limit=case.limits.gmsh_time_limit_s)
         tol = 1e-9 * max(float(comm.allreduce(np.abs(mesh.geometry.x).max(initial=0.0), op=MPI.MAX)), 1.0)
-        fixed = tuple((plane_marker(s, tol), (s.component(),)) for s in case.symmetry
-                      if not s.bodies or b.name in s.bodies)
+        own = [s for s in case.symmetry if not s.bodies or b.name in s.bodies]
+        # axis-aligned planes alone: rollers on one component; with an oblique one all of the body's
+        # planes slide (a node on two planes then moves along their common line)
+        aligned = all(s.axis_aligned() for s in own)
+        fixed = tuple((plane_marker(s, tol), (s.component(),)) for s in own) if aligned else ()
+        sliding = () if aligned else tuple((plane_marker(s, tol), tuple(s.normal)) for s in own)
         v0 = tuple(b.initial_velocity) if len(b.initial_velocity) == 3 else (0.0, 0.0, 0.0)
         bodies.append(mech.BodySpec(name=b.name, mesh=mesh, material=solver_material(case.materials[b.material]),
-                                    initial_velocity=v0, fixed=fixed))
+                                    initial_velocity=v0, fixed=fixed, sliding=sliding))
     walls = tuple(mech.RigidWallSpec(point=tuple(w.point), normal=tuple(w.normal),
                                      bodies=tuple(w.bodies) or None, sliding=w.sliding) for w in case.walls)
     pairs = tuple(mech.ContactPairSpec(slave=c.slave, master=c.master, stiffness=c.stiffness, h0=c.h0,

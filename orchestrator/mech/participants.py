@@ -85,7 +85,7 @@ class DolfinxMechanics:
 
     def total_force(self, forces: dict[str, np.ndarray]) -> np.ndarray:
         """Resultant (N) over owned nodes of every rank (ghost rows are complete copies)."""
-        local = np.zeros(2)
+        local = np.zeros(next(iter(self.solver.bodies.values())).gdim)   # 2 components, or 3 in 3D
         for name, f in forces.items():
             local += np.asarray(f)[: self.solver.bodies[name].n_owned].sum(axis=0)
         return self.solver.comm.allreduce(local)

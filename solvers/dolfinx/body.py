@@ -49,6 +49,9 @@ class BodySpec:
         (N, 2) to current positions (N, 2) at time t ((N, 3) in 3D); matched nodes follow it exactly.
     initial_stress : tuple of 4 (2D) or 6 (3D) floats, optional
         Uniform initial Cauchy stress [xx, yy, zz, xy] (3D: [xx, yy, zz, xy, yz, xz]), Pa.
+    sliding : sequence
+        3D only: symmetry planes of any orientation ``(marker, normal)``; the marked nodes slide in
+        the plane (:mod:`.sliding`).
     """
 
     name: str
@@ -58,6 +61,7 @@ class BodySpec:
     fixed: Sequence = ()
     motion: Sequence = ()
     initial_stress: Optional[tuple] = None
+    sliding: Sequence = ()
 
 
 class Body:
@@ -69,6 +73,8 @@ class Body:
         msh = spec.mesh
         if msh.topology.dim != 2 or msh.topology.cell_type != dmesh.CellType.triangle:
             raise ValueError(f"body {spec.name!r}: need a 2D triangle mesh")
+        if spec.sliding:
+            raise ValueError(f"body {spec.name!r}: sliding planes are for 3D bodies (use fixed components in 2D)")
         if msh.geometry.cmap.degree != 1:
             raise ValueError(f"body {spec.name!r}: need an affine (P1) geometry")
         self.name = spec.name
@@ -209,6 +215,16 @@ class Body:
                 self.v[nodes] = (target - self.x[nodes]) / dt
         if self.axis_nodes.size:
             self.v[self.axis_nodes, 0] = 0.0
+        if self.sliding is not None:
+            self.sliding.project(self.v)
+
+    #: the body's :class:`~.sliding.SlidingPlanes` (3D bodies with oblique symmetry planes), or None
+    sliding = None
+
+    def project_sliding(self, arr: np.ndarray) -> None:
+        """Remove the plane-normal components of nodal vectors ``arr`` (accelerations) in place."""
+        if self.sliding is not None:
+            self.sliding.project(arr)
 
     def constrained_mask(self) -> np.ndarray:
         """(N, gdim) bool: components whose velocity is prescribed."""

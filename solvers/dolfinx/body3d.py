@@ -15,6 +15,7 @@ from dolfinx.fem.petsc import assemble_vector
 from petsc4py import PETSc
 
 from .body import Body, BodySpec
+from .sliding import SlidingPlanes
 from .tet_kernel import tet_elastic_energy_density, tet_volumes, tet_von_mises
 
 __all__ = ["Body3D"]
@@ -78,6 +79,7 @@ class Body3D(Body):
             raise ValueError(f"body {spec.name!r}: non-positive lumped mass")
         self.segments = self._exterior_triangles(dofs)
         self._constraints = self._build_constraints()
+        self.sliding = SlidingPlanes(self.X0, spec.sliding) if spec.sliding else None
         self.axis_nodes = np.zeros(0, dtype=np.int64)
         log.info("body %s (3D): %d owned nodes, %d cells, %d boundary triangles, mass %.6g kg",
                  self.name, self.n_owned, nc, len(self.segments), self.total_mass())

@@ -138,6 +138,7 @@ class PythonSteps:
             self._wall_reactions(n, b, f)
             np.divide(f, b.mass[:, None], out=b.a)
             b.a.ravel()[self._cidx[n]] = 0.0
+            b.project_sliding(b.a)
 
     def _sum(self, val: float) -> float:
         return self.comm.allreduce(float(val)) if self.comm.size > 1 else float(val)

@@ -244,6 +244,7 @@ class ExplicitSolver(PythonSteps):
                 ke_old = np.sum(b.mass[:no, None] * (b.v[:no] + 0.5 * self._dt_prev * b.a[:no]) ** 2)
                 b.a += delta / b.mass[:, None]
                 b.a.ravel()[self._cidx[n]] = 0.0
+                b.project_sliding(b.a)
                 ke_new = np.sum(b.mass[:no, None] * (b.v[:no] + 0.5 * self._dt_prev * b.a[:no]) ** 2)
                 self._acc["external_work_J"] += self._sum(0.5 * (ke_new - ke_old))
             self._fext[n][...] = fext[n]

@@ -130,6 +130,7 @@ class EM3DResult:
     elements: np.ndarray | None = None
     element_tags: np.ndarray | None = None
     force_density: np.ndarray | None = None
+    force_density_mean: np.ndarray | None = None  # (n_el, 3) N/m^3 held over a step (:mod:`.stepper3d`)
     joule_density: np.ndarray | None = None
     flux_density: np.ndarray | None = None
     b_cells: np.ndarray | None = None
@@ -233,7 +234,8 @@ def ball_average(mesh: Mesh3D, values: np.ndarray, centre: Sequence[float], radi
 def solve_transient3d(model: EM3DModel, mesh: Mesh3D, t_end: float, n_steps: int, work_dir: str | Path, *,
                       t0: float = 0.0, element_output: str = "all", field_output: bool = False,
                       restart_res: str | Path | None = None, circuit_state: tuple[float, float] | None = None,
-                      time_scheme: str = "euler", executable: str = "getdp",
+                      time_scheme: str = "euler", extra_numbers: dict[str, float] | None = None,
+                      executable: str = "getdp",
                       petsc_args: Sequence[str] = DEFAULT_PETSC_ARGS_3D, timeout: float | None = None) -> EM3DResult:
     """Run the 3D deck from ``t0`` to ``t_end`` (s) in ``n_steps`` implicit Euler steps.
 
@@ -245,6 +247,7 @@ def solve_transient3d(model: EM3DModel, mesh: Mesh3D, t_end: float, n_steps: int
 
     ``element_output``: ``"all"`` (per-tetrahedron tables every step), ``"last"`` or ``"none"``;
     ``field_output``: also B on every tetrahedron after the last step (``b_cells``).
+    ``extra_numbers``: more ``-setnumber`` inputs of the deck (e.g. ``Flag_SaveInit``).
     ``time_scheme``: ``"euler"`` (implicit Euler) or ``"bdf2"`` (second order, equal steps, the first one
     implicit Euler; from zero fields only: no ``restart_res``).
     One getdp process in ``work_dir`` (created; its log ``getdp.log``); ``timeout`` in s.
@@ -260,7 +263,7 @@ def solve_transient3d(model: EM3DModel, mesh: Mesh3D, t_end: float, n_steps: int
         old.unlink()
     numbers, lines = model_numbers(model, mesh)
     numbers.update(TimeInit=float(t0), TimeFinal=float(t_end), NbSteps=int(n_steps), Flag_ElemOut=flag_elem,
-                   Flag_FieldOut=int(field_output))
+                   Flag_FieldOut=int(field_output), **(extra_numbers or {}))
     if time_scheme not in ("euler", "bdf2"):
         raise ValueError(f"time_scheme is 'euler' or 'bdf2', got {time_scheme!r}")
     if time_scheme == "bdf2" and (restart_res is not None or circuit_state is not None):

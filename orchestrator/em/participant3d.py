@@ -1,0 +1,153 @@
+"""The 3D GetDP eddy-current load provider of the staggered loop (one getdp process per EM step).
+
+Each EM step [t0, t1] (:mod:`pulseform.orchestrator.coupling.loop`):
+
+1. ``follow``: the 3D EM mesh follows the mechanics: the conductor bodies' nodes take the mechanical
+   positions (the meshes share them), coil, shell and outer boundary stay, nodes on the symmetry
+   planes slide in them, the rest of the air is moved harmonically
+   (:class:`~pulseform.orchestrator.mesh.motion3d.MeshMover3D`); a tetrahedron that inverts or whose
+   quality falls below the threshold stops the run with a clear message (no 3D remesh yet);
+2. ``load``: the moved nodes are written with the same connectivity (``Mesh3D.moved``) and getdp
+   advances one step from the carried state (:class:`~pulseform.solvers.getdp.stepper3d.EM3DStepper`:
+   implicit Euler by ``-restart``, BDF2 from x~);
+3. the per-tetrahedron force density held over the step (BDF2: the trapezoid of the start and end
+   values) becomes consistent nodal forces f V / 4 on the shared nodes
+   (:mod:`~pulseform.orchestrator.coupling.transfer3d`); the ledger compares their sum with Σ f V.
+
+Forces, impulse and powers are those of the modelled sector; ``symmetry_factor`` (360 / angle)
+scales them to the whole device in the history's ``device_*`` columns.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from pulseform.solvers.getdp.files import discard_folder
+from pulseform.solvers.getdp.mesh3d import Mesh3D
+from pulseform.solvers.getdp.solver3d import EM3DModel
+from pulseform.solvers.getdp.stepper3d import EM3DStepper
+
+from ..coupling.interfaces import LoadCapabilities, LoadStep
+from ..coupling.transfer3d import tet_force_integral, tet_nodal_forces
+from ..mesh.motion3d import MeshMover3D
+from ..mesh.shared3d import ConductorMesh3D
+
+log = logging.getLogger(__name__)
+
+#: history columns of the 3D GetDP load (sector values unless ``device_``)
+LOAD_COLUMNS_3D = ("force_x_N", "force_y_N", "force_z_N", "conservation_error_rel", "coil_current_A",
+                   "capacitor_voltage_V", "magnetic_energy_J", "workpiece_joule_power_W", "getdp_force_z_N",
+                   "device_force_z_N", "em_mesh_min_quality")
+
+
+@dataclass
+class ConductorBody3D:
+    """A mechanical 3D body that is an EM conductor region (shared nodes): its ``name``, EM physical
+    id ``tag`` (201, ...), the region cut from the EM mesh ``sub`` and ``body_to_em``, the EM node of
+    each of the body's local nodes."""
+
+    name: str
+    tag: int
+    sub: ConductorMesh3D
+    body_to_em: np.ndarray
+
+
+class GetDPLoad3D(LoadCapabilities):
+    """Load provider: 3D GetDP eddy-current forces on the conductor bodies (module docstring).
+
+    Parameters
+    ----------
+    mesh : Mesh3D
+        The EM mesh in its reference configuration.
+    model : EM3DModel
+        The 3D model (coil, circuit, conductors, shell, sector).
+    work_dir : Path
+        Folder of the getdp runs (one per EM step; only the last two are kept).
+    bodies : list of ConductorBody3D
+        The conductor bodies (the workpiece first).
+    mover : MeshMover3D
+        The air motion on ``mesh`` (conductor nodes prescribed, planes sliding).
+    time_scheme : {"euler", "bdf2"}
+        The EM time scheme.
+    """
+
+    columns = LOAD_COLUMNS_3D
+
+    def __init__(self, mesh: Mesh3D, model: EM3DModel, work_dir: Path, bodies: list[ConductorBody3D],
+                 mover: MeshMover3D, time_scheme: str = "bdf2") -> None:
+        self.mesh, self.model, self.bodies, self.mover = mesh, model, list(bodies), mover
+        self.work_dir = Path(work_dir).resolve()
+        self.stepper = EM3DStepper(model, self.work_dir, time_scheme=time_scheme)
+        self.state = self.stepper.initial_state()
+        self.tags = np.array([b.tag for b in self.bodies])
+        self.min_quality = float(mover.q_ref.min())
+        self._moved: tuple[float, np.ndarray] | None = None
+        self._runs: list[Path] = []
+        self.timers = {"mesh_motion_s": 0.0, "getdp_s": 0.0, "transfer_s": 0.0}
+
+    def follow(self, t0: float, mechanics) -> None:
+        """The EM mesh follows the bodies for the EM step starting at ``t0`` (s)."""
+        c0 = time.perf_counter()
+        positions = mechanics.positions()
+        u = np.zeros_like(self.mesh.points)
+        for b in self.bodies:
+            u[b.body_to_em] = positions[b.name][:, :3] - self.mesh.points[b.body_to_em]
+        x_em = self.mover.moved(u)   # raises MeshQualityError: no 3D remesh yet
+        self.min_quality = min(self.min_quality, float(self.mover.last_min_quality))
+        self._moved = (t0, x_em)
+        self.timers["mesh_motion_s"] += time.perf_counter() - c0
+
+    def load(self, t0: float, t1: float, t_mid: float, mechanics) -> LoadStep:
+        """One getdp step to ``t1`` (s) on the moved mesh; nodal forces (N) on the bodies."""
+        if self._moved is None or self._moved[0] != t0:
+            self.follow(t0, mechanics)
+        x_em, self._moved = self._moved[1], None
+        if abs(self.state.t - t0) > 1e-9 * max(t1, 1e-300):
+            raise RuntimeError(f"EM state at t = {self.state.t:.9g} s, but the step starts at {t0:.9g} s")
+        c0 = time.perf_counter()
+        run_dir = self.work_dir / f"step_{self.state.steps + 1:05d}"
+        run_dir.mkdir(parents=True, exist_ok=True)
+        mesh_k = self.mesh.moved(x_em, run_dir / "mesh.msh")
+        result, self.state = self.stepper.step(mesh_k, self.state, t1)
+        self._prune(run_dir)
+        c1 = time.perf_counter()
+        keep = np.isin(result.element_tags, self.tags)
+        f = result.force_density_mean[keep]
+        tets = self.mesh.tets[result.elements[keep]]
+        f_em = tet_nodal_forces(x_em, tets, f)
+        forces = {b.name: f_em[b.body_to_em] for b in self.bodies}
+        integral = tet_force_integral(x_em, tets, f)
+        self.timers["getdp_s"] += c1 - c0
+        self.timers["transfer_s"] += time.perf_counter() - c1
+        s = float(self.model.symmetry_factor)
+        fz = float(result.conductor_force[-1, 0, 2])
+        values = {"coil_current_A": float(result.coil_current[-1, 0]),
+                  "capacitor_voltage_V": float(result.capacitor_voltage[-1]) if result.capacitor_voltage is not None else 0.0,
+                  "magnetic_energy_J": float(result.magnetic_energy[-1]),
+                  "workpiece_joule_power_W": float(result.conductor_power[-1, 0]),
+                  "getdp_force_z_N": fz, "device_force_z_N": s * fz,
+                  "em_mesh_min_quality": float(self.mover.last_min_quality)}
+        self.last = (x_em, result)
+        return LoadStep(forces, integral, values)
+
+    def _prune(self, newest: Path) -> None:
+        """Keep the last two run folders (the carried ``.res`` lives in the newest)."""
+        if newest not in self._runs:
+            self._runs.append(newest)
+        for old in self._runs[:-2]:
+            discard_folder(old)
+        self._runs = self._runs[-2:]
+
+    def state_dict(self) -> dict[str, np.ndarray]:
+        """Not resumable yet (3D checkpoints are not done): an empty state."""
+        return {}
+
+    def load_state_dict(self, state: dict[str, np.ndarray]) -> None:
+        """See :meth:`state_dict`."""
+        if state:
+            raise NotImplementedError("the 3D GetDP load has no checkpoints yet")
