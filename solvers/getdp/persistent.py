@@ -192,14 +192,17 @@ class PersistentGetDPSolver(GetDPSolver):
             self._replay(mesh, state)
         redo = False
         p = self.proc
-        if p is not None and p.alive and self._same_mesh(mesh):
+        if p is not None and not p.alive:  # it ended by itself (close() drops it): a crash, a signal
+            self.proc = None
+            raise p.died(f"before step {p.k + 1}")
+        if p is not None and self._same_mesh(mesh):
             if p.k == state.step_index + 1 and self._last == (state.step_index, state.t):
                 redo = True
             elif p.k != state.step_index or abs(p.t - state.t) > 1e-12 * max(abs(state.t), 1e-300):
                 self._start(mesh, mat, state)  # a state from elsewhere (restored): start from it
             elif len(self.replay_log) >= segment_length(mesh.n_nodes):  # the segment is full: seed a new one
                 self._start(mesh, mat, self.complete_state(state))
-        elif p is not None and p.alive:  # remesh: carry the history of the old process
+        elif p is not None:  # remesh: carry the history of the old process
             full = self.complete_state(state)
             self._start(mesh, mat, full)
         else:

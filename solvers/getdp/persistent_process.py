@@ -236,6 +236,11 @@ class PersistentProcess:
     def alive(self) -> bool:
         return self.proc is not None and self.proc.poll() is None
 
+    def died(self, what: str) -> GetDPError:
+        """The error of a process that ended by itself (crash, signal), with its exit and log tail."""
+        self.proc.wait()
+        return self._fail(f"getdp stopped {what}")
+
     # ------------------------------------------------------------------ messages
     def step(self, points: np.ndarray, t_end: float, flags: int, redo: bool = False) -> StepAnswer:
         """Move getdp's nodes to ``points`` and advance to ``t_end`` (one BDF2 step); ``redo``: the

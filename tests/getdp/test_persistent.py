@@ -194,6 +194,15 @@ def test_failures_are_one_error_with_the_log(work, tmp_path):
         s.step(mesh, state, 2e-6)
     assert err.value.log_path is not None and err.value.log_path.is_file()
     s.close()
+    # the same once getdp has certainly ended before the next step (this ordering gave a ValueError
+    # from a seeded restart without nodal values until 2026-11-26: a race under load)
+    s = PersistentGetDPSolver(MODEL, work / "killed_between")
+    r, state = s.step(mesh, s.initial_state(), 1e-6)
+    os.kill(s.proc.proc.pid, signal.SIGKILL)
+    s.proc.proc.wait()
+    with pytest.raises(GetDPError, match="getdp stopped before step 2 .*SIGKILL"):
+        s.step(mesh, state, 2e-6)
+    s.close()
 
     s = PersistentGetDPSolver(MODEL, work / "hangs", timeout=1.0)
     s.executable = _fake_getdp(tmp_path, "echo 'Info : pretending to work'; sleep 60")
