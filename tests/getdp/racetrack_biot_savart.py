@@ -29,7 +29,7 @@ def _section_rule(x0: float, x1: float, z0: float, z1: float, cells: int, order:
 
 
 def racetrack_b(points: np.ndarray, turns: list[tuple[float, float]], z: tuple[float, float], half_straight: float,
-                current: float, *, cells: int = 4, order: int = 6, arc_cells: int = 96) -> np.ndarray:
+                current: float, *, cells: int = 1, order: int = 6, arc_cells: int = 16) -> np.ndarray:
     """B (n, 3) T at ``points`` (n, 3) m of racetrack turns carrying ``current`` A each.
 
     ``turns``: (inner, outer) distance of each turn from the centre line x = 0 (m); ``z`` = (bottom,

@@ -44,7 +44,8 @@ def test_reference_matches_ring_formula_and_filaments():
     b = racetrack_b(p, [(0.008, 0.011)], (-0.005, -0.001), 0.0, I_TURN)
     for q, bb in zip(p, b):
         br, bz = biot_savart([Rect(0.008, -0.005, 0.011, -0.001)], I_TURN, q[0], q[2], n_gauss=16)
-        np.testing.assert_allclose([bb[0], bb[2]], [br, bz], rtol=1e-6, atol=1e-9)
+        # the default quadrature rule's error 1.5 mm from the turn: 3.5e-6 (negligible beside the FE's 1 %)
+        np.testing.assert_allclose([bb[0], bb[2]], [br, bz], rtol=1e-5, atol=1e-9)
     # the default racetrack vs 8 x 8 polygon filaments per turn (test_em3d_racetrack), near and far points
     g = RacetrackGroove()
     turns = [g.turn_x(i) for i in range(g.turns)]
