@@ -110,9 +110,11 @@ class RacetrackGroove:
         return x0, x1
 
     def scaled(self, factor: float) -> "RacetrackGroove":
-        """The same geometry with every element size times ``factor`` and the sheet's layers divided by it."""
+        """The same geometry with every element size times ``factor`` and the sheet's layers divided by it;
+        ``h_air`` (at the sphere) is only ever refined: a coarser faceted sphere would put the shell's
+        tetrahedra inside ``air_radius``, where the shell transformation is undefined."""
         return replace(self, h_coil=self.h_coil * factor, h_sheet=self.h_sheet * factor, h_die=self.h_die * factor,
-                       h_air=self.h_air * factor, sheet_layers=max(1, round(self.sheet_layers / factor)))
+                       h_air=self.h_air * min(factor, 1.0), sheet_layers=max(1, round(self.sheet_layers / factor)))
 
     def validate(self) -> None:
         """Raise ValueError naming the first inconsistent dimension."""
