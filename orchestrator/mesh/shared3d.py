@@ -40,14 +40,29 @@ class ConductorMesh3D:
     points: np.ndarray
     cells: np.ndarray
 
+    def skin_faces(self) -> np.ndarray:
+        """The boundary triangles (f, 3) as local node rows (faces of one cell only)."""
+        faces = self.cells[:, [[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]]].reshape(-1, 3)
+        _, inv, cnt = np.unique(np.sort(faces, axis=1), axis=0, return_inverse=True, return_counts=True)
+        return faces[cnt[inv.ravel()] == 1]
+
 
 def conductor_submesh3d(em: Mesh3D, tag: int) -> ConductorMesh3D:
-    """Tetrahedra of physical region ``tag`` with their nodes renumbered from 0."""
+    """Tetrahedra of physical region ``tag`` with their nodes renumbered from 0 in EM order, positively
+    oriented (cell j is the EM tetrahedron ``rows[j]``, two of its nodes swapped where it was not)."""
     rows = np.flatnonzero(em.tet_tags == tag)
     if rows.size == 0:
         raise ValueError(f"region {tag} is empty in the 3D EM mesh")
     nodes, inverse = np.unique(em.tets[rows], return_inverse=True)
-    return ConductorMesh3D(rows, nodes, em.points[nodes].copy(), inverse.reshape(-1, 4))
+    cells = inverse.reshape(-1, 4).copy()
+    p = em.points[nodes]
+    x = p[cells]
+    det = np.einsum("ij,ij->i", np.cross(x[:, 1] - x[:, 0], x[:, 2] - x[:, 0]), x[:, 3] - x[:, 0])
+    if np.any(det == 0):
+        raise ValueError(f"region {tag}: degenerate tetrahedra")
+    neg = det < 0
+    cells[neg] = cells[neg][:, [0, 2, 1, 3]]
+    return ConductorMesh3D(rows, nodes, p.copy(), cells)
 
 
 def to_dolfinx3d(sub: ConductorMesh3D, comm: MPI.Comm = MPI.COMM_WORLD) -> dmesh.Mesh:

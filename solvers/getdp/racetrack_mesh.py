@@ -22,7 +22,7 @@ gmsh's OpenCASCADE kernel into tetrahedra (MSH 2.2 for GetDP), with the physical
   outer sphere (12), the coil's faces on the planes as electrodes (501 in on y = 0, x > 0; 601 out on
   x = 0, or on y = 0, x < 0 in the half model) of the electrokinetic direction pre-solve.
 
-All interfaces are conforming (one ``fragment``). :func:`conductor_submesh3d` cuts the sheet's or the
+All interfaces are conforming (one ``fragment``). :func:`pulseform.orchestrator.mesh.shared3d.conductor_submesh3d` cuts the sheet's or the
 die's tetrahedra out of the EM mesh as a mechanical mesh that shares its nodes (``em_nodes``).
 Lengths in m.
 """
@@ -294,44 +294,4 @@ def _sizes(gmsh, g: RacetrackGroove, half: bool, air_v, coil_v, sheet_v, die_v) 
     model.mesh.field.setAsBackgroundMesh(near)
 
 
-@dataclass
-class ConductorMesh3D:
-    """A conductor region of a 3D EM mesh as its own tetrahedral mesh, sharing the EM mesh's nodes.
-
-    ``rows``: rows of ``Mesh3D.tets`` in the region; ``em_nodes``: the EM node of each local node
-    (``points == em.points[em_nodes]``, increasing); ``points`` (n, 3) m; ``cells`` (m, 4) local node
-    rows, positively oriented (cell j is the EM tetrahedron ``rows[j]``, its nodes possibly swapped).
-    A displacement u (n, 3) of this mesh moves the EM nodes ``em_nodes`` by u.
-    """
-
-    rows: np.ndarray
-    em_nodes: np.ndarray
-    points: np.ndarray
-    cells: np.ndarray
-
-    def skin_faces(self) -> np.ndarray:
-        """The boundary triangles (f, 3) as local node rows (faces of one cell only)."""
-        faces = self.cells[:, [[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]]].reshape(-1, 3)
-        _, inv, cnt = np.unique(np.sort(faces, axis=1), axis=0, return_inverse=True, return_counts=True)
-        return faces[cnt[inv.ravel()] == 1]
-
-
-def conductor_submesh3d(mesh: Mesh3D, k: int) -> ConductorMesh3D:
-    """The tetrahedra of massive conductor ``k`` (physical 200 + k; :data:`SHEET`, :data:`DIE`) with their
-    nodes renumbered from 0 in EM order (raises ValueError when the region is empty)."""
-    rows = np.flatnonzero(mesh.tet_tags == conductor_tag(k))
-    if rows.size == 0:
-        raise ValueError(f"conductor {k}: region {conductor_tag(k)} is empty in the mesh")
-    nodes, inverse = np.unique(mesh.tets[rows], return_inverse=True)
-    cells = inverse.reshape(-1, 4).copy()
-    p = mesh.points[nodes]
-    x = p[cells]
-    det = np.einsum("ij,ij->i", np.cross(x[:, 1] - x[:, 0], x[:, 2] - x[:, 0]), x[:, 3] - x[:, 0])
-    if np.any(det == 0):
-        raise ValueError(f"conductor {k}: degenerate tetrahedra")
-    neg = det < 0
-    cells[neg] = cells[neg][:, [0, 2, 1, 3]]
-    return ConductorMesh3D(rows=rows, em_nodes=nodes, points=p.copy(), cells=cells)
-
-
-__all__ = ["RacetrackGroove", "racetrack_groove_mesh", "ConductorMesh3D", "conductor_submesh3d", "SHEET", "DIE"]
+__all__ = ["RacetrackGroove", "racetrack_groove_mesh", "SHEET", "DIE"]

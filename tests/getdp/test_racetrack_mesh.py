@@ -11,8 +11,8 @@ import pytest
 
 from pulseform.solvers.getdp.mesh import AIR, OUTER, coil_tag, conductor_tag
 from pulseform.solvers.getdp.mesh3d import SYM_A
-from pulseform.solvers.getdp.racetrack_mesh import (DIE, SHEET, RacetrackGroove, conductor_submesh3d,
-                                                    racetrack_groove_mesh)
+from pulseform.orchestrator.mesh.shared3d import conductor_submesh3d
+from pulseform.solvers.getdp.racetrack_mesh import DIE, SHEET, RacetrackGroove, racetrack_groove_mesh
 
 G = RacetrackGroove()
 
@@ -44,7 +44,7 @@ def test_regions_and_volumes(quarter):
     # electrode: the turns' sections on y = 0
     assert m.electrode_area[1] == pytest.approx(G.turns * G.turn_width * G.turn_height, rel=1e-12)
     # the sheet is layered: its nodes lie on sheet_layers + 1 planes
-    sheet = conductor_submesh3d(m, SHEET)
+    sheet = conductor_submesh3d(m, conductor_tag(SHEET))
     z = np.unique(np.round(sheet.points[:, 2] / G.sheet_thickness * G.sheet_layers, 9))
     np.testing.assert_array_equal(z, np.arange(G.sheet_layers + 1))
 
@@ -73,7 +73,7 @@ def test_conductor_meshes_share_the_em_nodes_and_are_conforming(quarter):
     assert counts.max() == 2                       # a face is shared by at most two tetrahedra
     interior = {tuple(k) for k in key_all[counts == 2]}
     for k in (SHEET, DIE):
-        sub = conductor_submesh3d(m, k)
+        sub = conductor_submesh3d(m, conductor_tag(k))
         np.testing.assert_array_equal(sub.points, m.points[sub.em_nodes])
         np.testing.assert_array_equal(np.sort(sub.em_nodes[sub.cells], axis=1), np.sort(m.tets[sub.rows], axis=1))
         x = sub.points[sub.cells]
