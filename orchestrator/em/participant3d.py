@@ -14,8 +14,14 @@ Each EM step [t0, t1] (:mod:`pulseform.orchestrator.coupling.loop`):
    values) becomes consistent nodal forces f V / 4 on the shared nodes
    (:mod:`~pulseform.orchestrator.coupling.transfer3d`); the ledger compares their sum with Σ f V.
 
+Several bodies (e.g. a sheet and a conducting die): each is one EM conductor region; each gets the
+nodal forces of its own tetrahedra, and with more than one body the history has per-body columns
+(``<name>_force_{x,y,z}_N``, ``<name>_ledger_rel``: |Σ nodal F − Σ f V| of that body alone,
+``<name>_getdp_force_z_N``: GetDP's own integral of f over the region, ``<name>_joule_power_W``);
+the loop's ``conservation_error_rel`` is the total's.
+
 Forces, impulse and powers are those of the modelled sector; ``symmetry_factor`` (360 / angle)
-scales them to the whole device in the history's ``device_*`` columns.
+scales them to the whole device in the history's ``device_*`` columns (the first body's).
 """
 
 from __future__ import annotations
@@ -28,6 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from pulseform.solvers.getdp.files import discard_folder
+from pulseform.solvers.getdp.mesh import CONDUCTOR_BASE
 from pulseform.solvers.getdp.mesh3d import Mesh3D
 from pulseform.solvers.getdp.solver3d import EM3DModel
 from pulseform.solvers.getdp.stepper3d import EM3DStepper
@@ -43,6 +50,8 @@ log = logging.getLogger(__name__)
 LOAD_COLUMNS_3D = ("force_x_N", "force_y_N", "force_z_N", "conservation_error_rel", "coil_current_A",
                    "capacitor_voltage_V", "magnetic_energy_J", "workpiece_joule_power_W", "getdp_force_z_N",
                    "device_force_z_N", "em_mesh_min_quality")
+#: per-body history columns (prefixed ``<name>_``) of a load with several bodies
+BODY_COLUMNS_3D = ("force_x_N", "force_y_N", "force_z_N", "ledger_rel", "getdp_force_z_N", "joule_power_W")
 
 
 @dataclass
@@ -57,6 +66,15 @@ class ConductorBody3D:
     body_to_em: np.ndarray
 
 
+def _check_bodies(bodies: list[ConductorBody3D]) -> None:
+    """Each body its own name and region, no EM node in two bodies (ValueError otherwise)."""
+    if len({b.tag for b in bodies}) != len(bodies) or len({b.name for b in bodies}) != len(bodies):
+        raise ValueError("GetDPLoad3D: each body needs its own name and conductor region")
+    seen = np.concatenate([np.unique(b.body_to_em) for b in bodies])
+    if np.unique(seen).size != seen.size:
+        raise ValueError("GetDPLoad3D: two bodies share EM nodes (their regions touch)")
+
+
 class GetDPLoad3D(LoadCapabilities):
     """Load provider: 3D GetDP eddy-current forces on the conductor bodies (module docstring).
 
@@ -69,7 +87,8 @@ class GetDPLoad3D(LoadCapabilities):
     work_dir : Path
         Folder of the getdp runs (one per EM step; only the last two are kept).
     bodies : list of ConductorBody3D
-        The conductor bodies (the workpiece first).
+        The conductor bodies (the workpiece first), each on its own EM conductor region (their
+        nodes disjoint: bodies that touch in the EM mesh would share nodes).
     mover : MeshMover3D
         The air motion on ``mesh`` (conductor nodes prescribed, planes sliding).
     time_scheme : {"euler", "bdf2"}
@@ -80,11 +99,14 @@ class GetDPLoad3D(LoadCapabilities):
 
     def __init__(self, mesh: Mesh3D, model: EM3DModel, work_dir: Path, bodies: list[ConductorBody3D],
                  mover: MeshMover3D, time_scheme: str = "bdf2") -> None:
+        _check_bodies(bodies)
         self.mesh, self.model, self.bodies, self.mover = mesh, model, list(bodies), mover
         self.work_dir = Path(work_dir).resolve()
         self.stepper = EM3DStepper(model, self.work_dir, time_scheme=time_scheme)
         self.state = self.stepper.initial_state()
         self.tags = np.array([b.tag for b in self.bodies])
+        if len(self.bodies) > 1:
+            self.columns = LOAD_COLUMNS_3D + tuple(f"{b.name}_{k}" for b in self.bodies for k in BODY_COLUMNS_3D)
         self.min_quality = float(mover.q_ref.min())
         self._moved: tuple[float, np.ndarray] | None = None
         self._runs: list[Path] = []
@@ -122,18 +144,36 @@ class GetDPLoad3D(LoadCapabilities):
         f_em = tet_nodal_forces(x_em, tets, f)
         forces = {b.name: f_em[b.body_to_em] for b in self.bodies}
         integral = tet_force_integral(x_em, tets, f)
+        per_body = {}
+        if len(self.bodies) > 1:
+            tags = result.element_tags[keep]
+            for b in self.bodies:
+                mine = tags == b.tag
+                ref = tet_force_integral(x_em, tets[mine], f[mine])
+                total = forces[b.name].sum(axis=0)
+                per_body.update({f"{b.name}_force_x_N": float(total[0]), f"{b.name}_force_y_N": float(total[1]),
+                                 f"{b.name}_force_z_N": float(total[2]),
+                                 f"{b.name}_ledger_rel": float(np.linalg.norm(total - ref) / max(np.linalg.norm(ref), 1e-300)),
+                                 f"{b.name}_getdp_force_z_N": float(result.conductor_force[-1, self._index(b), 2]),
+                                 f"{b.name}_joule_power_W": float(result.conductor_power[-1, self._index(b)])})
         self.timers["getdp_s"] += c1 - c0
         self.timers["transfer_s"] += time.perf_counter() - c1
         s = float(self.model.symmetry_factor)
-        fz = float(result.conductor_force[-1, 0, 2])
+        i0 = self._index(self.bodies[0])
+        fz = float(result.conductor_force[-1, i0, 2])
         values = {"coil_current_A": float(result.coil_current[-1, 0]),
                   "capacitor_voltage_V": float(result.capacitor_voltage[-1]) if result.capacitor_voltage is not None else 0.0,
                   "magnetic_energy_J": float(result.magnetic_energy[-1]),
-                  "workpiece_joule_power_W": float(result.conductor_power[-1, 0]),
+                  "workpiece_joule_power_W": float(result.conductor_power[-1, i0]),
                   "getdp_force_z_N": fz, "device_force_z_N": s * fz,
-                  "em_mesh_min_quality": float(self.mover.last_min_quality)}
+                  "em_mesh_min_quality": float(self.mover.last_min_quality), **per_body}
         self.last = (x_em, result)
         return LoadStep(forces, integral, values)
+
+    @staticmethod
+    def _index(body: ConductorBody3D) -> int:
+        """The body's row in GetDP's per-conductor results (conductor k has the physical id 200 + k)."""
+        return body.tag - CONDUCTOR_BASE - 1
 
     def _prune(self, newest: Path) -> None:
         """Keep the last two run folders (the carried ``.res`` lives in the newest)."""
