@@ -190,7 +190,7 @@ class _Recorder:
             self.peak_current = current
             x_em, result = load.last
             keep = np.isin(result.element_tags, load.tags)
-            self.peak = {"time_s": self.mech.time, "points": x_em.copy(), "tets": load.mesh.tets[result.elements[keep]],
+            self.peak = {"time_s": self.mech.time, "points": x_em.copy(), "reference_points": load.mesh.points, "tets": load.mesh.tets[result.elements[keep]],
                          "tags": result.element_tags[keep], "force_density": result.force_density_mean[keep],
                          "coil_current_A": row["coil_current_A"]}
 
@@ -271,6 +271,7 @@ def write_force_density(folder: Path, peak: dict) -> Path:
     path = folder / "force_density_peak.vtu"
     m.write(path)
     np.savez(folder / "force_density_peak.npz", points=peak["points"][used], cells=cells, force_density=f, body=body,
+             reference_points=peak["reference_points"][used],
              time_s=peak["time_s"], coil_current_A=peak["coil_current_A"])
     return path
 
