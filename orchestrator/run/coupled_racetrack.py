@@ -44,7 +44,8 @@ from pulseform.solvers.getdp.mesh import COIL_BASE, SHELL, conductor_tag
 from pulseform.solvers.getdp.racetrack_mesh import DIE, SHEET, RacetrackGroove, racetrack_groove_mesh
 
 from ..coupling.loop import LoopOptions, StaggeredLoop
-from ..em.participant3d import ConductorBody3D, GetDPLoad3D
+from ..em.frozen3d import FreezingGetDPLoad3D
+from ..em.participant3d import ConductorBody3D
 from ..mech.participants import DolfinxMechanics
 from ..mesh.motion import MeshQualityError
 from ..mesh.motion3d import MeshMover3D, nodes_on_plane
@@ -68,23 +69,30 @@ class RacetrackOptions:
 
     ``geometry`` and ``bank`` (:mod:`.racetrack_design`); ``em_step`` the target EM step (n = em_step
     / the stable mechanical step); ``t_end`` the end of the run and ``outputs`` the number of equal
-    intervals at whose ends the fields are written; ``contact_stiffness`` k (Pa m), ``contact_h0``
-    (m; below the 0.5 mm sheet-die gap, so the layer is open at t = 0), ``friction`` (Coulomb);
+    intervals at whose ends the fields are written; ``contact_stiffness`` k (Pa m) and ``contact_h0`` (m,
+    below the sheet-die gap, so the layer is open at t = 0) of eq. (5): the layer's energy
+    k (ln(h0/h) - (h0 - h)/h0) per unit area stops a 1 mm Al sheet at ~150 m/s (30 kJ/m^2) near h = 0.4 h0
+    at p ~ 300 MPa, where k / h^2 ~ 3e12 Pa/m stays far below E / dx (~2e14; SOLVER_NOTES' rule of
+    thumb); a 100x stiffer layer stopped it within microns at GPa pressures and slung a node at
+    1.7 km/s. ``friction`` (Coulomb);
     ``remesh_quality`` the air's worst mean-ratio quality, as a fraction of the fresh mesh's, below
-    which the run stops (no 3D remesh); ``cfl`` the mechanics' safety factor.
+    which the air mesh counts as broken (no 3D remesh), ``on_mesh_break`` what then happens: "freeze"
+    (the EM mesh stays at the last valid one, :mod:`~pulseform.orchestrator.em.frozen3d`) or "stop" (the
+    run ends there, its outputs kept); ``cfl`` the mechanics' safety factor.
     """
 
     geometry: RacetrackGroove = RACETRACK
     bank: Circuit = field(default_factory=lambda: RACETRACK_BANK)
     em_step: float = 1e-6
     time_scheme: str = "bdf2"
-    t_end: float = 80e-6
-    outputs: int = 8
-    contact_stiffness: float = 1e7
-    contact_h0: float = 0.25e-3
+    t_end: float = 60e-6
+    outputs: int = 6
+    contact_stiffness: float = 1e5
+    contact_h0: float = 0.5e-3
     friction: float = 0.1
-    remesh_quality: float = 0.02
+    remesh_quality: float = 1e-3
     cfl: float = 0.5
+    on_mesh_break: str = "freeze"
 
 
 @dataclass
@@ -95,7 +103,7 @@ class RacetrackModel:
     mesh: object
     model: object
     solver: ExplicitSolver3D
-    load: GetDPLoad3D
+    load: FreezingGetDPLoad3D
     clamped: dict[str, np.ndarray]
 
 
@@ -132,7 +140,8 @@ def build_racetrack(work: Path, opt: RacetrackOptions = RacetrackOptions()) -> R
                                       subs["sheet"].em_nodes, subs["die"].em_nodes]))
     mover = MeshMover3D(mesh.points, mesh.tets, fixed, [(nodes_on_plane(mesh.points, p, n, tol), n) for p, n in PLANES])
     mover.min_quality = opt.remesh_quality * float(mover.q_ref.min())
-    load = GetDPLoad3D(mesh, model, work / "getdp", bodies, mover, time_scheme=opt.time_scheme)
+    load = FreezingGetDPLoad3D(mesh, model, work / "getdp", bodies, mover, time_scheme=opt.time_scheme,
+                               freeze=opt.on_mesh_break == "freeze")
     return RacetrackModel(mesh, model, solver, load, clamped)
 
 
@@ -156,12 +165,11 @@ class _Recorder:
         self.first_contact_s = np.nan
         self.peak_current = -1.0
         self.peak: dict | None = None
-        self._last_forces: dict[str, np.ndarray] = {}
 
     def __call__(self, row: dict) -> None:
         s, load = self.rm.solver, self.rm.load
         h = row["dt_s"] * row["substeps"]
-        forces = self._last_forces
+        forces = load.last_forces
         for n in self.impulse:
             f = forces[n][: s.bodies[n].n_owned]
             free = f[~self.rm.clamped[n][: s.bodies[n].n_owned]].sum(axis=0)
@@ -195,18 +203,6 @@ class _Recorder:
                          "coil_current_A": row["coil_current_A"]}
 
 
-def _wrap_load(load: GetDPLoad3D, rec: _Recorder) -> None:
-    """Remember each step's nodal forces for the per-body impulses (the loop hands rows, not forces)."""
-    inner = load.load
-
-    def load_and_keep(t0, t1, t_mid, mechanics):
-        step = inner(t0, t1, t_mid, mechanics)
-        rec._last_forces = step.forces
-        return step
-
-    load.load = load_and_keep
-
-
 def run_racetrack(out: Path, opt: RacetrackOptions = RacetrackOptions()) -> dict:
     """Run the coupled racetrack case to ``opt.t_end``; writes the outputs of the module docstring in
     ``out`` and returns the metrics (SI units in the names; ``device_*``: times 4, the whole device)."""
@@ -220,7 +216,6 @@ def run_racetrack(out: Path, opt: RacetrackOptions = RacetrackOptions()) -> dict
     n = max(1, round(opt.em_step / solver.stable_time_step()))
     loop = StaggeredLoop(load, mechanics, LoopOptions(n=n, n_min=1, n_max=n))
     rec = _Recorder(rm, mechanics)
-    _wrap_load(load, rec)
     writer = FieldWriter(solver, out / "fields" / "mech")
     writer.write(0.0)
     e_out, stopped = [], ""
@@ -249,6 +244,12 @@ def run_racetrack(out: Path, opt: RacetrackOptions = RacetrackOptions()) -> dict
     metrics = racetrack_metrics(rm, loop, rec, opt, n, wall=(w0, w1, w2))
     metrics["energies_at_outputs"] = e_out
     metrics["stopped"] = stopped
+    metrics["em_mesh_frozen_at_s"] = load.frozen_at if load.frozen_at is not None else float("nan")
+    metrics["em_mesh_freeze_reason"] = load.freeze_reason
+    if load.frozen_at is not None:
+        late = [r for r in rows if r.get("em_mesh_frozen", 0.0) > 0]
+        metrics["impulse_after_freeze_device_z_Ns"] = float(rm.model.symmetry_factor) * sum(
+            r["force_z_N"] * r["dt_s"] * r["substeps"] for r in late)
     metrics["end_time_s"] = mechanics.time
     (out / "metrics.json").write_text(json.dumps(metrics, indent=2, default=float))
     log.info("racetrack run: %s", {k: v for k, v in metrics.items() if not isinstance(v, (dict, list))})

@@ -6,9 +6,9 @@
 * ``plots/force_density_peak.png`` (matplotlib): the sheet's Lorentz force density f_z at the peak
   coil current on its lower face (top view of the quarter, the coil's turns outlined) and in the
   section y = 0 through the thickness (where the eddy currents flow: the skin);
-* ``plots/deformed_{von_mises,plastic_strain}.png`` and ``plots/mechanics/`` (pyvista, off-screen,
-  in a child process): the deformed 3D bodies at the output times
-  (:func:`~.pictures_mech.draw_mechanics`).
+* ``plots/deformed_sheet_{plastic_strain,von_mises}.png`` and ``plots/deformed_die_von_mises.png``
+  (pyvista, off-screen): the deformed sheet seen from above (the die would hide it) and the die seen
+  from below (its groove), true scale, at four output times, one colour scale per picture.
 
 Lengths are shown in mm, stresses in MPa, force densities in GN/m^3.
 """
@@ -150,7 +150,68 @@ def draw_racetrack(root: Path, geometry=None, *, three_d: bool = True) -> list[P
     fd = plot_force_density(root, folder, turns, geometry.half_straight if geometry is not None else None)
     paths += [fd] if fd else []
     if three_d:
-        from .pictures_mech import draw_mechanics
+        paths += render_3d(root, folder)
+    return paths
 
-        paths += draw_mechanics(root)
+
+#: (body, field, file stem, colour-bar title, scale, colour map, camera direction from the centre)
+VIEWS_3D = (("sheet", "plastic_strain", "deformed_sheet_plastic_strain", "equivalent plastic strain [-]", 1.0,
+             "viridis", (0.7, -1.6, 0.8)),
+            ("sheet", "von_mises_Pa", "deformed_sheet_von_mises", "von Mises stress [MPa]", 1e-6, "turbo",
+             (0.7, -1.6, 0.8)),
+            ("die", "von_mises_Pa", "deformed_die_von_mises", "von Mises stress [MPa]", 1e-6, "turbo",
+             (1.0, -1.3, -1.4)))
+
+
+def render_3d(root: Path, folder: Path, panels: int = 4) -> list[Path]:
+    """The pyvista pictures of the module docstring (off-screen, in this process)."""
+    import pyvista as pv
+
+    from .pictures_mech import _screenshot
+    from .pictures_solid import solid_surface
+
+    pv.OFF_SCREEN = True
+    pv.global_theme.multi_samples = 0
+    folder = Path(folder)
+    bodies = read_fields(root)
+    paths = []
+    for name, fld, stem, title, scale, cmap, view in VIEWS_3D:
+        b = bodies[name]
+        picks = [k for k in range(1, len(b.times))][-panels:] if len(b.times) <= panels + 1 \
+            else _pick(len(b.times), panels)
+        faces, owner = boundary_faces(b.triangles)
+        meshes, top = [], 0.0
+        for k in picks:
+            d = b.read(k, ("displacement_m", fld))
+            vals = np.asarray(d[fld], float) * scale
+            pts, flat, v = solid_surface((b.points + d["displacement_m"]) * 1e3, faces, owner, vals)
+            m = pv.PolyData(pts, flat)
+            m.cell_data["value"] = v
+            meshes.append(m)
+            top = max(top, float(np.percentile(vals, 99.5)))
+        cols = 2
+        rows = int(np.ceil(len(picks) / cols))
+        p = pv.Plotter(off_screen=True, shape=(rows + 1, cols), row_weights=[1.0] * rows + [0.22],
+                       groups=[(rows, np.s_[:])], window_size=(700 * cols, 460 * rows + 110), border=False)
+        p.set_background("white")
+        for i, (k, m) in enumerate(zip(picks, meshes)):
+            p.subplot(i // cols, i % cols)
+            p.add_mesh(m, scalars="value", cmap=cmap, clim=(0.0, top or 1.0), show_scalar_bar=False,
+                       above_color="magenta", show_edges=False, render=False)
+            p.add_text(f"{name}, t = {b.times[k] * 1e6:.3g} µs" + (" (from below)" if view[2] < 0 else ""),
+                       position="upper_left", font_size=11, color="black", render=False)
+            c = np.array(m.center)
+            size = max(np.ptp(m.points, axis=0))
+            d = np.array(view) / np.linalg.norm(view)
+            p.camera_position = [tuple(c + 2.0 * size * d), tuple(c), (0.0, 0.0, 1.0)]
+            p.camera.zoom(1.25 if view[2] > 0 else 0.9)
+            p.add_axes(color="black")
+        p.subplot(rows, 0)
+        p.add_text(f"racetrack, quarter model (planes x = 0, y = 0), true scale, mm; above the 99.5th percentile: "
+                   f"magenta", position="upper_left", font_size=9, color="black", render=False)
+        p.add_scalar_bar(title=title, vertical=False, position_x=0.2, position_y=0.1, width=0.6, height=0.45,
+                         title_font_size=12, label_font_size=11, n_labels=5, fmt="%.3g", color="black",
+                         mapper=next(iter(p.renderers[0].actors.values())).mapper)
+        paths.append(_screenshot(p, folder / f"{stem}.png"))
+        p.close()
     return paths

@@ -9,7 +9,11 @@ affordable size (GCI 52 %). This design discharges a larger bank (C = 400 uF at 
 first quarter period is ~3x longer, the skin depth ~1 mm >= the sheet's thickness, so the eddy
 currents in the sheet vary more smoothly; the straight sides are shorter (30 mm, groove 20 mm long:
 still a finite groove, shorter than the straight sides) and the in-plane size over the coil finer
-(2 mm) for about the same number of tetrahedra. Lengths m, conductivities S/m, stresses Pa.
+(2 mm) for about the same number of tetrahedra. The die sits 2 mm above the sheet (0.5 mm in the first
+design): the air tetrahedra between the sheet and the groove's edges invert once the sheet wraps an
+edge (there is no 3D remesh); with 0.5 mm that happened at 30 us (1.2 mm deep), with 1 mm at 31-38 us,
+with 2 mm after the current's first half wave (52 us, coarse mesh). Lengths m, conductivities S/m,
+stresses Pa.
 """
 
 from __future__ import annotations
@@ -23,7 +27,7 @@ from pulseform.solvers.getdp.solver3d import Coil3D, EM3DModel
 
 #: the geometry and default mesh of the coupled racetrack case
 RACETRACK = replace(RacetrackGroove(), half_straight=15e-3, groove_half_length=10e-3, sheet_half_y=45e-3,
-                    die_half_y=45e-3, sheet_layers=3, h_sheet=2e-3)
+                    die_half_y=45e-3, die_gap=2e-3, sheet_layers=3, h_sheet=2e-3)
 #: its capacitor bank (C F, V0 V, R_ext ohm, L_ext H)
 RACETRACK_BANK = Circuit(C=400e-6, V0=2.5e3, R_ext=0.01, L_ext=0.5e-6)
 #: the first design (docs/em_geometries.md): default RacetrackGroove on C = 50 uF, 6 kV

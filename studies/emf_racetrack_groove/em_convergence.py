@@ -11,6 +11,7 @@ import argparse
 import json
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -29,12 +30,16 @@ def main(argv=None) -> int:
     ap.add_argument("--steps", type=int, default=40)
     ap.add_argument("--scheme", default="bdf2")
     ap.add_argument("--old", action="store_true")
+    ap.add_argument("--layers", type=int, default=None, help="sheet layers on every level (default: scaled)")
+    ap.add_argument("--geometry", default="{}", help="JSON of RacetrackGroove fields replaced before scaling")
     a = ap.parse_args(argv)
     design, bank = OLD_DESIGN if a.old else (RACETRACK, None)
     a.out.mkdir(parents=True, exist_ok=True)
     levels = []
     for f in a.factors:
-        g = design.scaled(f)
+        g = replace(design, **json.loads(a.geometry)).scaled(f)
+        if a.layers:
+            g = replace(g, sheet_layers=a.layers)
         t0 = time.perf_counter()
         m = racetrack_groove_mesh(a.out / f"level{f:.4f}.msh", g)
         model = em_model(g, bank)
@@ -44,7 +49,7 @@ def main(argv=None) -> int:
         fz = r.conductor_force[:, 0, 2] * s
         t = r.times
         dt = np.diff(np.concatenate([[0.0], t]))
-        lev = {"factor": f, "tets": m.n_tets, "sheet_tets": int((m.tet_tags == 201).sum()), "dofs": r.n_dofs,
+        lev = {"factor": f, "layers": g.sheet_layers, "tets": m.n_tets, "sheet_tets": int((m.tet_tags == 201).sum()), "dofs": r.n_dofs,
                "peak_force_N": float(fz.max()), "t_peak_us": 1e6 * float(t[np.argmax(fz)]),
                "impulse_Ns": float(np.sum(fz * dt)), "die_peak_N": float(np.abs(r.conductor_force[:, 1, 2] * s).max()),
                "peak_current_kA": float(np.abs(r.coil_current[:, 0]).max()) / 1e3,

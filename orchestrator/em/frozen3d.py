@@ -1,0 +1,63 @@
+"""A 3D GetDP load whose EM mesh stops following the bodies when the air mesh would break.
+
+There is no 3D remesh yet (docs/coupling.md, "Coupling in 3D"): the harmonic air motion of
+:class:`~pulseform.orchestrator.mesh.motion3d.MeshMover3D` cannot keep a valid mesh once a body
+slides a gap's width past another (a sheet wrapping the edge of a die's groove: the single layer of
+air tetrahedra in the gap inverts). :class:`FreezingGetDPLoad3D` then keeps the last valid EM mesh for
+every later step: the EM state carries on (same connectivity), the forces are those on the frozen
+geometry, still handed to the bodies' nodes (the ledger holds; the mechanics moves on). This is an
+approximation — after the freeze the EM no longer sees the bodies move — that the history flags
+(``em_mesh_frozen``) and the run reports (:attr:`frozen_at`); where the forces have decayed when it
+happens, its effect is small (say how much in the run's report). Choose ``freeze=False`` to stop
+instead (the :class:`~pulseform.orchestrator.mesh.motion.MeshQualityError` propagates).
+"""
+
+from __future__ import annotations
+
+import logging
+
+from ..coupling.interfaces import LoadStep
+from ..mesh.motion import MeshQualityError
+from .participant3d import GetDPLoad3D
+
+log = logging.getLogger(__name__)
+
+__all__ = ["FreezingGetDPLoad3D"]
+
+
+class FreezingGetDPLoad3D(GetDPLoad3D):
+    """:class:`GetDPLoad3D` that freezes its EM mesh at the last valid one instead of stopping
+    (module docstring). Same constructor, plus ``freeze`` (bool, default True)."""
+
+    def __init__(self, *args, freeze: bool = True, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        self.columns = tuple(self.columns) + ("em_mesh_frozen",)
+        self.freeze = freeze
+        self.frozen_at: float | None = None
+        self.freeze_reason = ""
+        self._last_valid = self.mesh.points.copy()
+        self.last_forces: dict = {}   # the nodal forces (N) per body of the last step
+
+    def follow(self, t0: float, mechanics) -> None:
+        """As :meth:`GetDPLoad3D.follow`, or the last valid mesh once frozen (t0 in s)."""
+        if self.frozen_at is None:
+            try:
+                super().follow(t0, mechanics)
+                self._last_valid = self._moved[1]
+                return
+            except MeshQualityError as err:
+                if not self.freeze:
+                    raise
+                self.frozen_at, self.freeze_reason = t0, str(err)
+                log.warning("t = %.4g s: the EM mesh is frozen from here on (%s)", t0, err)
+        self._moved = (t0, self._last_valid)
+
+    def load(self, t0: float, t1: float, t_mid: float, mechanics) -> LoadStep:
+        """As :meth:`GetDPLoad3D.load`, with the history flag ``em_mesh_frozen`` (0 or 1); keeps the
+        step's nodal forces in ``last_forces``."""
+        if self._moved is None or self._moved[0] != t0:
+            self.follow(t0, mechanics)
+        step = super().load(t0, t1, t_mid, mechanics)
+        step.values["em_mesh_frozen"] = float(self.frozen_at is not None)
+        self.last_forces = step.forces
+        return step
