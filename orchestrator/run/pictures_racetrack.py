@@ -15,7 +15,10 @@ Lengths are shown in mm, stresses in MPa, force densities in GN/m^3.
 
 from __future__ import annotations
 
+import json
 import logging
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -150,8 +153,25 @@ def draw_racetrack(root: Path, geometry=None, *, three_d: bool = True) -> list[P
     fd = plot_force_density(root, folder, turns, geometry.half_straight if geometry is not None else None)
     paths += [fd] if fd else []
     if three_d:
-        paths += render_3d(root, folder)
+        paths += render_3d_isolated(root, folder)
     return paths
+
+
+def render_3d_isolated(root: Path, folder: Path, time_limit: float = 600.0) -> list[Path]:
+    """:func:`render_3d` in a child process (``python -m`` this module): VTK aborted the process once
+    (std::bad_alloc in the scalar bar's layout, after a run in the same process), which must not take
+    the caller down; a failure is logged as a warning and gives no paths."""
+    argv = [sys.executable, "-m", __name__, str(root), str(folder)]
+    try:
+        r = subprocess.run(argv, capture_output=True, text=True, timeout=time_limit)
+    except subprocess.TimeoutExpired:
+        log.warning("3D pictures: no result within %g s", time_limit)
+        return []
+    lines = [ln for ln in r.stdout.splitlines() if ln.startswith("[")]
+    if r.returncode != 0 or not lines:
+        log.warning("3D pictures not drawn (exit code %s): %s", r.returncode, r.stderr.strip().splitlines()[-1:] )
+        return []
+    return [Path(x) for x in json.loads(lines[-1])]
 
 
 #: (body, field, file stem, colour-bar title, scale, colour map, camera direction from the centre)
@@ -215,3 +235,15 @@ def render_3d(root: Path, folder: Path, panels: int = 4) -> list[Path]:
         paths.append(_screenshot(p, folder / f"{stem}.png"))
         p.close()
     return paths
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m pulseform.orchestrator.run.pictures_racetrack ROOT FOLDER``: the 3D pictures; prints
+    their paths as one JSON list."""
+    args = sys.argv[1:] if argv is None else argv
+    print(json.dumps([str(p) for p in render_3d(Path(args[0]), Path(args[1]))]))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
