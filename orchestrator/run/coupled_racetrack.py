@@ -41,7 +41,9 @@ from pulseform.solvers.dolfinx.output import FieldWriter
 from pulseform.solvers.dolfinx.solver3d import ExplicitSolver3D
 from pulseform.solvers.getdp import Circuit
 from pulseform.solvers.getdp.mesh import COIL_BASE, SHELL, conductor_tag
+from pulseform.solvers.getdp.mesh3d import Mesh3D
 from pulseform.solvers.getdp.racetrack_mesh import DIE, SHEET, RacetrackGroove, racetrack_groove_mesh
+from pulseform.solvers.getdp.solver3d import EM3DModel
 
 from ..coupling.loop import LoopOptions, StaggeredLoop
 from ..em.frozen3d import FreezingGetDPLoad3D
@@ -100,8 +102,8 @@ class RacetrackModel:
     """What :func:`build_racetrack` builds: the EM mesh and model, the 3D solver, the load provider,
     and per body the reference-coordinate masks of its clamped nodes (``clamped``)."""
 
-    mesh: object
-    model: object
+    mesh: Mesh3D
+    model: EM3DModel
     solver: ExplicitSolver3D
     load: FreezingGetDPLoad3D
     clamped: dict[str, np.ndarray]
@@ -151,7 +153,7 @@ def momentum(solver: ExplicitSolver3D, name: str) -> np.ndarray:
     return (b.mass[: b.n_owned, None] * b.v[: b.n_owned]).sum(axis=0)
 
 
-class _Recorder:
+class RacetrackRecorder:
     """History rows, per-body impulses (all nodes, and the clamped nodes' share), the momentum check
     and the force density at the peak coil current."""
 
@@ -198,9 +200,9 @@ class _Recorder:
             self.peak_current = current
             x_em, result = load.last
             keep = np.isin(result.element_tags, load.tags)
-            self.peak = {"time_s": self.mech.time, "points": x_em.copy(), "reference_points": load.mesh.points, "tets": load.mesh.tets[result.elements[keep]],
-                         "tags": result.element_tags[keep], "force_density": result.force_density_mean[keep],
-                         "coil_current_A": row["coil_current_A"]}
+            self.peak = {"time_s": self.mech.time, "points": x_em.copy(), "reference_points": load.mesh.points,
+                         "tets": load.mesh.tets[result.elements[keep]], "tags": result.element_tags[keep],
+                         "force_density": result.force_density_mean[keep], "coil_current_A": row["coil_current_A"]}
 
 
 def run_racetrack(out: Path, opt: RacetrackOptions = RacetrackOptions()) -> dict:
@@ -215,7 +217,7 @@ def run_racetrack(out: Path, opt: RacetrackOptions = RacetrackOptions()) -> dict
     mechanics = DolfinxMechanics(solver)
     n = max(1, round(opt.em_step / solver.stable_time_step()))
     loop = StaggeredLoop(load, mechanics, LoopOptions(n=n, n_min=1, n_max=n))
-    rec = _Recorder(rm, mechanics)
+    rec = RacetrackRecorder(rm, mechanics)
     writer = FieldWriter(solver, out / "fields" / "mech")
     writer.write(0.0)
     e_out, stopped = [], ""
@@ -277,7 +279,7 @@ def write_force_density(folder: Path, peak: dict) -> Path:
     return path
 
 
-def racetrack_metrics(rm: RacetrackModel, loop: StaggeredLoop, rec: _Recorder, opt: RacetrackOptions, n: int,
+def racetrack_metrics(rm: RacetrackModel, loop: StaggeredLoop, rec: RacetrackRecorder, opt: RacetrackOptions, n: int,
                       wall: tuple[float, float, float]) -> dict:
     """The run's figures (SI units in the names)."""
     s, c, rows, solver = float(rm.model.symmetry_factor), loop.counters, rec.rows, rm.solver

@@ -20,7 +20,7 @@ import pytest
 from pulseform.orchestrator.coupling.loop import LoopOptions, StaggeredLoop
 from pulseform.orchestrator.em.participant3d import ConductorBody3D, GetDPLoad3D
 from pulseform.orchestrator.mech.participants import DolfinxMechanics
-from pulseform.orchestrator.run.coupled_racetrack import RacetrackOptions, _Recorder, build_racetrack
+from pulseform.orchestrator.run.coupled_racetrack import RacetrackOptions, RacetrackRecorder, build_racetrack
 from pulseform.orchestrator.run.racetrack_design import RACETRACK
 from pulseform.solvers.getdp.solver3d import solve_transient3d
 
@@ -45,7 +45,7 @@ def test_a_few_coupled_em_steps_with_sheet_and_die(tmp_path):
     mech = DolfinxMechanics(rm.solver)
     n = max(1, round(COARSE.em_step / rm.solver.stable_time_step()))
     loop = StaggeredLoop(rm.load, mech, LoopOptions(n=n, n_min=1, n_max=n))
-    rec = _Recorder(rm, mech)
+    rec = RacetrackRecorder(rm, mech)
     loop.run_until(3e-6, on_em_step=rec)
     rm.load.close()
     rows, m = rec.rows, len(rec.rows)
