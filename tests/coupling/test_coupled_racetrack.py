@@ -97,3 +97,48 @@ def test_coarse_racetrack_end_to_end(tmp_path):
         assert abs(m["impulse_after_freeze_device_z_Ns"]) < 0.1 * abs(m["impulse_device_z_Ns"])
     paths = draw_racetrack(tmp_path, COARSE.geometry, three_d=False)
     assert len(paths) == 3 and all(p.stat().st_size > 10_000 for p in paths)
+
+
+def _freezing_load(freeze: bool, breaks_at: int):
+    """A FreezingGetDPLoad3D around a fake mover (no getdp): the mesh follows the bodies until the
+    ``breaks_at``-th call, then the mover raises MeshQualityError as the real one does."""
+    from pulseform.orchestrator.em.frozen3d import FreezingGetDPLoad3D
+    from pulseform.orchestrator.mesh.motion import MeshQualityError
+
+    class Mover:
+        calls, last_min_quality = 0, 0.5
+
+        def moved(self, u):
+            Mover.calls += 1
+            if Mover.calls >= breaks_at:
+                raise MeshQualityError("tetrahedron 7 inverted")
+            return points + u
+
+    points = np.zeros((4, 3))
+    load = FreezingGetDPLoad3D.__new__(FreezingGetDPLoad3D)
+    load.mesh = type("M", (), {"points": points})()
+    load.bodies = [ConductorBody3D("sheet", 201, None, np.arange(4))]
+    load.mover, load.min_quality, load._moved = Mover(), 1.0, None
+    load.timers = {"mesh_motion_s": 0.0}
+    load.freeze, load.frozen_at, load.freeze_reason, load._last_valid = freeze, None, "", points.copy()
+    return load
+
+
+def test_the_em_mesh_freezes_at_the_last_valid_one_or_stops():
+    from pulseform.orchestrator.mesh.motion import MeshQualityError
+
+    mech = type("Mech", (), {"positions": lambda self: {"sheet": np.full((4, 3), self.u)}})
+    load = _freezing_load(True, breaks_at=3)
+    for k, u in enumerate((1e-4, 2e-4, 3e-4, 4e-4)):
+        m = mech()
+        m.u = u
+        load.follow(float(k), m)
+    # steps 0 and 1 followed; the third call broke: steps 2 and 3 keep step 1's mesh
+    assert load.frozen_at == 2.0 and "inverted" in load.freeze_reason
+    np.testing.assert_array_equal(load._moved[1], np.full((4, 3), 2e-4))
+    assert load._moved[0] == 3.0
+    stop = _freezing_load(False, breaks_at=1)
+    m = mech()
+    m.u = 1e-4
+    with pytest.raises(MeshQualityError):
+        stop.follow(0.0, m)
