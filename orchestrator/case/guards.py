@@ -28,6 +28,7 @@ from dataclasses import dataclass
 
 from .rigid_steps import all_rigid, period_upper_bound
 from .schema import SchemaError
+from .sector3d import Sector
 from .skin import provisional_size
 
 #: cells per (area / h²) of a mesh of equilateral triangles of side h
@@ -175,6 +176,8 @@ def _em_steps(case, steps: float) -> float:
     """GetDP runs of a coupled case with ``steps`` explicit steps (0 for other cases)."""
     if case.case.kind != "coupled" or case.coupling.load != "getdp":
         return 0.0
+    if case.mechanics.formulation == "3d":  # a sector: one getdp run per sector.em_step
+        return case.time.end / (case.sector.em_step if case.sector is not None else Sector().em_step)
     return steps / case.coupling.n
 
 
