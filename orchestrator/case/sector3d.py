@@ -125,3 +125,76 @@ def validate_coupled_3d(case) -> None:
                               "case clamp the sheet with sector.clamp_rmin (m)")
         if any(b.initial_velocity):
             raise SchemaError(f"bodies[{i}].initial_velocity", "the sheet of the 3D sector starts at rest: remove it")
+
+
+# --------------------------------------------------------------------------- resources
+#: triangles per (area / h²) of the sheet's sector face (equilateral triangles of side h)
+_TRI_PER_AREA = 4.0 / math.sqrt(3.0)
+#: the whole EM mesh (sheet, coil, air) over the sheet's tetrahedra, at least: 2.8 (demo sector), 3.3
+#: (5°, 0.5 mm, 4 layers) and 6.3 (coarse 5°) in the meshes measured (docs/coupling.md)
+MESH_OVER_SHEET = 2.5
+#: memory of a run (bytes): the Python process and libraries, then per EM tetrahedron (getdp with its LU
+#: ~5.5 kB at 46k tets and growing, plus the air motion's factorisation, meshes and solver); a lower
+#: estimate from the runs measured (getdp 255 MB at 46k tets, the run's Python process ~350 MB)
+MEMORY_BASE = 0.4e9
+MEMORY_PER_TET = 8e3
+
+
+def _strip_triangles(alpha: float, r0: float, r1: float, h: float) -> float:
+    """Triangles of a sector face 0 <= phi <= alpha (rad), r0 <= r <= r1 (m), at size h (m): the area's
+    triangles where the arc r alpha is wider than about h, else two triangles per h of length (a strip
+    one element wide: the elements stretch across it)."""
+    if r1 <= r0:
+        return 0.0
+    rc = min(max(2.0 * h / (_TRI_PER_AREA * alpha), r0), r1)
+    return 2.0 * (rc - r0) / h + _TRI_PER_AREA * alpha * (r1 ** 2 - rc ** 2) / (2.0 * h ** 2)
+
+
+def estimated_sector_tets(case) -> tuple[float, float]:
+    """(EM tetrahedra, the sheet's tetrahedra) of a coupled 3D case's sector mesh, estimated before any
+    meshing (lower estimates): the sheet's face triangles (:func:`_strip_triangles`, at
+    ``geometry.mesh_size_sheet`` over the coil + 5 mm, the outer size beyond) × layers × 3 tetrahedra per
+    prism, the whole mesh :data:`MESH_OVER_SHEET` times that. An unset sheet size is taken as half the
+    sheet's thickness (no smaller than its skin-depth default: a lower estimate)."""
+    g = case.geometry
+    s = case.sector or Sector()
+    h = g.mesh_size_sheet if g.mesh_size_sheet is not None else g.sheet_thickness / 2.0
+    alpha = math.radians(s.angle_deg)
+    r_coil = g.coil_inner_radius + g.turns * g.turn_width + (g.turns - 1) * g.turn_gap
+    r_box = min(r_coil + FINE_MARGIN, g.sheet_radius)
+    tri = _strip_triangles(alpha, 0.0, r_box, h) + _strip_triangles(alpha, r_box, g.sheet_radius, s.outer_size(h))
+    sheet = 3.0 * s.layers(g.sheet_thickness, h) * tri
+    return MESH_OVER_SHEET * sheet, sheet
+
+
+def available_memory() -> float | None:
+    """Bytes of memory available to a new process (``MemAvailable`` of /proc/meminfo); None if unknown."""
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return float(line.split()[1]) * 1024.0
+    except (OSError, ValueError, IndexError):
+        return None
+    return None
+
+
+def check_sector_resources(case, available: float | None = None) -> None:
+    """Refuse a coupled 3D case whose sector mesh would exceed ``limits.max_cells`` or, at
+    :data:`MEMORY_PER_TET`, the machine's available memory (``available`` bytes; default:
+    :func:`available_memory`)."""
+    tets, sheet = estimated_sector_tets(case)
+    s, g = case.sector or Sector(), case.geometry
+    layers = s.layers(g.sheet_thickness, g.mesh_size_sheet or g.sheet_thickness / 2.0)
+    what = (f"the 3D sector's mesh would have ~{tets:.3g} tetrahedra (the sheet ~{sheet:.3g}: sector.angle_deg = "
+            f"{s.angle_deg:g}, {layers} layers)")
+    size = g.mesh_size_sheet
+    got = f"got {size:g} m: " if size is not None else ""
+    if tets > case.limits.max_cells:
+        raise SchemaError("geometry.mesh_size_sheet", f"{got}{what}, above limits.max_cells = "
+                          f"{case.limits.max_cells:.3g}; coarsen it, narrow the sector or raise limits.max_cells")
+    avail = available_memory() if available is None else available
+    need = MEMORY_BASE + MEMORY_PER_TET * tets
+    if avail is not None and need > avail:
+        raise SchemaError("geometry.mesh_size_sheet", f"{got}{what}, needing ~{need / 1e9:.3g} GB of memory, above "
+                          f"the {avail / 1e9:.3g} GB available on this machine; coarsen it or narrow the sector")
