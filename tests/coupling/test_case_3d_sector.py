@@ -122,19 +122,22 @@ def test_sigint_then_resume_equals_the_uninterrupted_run(coarse_run, tmp_path):
 
 @pytest.mark.getdp
 def test_sweep_of_the_3d_case(tmp_path):
-    """Two members (the sector's angle 5 and 10 degrees): both run, sweep.csv holds the device metrics,
-    and the device's impulse of the two sectors agrees (the setup is axisymmetric: the sector's share
-    scales with its angle; the coarse meshes differ, so within 2 %)."""
+    """Two members (the bank charged to 3 kV and 6 kV) of the coarse sector: both run and sweep.csv holds
+    the device metrics. Reference: the eddy-current problem is linear in the bank voltage on a fixed
+    geometry, the force quadratic: over 3 µs the sheet moves ~1e-7 m against a 1.5 mm gap, so the
+    impulse ratio is (3/6)² = 0.25 and the peak-current ratio 1/2 to far better than 1e-3 (1e-4 held)."""
     out = tmp_path / "sw"
-    sets = [a for a in COARSE if not a.startswith("sector.angle_deg")]
-    r = subprocess.run([EXE, "sweep", CASE, "--out", str(out), "--jobs", "1", "--param", "sector.angle_deg=5,10",
-                        *sets, "--set", "output.plots=false"], capture_output=True, text=True)
+    r = subprocess.run([EXE, "sweep", CASE, "--out", str(out), "--jobs", "1", "--param",
+                        "em.circuit.voltage=3000.0,6000.0", *COARSE, "--set", "output.plots=false"],
+                       capture_output=True, text=True)
     assert r.returncode == 0, r.stderr[-3000:]
-    rows = {row["sector.angle_deg"]: row for row in csv.DictReader(open(out / "sweep.csv"))}
-    a, b = (float(rows[k]["force_impulse_z_Ns"]) for k in ("5", "10"))
-    print(f"\nimpulse (device): 5 deg {a:.5g}, 10 deg {b:.5g} N s ({b / a - 1:+.2%})")
-    assert a > 0 and abs(b / a - 1) < 0.02
-    assert all(float(rows[k]["max_deflection_mm"]) > 0 for k in ("5", "10"))
+    rows = {row["em.circuit.voltage"]: row for row in csv.DictReader(open(out / "sweep.csv"))}
+    a, b = (float(rows[k]["force_impulse_z_Ns"]) for k in ("3000.0", "6000.0"))
+    ia, ib = (float(rows[k]["coil_current_peak_kA"]) for k in ("3000.0", "6000.0"))
+    print(f"\nimpulse (device): 3 kV {a:.6g}, 6 kV {b:.6g} N s, ratio {a / b:.6f} (0.25); peak current ratio "
+          f"{ia / ib:.6f} (0.5)")
+    assert abs(a / b - 0.25) < 1e-3 and abs(ia / ib - 0.5) < 1e-4   # motion: ~1e-7 m / 1.5 mm
+    assert all(float(rows[k]["max_deflection_mm"]) > 0 for k in ("3000.0", "6000.0"))
 
 
 BAD = [  # (--set overrides, text the one line must hold)
