@@ -130,8 +130,8 @@ class PersistentEM3DStepper:
                 raise ValueError(f"the EM state's vectors have {len(seed[1])} values, system A of this mesh "
                                  f"{self.n_dofs}: another connectivity")
             c0 = time.perf_counter()
-            proc.seed([(self.a_system, state.t - state.dt_prev, 0.0, 0, seed[0]),
-                       (self.a_system, state.t, 0.0, 1, seed[1])])
+            proc.seed([(self.a_system, state.t - state.dt_prev, 0.0, 1, seed[0]),
+                       (self.a_system, state.t, 0.0, 2, seed[1])])
             startup += time.perf_counter() - c0
         coils = np.isin(mesh.tet_tags, [coil_tag(k) for k in range(1, len(self.model.coils) + 1)])
         self._coil_nodes = np.unique(mesh.tets[coils])
