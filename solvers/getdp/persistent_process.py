@@ -1,4 +1,6 @@
-"""One persistent getdp process and its message protocol (used by :mod:`.persistent`).
+"""One persistent getdp process and its message protocol (used by :mod:`.persistent` in 2D and by
+:mod:`.persistent3d` in 3D: ``EM_Persistent3D``, a 3-component U, the unknowns of system A seeded by
+:meth:`PersistentProcess.seed`).
 
 Protocol of one EM step (the Resolution ``EM_Persistent`` of ``decks/Lib_Persistent.pro``):
 
@@ -344,7 +346,7 @@ class PersistentProcess:
         vector) into the input FIFO (what a ``ReadSolution`` reads; e.g. the seed of system A)."""
         msg = b"$ResFormat /* pulseform */\n1.1 1\n$EndResFormat\n"
         for num, t, t_imag, k, vec in blocks:
-            msg += (f"$Solution  /* DofData #{num} */\n{num} {t!r} {t_imag!r} {k}\n".encode()
+            msg += (f"$Solution  /* DofData #{num} */\n{num} {float(t)!r} {float(t_imag)!r} {k}\n".encode()
                     + np.ascontiguousarray(vec, "<f8").tobytes() + b"\n$EndSolution\n")
         if self._in_fd is None:
             self._open_in(time.monotonic() + self.time_limit, what)
