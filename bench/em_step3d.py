@@ -4,7 +4,7 @@ by DeformMesh) vs one getdp process per step vs one getdp stepping by itself.
 Geometry: a 10 degree sector of the demo's 5-turn coil 1 mm under a 1 mm Al disk (R 60 mm; two
 tetrahedron layers through it), shell transformation, the demo's bank (50 uF, 6 kV, 10 mOhm, 2 uH),
 BDF2 with steps of 0.5 us (a few of 0.37 and 1.4 us, as when the coupling lands on output times).
-The disk bulges (u_z = 1 mm (t / 3 us)^2 (1 - (r / 50 mm)^2)), the air follows harmonically (the
+The disk bulges (u_z = 1.5 mm (t / t_N)^2 (1 - (r / 50 mm)^2)), the air follows harmonically (the
 coupled loop's MeshMover3D); every node position is computed before timing.
 
 Variants (N steps each; ``--repeat`` trials interleaved, medians printed):
@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import resource
 import tempfile
 import time
 from dataclasses import replace
@@ -78,36 +79,54 @@ def moved_points(mesh, times) -> list[np.ndarray]:
     out = []
     for t in times:
         u = np.zeros_like(x)
-        u[disk, 2] = 1e-3 * (t / 3e-6) ** 2 * np.clip(1 - (r / 0.05) ** 2, 0, None)
+        u[disk, 2] = 1.5e-3 * (t / times[-1]) ** 2 * np.clip(1 - (r / 0.05) ** 2, 0, None)
         out.append(mover.moved(u))
     return out
 
 
+def children_cpu() -> float:
+    """CPU time (s) of the ended child processes of this one."""
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
+
+
+def process_cpu(pid: int) -> float:
+    """CPU time (s) of a running process (/proc/<pid>/stat: utime + stime)."""
+    f = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(f[11]) + int(f[12])) / os.sysconf("SC_CLK_TCK")
+
+
 def per_step(mesh, pts, times, work):
+    """(wall, getdp CPU) per step (s): whole processes, start-up included."""
     s = EM3DStepper(MODEL, work)
     work.mkdir(parents=True, exist_ok=True)
     state = s.initial_state()
-    c0 = time.perf_counter()
+    c0, cpu0 = time.perf_counter(), children_cpu()
     for k, (p, t) in enumerate(zip(pts, times)):
         _, state = s.step(mesh.moved(p, work / f"mesh_{k}.msh"), state, float(t))
-    return (time.perf_counter() - c0) / len(times), 0.0
+    return (time.perf_counter() - c0) / len(times), (children_cpu() - cpu0) / len(times), 0.0
 
 
 def persistent(mesh, pts, times, work):
+    """(wall, getdp CPU) per step (s) without the start-up (CPU: steps 2..N), and the start-up wall."""
     s = PersistentEM3DStepper(MODEL, work)
     state = s.initial_state()
     c0 = time.perf_counter()
-    for p, t in zip(pts, times):
+    for k, (p, t) in enumerate(zip(pts, times)):
         _, state = s.step(replace(mesh, points=p), state, float(t))
+        if k == 0:
+            cpu1 = process_cpu(s.proc.proc.pid)
     wall = time.perf_counter() - c0
+    cpu = (process_cpu(s.proc.proc.pid) - cpu1) / (len(times) - 1)
     s.close()
-    return (wall - s.startup_s) / len(times), s.startup_s
+    return (wall - s.startup_s) / len(times), cpu, s.startup_s
 
 
 def continuous(mesh, pts, times, work):
+    """(wall, CPU) per step (s) of getdp's own time-loop timers, and its pre-processing wall."""
     n = len(times)
     res = solve_transient3d(MODEL, mesh, float(times[-1]), n, work, time_scheme="bdf2")
-    return res.wall_loop / n, res.wall_pre
+    return res.wall_loop / n, res.cpu_per_step, res.wall_pre
 
 
 VARIANTS = {"per-step": per_step, "persistent": persistent, "continuous": continuous}
@@ -122,7 +141,8 @@ def main(argv=None) -> dict:
     args = ap.parse_args(argv)
     print(f"load average at start: {os.getloadavg()[0]:.2f} ({os.cpu_count()} CPUs)")
     print(f"{'tets':>7} {'per-step':>9} {'persistent':>11} {'continuous':>11} {'start-up':>9} {'pers/per-step':>14}"
-          f" {'pers/cont':>10}   (ms per EM step, median of {args.repeat}; start-up: persistent / continuous pre)")
+          f" {'pers/cont':>10} | getdp CPU: {'per-step':>9} {'persistent':>11} {'continuous':>11} {'pers/per-step':>14}"
+          f"   (wall, then CPU ms per EM step, median of {args.repeat}; start-up: persistent / continuous pre)")
     ratios = {}
     with tempfile.TemporaryDirectory(prefix="em_step3d_") as tmp:
         work = (args.work or Path(tmp)).resolve()
@@ -136,10 +156,11 @@ def main(argv=None) -> dict:
                     res[v].append(fn(mesh, pts, times, work / f"t{mesh.n_tets}_{v}_{rep}"))
             med = {v: np.median(np.array(r), axis=0) for v, r in res.items()}
             ps, pp, co = med["per-step"][0], med["persistent"][0], med["continuous"][0]
-            ratios[mesh.n_tets] = (pp / ps, pp / co)
+            cs, cp, cc = med["per-step"][1], med["persistent"][1], med["continuous"][1]
+            ratios[mesh.n_tets] = (pp / ps, pp / co, cp / cs)
             print(f"{mesh.n_tets:7d} {ps * 1e3:9.1f} {pp * 1e3:11.1f} {co * 1e3:11.1f} "
-                  f"{med['persistent'][1] * 1e3:5.0f}/{med['continuous'][1] * 1e3:.0f} {pp / ps:14.3f} {pp / co:10.3f}",
-                  flush=True)
+                  f"{med['persistent'][2] * 1e3:5.0f}/{med['continuous'][2] * 1e3:.0f} {pp / ps:14.3f} {pp / co:10.3f} | "
+                  f"{'':11}{cs * 1e3:9.1f} {cp * 1e3:11.1f} {cc * 1e3:11.1f} {cp / cs:14.3f}", flush=True)
     largest = max(ratios)
     print(f"bench: em_step3d persistent_over_per_step={ratios[largest][0]:.3f} target={TARGET}")
     return ratios
