@@ -72,11 +72,12 @@ class Bulge:
         return self.mesh.moved(self.mover.moved(u), self.folder / f"mesh_{k}.msh")
 
 
-def _march(stepper, meshes, times, state=None, start=0, swap_at=None):
+def _march(stepper, meshes, times, state=None, start=0, swap_at=None, fields_at=None, fields=None):
     """Step through ``times[start:]``; per step the conductor's F_z, the coil current, the capacitor
     voltage, the magnetic energy, then the end and the trapezoid force densities (one row). ``swap_at``:
     (k, new stepper) -- at step k the state goes through ``complete_state`` and a copy of it (a
-    checkpoint through its files) to the new stepper."""
+    checkpoint through its files) to the new stepper. ``fields_at``: the step whose whole-domain B and
+    element Joule power and B go into the list ``fields``."""
     state = stepper.initial_state() if state is None else state
     rows = []
     for k in range(start, len(times)):
@@ -88,7 +89,9 @@ def _march(stepper, meshes, times, state=None, start=0, swap_at=None):
             if hasattr(stepper, "close") and swap_at[1] is not stepper:
                 stepper.close()
             stepper = swap_at[1]
-        r, state = stepper.step(meshes(k, times[k]), state, float(times[k]))
+        r, state = stepper.step(meshes(k, times[k]), state, float(times[k]), field_output=k == fields_at)
+        if k == fields_at:
+            fields += [r.b_cells, r.joule_density[-1], r.flux_density[-1]]
         rows.append(np.concatenate([[r.conductor_force[-1, 0, 2], r.coil_current[-1, 0], r.capacitor_voltage[-1],
                                      r.magnetic_energy[-1]], r.force_density[-1].ravel(), r.force_density_mean.ravel()]))
     if hasattr(stepper, "close"):
@@ -144,12 +147,15 @@ def test_moving_mesh_same_as_per_step(work):
             moved[k] = bulge(k, t)
         return moved[k]
 
-    per, _ = _march(EM3DStepper(model, work / "per_step"), meshes, TIMES)
-    pers, _ = _march(PersistentEM3DStepper(model, work / "persistent"), meshes, TIMES)
+    f_per, f_pers = [], []
+    per, _ = _march(EM3DStepper(model, work / "per_step"), meshes, TIMES, fields_at=4, fields=f_per)
+    pers, _ = _march(PersistentEM3DStepper(model, work / "persistent"), meshes, TIMES, fields_at=4, fields=f_pers)
     fixed, _ = _march(PersistentEM3DStepper(model, work / "fixed"), lambda k, t: mesh, TIMES)
-    print(f"\nmoving mesh: persistent vs per-step {_rel(per, pers):.1e}; moved vs fixed mesh F_z at the end "
-          f"{abs(per[-1, 0] / fixed[-1, 0] - 1):.1e}")
+    err_fields = max(np.abs(a - b).max() / np.abs(a).max() for a, b in zip(f_per, f_pers))
+    print(f"\nmoving mesh: persistent vs per-step {_rel(per, pers):.1e}, fields (B on every tet, Joule power and B "
+          f"per conductor tet) {err_fields:.1e}; moved vs fixed mesh F_z at the end {abs(per[-1, 0] / fixed[-1, 0] - 1):.1e}")
     assert _rel(per, pers) < 1e-12
+    assert f_per[0].shape == (mesh.n_tets, 3) and np.all(np.isfinite(f_per[0])) and err_fields < 1e-12
     assert abs(per[-1, 0] / fixed[-1, 0] - 1) > 1e-3
 
 
