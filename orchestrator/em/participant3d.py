@@ -71,7 +71,7 @@ class GetDPLoad3D(LoadCapabilities):
     model : EM3DModel
         The 3D model (coil, circuit, conductors, shell, sector).
     work_dir : Path
-        Folder of the getdp runs (one per EM step; only the last two are kept).
+        Folder of the getdp runs (``persistent3d_001``, or one per EM step of which the last two are kept).
     bodies : list of ConductorBody3D
         The conductor bodies (the workpiece first).
     mover : MeshMover3D
