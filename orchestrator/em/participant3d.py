@@ -1,4 +1,4 @@
-"""The 3D GetDP eddy-current load provider of the staggered loop (one getdp process per EM step).
+"""The 3D GetDP eddy-current load provider of the staggered loop (one persistent getdp, or one per EM step).
 
 Each EM step [t0, t1] (:mod:`pulseform.orchestrator.coupling.loop`):
 
@@ -7,9 +7,12 @@ Each EM step [t0, t1] (:mod:`pulseform.orchestrator.coupling.loop`):
    planes slide in them, the rest of the air is moved harmonically
    (:class:`~pulseform.orchestrator.mesh.motion3d.MeshMover3D`); a tetrahedron that inverts or whose
    quality falls below the threshold stops the run with a clear message (no 3D remesh yet);
-2. ``load``: the moved nodes are written with the same connectivity (``Mesh3D.moved``) and getdp
-   advances one step from the carried state (:class:`~pulseform.solvers.getdp.stepper3d.EM3DStepper`:
-   implicit Euler by ``-restart``, BDF2 from x~);
+2. ``load``: getdp advances one step from the carried state on the moved nodes (same connectivity):
+   by default one persistent getdp process for the run whose mesh is moved by ``DeformMesh``
+   (:class:`~pulseform.solvers.getdp.persistent3d.PersistentEM3DStepper`, BDF2), or
+   (``getdp_process="per_step"``, and always with implicit Euler) one getdp process per step on the
+   moved mesh written anew (``Mesh3D.moved``; :class:`~pulseform.solvers.getdp.stepper3d.EM3DStepper`:
+   implicit Euler by ``-restart``, BDF2 from x~) -- the same results to round-off;
 3. the per-tetrahedron force density held over the step (BDF2: the trapezoid of the start and end
    values) becomes consistent nodal forces f V / 4 on the shared nodes
    (:mod:`~pulseform.orchestrator.coupling.transfer3d`); the ledger compares their sum with Σ f V.
@@ -28,13 +31,14 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
 from pulseform.solvers.getdp.files import discard_folder
 from pulseform.solvers.getdp.mesh3d import Mesh3D
+from pulseform.solvers.getdp.persistent3d import PersistentEM3DStepper
 from pulseform.solvers.getdp.solver3d import EM3DModel
 from pulseform.solvers.getdp.stepper3d import EM3DState, EM3DStepper, read_res_vector, write_res_vector
 
@@ -74,22 +78,31 @@ class GetDPLoad3D(LoadCapabilities):
     model : EM3DModel
         The 3D model (coil, circuit, conductors, shell, sector).
     work_dir : Path
-        Folder of the getdp runs (one per EM step; only the last two are kept).
+        Folder of the getdp runs (``persistent3d_001``, or one per EM step of which the last two are kept).
     bodies : list of ConductorBody3D
         The conductor bodies (the workpiece first).
     mover : MeshMover3D
         The air motion on ``mesh`` (conductor nodes prescribed, planes sliding).
     time_scheme : {"euler", "bdf2"}
         The EM time scheme.
+    getdp_process : {"auto", "persistent", "per_step"}
+        One persistent getdp for the run (BDF2 only) or a getdp process per EM step; ``"auto"``:
+        persistent with BDF2, per step with implicit Euler.
     """
 
     columns = LOAD_COLUMNS_3D
 
     def __init__(self, mesh: Mesh3D, model: EM3DModel, work_dir: Path, bodies: list[ConductorBody3D],
-                 mover: MeshMover3D, time_scheme: str = "bdf2") -> None:
+                 mover: MeshMover3D, time_scheme: str = "bdf2", getdp_process: str = "auto") -> None:
         self.mesh, self.model, self.bodies, self.mover = mesh, model, list(bodies), mover
         self.work_dir = Path(work_dir).resolve()
-        self.stepper = EM3DStepper(model, self.work_dir, time_scheme=time_scheme)
+        if getdp_process not in ("auto", "persistent", "per_step"):
+            raise ValueError(f"getdp_process is 'auto', 'persistent' or 'per_step', got {getdp_process!r}")
+        if getdp_process == "persistent" and time_scheme != "bdf2":
+            raise ValueError("the persistent getdp implements time_scheme='bdf2' only")
+        self.persistent = getdp_process == "persistent" or (getdp_process == "auto" and time_scheme == "bdf2")
+        stepper = PersistentEM3DStepper if self.persistent else EM3DStepper
+        self.stepper = stepper(model, self.work_dir, time_scheme=time_scheme)
         self.state = self.stepper.initial_state()
         self.tags = np.array([b.tag for b in self.bodies])
         self.min_quality = float(mover.q_ref.min())
@@ -125,11 +138,14 @@ class GetDPLoad3D(LoadCapabilities):
         if abs(self.state.t - t0) > 1e-9 * max(t1, 1e-300):
             raise RuntimeError(f"EM state at t = {self.state.t:.9g} s, but the step starts at {t0:.9g} s")
         c0 = time.perf_counter()
-        run_dir = self.work_dir / f"step_{self.state.steps + 1:05d}"
-        run_dir.mkdir(parents=True, exist_ok=True)
-        mesh_k = self.mesh.moved(x_em, run_dir / "mesh.msh")
-        result, self.state = self.stepper.step(mesh_k, self.state, t1)
-        self._prune(run_dir)
+        if self.persistent:  # getdp moves its own mesh: no file
+            result, self.state = self.stepper.step(replace(self.mesh, points=x_em), self.state, t1)
+        else:
+            run_dir = self.work_dir / f"step_{self.state.steps + 1:05d}"
+            run_dir.mkdir(parents=True, exist_ok=True)
+            mesh_k = self.mesh.moved(x_em, run_dir / "mesh.msh")
+            result, self.state = self.stepper.step(mesh_k, self.state, t1)
+            self._prune(run_dir)
         c1 = time.perf_counter()
         keep = np.isin(result.element_tags, self.tags)
         f = result.force_density_mean[keep]
@@ -213,9 +229,14 @@ class GetDPLoad3D(LoadCapabilities):
             discard_folder(old)
         self._runs = self._runs[-2:]
 
+    def close(self) -> None:
+        """End the persistent getdp (if any); idempotent."""
+        self.stepper.close()
+
     def state_dict(self) -> dict[str, np.ndarray]:
-        """Everything a resume needs to continue exactly (module docstring); times in s."""
-        st = self.state
+        """Everything a resume needs to continue exactly (module docstring); times in s. The persistent
+        getdp is asked for its solution vectors (a query; it continues)."""
+        st = self.stepper.complete_state(self.state)
         out = {"t": np.float64(st.t), "steps": np.int64(st.steps), "dt_prev": np.float64(st.dt_prev),
                "sums": np.array([self.impulse_device, self.coil_heat, self.peak_current, self.min_quality]),
                "timers": np.array([*self.timers.values(), *st.timers.values()])}
