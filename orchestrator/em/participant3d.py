@@ -88,12 +88,15 @@ class GetDPLoad3D(LoadCapabilities):
     getdp_process : {"auto", "persistent", "per_step"}
         One persistent getdp for the run (BDF2 only) or a getdp process per EM step; ``"auto"``:
         persistent with BDF2, per step with implicit Euler.
+    getdp_timeout : float or None
+        Wall-time limit of each getdp answer (persistent) or run (per step), s; None: the runner's default.
     """
 
     columns = LOAD_COLUMNS_3D
 
     def __init__(self, mesh: Mesh3D, model: EM3DModel, work_dir: Path, bodies: list[ConductorBody3D],
-                 mover: MeshMover3D, time_scheme: str = "bdf2", getdp_process: str = "auto") -> None:
+                 mover: MeshMover3D, time_scheme: str = "bdf2", getdp_process: str = "auto",
+                 getdp_timeout: float | None = None) -> None:
         self.mesh, self.model, self.bodies, self.mover = mesh, model, list(bodies), mover
         self.work_dir = Path(work_dir).resolve()
         if getdp_process not in ("auto", "persistent", "per_step"):
@@ -102,7 +105,7 @@ class GetDPLoad3D(LoadCapabilities):
             raise ValueError("the persistent getdp implements time_scheme='bdf2' only")
         self.persistent = getdp_process == "persistent" or (getdp_process == "auto" and time_scheme == "bdf2")
         stepper = PersistentEM3DStepper if self.persistent else EM3DStepper
-        self.stepper = stepper(model, self.work_dir, time_scheme=time_scheme)
+        self.stepper = stepper(model, self.work_dir, time_scheme=time_scheme, timeout=getdp_timeout)
         self.state = self.stepper.initial_state()
         self.tags = np.array([b.tag for b in self.bodies])
         self.min_quality = float(mover.q_ref.min())

@@ -93,7 +93,6 @@ def sector_participants(case: Case, work: Path, opt: SectorOptions | None = None
     participants); getdp runs in ``work``, within ``limits.getdp_time_limit_s`` each."""
     opt = sector_options(case) if opt is None else opt
     mesh, _, solver, load = build_sector(case, work, opt)
-    load.stepper.run_kwargs["timeout"] = case.limits.getdp_time_limit_s
     n = max(1, round(opt.em_step / solver.stable_time_step()))
     log.info("3D sector %.4g deg: %d EM tets, sheet %d tets, mechanical step %.3g s, n = %d", opt.sector_deg,
              mesh.n_tets, len(solver.bodies[load.bodies[0].name].cells), solver.stable_time_step(), n)
@@ -153,7 +152,7 @@ def build_sector(case: Case, work: Path, opt: SectorOptions):
                         [(nodes_on_plane(mesh.points, p, n, tol), n) for p, n in planes])
     mover.min_quality = opt.remesh_quality * float(mover.q_ref.min())
     load = GetDPLoad3D(mesh, model, work / "getdp", [ConductorBody3D(body.name, conductor_tag(1), sub, body_to_em)],
-                       mover, time_scheme=opt.time_scheme)
+                       mover, time_scheme=opt.time_scheme, getdp_timeout=case.limits.getdp_time_limit_s)
     return mesh, model, solver, load
 
 
