@@ -133,6 +133,9 @@ _TRI_PER_AREA = 4.0 / math.sqrt(3.0)
 #: the whole EM mesh (sheet, coil, air) over the sheet's tetrahedra, at least: 2.8 (demo sector), 3.3
 #: (5°, 0.5 mm, 4 layers) and 6.3 (coarse 5°) in the meshes measured (docs/coupling.md)
 MESH_OVER_SHEET = 2.5
+#: tetrahedra per h^3 of volume at element size h, taken low: a regular tetrahedron of edge h holds
+#: h^3 / 8.49, and gmsh's elements scatter about the size (a lower estimate)
+TETS_PER_H3 = 8.49 / 2.0
 #: memory of a run (bytes): the Python process and libraries, then per EM tetrahedron (getdp with its LU
 #: ~5.5 kB at 46k tets and growing, plus the air motion's factorisation, meshes and solver); a lower
 #: estimate from the runs measured (getdp 255 MB at 46k tets, the run's Python process ~350 MB)
@@ -164,7 +167,13 @@ def estimated_sector_tets(case) -> tuple[float, float]:
     r_box = min(r_coil + FINE_MARGIN, g.sheet_radius)
     tri = _strip_triangles(alpha, 0.0, r_box, h) + _strip_triangles(alpha, r_box, g.sheet_radius, s.outer_size(h))
     sheet = 3.0 * s.layers(g.sheet_thickness, h) * tri
-    return MESH_OVER_SHEET * sheet, sheet
+    # no element larger than its region's size: at least volume / (a regular tetrahedron's h^3 / 8.49), taken
+    # at half that (gmsh's sizes scatter) -- the turns at mesh_size_coil, the air and shell at mesh_size_air
+    r_turn = [g.coil_inner_radius + i * (g.turn_width + g.turn_gap) + g.turn_width / 2 for i in range(g.turns)]
+    coil = sum(alpha * r * g.turn_width * g.turn_height for r in r_turn)
+    air = alpha / 3.0 * g.shell_radius ** 3 * 2.0   # the sector of the sphere of the shell's radius
+    by_volume = TETS_PER_H3 * (coil / g.mesh_size_coil ** 3 + air / g.mesh_size_air ** 3)
+    return max(MESH_OVER_SHEET * sheet, sheet + by_volume), sheet
 
 
 def available_memory() -> float | None:
