@@ -41,7 +41,7 @@ from .checkpoint import CHECKPOINT_NAME, load_checkpoint, save_checkpoint
 from .coupled3d import sector_participants
 from .em_fields import EMFieldWriter, write_peak_snapshot
 from .em_fields3d import FOLDER as EM3D_FOLDER
-from .em_fields3d import EMFieldWriter3D, write_peak_snapshot3d
+from .em_fields3d import STEM as EM3D_STEM
 from .extremes3d import body_extremes_3d
 from .history import History
 from .progress import Progress
@@ -180,8 +180,7 @@ class CaseDriver:
         peak coil current (the checkpoint's EM state counts it as written)."""
         peak = self.load.take_peak_snapshot() if self.comm.rank == 0 else None
         if peak is not None:
-            (write_peak_snapshot3d if self.sector else write_peak_snapshot)(
-                self.results.fields / (EM3D_FOLDER if self.sector else "em"), *peak)
+            write_peak_snapshot(self.results.fields / (EM3D_FOLDER if self.sector else "em"), *peak)
         arrays = {f"solver/{k}": v for k, v in self.mechanics.state_dict().items()}
         arrays.update({f"loop/{k}": v for k, v in self.loop.counters.state_dict().items()})
         arrays.update({f"load/{k}": v for k, v in self.load.checkpoint_state_dict().items()})
@@ -239,8 +238,8 @@ class CaseDriver:
         em_writer = EMFieldWriter(self.results.fields / (f"em_part{self.part}" if self.part else "em")) \
             if self.load.em_fields and self.comm.rank == 0 else None
         if self.sector and self.comm.rank == 0:  # the sheet's force density per tetrahedron
-            em_writer = EMFieldWriter3D(self.results.fields / (f"{EM3D_FOLDER}_part{self.part}" if self.part
-                                                               else EM3D_FOLDER))
+            em_writer = EMFieldWriter(self.results.fields / (f"{EM3D_FOLDER}_part{self.part}" if self.part
+                                                             else EM3D_FOLDER), stem=EM3D_STEM)
         if em_writer is not None:
             self.load.request_fields(self.stops)  # whole-domain EM fields only on the snapshot steps
         if not self.history.rows:

@@ -15,55 +15,15 @@ from pathlib import Path
 import meshio
 import numpy as np
 
-from .em_fields import PEAK_NAME, _pvd
-from .results import atomic_write_text
+from .em_fields import PEAK_NAME
 
 log = logging.getLogger(__name__)
 
 #: the folder under ``fields/`` (a resumed part: ``em3d_part<k>``) and the collection's name
 FOLDER = "em3d"
 SERIES = "sheet_em.pvd"
-
-
-def write_tet_vtu(path: Path, points: np.ndarray, tets: np.ndarray, cell_data: dict[str, np.ndarray]) -> Path:
-    """Tetrahedra (m) with per-cell data (SI), written atomically as a binary ``.vtu``."""
-    path = Path(path)
-    mesh = meshio.Mesh(np.asarray(points, float)[:, :3], [("tetra", np.asarray(tets))],
-                       cell_data={k: [np.asarray(v)] for k, v in cell_data.items()})
-    tmp = path.with_name(f".{path.stem}.tmp.vtu")
-    meshio.write(tmp, mesh, binary=True)
-    tmp.replace(path)
-    return path
-
-
-class EMFieldWriter3D:
-    """The sheet's EM snapshots in ``folder``: ``sheet_em_0000.vtu``, ... and ``sheet_em.pvd``."""
-
-    def __init__(self, folder: Path) -> None:
-        self.folder = Path(folder)
-        self.folder.mkdir(parents=True, exist_ok=True)
-        self.entries: list[tuple[float, str]] = []
-
-    def write(self, t: float, points: np.ndarray, tets: np.ndarray, cell_data: dict[str, np.ndarray]) -> Path:
-        """One snapshot at output time ``t`` (s)."""
-        name = f"sheet_em_{len(self.entries):04d}.vtu"
-        write_tet_vtu(self.folder / name, points, tets, cell_data)
-        self.entries.append((t, name))
-        atomic_write_text(self.folder / SERIES, _pvd(self.entries))
-        return self.folder / name
-
-
-def write_peak_snapshot3d(folder: Path, t: float, current: float, points: np.ndarray, tets: np.ndarray,
-                          cell_data: dict[str, np.ndarray]) -> Path:
-    """The sheet at the EM step of the largest |coil current| so far (replaces an earlier one):
-    ``em_peak_current.vtu`` + ``.pvd`` + ``.json`` (``time_s``, ``coil_current_A``)."""
-    folder = Path(folder)
-    folder.mkdir(parents=True, exist_ok=True)
-    path = write_tet_vtu(folder / f"{PEAK_NAME}.vtu", points, tets, cell_data)
-    atomic_write_text(folder / f"{PEAK_NAME}.pvd", _pvd([(t, path.name)]))
-    atomic_write_text(folder / f"{PEAK_NAME}.json", json.dumps(
-        {"time_s": float(t), "coil_current_A": float(current), "file": path.name}, indent=1) + "\n")
-    return path
+#: the snapshots' file stem (:class:`~.em_fields.EMFieldWriter`'s ``stem``)
+STEM = "sheet_em"
 
 
 @dataclass
