@@ -123,8 +123,9 @@ def validate_coupled_3d(case) -> None:
                           f"{g.sheet_radius:g} (m), else it holds no node of the sheet")
     for key in ("symmetry", "walls", "contact") + (() if case.coupling.load == "pressure" else ("loads",)):
         if getattr(case, key):
-            what = ("the sector's two meridian faces are its symmetry planes" if key == "symmetry"
-                    else "not in the coupled 3D sector yet")
+            what = {"symmetry": "the sector's two meridian faces are its symmetry planes",
+                    "loads": "pressure pulses drive the sector only with coupling.load = 'pressure'"}.get(
+                        key, "not in the coupled 3D sector yet")
             raise SchemaError(key, f"[[{key}]] in a coupled 3D case: {what}; remove it")
     for i, b in enumerate(case.bodies):
         if b.region != "workpiece":
