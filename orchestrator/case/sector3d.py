@@ -8,6 +8,12 @@ adds what only the sector has: its angle, the tetrahedron layers through the she
 beyond the coil, the EM step and the clamp (a radial selection: the sheet is held for r >= ``clamp_rmin``).
 The sector's two meridian faces are its symmetry planes (n × a = 0 for the field, sliding planes for the
 sheet and the air motion): a coupled 3D case gives no ``[[symmetry]]``. Units: m, s, degrees for the angle.
+
+``coupling.load = "pressure"`` with ``[[loads]]`` (the one key of ``[coupling]`` a sector takes) drives the
+same sheet mesh (cut from the same EM mesh), clamp, sliding faces and loop with pressure pulses instead of
+getdp (``pulseform compare``); a load's ``surface`` box is read in the sector's (r, z) coordinates,
+r = sqrt(x² + y²) (``xmin``/``xmax``) and z (``ymin``/``ymax``), as in the axisymmetric case, so the
+[[loads]] of the 2D case act unchanged on its sector.
 """
 
 from __future__ import annotations
@@ -67,6 +73,11 @@ _RAW_2D_KEYS = (
 )
 
 
+#: keys of those tables a coupled 3D case does take: the load (``coupling.load = "pressure"`` with
+#: [[loads]]: the sector driven by pressure pulses instead of getdp, module docstring)
+_RAW_3D_KEYS = (("coupling", "load"),)
+
+
 def check_raw_coupled_3d(data: dict[str, Any]) -> None:
     """In the raw case mapping of a coupled 3D case: refuse 2D-only keys whose defaults would be silently
     ignored (:data:`_RAW_2D_KEYS`); in a 2D case refuse ``[sector]``."""
@@ -85,9 +96,10 @@ def check_raw_coupled_3d(data: dict[str, Any]) -> None:
         t = data.get(table)
         if not isinstance(t, dict):
             continue
-        if key is None and t:
-            raise SchemaError(f"{table}.{next(iter(t))}", f"a 2D-only key ({why}); a coupled 3D case has no "
-                              f"[{table}] table: remove it")
+        other = [k for k in t if (table, k) not in _RAW_3D_KEYS]
+        if key is None and other:
+            raise SchemaError(f"{table}.{other[0]}", f"a 2D-only key ({why}); a coupled 3D case has no "
+                              f"[{table}] table but coupling.load: remove it")
         if key is not None and key in t:
             raise SchemaError(f"{table}.{key}", f"a 2D-only key ({why}): remove it")
 
@@ -109,10 +121,11 @@ def validate_coupled_3d(case) -> None:
     if s.clamp_rmin is not None and s.clamp_rmin >= g.sheet_radius:
         raise SchemaError("sector.clamp_rmin", f"got {s.clamp_rmin:g}; must be < geometry.sheet_radius = "
                           f"{g.sheet_radius:g} (m), else it holds no node of the sheet")
-    for key in ("symmetry", "walls", "contact", "loads"):
+    for key in ("symmetry", "walls", "contact") + (() if case.coupling.load == "pressure" else ("loads",)):
         if getattr(case, key):
-            what = ("the sector's two meridian faces are its symmetry planes" if key == "symmetry"
-                    else "not in the coupled 3D sector yet")
+            what = {"symmetry": "the sector's two meridian faces are its symmetry planes",
+                    "loads": "pressure pulses drive the sector only with coupling.load = 'pressure'"}.get(
+                        key, "not in the coupled 3D sector yet")
             raise SchemaError(key, f"[[{key}]] in a coupled 3D case: {what}; remove it")
     for i, b in enumerate(case.bodies):
         if b.region != "workpiece":

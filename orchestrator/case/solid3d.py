@@ -125,7 +125,7 @@ def _validate_3d(case) -> None:
         raise SchemaError("mechanics.threads", f"got {mo.threads}; the 3D element kernel runs on one thread: 1")
     if tuple(mo.gravity) != (0.0, 0.0):
         raise SchemaError("mechanics.gravity", "a 2D-only key (rigid bodies of coupled cases); remove it")
-    if case.loads:
+    if case.loads and case.case.kind != "coupled":  # a coupled sector's: .sector3d
         raise SchemaError("loads", "pressure pulses are 2D-only for now; a 3D case takes initial velocities, "
                           "rigid walls and symmetry planes")
     if case.analysis:

@@ -104,11 +104,11 @@ def sector_planes(alpha: float) -> list[tuple[np.ndarray, np.ndarray]]:
     return [(np.zeros(3), np.array([0.0, 1.0, 0.0])), (np.zeros(3), np.array([-math.sin(alpha), math.cos(alpha), 0.0]))]
 
 
-def build_sector(case: Case, work: Path, opt: SectorOptions):
-    """(EM mesh, EM model, 3D solver, load provider) of the sector of ``case`` (module docstring)."""
-    g, em = case.geometry, case.em
-    if g is None or g.type != "flat_coil_sheet" or (em.circuit is None and em.current is None):
-        raise ValueError("the 3D sector is built from a flat_coil_sheet case on a capacitor bank or a current")
+def sector_mechanics(case: Case, work: Path, opt: SectorOptions):
+    """(EM mesh, the sheet's submesh, 3D solver) of the sector of ``case``: the EM mesh meshed in ``work``,
+    the sheet cut from it with its clamp and sliding meridian faces (the mechanics of both the coupled and
+    the pressure-driven sector: the same nodes)."""
+    g = case.geometry
     work = Path(work).resolve()
     turns = flat_coil_turns(g)
     r_coil = max(t.x1 for t in turns)
@@ -118,15 +118,8 @@ def build_sector(case: Case, work: Path, opt: SectorOptions):
     mesh = ring_sector_mesh(work / "sector.msh", turns, [sheet], sector_deg=opt.sector_deg, r_air=g.air_radius,
                             r_shell=g.shell_radius, h_coil=opt.h_coil, h_conductor=opt.h_sheet_out, h_air=opt.h_air,
                             conductor_layers=opt.sheet_layers, fine_box=box)
-    c, cur = em.circuit, em.current
     body = next(b for b in case.bodies if b.region == "workpiece")
     mat = case.materials[body.material]
-    wave = None if cur is None else DampedSine(cur.amplitude, cur.beta, cur.omega)
-    model = EM3DModel(coils=[Coil3D(turns=g.turns, sigma=em.coil_conductivity, waveform=wave)],
-                      conductors=[Conductor(mat.electrical_conductivity, name=body.name)],
-                      circuit=None if c is None else Circuit(C=c.capacitance, V0=c.voltage, R_ext=c.resistance,
-                                                             L_ext=c.inductance),
-                      shell=(g.air_radius, g.shell_radius), sector_deg=opt.sector_deg)
     sub = conductor_submesh3d(mesh, conductor_tag(1))
     dmsh = to_dolfinx3d(sub, MPI.COMM_SELF)
     tol = 1e-9 * g.shell_radius
@@ -141,6 +134,27 @@ def build_sector(case: Case, work: Path, opt: SectorOptions):
     solver = ExplicitSolver3D([spec], cfl=case.time.cfl, bulk_viscosity=mo.bulk_viscosity,
                               bulk_linear=mo.bulk_viscosity_linear, bulk_quadratic=mo.bulk_viscosity_quadratic,
                               comm=MPI.COMM_SELF)
+    return mesh, sub, solver
+
+
+def build_sector(case: Case, work: Path, opt: SectorOptions):
+    """(EM mesh, EM model, 3D solver, load provider) of the sector of ``case`` (module docstring)."""
+    g, em = case.geometry, case.em
+    if g is None or g.type != "flat_coil_sheet" or (em.circuit is None and em.current is None):
+        raise ValueError("the 3D sector is built from a flat_coil_sheet case on a capacitor bank or a current")
+    work = Path(work).resolve()
+    mesh, sub, solver = sector_mechanics(case, work, opt)
+    c, cur = em.circuit, em.current
+    body = next(b for b in case.bodies if b.region == "workpiece")
+    mat = case.materials[body.material]
+    wave = None if cur is None else DampedSine(cur.amplitude, cur.beta, cur.omega)
+    model = EM3DModel(coils=[Coil3D(turns=g.turns, sigma=em.coil_conductivity, waveform=wave)],
+                      conductors=[Conductor(mat.electrical_conductivity, name=body.name)],
+                      circuit=None if c is None else Circuit(C=c.capacitance, V0=c.voltage, R_ext=c.resistance,
+                                                             L_ext=c.inductance),
+                      shell=(g.air_radius, g.shell_radius), sector_deg=opt.sector_deg)
+    tol = 1e-9 * g.shell_radius
+    planes = sector_planes(math.radians(opt.sector_deg))
     b3 = solver.bodies[body.name]
     body_to_em = match_nodes3d(b3.X0, mesh.points, tol)
     # air motion: the sheet follows the body, coil, shell and the outer sphere stay, the planes slide

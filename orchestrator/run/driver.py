@@ -44,6 +44,7 @@ from .em_fields3d import FOLDER as EM3D_FOLDER
 from .em_fields3d import STEM as EM3D_STEM
 from .extremes3d import body_extremes_3d
 from .history import History
+from .pressure3d import sector_pressure_participants
 from .progress import Progress
 from .results import ResultsFolder
 
@@ -92,7 +93,9 @@ class CaseDriver:
         self.rigid: RigidMechanics | None = None  # the rigid bodies (coupled cases), None without
         # a coupled 3D case: a sector of a flat_coil_sheet setup (run/coupled3d.py), its sheet's EM fields
         self.sector = case.case.kind == "coupled" and case.mechanics.formulation == "3d"
-        if self.sector:
+        if self.sector and cp.load == "pressure":  # the same sector driven by [[loads]] (run/pressure3d.py)
+            self.solver, load, options = sector_pressure_participants(case, results.root / "em")
+        elif self.sector:
             self.solver, load, options, _ = sector_participants(case, results.root / "em")
         elif case.case.kind == "coupled":
             self.solver, load, self.rigid = _coupled_participants(case, results, comm, em_geometry)
@@ -237,7 +240,7 @@ class CaseDriver:
         writer = mech.FieldWriter(self.solver, str(prefix)) if self.solver is not None else _NoFieldWriter()
         em_writer = EMFieldWriter(self.results.fields / (f"em_part{self.part}" if self.part else "em")) \
             if self.load.em_fields and self.comm.rank == 0 else None
-        if self.sector and self.comm.rank == 0:  # the sheet's force density per tetrahedron
+        if self.sector and case.coupling.load == "getdp" and self.comm.rank == 0:  # the sheet's force density
             em_writer = EMFieldWriter(self.results.fields / (f"{EM3D_FOLDER}_part{self.part}" if self.part
                                                              else EM3D_FOLDER), stem=EM3D_STEM)
         if em_writer is not None:
