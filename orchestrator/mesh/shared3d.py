@@ -8,35 +8,16 @@ renumbers nodes when it builds a mesh).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
 from pulseform.solvers.getdp.mesh3d import Mesh3D
 
-from .shared import match_nodes, to_dolfinx
+from .shared import ConductorMesh, match_nodes, to_dolfinx
 
 
-@dataclass
-class ConductorMesh3D:
-    """A conductor region of the 3D EM mesh as its own mesh.
-
-    Attributes
-    ----------
-    rows : ndarray
-        Rows of the EM mesh's tetrahedra in this region.
-    em_nodes : ndarray
-        EM node index of each local node (``points`` = EM points[em_nodes]).
-    points : ndarray (n, 3)
-        Node coordinates (m).
-    cells : ndarray (m, 4)
-        Tetrahedra as rows of ``points``.
-    """
-
-    rows: np.ndarray
-    em_nodes: np.ndarray
-    points: np.ndarray
-    cells: np.ndarray
+class ConductorMesh3D(ConductorMesh):
+    """A conductor region of the 3D EM mesh as its own mesh: :class:`~.shared.ConductorMesh` with
+    ``points`` (n, 3) m and ``cells`` (m, 4) tetrahedra (local node rows, positively oriented)."""
 
     def skin_faces(self) -> np.ndarray:
         """The boundary triangles (f, 3) as local node rows (faces of one cell only)."""
