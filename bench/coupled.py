@@ -107,12 +107,13 @@ def _pressure(args, m: dict) -> None:
     g = case.geometry
     r1 = g.coil_inner_radius
     r2 = g.coil_inner_radius + g.turns * g.turn_width + (g.turns - 1) * g.turn_gap
-    area = math.pi * (r2 ** 2 - r1 ** 2)
+    zface = g.coil_gap
+    box = {"xmin": r1, "xmax": r2, "ymin": zface - 1e-6, "ymax": zface + 1e-6}
+    area = _loaded_area(args.out / "coupled", box)  # what the pressure run loads on the mesh
     # force ~ I², I ~ e^(-αt) sin(ω_d t): take ω from the current's first peak time, β = 1e4 1/s
     peak_t = _peak_time(args.out / "coupled" / "history.csv")
     omega = math.pi / (2 * peak_t)
-    zface = g.coil_gap
-    box = Box(xmin=r1, xmax=r2, ymin=zface - 1e-6, ymax=zface + 1e-6)
+    box = Box(**box)
     unit = PulseSin2(type="pulse_sin2", body="sheet", surface=box, amplitude=1.0, beta=1e4, omega=omega,
                      t_end=case.time.end)
     p0 = m["force_impulse_z_Ns"] / (area * pulse_impulse_per_area(unit))
@@ -126,6 +127,15 @@ def _pressure(args, m: dict) -> None:
     print(f"max deflection at t_end: coupled {d_c:.4f} mm, pressure {d_p:.4f} mm, difference "
           f"{d_p - d_c:+.4f} mm ({100 * (d_p - d_c) / d_c:+.1f} %); wall {m['process_wall_s']:.1f} s vs "
           f"{mp['process_wall_s']:.1f} s")
+
+
+def _loaded_area(folder: Path, box: dict) -> float:
+    """The area (m²) the pressure run loads: the coupled run's sheet mesh's segments in ``box``."""
+    from pulseform.orchestrator.run.mech_fields import read_fields
+    from pulseform.orchestrator.workflows.compare_area import loaded_area_2d
+
+    bf = read_fields(folder)["sheet"]
+    return loaded_area_2d(bf.points, bf.triangles, box, axisymmetric=True)
 
 
 def _peak_time(history: Path) -> float:

@@ -28,6 +28,7 @@ from dataclasses import dataclass
 
 from .rigid_steps import all_rigid, period_upper_bound
 from .schema import SchemaError
+from .sector3d import Sector, check_sector_resources
 from .skin import provisional_size
 
 #: cells per (area / h²) of a mesh of equilateral triangles of side h
@@ -175,13 +176,19 @@ def _em_steps(case, steps: float) -> float:
     """GetDP runs of a coupled case with ``steps`` explicit steps (0 for other cases)."""
     if case.case.kind != "coupled" or case.coupling.load != "getdp":
         return 0.0
+    if case.mechanics.formulation == "3d":  # a sector: one getdp run per sector.em_step
+        return case.time.end / (case.sector.em_step if case.sector is not None else Sector().em_step)
     return steps / case.coupling.n
 
 
 def check_resources(case) -> None:
     """Raise :class:`SchemaError` if the estimated cells or explicit steps exceed ``case.limits``."""
     lim = case.limits
-    cells, region = estimated_cells(case)
+    if case.case.kind == "coupled" and case.mechanics.formulation == "3d":
+        check_sector_resources(case)  # tetrahedra of the sector and the machine's memory (.sector3d)
+        region = None
+    else:
+        cells, region = estimated_cells(case)
     if region is not None and cells > lim.max_cells:
         raise SchemaError(region.key, f"got {region.size:g} m: the meshes would have ~{cells:.3g} cells "
                           f"(this region ~{region.cells:.3g}), above limits.max_cells = {lim.max_cells:.3g}; "
@@ -194,8 +201,12 @@ def check_resources(case) -> None:
     em = _em_steps(case, steps)
     if em > lim.max_em_steps:
         raise SchemaError("time.end", f"got {case.time.end:g} s: ~{em:.3g} EM steps (getdp runs; stable step set by "
-                          f"{key}, coupling.n = {case.coupling.n}), above limits.max_em_steps = {lim.max_em_steps:.3g}; "
-                          "shorten time.end, coarsen the mesh, raise coupling.n or raise limits.max_em_steps")
+                          f"{key}, " + (f"sector.em_step = {case.sector.em_step if case.sector else Sector().em_step:g} s"
+                          if case.mechanics.formulation == "3d" else f"coupling.n = {case.coupling.n}")
+                          + f"), above limits.max_em_steps = {lim.max_em_steps:.3g}; "
+                          "shorten time.end, coarsen the mesh, raise " + ("sector.em_step" if case.mechanics.formulation
+                                                                          == "3d" else "coupling.n")
+                          + " or raise limits.max_em_steps")
 
 
 class LimitExceeded(ValueError):

@@ -43,6 +43,7 @@ PLAUSIBLE: dict[str, tuple[float, float]] = {
     "rad/s": (1e-6, 1e12),
     "Hz": (1e-6, 1e12),
     "rad": (1e-12, 1e3),
+    "deg": (1e-9, 360.0),
     "S/m": (1e-12, 1e9),
     "V": (1e-6, 1e7),
     "A": (1e-6, 1e8),

@@ -2,8 +2,9 @@
 tetrahedra, symmetry planes, and the checks that keep 2D-only keys out of 3D cases and 3D-only keys
 out of 2D cases.
 
-3D cases are mechanics-only for now (the explicit solver on tetrahedra, rigid walls, symmetry
-planes, soft contact between bodies); the keys are chosen so that the coupled 3D cases can add to them: a body's ``shape`` is a
+3D mechanics cases: the explicit solver on tetrahedra, rigid walls, symmetry planes, soft contact
+between bodies; coupled 3D cases (a sector of a ``flat_coil_sheet`` setup) add their keys in
+:mod:`.sector3d`. A body's ``shape`` is a
 ``box`` or a ``cylinder`` (a sector of one with ``angle``), vectors (velocities, wall points and
 normals, probe points) take three components, and ``[[symmetry]]`` planes cut a quarter or a sector.
 """
@@ -15,6 +16,7 @@ from dataclasses import dataclass
 from typing import Any, Literal
 
 from .schema import SchemaError, spec
+from .sector3d import validate_coupled_3d
 
 Vec3 = tuple[float, float, float]
 
@@ -113,15 +115,17 @@ def validate_dimension(case) -> None:
 
 
 def _validate_3d(case) -> None:
-    if case.case.kind != "mechanics":
-        raise SchemaError("case.kind", f"got {case.case.kind!r}; 3D cases (mechanics.formulation = '3d') are "
-                          "mechanics-only for now: a coupled EM load in 3D is not yet supported (issue 20)")
+    if case.case.kind == "coupled":
+        validate_coupled_3d(case)  # a sector of a flat_coil_sheet setup (.sector3d)
+    elif case.sector is not None:
+        raise SchemaError("sector", "a key of coupled 3D cases (case.kind = 'coupled'); a mechanics case has "
+                          "none: remove [sector]")
     mo = case.mechanics
     if mo.threads != 1:
         raise SchemaError("mechanics.threads", f"got {mo.threads}; the 3D element kernel runs on one thread: 1")
     if tuple(mo.gravity) != (0.0, 0.0):
         raise SchemaError("mechanics.gravity", "a 2D-only key (rigid bodies of coupled cases); remove it")
-    if case.loads:
+    if case.loads and case.case.kind != "coupled":  # a coupled sector's: .sector3d
         raise SchemaError("loads", "pressure pulses are 2D-only for now; a 3D case takes initial velocities, "
                           "rigid walls and symmetry planes")
     if case.analysis:
@@ -177,6 +181,9 @@ def _check_plane_touches(case, i: int, plane: SymmetryPlane) -> None:
 
 def _validate_2d(case) -> None:
     f = case.mechanics.formulation
+    if case.sector is not None:
+        raise SchemaError("sector", f"a 3D-only key (the sector of a coupled 3D case); with mechanics.formulation "
+                          f"= {f!r} remove [sector] or set mechanics.formulation = '3d'")
     if case.symmetry:
         raise SchemaError("symmetry", f"a 3D-only key; with mechanics.formulation = {f!r} use [[bodies.fixed]] "
                           "or set mechanics.formulation = '3d'")

@@ -1,4 +1,4 @@
-"""The 3D GetDP eddy-current load provider of the staggered loop (one getdp process per EM step).
+"""The 3D GetDP eddy-current load provider of the staggered loop (one persistent getdp, or one per EM step).
 
 Each EM step [t0, t1] (:mod:`pulseform.orchestrator.coupling.loop`):
 
@@ -7,9 +7,12 @@ Each EM step [t0, t1] (:mod:`pulseform.orchestrator.coupling.loop`):
    planes slide in them, the rest of the air is moved harmonically
    (:class:`~pulseform.orchestrator.mesh.motion3d.MeshMover3D`); a tetrahedron that inverts or whose
    quality falls below the threshold stops the run with a clear message (no 3D remesh yet);
-2. ``load``: the moved nodes are written with the same connectivity (``Mesh3D.moved``) and getdp
-   advances one step from the carried state (:class:`~pulseform.solvers.getdp.stepper3d.EM3DStepper`:
-   implicit Euler by ``-restart``, BDF2 from x~);
+2. ``load``: getdp advances one step from the carried state on the moved nodes (same connectivity):
+   by default one persistent getdp process for the run whose mesh is moved by ``DeformMesh``
+   (:class:`~pulseform.solvers.getdp.persistent3d.PersistentEM3DStepper`, BDF2), or
+   (``getdp_process="per_step"``, and always with implicit Euler) one getdp process per step on the
+   moved mesh written anew (``Mesh3D.moved``; :class:`~pulseform.solvers.getdp.stepper3d.EM3DStepper`:
+   implicit Euler by ``-restart``, BDF2 from x~) -- the same results to round-off;
 3. the per-tetrahedron force density held over the step (BDF2: the trapezoid of the start and end
    values) becomes consistent nodal forces f V / 4 on the shared nodes
    (:mod:`~pulseform.orchestrator.coupling.transfer3d`); the ledger compares their sum with Σ f V.
@@ -21,14 +24,20 @@ nodal forces of its own tetrahedra, and with more than one body the history has 
 the loop's ``conservation_error_rel`` is the total's.
 
 Forces, impulse and powers are those of the modelled sector; ``symmetry_factor`` (360 / angle)
-scales them to the whole device in the history's ``device_*`` columns (the first body's).
+scales them to the whole device in the history's ``device_*`` columns (of the first body; and in ``coil_joule_heat_J``,
+the whole coil's heat: Σ P_end dt over the EM steps).
+
+Checkpoints (:meth:`GetDPLoad3D.state_dict`): the carried state of the stepper (x_n as numbers with
+its DofData id, x_{n-1}, the circuit at both times, the last step, the force density at t_n), the
+running sums and the peak-current bookkeeping; a resume writes x_n back as a one-solution ``.res``
+(17 digits: the same doubles) and continues as the uninterrupted run does.
 """
 
 from __future__ import annotations
 
 import logging
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -36,8 +45,9 @@ import numpy as np
 from pulseform.solvers.getdp.files import discard_folder
 from pulseform.solvers.getdp.mesh import CONDUCTOR_BASE
 from pulseform.solvers.getdp.mesh3d import Mesh3D
+from pulseform.solvers.getdp.persistent3d import PersistentEM3DStepper
 from pulseform.solvers.getdp.solver3d import EM3DModel
-from pulseform.solvers.getdp.stepper3d import EM3DStepper
+from pulseform.solvers.getdp.stepper3d import EM3DState, EM3DStepper, read_res_vector, write_res_vector
 
 from ..coupling.interfaces import LoadCapabilities, LoadStep
 from ..coupling.transfer3d import tet_force_integral, tet_nodal_forces
@@ -48,8 +58,9 @@ log = logging.getLogger(__name__)
 
 #: history columns of the 3D GetDP load (sector values unless ``device_``)
 LOAD_COLUMNS_3D = ("force_x_N", "force_y_N", "force_z_N", "conservation_error_rel", "coil_current_A",
-                   "capacitor_voltage_V", "magnetic_energy_J", "workpiece_joule_power_W", "getdp_force_z_N",
-                   "device_force_z_N", "em_mesh_min_quality")
+                   "coil_current_abs_max_A", "capacitor_voltage_V", "coil_joule_heat_J", "magnetic_energy_J",
+                   "workpiece_joule_power_W", "getdp_force_z_N", "device_force_z_N", "device_impulse_z_Ns",
+                   "em_mesh_min_quality")
 #: per-body history columns (prefixed ``<name>_``) of a load with several bodies
 BODY_COLUMNS_3D = ("force_x_N", "force_y_N", "force_z_N", "ledger_rel", "getdp_force_z_N", "joule_power_W")
 
@@ -85,7 +96,7 @@ class GetDPLoad3D(LoadCapabilities):
     model : EM3DModel
         The 3D model (coil, circuit, conductors, shell, sector).
     work_dir : Path
-        Folder of the getdp runs (one per EM step; only the last two are kept).
+        Folder of the getdp runs (``persistent3d_001``, or one per EM step of which the last two are kept).
     bodies : list of ConductorBody3D
         The conductor bodies (the workpiece first), each on its own EM conductor region (their
         nodes disjoint: bodies that touch in the EM mesh would share nodes).
@@ -93,16 +104,28 @@ class GetDPLoad3D(LoadCapabilities):
         The air motion on ``mesh`` (conductor nodes prescribed, planes sliding).
     time_scheme : {"euler", "bdf2"}
         The EM time scheme.
+    getdp_process : {"auto", "persistent", "per_step"}
+        One persistent getdp for the run (BDF2 only) or a getdp process per EM step; ``"auto"``:
+        persistent with BDF2, per step with implicit Euler.
+    getdp_timeout : float or None
+        Wall-time limit of each getdp answer (persistent) or run (per step), s; None: the runner's default.
     """
 
     columns = LOAD_COLUMNS_3D
 
     def __init__(self, mesh: Mesh3D, model: EM3DModel, work_dir: Path, bodies: list[ConductorBody3D],
-                 mover: MeshMover3D, time_scheme: str = "bdf2") -> None:
+                 mover: MeshMover3D, time_scheme: str = "bdf2", getdp_process: str = "auto",
+                 getdp_timeout: float | None = None) -> None:
         _check_bodies(bodies)
         self.mesh, self.model, self.bodies, self.mover = mesh, model, list(bodies), mover
         self.work_dir = Path(work_dir).resolve()
-        self.stepper = EM3DStepper(model, self.work_dir, time_scheme=time_scheme)
+        if getdp_process not in ("auto", "persistent", "per_step"):
+            raise ValueError(f"getdp_process is 'auto', 'persistent' or 'per_step', got {getdp_process!r}")
+        if getdp_process == "persistent" and time_scheme != "bdf2":
+            raise ValueError("the persistent getdp implements time_scheme='bdf2' only")
+        self.persistent = getdp_process == "persistent" or (getdp_process == "auto" and time_scheme == "bdf2")
+        stepper = PersistentEM3DStepper if self.persistent else EM3DStepper
+        self.stepper = stepper(model, self.work_dir, time_scheme=time_scheme, timeout=getdp_timeout)
         self.state = self.stepper.initial_state()
         self.tags = np.array([b.tag for b in self.bodies])
         if len(self.bodies) > 1:
@@ -111,6 +134,14 @@ class GetDPLoad3D(LoadCapabilities):
         self._moved: tuple[float, np.ndarray] | None = None
         self._runs: list[Path] = []
         self.timers = {"mesh_motion_s": 0.0, "getdp_s": 0.0, "transfer_s": 0.0}
+        self.impulse_device = 0.0   # Σ s ∫f_z dV dt over the steps (N·s), the device's
+        self.coil_heat = 0.0        # Σ s P_coil(t1) dt (J), the whole coil's
+        self.peak_current = 0.0     # largest |I| at the end of a step (A) and the snapshot there
+        self._peak: tuple | None = None
+        self.last_snapshot: tuple | None = None
+        sub = self.bodies[0].sub
+        self._sheet_pos = np.full(len(mesh.tets), -1, dtype=np.int64)
+        self._sheet_pos[sub.rows] = np.arange(len(sub.rows))
 
     def follow(self, t0: float, mechanics) -> None:
         """The EM mesh follows the bodies for the EM step starting at ``t0`` (s)."""
@@ -132,11 +163,14 @@ class GetDPLoad3D(LoadCapabilities):
         if abs(self.state.t - t0) > 1e-9 * max(t1, 1e-300):
             raise RuntimeError(f"EM state at t = {self.state.t:.9g} s, but the step starts at {t0:.9g} s")
         c0 = time.perf_counter()
-        run_dir = self.work_dir / f"step_{self.state.steps + 1:05d}"
-        run_dir.mkdir(parents=True, exist_ok=True)
-        mesh_k = self.mesh.moved(x_em, run_dir / "mesh.msh")
-        result, self.state = self.stepper.step(mesh_k, self.state, t1)
-        self._prune(run_dir)
+        if self.persistent:  # getdp moves its own mesh: no file
+            result, self.state = self.stepper.step(replace(self.mesh, points=x_em), self.state, t1)
+        else:
+            run_dir = self.work_dir / f"step_{self.state.steps + 1:05d}"
+            run_dir.mkdir(parents=True, exist_ok=True)
+            mesh_k = self.mesh.moved(x_em, run_dir / "mesh.msh")
+            result, self.state = self.stepper.step(mesh_k, self.state, t1)
+            self._prune(run_dir)
         c1 = time.perf_counter()
         keep = np.isin(result.element_tags, self.tags)
         f = result.force_density_mean[keep]
@@ -161,19 +195,75 @@ class GetDPLoad3D(LoadCapabilities):
         s = float(self.model.symmetry_factor)
         i0 = self._index(self.bodies[0])
         fz = float(result.conductor_force[-1, i0, 2])
-        values = {"coil_current_A": float(result.coil_current[-1, 0]),
+        current = float(result.coil_current[-1, 0])
+        self.impulse_device += s * float(integral[2]) * (t1 - t0)
+        self.coil_heat += s * float(result.coil_power[-1, 0]) * (t1 - t0)
+        values = {"coil_current_A": current, "coil_current_abs_max_A": abs(current),
                   "capacitor_voltage_V": float(result.capacitor_voltage[-1]) if result.capacitor_voltage is not None else 0.0,
+                  "coil_joule_heat_J": self.coil_heat,
                   "magnetic_energy_J": float(result.magnetic_energy[-1]),
                   "workpiece_joule_power_W": float(result.conductor_power[-1, i0]),
-                  "getdp_force_z_N": fz, "device_force_z_N": s * fz,
+                  "getdp_force_z_N": fz, "device_force_z_N": s * fz, "device_impulse_z_Ns": self.impulse_device,
                   "em_mesh_min_quality": float(self.mover.last_min_quality), **per_body}
-        self.last = (x_em, result)
+        self.last = (x_em, result)   # the moved nodes and GetDP's result of the last step
+        self.last_snapshot = self._sheet_snapshot(t1, current, x_em, result)
+        if abs(current) > self.peak_current:
+            self.peak_current, self._peak = abs(current), self.last_snapshot
         return LoadStep(forces, integral, values)
 
     @staticmethod
     def _index(body: ConductorBody3D) -> int:
         """The body's row in GetDP's per-conductor results (conductor k has the physical id 200 + k)."""
         return body.tag - CONDUCTOR_BASE - 1
+
+    def _sheet_snapshot(self, t: float, current: float, x_em: np.ndarray, result) -> tuple:
+        """(t s, coil current A, sheet node positions (n, 3) m, sheet tetrahedra (m, 4), cell data): the
+        force density (N/m^3) and Joule power density (W/m^3) at the end of the step on the sheet's
+        tetrahedra (rows of its submesh)."""
+        sub = self.bodies[0].sub
+        pos = self._sheet_pos[result.elements]
+        on = pos >= 0
+        f = np.zeros((len(sub.rows), 3))
+        f[pos[on]] = result.force_density[-1][on]
+        cells = {"force_density_N_m3": f, "force_density_magnitude_N_m3": np.linalg.norm(f, axis=1)}
+        if result.joule_density is not None:
+            q = np.zeros(len(sub.rows))
+            q[pos[on]] = result.joule_density[-1][on]
+            cells["joule_power_density_W_m3"] = q
+        return float(t), current, x_em[sub.em_nodes].copy(), sub.cells, cells
+
+    def initial(self, mechanics) -> LoadStep:
+        """The load at t = 0: no force, the bank charged to V0 (the history's first row)."""
+        c = self.model.circuit
+        return LoadStep({}, None, {"capacitor_voltage_V": float(c.V0) if c is not None else 0.0})
+
+    def snapshot(self) -> tuple | None:
+        """(sheet node positions m, tetrahedra, cell data) at the end of the last EM step, None before."""
+        return None if self.last_snapshot is None else self.last_snapshot[2:]
+
+    def take_peak_snapshot(self) -> tuple | None:
+        """The sheet's snapshot at the largest |coil current| so far, once when it is new (else None)."""
+        peak, self._peak = self._peak, None
+        return peak
+
+    def run_metrics(self, history, counters) -> dict[str, float]:
+        """The 2D coupled run's figures for the whole device (sector values × 360 / angle: impulse,
+        peak force, coil heat, plastic work, final kinetic energy; ``sector_*`` the modelled sector's),
+        and the 3D EM timers."""
+        s = float(self.model.symmetry_factor)
+        impulse_z = float(counters.impulse[2]) if len(counters.impulse) > 2 else 0.0
+        last = {k: float(history.column(f"energy_{k}_J")[-1]) for k in ("plastic", "kinetic")}
+        return {"force_impulse_z_Ns": s * impulse_z, "force_impulse_Ns": s * abs(impulse_z),
+                "sector_force_impulse_z_Ns": impulse_z,
+                "plastic_work_J": s * last["plastic"], "kinetic_energy_final_J": s * last["kinetic"],
+                "sector_plastic_work_J": last["plastic"],
+                "coil_current_peak_kA": float(np.abs(history.column("coil_current_abs_max_A")).max()) / 1e3,
+                "force_peak_N": float(np.abs(history.column("device_force_z_N")).max()),
+                "coil_joule_heat_J": self.coil_heat, "conservation_error_rel": float(counters.ledger_max),
+                "em_time_s": float(counters.em_time_s), "em_min_quality": self.min_quality,
+                "symmetry_factor": float(self.model.symmetry_factor),
+                **{f"em_{k}": v for k, v in self.timers.items()},
+                **{f"em_{k}": v for k, v in self.state.timers.items()}}
 
     def _prune(self, newest: Path) -> None:
         """Keep the last two run folders (the carried ``.res`` lives in the newest)."""
@@ -183,11 +273,52 @@ class GetDPLoad3D(LoadCapabilities):
             discard_folder(old)
         self._runs = self._runs[-2:]
 
+    def close(self) -> None:
+        """End the persistent getdp (if any); idempotent."""
+        self.stepper.close()
+
     def state_dict(self) -> dict[str, np.ndarray]:
-        """Not resumable yet (3D checkpoints are not done): an empty state."""
-        return {}
+        """Everything a resume needs to continue exactly (module docstring); times in s. The persistent
+        getdp is asked for its solution vectors (a query; it continues)."""
+        st = self.stepper.complete_state(self.state)
+        out = {"t": np.float64(st.t), "steps": np.int64(st.steps), "dt_prev": np.float64(st.dt_prev),
+               "sums": np.array([self.impulse_device, self.coil_heat, self.peak_current, self.min_quality]),
+               "timers": np.array([*self.timers.values(), *st.timers.values()])}
+        if st.res_path is not None:
+            dofdata, t_res, x = read_res_vector(st.res_path)
+            out.update({"x": x, "x_dofdata": np.int64(int(dofdata)), "x_time": np.float64(t_res)})
+        for key in ("x_prev", "force_density", "circuit", "circuit_prev"):
+            value = getattr(st, key)
+            if value is not None:
+                out[key] = np.asarray(value, dtype=float)
+        return out
 
     def load_state_dict(self, state: dict[str, np.ndarray]) -> None:
-        """See :meth:`state_dict`."""
-        if state:
-            raise NotImplementedError("the 3D GetDP load has no checkpoints yet")
+        """Restore :meth:`state_dict`: x_n goes back to disk as the ``.res`` the next step starts from."""
+        if not state:
+            return
+        steps = int(state["steps"])
+        for old in self.work_dir.glob("step_*"):   # an interrupted run's steps after the checkpoint
+            if old.name[5:].isdigit() and int(old.name[5:]) > steps:
+                discard_folder(old)
+        res_path = None
+        if "x" in state:
+            folder = self.work_dir / f"resume_{steps:05d}"
+            folder.mkdir(parents=True, exist_ok=True)
+            res_path = write_res_vector(folder / "em.res", str(int(state["x_dofdata"])), float(state["x_time"]),
+                                        state["x"])
+            self._runs.append(folder)
+
+        def opt(key: str):
+            return np.array(state[key], dtype=float) if key in state else None
+
+        circ, circ_prev = opt("circuit"), opt("circuit_prev")
+        timers = [float(v) for v in state["timers"]]
+        self.timers = dict(zip(self.timers, timers[:len(self.timers)]))
+        self.state = EM3DState(t=float(state["t"]), res_path=res_path, x_prev=opt("x_prev"),
+                               circuit=None if circ is None else (float(circ[0]), float(circ[1])),
+                               circuit_prev=None if circ_prev is None else (float(circ_prev[0]), float(circ_prev[1])),
+                               dt_prev=float(state["dt_prev"]), force_density=opt("force_density"), steps=steps,
+                               timers=dict(zip(self.state.timers, timers[len(self.timers):])))
+        self.impulse_device, self.coil_heat, self.peak_current, self.min_quality = (float(v) for v in state["sums"])
+        self._peak = None  # the checkpoint wrote the snapshot at the peak so far

@@ -111,13 +111,27 @@ class MeshMover:
         """
         x = self.x_ref + self.displace(u_given)
         q = triangle_quality(x, self.cells)
-        worst = int(np.argmin(q))
-        self.last_min_quality = float(q[worst])
-        if q[worst] <= 0.0:
-            raise MeshQualityError(f"element {worst} inverted (quality {q[worst]:.3g}) at "
-                                   f"{x[self.cells[worst]].mean(0)}: remesh needed")
-        if q[worst] < self.min_quality:
-            raise MeshQualityError(f"element {worst} quality {q[worst]:.3g} < {self.min_quality} at "
-                                   f"{x[self.cells[worst]].mean(0)}: remesh needed")
+        self.last_min_quality = float(q.min())  # also when the check below raises
+        self.last_min_quality = check_quality(x, self.cells, q, self.min_quality, "element", "remesh needed")
         log.debug("mesh moved: min quality %.3f (reference %.3f)", q.min(), self.q_ref.min())
         return x
+
+
+def check_quality(x: np.ndarray, cells: np.ndarray, q: np.ndarray, min_quality: float, kind: str,
+                  action: str) -> float:
+    """The worst of the element qualities ``q`` (of ``cells`` at positions ``x``, m).
+
+    Raises
+    ------
+    MeshQualityError
+        The worst element is inverted (q <= 0) or below ``min_quality``: named as ``kind`` with its
+        index, quality and centre, followed by ``action``.
+    """
+    worst = int(np.argmin(q))
+    if q[worst] <= 0.0:
+        raise MeshQualityError(f"{kind} {worst} inverted (quality {q[worst]:.3g}) at "
+                               f"{x[cells[worst]].mean(0)} m: {action}")
+    if q[worst] < min_quality:
+        raise MeshQualityError(f"{kind} {worst} quality {q[worst]:.3g} < {min_quality:.3g} at "
+                               f"{x[cells[worst]].mean(0)} m: {action}")
+    return float(q[worst])

@@ -19,7 +19,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
-from .motion import MeshQualityError
+from .motion import MeshQualityError, check_quality
 
 log = logging.getLogger(__name__)
 
@@ -152,10 +152,7 @@ class MeshMover3D:
         """
         x = self.x_ref + self.displace(u_given)
         q = tet_quality(x, self.cells, self._sign)
-        worst = int(np.argmin(q))
-        self.last_min_quality = float(q[worst])
-        if q[worst] <= 0.0 or q[worst] < self.min_quality:
-            what = "inverted" if q[worst] <= 0.0 else f"quality {q[worst]:.3g} < {self.min_quality:.3g}"
-            raise MeshQualityError(f"tetrahedron {worst} {what} at {x[self.cells[worst]].mean(0)} m: the 3D "
-                                   "air mesh needs a remesh (not done in 3D yet)")
+        self.last_min_quality = float(q.min())  # also when the check below raises
+        self.last_min_quality = check_quality(x, self.cells, q, self.min_quality, "tetrahedron",
+                                              "the 3D air mesh needs a remesh (not done in 3D yet)")
         return x

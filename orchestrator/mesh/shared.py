@@ -42,28 +42,32 @@ def conductor_submesh(em: EMMesh, tag: int) -> ConductorMesh:
     return ConductorMesh(rows, nodes, em.points[nodes].copy(), inverse.reshape(-1, 3))
 
 
-def to_dolfinx(sub: ConductorMesh, comm: MPI.Comm = MPI.COMM_WORLD) -> dmesh.Mesh:
-    """A DOLFINx P1-triangle mesh with exactly the submesh's nodes and cells (distributed from rank 0)."""
-    domain = ufl.Mesh(ufl.VectorElement("Lagrange", ufl.triangle, 1))
+def to_dolfinx(sub, comm: MPI.Comm = MPI.COMM_WORLD) -> dmesh.Mesh:
+    """A DOLFINx P1 mesh with exactly the submesh's nodes and cells (distributed from rank 0): triangles
+    (a :class:`ConductorMesh`, points (n, 2)) or tetrahedra (a 3D one, points (n, 3))."""
+    nv = sub.cells.shape[1]
+    domain = ufl.Mesh(ufl.VectorElement("Lagrange", {3: ufl.triangle, 4: ufl.tetrahedron}[nv], 1))
     if comm.rank == 0:
         x, cells = sub.points, sub.cells.astype(np.int64)
     else:
-        x, cells = np.zeros((0, 2)), np.zeros((0, 3), dtype=np.int64)
+        x, cells = np.zeros((0, sub.points.shape[1])), np.zeros((0, nv), dtype=np.int64)
     return dmesh.create_mesh(comm, cells, x, domain)
 
 
 def match_nodes(body_points: np.ndarray, em_points: np.ndarray, tol: float) -> np.ndarray:
-    """For each body node, the EM node at the same position (within ``tol`` m).
+    """For each body node, the EM node at the same position (within ``tol`` m), in the EM mesh's
+    dimension (2 or 3 coordinates).
 
     Raises
     ------
     ValueError
         A body node has no EM node at its position (the meshes do not share nodes).
     """
-    dist, idx = cKDTree(em_points).query(body_points[:, :2])
+    d = em_points.shape[1]
+    dist, idx = cKDTree(em_points).query(body_points[:, :d])
     if dist.size and dist.max() > tol:
         worst = int(np.argmax(dist))
-        raise ValueError(f"mechanical node at {body_points[worst, :2]} is {dist[worst]:.3g} m from the "
+        raise ValueError(f"mechanical node at {body_points[worst, :d]} is {dist[worst]:.3g} m from the "
                          "nearest EM node: meshes do not share nodes")
     return idx
 

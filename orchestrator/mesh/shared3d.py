@@ -8,37 +8,16 @@ renumbers nodes when it builds a mesh).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
-import ufl
-from dolfinx import mesh as dmesh
-from mpi4py import MPI
-from scipy.spatial import cKDTree
 
 from pulseform.solvers.getdp.mesh3d import Mesh3D
 
+from .shared import ConductorMesh, match_nodes, to_dolfinx
 
-@dataclass
-class ConductorMesh3D:
-    """A conductor region of the 3D EM mesh as its own mesh.
 
-    Attributes
-    ----------
-    rows : ndarray
-        Rows of the EM mesh's tetrahedra in this region.
-    em_nodes : ndarray
-        EM node index of each local node (``points`` = EM points[em_nodes]).
-    points : ndarray (n, 3)
-        Node coordinates (m).
-    cells : ndarray (m, 4)
-        Tetrahedra as rows of ``points``.
-    """
-
-    rows: np.ndarray
-    em_nodes: np.ndarray
-    points: np.ndarray
-    cells: np.ndarray
+class ConductorMesh3D(ConductorMesh):
+    """A conductor region of the 3D EM mesh as its own mesh: :class:`~.shared.ConductorMesh` with
+    ``points`` (n, 3) m and ``cells`` (m, 4) tetrahedra (local node rows, positively oriented)."""
 
     def skin_faces(self) -> np.ndarray:
         """The boundary triangles (f, 3) as local node rows (faces of one cell only)."""
@@ -65,27 +44,6 @@ def conductor_submesh3d(em: Mesh3D, tag: int) -> ConductorMesh3D:
     return ConductorMesh3D(rows, nodes, p.copy(), cells)
 
 
-def to_dolfinx3d(sub: ConductorMesh3D, comm: MPI.Comm = MPI.COMM_WORLD) -> dmesh.Mesh:
-    """A DOLFINx P1-tetrahedron mesh with exactly the submesh's nodes and cells (from rank 0)."""
-    domain = ufl.Mesh(ufl.VectorElement("Lagrange", ufl.tetrahedron, 1))
-    if comm.rank == 0:
-        x, cells = sub.points, sub.cells.astype(np.int64)
-    else:
-        x, cells = np.zeros((0, 3)), np.zeros((0, 4), dtype=np.int64)
-    return dmesh.create_mesh(comm, cells, x, domain)
-
-
-def match_nodes3d(body_points: np.ndarray, em_points: np.ndarray, tol: float) -> np.ndarray:
-    """For each body node (m), the EM node at the same position (within ``tol`` m).
-
-    Raises
-    ------
-    ValueError
-        A body node has no EM node at its position (the meshes do not share nodes).
-    """
-    dist, idx = cKDTree(em_points).query(body_points[:, :3])
-    if dist.size and dist.max() > tol:
-        worst = int(np.argmax(dist))
-        raise ValueError(f"mechanical node at {body_points[worst, :3]} is {dist[worst]:.3g} m from the "
-                         "nearest EM node: meshes do not share nodes")
-    return idx
+#: the 2D functions take 3D submeshes too (one home): P1 tetrahedra, node matching in 3 coordinates
+to_dolfinx3d = to_dolfinx
+match_nodes3d = match_nodes

@@ -23,7 +23,7 @@ from mpi4py import MPI
 
 from pulseform.solvers import dolfinx as mech
 from pulseform.solvers.dolfinx.solver3d import ExplicitSolver3D
-from pulseform.solvers.getdp import Circuit, Conductor, Rect
+from pulseform.solvers.getdp import Circuit, Conductor, DampedSine, Rect
 from pulseform.solvers.getdp.mesh import COIL_BASE, SHELL, conductor_tag
 from pulseform.solvers.getdp.mesh3d import ring_sector_mesh
 from pulseform.solvers.getdp.solver3d import Coil3D, EM3DModel
@@ -49,7 +49,9 @@ class SectorOptions:
     ``sheet_layers`` tetrahedron layers through the sheet; ``h_sheet_out`` the sheet's size elsewhere;
     ``h_coil``, ``h_air`` sizes in the turns and at the sphere; ``em_step`` the target EM step
     (n = em_step / stable mechanical step, the loop's even landing); ``remesh_quality`` the air's worst
-    quality as a fraction of the fresh mesh's below which the run stops (no 3D remesh yet).
+    quality as a fraction of the fresh mesh's below which the run stops (no 3D remesh yet);
+    ``clamp_rmin`` the sheet is held for r >= clamp_rmin (m; None: the smallest ``xmin`` of the
+    axisymmetric case's fixed boxes, none: free).
     """
 
     sector_deg: float = 2.5
@@ -61,6 +63,7 @@ class SectorOptions:
     em_step: float = 0.45e-6
     time_scheme: str = "bdf2"
     remesh_quality: float = 0.2
+    clamp_rmin: float | None = None
 
 
 #: the sector of the comparison with the axisymmetric demo (docs/coupling.md, "Coupling in 3D"):
@@ -68,16 +71,44 @@ class SectorOptions:
 DEMO_SECTOR = SectorOptions(sector_deg=1.25, h_sheet=0.35e-3, sheet_layers=8, h_coil=1.5e-3, h_air=0.015)
 
 
+def sector_options(case: Case) -> SectorOptions:
+    """The sector of a coupled 3D case file (``[sector]`` and the ``[geometry]`` sizes, the sheet's
+    size resolved: :func:`~..em.skin_depth.with_default_sizes`)."""
+    g, s = case.geometry, case.sector
+    if s is None:
+        from ..case.sector3d import Sector
+
+        s = Sector()
+    h = g.mesh_size_sheet
+    if h is None:
+        raise ValueError("geometry.mesh_size_sheet unresolved: fill the skin-depth defaults first")
+    return SectorOptions(sector_deg=s.angle_deg, h_sheet=h, h_sheet_out=s.outer_size(h),
+                         sheet_layers=s.layers(g.sheet_thickness, h), h_coil=g.mesh_size_coil, h_air=g.mesh_size_air,
+                         em_step=s.em_step, time_scheme=case.em.time_scheme, remesh_quality=s.stop_quality,
+                         clamp_rmin=s.clamp_rmin)
+
+
+def sector_participants(case: Case, work: Path, opt: SectorOptions | None = None):
+    """(3D solver, :class:`GetDPLoad3D`, loop options, EM mesh) of a coupled 3D case (the driver's
+    participants); getdp runs in ``work``, within ``limits.getdp_time_limit_s`` each."""
+    opt = sector_options(case) if opt is None else opt
+    mesh, _, solver, load = build_sector(case, work, opt)
+    n = max(1, round(opt.em_step / solver.stable_time_step()))
+    log.info("3D sector %.4g deg: %d EM tets, sheet %d tets, mechanical step %.3g s, n = %d", opt.sector_deg,
+             mesh.n_tets, len(solver.bodies[load.bodies[0].name].cells), solver.stable_time_step(), n)
+    return solver, load, LoopOptions(n=n, n_min=1, n_max=n), mesh
+
+
 def sector_planes(alpha: float) -> list[tuple[np.ndarray, np.ndarray]]:
     """(point, unit normal) of the two meridian faces of the sector 0 <= phi <= alpha (rad)."""
     return [(np.zeros(3), np.array([0.0, 1.0, 0.0])), (np.zeros(3), np.array([-math.sin(alpha), math.cos(alpha), 0.0]))]
 
 
-def build_sector(case: Case, work: Path, opt: SectorOptions):
-    """(EM mesh, EM model, 3D solver, load provider) of the sector of ``case`` (module docstring)."""
-    g, em = case.geometry, case.em
-    if g is None or g.type != "flat_coil_sheet" or em.circuit is None:
-        raise ValueError("the 3D sector is built from a flat_coil_sheet case on a capacitor bank")
+def sector_mechanics(case: Case, work: Path, opt: SectorOptions):
+    """(EM mesh, the sheet's submesh, 3D solver) of the sector of ``case``: the EM mesh meshed in ``work``,
+    the sheet cut from it with its clamp and sliding meridian faces (the mechanics of both the coupled and
+    the pressure-driven sector: the same nodes)."""
+    g = case.geometry
     work = Path(work).resolve()
     turns = flat_coil_turns(g)
     r_coil = max(t.x1 for t in turns)
@@ -87,26 +118,43 @@ def build_sector(case: Case, work: Path, opt: SectorOptions):
     mesh = ring_sector_mesh(work / "sector.msh", turns, [sheet], sector_deg=opt.sector_deg, r_air=g.air_radius,
                             r_shell=g.shell_radius, h_coil=opt.h_coil, h_conductor=opt.h_sheet_out, h_air=opt.h_air,
                             conductor_layers=opt.sheet_layers, fine_box=box)
-    c = em.circuit
     body = next(b for b in case.bodies if b.region == "workpiece")
     mat = case.materials[body.material]
-    model = EM3DModel(coils=[Coil3D(turns=g.turns, sigma=em.coil_conductivity)],
-                      conductors=[Conductor(mat.electrical_conductivity, name=body.name)],
-                      circuit=Circuit(C=c.capacitance, V0=c.voltage, R_ext=c.resistance, L_ext=c.inductance),
-                      shell=(g.air_radius, g.shell_radius), sector_deg=opt.sector_deg)
     sub = conductor_submesh3d(mesh, conductor_tag(1))
     dmsh = to_dolfinx3d(sub, MPI.COMM_SELF)
     tol = 1e-9 * g.shell_radius
     planes = sector_planes(alpha)
-    clamp_r = min(f.where.xmin for f in body.fixed if f.where.xmin is not None)
-    clamp = (lambda x: np.hypot(x[0], x[1]) >= clamp_r - tol, (0, 1, 2))
+    clamp_r = opt.clamp_rmin if opt.clamp_rmin is not None else \
+        min((f.where.xmin for f in body.fixed if f.where.xmin is not None), default=None)
+    fixed = () if clamp_r is None else ((lambda x: np.hypot(x[0], x[1]) >= clamp_r - tol, (0, 1, 2)),)
     sliding = tuple(((lambda x, n=n: np.abs(n @ x) <= tol), n) for _, n in planes)
     spec = mech.BodySpec(name=body.name, mesh=dmsh, material=solver_material(mat), initial_velocity=(0.0, 0.0, 0.0),
-                         fixed=(clamp,), sliding=sliding)
+                         fixed=fixed, sliding=sliding)
     mo = case.mechanics
     solver = ExplicitSolver3D([spec], cfl=case.time.cfl, bulk_viscosity=mo.bulk_viscosity,
                               bulk_linear=mo.bulk_viscosity_linear, bulk_quadratic=mo.bulk_viscosity_quadratic,
                               comm=MPI.COMM_SELF)
+    return mesh, sub, solver
+
+
+def build_sector(case: Case, work: Path, opt: SectorOptions):
+    """(EM mesh, EM model, 3D solver, load provider) of the sector of ``case`` (module docstring)."""
+    g, em = case.geometry, case.em
+    if g is None or g.type != "flat_coil_sheet" or (em.circuit is None and em.current is None):
+        raise ValueError("the 3D sector is built from a flat_coil_sheet case on a capacitor bank or a current")
+    work = Path(work).resolve()
+    mesh, sub, solver = sector_mechanics(case, work, opt)
+    c, cur = em.circuit, em.current
+    body = next(b for b in case.bodies if b.region == "workpiece")
+    mat = case.materials[body.material]
+    wave = None if cur is None else DampedSine(cur.amplitude, cur.beta, cur.omega)
+    model = EM3DModel(coils=[Coil3D(turns=g.turns, sigma=em.coil_conductivity, waveform=wave)],
+                      conductors=[Conductor(mat.electrical_conductivity, name=body.name)],
+                      circuit=None if c is None else Circuit(C=c.capacitance, V0=c.voltage, R_ext=c.resistance,
+                                                             L_ext=c.inductance),
+                      shell=(g.air_radius, g.shell_radius), sector_deg=opt.sector_deg)
+    tol = 1e-9 * g.shell_radius
+    planes = sector_planes(math.radians(opt.sector_deg))
     b3 = solver.bodies[body.name]
     body_to_em = match_nodes3d(b3.X0, mesh.points, tol)
     # air motion: the sheet follows the body, coil, shell and the outer sphere stay, the planes slide
@@ -118,7 +166,7 @@ def build_sector(case: Case, work: Path, opt: SectorOptions):
                         [(nodes_on_plane(mesh.points, p, n, tol), n) for p, n in planes])
     mover.min_quality = opt.remesh_quality * float(mover.q_ref.min())
     load = GetDPLoad3D(mesh, model, work / "getdp", [ConductorBody3D(body.name, conductor_tag(1), sub, body_to_em)],
-                       mover, time_scheme=opt.time_scheme)
+                       mover, time_scheme=opt.time_scheme, getdp_timeout=case.limits.getdp_time_limit_s)
     return mesh, model, solver, load
 
 

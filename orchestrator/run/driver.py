@@ -38,9 +38,13 @@ from ..mesh.shared import ConductorBody, conductor_submesh, match_nodes, to_dolf
 from . import interrupt
 from .analyses import create as create_analysis
 from .checkpoint import CHECKPOINT_NAME, load_checkpoint, save_checkpoint
+from .coupled3d import sector_participants
 from .em_fields import EMFieldWriter, write_peak_snapshot
+from .em_fields3d import FOLDER as EM3D_FOLDER
+from .em_fields3d import STEM as EM3D_STEM
 from .extremes3d import body_extremes_3d
 from .history import History
+from .pressure3d import sector_pressure_participants
 from .progress import Progress
 from .results import ResultsFolder
 
@@ -87,7 +91,13 @@ class CaseDriver:
         self.wall_before_s = 0.0
         cp = case.coupling
         self.rigid: RigidMechanics | None = None  # the rigid bodies (coupled cases), None without
-        if case.case.kind == "coupled":
+        # a coupled 3D case: a sector of a flat_coil_sheet setup (run/coupled3d.py), its sheet's EM fields
+        self.sector = case.case.kind == "coupled" and case.mechanics.formulation == "3d"
+        if self.sector and cp.load == "pressure":  # the same sector driven by [[loads]] (run/pressure3d.py)
+            self.solver, load, options = sector_pressure_participants(case, results.root / "em")
+        elif self.sector:
+            self.solver, load, options, _ = sector_participants(case, results.root / "em")
+        elif case.case.kind == "coupled":
             self.solver, load, self.rigid = _coupled_participants(case, results, comm, em_geometry)
             options = LoopOptions.from_coupling(cp)
         else:
@@ -173,7 +183,7 @@ class CaseDriver:
         peak coil current (the checkpoint's EM state counts it as written)."""
         peak = self.load.take_peak_snapshot() if self.comm.rank == 0 else None
         if peak is not None:
-            write_peak_snapshot(self.results.fields / "em", *peak)
+            write_peak_snapshot(self.results.fields / (EM3D_FOLDER if self.sector else "em"), *peak)
         arrays = {f"solver/{k}": v for k, v in self.mechanics.state_dict().items()}
         arrays.update({f"loop/{k}": v for k, v in self.loop.counters.state_dict().items()})
         arrays.update({f"load/{k}": v for k, v in self.load.checkpoint_state_dict().items()})
@@ -230,6 +240,9 @@ class CaseDriver:
         writer = mech.FieldWriter(self.solver, str(prefix)) if self.solver is not None else _NoFieldWriter()
         em_writer = EMFieldWriter(self.results.fields / (f"em_part{self.part}" if self.part else "em")) \
             if self.load.em_fields and self.comm.rank == 0 else None
+        if self.sector and case.coupling.load == "getdp" and self.comm.rank == 0:  # the sheet's force density
+            em_writer = EMFieldWriter(self.results.fields / (f"{EM3D_FOLDER}_part{self.part}" if self.part
+                                                             else EM3D_FOLDER), stem=EM3D_STEM)
         if em_writer is not None:
             self.load.request_fields(self.stops)  # whole-domain EM fields only on the snapshot steps
         if not self.history.rows:
@@ -292,8 +305,8 @@ class CaseDriver:
         if case.loads or case.case.kind == "coupled":
             metrics["force_impulse_Ns"] = float(np.linalg.norm(c.impulse))
             metrics["force_impulse_z_Ns"] = float(c.impulse[1])
-        metrics.update(self.load.run_metrics(self.history, c))
         metrics.update(mech_metrics(self.solver, case, self.history, self.energies()))
+        metrics.update(self.load.run_metrics(self.history, c))  # a 3D sector's: the device's figures
         if self.rigid is not None:
             metrics.update(rigid_metrics(case, self.history, {n: b.mass for n, b in self.rigid.bodies.items()}))
         for a in self.analyses:
@@ -455,8 +468,8 @@ def mech_metrics(solver, case: Case, history: History, e: dict[str, float]) -> d
         out[f"{b.name}_max_speed_m_s"] = float(history.column(f"{b.name}_max_speed_m_s").max())
         out[f"{b.name}_max_von_mises_MPa"] = float(history.column(f"{b.name}_max_von_mises_Pa").max()) / 1e6
         if b.region == "workpiece" and case.geometry is not None:
-            if case.geometry.type == "flat_coil_sheet":
-                out["max_deflection_mm"] = out[f"{b.name}_max_uy_mm"]
+            if case.geometry.type == "flat_coil_sheet":  # the axial displacement: z in 3D, y in r-z
+                out["max_deflection_mm"] = out.get(f"{b.name}_max_uz_mm", out[f"{b.name}_max_uy_mm"])
             elif case.geometry.type == "solenoid_tube":
                 out["max_radial_displacement_mm"] = out[f"{b.name}_max_ux_mm"]
     for p in case.probes:

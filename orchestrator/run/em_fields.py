@@ -34,12 +34,17 @@ def _pvd(entries: list[tuple[float, str]]) -> str:
             + "\n  </Collection>\n</VTKFile>\n")
 
 
-def write_vtu(path: Path, points: np.ndarray, triangles: np.ndarray, cell_data: dict[str, np.ndarray],
+def write_vtu(path: Path, points: np.ndarray, cells: np.ndarray, cell_data: dict[str, np.ndarray],
               point_data: dict[str, np.ndarray] | None = None) -> Path:
-    """One EM mesh (z = 0) with per-triangle ``cell_data`` and per-node ``point_data``, written atomically."""
+    """One EM mesh with per-cell ``cell_data`` and per-node ``point_data``, written atomically: triangles
+    (points (n, 2), written at z = 0) or tetrahedra (points (n, 3))."""
     path = Path(path)
-    pts = np.column_stack([points[:, :2], np.zeros(len(points))])
-    mesh = meshio.Mesh(pts, [("triangle", triangles)],
+    cells = np.asarray(cells)
+    if cells.shape[1] == 4:
+        kind, pts = "tetra", np.asarray(points, float)[:, :3]
+    else:
+        kind, pts = "triangle", np.column_stack([points[:, :2], np.zeros(len(points))])
+    mesh = meshio.Mesh(pts, [(kind, cells)],
                        point_data={k: np.asarray(v) for k, v in (point_data or {}).items()},
                        cell_data={k: [np.asarray(v)] for k, v in cell_data.items()})
     tmp = path.with_name(f".{path.stem}.tmp.vtu")
@@ -49,21 +54,23 @@ def write_vtu(path: Path, points: np.ndarray, triangles: np.ndarray, cell_data: 
 
 
 class EMFieldWriter:
-    """Write EM snapshots into ``folder`` as ``em_0000.vtu``, ... and ``em.pvd``."""
+    """Write EM snapshots into ``folder`` as ``<stem>_0000.vtu``, ... and ``<stem>.pvd`` (``em``; a coupled
+    3D run's sheet: ``sheet_em``)."""
 
-    def __init__(self, folder: Path) -> None:
+    def __init__(self, folder: Path, stem: str = "em") -> None:
         self.folder = Path(folder)
         self.folder.mkdir(parents=True, exist_ok=True)
+        self.stem = stem
         self.entries: list[tuple[float, str]] = []
 
     def write(self, t: float, points: np.ndarray, triangles: np.ndarray, cell_data: dict[str, np.ndarray],
               point_data: dict[str, np.ndarray] | None = None) -> Path:
-        """One snapshot at time ``t`` (s); ``cell_data`` arrays have one row per triangle,
+        """One snapshot at time ``t`` (s); ``cell_data`` arrays have one row per triangle (tetrahedron),
         ``point_data`` one per node (SI units)."""
-        name = f"em_{len(self.entries):04d}.vtu"
+        name = f"{self.stem}_{len(self.entries):04d}.vtu"
         write_vtu(self.folder / name, points, triangles, cell_data, point_data)
         self.entries.append((t, name))
-        atomic_write_text(self.folder / "em.pvd", _pvd(self.entries))
+        atomic_write_text(self.folder / f"{self.stem}.pvd", _pvd(self.entries))
         return self.folder / name
 
 

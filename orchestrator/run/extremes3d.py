@@ -1,5 +1,5 @@
 """History columns of a 3D body (tetrahedra): the 2D body's extremes (``driver.body_extremes``) plus
-the z displacement, with the speed and von Mises stress from all three components."""
+the z displacement and z-momentum, with the speed and von Mises stress from all three components."""
 
 from __future__ import annotations
 
@@ -10,7 +10,8 @@ from mpi4py import MPI
 
 
 def body_extremes_3d(name: str, b, reduce: Callable[[float, object], float]) -> dict[str, float]:
-    """Largest |u_x|, |u_y|, |u_z| (m), largest speed (m/s), y-momentum Σ m v_y (N·s) and largest cell
+    """Largest |u_x|, |u_y|, |u_z| (m), largest speed (m/s), y- and z-momentum Σ m v (N·s; velocities at the
+    last half step) and largest cell
     von Mises stress (Pa) of the 3D body ``b`` (a ``Body3D``), reduced over the ranks by ``reduce``
     (value, MPI op) -> value."""
     n = b.n_owned
@@ -23,4 +24,5 @@ def body_extremes_3d(name: str, b, reduce: Callable[[float, object], float]) -> 
             f"{name}_max_uz_m": reduce(float(ext[2]), MPI.MAX),
             f"{name}_max_speed_m_s": reduce(speed, MPI.MAX),
             f"{name}_momentum_y_Ns": reduce(float(b.mass[:n] @ b.v[:n, 1]), MPI.SUM),
+            f"{name}_momentum_z_Ns": reduce(float(b.mass[:n] @ b.v[:n, 2]), MPI.SUM),
             f"{name}_max_von_mises_Pa": reduce(vm, MPI.MAX)}

@@ -38,6 +38,7 @@ import numpy as np
 
 from .mech_fields import BodyFields, read_fields
 from .pictures_child import Renderer, spawn, warm_up
+from .pictures_sector import MeridianSection, sector_angle
 from .pictures_solid import boundary_faces, solid_camera, solid_surface
 from .units import time_axis
 
@@ -199,11 +200,19 @@ def _planar(points2: np.ndarray, triangles: np.ndarray, values: np.ndarray):
 class _Scene:
     """Per body the 3D (revolved) or planar surface of the deformed mesh at one output time, mm."""
 
-    def __init__(self, bodies: dict[str, BodyFields]):
+    def __init__(self, bodies: dict[str, BodyFields], sector_deg: float | None = None):
         self.bodies = bodies
         self.axi = next(iter(bodies.values())).axisymmetric
         self.solid = next(iter(bodies.values())).solid  # 3D bodies: the surface of the tetrahedra
-        self.edges = {n: (boundary_faces if self.solid else boundary_edges)(b.triangles) for n, b in bodies.items()}
+        # a sector of an axisymmetric part: its meridian face, revolved as an axisymmetric mesh is
+        self.sections = {n: MeridianSection(b.points, b.triangles) for n, b in bodies.items()} \
+            if self.solid and sector_deg else None
+        if self.sections is not None:
+            self.solid, self.axi = False, True
+            self.edges = {n: boundary_edges(s.triangles) for n, s in self.sections.items()}
+        else:
+            self.edges = {n: (boundary_faces if self.solid else boundary_edges)(b.triangles)
+                          for n, b in bodies.items()}
 
     def surface(self, name: str, k: int, field: str, scale: float):
         import pyvista as pv
@@ -212,7 +221,11 @@ class _Scene:
         d = b.read(k, ("displacement_m", field))
         vals = np.asarray(d[field], dtype=float).ravel() * scale
         x = (b.points[:, :2] + d["displacement_m"][:, :2]) * 1e3
-        if self.solid:
+        if self.sections is not None:
+            sec = self.sections[name]
+            x2 = sec.points2((b.points + d["displacement_m"]) * 1e3)
+            pts, faces, v = _revolved(x2, sec.triangles, *self.edges[name], vals[sec.owner])
+        elif self.solid:
             pts, faces, v = solid_surface((b.points + d["displacement_m"]) * 1e3, *self.edges[name], vals)
         elif self.axi:
             pts, faces, v = _revolved(x, b.triangles, *self.edges[name], vals)
@@ -260,7 +273,8 @@ def render_fields(results_dir: Path) -> list[Path]:
     pv.global_theme.multi_samples = 0  # no MSAA: software rendering (llvmpipe) pays for every sample
     root = Path(results_dir)
     bodies = read_fields(root)
-    scene = _Scene(bodies)
+    sector = sector_angle(root)
+    scene = _Scene(bodies, sector)
     name = _run_name(root)
     ref = max(bodies.values(), key=lambda b: len(b.times))
     times = ref.times
@@ -270,6 +284,8 @@ def render_fields(results_dir: Path) -> list[Path]:
     frames_dir.mkdir(parents=True, exist_ok=True)
     paths: list[Path] = []
     where = "revolved 270° about the z axis" if scene.axi else "3D" if scene.solid else "x-y plane"
+    if scene.sections is not None:
+        where = f"a {sector:g}° sector's meridian face revolved 270° about the z axis"
 
     def tlabel(t: float) -> str:
         return f"t = {t * axis.scale:.4g} {axis.unit}"

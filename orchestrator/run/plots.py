@@ -266,8 +266,9 @@ def draw_all(results_dir: Path, *, case=None, history: History | None = None, sh
         before = _stamps(folder)
         attempt(f"analysis {type(a).__name__}", a.plots, history, shapes or [], folder)
         done.paths.extend(p for p, s in _stamps(folder).items() if before.get(p) != s)
-    if case is not None and case.case.kind == "coupled":
-        em = _picture_module(*PICTURE_MODULES[1], skip)
+    if case is not None and case.case.kind == "coupled" and case.coupling.load == "getdp":  # EM fields exist
+        three_d = case.mechanics.formulation == "3d"  # a sector: the force density on its sheet
+        em = _picture_module(*(("pictures_em3d", "draw_em3d") if three_d else PICTURE_MODULES[1]), skip)
         if em is not None:
             attempt("EM pictures", em, root)
     if finish_mech is not None:  # shapes.png (workpiece outlines) and the 3D pictures, from fields/

@@ -11,6 +11,9 @@
 4. ``OUT/compare.json``: the pulse and the differences (max distance between the final workpiece
    shapes, max speeds, die stresses if there is a die, impulses, wall times); ``OUT/plots/``:
    pressure history with the fitted pulse, final shapes, deflection and speed histories.
+
+A coupled 3D sector (``mechanics.formulation = "3d"``): its axial force over the area its mesh loads
+(:mod:`.compare3d`), the 3D final positions, the lower surface's meridian profile.
 """
 
 from __future__ import annotations
@@ -31,11 +34,14 @@ from ..case.model import Case, FlatCoilSheet, PlanarCoilBlankDie, SolenoidTube
 from ..mech.pulses import exp_pulse, sin2_pulse
 from ..run.children import run_pulseform
 from ..run.results import ResultsFolder, read_metrics
+from .compare3d import nominal_area, plot_meridian, sector_loading
+from .compare_area import loaded_area_2d
 from .validate import write_json
 
 log = logging.getLogger(__name__)
 _COND = re.compile(r"^\s*([A-Za-z_][A-Za-z0-9_]*)\s*(>=|<=|>|<)\s*([-+0-9.eE]+)\s*$")
 _OPS = {">": operator.gt, "<": operator.lt, ">=": operator.ge, "<=": operator.le}
+FORCE_COLUMNS = ("force_x_N", "force_y_N", "force_z_N")  # by the force component of the loaded surface
 
 
 class CompareError(ValueError):
@@ -94,6 +100,24 @@ def loaded_surface(case: Case) -> tuple[dict[str, float], float, int, float]:
         y = g.blank_thickness
         return {"xmin": x1, "xmax": x2, "ymin": y - eps, "ymax": y + eps}, (x2 - x1) * case.mechanics.thickness, 1, -1.0
     raise CompareError(f"compare: geometry type {getattr(g, 'type', None)!r} has no known loaded surface")
+
+
+def _mesh_area(case: Case, folder: Path, body: str, box: dict, nominal: float) -> float:
+    """The loaded area (m²) of the 2D workpiece mesh of the coupled run in ``folder`` (the nominal one,
+    logged, when its fields cannot be read)."""
+    from ..run.mech_fields import FieldFileError, read_fields
+
+    try:
+        bf = read_fields(folder)[body]
+    except (FieldFileError, KeyError) as exc:
+        log.warning("compare: no mesh of %r in %s (%s): the nominal area %.4g cm^2", body, folder, exc, nominal * 1e4)
+        return nominal
+    area = loaded_area_2d(bf.points, bf.triangles, box, axisymmetric=case.mechanics.formulation == "axisymmetric",
+                          thickness=case.mechanics.thickness)
+    if area <= 0.0:
+        raise CompareError(f"compare: the loaded surface {box} holds no boundary edge of {body!r}")
+    log.info("compare: loaded area %.6g cm^2 on the mesh (nominal %.6g cm^2)", area * 1e4, nominal * 1e4)
+    return area
 
 
 # --------------------------------------------------------------------------- fits
@@ -199,7 +223,7 @@ def _history(folder: Path) -> np.ndarray:
 
 
 def final_shape(folder: Path, case_name: str, body: str) -> tuple[np.ndarray, np.ndarray, dict[float, np.ndarray]]:
-    """(reference coordinates (N, 2), final displacement (N, 2), {time: von Mises per cell}) of ``body``
+    """(reference coordinates (N, 2), final displacement (N, 2); (N, 3) of a 3D body, {time: von Mises per cell}) of ``body``
     (m, m, Pa) from the run's field files; ``case_name`` is kept for the callers (the files name it)."""
     from ..run.mech_fields import FieldFileError, read_fields
 
@@ -211,6 +235,8 @@ def final_shape(folder: Path, case_name: str, body: str) -> tuple[np.ndarray, np
         raise CompareError(f"compare: no field file for body {body!r} in {folder / 'fields'}", run_failed=True)
     bf = bodies[body]
     vm = {float(t): bf.read(k, ("von_mises_Pa",))["von_mises_Pa"] for k, t in enumerate(bf.times)}
+    if bf.solid:  # a 3D body: (N, 3)
+        return bf.points, bf.read(len(bf.times) - 1, ("displacement_m",))["displacement_m"], vm
     return bf.points[:, :2], bf.displacement(len(bf.times) - 1), vm
 
 
@@ -250,6 +276,7 @@ def run_compare(case_path: str, out: Path, *, overrides: list[str] | None = None
             raise CompareError(f"{case_path}: geometry type {case.geometry.type!r} has no known loaded surface "
                                "to fit a pulse on; give the pulses with --pressure-case FILE") from None
         box, area, comp, sign = None, 1.0, 1, 1.0  # given pulses: histories shown as force (N) along z
+    three_d = case.mechanics.formulation == "3d"  # a sector: the force along z on its loaded mesh area
     results = ResultsFolder(out, force=force)
     root = results.root
 
@@ -257,7 +284,15 @@ def run_compare(case_path: str, out: Path, *, overrides: list[str] | None = None
     mc = _run(str(case_path), root / "coupled", overrides)
     hc = _history(root / "coupled")
     t = hc["time_s"]
-    force_col = hc["force_y_N" if comp == 1 else "force_x_N"]
+    sym = 1.0
+    if three_d:
+        comp = 2
+        if box is not None:
+            area, sym = sector_loading(case, root / "coupled", work.name, box)
+    nominal = area
+    if not three_d and box is not None:  # the area the pressure run loads on this mesh (compare_area.py)
+        area = _mesh_area(case, root / "coupled", work.name, box, area)
+    force_col = hc[FORCE_COLUMNS[comp]]
     p_hist = sign * force_col / area
     if given is None:
         # each history row holds the force held over the EM step that ends there (the mean of GetDP's
@@ -276,8 +311,15 @@ def run_compare(case_path: str, out: Path, *, overrides: list[str] | None = None
             desc = (f"eq. (8) fitted: p0 = {par['amplitude'] / 1e6:.4g} MPa, T = {par['decay_time']:.4g} s on "
                     f"{area * 1e4:.4g} cm^2 (fit residual {100 * par['fit_residual_rel']:.2g} % of the peak)")
         loads = [load]
-        pulse_info = {"source": "fitted to the coupled run", "kind": pulse, **par, "area_m2": area,
+        pulse_info = {"source": "fitted to the coupled run", "kind": pulse, **par, "area_m2": area * sym,
                       "surface": box, "description": desc}
+        if not three_d and box is not None:
+            pulse_info["nominal_area_m2"] = nominal
+        if three_d:  # the device's area: the sector's loaded triangles x 360 / angle (compare3d.py)
+            pulse_info.update(sector_area_m2=area, nominal_area_m2=nominal_area(box), symmetry_factor=sym)
+            pulse_info["description"] = desc.replace(f"on {area * 1e4:.4g} cm^2", f"on {area * sym * 1e4:.4g} cm^2 "
+                                                     f"(the sector's loaded triangles x {sym:g}; nominal "
+                                                     f"{nominal_area(box) * 1e4:.4g} cm^2)")
     else:
         loads = given
         pulse_info = {"source": f"given: {pressure_case}", "loads": given, "area_m2": area,
@@ -323,7 +365,7 @@ def run_compare(case_path: str, out: Path, *, overrides: list[str] | None = None
               "coupled_metrics": mc, "pressure_metrics": mp}
     write_json(root / "compare.json", report)
     try:
-        _plots(root, hc, hp, comp, sign * area, loads, (xc, uc), (xp, up), work.name, case)
+        _plots(root, hc, hp, comp, sign * area, loads, (xc, uc), (xp, up), work.name, case, three_d)
     except Exception as exc:  # plots never decide the result
         log.warning("compare plots failed: %s", exc)
     return report
@@ -365,7 +407,7 @@ def _given_loads(path: str) -> list[dict]:
 
 
 def _plots(root: Path, hc, hp, comp: int, area: float, loads: list[dict], shape_c, shape_p, body: str,
-           case: Case) -> None:
+           case: Case, three_d: bool = False) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -373,7 +415,7 @@ def _plots(root: Path, hc, hp, comp: int, area: float, loads: list[dict], shape_
 
 
     plots = root / "plots"
-    col = "force_y_N" if comp == 1 else "force_x_N"
+    col = FORCE_COLUMNS[comp]
     fig, ax = plt.subplots(figsize=(6, 3.4))
     ax.plot(hc["time_s"] * 1e6, hc[col] / area / 1e6, "o-", ms=3, label="coupled: F / A")
     ax.plot(hp["time_s"] * 1e6, hp[col] / area / 1e6, "--", label="pressure run: F / A")
@@ -385,10 +427,14 @@ def _plots(root: Path, hc, hp, comp: int, area: float, loads: list[dict], shape_
     plt.close(fig)
 
     fig, ax = plt.subplots(figsize=(6, 3.4))
-    for (x, u), lab, st in ((shape_c, "coupled", "."), (shape_p, "pressure", "x")):
-        y = x + u
-        ax.plot(y[:, 0] * 1e3, y[:, 1] * 1e3, st, ms=2, label=lab)
-    ax.set(xlabel="r (mm)", ylabel="z (mm)", title=f"final shape of {body}")
+    if three_d:  # the sector's sheet: the meridian profile of its lower surface
+        g = case.geometry
+        plot_meridian(ax, shape_c, shape_p, g.coil_gap, 1e-6 * g.sheet_thickness)
+    else:
+        for (x, u), lab, st in ((shape_c, "coupled", "."), (shape_p, "pressure", "x")):
+            y = x + u
+            ax.plot(y[:, 0] * 1e3, y[:, 1] * 1e3, st, ms=2, label=lab)
+    ax.set(xlabel="r (mm)", ylabel="z (mm)", title=f"final shape of {body}" + (" (lower surface)" if three_d else ""))
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     fig.tight_layout()
@@ -396,7 +442,7 @@ def _plots(root: Path, hc, hp, comp: int, area: float, loads: list[dict], shape_
     plt.close(fig)
 
     fig, axes = plt.subplots(2, 1, figsize=(6, 5), sharex=True)
-    key = f"{body}_max_uy_m" if comp == 1 else f"{body}_max_ux_m"
+    key = f"{body}_max_u{'xyz'[comp]}_m"
     for h, lab, st in ((hc, "coupled", "-"), (hp, "pressure", "--")):
         axes[0].plot(h["time_s"] * 1e6, h[key] * 1e3, st, label=lab)
         axes[1].plot(h["time_s"] * 1e6, h[f"{body}_max_speed_m_s"], st, label=lab)

@@ -300,15 +300,26 @@ def ring_sector_mesh(
             fmin = model.mesh.field.add("Min")
             model.mesh.field.setNumbers(fmin, "FieldsList", fields)
             model.mesh.field.setAsBackgroundMesh(fmin)
-        gmsh.option.setNumber("Mesh.Algorithm3D", 1)
-        gmsh.option.setNumber("Mesh.Optimize", 1)
-        model.mesh.generate(3)
-        gmsh.option.setNumber("Mesh.MshFileVersion", 2.2)
-        gmsh.option.setNumber("Mesh.Binary", 0)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        gmsh.write(str(path))
-    points, tets, ids, tags = read_msh22_tets(path)
-    mesh = Mesh3D(points=points, tets=tets, tet_ids=ids, tet_tags=tags, path=path, sector_deg=float(sector_deg),
-                  electrode_area=electrode_area)
+        generate_tets(gmsh, path)
+    mesh = read_mesh3d(path, float(sector_deg), electrode_area)
     logger.info("3D mesh %s: %d tetrahedra, %d nodes", path.name, mesh.n_tets, mesh.n_nodes)
     return mesh
+
+
+def generate_tets(gmsh, path: Path) -> None:
+    """Mesh the open gmsh model in 3D (Delaunay, optimised) and write it as ASCII MSH 2.2 (what GetDP
+    reads) at ``path``."""
+    gmsh.option.setNumber("Mesh.Algorithm3D", 1)
+    gmsh.option.setNumber("Mesh.Optimize", 1)
+    gmsh.model.mesh.generate(3)
+    gmsh.option.setNumber("Mesh.MshFileVersion", 2.2)
+    gmsh.option.setNumber("Mesh.Binary", 0)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    gmsh.write(str(path))
+
+
+def read_mesh3d(path: Path, sector_deg: float, electrode_area: dict[int, float]) -> Mesh3D:
+    """The :class:`Mesh3D` of an MSH 2.2 file written by :func:`generate_tets`."""
+    points, tets, ids, tags = read_msh22_tets(path)
+    return Mesh3D(points=points, tets=tets, tet_ids=ids, tet_tags=tags, path=path, sector_deg=sector_deg,
+                  electrode_area=electrode_area)

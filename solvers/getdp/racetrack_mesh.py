@@ -36,7 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from .mesh import AIR, OUTER, SHELL, coil_tag, conductor_tag, gmsh_session
-from .mesh3d import ELEC_IN_BASE, ELEC_OUT_BASE, SYM_A, Mesh3D, read_msh22_tets, skin_tag
+from .mesh3d import ELEC_IN_BASE, ELEC_OUT_BASE, SYM_A, Mesh3D, generate_tets, read_mesh3d, skin_tag
 
 logger = logging.getLogger(__name__)
 
@@ -231,16 +231,8 @@ def racetrack_groove_mesh(path: str | Path, g: RacetrackGroove = RacetrackGroove
         _boundaries(gmsh, out, coil_v, alpha, g.shell_radius or g.air_radius)
         electrode_area = {1: float(sum(occ.getMass(2, t) for t in model.getEntitiesForPhysicalGroup(2, ELEC_IN_BASE + 1)))}
         _sizes(gmsh, g, half, air_v + sorted(shell), coil_v, sheet_v, die_v)
-        gmsh.option.setNumber("Mesh.Algorithm3D", 1)
-        gmsh.option.setNumber("Mesh.Optimize", 1)
-        model.mesh.generate(3)
-        gmsh.option.setNumber("Mesh.MshFileVersion", 2.2)
-        gmsh.option.setNumber("Mesh.Binary", 0)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        gmsh.write(str(path))
-    points, tets, ids, tags = read_msh22_tets(path)
-    mesh = Mesh3D(points=points, tets=tets, tet_ids=ids, tet_tags=tags, path=path, sector_deg=sector,
-                  electrode_area=electrode_area)
+        generate_tets(gmsh, path)
+    mesh = read_mesh3d(path, sector, electrode_area)
     logger.info("racetrack mesh %s (%s): %d tetrahedra, %d nodes", path.name, "half" if half else "quarter",
                 mesh.n_tets, mesh.n_nodes)
     return mesh

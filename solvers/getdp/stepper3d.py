@@ -153,6 +153,14 @@ class EM3DStepper:
         tm["res_io_s"] += (c1_ - c0) + (time.perf_counter() - c2_)
         return res, new
 
+    def complete_state(self, state: EM3DState) -> EM3DState:
+        """``state`` as it is: a per-step state carries its vectors (the API of
+        :class:`~.persistent3d.PersistentEM3DStepper`, whose states need this for a checkpoint)."""
+        return state
+
+    def close(self) -> None:
+        """Nothing runs between steps (the API of :class:`~.persistent3d.PersistentEM3DStepper`)."""
+
     def with_model(self, **changes) -> "EM3DStepper":
         """A stepper of the same kind on a changed model (e.g. the shell centre)."""
         return EM3DStepper(replace(self.model, **changes), self.work_dir, self.time_scheme, **self.run_kwargs)

@@ -153,7 +153,7 @@ BAD = [  # (case, --set overrides, text the one line must hold)
     ("bar_impact_3d", ["probes[0].point=[4.0, 0.0]"], "probes[0].point"),
     ("bar_impact_3d", ["bodies.bar.initial_velocity=[5.0, 0.0]"], "bodies[0].initial_velocity"),
     ("bar_impact_3d", ["symmetry[0].normal=[0.0, 0.0, 0.0]"], "symmetry[0].normal"),
-    ("bar_impact_3d", ["case.kind=\"coupled\""], "not yet supported"),
+    ("bar_impact_3d", ["case.kind=\"coupled\""], "geometry: missing required table"),  # coupled 3D: issue 20 (a)
     ("bar_impact_3d", ["symmetry[1].point=[0.0, 0.0, 0.5]"], "symmetry[1].point"),
     ("bar_impact_3d", ["limits.max_cells=1000"], "bodies[0].mesh_size"),
     ("bar_impact_wall", ["symmetry=[{normal=[0.0, 1.0, 0.0]}]"], "symmetry"),
