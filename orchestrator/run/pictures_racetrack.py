@@ -8,7 +8,8 @@
   section y = 0 through the thickness (where the eddy currents flow: the skin);
 * ``plots/deformed_sheet_{plastic_strain,von_mises}.png`` and ``plots/deformed_die_von_mises.png``
   (pyvista, off-screen): the deformed sheet seen from above (the die would hide it) and the die seen
-  from below (its groove), true scale, at four output times, one colour scale per picture.
+  from below (its groove), true scale, at four output times, one colour scale per picture; rendered in
+  a child process (``python -m pulseform.orchestrator.run.pictures_racetrack ROOT FOLDER``).
 
 Lengths are shown in mm, stresses in MPa, force densities in GN/m^3.
 """
