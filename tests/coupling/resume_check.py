@@ -11,15 +11,16 @@ from pathlib import Path
 import pytest
 
 
-def sigint_then_resume(args: list[str], out: Path) -> tuple[subprocess.Popen, str, dict, subprocess.CompletedProcess]:
-    """Start ``args`` (a ``pulseform run`` into ``out``), send SIGINT 0.2 s after its first checkpoint, wait,
+def sigint_then_resume(args: list[str], out: Path, delay: float = 0.2
+                       ) -> tuple[subprocess.Popen, str, dict, subprocess.CompletedProcess]:
+    """Start ``args`` (a ``pulseform run`` into ``out``), send SIGINT ``delay`` s after its first checkpoint, wait,
     then run ``args + ["--resume"]``. Returns (the stopped process, its stderr, the stopped run's metrics,
     the resumed run's completed process); skips the test when the run finished before the signal."""
     proc = subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     deadline = time.time() + 300
     while not (out / "checkpoint.npz").exists() and proc.poll() is None and time.time() < deadline:
         time.sleep(0.005)
-    time.sleep(0.2)
+    time.sleep(delay)
     proc.send_signal(signal.SIGINT)
     _, err = proc.communicate(timeout=300)
     if proc.returncode == 0:
