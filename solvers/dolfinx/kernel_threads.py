@@ -1,7 +1,7 @@
 """The explicit steps on several threads (``ExplicitSolver(threads=n)``): the whole step loop is
 one compiled numba ``parallel`` function, :func:`run_steps_threaded`.
 
-The element kernel: the cells go in fixed chunks of :data:`.kernels.CHUNK` (a task each) through
+The element kernel: the cells go in fixed chunks of :func:`.kernels.chunk_size` (a task each) through
 :func:`.kernels.element_chunk`. A node whose cells all lie in one chunk gets its forces added by
 that chunk's task, in cell order; for a node shared by chunks the forces are stored per cell and
 gathered afterwards in cell order (a node-to-cell map built once, :func:`force_map`); the chunks'
@@ -25,7 +25,7 @@ import numpy as np
 from .block import (EV_DT, EV_INVERTED, EV_NONE, SC, _apply_walls, _constrain, _contact,
                     _kinetic_peak)
 from .element_math import MODE_AXISYMMETRIC, P_MODE
-from .kernels import CHUNK, WORK_SIZE, element_chunk
+from .kernels import WORK_SIZE, chunk_size, element_chunk
 from .reductions import np_sum
 
 __all__ = ["force_map", "ThreadArrays", "thread_arrays", "run_steps_threaded"]
@@ -75,7 +75,8 @@ def thread_arrays(B) -> ThreadArrays:
     for ib in range(nb):
         n0, n1 = int(B.node_off[ib]), int(B.node_off[ib + 1])
         c0, c1 = int(B.cell_off[ib]), int(B.cell_off[ib + 1])
-        chunk = np.repeat(np.arange(c1 - c0) // CHUNK, 3)
+        cs = chunk_size(c1 - c0)
+        chunk = np.repeat(np.arange(c1 - c0) // cs, 3)
         nodes = B.cells[c0:c1].ravel() - n0
         first = np.full(n1 - n0, np.iinfo(np.int64).max)
         last = np.full(n1 - n0, -1)
@@ -83,7 +84,7 @@ def thread_arrays(B) -> ThreadArrays:
         np.maximum.at(last, nodes, chunk)
         shared[n0:n1] = first != last
         gather.append(n0 + np.flatnonzero(first != last).astype(np.int64))
-        chunk_off.append(chunk_off[-1] + max(1, -(-(c1 - c0) // CHUNK)))
+        chunk_off.append(chunk_off[-1] + max(1, -(-(c1 - c0) // cs)))
     return ThreadArrays(chunk_off=np.array(chunk_off, np.int64), shared=shared,
                         gather_off=np.cumsum([0] + [len(g) for g in gather]).astype(np.int64),
                         gather=np.concatenate(gather), fe=np.zeros((max(nc, 1), 7)), off=off,
@@ -146,9 +147,10 @@ def run_steps_threaded(B, W, C, sc, dt, n_steps, ev, evf, T):
             fe = T.fe[c0:c1]
             prm = B.prm[ib]
             k1 = T.chunk_off[ib + 1]
+            cs = chunk_size(nc)
             for q in numba.prange(k1 - k0):
                 element_chunk(cells, x, v, dt, prm, stress, eps_p, f, fe, shared,
-                              q * CHUNK, min(nc, (q + 1) * CHUNK), work[k0 + q], parts[k0 + q])
+                              q * cs, min(nc, (q + 1) * cs), work[k0 + q], parts[k0 + q])
             axi = int(prm[P_MODE]) == MODE_AXISYMMETRIC
             g0 = T.gather_off[ib]
             g1 = T.gather_off[ib + 1]
