@@ -129,3 +129,73 @@ def test_forced_remesh_of_an_undeformed_mesh(tmp_path):
     assert np.all(d_forced > 0) and np.all(d_forced <= 2 * d_mesh) and np.all(d_mesh < 0.05)
     assert dev["b"] < 1e-9 and dev["j"] < 1e-9
     assert ledger < 1e-12
+
+
+def test_a_failed_remesh_freezes_the_em_mesh():
+    """The rule of orchestrator/em/remesh3d.py: a broken air mesh is meshed again; when that fails
+    (RemeshFailed: gmsh, or a new mesh not above the threshold) the EM mesh freezes at the last valid one
+    (no getdp: a fake mover that breaks at its third call and a remesh that fails)."""
+    from pulseform.orchestrator.em.participant3d import ConductorBody3D
+    from pulseform.orchestrator.em.remesh3d import RemeshFailed
+    from pulseform.orchestrator.mesh.motion import MeshQualityError
+
+    points = np.zeros((4, 3))
+
+    class Mover:
+        calls, last_min_quality = 0, 0.5
+
+        def moved(self, u):
+            Mover.calls += 1
+            if Mover.calls >= 3:
+                raise MeshQualityError("tetrahedron 7 inverted")
+            return points + u
+
+    tried = []
+
+    def fail(t0, positions):
+        tried.append(t0)
+        raise RemeshFailed("the new air mesh's worst quality 1e-05 is not above the threshold 0.0001")
+
+    load = RemeshingGetDPLoad3D.__new__(RemeshingGetDPLoad3D)
+    load.mesh = type("M", (), {"points": points})()
+    load.bodies = [ConductorBody3D("sheet", 201, None, np.arange(4))]
+    load.mover, load.min_quality, load._moved = Mover(), 1.0, None
+    load.timers = {"mesh_motion_s": 0.0}
+    load.freeze, load.frozen_at, load.freeze_reason, load._last_valid = True, None, "", points.copy()
+    load.remesh, load.remeshes, load.max_remeshes, load.remesh_now = True, 0, 50, fail
+    mech = type("Mech", (), {"positions": lambda self: {"sheet": np.full((4, 3), self.u)}})
+    for k, u in enumerate((1e-4, 2e-4, 3e-4, 4e-4)):
+        m = mech()
+        m.u = u
+        load.follow(float(k), m)
+    assert tried == [2.0] and load.frozen_at == 2.0   # one remesh tried, then frozen at step 1's mesh
+    np.testing.assert_array_equal(load._moved[1], np.full((4, 3), 2e-4))
+
+
+def test_air_remesh_keeps_conductors_coil_shell_and_groups(tmp_path):
+    """remesh_air3d on the coarse racetrack's undeformed mesh (gmsh only): every non-air tetrahedron and
+    every surface element off the air's plane faces is kept node for node in the same order (so GetDP's
+    low-to-high edge orientation of the conductors is kept), the new air is valid and fills the same
+    volume (the sphere cut by the kept parts: its volume to round-off), the planes' faces stay in group 14."""
+    from pulseform.orchestrator.mesh.motion3d import tet_quality
+    from pulseform.orchestrator.mesh.remesh3d import read_msh22_triangles, remesh_air3d
+    from pulseform.orchestrator.run.coupled_racetrack import PLANES
+    from pulseform.solvers.getdp.mesh3d import SYM_A
+    from pulseform.solvers.getdp.racetrack_mesh import racetrack_groove_mesh
+
+    m = racetrack_groove_mesh(tmp_path / "r.msh", COARSE.geometry)
+    new, o2n = remesh_air3d(m, m.points, tmp_path / "new.msh", PLANES)
+    air0, air1 = m.tet_tags == 1, new.tet_tags == 1
+    np.testing.assert_array_equal(o2n[m.tets[~air0]], new.tets[~air1])
+    np.testing.assert_array_equal(m.tet_tags[~air0], new.tet_tags[~air1])
+    kept = o2n >= 0
+    assert np.all(np.diff(o2n[kept]) > 0) and np.array_equal(new.points[o2n[kept]], m.points[kept])
+    assert tet_quality(new.points, new.tets[air1]).min() > 0.01
+    assert abs(m.volumes(np.flatnonzero(air0)).sum() / new.volumes(np.flatnonzero(air1)).sum() - 1) < 1e-12
+    t0, g0 = read_msh22_triangles(m.path)
+    t1, g1 = read_msh22_triangles(new.path)
+    for g in np.unique(g0):
+        if g != SYM_A:
+            np.testing.assert_array_equal(o2n[t0[g0 == g]], t1[g1 == g])
+    area = lambda p, t: 0.5 * np.linalg.norm(np.cross(p[t[:, 1]] - p[t[:, 0]], p[t[:, 2]] - p[t[:, 0]]), axis=1).sum()
+    assert abs(area(new.points, t1[g1 == SYM_A]) / area(m.points, t0[g0 == SYM_A]) - 1) < 1e-12
