@@ -241,7 +241,7 @@ def run_racetrack(out: Path, opt: RacetrackOptions = RacetrackOptions()) -> dict
             t_k = opt.t_end * k / opt.outputs
             try:
                 loop.run_until(t_k, on_em_step=rec)
-            except MeshQualityError as err:   # no 3D remesh: the run ends here, its outputs are kept
+            except MeshQualityError as err:   # on_mesh_break="stop": the run ends here, its outputs are kept
                 stopped = f"t = {mechanics.time:.4g} s: {err}"
                 log.error("racetrack run stopped at %s", stopped)
                 writer.write(mechanics.time)
