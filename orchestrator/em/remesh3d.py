@@ -20,10 +20,11 @@ fall-back) whose :meth:`~RemeshingGetDPLoad3D.follow` answers a
    conductors' tetrahedra keep their order); the persistent getdp ends and a new one starts from the
    carried state at the next step.
 
-Vanishing gaps: the contact layer of the mechanics (eq. (5), ``h0``) keeps the sheet off the die (it stops
-near 0.4 h0), so the air gap never closes; the new air fills what is left between the kept boundary
-triangles. A gap too thin for a valid tetrahedron between them fails step 2 and the mesh freezes there
-(reported), never a broken mesh handed to GetDP.
+Vanishing gaps: the contact layer of the mechanics (eq. (5), ``h0``) keeps the sheet's nodes off the die's
+faces (it stops them near 0.4 h0), so the air there does not close; the new air fills what is left between
+the kept boundary triangles. Kept skins that intersect (the one-sided node-to-face contact lets a die edge
+enter the sheet: the racetrack at 36.4 us, docs/coupling.md) or a gap too thin for a valid tetrahedron fail
+step 2 and the mesh freezes there (reported), never a broken mesh handed to GetDP.
 
 Checkpoints after a remesh are not supported (the resumed run would rebuild the fresh mesh):
 :meth:`state_dict` raises then.
