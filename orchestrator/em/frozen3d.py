@@ -1,7 +1,7 @@
 """A 3D GetDP load whose EM mesh stops following the bodies when the air mesh would break.
 
-There is no 3D remesh yet (docs/coupling.md, "Coupling in 3D"): the harmonic air motion of
-:class:`~pulseform.orchestrator.mesh.motion3d.MeshMover3D` cannot keep a valid mesh once a body
+The fall-back of the 3D air remesh (:mod:`.remesh3d`, docs/coupling.md, "Coupling in 3D"): the
+harmonic air motion of :class:`~pulseform.orchestrator.mesh.motion3d.MeshMover3D` cannot keep a valid mesh once a body
 slides a gap's width past another (a sheet wrapping the edge of a die's groove: the single layer of
 air tetrahedra in the gap inverts). :class:`FreezingGetDPLoad3D` then keeps the last valid EM mesh for
 every later step: the EM state carries on (same connectivity), the forces are those on the frozen

@@ -47,6 +47,7 @@ from pulseform.solvers.getdp.solver3d import EM3DModel
 
 from ..coupling.loop import LoopOptions, StaggeredLoop
 from ..em.frozen3d import FreezingGetDPLoad3D
+from ..em.remesh3d import RemeshingGetDPLoad3D
 from ..em.participant3d import ConductorBody3D
 from ..mech.participants import DolfinxMechanics
 from ..mesh.motion import MeshQualityError
@@ -78,9 +79,11 @@ class RacetrackOptions:
     thumb); a 100x stiffer layer stopped it within microns at GPa pressures and slung a node at
     1.7 km/s. ``friction`` (Coulomb);
     ``remesh_quality`` the air's worst mean-ratio quality, as a fraction of the fresh mesh's, below
-    which the air mesh counts as broken (no 3D remesh), ``on_mesh_break`` what then happens: "freeze"
-    (the EM mesh stays at the last valid one, :mod:`~pulseform.orchestrator.em.frozen3d`) or "stop" (the
-    run ends there, its outputs kept); ``cfl`` the mechanics' safety factor.
+    which the air mesh counts as broken, ``on_mesh_break`` what then happens: "remesh" (default: the air
+    is meshed again with the EM state carried, :mod:`~pulseform.orchestrator.em.remesh3d`; a remesh that
+    fails freezes), "freeze" (the EM mesh stays at the last valid one,
+    :mod:`~pulseform.orchestrator.em.frozen3d`) or "stop" (the run ends there, its outputs kept); ``cfl``
+    the mechanics' safety factor.
     """
 
     geometry: RacetrackGroove = RACETRACK
@@ -94,7 +97,7 @@ class RacetrackOptions:
     friction: float = 0.1
     remesh_quality: float = 1e-3
     cfl: float = 0.5
-    on_mesh_break: str = "freeze"
+    on_mesh_break: str = "remesh"
 
 
 @dataclass
@@ -134,17 +137,29 @@ def build_racetrack(work: Path, opt: RacetrackOptions = RacetrackOptions()) -> R
         bodies.append(ConductorBody3D(name, conductor_tag(k), subs[name], match_nodes3d(b.X0, mesh.points, tol)))
         marker = sheet_clamp[0] if name == "sheet" else die_top[0]
         clamped[name] = np.asarray(marker(b.X0.T), dtype=bool)
-    # the air follows: both bodies prescribed, coil, shell and the outer sphere fixed, the planes sliding
+    mover = air_mover(mesh, g)
+    mover.min_quality = opt.remesh_quality * float(mover.q_ref.min())
+    if opt.on_mesh_break not in ("remesh", "freeze", "stop"):
+        raise ValueError(f"on_mesh_break is 'remesh', 'freeze' or 'stop', got {opt.on_mesh_break!r}")
+    if opt.on_mesh_break == "remesh":   # a failed remesh freezes (orchestrator/em/remesh3d.py)
+        load = RemeshingGetDPLoad3D(mesh, model, work / "getdp", bodies, mover, time_scheme=opt.time_scheme,
+                                    make_mover=lambda m: air_mover(m, g), planes=PLANES)
+    else:
+        load = FreezingGetDPLoad3D(mesh, model, work / "getdp", bodies, mover, time_scheme=opt.time_scheme,
+                                   freeze=opt.on_mesh_break == "freeze")
+    return RacetrackModel(mesh, model, solver, load, clamped)
+
+
+def air_mover(mesh: Mesh3D, g: RacetrackGroove) -> MeshMover3D:
+    """The air follows: both bodies prescribed, coil, shell and the outer sphere fixed, the planes sliding
+    (also the motion of a remeshed air)."""
+    tol = 1e-9 * g.air_radius
     r = np.linalg.norm(mesh.points, axis=1)
     coil = mesh.tets[(mesh.tet_tags > COIL_BASE) & (mesh.tet_tags < COIL_BASE + 100)].ravel()
+    bodies = mesh.tets[np.isin(mesh.tet_tags, [conductor_tag(SHEET), conductor_tag(DIE)])].ravel()
     fixed = np.unique(np.concatenate([coil, mesh.tets[mesh.tet_tags == SHELL].ravel(),
-                                      np.flatnonzero(r >= g.air_radius * (1 - 1e-9)),
-                                      subs["sheet"].em_nodes, subs["die"].em_nodes]))
-    mover = MeshMover3D(mesh.points, mesh.tets, fixed, [(nodes_on_plane(mesh.points, p, n, tol), n) for p, n in PLANES])
-    mover.min_quality = opt.remesh_quality * float(mover.q_ref.min())
-    load = FreezingGetDPLoad3D(mesh, model, work / "getdp", bodies, mover, time_scheme=opt.time_scheme,
-                               freeze=opt.on_mesh_break == "freeze")
-    return RacetrackModel(mesh, model, solver, load, clamped)
+                                      np.flatnonzero(r >= g.air_radius * (1 - 1e-9)), bodies]))
+    return MeshMover3D(mesh.points, mesh.tets, fixed, [(nodes_on_plane(mesh.points, p, n, tol), n) for p, n in PLANES])
 
 
 def momentum(solver: ExplicitSolver3D, name: str) -> np.ndarray:
@@ -226,7 +241,7 @@ def run_racetrack(out: Path, opt: RacetrackOptions = RacetrackOptions()) -> dict
             t_k = opt.t_end * k / opt.outputs
             try:
                 loop.run_until(t_k, on_em_step=rec)
-            except MeshQualityError as err:   # no 3D remesh: the run ends here, its outputs are kept
+            except MeshQualityError as err:   # on_mesh_break="stop": the run ends here, its outputs are kept
                 stopped = f"t = {mechanics.time:.4g} s: {err}"
                 log.error("racetrack run stopped at %s", stopped)
                 writer.write(mechanics.time)
@@ -252,6 +267,8 @@ def run_racetrack(out: Path, opt: RacetrackOptions = RacetrackOptions()) -> dict
         late = [r for r in rows if r.get("em_mesh_frozen", 0.0) > 0]
         metrics["impulse_after_freeze_device_z_Ns"] = float(rm.model.symmetry_factor) * sum(
             r["force_z_N"] * r["dt_s"] * r["substeps"] for r in late)
+    metrics["em_remeshes"] = int(getattr(load, "remeshes", 0))
+    metrics["em_remesh_log"] = list(getattr(load, "remesh_log", []))
     metrics["end_time_s"] = mechanics.time
     (out / "metrics.json").write_text(json.dumps(metrics, indent=2, default=float))
     log.info("racetrack run: %s", {k: v for k, v in metrics.items() if not isinstance(v, (dict, list))})

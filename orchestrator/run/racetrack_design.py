@@ -11,8 +11,8 @@ currents in the sheet vary more smoothly; the straight sides are shorter (30 mm,
 still a finite groove, shorter than the straight sides) and the in-plane size over the coil finer
 (2 mm) for about the same number of tetrahedra. The die sits 2 mm above the sheet (0.5 mm in the first
 design): the air tetrahedra between the sheet and the groove's edges invert once the sheet wraps an
-edge (there is no 3D remesh); with 0.5 mm that happened at 30 us (1.2 mm deep), with 1 mm at 31-38 us,
-with 2 mm after the current's first half wave (52 us, coarse mesh). Lengths m, conductivities S/m,
+edge (then the air is meshed again, orchestrator/em/remesh3d.py); with 0.5 mm that happened at 30 us
+(1.2 mm deep), with 1 mm at 31-38 us, with 2 mm after the current's first half wave (52 us, coarse mesh). Lengths m, conductivities S/m,
 stresses Pa.
 """
 

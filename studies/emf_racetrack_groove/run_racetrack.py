@@ -29,7 +29,7 @@ SHOWN = ("max_deflection_into_groove_mm", "die_max_displacement_mm", "impulse_de
          "die_momentum_vs_impulse_rel", "energy_balance_error_rel", "plastic_work_device_J", "em_steps", "mech_steps",
          "n", "em_tets", "sheet_tets", "die_tets", "wall_s", "setup_s", "em_time_s", "mech_time_s", "em_s_per_step",
          "mech_ms_per_step", "getdp_getdp_process_s", "em_mesh_motion_s", "min_em_quality", "em_mesh_frozen_at_s",
-         "impulse_after_freeze_device_z_Ns")
+         "impulse_after_freeze_device_z_Ns", "em_remeshes")
 
 
 def fixed_mesh_check(out: Path, opt: RacetrackOptions, k: int) -> dict:
@@ -79,6 +79,8 @@ def main() -> int:
     for k in SHOWN + tuple(k for k in m if k.startswith("fixed_check")):
         v = m.get(k, "-")
         print(f"{k:40s} {v:.6g}" if isinstance(v, float) else f"{k:40s} {v}")
+    for r in m.get("em_remesh_log", []):
+        print("remesh at {time_s:.4g} s: {tets} tets, worst quality {min_quality:.3g}, {wall_s:.1f} s".format(**r))
     paths = [] if a.no_pictures else draw_racetrack(a.out, opt.geometry)
     for p in paths:
         print("picture", p)
