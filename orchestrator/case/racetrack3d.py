@@ -189,6 +189,9 @@ def validate_racetrack(case) -> None:
             raise SchemaError(f"mechanics.{key}", f"got {getattr(mo, key)!r}; the racetrack case runs with the "
                               f"default bulk viscosity ({default!r}): remove it")
     for i, b in enumerate(case.bodies):
+        if b.material not in case.materials:
+            raise SchemaError(f"bodies[{i}].material", f"got {b.material!r}; allowed: "
+                              + (", ".join(repr(n) for n in case.materials) or "(none defined)"))
         if case.materials[b.material].electrical_conductivity <= 0.0:
             raise SchemaError(f"materials.{b.material}.electrical_conductivity", "got 0; the racetrack's sheet and "
                               "die are EM conductors: give their conductivity (S/m)")
