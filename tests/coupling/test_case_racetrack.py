@@ -218,3 +218,33 @@ def test_a_racetrack_mesh_too_large_for_the_memory_is_refused_before_meshing():
     with pytest.raises(SchemaError, match="GB available") as e:
         check_racetrack_resources(case, available=0.3e9)
     assert e.value.path == "racetrack.mesh_size_sheet"
+
+
+#: figures of the slow comparison: the study's metric names (run_racetrack on the same model and mesh)
+REFERENCE_KEYS = ("max_deflection_into_groove_mm", "sheet_min_uz_mm", "die_max_displacement_mm", "impulse_device_z_Ns",
+                  "sheet_impulse_device_z_Ns", "die_impulse_device_z_Ns", "force_peak_device_z_N",
+                  "die_force_peak_device_z_N", "coil_current_peak_kA", "t_peak_current_s", "contact_pressure_peak_Pa",
+                  "first_contact_s", "max_sheet_speed_m_s", "sheet_momentum_vs_impulse_rel", "plastic_work_device_J",
+                  "external_work_device_J", "em_mesh_frozen_at_s", "impulse_after_freeze_device_z_Ns")
+
+
+@pytest.mark.slow
+@pytest.mark.getdp
+def test_the_case_reproduces_the_study_reference(tmp_path):
+    """``pulseform run cases/emf_racetrack_groove`` (60 µs, the design mesh: ~4-7 min) against
+    studies/emf_racetrack_groove/reference/racetrack_metrics.json, the same model and mesh run from Python
+    (run_racetrack): the case's defaults are that design and the driver lands its EM steps on the same
+    output times (every 10 µs), so the runs are the same to round-off (observed: <= 3e-13 relative, same
+    EM and mechanical step counts, the EM mesh frozen at the same step)."""
+    ref = json.loads((REPO / "studies/emf_racetrack_groove/reference/racetrack_metrics.json").read_text())
+    out = tmp_path / "run"
+    r = subprocess.run([EXE, "run", CASE, "--out", str(out), "--quiet", "--set", "output.plots=false"],
+                       capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr[-3000:]
+    m = json.loads((out / "metrics.json").read_text())
+    print("\n" + "\n".join(f"{k:36s} {m[k]!r:>24} {ref[k]!r:>24}" for k in REFERENCE_KEYS))
+    for k in ("em_steps", "mech_steps", "n", "em_tets", "sheet_tets", "die_tets"):
+        assert m[k] == ref[k], k
+    for k in REFERENCE_KEYS:
+        assert m[k] == pytest.approx(ref[k], rel=1e-9), k
+    assert max(m["conservation_error_rel"], m["sheet_ledger_rel"], m["die_ledger_rel"]) < 1e-12
