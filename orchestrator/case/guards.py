@@ -26,6 +26,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from .racetrack3d import check_racetrack_resources
 from .rigid_steps import all_rigid, period_upper_bound
 from .schema import SchemaError
 from .sector3d import Sector, check_sector_resources
@@ -176,6 +177,8 @@ def _em_steps(case, steps: float) -> float:
     """GetDP runs of a coupled case with ``steps`` explicit steps (0 for other cases)."""
     if case.case.kind != "coupled" or case.coupling.load != "getdp":
         return 0.0
+    if case.mechanics.formulation == "3d" and case.racetrack is not None:  # one getdp step per racetrack.em_step
+        return case.time.end / case.racetrack.em_step
     if case.mechanics.formulation == "3d":  # a sector: one getdp run per sector.em_step
         return case.time.end / (case.sector.em_step if case.sector is not None else Sector().em_step)
     return steps / case.coupling.n
@@ -185,7 +188,10 @@ def check_resources(case) -> None:
     """Raise :class:`SchemaError` if the estimated cells or explicit steps exceed ``case.limits``."""
     lim = case.limits
     if case.case.kind == "coupled" and case.mechanics.formulation == "3d":
-        check_sector_resources(case)  # tetrahedra of the sector and the machine's memory (.sector3d)
+        if case.racetrack is not None:
+            check_racetrack_resources(case)  # the racetrack's tetrahedra and the machine's memory (.racetrack3d)
+        else:
+            check_sector_resources(case)  # tetrahedra of the sector and the machine's memory (.sector3d)
         region = None
     else:
         cells, region = estimated_cells(case)
@@ -200,13 +206,13 @@ def check_resources(case) -> None:
                           "mesh or raise limits.max_steps")
     em = _em_steps(case, steps)
     if em > lim.max_em_steps:
+        table = "racetrack" if case.racetrack is not None else "sector"
+        em_key = f"{table}.em_step" if case.mechanics.formulation == "3d" else "coupling.n"
+        em_val = f"{(getattr(case, table) or Sector()).em_step:g} s" if case.mechanics.formulation == "3d" \
+            else f"{case.coupling.n}"
         raise SchemaError("time.end", f"got {case.time.end:g} s: ~{em:.3g} EM steps (getdp runs; stable step set by "
-                          f"{key}, " + (f"sector.em_step = {case.sector.em_step if case.sector else Sector().em_step:g} s"
-                          if case.mechanics.formulation == "3d" else f"coupling.n = {case.coupling.n}")
-                          + f"), above limits.max_em_steps = {lim.max_em_steps:.3g}; "
-                          "shorten time.end, coarsen the mesh, raise " + ("sector.em_step" if case.mechanics.formulation
-                                                                          == "3d" else "coupling.n")
-                          + " or raise limits.max_em_steps")
+                          f"{key}, {em_key} = {em_val}), above limits.max_em_steps = {lim.max_em_steps:.3g}; "
+                          f"shorten time.end, coarsen the mesh, raise {em_key} or raise limits.max_em_steps")
 
 
 class LimitExceeded(ValueError):

@@ -14,6 +14,7 @@ from .em_sources import resolve_source_files
 from .errors import MAX_MESSAGE, CaseError, one_line  # noqa: F401  (the case-file API)
 from .model import Case
 from .schema import SchemaError, from_dict, shorten, to_dict
+from .racetrack3d import check_raw_racetrack
 from .sector3d import check_raw_coupled_3d
 from .solid3d import check_explicit_2d_keys
 
@@ -202,6 +203,7 @@ def load_case(path: str | Path, overrides: list[str] | tuple[str, ...] = ()) -> 
     resolve_source_files(data, file, source)
     try:
         check_explicit_2d_keys(data)
+        check_raw_racetrack(data)
         check_raw_coupled_3d(data)
         case = from_dict(Case, data)
     except SchemaError as exc:

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from typing import Any, Literal
 
 from .schema import SchemaError, spec
+from .racetrack3d import validate_racetrack
 from .sector3d import validate_coupled_3d
 
 Vec3 = tuple[float, float, float]
@@ -116,7 +117,10 @@ def validate_dimension(case) -> None:
 
 def _validate_3d(case) -> None:
     if case.case.kind == "coupled":
-        validate_coupled_3d(case)  # a sector of a flat_coil_sheet setup (.sector3d)
+        if case.racetrack is not None:
+            validate_racetrack(case)  # the racetrack quarter model (.racetrack3d)
+        else:
+            validate_coupled_3d(case)  # a sector of a flat_coil_sheet setup (.sector3d)
     elif case.sector is not None:
         raise SchemaError("sector", "a key of coupled 3D cases (case.kind = 'coupled'); a mechanics case has "
                           "none: remove [sector]")

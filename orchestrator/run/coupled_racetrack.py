@@ -53,7 +53,8 @@ from ..mech.participants import DolfinxMechanics
 from ..mesh.motion import MeshQualityError
 from ..mesh.motion3d import MeshMover3D, nodes_on_plane
 from ..mesh.shared3d import conductor_submesh3d, match_nodes3d, to_dolfinx3d
-from .racetrack_design import DIE_MATERIAL, RACETRACK, RACETRACK_BANK, SHEET_MATERIAL, em_model
+from .racetrack_design import (DIE_MATERIAL, RACETRACK, RACETRACK_BANK, SHEET_MATERIAL, SIGMA_COIL, SIGMA_DIE,
+                               SIGMA_SHEET, em_model)
 
 log = logging.getLogger(__name__)
 
@@ -83,7 +84,9 @@ class RacetrackOptions:
     is meshed again with the EM state carried, :mod:`~pulseform.orchestrator.em.remesh3d`; a remesh that
     fails freezes), "freeze" (the EM mesh stays at the last valid one,
     :mod:`~pulseform.orchestrator.em.frozen3d`) or "stop" (the run ends there, its outputs kept); ``cfl``
-    the mechanics' safety factor.
+    the mechanics' safety factor. ``sheet_material`` and ``die_material`` the bodies' mechanics, ``sigma``
+    the conductivities (S/m) of the sheet, the die and the coil, ``getdp_timeout`` the wall-time limit of a
+    getdp answer (s; None: the runner's default) -- a case file sets them (:mod:`.racetrack_case`).
     """
 
     geometry: RacetrackGroove = RACETRACK
@@ -98,6 +101,10 @@ class RacetrackOptions:
     remesh_quality: float = 1e-3
     cfl: float = 0.5
     on_mesh_break: str = "remesh"
+    sheet_material: mech.Material = field(default_factory=lambda: SHEET_MATERIAL)
+    die_material: mech.Material = field(default_factory=lambda: DIE_MATERIAL)
+    sigma: tuple[float, float, float] = (SIGMA_SHEET, SIGMA_DIE, SIGMA_COIL)
+    getdp_timeout: float | None = None
 
 
 @dataclass
@@ -117,16 +124,16 @@ def build_racetrack(work: Path, opt: RacetrackOptions = RacetrackOptions()) -> R
     g = opt.geometry
     work = Path(work).resolve()
     mesh = racetrack_groove_mesh(work / "racetrack.msh", g)
-    model = em_model(g, opt.bank)
+    model = em_model(g, opt.bank, sigma=opt.sigma)
     tol = 1e-9 * g.air_radius
     subs = {name: conductor_submesh3d(mesh, conductor_tag(k)) for name, k in (("sheet", SHEET), ("die", DIE))}
     x_edge, y_edge, z_top = g.sheet_half_x - tol, g.sheet_half_y - tol, g.die_z[1] - tol
     sym = ((lambda x: np.abs(x[0]) <= tol, (0,)), (lambda x: np.abs(x[1]) <= tol, (1,)))
     sheet_clamp = (lambda x: (x[0] >= x_edge) | (x[1] >= y_edge), (0, 1, 2))
     die_top = (lambda x: x[2] >= z_top, (0, 1, 2))
-    specs = [mech.BodySpec(name="sheet", mesh=to_dolfinx3d(subs["sheet"], MPI.COMM_SELF), material=SHEET_MATERIAL,
+    specs = [mech.BodySpec(name="sheet", mesh=to_dolfinx3d(subs["sheet"], MPI.COMM_SELF), material=opt.sheet_material,
                            initial_velocity=(0.0, 0.0, 0.0), fixed=sym + (sheet_clamp,)),
-             mech.BodySpec(name="die", mesh=to_dolfinx3d(subs["die"], MPI.COMM_SELF), material=DIE_MATERIAL,
+             mech.BodySpec(name="die", mesh=to_dolfinx3d(subs["die"], MPI.COMM_SELF), material=opt.die_material,
                            initial_velocity=(0.0, 0.0, 0.0), fixed=sym + (die_top,))]
     pair = mech.ContactPairSpec(slave="sheet", master="die", stiffness=opt.contact_stiffness, h0=opt.contact_h0,
                                 friction=opt.friction)
@@ -143,10 +150,11 @@ def build_racetrack(work: Path, opt: RacetrackOptions = RacetrackOptions()) -> R
         raise ValueError(f"on_mesh_break is 'remesh', 'freeze' or 'stop', got {opt.on_mesh_break!r}")
     if opt.on_mesh_break == "remesh":   # a failed remesh freezes (orchestrator/em/remesh3d.py)
         load = RemeshingGetDPLoad3D(mesh, model, work / "getdp", bodies, mover, time_scheme=opt.time_scheme,
-                                    make_mover=lambda m: air_mover(m, g), planes=PLANES)
+                                    make_mover=lambda m: air_mover(m, g), planes=PLANES,
+                                    getdp_timeout=opt.getdp_timeout)
     else:
         load = FreezingGetDPLoad3D(mesh, model, work / "getdp", bodies, mover, time_scheme=opt.time_scheme,
-                                   freeze=opt.on_mesh_break == "freeze")
+                                   freeze=opt.on_mesh_break == "freeze", getdp_timeout=opt.getdp_timeout)
     return RacetrackModel(mesh, model, solver, load, clamped)
 
 

@@ -44,10 +44,12 @@ DIE_MATERIAL = mech.Material(density=7850.0, shear_modulus=80.8e9, bulk_modulus=
                              hardening_modulus=0.0)
 
 
-def em_model(g: RacetrackGroove = RACETRACK, bank: Circuit | None = None, *, die_conducts: bool = True) -> EM3DModel:
-    """The quarter model's 3D EM model: the coil (3 turns, electrokinetic direction), the sheet (conductor
-    1) and the die (conductor 2, unless ``die_conducts`` is False: then the mesh must have the die as air),
-    the bank (default :data:`RACETRACK_BANK`), the shell transformation to infinity."""
-    conductors = [Conductor(SIGMA_SHEET, name="sheet")] + ([Conductor(SIGMA_DIE, name="die")] if die_conducts else [])
-    return EM3DModel(coils=[Coil3D(g.turns, sigma=SIGMA_COIL, direction="electrokinetic")], conductors=conductors,
+def em_model(g: RacetrackGroove = RACETRACK, bank: Circuit | None = None, *, die_conducts: bool = True,
+             sigma: tuple[float, float, float] = (SIGMA_SHEET, SIGMA_DIE, SIGMA_COIL)) -> EM3DModel:
+    """The quarter model's 3D EM model: the coil (``g.turns`` turns, electrokinetic direction), the sheet
+    (conductor 1) and the die (conductor 2, unless ``die_conducts`` is False: then the mesh must have the
+    die as air), the bank (default :data:`RACETRACK_BANK`), the shell transformation to infinity;
+    ``sigma``: the conductivities (S/m) of the sheet, the die and the coil."""
+    conductors = [Conductor(sigma[0], name="sheet")] + ([Conductor(sigma[1], name="die")] if die_conducts else [])
+    return EM3DModel(coils=[Coil3D(g.turns, sigma=sigma[2], direction="electrokinetic")], conductors=conductors,
                      circuit=bank or RACETRACK_BANK, shell=(g.air_radius, g.shell_radius), sector_deg=90.0)

@@ -310,8 +310,8 @@ def _early_em_geometry(case: Case, comm: MPI.Comm):
     """The EM mesh of a coupled case on a built-in geometry, started now in a child process
     (``mesh.em_geometry.start_em_geometry``); None for other cases (and under MPI: coupled runs
     are serial and say so)."""
-    if case.case.kind != "coupled" or case.geometry.type == "user_deck" or comm.size > 1 \
-            or case.mechanics.formulation == "3d":  # a 3D sector meshes its own (run/coupled3d.py)
+    if case.case.kind != "coupled" or case.mechanics.formulation == "3d" or case.geometry.type == "user_deck" \
+            or comm.size > 1:  # a 3D case (a sector, a racetrack) meshes its own
         return None
     from ..mesh.em_geometry import start_em_geometry
 
