@@ -105,6 +105,7 @@ class RacetrackOptions:
     die_material: mech.Material = field(default_factory=lambda: DIE_MATERIAL)
     sigma: tuple[float, float, float] = (SIGMA_SHEET, SIGMA_DIE, SIGMA_COIL)
     getdp_timeout: float | None = None
+    contact_two_pass: bool = False
 
 
 @dataclass
@@ -136,7 +137,7 @@ def build_racetrack(work: Path, opt: RacetrackOptions = RacetrackOptions()) -> R
              mech.BodySpec(name="die", mesh=to_dolfinx3d(subs["die"], MPI.COMM_SELF), material=opt.die_material,
                            initial_velocity=(0.0, 0.0, 0.0), fixed=sym + (die_top,))]
     pair = mech.ContactPairSpec(slave="sheet", master="die", stiffness=opt.contact_stiffness, h0=opt.contact_h0,
-                                friction=opt.friction)
+                                friction=opt.friction, two_pass=opt.contact_two_pass)
     solver = ExplicitSolver3D(specs, contact_pairs=(pair,), cfl=opt.cfl, comm=MPI.COMM_SELF)
     bodies, clamped = [], {}
     for name, k in (("sheet", SHEET), ("die", DIE)):
