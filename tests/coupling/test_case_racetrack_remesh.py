@@ -1,8 +1,9 @@
 """Checkpoints and ``--resume`` of a racetrack case run whose 3D air was meshed again (orchestrator/em/remesh3d.py,
 ``RemeshingGetDPLoad3D.state_dict``): the coarse racetrack case through the CLI (sizes x 2 as
 tests/coupling/test_case_racetrack.py), 4 EM steps of 1 us, a field output (and a checkpoint) after every step,
-the air meshed again before EM step 3 whatever its quality (``remesh_before_steps``, set by the helper
-tests/coupling/forced_remesh_run.py: the undeformed racetrack's air never breaks in 4 us).
+the air meshed again before EM steps 3 and 4 whatever its quality (``remesh_before_steps``, set by the helper
+tests/coupling/forced_remesh_run.py: the undeformed racetrack's air never breaks in 4 us); the second remesh
+starts from the mesh, surface elements and edge unknowns of the first (after a resume: those of the checkpoint).
 
 References: (1) the checkpoint after the remesh holds the EM mesh of the remesh (the file gmsh's air made,
 ``em/getdp/remesh_001/mesh.msh``, read back independently) and the run completes with its ledgers at round-off
@@ -31,8 +32,9 @@ pytestmark = pytest.mark.getdp
 REPO = Path(__file__).resolve().parents[2]
 CASE = str(REPO / "cases/emf_racetrack_groove")
 HELPER = str(Path(__file__).with_name("forced_remesh_run.py"))
-#: the air meshed again before this EM step (t = 2 us)
+#: the air meshed again before these EM steps (t = 2 us and 3 us)
 REMESH_STEP = 3
+REMESH_STEPS = f"{REMESH_STEP},{REMESH_STEP + 1}"
 #: coarse mesh, 4 us, outputs (and checkpoints) every 1 us = every EM step: ~6 s a run
 ARGS = ["--set", "racetrack.mesh_size_sheet=4e-3", "--set", "racetrack.sheet_layers=2",
         "--set", "racetrack.mesh_size_coil=6e-3", "--set", "racetrack.mesh_size_die=8e-3",
@@ -44,7 +46,7 @@ TIMERS = ("load_time_s", "mech_time_s", "setup_time_s", "wall_time_s", "em_time_
 
 
 def _argv(out: Path, *extra: str) -> list[str]:
-    return [sys.executable, HELPER, str(REMESH_STEP), "run", CASE, "--out", str(out), "--quiet", *ARGS, *extra]
+    return [sys.executable, HELPER, REMESH_STEPS, "run", CASE, "--out", str(out), "--quiet", *ARGS, *extra]
 
 
 def _checkpoint(out: Path) -> dict[str, np.ndarray]:
@@ -72,17 +74,17 @@ def test_a_run_with_a_remesh_writes_its_checkpoints_and_completes(remeshed_run):
     m = json.loads((out / "metrics.json").read_text())
     h = _history(out)
     assert m["status"] == "ok" and m["em_steps"] == 4 and m["end_time_s"] == pytest.approx(4e-6, rel=1e-12)
-    # the remesh before step 3 (t = 2 us): the history's rows at 0, 1, 2, 3, 4 us
-    assert list(h["em_remeshes"]) == [0.0, 0.0, 0.0, 1.0, 1.0] and m["em_remesh_s"] > 0
+    # the remeshes before steps 3 and 4 (t = 2 and 3 us): the history's rows at 0, 1, 2, 3, 4 us
+    assert list(h["em_remeshes"]) == [0.0, 0.0, 0.0, 1.0, 2.0] and m["em_remesh_s"] > 0
     assert max(m["conservation_error_rel"], m["sheet_ledger_rel"], m["die_ledger_rel"]) < 1e-12
-    # the last checkpoint (4 us) holds the remeshed EM mesh: gmsh's file, read back
+    # the last checkpoint (4 us) holds the EM mesh of the second remesh: gmsh's file, read back
     cp = _checkpoint(out)
-    points, tets, ids, tags = read_msh22_tets(out / "em" / "getdp" / "remesh_001" / "mesh.msh")
-    assert int(cp["load/remesh/count"]) == 1 and int(cp["load/steps"]) == 4
+    points, tets, ids, tags = read_msh22_tets(out / "em" / "getdp" / "remesh_002" / "mesh.msh")
+    assert int(cp["load/remesh/count"]) == 2 and int(cp["load/steps"]) == 4
     for name, ref in (("points", points), ("tets", tets), ("tet_ids", ids), ("tet_tags", tags)):
         assert np.array_equal(cp[f"load/remesh/{name}"], ref), name
     assert len(tets) != m["em_tets"]   # another air than the fresh mesh's
-    print(f"\nremesh at 2 us: {m['em_tets']} -> {len(tets)} EM tets, {m['em_remesh_s']:.2f} s; ledger "
+    print(f"\nremeshes at 2 and 3 us: {m['em_tets']} -> {len(tets)} EM tets, {m['em_remesh_s']:.2f} s; ledger "
           f"{m['conservation_error_rel']:.1e}; checkpoint {(out / 'checkpoint.npz').stat().st_size / 1e6:.2f} MB")
 
 
@@ -124,8 +126,8 @@ def _resume_equals(out: Path, ref: Path) -> dict:
 
 def test_sigint_after_the_remesh_then_resume_equals_the_uninterrupted_run(remeshed_run, tmp_path):
     out = tmp_path / "cut"
-    _stop_after(out, REMESH_STEP - 1)   # stops after step 3, whose start meshed the air again
-    cp = _checkpoint(out)
+    _stop_after(out, REMESH_STEP - 1)   # stops after step 3, whose start meshed the air again; the resume remeshes
+    cp = _checkpoint(out)                # before step 4 from the checkpoint's mesh
     assert int(cp["load/steps"]) == REMESH_STEP and int(cp["load/remesh/count"]) == 1
     got = _resume_equals(out, remeshed_run)
     h = _history(out)
@@ -139,6 +141,22 @@ def test_resume_from_before_the_remesh_remeshes_at_the_same_step(remeshed_run, t
     cp = _checkpoint(out)
     assert int(cp["load/steps"]) == REMESH_STEP - 1 and "load/remesh/count" not in cp
     _resume_equals(out, remeshed_run)
-    assert list(_history(out)["em_remeshes"]) == [0.0, 0.0, 0.0, 1.0, 1.0]
-    assert (out / "em" / "getdp" / "remesh_001" / "mesh.msh").read_bytes() == \
-        (remeshed_run / "em" / "getdp" / "remesh_001" / "mesh.msh").read_bytes()
+    assert list(_history(out)["em_remeshes"]) == [0.0, 0.0, 0.0, 1.0, 2.0]
+    for k in ("001", "002"):
+        assert (out / "em" / "getdp" / f"remesh_{k}" / "mesh.msh").read_bytes() == \
+            (remeshed_run / "em" / "getdp" / f"remesh_{k}" / "mesh.msh").read_bytes()
+
+
+def test_the_edge_unknowns_map_round_trips_through_arrays():
+    """EdgeDofs.to_arrays / from_arrays (the checkpoint's ``load/remesh/dofs/*``): every field back exactly
+    (reference: the map written, field for field)."""
+    from pulseform.solvers.getdp.state_carry3d import EdgeDofs
+
+    rng = np.random.default_rng(3)
+    a = EdgeDofs(edges=np.sort(rng.integers(0, 900, (40, 2)), axis=1), dof=rng.integers(-1, 60, 40),
+                 sign=rng.choice([-1, 1], 40), globals={(4, 101, 0): 61, (5, 101, 0): 62, (4, 102, 1): 63},
+                 n_dofs=64, system=1)
+    b = EdgeDofs.from_arrays({k: np.array(v) for k, v in a.to_arrays().items()})
+    for k in ("edges", "dof", "sign"):
+        assert np.array_equal(getattr(b, k), getattr(a, k)) and getattr(b, k).dtype == np.int64, k
+    assert b.globals == a.globals and (b.n_dofs, b.system) == (64, 1)
