@@ -227,7 +227,7 @@ class RemeshingGetDPLoad3D(FreezingGetDPLoad3D):
         if "remesh/count" in state:
             self.timers.setdefault("remesh_s", 0.0)   # the stored timers hold it (GetDPLoad3D.load_state_dict)
             self._restore_mesh(state)
-        super().load_state_dict(state)
+        super().load_state_dict({k: v for k, v in state.items() if not k.startswith("remesh/")})
 
     def _restore_mesh(self, state: dict[str, np.ndarray]) -> None:
         folder = self.work_dir / f"resume_{int(state['steps']):05d}"
