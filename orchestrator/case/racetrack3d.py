@@ -182,9 +182,8 @@ def validate_racetrack(case) -> None:
     if (c.slave, c.master) != (sheet, die):
         raise SchemaError("contact[0].slave", f"got slave {c.slave!r}, master {c.master!r}; the racetrack's pair is "
                           f"slave = {sheet!r} (the sheet), master = {die!r} (the die)")
-    for key, value in (("viscosity", c.viscosity), ("two_pass", c.two_pass)):
-        if value:
-            raise SchemaError(f"contact[0].{key}", "not in the racetrack case: remove it")
+    if c.viscosity:
+        raise SchemaError("contact[0].viscosity", "not in the racetrack case: remove it")
     mo = case.mechanics
     for key, default in (("bulk_viscosity", True), ("bulk_viscosity_linear", 0.06), ("bulk_viscosity_quadratic", 1.2)):
         if getattr(mo, key) != default:
