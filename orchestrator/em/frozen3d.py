@@ -10,11 +10,17 @@ approximation — after the freeze the EM no longer sees the bodies move — tha
 (``em_mesh_frozen``) and the run reports (:attr:`frozen_at`); where the forces have decayed when it
 happens, its effect is small (say how much in the run's report). Choose ``freeze=False`` to stop
 instead (the :class:`~pulseform.orchestrator.mesh.motion.MeshQualityError` propagates).
+
+Checkpoints (:meth:`FreezingGetDPLoad3D.state_dict`): those of :class:`GetDPLoad3D` with the freeze (its
+time and reason) and the last valid EM node positions (``freeze/*``), so that a resume freezes, or goes
+on from, the same mesh.
 """
 
 from __future__ import annotations
 
 import logging
+
+import numpy as np
 
 from ..coupling.interfaces import LoadStep
 from ..mesh.motion import MeshQualityError
@@ -61,3 +67,25 @@ class FreezingGetDPLoad3D(GetDPLoad3D):
         step.values["em_mesh_frozen"] = float(self.frozen_at is not None)
         self.last_forces = step.forces
         return step
+
+    def state_dict(self) -> dict[str, np.ndarray]:
+        """:meth:`GetDPLoad3D.state_dict` with ``freeze/last_valid`` (the last valid EM node positions, m) and,
+        once frozen, ``freeze/frozen_at`` (s) and ``freeze/reason``."""
+        out = super().state_dict()
+        out["freeze/last_valid"] = np.array(self._last_valid, dtype=float)
+        if self.frozen_at is not None:
+            out["freeze/frozen_at"] = np.float64(self.frozen_at)
+            out["freeze/reason"] = np.array(self.freeze_reason)
+        return out
+
+    def load_state_dict(self, state: dict[str, np.ndarray]) -> None:
+        """Restore :meth:`state_dict` (a checkpoint without ``freeze/*``: as before, not frozen). A checkpoint
+        written after a 3D air remesh (``remesh/*``) is refused: only a remeshing load restores its mesh."""
+        if any(k.startswith("remesh/") for k in state):
+            raise ValueError("the checkpoint holds a remeshed 3D EM mesh: resume it with the air remesh on "
+                             "(racetrack.on_mesh_break = \"remesh\")")
+        super().load_state_dict(state)
+        if "freeze/last_valid" in state:
+            self._last_valid = np.array(state["freeze/last_valid"], dtype=float)
+        if "freeze/frozen_at" in state:
+            self.frozen_at, self.freeze_reason = float(state["freeze/frozen_at"]), str(state["freeze/reason"])

@@ -26,8 +26,16 @@ the kept boundary triangles. Kept skins that intersect (the one-sided node-to-fa
 enter the sheet: the racetrack at 36.4 us, docs/coupling.md) or a gap too thin for a valid tetrahedron fail
 step 2 and the mesh freezes there (reported), never a broken mesh handed to GetDP.
 
-Checkpoints after a remesh are not supported (the resumed run would rebuild the fresh mesh):
-:meth:`state_dict` raises then.
+Checkpoints (:meth:`RemeshingGetDPLoad3D.state_dict`): after a remesh, those of
+:class:`~.frozen3d.FreezingGetDPLoad3D` with the current EM mesh (``remesh/*``: nodes, tetrahedra, their
+ids and physical ids, the surface elements), each body's EM nodes, the edge unknowns' map, the remesh
+count, log and threshold. A resume writes the mesh back (``resume_<step>/mesh.msh``, the same file), builds
+its air motion anew with ``make_mover`` held to the stored threshold and seeds a new persistent getdp with
+the stored x_n, x_{n-1} at the checkpoint's step, as a resume without a remesh does: the run continues
+bit for bit (tests/coupling/test_case_racetrack_remesh.py).
+
+``remesh_before_steps`` (EM step numbers, 1-based; empty by default) forces a remesh before those steps
+whatever the air's quality: the tests' way to remesh a short run (and a study's, of the remesh itself).
 """
 from __future__ import annotations
 
@@ -40,7 +48,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from pulseform.solvers.getdp.mesh import AIR
-from pulseform.solvers.getdp.mesh3d import Mesh3D
+from pulseform.solvers.getdp.mesh3d import Mesh3D, read_msh22_tets
 from pulseform.solvers.getdp.persistent3d import PERSISTENT_LIB3D, RESOLUTION_PERSISTENT3D, PersistentEM3DStepper
 from pulseform.solvers.getdp.solver3d import RESOLUTION3D
 from pulseform.solvers.getdp.state_carry3d import EdgeDofs, carry_vector, edge_dofs
@@ -48,7 +56,7 @@ from pulseform.solvers.getdp.stepper3d import read_res_vector, write_res_vector
 
 from ..mesh.motion import MeshQualityError
 from ..mesh.motion3d import MeshMover3D, tet_quality
-from ..mesh.remesh3d import remesh_air3d
+from ..mesh.remesh3d import read_msh22_triangles, remesh_air3d, write_msh22_3d
 from ..mesh.shared3d import conductor_submesh3d
 from .frozen3d import FreezingGetDPLoad3D
 from .participant3d import GetDPLoad3D
@@ -69,8 +77,11 @@ class RemeshingGetDPLoad3D(FreezingGetDPLoad3D):
     the same fixed and sliding sets as the first one's), ``planes`` ((point, unit normal) of the
     symmetry planes), ``remesh`` (False: behave as :class:`FreezingGetDPLoad3D`), ``air_tags``,
     ``max_remeshes`` (then freeze or stop). History column ``em_remeshes``; :attr:`remesh_log` one dict
-    per remesh (time s, wall s, tetrahedra, worst quality after).
+    per remesh (time s, wall s, tetrahedra, nodes, worst quality after).
     """
+
+    #: EM steps (1-based) before which the air is meshed again whatever its quality (module docstring)
+    remesh_before_steps: frozenset[int] = frozenset()
 
     def __init__(self, *args, make_mover: Callable[[Mesh3D], MeshMover3D],
                  planes: Sequence[tuple[np.ndarray, np.ndarray]], remesh: bool = True,
@@ -83,6 +94,8 @@ class RemeshingGetDPLoad3D(FreezingGetDPLoad3D):
         self.remeshes = 0
         self.remesh_log: list[dict] = []
         self._dofs: tuple[Path, EdgeDofs] | None = None   # the edge unknowns of the current mesh
+        self._surface: tuple[np.ndarray, np.ndarray] | None = None   # its surface elements (after a remesh)
+        self._forced_step = 0
 
     # ------------------------------------------------------------------ the loop's calls
     def follow(self, t0: float, mechanics) -> None:
@@ -90,6 +103,10 @@ class RemeshingGetDPLoad3D(FreezingGetDPLoad3D):
         EM mesh freezes / the run stops when that fails (t0 in s)."""
         if self.frozen_at is None and self.remesh:
             try:
+                if self.remesh_before_steps and self._forced_step != self.state.steps + 1 \
+                        and self.state.steps + 1 in self.remesh_before_steps:
+                    self._forced_step = self.state.steps + 1
+                    raise MeshQualityError(f"a remesh forced before EM step {self._forced_step} (remesh_before_steps)")
                 GetDPLoad3D.follow(self, t0, mechanics)
                 self._last_valid = self._moved[1]
                 return
@@ -142,17 +159,8 @@ class RemeshingGetDPLoad3D(FreezingGetDPLoad3D):
             x_prev = None if state.x_prev is None else carry_vector(state.x_prev, old_dofs, old_to_new, new_dofs)
             state = replace(state, res_path=res, x_prev=x_prev)
         self.stepper.close()   # the persistent getdp of the old mesh ends; the next step starts one on the new
-        for b in self.bodies:
-            b.body_to_em = old_to_new[b.body_to_em]
-            b.sub = conductor_submesh3d(new, b.tag)
-        self.mesh, self.state = new, state
-        self.mover = self.make_mover(new)
-        self.mover.min_quality = self.threshold
-        self._last_valid = new.points.copy()
-        self._dofs = (new.path, new_dofs)
-        sub = self.bodies[0].sub
-        self._sheet_pos = np.full(len(new.tets), -1, dtype=np.int64)
-        self._sheet_pos[sub.rows] = np.arange(len(sub.rows))
+        self._adopt(new, {b.name: old_to_new[b.body_to_em] for b in self.bodies}, read_msh22_triangles(new.path))
+        self.state, self._dofs = state, (new.path, new_dofs)
         self.remeshes = k
         wall = time.perf_counter() - c0
         self.remesh_log.append({"time_s": float(t0), "wall_s": wall, "tets": int(new.n_tets),
@@ -161,6 +169,20 @@ class RemeshingGetDPLoad3D(FreezingGetDPLoad3D):
         log.info("t = %.4g s: 3D air remesh %d: %d tetrahedra, worst quality %.3g (threshold %.3g), %.1f s", t0, k,
                  new.n_tets, q, self.threshold, wall)
         return new
+
+    def _adopt(self, mesh: Mesh3D, body_to_em: dict[str, np.ndarray], surface: tuple[np.ndarray, np.ndarray]) -> None:
+        """Make ``mesh`` (with its surface elements) the EM mesh: the bodies' EM nodes ``body_to_em`` (name ->
+        rows) and regions, the air motion built anew and held to the fresh mesh's threshold."""
+        for b in self.bodies:
+            b.body_to_em = np.asarray(body_to_em[b.name], dtype=np.int64)
+            b.sub = conductor_submesh3d(mesh, b.tag)
+        self.mesh, self._surface = mesh, surface
+        self.mover = self.make_mover(mesh)
+        self.mover.min_quality = self.threshold
+        self._last_valid = mesh.points.copy()
+        sub = self.bodies[0].sub
+        self._sheet_pos = np.full(len(mesh.tets), -1, dtype=np.int64)
+        self._sheet_pos[sub.rows] = np.arange(len(sub.rows))
 
     def _edge_dofs(self, mesh: Mesh3D, folder: Path, **kw) -> EdgeDofs:
         """GetDP's edge unknowns of ``mesh`` for this load's stepper (its Resolution and systems)."""
@@ -180,9 +202,56 @@ class RemeshingGetDPLoad3D(FreezingGetDPLoad3D):
             return self._edge_dofs(self.mesh, folder, pre=proc.run_dir / "em.pre", msh=proc.run_dir / "mesh.msh")
         return self._edge_dofs(self.mesh, folder)
 
+    # ------------------------------------------------------------------ checkpoints
     def state_dict(self) -> dict[str, np.ndarray]:
-        """:meth:`GetDPLoad3D.state_dict`; refused after a remesh (a resume would rebuild the fresh mesh)."""
-        if self.remeshes:
-            raise RuntimeError("a checkpoint after a 3D air remesh is not supported: the resumed run would start "
-                               "from the fresh EM mesh")
-        return super().state_dict()
+        """:meth:`FreezingGetDPLoad3D.state_dict`; after a remesh also the current EM mesh and what hangs on
+        it (module docstring): ``remesh/*``."""
+        out = super().state_dict()
+        if not self.remeshes:
+            return out
+        m = self.mesh
+        tris, tri_tags = self._surface if self._surface is not None else read_msh22_triangles(m.path)
+        out.update({"remesh/count": np.int64(self.remeshes), "remesh/threshold": np.float64(self.threshold),
+                    "remesh/log": np.array([[r[k] for k in _LOG_KEYS] for r in self.remesh_log], dtype=float),
+                    "remesh/points": m.points.copy(), "remesh/tets": m.tets.copy(), "remesh/tet_ids": m.tet_ids.copy(),
+                    "remesh/tet_tags": m.tet_tags.copy(), "remesh/tris": tris.copy(), "remesh/tri_tags": tri_tags.copy()})
+        out.update({f"remesh/body_to_em/{b.name}": b.body_to_em.copy() for b in self.bodies})
+        if self._dofs is not None and self._dofs[0] == m.path:
+            out.update({f"remesh/dofs/{k}": v for k, v in self._dofs[1].to_arrays().items()})
+        return out
+
+    def load_state_dict(self, state: dict[str, np.ndarray]) -> None:
+        """Restore :meth:`state_dict`: after a remesh the stored mesh is written back to
+        ``resume_<step>/mesh.msh`` (the same file) and becomes the EM mesh; the air motion is built anew on
+        it (``make_mover``) and held to the stored threshold."""
+        if "remesh/count" in state:
+            self.timers.setdefault("remesh_s", 0.0)   # the stored timers hold it (GetDPLoad3D.load_state_dict)
+            self._restore_mesh(state)
+        super().load_state_dict({k: v for k, v in state.items() if not k.startswith("remesh/")})
+
+    def _restore_mesh(self, state: dict[str, np.ndarray]) -> None:
+        folder = self.work_dir / f"resume_{int(state['steps']):05d}"
+        folder.mkdir(parents=True, exist_ok=True)
+        tris, tri_tags = np.array(state["remesh/tris"]), np.array(state["remesh/tri_tags"])
+        tets, tet_tags = np.array(state["remesh/tets"]), np.array(state["remesh/tet_tags"])
+        ids = write_msh22_3d(folder / "mesh.msh.part", state["remesh/points"], tets, tet_tags, tris, tri_tags)
+        path = (folder / "mesh.msh.part").replace(folder / "mesh.msh").resolve()
+        points = read_msh22_tets(path)[0]
+        if not (np.array_equal(ids, state["remesh/tet_ids"]) and np.array_equal(points, state["remesh/points"])):
+            raise RuntimeError(f"{path}: the EM mesh written back differs from the checkpoint's")
+        mesh = Mesh3D(points=points, tets=tets, tet_ids=ids, tet_tags=tet_tags, path=path,
+                      sector_deg=self.mesh.sector_deg, electrode_area=self.mesh.electrode_area)
+        self.stepper.close()
+        self.threshold = float(state["remesh/threshold"])
+        # _last_valid: the stored one follows (FreezingGetDPLoad3D.load_state_dict)
+        self._adopt(mesh, {b.name: state[f"remesh/body_to_em/{b.name}"] for b in self.bodies}, (tris, tri_tags))
+        dofs = {k[len("remesh/dofs/"):]: v for k, v in state.items() if k.startswith("remesh/dofs/")}
+        self._dofs = (path, EdgeDofs.from_arrays(dofs)) if dofs else None
+        self.remeshes = int(state["remesh/count"])
+        self.remesh_log = [{k: (int(v) if k in ("tets", "nodes") else float(v)) for k, v in zip(_LOG_KEYS, row)}
+                           for row in np.asarray(state["remesh/log"], float).reshape(-1, len(_LOG_KEYS))]
+        log.info("resume: the EM mesh of remesh %d (%d tetrahedra, %d nodes)", self.remeshes, mesh.n_tets, mesh.n_nodes)
+
+
+#: the fields of a :attr:`RemeshingGetDPLoad3D.remesh_log` entry, in the checkpoint's columns
+_LOG_KEYS = ("time_s", "wall_s", "tets", "nodes", "min_quality")

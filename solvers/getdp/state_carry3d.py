@@ -67,6 +67,20 @@ class EdgeDofs:
     n_dofs: int
     system: int
 
+    def to_arrays(self) -> dict[str, np.ndarray]:
+        """The map as arrays for a checkpoint (``.npz``); :meth:`from_arrays` reads them back exactly."""
+        glob = np.array([[*k, d] for k, d in self.globals.items()], dtype=np.int64).reshape(-1, 4)
+        return {"edges": self.edges.copy(), "dof": self.dof.copy(), "sign": self.sign.copy(), "globals": glob,
+                "sizes": np.array([self.n_dofs, self.system], dtype=np.int64)}
+
+    @classmethod
+    def from_arrays(cls, d: dict[str, np.ndarray]) -> "EdgeDofs":
+        """A map written by :meth:`to_arrays`."""
+        glob = {(int(t), int(e), int(h)): int(k) for t, e, h, k in np.asarray(d["globals"], np.int64).reshape(-1, 4)}
+        n_dofs, system = (int(v) for v in d["sizes"])
+        return cls(np.array(d["edges"], np.int64), np.array(d["dof"], np.int64), np.array(d["sign"], np.int64), glob,
+                   n_dofs, system)
+
     def circulations(self, x: np.ndarray) -> np.ndarray:
         """Circulation (Wb) of the vector ``x`` along each of :attr:`edges`."""
         out = np.zeros(len(self.edges))
