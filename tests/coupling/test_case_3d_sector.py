@@ -26,6 +26,8 @@ import pytest
 
 from pulseform.orchestrator.cli import main
 
+from .bad_input import one_line_refusal
+
 REPO = Path(__file__).resolve().parents[2]
 EXE = str(Path(sys.executable).with_name("pulseform"))
 CASE = str(REPO / "cases/emf_sheet_bulge_3d")
@@ -160,16 +162,7 @@ BAD = [  # (--set overrides, text the one line must hold)
 
 @pytest.mark.parametrize("sets,says", BAD, ids=[s[0].split("=")[0] + f"[{i}]" for i, (s, _) in enumerate(BAD)])
 def test_bad_input_of_a_coupled_3d_case(capsys, sets, says):
-    args = ["check", CASE]
-    for s in sets:
-        args += ["--set", s]
-    rc = main(args)
-    _, err = capsys.readouterr()
-    lines = [ln for ln in err.splitlines() if ln.strip()]
-    assert rc == 2, err
-    assert len(lines) == 1 and "Traceback" not in err, err
-    assert lines[0].startswith("pulseform: error: ") and says in lines[0], lines[0]
-    print(lines[0])
+    print(one_line_refusal(capsys, CASE, sets, says))
 
 
 def test_a_sector_mesh_too_large_for_the_memory_is_refused_before_meshing():
