@@ -96,7 +96,7 @@ def sector_options(case: Case) -> SectorOptions:
 
 
 def sector_participants(case: Case, work: Path, opt: SectorOptions | None = None):
-    """(3D solver, :class:`GetDPLoad3D`, loop options, EM mesh) of a coupled 3D case (the driver's
+    """(3D solver, 3D GetDP load (on_mesh_break: remeshing or freezing), loop options, EM mesh) of a coupled 3D case (the driver's
     participants); getdp runs in ``work``, within ``limits.getdp_time_limit_s`` each."""
     opt = sector_options(case) if opt is None else opt
     mesh, _, solver, load = build_sector(case, work, opt)
@@ -234,7 +234,8 @@ def run_sector(case: Case, out: Path, opt: SectorOptions = SectorOptions(), t_en
                "em_ms_per_step": 1e3 * c.em_time_s / max(c.em_steps, 1),
                "mech_ms_per_step": 1e3 * c.mech_time_s / max(solver.step_count, 1),
                **{f"em_{k}": v for k, v in load.timers.items()}, **{f"getdp_{k}": v for k, v in load.state.timers.items()},
-               "min_em_quality": load.min_quality, "options": asdict(opt)}
+               "min_em_quality": load.min_quality, "em_remeshes": int(getattr(load, "remeshes", 0)),
+               "options": asdict(opt)}
     (out / "metrics.json").write_text(json.dumps(metrics, indent=2))
     log.info("3D sector run: %s", metrics)
     return metrics
