@@ -96,8 +96,9 @@ def sector_options(case: Case) -> SectorOptions:
 
 
 def sector_participants(case: Case, work: Path, opt: SectorOptions | None = None):
-    """(3D solver, 3D GetDP load (on_mesh_break: remeshing or freezing), loop options, EM mesh) of a coupled 3D case (the driver's
-    participants); getdp runs in ``work``, within ``limits.getdp_time_limit_s`` each."""
+    """(3D solver, 3D GetDP load (remeshing or freezing: ``on_mesh_break``), loop options, EM mesh) of a
+    coupled 3D case (the driver's participants); getdp runs in ``work``, within ``limits.getdp_time_limit_s``
+    each."""
     opt = sector_options(case) if opt is None else opt
     mesh, _, solver, load = build_sector(case, work, opt)
     n = max(1, round(opt.em_step / solver.stable_time_step()))
