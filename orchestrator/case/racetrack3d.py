@@ -23,18 +23,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from .schema import SchemaError, spec
-from .sector3d import MEMORY_BASE, MEMORY_PER_TET, TETS_PER_H3, available_memory
-
-#: what the run does when the air's worst tetrahedron falls below ``break_quality`` of the fresh mesh's
-#: (no 3D remesh yet): a set that can grow (the run checks its value against these keys)
-ON_MESH_BREAK: dict[str, str] = {
-    "remesh": "the air is meshed again around the bodies and the EM state carried edge by edge into the new mesh "
-              "(orchestrator/em/remesh3d.py); a remesh that fails freezes (below)",
-    "freeze": "the EM mesh stays at the last valid one (the EM no longer sees the bodies move; the history flags "
-              "it, metrics.json says when and the impulse after it)",
-    "stop": "the run ends there as failed, with one line naming the tetrahedron (the history and the fields "
-            "of the output times before it kept)",
-}
+from .sector3d import MEMORY_BASE, MEMORY_PER_TET, ON_MESH_BREAK, TETS_PER_H3, available_memory
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -5,7 +5,9 @@ The ``[geometry]`` table is the 2D one (coil turns, gap, sheet, air, shell; ``me
 in-plane element size of the sheet over the coil and defaults from the skin depth as in 2D,
 ``mesh_size_coil`` and ``mesh_size_air`` the sizes in the turns and at the air sphere). ``[sector]``
 adds what only the sector has: its angle, the tetrahedron layers through the sheet, the sheet's size
-beyond the coil, the EM step and the clamp (a radial selection: the sheet is held for r >= ``clamp_rmin``).
+beyond the coil, the EM step, the clamp (a radial selection: the sheet is held for r >= ``clamp_rmin``) and
+what happens when the moved air mesh breaks (``on_mesh_break``: by default the air is meshed again with the
+EM state carried, as in the racetrack case; ``break_quality``).
 The sector's two meridian faces are its symmetry planes (n × a = 0 for the field, sliding planes for the
 sheet and the air motion): a coupled 3D case gives no ``[[symmetry]]``. Units: m, s, degrees for the angle.
 
@@ -24,6 +26,17 @@ from typing import Any
 
 from .schema import SchemaError, spec
 
+#: what a coupled 3D run does when the air's worst tetrahedron falls below its break quality times the fresh
+#: mesh's (``sector.on_mesh_break``, ``racetrack.on_mesh_break``): a set that can grow (the run checks its value
+#: against these keys)
+ON_MESH_BREAK: dict[str, str] = {
+    "remesh": "the air is meshed again around the bodies and the EM state carried edge by edge into the new mesh "
+              "(orchestrator/em/remesh3d.py); a remesh that fails freezes (below)",
+    "freeze": "the EM mesh stays at the last valid one (the EM no longer sees the bodies move; the history flags "
+              "it, metrics.json says when and the impulse after it)",
+    "stop": "the run ends there as failed, with one line naming the tetrahedron (the history and the fields "
+            "of the output times before it kept)",
+}
 #: the sector angles allowed (degrees, open interval): at 180° the two meridian faces are one plane
 ANGLE_RANGE_DEG = (0.0, 180.0)
 #: the sheet's fine region reaches this far beyond the coil's outer radius (m); the sheet's size there
@@ -49,9 +62,17 @@ class Sector:
                               "mechanical steps per EM step")
     clamp_rmin: float | None = spec(None, unit="m", gt=0.0,
                                     doc="the sheet is held (all three components) where r >= clamp_rmin (unset: free)")
-    stop_quality: float = spec(0.2, unit="-", gt=0.0, lt=1.0,
-                               doc="the run stops when the air's worst tetrahedron quality falls below this "
-                                   "fraction of the fresh mesh's (no 3D remesh yet)")
+    on_mesh_break: str = spec("remesh", doc="when the air mesh breaks: " + "; ".join(
+        f"'{k}': {v}" for k, v in ON_MESH_BREAK.items()))
+    break_quality: float = spec(0.2, unit="-", gt=0.0, lt=1.0,
+                                doc="the air mesh counts as broken when its worst tetrahedron's quality falls below "
+                                    "this fraction of the fresh mesh's (then sector.on_mesh_break)")
+
+    def validate(self, path: str) -> None:
+        """One :class:`SchemaError` naming ``on_mesh_break`` when it is none of :data:`ON_MESH_BREAK`."""
+        if self.on_mesh_break not in ON_MESH_BREAK:
+            raise SchemaError(f"{path}.on_mesh_break", f"got {self.on_mesh_break!r}; allowed: "
+                              + ", ".join(repr(k) for k in ON_MESH_BREAK))
 
     def layers(self, thickness: float, size: float) -> int:
         """Tetrahedron layers through a sheet of ``thickness`` (m) meshed at ``size`` (m)."""
@@ -68,7 +89,7 @@ class Sector:
 _RAW_2D_KEYS = (
     ("coupling", None, "the 2D loop's options; the 3D sector sets its EM step by sector.em_step"),
     ("em", "getdp_process", "the persistent getdp is 2D-only; the 3D sector runs a getdp process per EM step"),
-    ("em", "remesh_quality", "the 2D air remesh; a 3D sector stops at sector.stop_quality"),
+    ("em", "remesh_quality", "the 2D air remesh; a 3D sector's is sector.break_quality"),
     ("em", "keep_runs", "the 3D sector keeps the last two getdp run folders"),
 )
 
@@ -83,6 +104,10 @@ def check_raw_coupled_3d(data: dict[str, Any]) -> None:
     ignored (:data:`_RAW_2D_KEYS`); in a 2D case refuse ``[sector]``."""
     mech = data.get("mechanics")
     info = data.get("case")
+    sector = data.get("sector")
+    if isinstance(sector, dict) and "stop_quality" in sector:
+        raise SchemaError("sector.stop_quality", "renamed sector.break_quality (the air mesh counts as broken below "
+                          "it; what then happens: sector.on_mesh_break = 'remesh', 'freeze' or 'stop')")
     three_d = isinstance(mech, dict) and mech.get("formulation") == "3d"
     coupled = isinstance(info, dict) and info.get("kind") == "coupled"
     if "sector" in data and not (three_d and coupled):

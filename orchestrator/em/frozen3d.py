@@ -12,8 +12,10 @@ happens, its effect is small (say how much in the run's report). Choose ``freeze
 instead (the :class:`~pulseform.orchestrator.mesh.motion.MeshQualityError` propagates).
 
 Checkpoints (:meth:`FreezingGetDPLoad3D.state_dict`): those of :class:`GetDPLoad3D` with the freeze (its
-time and reason) and the last valid EM node positions (``freeze/*``), so that a resume freezes, or goes
-on from, the same mesh.
+time, reason and the device impulse until then) and the last valid EM node positions (``freeze/*``), so
+that a resume freezes, or goes on from, the same mesh. Metrics (:meth:`FreezingGetDPLoad3D.run_metrics`):
+``em_mesh_frozen_at_s`` (NaN: never) and, once frozen, ``impulse_after_freeze_device_z_Ns`` (GetDP's
+force integrals after the freeze, the device's).
 """
 
 from __future__ import annotations
@@ -41,6 +43,7 @@ class FreezingGetDPLoad3D(GetDPLoad3D):
         self.freeze = freeze
         self.frozen_at: float | None = None
         self.freeze_reason = ""
+        self.impulse_at_freeze = float("nan")   # the device's impulse (N s) until the freeze
         self._last_valid = self.mesh.points.copy()
         self.last_forces: dict = {}   # the nodal forces (N) per body of the last step
 
@@ -54,7 +57,7 @@ class FreezingGetDPLoad3D(GetDPLoad3D):
             except MeshQualityError as err:
                 if not self.freeze:
                     raise
-                self.frozen_at, self.freeze_reason = t0, str(err)
+                self.frozen_at, self.freeze_reason, self.impulse_at_freeze = t0, str(err), self.impulse_device
                 log.warning("t = %.4g s: the EM mesh is frozen from here on (%s)", t0, err)
         self._moved = (t0, self._last_valid)
 
@@ -76,6 +79,7 @@ class FreezingGetDPLoad3D(GetDPLoad3D):
         if self.frozen_at is not None:
             out["freeze/frozen_at"] = np.float64(self.frozen_at)
             out["freeze/reason"] = np.array(self.freeze_reason)
+            out["freeze/impulse_at"] = np.float64(self.impulse_at_freeze)
         return out
 
     def load_state_dict(self, state: dict[str, np.ndarray]) -> None:
@@ -83,9 +87,19 @@ class FreezingGetDPLoad3D(GetDPLoad3D):
         written after a 3D air remesh (``remesh/*``) is refused: only a remeshing load restores its mesh."""
         if any(k.startswith("remesh/") for k in state):
             raise ValueError("the checkpoint holds a remeshed 3D EM mesh: resume it with the air remesh on "
-                             "(racetrack.on_mesh_break = \"remesh\")")
+                             "(on_mesh_break = \"remesh\" in [racetrack] or [sector])")
         super().load_state_dict(state)
         if "freeze/last_valid" in state:
             self._last_valid = np.array(state["freeze/last_valid"], dtype=float)
         if "freeze/frozen_at" in state:
             self.frozen_at, self.freeze_reason = float(state["freeze/frozen_at"]), str(state["freeze/reason"])
+            self.impulse_at_freeze = float(state.get("freeze/impulse_at", np.nan))
+
+    def run_metrics(self, history, counters) -> dict[str, float]:
+        """:meth:`GetDPLoad3D.run_metrics` with the freeze (module docstring)."""
+        out = super().run_metrics(history, counters)
+        out["em_mesh_frozen_at_s"] = float("nan") if self.frozen_at is None else float(self.frozen_at)
+        if self.frozen_at is not None:
+            log.warning("the EM mesh was frozen at t = %.6g s: %s", self.frozen_at, self.freeze_reason)
+            out["impulse_after_freeze_device_z_Ns"] = self.impulse_device - self.impulse_at_freeze
+        return out

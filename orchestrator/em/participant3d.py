@@ -6,7 +6,8 @@ Each EM step [t0, t1] (:mod:`pulseform.orchestrator.coupling.loop`):
    positions (the meshes share them), coil, shell and outer boundary stay, nodes on the symmetry
    planes slide in them, the rest of the air is moved harmonically
    (:class:`~pulseform.orchestrator.mesh.motion3d.MeshMover3D`); a tetrahedron that inverts or whose
-   quality falls below the threshold stops the run with a clear message (no 3D remesh yet);
+   quality falls below the threshold raises a clear message (its subclasses mesh the air again or freeze:
+   :mod:`.remesh3d`, :mod:`.frozen3d`);
 2. ``load``: getdp advances one step from the carried state on the moved nodes (same connectivity):
    by default one persistent getdp process for the run whose mesh is moved by ``DeformMesh``
    (:class:`~pulseform.solvers.getdp.persistent3d.PersistentEM3DStepper`, BDF2), or
@@ -150,7 +151,7 @@ class GetDPLoad3D(LoadCapabilities):
         u = np.zeros_like(self.mesh.points)
         for b in self.bodies:
             u[b.body_to_em] = positions[b.name][:, :3] - self.mesh.points[b.body_to_em]
-        x_em = self.mover.moved(u)   # raises MeshQualityError: no 3D remesh yet
+        x_em = self.mover.moved(u)   # raises MeshQualityError (a remeshing load meshes the air again)
         self.min_quality = min(self.min_quality, float(self.mover.last_min_quality))
         self._moved = (t0, x_em)
         self.timers["mesh_motion_s"] += time.perf_counter() - c0

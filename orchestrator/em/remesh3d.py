@@ -7,8 +7,10 @@ fall-back) whose :meth:`~RemeshingGetDPLoad3D.follow` answers a
 
 1. the air is re-tetrahedralised around the bodies' current shapes
    (:func:`~pulseform.orchestrator.mesh.remesh3d.remesh_air3d`): every conductor, coil and shell
-   tetrahedron is kept node for node, the symmetry planes' air is re-triangulated, the physical groups
-   the deck needs (planes, outer boundary, skins, electrodes) are kept;
+   tetrahedron is kept node for node, the symmetry planes' air is re-triangulated at the sizes of the
+   *fresh* mesh's air faces on them (:func:`~pulseform.orchestrator.mesh.remesh3d.plane_air`, taken
+   when the load is built: repeated remeshes do not drift), the physical groups the deck needs (planes,
+   outer boundary, skins, electrodes) are kept;
 2. the new mesh must be valid and better than the threshold of the fresh mesh (``mover.min_quality``,
    the same absolute number for every remesh: no drift); if it is not (a gap thinner than the kept
    triangles allow, gmsh failing), the EM mesh freezes at the last valid one (``freeze=True``, the
@@ -29,7 +31,7 @@ step 2 and the mesh freezes there (reported), never a broken mesh handed to GetD
 Checkpoints (:meth:`RemeshingGetDPLoad3D.state_dict`): after a remesh, those of
 :class:`~.frozen3d.FreezingGetDPLoad3D` with the current EM mesh (``remesh/*``: nodes, tetrahedra, their
 ids and physical ids, the surface elements), each body's EM nodes, the edge unknowns' map, the remesh
-count, log and threshold. A resume writes the mesh back (``resume_<step>/mesh.msh``, the same file), builds
+count, log and threshold, and the fresh mesh's plane faces (the size reference, ``remesh/plane_air/*``). A resume writes the mesh back (``resume_<step>/mesh.msh``, the same file), builds
 its air motion anew with ``make_mover`` held to the stored threshold and seeds a new persistent getdp with
 the stored x_n, x_{n-1} at the checkpoint's step, as a resume without a remesh does: the run continues
 bit for bit (tests/coupling/test_case_racetrack_remesh.py).
@@ -56,7 +58,7 @@ from pulseform.solvers.getdp.stepper3d import read_res_vector, write_res_vector
 
 from ..mesh.motion import MeshQualityError
 from ..mesh.motion3d import MeshMover3D, tet_quality
-from ..mesh.remesh3d import read_msh22_triangles, remesh_air3d, write_msh22_3d
+from ..mesh.remesh3d import PlaneAir, plane_air, read_msh22_triangles, remesh_air3d, write_msh22_3d
 from ..mesh.shared3d import conductor_submesh3d
 from .frozen3d import FreezingGetDPLoad3D
 from .participant3d import GetDPLoad3D
@@ -91,6 +93,8 @@ class RemeshingGetDPLoad3D(FreezingGetDPLoad3D):
         self.make_mover, self.planes, self.remesh = make_mover, list(planes), bool(remesh)
         self.air_tags, self.max_remeshes = tuple(air_tags), int(max_remeshes)
         self.threshold = float(self.mover.min_quality)   # the fresh mesh's: every remesh is held to it
+        # the fresh mesh's air faces on the planes: the sizes of every remesh's plane triangles (no drift)
+        self.plane_air: list[PlaneAir | None] = plane_air(self.mesh, self.planes, air_tags=self.air_tags)
         self.remeshes = 0
         self.remesh_log: list[dict] = []
         self._dofs: tuple[Path, EdgeDofs] | None = None   # the edge unknowns of the current mesh
@@ -130,6 +134,10 @@ class RemeshingGetDPLoad3D(FreezingGetDPLoad3D):
         step.values["em_remeshes"] = float(self.remeshes)
         return step
 
+    def run_metrics(self, history, counters) -> dict[str, float]:
+        """:meth:`FreezingGetDPLoad3D.run_metrics` with ``em_remeshes`` (the count)."""
+        return {**super().run_metrics(history, counters), "em_remeshes": float(self.remeshes)}
+
     # ------------------------------------------------------------------ the remesh
     def remesh_now(self, t0: float, positions: dict[str, np.ndarray]) -> Mesh3D:
         """Mesh the air again around the bodies at ``positions`` (name -> (n, >=3) m) and carry the EM
@@ -142,7 +150,8 @@ class RemeshingGetDPLoad3D(FreezingGetDPLoad3D):
         for b in self.bodies:
             x[b.body_to_em] = positions[b.name][:, :3]
         try:
-            new, old_to_new = remesh_air3d(self.mesh, x, folder / "mesh.msh", self.planes, air_tags=self.air_tags)
+            new, old_to_new = remesh_air3d(self.mesh, x, folder / "mesh.msh", self.planes, air_tags=self.air_tags,
+                                           reference=self.plane_air)
         except Exception as exc:   # gmsh failing (a child process: any exception type) leaves the mesh as it was
             raise RemeshFailed(f"gmsh: {exc}") from exc
         q = float(tet_quality(new.points, new.tets).min())
@@ -216,6 +225,9 @@ class RemeshingGetDPLoad3D(FreezingGetDPLoad3D):
                     "remesh/points": m.points.copy(), "remesh/tets": m.tets.copy(), "remesh/tet_ids": m.tet_ids.copy(),
                     "remesh/tet_tags": m.tet_tags.copy(), "remesh/tris": tris.copy(), "remesh/tri_tags": tri_tags.copy()})
         out.update({f"remesh/body_to_em/{b.name}": b.body_to_em.copy() for b in self.bodies})
+        for k, ref in enumerate(self.plane_air):
+            if ref is not None:
+                out.update({f"remesh/plane_air/{k}/uv": ref.uv.copy(), f"remesh/plane_air/{k}/tris": ref.tris.copy()})
         if self._dofs is not None and self._dofs[0] == m.path:
             out.update({f"remesh/dofs/{k}": v for k, v in self._dofs[1].to_arrays().items()})
         return out
@@ -248,6 +260,10 @@ class RemeshingGetDPLoad3D(FreezingGetDPLoad3D):
         dofs = {k[len("remesh/dofs/"):]: v for k, v in state.items() if k.startswith("remesh/dofs/")}
         self._dofs = (path, EdgeDofs.from_arrays(dofs)) if dofs else None
         self.remeshes = int(state["remesh/count"])
+        for k in range(len(self.planes)):   # else (older checkpoints) those of the fresh mesh this load was built on
+            if f"remesh/plane_air/{k}/uv" in state:
+                self.plane_air[k] = PlaneAir(np.array(state[f"remesh/plane_air/{k}/uv"]),
+                                             np.array(state[f"remesh/plane_air/{k}/tris"]))
         self.remesh_log = [{k: (int(v) if k in ("tets", "nodes") else float(v)) for k, v in zip(_LOG_KEYS, row)}
                            for row in np.asarray(state["remesh/log"], float).reshape(-1, len(_LOG_KEYS))]
         log.info("resume: the EM mesh of remesh %d (%d tetrahedra, %d nodes)", self.remeshes, mesh.n_tets, mesh.n_nodes)

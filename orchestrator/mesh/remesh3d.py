@@ -8,8 +8,12 @@ When the harmonically moved air (:class:`~.motion3d.MeshMover3D`) degrades, only
   planes);
 * the air's faces on each symmetry plane are re-triangulated in the plane
   (:func:`~.air_remesh.retriangulate_air`: every boundary edge of the plane's air keeps its two nodes,
-  sizes from the reference air mesh); the air's other boundary triangles (interfaces with the kept
-  tetrahedra, any outer boundary of the air) are kept;
+  in-plane coordinates from the plane's normal, so an oblique plane -- a sector's second meridian face --
+  is one too, and the nodes on a line shared by two planes -- a sector's axis -- are kept by both); the
+  sizes come from a reference: the air faces of the *fresh* mesh on that plane (:class:`PlaneAir`,
+  :func:`plane_air`), so that repeated remeshes do not drift (sizes from the mesh being replaced grow the
+  mesh by a few per cent per remesh: gmsh's edges come out shorter than asked); the air's other boundary
+  triangles (interfaces with the kept tetrahedra, any outer boundary of the air) are kept;
 * gmsh (4.8) meshes the volume bounded by these triangles (a discrete surface (``addDiscreteEntity``
   + ``addNodes`` / ``addElementsByType`` for the boundary triangles, a surface loop and volume of the built-in
   kernel, ``generate(3)``; a discrete volume is not meshed by 4.8): it adds nodes inside only, so the
@@ -24,6 +28,7 @@ with the physical ids of :mod:`pulseform.solvers.getdp.mesh3d`.
 from __future__ import annotations
 
 import logging
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Sequence
 
@@ -40,7 +45,8 @@ from .motion3d import tet_quality
 
 log = logging.getLogger(__name__)
 
-__all__ = ["remesh_air3d", "read_msh22_triangles", "write_msh22_3d", "AIR_REMESH_TAG_PLANE"]
+__all__ = ["remesh_air3d", "plane_air", "PlaneAir", "read_msh22_triangles", "write_msh22_3d",
+           "AIR_REMESH_TAG_PLANE"]
 
 #: a temporary 2D id of the kept (non-air) faces on a plane while the plane's air is re-triangulated
 AIR_REMESH_TAG_PLANE = 999
@@ -91,9 +97,82 @@ def _plane_frame(normal: np.ndarray) -> np.ndarray:
     return np.stack([e1, np.cross(n, e1)])
 
 
+@dataclass(frozen=True)
+class PlaneAir:
+    """The air's faces of a mesh on one symmetry plane, in the plane's coordinates: ``uv`` (k, 2) m in the
+    frame of :func:`_plane_frame` about the plane's point, ``tris`` (m, 3) rows of ``uv``, counter-clockwise.
+    The reference whose edge lengths set the sizes of the plane's re-triangulation (module docstring)."""
+
+    uv: np.ndarray
+    tris: np.ndarray
+
+    def size_field(self, factor: float = 1.0) -> SizeField:
+        """The element sizes (m) of these faces by in-plane position (:class:`~.air_remesh.SizeField`), times
+        ``factor``."""
+        field = SizeField(EMMesh(self.uv, self.tris, np.full(len(self.tris), AIR)), [AIR])
+        field.sizes = field.sizes * factor
+        return field
+
+    @property
+    def density(self) -> float:
+        """Triangles per unit area (1/m²) of these faces."""
+        return len(self.tris) / _area2d(self.uv, self.tris).sum()
+
+
+def _area2d(uv: np.ndarray, tris: np.ndarray) -> np.ndarray:
+    """Unsigned areas (m²) of the triangles ``tris`` (rows of ``uv``, (k, 2) m)."""
+    a = uv[tris]
+    return 0.5 * np.abs(np.cross(a[:, 1] - a[:, 0], a[:, 2] - a[:, 0]))
+
+
+def _air_boundary(mesh: Mesh3D, air_tags: Sequence[int]) -> tuple[np.ndarray, np.ndarray]:
+    """(air mask per tetrahedron, the air's boundary faces (f, 3), outward in the mesh's configuration)."""
+    air = np.isin(mesh.tet_tags, list(air_tags))
+    faces = mesh.tets[air][:, _FACES].reshape(-1, 3)
+    _, inv, cnt = np.unique(np.sort(faces, axis=1), axis=0, return_inverse=True, return_counts=True)
+    return air, faces[cnt[inv.ravel()] == 1]
+
+
+def _on_plane(x: np.ndarray, tris: np.ndarray, p0: np.ndarray, nrm: np.ndarray, tol: float) -> np.ndarray:
+    """Which triangles (rows of ``x``) lie in the plane (point ``p0``, unit normal ``nrm``) within ``tol`` m."""
+    return np.abs((x[tris] - p0) @ nrm).max(axis=1) <= tol
+
+
+def _in_plane(x: np.ndarray, tris: np.ndarray, p0: np.ndarray, frame: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(the nodes of ``tris``, their in-plane coordinates (k, 2), the triangles as rows of those, turned
+    counter-clockwise in the plane's frame)."""
+    nodes, local = np.unique(tris, return_inverse=True)
+    local = local.reshape(-1, 3)
+    uv = (x[nodes] - p0) @ frame.T
+    a = uv[local]
+    area = np.cross(a[:, 1] - a[:, 0], a[:, 2] - a[:, 0])
+    local[area < 0] = local[area < 0][:, [0, 2, 1]]
+    return nodes, uv, local
+
+
+def plane_air(mesh: Mesh3D, planes: Sequence[tuple[np.ndarray, np.ndarray]], *,
+              air_tags: Sequence[int] = (AIR,)) -> list[PlaneAir | None]:
+    """Per plane (point, unit normal) the air's faces of ``mesh`` on it at ``mesh.points`` (None: none):
+    the fresh mesh's are the size reference of every remesh (:func:`remesh_air3d`)."""
+    x = np.asarray(mesh.points, float)
+    _, bnd = _air_boundary(mesh, air_tags)
+    tol = 1e-9 * float(np.ptp(x, axis=0).max())
+    out: list[PlaneAir | None] = []
+    for p0, nrm in planes:
+        nrm = np.asarray(nrm, float) / np.linalg.norm(nrm)
+        mine = _on_plane(x, bnd, p0, nrm, tol)
+        if not mine.any():
+            out.append(None)
+            continue
+        _, uv, local = _in_plane(x, bnd[mine], p0, _plane_frame(nrm))
+        out.append(PlaneAir(uv, local))
+    return out
+
+
 def remesh_air3d(mesh: Mesh3D, points: np.ndarray, path: str | Path,
                  planes: Sequence[tuple[np.ndarray, np.ndarray]], *, air_tags: Sequence[int] = (AIR,),
-                 reference: np.ndarray | None = None, time_limit: float | None = 600.0) -> tuple[Mesh3D, np.ndarray]:
+                 reference: Sequence[PlaneAir | None] | None = None,
+                 time_limit: float | None = 600.0) -> tuple[Mesh3D, np.ndarray]:
     """The mesh with its air meshed again (module docstring) around the nodes at ``points`` (n, 3) m.
 
     Parameters
@@ -108,8 +187,9 @@ def remesh_air3d(mesh: Mesh3D, points: np.ndarray, path: str | Path,
         The symmetry planes whose air faces are re-triangulated.
     air_tags : sequence of int
         Physical ids of the air to mesh again.
-    reference : ndarray, optional
-        Node positions (m) of the fresh mesh whose edge lengths set the plane sizes (default ``mesh.points``).
+    reference : sequence of PlaneAir or None, optional
+        Per plane the faces whose edge lengths set the plane's sizes (:func:`plane_air` of the fresh mesh:
+        no drift over repeated remeshes); default, or None for a plane: the air faces of ``mesh`` itself.
     time_limit : float
         Wall-time limit (s) of each gmsh run (child processes).
 
@@ -120,40 +200,36 @@ def remesh_air3d(mesh: Mesh3D, points: np.ndarray, path: str | Path,
         mesh (-1: an air node that was removed).
     """
     x = np.asarray(points, float)
-    x_ref = np.asarray(mesh.points if reference is None else reference, float)
-    air = np.isin(mesh.tet_tags, list(air_tags))
+    x_ref = np.asarray(mesh.points, float)
+    if reference is not None and len(reference) != len(planes):
+        raise ValueError(f"{len(reference)} plane references for {len(planes)} planes")
+    air, bnd = _air_boundary(mesh, air_tags)             # faces outward in the reference configuration
     kept = mesh.tets[~air]
-    faces = mesh.tets[air][:, _FACES].reshape(-1, 3)   # outward in the reference configuration
-    key = np.sort(faces, axis=1)
-    _, inv, cnt = np.unique(key, axis=0, return_inverse=True, return_counts=True)
-    bnd = faces[cnt[inv.ravel()] == 1]                   # the air's boundary faces
     scale = float(np.ptp(x_ref, axis=0).max())
     on_plane = np.zeros(len(bnd), bool)
     plane_tris: list[np.ndarray] = []
     n_nodes = len(x)
     extra: list[np.ndarray] = []                          # new plane nodes (m), numbered from n_nodes on
     kept_faces = kept[:, _FACES].reshape(-1, 3)
-    for p0, nrm in planes:
+    for k, (p0, nrm) in enumerate(planes):
         nrm = np.asarray(nrm, float) / np.linalg.norm(nrm)
-        dist = lambda t: np.abs((x_ref[t] - p0) @ nrm).max(axis=1)
-        mine = dist(bnd) <= 1e-9 * scale
+        mine = _on_plane(x_ref, bnd, p0, nrm, 1e-9 * scale)
         if not mine.any():
             continue
         on_plane |= mine
-        kf = kept_faces[dist(kept_faces) <= 1e-9 * scale]
+        kf = kept_faces[_on_plane(x_ref, kept_faces, p0, nrm, 1e-9 * scale)]
         frame = _plane_frame(nrm)
-        # 2D: counter-clockwise seen from outside the domain (the faces' outward normal is +-nrm)
-        tris = np.vstack([bnd[mine], kf])
+        # 2D: counter-clockwise in the plane's frame (the faces' outward normal is +-nrm)
         tags = np.r_[np.full(mine.sum(), AIR), np.full(len(kf), AIR_REMESH_TAG_PLANE)]
-        nodes, local = np.unique(tris, return_inverse=True)
-        local = local.reshape(-1, 3)
-        uv_ref, uv = (x_ref[nodes] - p0) @ frame.T, (x[nodes] - p0) @ frame.T
-        a = uv_ref[local]
-        area = np.cross(a[:, 1] - a[:, 0], a[:, 2] - a[:, 0])
-        local[area < 0] = local[area < 0][:, [0, 2, 1]]
-        ref2d = EMMesh(uv_ref, local, tags)
-        new2d, old_to_new, _ = retriangulate_air(EMMesh(uv, local, tags), [AIR], time_limit=time_limit,
-                                                 sizes=SizeField(ref2d, [AIR]))
+        nodes, uv_ref, local = _in_plane(x_ref, np.vstack([bnd[mine], kf]), p0, frame)
+        uv = (x[nodes] - p0) @ frame.T
+        ref = reference[k] if reference is not None else None
+        current = EMMesh(uv, local, tags)
+        if ref is None:
+            sizes = SizeField(EMMesh(uv_ref, local, tags), [AIR])
+            new2d, old_to_new, _ = retriangulate_air(current, [AIR], time_limit=time_limit, sizes=sizes)
+        else:
+            new2d, old_to_new = _retriangulate_as(current, ref, time_limit)
         n_old = int((old_to_new >= 0).sum())
         glob = np.empty(len(new2d.points), dtype=np.int64)   # 2D rows -> 3D node rows
         glob[old_to_new[old_to_new >= 0]] = nodes[old_to_new >= 0]
@@ -204,6 +280,25 @@ def remesh_air3d(mesh: Mesh3D, points: np.ndarray, path: str | Path,
     log.info("3D air remesh: %d air tets -> %d, %d nodes -> %d (%d new on the planes), worst new air quality %.3g",
              int(air.sum()), len(air_tets), n_nodes, len(pts), len(plane_new), float(np.abs(q).min()))
     return out, old_to_new
+
+
+#: the plane's new air may differ from the reference's triangle density by this fraction before its sizes are
+#: corrected (:func:`_retriangulate_as`)
+DENSITY_TOLERANCE = 0.02
+
+
+def _retriangulate_as(current: EMMesh, ref: PlaneAir, time_limit: float | None) -> tuple[EMMesh, np.ndarray]:
+    """The air (id AIR) of the plane's 2D mesh ``current`` re-triangulated at the sizes of ``ref``, then, if
+    its triangles per area differ from the reference's by more than :data:`DENSITY_TOLERANCE` (gmsh's edges
+    come out a few per cent shorter than asked), once more with the sizes scaled by the square root of that
+    ratio; returns the new 2D mesh and per old node its row (-1: removed)."""
+    new2d, old_to_new, _ = retriangulate_air(current, [AIR], time_limit=time_limit, sizes=ref.size_field())
+    air = new2d.triangles[new2d.tri_tags == AIR]
+    ratio = len(air) / _area2d(new2d.points, air).sum() / ref.density
+    if abs(ratio - 1.0) > DENSITY_TOLERANCE:
+        new2d, old_to_new, _ = retriangulate_air(current, [AIR], time_limit=time_limit,
+                                                 sizes=ref.size_field(float(np.sqrt(ratio))))
+    return new2d, old_to_new
 
 
 def _mesh_volume(x: np.ndarray, boundary: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -6,7 +6,10 @@ meshed with tetrahedra (:func:`~pulseform.solvers.getdp.mesh3d.ring_sector_mesh`
 its sector face extruded in layers). The sheet's tetrahedra of the EM mesh are the mechanical
 mesh (shared nodes); both meridian faces are symmetry planes: n x a = 0 for the field, sliding
 planes for the sheet and the air motion (the face at the sector angle is oblique). The loop is the
-2D one (:class:`~pulseform.orchestrator.coupling.loop.StaggeredLoop`) with the 3D participants.
+2D one (:class:`~pulseform.orchestrator.coupling.loop.StaggeredLoop`) with the 3D participants. When the
+moved air breaks (``on_mesh_break``), the air is meshed again with the EM state carried
+(:class:`~..em.remesh3d.RemeshingGetDPLoad3D`: both meridian faces re-triangulated in their own
+coordinates, the axis' nodes kept), the EM mesh freezes or the run stops, as in the racetrack case.
 """
 
 from __future__ import annotations
@@ -25,12 +28,14 @@ from pulseform.solvers import dolfinx as mech
 from pulseform.solvers.dolfinx.solver3d import ExplicitSolver3D
 from pulseform.solvers.getdp import Circuit, Conductor, DampedSine, Rect
 from pulseform.solvers.getdp.mesh import COIL_BASE, SHELL, conductor_tag
-from pulseform.solvers.getdp.mesh3d import ring_sector_mesh
+from pulseform.solvers.getdp.mesh3d import Mesh3D, ring_sector_mesh
 from pulseform.solvers.getdp.solver3d import Coil3D, EM3DModel
 
 from ..case.model import Case
 from ..coupling.loop import LoopOptions, StaggeredLoop
-from ..em.participant3d import ConductorBody3D, GetDPLoad3D
+from ..em.frozen3d import FreezingGetDPLoad3D
+from ..em.participant3d import ConductorBody3D
+from ..em.remesh3d import RemeshingGetDPLoad3D
 from ..mech.model import solver_material
 from ..mech.participants import DolfinxMechanics
 from ..mesh.em_geometry import flat_coil_turns
@@ -49,7 +54,8 @@ class SectorOptions:
     ``sheet_layers`` tetrahedron layers through the sheet; ``h_sheet_out`` the sheet's size elsewhere;
     ``h_coil``, ``h_air`` sizes in the turns and at the sphere; ``em_step`` the target EM step
     (n = em_step / stable mechanical step, the loop's even landing); ``remesh_quality`` the air's worst
-    quality as a fraction of the fresh mesh's below which the run stops (no 3D remesh yet);
+    quality as a fraction of the fresh mesh's below which the air mesh counts as broken, ``on_mesh_break``
+    what then happens ("remesh", "freeze" or "stop": :class:`~.coupled_racetrack.RacetrackOptions`);
     ``clamp_rmin`` the sheet is held for r >= clamp_rmin (m; None: the smallest ``xmin`` of the
     axisymmetric case's fixed boxes, none: free).
     """
@@ -64,6 +70,7 @@ class SectorOptions:
     time_scheme: str = "bdf2"
     remesh_quality: float = 0.2
     clamp_rmin: float | None = None
+    on_mesh_break: str = "remesh"
 
 
 #: the sector of the comparison with the axisymmetric demo (docs/coupling.md, "Coupling in 3D"):
@@ -84,13 +91,14 @@ def sector_options(case: Case) -> SectorOptions:
         raise ValueError("geometry.mesh_size_sheet unresolved: fill the skin-depth defaults first")
     return SectorOptions(sector_deg=s.angle_deg, h_sheet=h, h_sheet_out=s.outer_size(h),
                          sheet_layers=s.layers(g.sheet_thickness, h), h_coil=g.mesh_size_coil, h_air=g.mesh_size_air,
-                         em_step=s.em_step, time_scheme=case.em.time_scheme, remesh_quality=s.stop_quality,
-                         clamp_rmin=s.clamp_rmin)
+                         em_step=s.em_step, time_scheme=case.em.time_scheme, remesh_quality=s.break_quality,
+                         clamp_rmin=s.clamp_rmin, on_mesh_break=s.on_mesh_break)
 
 
 def sector_participants(case: Case, work: Path, opt: SectorOptions | None = None):
-    """(3D solver, :class:`GetDPLoad3D`, loop options, EM mesh) of a coupled 3D case (the driver's
-    participants); getdp runs in ``work``, within ``limits.getdp_time_limit_s`` each."""
+    """(3D solver, 3D GetDP load (remeshing or freezing: ``on_mesh_break``), loop options, EM mesh) of a
+    coupled 3D case (the driver's participants); getdp runs in ``work``, within ``limits.getdp_time_limit_s``
+    each."""
     opt = sector_options(case) if opt is None else opt
     mesh, _, solver, load = build_sector(case, work, opt)
     n = max(1, round(opt.em_step / solver.stable_time_step()))
@@ -137,6 +145,19 @@ def sector_mechanics(case: Case, work: Path, opt: SectorOptions):
     return mesh, sub, solver
 
 
+def sector_air_mover(mesh: Mesh3D, air_radius: float, alpha: float, sheet_tag: int = conductor_tag(1)) -> MeshMover3D:
+    """The sector's air motion (also that of a remeshed air): the sheet's nodes follow the body, coil, shell
+    and the outer sphere (r >= ``air_radius``, m) stay, both meridian planes (angle ``alpha``, rad) slide."""
+    tol = 1e-9 * float(np.linalg.norm(mesh.points, axis=1).max())
+    r = np.linalg.norm(mesh.points, axis=1)
+    fixed = np.unique(np.concatenate([mesh.tets[(mesh.tet_tags > COIL_BASE) & (mesh.tet_tags < COIL_BASE + 100)].ravel(),
+                                      mesh.tets[mesh.tet_tags == SHELL].ravel(),
+                                      np.flatnonzero(r >= air_radius * (1 - 1e-9)),
+                                      mesh.tets[mesh.tet_tags == sheet_tag].ravel()]))
+    return MeshMover3D(mesh.points, mesh.tets, fixed,
+                       [(nodes_on_plane(mesh.points, p, n, tol), n) for p, n in sector_planes(alpha)])
+
+
 def build_sector(case: Case, work: Path, opt: SectorOptions):
     """(EM mesh, EM model, 3D solver, load provider) of the sector of ``case`` (module docstring)."""
     g, em = case.geometry, case.em
@@ -153,20 +174,20 @@ def build_sector(case: Case, work: Path, opt: SectorOptions):
                       circuit=None if c is None else Circuit(C=c.capacitance, V0=c.voltage, R_ext=c.resistance,
                                                              L_ext=c.inductance),
                       shell=(g.air_radius, g.shell_radius), sector_deg=opt.sector_deg)
-    tol = 1e-9 * g.shell_radius
-    planes = sector_planes(math.radians(opt.sector_deg))
+    alpha = math.radians(opt.sector_deg)
     b3 = solver.bodies[body.name]
-    body_to_em = match_nodes3d(b3.X0, mesh.points, tol)
-    # air motion: the sheet follows the body, coil, shell and the outer sphere stay, the planes slide
-    r = np.linalg.norm(mesh.points, axis=1)
-    fixed = np.unique(np.concatenate([mesh.tets[(mesh.tet_tags > COIL_BASE) & (mesh.tet_tags < COIL_BASE + 100)].ravel(),
-                                      mesh.tets[mesh.tet_tags == SHELL].ravel(),
-                                      np.flatnonzero(r >= g.air_radius * (1 - 1e-9)), sub.em_nodes]))
-    mover = MeshMover3D(mesh.points, mesh.tets, fixed,
-                        [(nodes_on_plane(mesh.points, p, n, tol), n) for p, n in planes])
+    body_to_em = match_nodes3d(b3.X0, mesh.points, 1e-9 * g.shell_radius)
+    mover = sector_air_mover(mesh, g.air_radius, alpha)
     mover.min_quality = opt.remesh_quality * float(mover.q_ref.min())
-    load = GetDPLoad3D(mesh, model, work / "getdp", [ConductorBody3D(body.name, conductor_tag(1), sub, body_to_em)],
-                       mover, time_scheme=opt.time_scheme, getdp_timeout=case.limits.getdp_time_limit_s)
+    args = (mesh, model, work / "getdp", [ConductorBody3D(body.name, conductor_tag(1), sub, body_to_em)], mover)
+    kw = {"time_scheme": opt.time_scheme, "getdp_timeout": case.limits.getdp_time_limit_s}
+    if opt.on_mesh_break not in ("remesh", "freeze", "stop"):
+        raise ValueError(f"on_mesh_break is 'remesh', 'freeze' or 'stop', got {opt.on_mesh_break!r}")
+    if opt.on_mesh_break == "remesh":   # a failed remesh freezes (orchestrator/em/remesh3d.py)
+        load = RemeshingGetDPLoad3D(*args, make_mover=lambda m: sector_air_mover(m, g.air_radius, alpha),
+                                    planes=sector_planes(alpha), **kw)
+    else:
+        load = FreezingGetDPLoad3D(*args, freeze=opt.on_mesh_break == "freeze", **kw)
     return mesh, model, solver, load
 
 
@@ -214,7 +235,8 @@ def run_sector(case: Case, out: Path, opt: SectorOptions = SectorOptions(), t_en
                "em_ms_per_step": 1e3 * c.em_time_s / max(c.em_steps, 1),
                "mech_ms_per_step": 1e3 * c.mech_time_s / max(solver.step_count, 1),
                **{f"em_{k}": v for k, v in load.timers.items()}, **{f"getdp_{k}": v for k, v in load.state.timers.items()},
-               "min_em_quality": load.min_quality, "options": asdict(opt)}
+               "min_em_quality": load.min_quality, "em_remeshes": int(getattr(load, "remeshes", 0)),
+               "options": asdict(opt)}
     (out / "metrics.json").write_text(json.dumps(metrics, indent=2))
     log.info("3D sector run: %s", metrics)
     return metrics

@@ -127,8 +127,7 @@ class RacetrackObserver:
         m.update({f"impulse_quarter_{c}_Ns": float(v) for c, v in zip("xyz", m["impulse_quarter_Ns"])})
         load = self.rm.load
         m["em_mesh_frozen_at_s"] = load.frozen_at if load.frozen_at is not None else float("nan")
-        if load.frozen_at is not None:   # metrics.json holds numbers: the reason goes to run.log
-            log.warning("the EM mesh was frozen at t = %.6g s: %s", load.frozen_at, load.freeze_reason)
+        # metrics.json holds numbers: the reason goes to run.log (FreezingGetDPLoad3D.run_metrics)
         if load.frozen_at is not None:
             m["impulse_after_freeze_device_z_Ns"] = float(self.rm.model.symmetry_factor) * sum(
                 r["force_z_N"] * r["dt_s"] * r["substeps"] for r in self.rec.rows if r.get("em_mesh_frozen", 0.0) > 0)

@@ -157,6 +157,8 @@ BAD = [  # (--set overrides, text the one line must hold)
     (["bodies.sheet.region=\"die\""], "bodies[0].region"),
     (["limits.max_cells=1e4"], "geometry.mesh_size_sheet"),
     (["limits.max_em_steps=100"], "sector.em_step"),
+    (["sector.on_mesh_break=\"refine\""], "sector.on_mesh_break"),
+    (["sector.stop_quality=0.1"], "sector.stop_quality"),
 ]
 
 

@@ -160,7 +160,7 @@ def test_a_failed_remesh_freezes_the_em_mesh():
     load.mesh = type("M", (), {"points": points})()
     load.bodies = [ConductorBody3D("sheet", 201, None, np.arange(4))]
     load.mover, load.min_quality, load._moved = Mover(), 1.0, None
-    load.timers = {"mesh_motion_s": 0.0}
+    load.timers, load.impulse_device = {"mesh_motion_s": 0.0}, 0.0
     load.freeze, load.frozen_at, load.freeze_reason, load._last_valid = True, None, "", points.copy()
     load.remesh, load.remeshes, load.max_remeshes, load.remesh_now = True, 0, 50, fail
     mech = type("Mech", (), {"positions": lambda self: {"sheet": np.full((4, 3), self.u)}})
