@@ -78,6 +78,8 @@ class EM3DModel:
     ``symmetry_factor`` (default 360 / sector_deg) = full device / modelled part: it scales the coil
     voltage in the circuit. ``shell = (R_int, R_ext)`` (m) enables the spherical shell transformation
     on region 2, centred at ``shell_centre``. ``probes``: points (x, y, z) (m) where B is reported.
+    ``order``: 1 (Whitney edge elements) or 2 (the deck's ``Order_a = 2``: hierarchical second-order edge
+    elements, a complete linear B everywhere and E complete of degree 1 in the conductors).
     """
 
     coils: list[Coil3D] = field(default_factory=list)
@@ -88,8 +90,11 @@ class EM3DModel:
     sector_deg: float = 360.0
     symmetry_factor: float | None = None
     probes: list[tuple[float, float, float]] = field(default_factory=list)
+    order: int = 1
 
     def __post_init__(self) -> None:
+        if self.order not in (1, 2):
+            raise ValueError(f"the 3D EM order is 1 or 2, got {self.order!r}")
         if self.symmetry_factor is None:
             self.symmetry_factor = 360.0 / float(self.sector_deg)
         for c in self.coils:
@@ -167,6 +172,8 @@ def model_numbers(model: EM3DModel, mesh: Mesh3D) -> tuple[dict[str, float], lis
                             "NbCoils": len(model.coils), "NbConductors": len(model.conductors),
                             "Flag_Circuit": int(model.circuit is not None), "NbProbes": len(model.probes),
                             "SymmetryFactor": float(model.symmetry_factor)}
+    if model.order != 1:   # order 1 passes nothing: the deck's default, runs unchanged
+        nb["Order_a"] = model.order
     for i, (x, y, z) in enumerate(model.probes, start=1):
         nb[f"Probe_X_{i}"], nb[f"Probe_Y_{i}"], nb[f"Probe_Z_{i}"] = x, y, z
     if model.shell is not None:

@@ -2,10 +2,11 @@
 impulse under the bank discharge on systematically refined meshes of the same geometry (fixed mesh, no
 motion), with the grid convergence index of ``orchestrator/workflows/gci.py``.
 
-Usage: python em_convergence.py OUT [--factors 1.25 1 0.8] [--t-end 6e-5] [--steps 40]
+Usage: python em_convergence.py OUT [--factors 1.25 1 0.8] [--t-end 6e-5] [--steps 40] [--order 2]
 Prints one line per level and the GCI of each quantity; writes OUT/em_convergence.json.
 The geometry and bank are :data:`pulseform.orchestrator.run.racetrack_design.RACETRACK` /
-``RACETRACK_BANK`` (``--old``: the first design, C = 50 uF, 6 kV, long straight sides).
+``RACETRACK_BANK`` (``--old``: the first design, C = 50 uF, 6 kV, long straight sides). ``--order 2``: the
+deck's hierarchical second-order edge elements (``EM3DModel.order``).
 """
 import argparse
 import json
@@ -32,6 +33,7 @@ def main(argv=None) -> int:
     ap.add_argument("--old", action="store_true")
     ap.add_argument("--layers", type=int, default=None, help="sheet layers on every level (default: scaled)")
     ap.add_argument("--geometry", default="{}", help="JSON of RacetrackGroove fields replaced before scaling")
+    ap.add_argument("--order", type=int, default=1, choices=(1, 2), help="edge element order of the EM deck")
     a = ap.parse_args(argv)
     design, bank = OLD_DESIGN if a.old else (RACETRACK, None)
     a.out.mkdir(parents=True, exist_ok=True)
@@ -42,14 +44,14 @@ def main(argv=None) -> int:
             g = replace(g, sheet_layers=a.layers)
         t0 = time.perf_counter()
         m = racetrack_groove_mesh(a.out / f"level{f:.4f}.msh", g)
-        model = em_model(g, bank)
+        model = replace(em_model(g, bank), order=a.order)
         r = solve_transient3d(model, m, a.t_end, a.steps, a.out / f"run{f:.4f}", element_output="none",
                               time_scheme=a.scheme)
         s = model.symmetry_factor
         fz = r.conductor_force[:, 0, 2] * s
         t = r.times
         dt = np.diff(np.concatenate([[0.0], t]))
-        lev = {"factor": f, "layers": g.sheet_layers, "tets": m.n_tets, "sheet_tets": int((m.tet_tags == 201).sum()), "dofs": r.n_dofs,
+        lev = {"factor": f, "order": a.order, "h_sheet_m": g.h_sheet, "layers": g.sheet_layers, "tets": m.n_tets, "sheet_tets": int((m.tet_tags == 201).sum()), "dofs": r.n_dofs,
                "peak_force_N": float(fz.max()), "t_peak_us": 1e6 * float(t[np.argmax(fz)]),
                "impulse_Ns": float(np.sum(fz * dt)), "die_peak_N": float(np.abs(r.conductor_force[:, 1, 2] * s).max()),
                "peak_current_kA": float(np.abs(r.coil_current[:, 0]).max()) / 1e3,
