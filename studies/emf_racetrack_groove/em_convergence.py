@@ -34,6 +34,7 @@ def main(argv=None) -> int:
     ap.add_argument("--layers", type=int, default=None, help="sheet layers on every level (default: scaled)")
     ap.add_argument("--geometry", default="{}", help="JSON of RacetrackGroove fields replaced before scaling")
     ap.add_argument("--order", type=int, default=1, choices=(1, 2), help="edge element order of the EM deck")
+    ap.add_argument("--numbers", default="{}", help="JSON of more -setnumber inputs of the deck (e.g. Air_Order)")
     a = ap.parse_args(argv)
     design, bank = OLD_DESIGN if a.old else (RACETRACK, None)
     a.out.mkdir(parents=True, exist_ok=True)
@@ -46,12 +47,12 @@ def main(argv=None) -> int:
         m = racetrack_groove_mesh(a.out / f"level{f:.4f}.msh", g)
         model = replace(em_model(g, bank), order=a.order)
         r = solve_transient3d(model, m, a.t_end, a.steps, a.out / f"run{f:.4f}", element_output="none",
-                              time_scheme=a.scheme)
+                              time_scheme=a.scheme, extra_numbers=json.loads(a.numbers))
         s = model.symmetry_factor
         fz = r.conductor_force[:, 0, 2] * s
         t = r.times
         dt = np.diff(np.concatenate([[0.0], t]))
-        lev = {"factor": f, "order": a.order, "h_sheet_m": g.h_sheet, "layers": g.sheet_layers, "tets": m.n_tets, "sheet_tets": int((m.tet_tags == 201).sum()), "dofs": r.n_dofs,
+        lev = {"factor": f, "order": a.order, "numbers": json.loads(a.numbers), "h_sheet_m": g.h_sheet, "layers": g.sheet_layers, "tets": m.n_tets, "sheet_tets": int((m.tet_tags == 201).sum()), "dofs": r.n_dofs,
                "peak_force_N": float(fz.max()), "t_peak_us": 1e6 * float(t[np.argmax(fz)]),
                "impulse_Ns": float(np.sum(fz * dt)), "die_peak_N": float(np.abs(r.conductor_force[:, 1, 2] * s).max()),
                "peak_current_kA": float(np.abs(r.coil_current[:, 0]).max()) / 1e3,
