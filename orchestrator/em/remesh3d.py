@@ -89,6 +89,9 @@ class RemeshingGetDPLoad3D(FreezingGetDPLoad3D):
                  planes: Sequence[tuple[np.ndarray, np.ndarray]], remesh: bool = True,
                  air_tags: Sequence[int] = (AIR,), max_remeshes: int = 50, **kwargs) -> None:
         super().__init__(*args, **kwargs)
+        if remesh and self.model.order != 1:
+            raise ValueError(f"3D EM remesh with order {self.model.order}: the state carry maps only the "
+                             "Whitney edge unknowns (by node pair); use order 1, or remesh=False (freeze)")
         self.columns = tuple(self.columns) + ("em_remeshes",)
         self.make_mover, self.planes, self.remesh = make_mover, list(planes), bool(remesh)
         self.air_tags, self.max_remeshes = tuple(air_tags), int(max_remeshes)

@@ -79,7 +79,10 @@ class EM3DModel:
     voltage in the circuit. ``shell = (R_int, R_ext)`` (m) enables the spherical shell transformation
     on region 2, centred at ``shell_centre``. ``probes``: points (x, y, z) (m) where B is reported.
     ``order``: 1 (Whitney edge elements) or 2 (the deck's ``Order_a = 2``: hierarchical second-order edge
-    elements, a complete linear B everywhere and E complete of degree 1 in the conductors).
+    elements: B complete of degree 1 and E complete of degree 1 in the conductors). With order 2,
+    ``order2_air`` False leaves the air and the shell first order (the face functions only on the coils'
+    and conductors' faces) and ``order2_conductors`` (1-based numbers; None: all) chooses the
+    conductors made second order, the others staying first order.
     """
 
     coils: list[Coil3D] = field(default_factory=list)
@@ -91,10 +94,15 @@ class EM3DModel:
     symmetry_factor: float | None = None
     probes: list[tuple[float, float, float]] = field(default_factory=list)
     order: int = 1
+    order2_air: bool = True
+    order2_conductors: tuple[int, ...] | None = None
 
     def __post_init__(self) -> None:
         if self.order not in (1, 2):
             raise ValueError(f"the 3D EM order is 1 or 2, got {self.order!r}")
+        if self.order2_conductors is not None and not set(self.order2_conductors) <= set(range(1, len(self.conductors) + 1)):
+            raise ValueError(f"order2_conductors are conductor numbers 1..{len(self.conductors)}, "
+                             f"got {self.order2_conductors!r}")
         if self.symmetry_factor is None:
             self.symmetry_factor = 360.0 / float(self.sector_deg)
         for c in self.coils:
@@ -174,6 +182,11 @@ def model_numbers(model: EM3DModel, mesh: Mesh3D) -> tuple[dict[str, float], lis
                             "SymmetryFactor": float(model.symmetry_factor)}
     if model.order != 1:   # order 1 passes nothing: the deck's default, runs unchanged
         nb["Order_a"] = model.order
+        if not model.order2_air:
+            nb["Air_Order"] = 1
+        for k in range(1, len(model.conductors) + 1):
+            if model.order2_conductors is not None and k not in model.order2_conductors:
+                nb[f"Cond_Order_{k}"] = 1
     for i, (x, y, z) in enumerate(model.probes, start=1):
         nb[f"Probe_X_{i}"], nb[f"Probe_Y_{i}"], nb[f"Probe_Z_{i}"] = x, y, z
     if model.shell is not None:

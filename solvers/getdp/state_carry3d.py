@@ -97,6 +97,8 @@ def edge_dofs(model: EM3DModel, mesh: Mesh3D, work: Path, *, resolution: str, sy
     of the process to read, then ``-pos``) on the file ``msh`` (default ``mesh.path``: the same
     connectivity, any node positions). ``lines_before``: lines of the wrapper before the model's (e.g.
     the persistent library's name, so that the systems are those of the process)."""
+    if model.order != 1:
+        raise ValueError(f"edge_dofs: order {model.order}; the carry knows only Whitney edge unknowns (order 1)")
     work = Path(work).resolve()
     work.mkdir(parents=True, exist_ok=True)
     msh = Path(msh if msh is not None else mesh.path).resolve()

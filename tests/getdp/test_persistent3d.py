@@ -159,6 +159,35 @@ def test_moving_mesh_same_as_per_step(work):
     assert abs(per[-1, 0] / fixed[-1, 0] - 1) > 1e-3
 
 
+def test_moving_mesh_order2_same_as_per_step(work):
+    """Second-order edge elements (``EM3DModel.order = 2``) in both paths: the persistent process gets the
+    order like the per-step processes (``model_numbers``), so the two agree to round-off on a moving mesh
+    (1e-12 relative, as with order 1), and the run has the second order's unknowns (more than 3 times
+    those of order 1)."""
+    mesh = _mesh(work / "disk.msh")
+    model = replace(_model(), order=2)
+    bulge = Bulge(mesh, work)
+    moved = {}
+
+    def meshes(k, t):
+        if k not in moved:
+            moved[k] = bulge(k, t)
+        return moved[k]
+
+    times = TIMES[:4]
+    per, _ = _march(EM3DStepper(model, work / "per_step"), meshes, times)
+    pers, _ = _march(PersistentEM3DStepper(model, work / "persistent"), meshes, times)
+    one = EM3DStepper(_model(), work / "order1").step(mesh, EM3DStepper(_model(), work / "o1").initial_state(),
+                                                       float(times[0]))[0]
+    two = EM3DStepper(model, work / "order2").step(mesh, EM3DStepper(model, work / "o2").initial_state(),
+                                                    float(times[0]))[0]
+    print(f"\norder 2, moving mesh: persistent vs per-step {_rel(per, pers):.1e}; dofs {one.n_dofs} (order 1), "
+          f"{two.n_dofs} (order 2)")
+    assert np.abs(per[:, 0]).max() > 0
+    assert _rel(per, pers) < 1e-12
+    assert two.n_dofs > 3 * one.n_dofs
+
+
 def test_checkpoint_resume_and_interchange(work):
     """complete_state (a query: the process continues unperturbed, bitwise) gives the exact state: a new
     persistent process seeded from a copy of it continues the run (1e-12, measured ~1e-15), and so does
