@@ -30,7 +30,7 @@ from __future__ import annotations
 import json
 import logging
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -90,6 +90,9 @@ class RacetrackOptions:
     the mechanics' safety factor. ``sheet_material`` and ``die_material`` the bodies' mechanics, ``sigma``
     the conductivities (S/m) of the sheet, the die and the coil, ``getdp_timeout`` the wall-time limit of a
     getdp answer (s; None: the runner's default) -- a case file sets them (:mod:`.racetrack_case`).
+    ``em_order`` 1 or 2 and ``em_order2_air`` (:class:`EM3DModel`'s ``order``, ``order2_air``): the EM
+    deck's edge elements (docs/em_geometries.md, racetrack: the figures of order 2); order 2 cannot remesh
+    (``on_mesh_break`` "freeze" or "stop"). Not case-file keys (yet).
     """
 
     geometry: RacetrackGroove = RACETRACK
@@ -109,6 +112,8 @@ class RacetrackOptions:
     sigma: tuple[float, float, float] = (SIGMA_SHEET, SIGMA_DIE, SIGMA_COIL)
     getdp_timeout: float | None = None
     contact_two_pass: bool = True
+    em_order: int = 1
+    em_order2_air: bool = True
 
 
 @dataclass
@@ -129,6 +134,8 @@ def build_racetrack(work: Path, opt: RacetrackOptions = RacetrackOptions()) -> R
     work = Path(work).resolve()
     mesh = racetrack_groove_mesh(work / "racetrack.msh", g)
     model = em_model(g, opt.bank, sigma=opt.sigma)
+    if opt.em_order != 1:
+        model = replace(model, order=opt.em_order, order2_air=opt.em_order2_air)
     tol = 1e-9 * g.air_radius
     subs = {name: conductor_submesh3d(mesh, conductor_tag(k)) for name, k in (("sheet", SHEET), ("die", DIE))}
     x_edge, y_edge, z_top = g.sheet_half_x - tol, g.sheet_half_y - tol, g.die_z[1] - tol
