@@ -31,6 +31,8 @@ def test_order_is_validated():
     with pytest.raises(ValueError, match="order is 1 or 2"):
         EM3DModel(order=3)
     assert EM3DModel().order == 1
+    with pytest.raises(ValueError, match="order2_conductors are conductor numbers 1..1"):
+        EM3DModel(conductors=[Conductor(SIGMA)], order=2, order2_conductors=(2,))
 
 
 @pytest.mark.getdp
