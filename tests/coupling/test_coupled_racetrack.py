@@ -119,7 +119,7 @@ def _freezing_load(freeze: bool, breaks_at: int):
     load.mesh = type("M", (), {"points": points})()
     load.bodies = [ConductorBody3D("sheet", 201, None, np.arange(4))]
     load.mover, load.min_quality, load._moved = Mover(), 1.0, None
-    load.timers = {"mesh_motion_s": 0.0}
+    load.timers, load.impulse_device = {"mesh_motion_s": 0.0}, 0.0   # a freeze records the impulse until it
     load.freeze, load.frozen_at, load.freeze_reason, load._last_valid = freeze, None, "", points.copy()
     return load
 
