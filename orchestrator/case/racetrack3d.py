@@ -67,6 +67,10 @@ class Racetrack:
         f"'{k}': {v}" for k, v in ON_MESH_BREAK.items()))
     break_quality: float = spec(1e-3, unit="-", gt=0.0, lt=1.0, doc="the air mesh counts as broken when its worst "
                                 "tetrahedron's quality falls below this fraction of the fresh mesh's")
+    em_order: int = spec(1, unit="-", ge=1, le=2, doc="edge elements of the EM: 1 (Whitney) or 2 (second order in the "
+                         "coil and the conductors, the air first order; ~6 % / ~12 % more peak force / impulse than "
+                         "order 1 on the design mesh and within ~3 % on a mesh twice as coarse: docs/em_geometries.md, "
+                         "racetrack); order 2 cannot remesh (on_mesh_break 'freeze' or 'stop')")
 
     @property
     def coil_outer(self) -> float:
@@ -85,6 +89,9 @@ class Racetrack:
         if self.on_mesh_break not in ON_MESH_BREAK:
             raise SchemaError(f"{path}.on_mesh_break", f"got {self.on_mesh_break!r}; allowed: "
                               + ", ".join(repr(k) for k in ON_MESH_BREAK))
+        if self.em_order == 2 and self.on_mesh_break == "remesh":
+            raise SchemaError(f"{path}.on_mesh_break", "got 'remesh' with em_order = 2: the remesh carries first-order "
+                              "edge unknowns only; allowed with em_order = 2: 'freeze', 'stop'")
         x0, x1 = self.groove_x
         length = self.half_straight + self.coil_outer
         checks = (

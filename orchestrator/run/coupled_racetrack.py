@@ -92,7 +92,7 @@ class RacetrackOptions:
     getdp answer (s; None: the runner's default) -- a case file sets them (:mod:`.racetrack_case`).
     ``em_order`` 1 or 2 and ``em_order2_air`` (:class:`EM3DModel`'s ``order``, ``order2_air``): the EM
     deck's edge elements (docs/em_geometries.md, racetrack: the figures of order 2); order 2 cannot remesh
-    (``on_mesh_break`` "freeze" or "stop"). Not case-file keys (yet).
+    (``on_mesh_break`` "freeze" or "stop"); a case file sets ``racetrack.em_order`` (with the air first order).
     """
 
     geometry: RacetrackGroove = RACETRACK

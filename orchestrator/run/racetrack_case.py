@@ -63,6 +63,7 @@ def racetrack_options(case: Case) -> RacetrackOptions:
                             em_step=r.em_step, time_scheme=em.time_scheme, t_end=case.time.end,
                             contact_stiffness=c.stiffness, contact_h0=c.h0, friction=c.friction,
                             contact_two_pass=c.two_pass,
+                            em_order=r.em_order, em_order2_air=False,
                             remesh_quality=r.break_quality, cfl=case.time.cfl, on_mesh_break=r.on_mesh_break,
                             sheet_material=solver_material(mats["workpiece"]), die_material=solver_material(mats["die"]),
                             sigma=(mats["workpiece"].electrical_conductivity, mats["die"].electrical_conductivity,
