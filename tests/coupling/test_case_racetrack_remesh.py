@@ -17,16 +17,14 @@ from __future__ import annotations
 
 import csv
 import json
-import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from .resume_check import assert_racetrack_outputs_bitwise
+from .resume_check import assert_racetrack_outputs_bitwise, checkpoint_arrays, sigint_after_em_step
 
 pytestmark = pytest.mark.getdp
 
@@ -45,11 +43,6 @@ ARGS = ["--set", "racetrack.mesh_size_sheet=4e-3", "--set", "racetrack.sheet_lay
 
 def _argv(out: Path, *extra: str) -> list[str]:
     return [sys.executable, HELPER, REMESH_STEPS, "run", CASE, "--out", str(out), "--quiet", *ARGS, *extra]
-
-
-def _checkpoint(out: Path) -> dict[str, np.ndarray]:
-    with np.load(out / "checkpoint.npz") as z:
-        return {k[2:]: z[k] for k in z.files if k.startswith("a/")}
 
 
 @pytest.fixture(scope="module")
@@ -76,7 +69,7 @@ def test_a_run_with_a_remesh_writes_its_checkpoints_and_completes(remeshed_run):
     assert list(h["em_remeshes"]) == [0.0, 0.0, 0.0, 1.0, 2.0] and m["em_remesh_s"] > 0
     assert max(m["conservation_error_rel"], m["sheet_ledger_rel"], m["die_ledger_rel"]) < 1e-12
     # the last checkpoint (4 us) holds the EM mesh of the second remesh: gmsh's file, read back
-    cp = _checkpoint(out)
+    cp = checkpoint_arrays(out)
     points, tets, ids, tags = read_msh22_tets(out / "em" / "getdp" / "remesh_002" / "mesh.msh")
     assert int(cp["load/remesh/count"]) == 2 and int(cp["load/steps"]) == 4
     for name, ref in (("points", points), ("tets", tets), ("tet_ids", ids), ("tet_tags", tags)):
@@ -87,20 +80,9 @@ def test_a_run_with_a_remesh_writes_its_checkpoints_and_completes(remeshed_run):
 
 
 def _stop_after(out: Path, steps: int) -> dict:
-    """Start the run, SIGINT once its checkpoint after EM step ``steps`` exists (the signal lands in the next
-    step, which is completed and checkpointed); returns the stopped run's metrics."""
-    proc = subprocess.Popen(_argv(out), stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-    deadline = time.time() + 300
-    while True:
-        assert proc.poll() is None and time.time() < deadline, proc.stderr.read() if proc.poll() is not None else ""
-        if (out / "checkpoint.npz").exists() and int(_checkpoint(out)["load/steps"]) >= steps:
-            break
-        time.sleep(0.02)
-    proc.send_signal(signal.SIGINT)
-    _, err = proc.communicate(timeout=300)
-    assert proc.returncode == 130, err[-3000:]
-    cut = json.loads((out / "metrics.json").read_text())
-    assert cut["status"] == "interrupted" and cut["end_time_s"] == pytest.approx(1e-6 * (steps + 1), rel=1e-9)
+    """SIGINT once the checkpoint after EM step ``steps`` exists; returns the stopped run's metrics."""
+    cut = sigint_after_em_step(_argv(out), out, steps)
+    assert cut["end_time_s"] == pytest.approx(1e-6 * (steps + 1), rel=1e-9)
     return cut
 
 
@@ -114,7 +96,7 @@ def _resume_equals(out: Path, ref: Path) -> dict:
 def test_sigint_after_the_remesh_then_resume_equals_the_uninterrupted_run(remeshed_run, tmp_path):
     out = tmp_path / "cut"
     _stop_after(out, REMESH_STEP - 1)   # stops after step 3, whose start meshed the air again; the resume remeshes
-    cp = _checkpoint(out)                # before step 4 from the checkpoint's mesh
+    cp = checkpoint_arrays(out)                # before step 4 from the checkpoint's mesh
     assert int(cp["load/steps"]) == REMESH_STEP and int(cp["load/remesh/count"]) == 1
     got = _resume_equals(out, remeshed_run)
     h = _history(out)
@@ -125,7 +107,7 @@ def test_sigint_after_the_remesh_then_resume_equals_the_uninterrupted_run(remesh
 def test_resume_from_before_the_remesh_remeshes_at_the_same_step(remeshed_run, tmp_path):
     out = tmp_path / "cut"
     _stop_after(out, REMESH_STEP - 2)   # stops after step 2: before the remesh
-    cp = _checkpoint(out)
+    cp = checkpoint_arrays(out)
     assert int(cp["load/steps"]) == REMESH_STEP - 1 and "load/remesh/count" not in cp
     _resume_equals(out, remeshed_run)
     assert list(_history(out)["em_remeshes"]) == [0.0, 0.0, 0.0, 1.0, 2.0]

@@ -21,14 +21,14 @@ from __future__ import annotations
 
 import csv
 import json
-import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
 import pytest
+
+from .resume_check import checkpoint_arrays, sigint_after_em_step
 
 pytestmark = pytest.mark.getdp
 
@@ -52,11 +52,6 @@ def _argv(out: Path, steps: str, *extra: str) -> list[str]:
 def _history(out: Path) -> dict[str, np.ndarray]:
     rows = list(csv.DictReader(open(out / "history.csv")))
     return {k: np.array([float(r[k]) for r in rows]) for k in rows[0]}
-
-
-def _checkpoint(out: Path) -> dict[str, np.ndarray]:
-    with np.load(out / "checkpoint.npz") as z:
-        return {k[2:]: z[k] for k in z.files if k.startswith("a/")}
 
 
 @pytest.fixture(scope="module")
@@ -92,25 +87,14 @@ def test_a_remesh_mid_run_changes_the_force_by_a_mesh_to_mesh_amount(runs):
 
 
 def _stop_after(out: Path, steps: int) -> None:
-    """Start the forced run, SIGINT once its checkpoint after EM step ``steps`` exists (the signal lands in a
-    later step, which is completed and checkpointed)."""
-    proc = subprocess.Popen(_argv(out, str(K)), stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-    deadline = time.time() + 300
-    while True:
-        assert proc.poll() is None and time.time() < deadline, proc.stderr.read() if proc.poll() is not None else ""
-        if (out / "checkpoint.npz").exists() and int(_checkpoint(out)["load/steps"]) >= steps:
-            break
-        time.sleep(0.02)
-    proc.send_signal(signal.SIGINT)
-    _, err = proc.communicate(timeout=300)
-    assert proc.returncode == 130, err[-3000:]
-    assert json.loads((out / "metrics.json").read_text())["status"] == "interrupted"
+    """SIGINT the forced run once its checkpoint after EM step ``steps`` exists (stopped as interrupted)."""
+    sigint_after_em_step(_argv(out, str(K)), out, steps)
 
 
 def test_sigint_after_the_remesh_then_resume_equals_the_uninterrupted_run(runs, tmp_path):
     out = tmp_path / "cut"
     _stop_after(out, K)   # the checkpoint at 1 us (step 3, which started with the remesh), then SIGINT
-    cp = _checkpoint(out)
+    cp = checkpoint_arrays(out)
     steps = int(cp["load/steps"])
     assert K <= steps < 6 and int(cp["load/remesh/count"]) == 1
     assert all(f"load/remesh/plane_air/{k}/{a}" in cp for k in (0, 1) for a in ("uv", "tris"))
