@@ -26,12 +26,20 @@ class Box:
     xmax: float = spec(math.inf, unit="m", doc="upper x (or r) bound")
     ymin: float = spec(-math.inf, unit="m", doc="lower y (or z) bound")
     ymax: float = spec(math.inf, unit="m", doc="upper y (or z) bound")
+    zmin: float = spec(-math.inf, unit="m", doc="lower z bound (3D cases)")
+    zmax: float = spec(math.inf, unit="m", doc="upper z bound (3D cases)")
 
     def validate(self, path: str) -> None:
         if not self.xmin <= self.xmax:
             raise SchemaError(f"{path}.xmax", f"got {self.xmax:g}; must be >= xmin = {self.xmin:g} (m)")
         if not self.ymin <= self.ymax:
             raise SchemaError(f"{path}.ymax", f"got {self.ymax:g}; must be >= ymin = {self.ymin:g} (m)")
+        if not self.zmin <= self.zmax:
+            raise SchemaError(f"{path}.zmax", f"got {self.zmax:g}; must be >= zmin = {self.zmin:g} (m)")
+
+    def has_z(self) -> bool:
+        """True if a z bound is set (a 3D box)."""
+        return math.isfinite(self.zmin) or math.isfinite(self.zmax)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -67,14 +75,19 @@ Shape = Rectangle | Polygon | SolidBox | SolidCylinder
 # --------------------------------------------------------------------------- bodies and contact
 @dataclass(frozen=True, kw_only=True)
 class FixedBoundary:
-    """Zero displacement of the chosen components on boundary nodes inside ``where``."""
+    """Zero displacement of the chosen components on boundary nodes inside ``where`` (or, in a 3D geometry
+    file, on the nodes of a physical surface ``group``)."""
 
-    where: Box = spec(doc="box selecting the boundary nodes")
-    components: tuple[int, ...] = spec((0, 1), unit="-", ge=0, le=1, doc="0 = x (r), 1 = y (z)")
+    where: Box | None = spec(None, doc="box selecting the boundary nodes (inclusive)")
+    group: str | None = spec(None, doc="3D geometry files: a physical surface group whose nodes are held")
+    components: tuple[int, ...] = spec((0, 1), unit="-", ge=0, le=2, doc="0 = x (r), 1 = y (z), 2 = z (3D)")
 
     def validate(self, path: str) -> None:
         if not self.components:
-            raise SchemaError(f"{path}.components", "got an empty list; allowed: [0], [1] or [0, 1]")
+            raise SchemaError(f"{path}.components", "got an empty list; allowed: [0], [1] or [0, 1] ([0, 1, 2] in 3D)")
+        if (self.where is None) == (self.group is None):
+            raise SchemaError(f"{path}.where", "give exactly one of where (a box) or group (a physical surface "
+                              "group of a 3D geometry file)")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -97,8 +110,10 @@ class BodyTable:
     material: str = spec(doc="key of a [materials.<name>] table")
     shape: Shape | None = spec(None, doc="own geometry (rectangle or polygon; box or cylinder in 3D); or "
                                                 "give region")
-    region: Literal["workpiece", "die", "outer_tube"] | None = spec(
-        None, doc="the [geometry] conductor region this body is (its EM and mechanical meshes share nodes)")
+    region: str | None = spec(
+        None, doc="the [geometry] conductor region this body is (its EM and mechanical meshes share nodes): "
+                  "'workpiece', 'die', 'outer_tube' of the built-in geometries, a physical volume group of a 3D "
+                  "geometry file")
     mesh_size: float | None = spec(None, unit="m", gt=0.0, doc="target element size (with shape)")
     initial_velocity: Vec = spec((0.0, 0.0), unit="m/s", doc="uniform initial velocity ([vx, vy, vz] in 3D)")
     fixed: tuple[FixedBoundary, ...] = spec((), doc="clamped boundary parts")

@@ -47,6 +47,7 @@ from .history import History
 from .observer import NoObserver
 from .pressure3d import sector_pressure_participants
 from .progress import Progress
+from .participants3d import participants_3d
 from .racetrack_case import racetrack_participants
 from .results import ResultsFolder
 
@@ -96,7 +97,9 @@ class CaseDriver:
         # a coupled 3D case: a sector of a flat_coil_sheet setup (run/coupled3d.py), its sheet's EM fields
         self.sector = case.case.kind == "coupled" and case.mechanics.formulation == "3d"
         self.observer = NoObserver()  # what only a case records (a racetrack's: run/racetrack_case.py)
-        if self.sector and case.racetrack is not None:
+        if self.sector and getattr(case.geometry, "type", None) == "geometry_3d":  # any 3D geometry file
+            self.solver, load, options, _ = participants_3d(case, results.root / "em")
+        elif self.sector and case.racetrack is not None:
             self.solver, load, options, self.observer = racetrack_participants(case, results.root / "em")
         elif self.sector and cp.load == "pressure":  # the same sector driven by [[loads]] (run/pressure3d.py)
             self.solver, load, options = sector_pressure_participants(case, results.root / "em")
