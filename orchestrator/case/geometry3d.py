@@ -103,6 +103,9 @@ class GeometryFile3D:
     shell: str | None = spec(None, doc="shell of the transformation to infinity: a physical volume group between two "
                              "spheres about shell_centre (radii read from the mesh)")
     shell_centre: Vec3 = spec((0.0, 0.0, 0.0), unit="m", doc="centre of the shell's spheres")
+    shell_radii: tuple[float, float] | None = spec(None, unit="m", gt=0.0, doc="[inner, outer] radius of the shell "
+                                                   "(default from the mesh: the outer its largest node radius, the "
+                                                   "inner below its faceted inner face)")
     coils: tuple[CoilGroup3D, ...] = spec(doc="[[geometry.coils]] the coils")
     conductors: tuple[FixedConductor3D, ...] = spec((), doc="[[geometry.conductors]] fixed conductors (no body)")
     symmetry_factor: float | None = spec(None, unit="-", ge=1.0, le=1e6, doc="whole device / modelled part "
@@ -123,6 +126,8 @@ class GeometryFile3D:
             raise SchemaError(f"{path}.file", f"got {self.file!r}; allowed suffixes: {', '.join(ALL_SUFFIXES)}")
         if not self.coils:
             raise SchemaError(f"{path}.coils", "no coil: give at least one [[geometry.coils]] entry")
+        if self.shell_radii is not None and (self.shell is None or self.shell_radii[1] <= self.shell_radii[0]):
+            raise SchemaError(f"{path}.shell_radii", "give an increasing [inner, outer] pair (m), with geometry.shell")
         if self.em_order == 2 and self.on_mesh_break == "remesh":
             raise SchemaError(f"{path}.em_order", "got 2; second-order edge elements cannot remesh (the carry maps "
                               "Whitney edge unknowns only): set geometry.on_mesh_break = 'freeze' or 'stop'")
@@ -215,8 +220,7 @@ def validate_geometry_3d(case) -> None:
             raise SchemaError(f"{key}.region", f"got {b.region!r}; each group may be used by one body only")
         regions.append(b.region)
         if b.rigid:
-            raise SchemaError(f"{key}.rigid", "rigid bodies are not in the 3D geometry path yet (2D only): make it "
-                              "deformable, or a fixed conductor in [[geometry.conductors]]")
+            _check_rigid_3d(case, i, b)
         if case.materials[b.material].electrical_conductivity <= 0.0:
             raise SchemaError(f"materials.{b.material}.electrical_conductivity", "got 0; a body of a 3D geometry "
                               "file is a conductor: give its conductivity (S/m)")
@@ -302,3 +306,22 @@ def resolve_geometry_file(data: dict, file, source: str) -> None:
             where, what = found
             raise CaseError(source, "geometry.file", f"{where}: {what}; refused unless geometry.allow_system_calls = "
                             "true (a .geo is code)")
+
+
+def _check_rigid_3d(case, i: int, b) -> None:
+    """A rigid body of a 3D geometry file: 3-component vectors, translations that keep the model symmetric."""
+    from .parts import allowed_moves_3d
+
+    key = f"bodies[{i}]"
+    for name in ("offset", "gravity", "initial_velocity"):
+        v = getattr(b, name)
+        if v is not None and any(v) and len(v) != 3:
+            raise SchemaError(f"{key}.{name}", f"got {len(v)} components; a 3D case needs [x, y, z]")
+    allowed = allowed_moves_3d(b, case.symmetry)
+    for c in case.rigid_moves(b):
+        if c not in allowed:
+            raise SchemaError(f"{key}.moves", f"got {list(case.rigid_moves(b))}; a translation along {'xyz'[c]} "
+                              f"crosses a [[symmetry]] plane of the body: allowed {list(allowed)}")
+    if not allowed:
+        raise SchemaError(f"{key}.rigid", "the body's [[symmetry]] planes leave it no translation: make it "
+                          "deformable or a fixed conductor")

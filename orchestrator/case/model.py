@@ -368,7 +368,7 @@ class Case:
 
     def rigid_moves(self, b: BodyTable) -> tuple[int, ...]:
         """The free translation components of rigid body ``b`` (see :func:`.parts.rigid_moves`)."""
-        return rigid_moves(b, self.mechanics.formulation)
+        return rigid_moves(b, self.mechanics.formulation, self.symmetry)
 
     def body(self, name: str) -> BodyTable:
         """The body called ``name``."""

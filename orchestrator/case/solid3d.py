@@ -207,6 +207,15 @@ def _validate_2d(case) -> None:
         if len(b.initial_velocity) != 2:
             raise SchemaError(f"bodies[{i}].initial_velocity", f"got 3 components, a 3D vector; with "
                               f"mechanics.formulation = {f!r} give [vx, vy] (m/s)")
+        for name in ("offset", "gravity"):
+            v = getattr(b, name)
+            if v is not None and len(v) != 2:
+                raise SchemaError(f"bodies[{i}].{name}", f"got {len(v)} components, a 3D vector; with "
+                                  f"mechanics.formulation = {f!r} give [x, y]")
+        for name, values in (("moves", b.moves or ()), ("stops", [st.component for st in b.stops])):
+            if any(c > 1 for c in values):
+                raise SchemaError(f"bodies[{i}].{name}", f"component 2 (z) is 3D only; with mechanics.formulation = "
+                                  f"{f!r} allowed: 0 (x or r), 1 (y or z)")
         for j, fx in enumerate(b.fixed):
             key = f"bodies[{i}].fixed[{j}]"
             if fx.group is not None:

@@ -131,6 +131,11 @@ class GetDPLoad3D(LoadCapabilities):
         self.tags = np.array([b.tag for b in self.bodies])
         if len(self.bodies) > 1:
             self.columns = LOAD_COLUMNS_3D + tuple(f"{b.name}_{k}" for b in self.bodies for k in BODY_COLUMNS_3D)
+        #: with several coils each has its current and Joule power column (``<name>_current_A``, ...)
+        self.coil_names = [c.name or f"coil_{k}" for k, c in enumerate(model.coils, start=1)] \
+            if len(model.coils) > 1 else []
+        self.columns = tuple(self.columns) + tuple(f"{n}_{q}" for n in self.coil_names
+                                                   for q in ("current_A", "joule_power_W"))
         self.min_quality = float(mover.q_ref.min())
         self._moved: tuple[float, np.ndarray] | None = None
         self._runs: list[Path] = []
@@ -198,7 +203,7 @@ class GetDPLoad3D(LoadCapabilities):
         fz = float(result.conductor_force[-1, i0, 2])
         current = float(result.coil_current[-1, 0])
         self.impulse_device += s * float(integral[2]) * (t1 - t0)
-        self.coil_heat += s * float(result.coil_power[-1, 0]) * (t1 - t0)
+        self.coil_heat += s * float(result.coil_power[-1].sum()) * (t1 - t0)   # every coil's
         values = {"coil_current_A": current, "coil_current_abs_max_A": abs(current),
                   "capacitor_voltage_V": float(result.capacitor_voltage[-1]) if result.capacitor_voltage is not None else 0.0,
                   "coil_joule_heat_J": self.coil_heat,
@@ -206,6 +211,9 @@ class GetDPLoad3D(LoadCapabilities):
                   "workpiece_joule_power_W": float(result.conductor_power[-1, i0]),
                   "getdp_force_z_N": fz, "device_force_z_N": s * fz, "device_impulse_z_Ns": self.impulse_device,
                   "em_mesh_min_quality": float(self.mover.last_min_quality), **per_body}
+        for k, name in enumerate(self.coil_names):   # several coils: each one's current and power (whole device)
+            values[f"{name}_current_A"] = float(result.coil_current[-1, k])
+            values[f"{name}_joule_power_W"] = s * float(result.coil_power[-1, k])
         self.last = (x_em, result)   # the moved nodes and GetDP's result of the last step
         self.last_snapshot = self._sheet_snapshot(t1, current, x_em, result)
         if abs(current) > self.peak_current:

@@ -265,6 +265,24 @@ def triangle_area(points: np.ndarray, tris: np.ndarray) -> float:
     return float(0.5 * np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1).sum())
 
 
+def shell_radii(x: np.ndarray, tets: np.ndarray, tet_tags: np.ndarray, centre) -> tuple[float, float]:
+    """(R_int, R_ext) (m) of the shell region about ``centre`` as the mesh has it: R_ext the largest node
+    radius, R_int the smallest distance from the centre to the planes of the shell's inner faces (their chords
+    of the inner sphere lie inside it: every point of the shell's tetrahedra, GetDP's integration points
+    among them, then has a radius within [R_int, R_ext])."""
+    c = np.asarray(centre, float)
+    rows = np.flatnonzero(tet_tags == SHELL)
+    r = np.linalg.norm(x[np.unique(tets[rows])] - c, axis=1)
+    faces = boundary_faces(tets, rows)
+    inner = faces[np.isin(faces, tets[tet_tags != SHELL]).all(axis=1)]
+    if not len(inner):
+        return float(r.min()), float(r.max())
+    p = x[inner]
+    nrm = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    d = np.abs(np.einsum("ij,ij->i", nrm, p[:, 0] - c)) / np.linalg.norm(nrm, axis=1)
+    return float(min(d.min(), r.min())), float(r.max())
+
+
 def map_roles(raw: RawGroups, g, bodies: Sequence[tuple[str, str]], planes: Sequence[PlaneSpec], out: Path,
               symmetry_factor: float, label: str, max_cells: float | None = None) -> Geometry3D:
     """The deck's mesh of ``raw`` (module docstring, 3.), written to ``out`` (MSH 2.2).
@@ -364,8 +382,7 @@ def map_roles(raw: RawGroups, g, bodies: Sequence[tuple[str, str]], planes: Sequ
     surface_nodes = {name: np.unique(t) for name, t in surfs.items()}
     shell = None
     if g.shell is not None:
-        r = np.linalg.norm(x[np.unique(tets[tet_tags == SHELL])] - np.asarray(g.shell_centre, float), axis=1)
-        shell = (float(r.min()), float(r.max()))
+        shell = g.shell_radii if g.shell_radii is not None else shell_radii(x, tets, tet_tags, g.shell_centre)
         if not shell[1] > shell[0] * (1 + 1e-6):
             raise GeometryError(f"{label}: geometry.shell: the group {g.shell!r} is not a layer between two spheres "
                                 f"about geometry.shell_centre = {list(g.shell_centre)}")
@@ -377,7 +394,7 @@ def map_roles(raw: RawGroups, g, bodies: Sequence[tuple[str, str]], planes: Sequ
     ids = write_msh22_3d(out, x, tets, tet_tags, tris, np.concatenate(tag_parts))
     mesh = Mesh3D(points=x.copy(), tets=tets, tet_ids=ids, tet_tags=tet_tags, path=out,
                   sector_deg=360.0 / symmetry_factor, electrode_area=electrode_area or None)
-    log.info("3D geometry %s: %d tetrahedra, %d nodes; coils %s, conductors %s", label, mesh.n_tets, mesh.n_nodes,
+    log.debug("3D geometry %s: %d tetrahedra, %d nodes; coils %s, conductors %s", label, mesh.n_tets, mesh.n_nodes,
              coils, conductors)
     return Geometry3D(mesh=mesh, conductors=conductors, coils=coils, surface_nodes=surface_nodes, shell=shell,
                       planes=list(planes), groups=raw.listing(), coil_sections=sections)

@@ -98,7 +98,7 @@ class CaseDriver:
         self.sector = case.case.kind == "coupled" and case.mechanics.formulation == "3d"
         self.observer = NoObserver()  # what only a case records (a racetrack's: run/racetrack_case.py)
         if self.sector and getattr(case.geometry, "type", None) == "geometry_3d":  # any 3D geometry file
-            self.solver, load, options, _ = participants_3d(case, results.root / "em")
+            self.solver, self.rigid, load, options, _ = participants_3d(case, results.root / "em")
         elif self.sector and case.racetrack is not None:
             self.solver, load, options, self.observer = racetrack_participants(case, results.root / "em")
         elif self.sector and cp.load == "pressure":  # the same sector driven by [[loads]] (run/pressure3d.py)

@@ -32,7 +32,9 @@ from ..em.frozen3d import FreezingGetDPLoad3D
 from ..em.model3d import em_model3d
 from ..em.participant3d import ConductorBody3D
 from ..em.remesh3d import RemeshingGetDPLoad3D
+from ..mech.mixed import rigid_bodies
 from ..mech.model import solver_material
+from ..mech.rigid import RigidMechanics
 from ..mech.model3d import plane_marker
 from ..mesh.geometry3d import Geometry3D, PlaneSpec, boundary_faces, build_geometry3d
 from ..mesh.motion3d import MeshMover3D, nodes_on_plane
@@ -85,32 +87,40 @@ def air_mover3d(mesh: Mesh3D, planes: list[PlaneSpec], tol: float) -> MeshMover3
 
 
 def participants_3d(case: Case, work: Path):
-    """(3D solver, 3D GetDP load, loop options, :class:`Geometry3D`) of a coupled 3D geometry-file case; the
-    mesh and the getdp runs in ``work`` (the results folder's ``em/``)."""
+    """(3D solver or None, rigid bodies' mechanics or None, 3D GetDP load, loop options, :class:`Geometry3D`) of a
+    coupled 3D geometry-file case; the mesh and the getdp runs in ``work`` (the results folder's ``em/``)."""
     g = case.geometry
     work = Path(work).resolve()
     geo = build_geometry3d(case, work)
     mesh = geo.mesh
     model = em_model3d(case, geo)
     tol = 1e-9 * float(np.abs(mesh.points).max())
-    specs, subs = [], []
+    specs, subs = [], {}
     for k, b in enumerate(case.bodies, start=1):
-        sub = conductor_submesh3d(mesh, conductor_tag(k))
+        sub = subs[b.region] = conductor_submesh3d(mesh, conductor_tag(k))
+        if b.rigid:
+            continue
         held, sliding = _supports(case, b.name, b.fixed, geo, tol)
         v0 = tuple(b.initial_velocity) if len(b.initial_velocity) == 3 else (0.0, 0.0, 0.0)
         specs.append(mech.BodySpec(name=b.name, mesh=to_dolfinx3d(sub, MPI.COMM_SELF),
                                    material=solver_material(case.materials[b.material]), initial_velocity=v0,
                                    fixed=held, sliding=sliding))
-        subs.append(sub)
     pairs = tuple(mech.ContactPairSpec(slave=c.slave, master=c.master, stiffness=c.stiffness, h0=c.h0,
                                        friction=c.friction, viscosity=c.viscosity, two_pass=c.two_pass)
                   for c in case.contact)
     mo = case.mechanics
     solver = ExplicitSolver3D(specs, contact_pairs=pairs, cfl=case.time.cfl, bulk_viscosity=mo.bulk_viscosity,
                               bulk_linear=mo.bulk_viscosity_linear, bulk_quadratic=mo.bulk_viscosity_quadratic,
-                              comm=MPI.COMM_SELF)
-    bodies = [ConductorBody3D(b.name, conductor_tag(k), sub, match_nodes3d(solver.bodies[b.name].X0, mesh.points, tol))
-              for k, (b, sub) in enumerate(zip(case.bodies, subs), start=1)]
+                              comm=MPI.COMM_SELF) if specs else None
+    dt_mech = solver.stable_time_step() if solver is not None else rigid_step_3d(case)
+    rigid = None
+    if any(b.rigid for b in case.bodies):
+        rigid = RigidMechanics(rigid_bodies(case, subs), dt_mech)
+    bodies = []
+    for k, b in enumerate(case.bodies, start=1):
+        sub = subs[b.region]
+        nodes = sub.em_nodes if b.rigid else match_nodes3d(solver.bodies[b.name].X0, mesh.points, tol)
+        bodies.append(ConductorBody3D(b.name, conductor_tag(k), sub, nodes))
     planes = geo.planes
     mover = air_mover3d(mesh, planes, tol)
     mover.min_quality = g.break_quality * float(mover.q_ref.min())
@@ -121,17 +131,26 @@ def participants_3d(case: Case, work: Path):
                                     planes=[(p.point, p.normal) for p in planes], **kw)
     else:
         load = FreezingGetDPLoad3D(*args, freeze=g.on_mesh_break == "freeze", **kw)
-    options = loop_options_3d(case, solver.stable_time_step())
+    options = loop_options_3d(case, dt_mech if solver is not None else None)
     log.info("3D geometry: %d EM tets, bodies %s, mechanical step %.3g s, n = %d", mesh.n_tets,
-             {b.name: len(solver.bodies[b.name].cells) for b in case.bodies}, solver.stable_time_step(), options.n)
-    return solver, load, options, geo
+             {b.name: len(subs[b.region].cells) for b in case.bodies}, dt_mech, options.n)
+    return solver, rigid, load, options, geo
 
 
-def loop_options_3d(case: Case, dt_mech: float) -> LoopOptions:
+def rigid_step_3d(case: Case) -> float:
+    """The mechanical step (s) of a 3D case whose bodies are all rigid: geometry.em_step / coupling.n, capped
+    by time.dt_max (which alone sets it without an EM step)."""
+    em_step = case.geometry.em_step
+    dt = em_step / case.coupling.n if em_step is not None else case.time.dt_max
+    return dt if case.time.dt_max is None else min(dt, case.time.dt_max)
+
+
+def loop_options_3d(case: Case, dt_mech: float | None) -> LoopOptions:
     """The loop's options: ``[coupling]``'s, with n = round(geometry.em_step / ``dt_mech``) when the EM step
-    is given (then n_min 1 and n_max n unless adaptive)."""
+    is given (then n_min 1 and n_max n unless adaptive); ``dt_mech`` None (rigid bodies only: their step is
+    already em_step / n) keeps coupling.n."""
     cp, em_step = case.coupling, case.geometry.em_step
-    if em_step is None:
+    if em_step is None or dt_mech is None:
         return LoopOptions.from_coupling(cp)
     n = max(1, round(em_step / dt_mech))
     if cp.adaptive:

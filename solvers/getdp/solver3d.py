@@ -50,7 +50,8 @@ class Coil3D:
     or ``"deck"`` (the case deck defines ``CoilDir[Coil~{k}]``). ``section``: conductor cross-section
     of all turns (m^2); None: from the mesh -- azimuthal: sum over the coil's tetrahedra of
     V / (r alpha) (the ring's meridian section, alpha the sector angle); electrokinetic: the area of
-    the electrode where the current enters (``Mesh3D.electrode_area``). ``waveform`` without a circuit (A); ``sign`` +1 or -1.
+    the electrode where the current enters (``Mesh3D.electrode_area``). ``waveform`` without a circuit (A); ``sign`` +1 or -1;
+    ``name`` names its history columns when a model has several coils.
     """
 
     turns: int
@@ -60,6 +61,7 @@ class Coil3D:
     direction: str = "azimuthal"
     axis: tuple[float, float] = (0.0, 0.0)
     section: float | None = None
+    name: str = ""
 
     def __post_init__(self) -> None:
         if self.sign not in (1, -1):
