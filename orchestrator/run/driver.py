@@ -42,7 +42,7 @@ from .coupled3d import sector_participants
 from .em_fields import EMFieldWriter, write_peak_snapshot
 from .em_fields3d import FOLDER as EM3D_FOLDER
 from .em_fields3d import STEM as EM3D_STEM
-from .extremes3d import body_extremes_3d
+from .extremes3d import body_extremes_3d, contact_columns_3d, contact_metrics_3d
 from .history import History
 from .observer import NoObserver
 from .pressure3d import sector_pressure_participants
@@ -142,6 +142,8 @@ class CaseDriver:
         if s is not None:
             row.update(probe_mod.sample(s, self.probes, self.comm))
             row.update(body_extremes(s, self.comm))
+            if s.formulation == "3d" and s.contact_pairs:
+                row.update(contact_columns_3d(s))
         if self.rigid is not None:
             row.update(self.rigid.history())
         for a in self.analyses:
@@ -319,6 +321,8 @@ class CaseDriver:
             metrics["force_impulse_Ns"] = float(np.linalg.norm(c.impulse))
             metrics["force_impulse_z_Ns"] = float(c.impulse[1])
         metrics.update(mech_metrics(self.solver, case, self.history, self.energies()))
+        if self.solver is not None and self.solver.formulation == "3d" and self.solver.contact_pairs:
+            metrics.update(contact_metrics_3d(self.solver, self.history))
         metrics.update(self.load.run_metrics(self.history, c))  # a 3D sector's: the device's figures
         metrics.update(self.observer.metrics(self.history, c))
         if self.rigid is not None:
