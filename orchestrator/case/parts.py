@@ -28,6 +28,9 @@ class Box:
     ymax: float = spec(math.inf, unit="m", doc="upper y (or z) bound")
     zmin: float = spec(-math.inf, unit="m", doc="lower z bound (3D cases)")
     zmax: float = spec(math.inf, unit="m", doc="upper z bound (3D cases)")
+    rmin: float = spec(0.0, unit="m", ge=0.0, doc="3D cases: lower bound of the distance sqrt(x² + y²) from the "
+                                                  "z-axis (a cylindrical shell selects a sector's rim)")
+    rmax: float = spec(math.inf, unit="m", gt=0.0, doc="3D cases: upper bound of the distance from the z-axis")
 
     def validate(self, path: str) -> None:
         if not self.xmin <= self.xmax:
@@ -36,10 +39,12 @@ class Box:
             raise SchemaError(f"{path}.ymax", f"got {self.ymax:g}; must be >= ymin = {self.ymin:g} (m)")
         if not self.zmin <= self.zmax:
             raise SchemaError(f"{path}.zmax", f"got {self.zmax:g}; must be >= zmin = {self.zmin:g} (m)")
+        if not self.rmin <= self.rmax:
+            raise SchemaError(f"{path}.rmax", f"got {self.rmax:g}; must be >= rmin = {self.rmin:g} (m)")
 
     def has_z(self) -> bool:
-        """True if a z bound is set (a 3D box)."""
-        return math.isfinite(self.zmin) or math.isfinite(self.zmax)
+        """True if a bound of 3D cases is set (z, or the distance from the z-axis)."""
+        return math.isfinite(self.zmin) or math.isfinite(self.zmax) or self.rmin > 0.0 or math.isfinite(self.rmax)
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -223,7 +223,7 @@ def _validate_2d(case) -> None:
                                   "give where (a box)")
             if fx.where.has_z():
                 raise SchemaError(f"{key}.where.zmin", f"a 3D bound; with mechanics.formulation = {f!r} the box "
-                                  "selects by x and y only: remove zmin/zmax")
+                                  "selects by x and y only: remove zmin/zmax/rmin/rmax")
             if max(fx.components) > 1:
                 raise SchemaError(f"{key}.components", f"got {list(fx.components)}; with mechanics.formulation = "
                                   f"{f!r} allowed: [0], [1] or [0, 1]")

@@ -34,6 +34,7 @@ from ..em.participant3d import ConductorBody3D
 from ..em.remesh3d import RemeshingGetDPLoad3D
 from ..mech.mixed import rigid_bodies
 from ..mech.model import solver_material
+from ..mech.pulses import box_marker
 from ..mech.rigid import RigidMechanics
 from ..mech.model3d import plane_marker
 from ..mesh.geometry3d import Geometry3D, PlaneSpec, boundary_faces, build_geometry3d
@@ -41,13 +42,6 @@ from ..mesh.motion3d import MeshMover3D, nodes_on_plane
 from ..mesh.shared3d import conductor_submesh3d, match_nodes3d, to_dolfinx3d
 
 log = logging.getLogger(__name__)
-
-
-def box_marker3d(where, tol: float) -> Callable[[np.ndarray], np.ndarray]:
-    """Marker of the nodes inside a case-file box (inclusive, widened by ``tol`` m; x given as (3, N))."""
-    lo = np.array([where.xmin, where.ymin, where.zmin], float)[:, None] - tol
-    hi = np.array([where.xmax, where.ymax, where.zmax], float)[:, None] + tol
-    return lambda x: np.all((x >= lo) & (x <= hi), axis=0)
 
 
 def points_marker(points: np.ndarray, tol: float) -> Callable[[np.ndarray], np.ndarray]:
@@ -64,7 +58,7 @@ def _supports(case: Case, name: str, fixed, geo: Geometry3D, tol: float) -> tupl
     held = tuple((plane_marker(s, tol), (s.component(),)) for s in own) if aligned else ()
     sliding = () if aligned else tuple((plane_marker(s, tol), tuple(s.normal)) for s in own)
     for f in fixed:
-        marker = box_marker3d(f.where, tol) if f.where is not None else \
+        marker = box_marker(f.where, tol) if f.where is not None else \
             points_marker(geo.mesh.points[geo.surface_nodes[f.group]], tol)
         held += ((marker, tuple(f.components)),)
     return held, sliding

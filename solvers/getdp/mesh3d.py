@@ -153,6 +153,7 @@ def ring_sector_mesh(
     fine_box: tuple[tuple[float, float, float, float, float, float], float] | None = None,
     z_cut: float | None = None,
     racetrack: float = 0.0,
+    conductor_names: Sequence[str] = (),
 ) -> Mesh3D:
     """Tetrahedral mesh of a sector of ring turns (one coil) and conductor rings/disks about the z-axis.
 
@@ -166,6 +167,7 @@ def ring_sector_mesh(
     h_coil, h_conductor, h_air : element sizes (m) in the turns, the conductors, at the sphere.
     h_centre : element size at the origin (m), growing by ``grading`` per metre of distance (the
         region where the centre field is probed); None: no local refinement.
+    conductor_names : names of the conductors' physical groups (:func:`group_name`; default "conductor_k").
     """
     if not 0 < sector_deg <= 180:
         raise ValueError("sector_deg must be in (0, 180]")
@@ -301,7 +303,7 @@ def ring_sector_mesh(
             fmin = model.mesh.field.add("Min")
             model.mesh.field.setNumbers(fmin, "FieldsList", fields)
             model.mesh.field.setAsBackgroundMesh(fmin)
-        name_groups(gmsh)
+        name_groups(gmsh, conductor_names)
         generate_tets(gmsh, path)
     mesh = read_mesh3d(path, float(sector_deg), electrode_area)
     logger.info("3D mesh %s: %d tetrahedra, %d nodes", path.name, mesh.n_tets, mesh.n_nodes)
