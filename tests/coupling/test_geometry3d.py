@@ -1,0 +1,316 @@
+"""A coupled 3D case from a geometry file written by hand, the way a user writes one (issue 29):
+``tests/coupling/data/two_coils_plate.geo`` -- two half-ring coils on their own sources under an aluminium plate
+held at its ends (a deformable body on a surface group), a copper slug above it (a rigid body), air and a
+shell, half model y >= 0 -- meshed by the runner, its named groups mapped by the case's role map, run through
+``pulseform run`` with coupling.n = 3; and every bad input of the role map: one line, exit 2.
+
+References: (1) the terminals' area is the coil's section (turns' cross-section (r1 - r0) hc, exact for plane
+faces); (2) the coils carry their sources' prescribed currents (GetDP's tables, 10 digits); (3) the force
+ledgers (Σ nodal forces vs Σ f V) are exact by construction: round-off; (4) the plate's held nodes do not move;
+(5) Newton on the rigid slug: m v = the impulse of its held Lorentz forces (central differences with a held
+force are exact; the first step is a half step); (6) the energy ledger of the explicit solver.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import meshio
+import numpy as np
+import pytest
+
+from pulseform.orchestrator.cli import main
+
+from .bad_input import one_line_refusal
+
+DATA = Path(__file__).resolve().parent / "data"
+GEO = "two_coils_plate.geo"
+#: sources of the test case (A, Hz, rad): coil a on sa, coil b on sb wound the other way
+SA, SB = (5e3, 20e3, 0.0), (8e3, 30e3, 0.5)
+
+CASE = f'''
+[case]
+name = "two_coils_plate_3d"
+kind = "coupled"
+
+[time]
+end = 0.4e-6
+
+[mechanics]
+formulation = "3d"
+
+[materials.al]
+density = 2700.0
+shear_modulus = 26.3e9
+bulk_modulus = 68.6e9
+yield_stress = 100e6
+hardening_modulus = 500e6
+electrical_conductivity = 2.5e7
+
+[materials.cu]
+density = 8960.0
+shear_modulus = 48e9
+bulk_modulus = 140e9
+yield_stress = 200e6
+electrical_conductivity = 5.8e7
+
+[[bodies]]
+name = "plate"
+material = "al"
+region = "plate"
+fixed = [{{ group = "plate_ends", components = [0, 1, 2] }}]
+
+[[bodies]]
+name = "slug"
+material = "cu"
+region = "slug"
+rigid = true
+
+[geometry]
+type = "geometry_3d"
+file = "{GEO}"
+air = "air"
+shell = "shell"
+mesh_sizes = {{ coil_a = 3e-3, coil_b = 3e-3, plate = 3e-3, slug = 3e-3 }}
+
+[[geometry.coils]]
+name = "a"
+group = "coil_a"
+turns = 4
+terminals = ["a_in", "a_out"]
+
+[[geometry.coils]]
+name = "b"
+group = "coil_b"
+turns = 2
+terminals = ["b_in", "b_out"]
+
+[[symmetry]]
+normal = [0.0, 1.0, 0.0]
+
+[coupling]
+n = 3
+
+[em]
+time_scheme = "bdf2"
+
+[[em.sources]]
+name = "sa"
+type = "sine"
+amplitude = {SA[0]}
+frequency = {SA[1]}
+
+[[em.sources]]
+name = "sb"
+type = "sine"
+amplitude = {SB[0]}
+frequency = {SB[1]}
+phase = {SB[2]}
+
+[[em.coils]]
+name = "a"
+source = "sa"
+
+[[em.coils]]
+name = "b"
+source = "sb"
+sign = -1
+
+[output]
+field_interval = 0.2e-6
+plots = false
+'''
+
+
+@pytest.fixture(scope="module")
+def case_dir(tmp_path_factory) -> Path:
+    d = tmp_path_factory.mktemp("geometry3d") / "case"
+    d.mkdir()
+    shutil.copy(DATA / GEO, d / GEO)
+    (d / "case.toml").write_text(CASE)
+    return d
+
+
+@pytest.fixture(scope="module")
+def geometry(case_dir, tmp_path_factory):
+    from pulseform.orchestrator.case.io import load_case
+    from pulseform.orchestrator.mesh.geometry3d import build_geometry3d
+
+    case, _ = load_case(case_dir)
+    return case, build_geometry3d(case, tmp_path_factory.mktemp("mesh"))
+
+
+def test_the_role_map_gives_the_decks_ids(geometry):
+    from pulseform.orchestrator.em.model3d import em_model3d
+    from pulseform.orchestrator.mesh.remesh3d import read_msh22_triangles
+    from pulseform.solvers.getdp.mesh import AIR, OUTER, SHELL
+    from pulseform.solvers.getdp.mesh3d import SYM_A
+
+    case, geo = geometry
+    m = geo.mesh
+    assert geo.coils == {"a": 1, "b": 2} and geo.conductors == {"plate": 1, "slug": 2}
+    assert set(np.unique(m.tet_tags)) == {AIR, SHELL, 101, 102, 201, 202}
+    assert m.sector_deg == 180.0   # one symmetry plane: the device is twice the model
+    section = (0.010 - 0.006) * 0.003   # (r1 - r0) hc of the .geo
+    assert geo.coil_sections[1] == pytest.approx(section, rel=1e-12)
+    assert geo.coil_sections[2] == pytest.approx(section, rel=1e-12)
+    tris, tags = read_msh22_triangles(m.path)
+    x = m.points
+    on_plane = tris[tags == SYM_A]
+    assert len(on_plane) and np.abs(x[on_plane][..., 1]).max() < 1e-12
+    outer = np.linalg.norm(x[tris[tags == OUTER]], axis=2)
+    assert outer.min() > 0.059   # the shell's outer sphere only
+    for k in (1, 2):   # terminals on y = 0, skins of both conductors
+        assert np.abs(x[tris[tags == 500 + k]][..., 1]).max() < 1e-12 and (tags == 600 + k).any()
+        assert (tags == 400 + k).any()
+    r_int, r_ext = geo.shell
+    assert 0.045 < r_int <= 0.05 and r_ext == pytest.approx(0.06, rel=1e-9)
+    model = em_model3d(case, geo)
+    assert [c.direction for c in model.coils] == ["electrokinetic"] * 2 and [c.sign for c in model.coils] == [1, -1]
+    assert model.circuit is None and model.symmetry_factor == 2.0
+    assert [c.waveform.omega for c in model.coils] == pytest.approx([2 * np.pi * SA[1], 2 * np.pi * SB[1]])
+
+
+@pytest.fixture(scope="module")
+def run(case_dir, tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("geometry3d_run") / "run"
+    assert main(["run", str(case_dir), "--out", str(out), "--quiet"]) == 0
+    return out
+
+
+@pytest.mark.getdp
+def test_a_users_geometry_runs_coupled_with_two_coils_a_rigid_and_a_deformable_body(run):
+    m = json.loads((run / "metrics.json").read_text())
+    h = np.genfromtxt(run / "history.csv", delimiter=",", names=True)
+    t = h["time_s"][1:]
+    assert m["status"] == "ok" and m["n_final"] == 3 and m["em_steps"] >= 20
+    # (2) each coil carries its own source's current
+    ia = SA[0] * np.sin(2 * np.pi * SA[1] * t)
+    ib = -SB[0] * np.sin(2 * np.pi * SB[1] * t + SB[2])
+    err = (np.abs(h["a_current_A"][1:] - ia).max() / SA[0], np.abs(h["b_current_A"][1:] - ib).max() / SB[0])
+    # (3) ledgers
+    ledgers = (m["conservation_error_rel"], m["plate_ledger_rel"], m["slug_ledger_rel"])
+    # (5) Newton on the slug (free along x and z: the plane y = 0 holds y), half model: the device's impulse / 2.
+    # Central differences integrate the held forces by the trapezoid rule on the mechanical steps dt (the first
+    # step is a half step, the velocity now adds half a step of the current force): m v = J + dt/2 (F_last - F_1)
+    mass, j = m["slug_mass_kg"], m["slug_impulse_z_Ns"] / 2
+    f, dt = h["slug_force_z_N"], h["dt_s"]
+    expected = j + 0.5 * dt[-1] * f[-1] - 0.5 * dt[1] * f[1]
+    newton = [abs(mass * h["slug_velocity_z_m_s"][-1] - expected) / abs(j)]
+    print(f"\ncurrents vs sources {err[0]:.1e} / {err[1]:.1e}; ledgers {max(ledgers):.1e}; slug m v vs impulse "
+          f"{newton[0]:.1e}; energy balance {m['energy_error_rel']:.1e}; plate max |u_z| {m['plate_max_uz_mm']:.3g} mm")
+    assert max(err) < 1e-8
+    assert max(ledgers) < 1e-12
+    assert "slug_position_y_m" not in h.dtype.names and "slug_position_x_m" in h.dtype.names
+    assert newton[0] < 1e-8
+    assert m["energy_error_rel"] < 1e-6
+    # (4) the plate's ends (the surface group plate_ends) are held; the rest moves
+    with meshio.xdmf.TimeSeriesReader(run / "fields" / "two_coils_plate_3d_plate.xdmf") as reader:
+        points, _ = reader.read_points_cells()
+        _, data, _ = reader.read_data(reader.num_steps - 1)
+    u = np.asarray(data["displacement_m"])
+    ends = np.abs(np.abs(points[:, 0]) - 0.03) < 1e-12
+    assert ends.any() and np.abs(u[ends]).max() == 0.0 and np.abs(u[~ends]).max() > 0.0
+
+
+def _check(capsys, case_dir: Path, sets: list[str], says: str) -> str:
+    return one_line_refusal(capsys, str(case_dir), sets, says)
+
+
+BAD = [
+    (["geometry.air=\"airr\""], "geometry.air: got 'airr', not a physical volume group of the mesh; its groups: volumes"),
+    (["bodies.plate.region=\"coil_a\""], "already geometry.coils[0].group"),
+    (["bodies.slug.region=\"nothing\""], "bodies[1].region: got 'nothing'"),
+    (["geometry.coils=[{name=\"a\", group=\"coil_a\", turns=4}, {name=\"b\", group=\"coil_b\", turns=2, "
+      "terminals=[\"b_in\", \"b_out\"]}]"], "give exactly one current path"),
+    (["geometry.coils=[{name=\"a\", group=\"coil_a\", turns=4, terminals=[\"b_in\", \"a_out\"]}, {name=\"b\", "
+      "group=\"coil_b\", turns=2, terminals=[\"a_in\", \"b_out\"]}]"], "is not on the boundary of the coil's volume"),
+    (["bodies.slug.material=\"steel\""], "bodies[1].material"),
+    (["materials.cu.electrical_conductivity=0.0"], "materials.cu.electrical_conductivity"),
+    (["limits.max_cells=1000"], "limits.max_cells: the mesh has"),
+    (["geometry.file=\"missing.geo\""], "geometry.file"),
+    (["bodies.plate.fixed=[{group=\"no_such_face\"}]"], "bodies[0].fixed[0].group: got 'no_such_face'"),
+    (["geometry.mesh_sizes={plat=1e-3}"], "geometry.mesh_sizes"),
+    (["bodies.slug.moves=[1]"], "bodies[1].moves"),
+    (["em.coils=[{name=\"a\", source=\"sa\"}, {name=\"c\", source=\"sb\"}]"], "em.coils[1].name"),
+    (["geometry.em_order=2"], "geometry.em_order"),
+]
+
+
+@pytest.mark.parametrize("sets,says", BAD, ids=[f"{s[0].split('=')[0]}[{i}]" for i, (s, _) in enumerate(BAD)])
+def test_bad_input_of_a_geometry_file(capsys, case_dir, sets, says):
+    print(_check(capsys, case_dir, sets, says))
+
+
+def test_a_cad_file_gmsh_cannot_read_and_a_builder_without_permission(capsys, case_dir, tmp_path):
+    d = tmp_path / "case"
+    shutil.copytree(case_dir, d)
+    (d / "broken.step").write_text("ISO-10303-21;\nthis is not a STEP file\n")
+    print(_check(capsys, d, ["geometry.file=\"broken.step\""], "broken.step: geometry.file: gmsh failed"))
+    (d / "builder.py").write_text("raise SystemExit(3)\n")
+    print(_check(capsys, d, ["geometry.file=\"builder.py\""], "allow_system_calls"))
+
+
+def test_a_conductor_touching_the_outer_boundary_is_refused(capsys, tmp_path):
+    d = tmp_path / "case"
+    d.mkdir()
+    (d / "touch.geo").write_text('''SetFactory("OpenCASCADE");
+Box(1) = {0, 0, 0, 0.1, 0.1, 0.1};
+Box(2) = {0, 0.04, 0.04, 0.02, 0.02, 0.02};
+Box(3) = {0.05, 0.04, 0.04, 0.02, 0.02, 0.02};
+BooleanFragments{ Volume{1}; Delete; }{ Volume{2, 3}; Delete; }
+Physical Volume("plate") = Volume In BoundingBox{-1e-6, 0.04 - 1e-6, 0.04 - 1e-6, 0.02 + 1e-6, 0.06 + 1e-6, 0.06 + 1e-6};
+Physical Volume("coil") = Volume In BoundingBox{0.05 - 1e-6, 0.04 - 1e-6, 0.04 - 1e-6, 0.07 + 1e-6, 0.06 + 1e-6, 0.06 + 1e-6};
+Physical Volume("air") = {1};
+Physical Surface("c_in") = Surface In BoundingBox{0.05 - 1e-6, 0.04 - 1e-6, 0.04 - 1e-6, 0.05 + 1e-6, 0.06 + 1e-6, 0.06 + 1e-6};
+Physical Surface("c_out") = Surface In BoundingBox{0.07 - 1e-6, 0.04 - 1e-6, 0.04 - 1e-6, 0.07 + 1e-6, 0.06 + 1e-6, 0.06 + 1e-6};
+MeshSize{ PointsOf{ Volume{:}; } } = 0.02;
+''')
+    text = CASE.replace(f'file = "{GEO}"', 'file = "touch.geo"').replace('shell = "shell"\n', "")
+    text = text.replace("mesh_sizes = { coil_a = 3e-3, coil_b = 3e-3, plate = 3e-3, slug = 3e-3 }\n", "")
+    text = text.replace('''[[bodies]]
+name = "slug"
+material = "cu"
+region = "slug"
+rigid = true
+''', "").replace('fixed = [{ group = "plate_ends", components = [0, 1, 2] }]\n', "")
+    head, _, rest = text.partition("[[geometry.coils]]")
+    text = head + '''[[geometry.coils]]
+name = "a"
+group = "coil"
+turns = 1
+terminals = ["c_in", "c_out"]
+
+[[symmetry]]
+normal = [0.0, 1.0, 0.0]
+
+[em]
+time_scheme = "bdf2"
+current = { amplitude = 1e3, beta = 0.0, omega = 1e5 }
+'''
+    (d / "case.toml").write_text(text)
+    print(_check(capsys, d, [], "bodies[0].region: the group touches the outer boundary"))
+
+
+def test_a_cad_file_gets_a_group_per_volume_and_surface(tmp_path):
+    """A STEP file (written here by gmsh's OpenCASCADE: two boxes, no physical groups) is meshed by the runner
+    with one group per volume and per surface (its CAD label or volume_<tag>): what a role map then names."""
+    from types import SimpleNamespace
+
+    from pulseform.orchestrator.mesh.geometry3d import mesh_file3d, read_groups
+    from pulseform.solvers.getdp.mesh import gmsh_session
+
+    step = tmp_path / "part.step"
+    with gmsh_session("cad") as gmsh:
+        gmsh.model.occ.addBox(0, 0, 0, 0.1, 0.1, 0.1)
+        gmsh.model.occ.addBox(0.03, 0.03, 0.03, 0.02, 0.02, 0.02)
+        gmsh.model.occ.synchronize()
+        gmsh.write(str(step))
+    g = SimpleNamespace(file=str(step), parameters=None, mesh_sizes={})
+    raw = read_groups(mesh_file3d(g, tmp_path / "mesh"), "part.step")
+    print("\n" + raw.listing())
+    assert len(raw.volumes) == 2 and len(raw.surfaces) >= 12   # the fragment: inner box and the air around it
+    counts = sorted(int((raw.tet_group == v).sum()) for v in raw.volumes)
+    assert counts[0] > 0
