@@ -20,22 +20,26 @@ from pulseform.solvers.getdp.mesh3d import Mesh3D, cut_tag, generate_tets, read_
 log = logging.getLogger(__name__)
 
 
-def closed_ring_mesh(path: str | Path, ring: Rect, *, disk: Rect | None = None, r_air: float = 0.1,
+def closed_ring_mesh(path: str | Path, ring: Rect | list[Rect], *, disk: Rect | None = None, r_air: float = 0.1,
                      r_shell: float | None = 0.125, h_coil: float = 2e-3, h_disk: float = 2e-3, h_air: float = 0.02,
                      h_centre: float | None = None, grading: float = 0.3, flip_cut: bool = False) -> Mesh3D:
     """Whole-model mesh (``sector_deg`` 360, no symmetry plane) of the ring ``Rect(r0, z0, r1, z1)`` (m)
-    about the z-axis: coil 101 with its cut 701 (the face y = 0, x > 0 inside the ring), the massive disk
+    about the z-axis, or of several such rings (the turns of one coil: disjoint volumes in one region):
+    coil 101 with its cut 701 (the faces y = 0, x > 0 inside the rings), the massive disk
     or ring ``disk`` (m; conductor 201 with its skin 401), air 1 (sphere ``r_air``), shell 2 to ``r_shell``,
     outer boundary 12. Sizes h_* (m); ``h_centre`` refines about the origin (growing by ``grading``)."""
     path = Path(path).resolve()
     with gmsh_session("closed_ring") as gmsh:
         occ = gmsh.model.occ
-        outer = occ.addCylinder(0, 0, ring.y0, 0, 0, ring.y1 - ring.y0, ring.x1)
-        inner = occ.addCylinder(0, 0, ring.y0, 0, 0, ring.y1 - ring.y0, ring.x0)
-        coil = occ.cut([(3, outer)], [(3, inner)])[0][0][1]
-        cut = occ.addRectangle(ring.x0, ring.y0, 0, ring.x1 - ring.x0, ring.y1 - ring.y0)
-        occ.rotate([(2, cut)], 0, 0, 0, 1, 0, 0, np.pi / 2)   # the plane z = 0 -> y = 0 (x, z kept)
-        occ.translate([(2, cut)], 0, 0, 0)
+        turns = [ring] if isinstance(ring, Rect) else list(ring)
+        coils, cuts = [], []
+        for t in turns:
+            outer = occ.addCylinder(0, 0, t.y0, 0, 0, t.y1 - t.y0, t.x1)
+            inner = occ.addCylinder(0, 0, t.y0, 0, 0, t.y1 - t.y0, t.x0)
+            coils.append(occ.cut([(3, outer)], [(3, inner)])[0][0][1])
+            # the rectangle [x0, x1] x [z0, z1] of the plane y = 0: drawn in z = 0 with y = -z, turned about x
+            cuts.append(occ.addRectangle(t.x0, -t.y1, 0, t.x1 - t.x0, t.y1 - t.y0))
+            occ.rotate([(2, cuts[-1])], 0, 0, 0, 1, 0, 0, np.pi / 2)
         cond = None
         if disk is not None:
             cond = occ.addCylinder(0, 0, disk.y0, 0, 0, disk.y1 - disk.y0, disk.x1)
@@ -45,18 +49,19 @@ def closed_ring_mesh(path: str | Path, ring: Rect, *, disk: Rect | None = None, 
         objects = [(3, occ.addSphere(0, 0, 0, r_air))]
         if r_shell:
             objects.append((3, occ.addSphere(0, 0, 0, r_shell)))
-        tools = [(3, coil), (2, cut)] + ([(3, cond)] if cond is not None else [])
+        nt = len(turns)
+        tools = [(3, c) for c in coils] + [(2, c) for c in cuts] + ([(3, cond)] if cond is not None else [])
         out, out_map = occ.fragment(objects, tools)
         occ.synchronize()
         model = gmsh.model
         n_obj = len(objects)
         shell_parts = ({t for d, t in out_map[1] if d == 3} - {t for d, t in out_map[0] if d == 3}) if r_shell else set()
-        coil_parts = [t for d, t in out_map[n_obj] if d == 3]
-        cut_parts = [t for d, t in out_map[n_obj + 1] if d == 2]
-        cond_parts = [t for d, t in out_map[n_obj + 2] if d == 3] if cond is not None else []
+        coil_parts = [t for m in out_map[n_obj:n_obj + nt] for d, t in m if d == 3]
+        cut_parts = [t for m in out_map[n_obj + nt:n_obj + 2 * nt] for d, t in m if d == 2]
+        cond_parts = [t for d, t in out_map[n_obj + 2 * nt] if d == 3] if cond is not None else []
         used = set(coil_parts) | set(cond_parts) | shell_parts
         air_parts = [t for d, t in out if d == 3 and t not in used]
-        if len(coil_parts) != 1 or not cut_parts:
+        if len(coil_parts) != nt or len(cut_parts) < nt:
             raise RuntimeError(f"fragment: coil parts {coil_parts}, cut parts {cut_parts}")
         model.addPhysicalGroup(3, air_parts, AIR)
         if shell_parts:
