@@ -136,25 +136,27 @@ def test_closed_ring_cut_direction_vs_azimuthal_and_biot_savart(work):
 def test_reversing_the_cut_reverses_the_current(work):
     """The current crosses the cut along its triangles' normal without ``cut_normal``: the same mesh with
     the cut's triangles reversed (the file rewritten) gives the opposite current, exactly; ``cut_normal``
-    fixes the sense whatever the triangles' orientation, and reversing it reverses the current."""
+    fixes the sense whatever the triangles' orientation (on one of the two files the deck's
+    ``Coil_CutSign`` is then -1, on the other +1), and ``Coil3D.sign`` = -1 reverses it."""
     mesh = _ring_mesh(work / "ring.msh")
     flipped = _ring_mesh(work / "ring_flipped.msh", flip_cut=True)
     assert np.array_equal(mesh.tets, flipped.tets) and np.array_equal(mesh.points, flipped.points)
-    mesh_sign = cut_orientation(mesh.path, cut_tag(1), (0.0, 1.0, 0.0))
-    assert cut_orientation(flipped.path, cut_tag(1), (0.0, 1.0, 0.0)) == -mesh_sign
+    s = cut_orientation(mesh.path, cut_tag(1), (0.0, 1.0, 0.0))   # the sign of the mesh's normal along +y
+    assert cut_orientation(flipped.path, cut_tag(1), (0.0, 1.0, 0.0)) == -s
     natural, b_nat = _static(mesh, work / "natural", "cut")
     natural_f, b_nat_f = _static(flipped, work / "natural_flipped", "cut")
-    plus_f, b_plus_f = _static(flipped, work / "plus_flipped", "cut", cut_normal=(0.0, 1.0, 0.0))
-    minus, b_minus = _static(mesh, work / "minus", "cut", cut_normal=(0.0, -1.0, 0.0))
+    plus, b_plus = _static(mesh, work / "plus", "cut", cut_normal=(0.0, 1.0, 0.0))
+    plus_f, b_plus_f = _static(flipped, work / "plus_flipped", "cut", cut_normal=(0.0, 1.0, 0.0), sign=-1)
     print(f"\nB_z centre: mesh's normal {b_nat[2]:+.6f} T, reversed triangles {b_nat_f[2]:+.6f} T, "
-          f"cut_normal +y (reversed triangles) {b_plus_f[2]:+.6f} T, cut_normal -y {b_minus[2]:+.6f} T")
-    # the mesh's normal is -y or +y: the current follows it (B_z of the sign of the normal's y)
-    assert np.sign(b_nat[2]) == mesh_sign
-    np.testing.assert_allclose(natural_f.b_cells, -natural.b_cells, rtol=0, atol=1e-9 * abs(b_nat[2]))
+          f"cut_normal +y {b_plus[2]:+.6f} T, cut_normal +y on reversed triangles with sign -1 {b_plus_f[2]:+.6f} T")
+    tol = 1e-9 * abs(b_nat[2])
+    assert np.sign(b_nat[2]) == s                     # along the mesh's normal (+e_phi on the cut: B_z > 0)
+    np.testing.assert_allclose(natural_f.b_cells, -natural.b_cells, rtol=0, atol=tol)
     np.testing.assert_allclose(natural_f.coil_dir, -natural.coil_dir, rtol=0, atol=1e-9, equal_nan=True)
     assert natural_f.magnetic_energy[-1] == pytest.approx(natural.magnetic_energy[-1], rel=1e-9)
-    assert b_plus_f[2] > 0 and b_minus[2] < 0
-    np.testing.assert_allclose(plus_f.b_cells, -minus.b_cells, rtol=0, atol=1e-9 * abs(b_nat[2]))
+    assert b_plus[2] > 0 and b_plus_f[2] < 0
+    np.testing.assert_allclose(plus.b_cells, s * natural.b_cells, rtol=0, atol=tol)
+    np.testing.assert_allclose(plus_f.b_cells, -plus.b_cells, rtol=0, atol=tol)
 
 
 @pytest.mark.getdp
