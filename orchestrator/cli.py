@@ -181,9 +181,11 @@ def _cmd_run(args: argparse.Namespace) -> int:
     except RunFailed as exc:
         from .case.guards import LimitExceeded
         from .em.deck_check import DeckContractError
+        from .mesh.geometry3d import GeometryError
 
-        # a user deck that breaks the contract, or meshes beyond [limits], is bad input found before the first step
-        bad_input = isinstance(exc.__cause__, (DeckContractError, LimitExceeded))
+        # a user deck that breaks the contract, a 3D geometry file whose groups do not fit its role map, or a
+        # mesh beyond [limits], is bad input found before the first step
+        bad_input = isinstance(exc.__cause__, (DeckContractError, GeometryError, LimitExceeded))
         code = _error(str(exc), EXIT_BAD_INPUT if bad_input else EXIT_FAILED)
         if exc.details:  # the tail of the failing program's log
             print("  --- log tail ---\n" + "\n".join("  " + ln for ln in exc.details.splitlines()), file=sys.stderr)
@@ -210,6 +212,24 @@ def _summary(case, metrics: dict, out: Path) -> list[str]:
     return ["summary:"] + ["  " + ln for ln in lines] if lines else []
 
 
+def _check_geometry_3d(case, file: Path) -> list[str] | int:
+    """Mesh a 3D geometry file in a temporary folder and map its roles: the lines ``check`` prints (its
+    groups, tetrahedra, coils and conductors), or the exit code of a one-line refusal."""
+    import tempfile
+
+    from .mesh.geometry3d import GeometryError, build_geometry3d
+
+    with tempfile.TemporaryDirectory(prefix="pulseform_check3d_") as tmp:
+        try:
+            geo = build_geometry3d(case, Path(tmp))
+        except GeometryError as exc:
+            return _error(f"{file}: {exc.message}", EXIT_BAD_INPUT)
+    m = geo.mesh
+    return [f"# {case.geometry.file}: {m.n_tets} tetrahedra, {m.n_nodes} nodes; groups: {geo.groups}",
+            f"# coils (physical 100 + k): {geo.coils}; conductors (200 + k): {geo.conductors}; symmetry factor "
+            f"{360.0 / m.sector_deg:g}" + (f"; shell radii {geo.shell[0]:.6g}, {geo.shell[1]:.6g} m" if geo.shell else "")]
+
+
 def _cmd_check(args: argparse.Namespace) -> int:
     from .case.io import CaseError, case_to_toml, load_case
     from .em.skin_depth import default_sizes, resolve_defaults
@@ -228,6 +248,12 @@ def _cmd_check(args: argparse.Namespace) -> int:
         except DeckContractError as exc:
             return _error(str(exc), EXIT_BAD_INPUT)
         print(f"# {case.geometry.pro}: honours the deck contract")
+    if case.geometry is not None and case.geometry.type == "geometry_3d":
+        lines = _check_geometry_3d(case, file)
+        if isinstance(lines, int):
+            return lines
+        for line in lines:
+            print(line)
     for line in _mesh_advice(case):
         print(f"pulseform: warning: {line}", file=sys.stderr)
     print(f"# {file}: valid")

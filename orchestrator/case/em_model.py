@@ -8,6 +8,7 @@ from typing import ClassVar, Literal
 
 from .deck_files import remesh_air_error
 from .em_sources import CoilConnection, Source, check_sources
+from .geometry3d import GeometryFile3D
 from .schema import SchemaError, spec
 
 def _check_open_boundary(path: str, extent: float, air: float, shell: float, what: str) -> None:
@@ -437,7 +438,7 @@ class UserDeck(_ConductorRoles):
         return [("geometry.regions.coil", None, self.regions.coil, self.turns)]
 
 
-Geometry = FlatCoilSheet | SolenoidTube | PlanarCoilBlankDie | CoaxialCoils | UserDeck
+Geometry = FlatCoilSheet | SolenoidTube | PlanarCoilBlankDie | CoaxialCoils | UserDeck | GeometryFile3D
 
 
 @dataclass(frozen=True, kw_only=True)

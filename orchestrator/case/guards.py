@@ -177,6 +177,8 @@ def _em_steps(case, steps: float) -> float:
     """GetDP runs of a coupled case with ``steps`` explicit steps (0 for other cases)."""
     if case.case.kind != "coupled" or case.coupling.load != "getdp":
         return 0.0
+    if getattr(case.geometry, "type", None) == "geometry_3d":  # one getdp step per geometry.em_step, or per n
+        return case.time.end / case.geometry.em_step if case.geometry.em_step else steps / case.coupling.n
     if case.mechanics.formulation == "3d" and case.racetrack is not None:  # one getdp step per racetrack.em_step
         return case.time.end / case.racetrack.em_step
     if case.mechanics.formulation == "3d":  # a sector: one getdp run per sector.em_step
@@ -187,6 +189,8 @@ def _em_steps(case, steps: float) -> float:
 def check_resources(case) -> None:
     """Raise :class:`SchemaError` if the estimated cells or explicit steps exceed ``case.limits``."""
     lim = case.limits
+    if getattr(case.geometry, "type", None) == "geometry_3d":
+        return  # the file's mesh is known only once meshed: its cells are checked then (mesh/geometry3d.py)
     if case.case.kind == "coupled" and case.mechanics.formulation == "3d":
         if case.racetrack is not None:
             check_racetrack_resources(case)  # the racetrack's tetrahedra and the machine's memory (.racetrack3d)

@@ -11,6 +11,7 @@ import tomli_w
 
 from .deck_files import resolve_deck_paths
 from .em_sources import resolve_source_files
+from .geometry3d import is_geometry_3d, resolve_geometry_file
 from .errors import MAX_MESSAGE, CaseError, one_line  # noqa: F401  (the case-file API)
 from .model import Case
 from .schema import SchemaError, from_dict, shorten, to_dict
@@ -21,7 +22,7 @@ from .solid3d import check_explicit_2d_keys
 CASE_FILE_NAME = "case.toml"
 MAX_CASE_FILE = 2 * 2**20  # bytes: a case is a few kB; 2 MiB hold a polygon of ~80,000 vertices
 MAX_STRING = 10_000  # characters of any string in a case
-PATH_KEYS = (("geometry", "mesh"), ("geometry", "pro"))  # strings that name files
+PATH_KEYS = (("geometry", "mesh"), ("geometry", "pro"), ("geometry", "file"))  # strings that name files
 MAX_KEY_PARTS = 32  # of a dotted key; tomllib's time and memory grow with the square of it
 _SEGMENT = re.compile(r"^([A-Za-z_][A-Za-z0-9_\-]*)((?:\[\d+\])*)$")
 _CONTROL = re.compile(r"[\x00-\x1f\x7f-\x9f\u2028\u2029]")
@@ -195,6 +196,7 @@ def load_case(path: str | Path, overrides: list[str] | tuple[str, ...] = ()) -> 
     check_strings(data, source)
     try:
         resolve_deck_paths(data, file, source)
+        resolve_geometry_file(data, file, source)
     except (OSError, ValueError) as exc:  # CaseError is a ValueError: passed on as it is
         if isinstance(exc, CaseError):
             raise
@@ -204,7 +206,8 @@ def load_case(path: str | Path, overrides: list[str] | tuple[str, ...] = ()) -> 
     try:
         check_explicit_2d_keys(data)
         check_raw_racetrack(data)
-        check_raw_coupled_3d(data)
+        if not is_geometry_3d(data):  # a 3D geometry file takes [coupling] and [em]'s keys
+            check_raw_coupled_3d(data)
         case = from_dict(Case, data)
     except SchemaError as exc:
         raise CaseError(source, exc.path, exc.message) from None

@@ -318,7 +318,8 @@ class Case:
 
     def _validate_coupled(self) -> None:
         regions = [b.region for b in self.bodies if b.region is not None]
-        if self.case.kind == "coupled" and self.racetrack is None:  # a racetrack: .racetrack3d (validate_dimension)
+        file3d = getattr(self.geometry, "type", None) == "geometry_3d"  # .geometry3d (validate_dimension)
+        if self.case.kind == "coupled" and self.racetrack is None and not file3d:  # a racetrack: .racetrack3d
             for key in ("geometry", "em"):
                 if getattr(self, key) is None:
                     raise SchemaError(key, f"missing required table [{key}] for case.kind = 'coupled'")
@@ -367,7 +368,7 @@ class Case:
 
     def rigid_moves(self, b: BodyTable) -> tuple[int, ...]:
         """The free translation components of rigid body ``b`` (see :func:`.parts.rigid_moves`)."""
-        return rigid_moves(b, self.mechanics.formulation)
+        return rigid_moves(b, self.mechanics.formulation, self.symmetry)
 
     def body(self, name: str) -> BodyTable:
         """The body called ``name``."""

@@ -26,12 +26,20 @@ class Box:
     xmax: float = spec(math.inf, unit="m", doc="upper x (or r) bound")
     ymin: float = spec(-math.inf, unit="m", doc="lower y (or z) bound")
     ymax: float = spec(math.inf, unit="m", doc="upper y (or z) bound")
+    zmin: float = spec(-math.inf, unit="m", doc="lower z bound (3D cases)")
+    zmax: float = spec(math.inf, unit="m", doc="upper z bound (3D cases)")
 
     def validate(self, path: str) -> None:
         if not self.xmin <= self.xmax:
             raise SchemaError(f"{path}.xmax", f"got {self.xmax:g}; must be >= xmin = {self.xmin:g} (m)")
         if not self.ymin <= self.ymax:
             raise SchemaError(f"{path}.ymax", f"got {self.ymax:g}; must be >= ymin = {self.ymin:g} (m)")
+        if not self.zmin <= self.zmax:
+            raise SchemaError(f"{path}.zmax", f"got {self.zmax:g}; must be >= zmin = {self.zmin:g} (m)")
+
+    def has_z(self) -> bool:
+        """True if a z bound is set (a 3D box)."""
+        return math.isfinite(self.zmin) or math.isfinite(self.zmax)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -67,21 +75,27 @@ Shape = Rectangle | Polygon | SolidBox | SolidCylinder
 # --------------------------------------------------------------------------- bodies and contact
 @dataclass(frozen=True, kw_only=True)
 class FixedBoundary:
-    """Zero displacement of the chosen components on boundary nodes inside ``where``."""
+    """Zero displacement of the chosen components on boundary nodes inside ``where`` (or, in a 3D geometry
+    file, on the nodes of a physical surface ``group``)."""
 
-    where: Box = spec(doc="box selecting the boundary nodes")
-    components: tuple[int, ...] = spec((0, 1), unit="-", ge=0, le=1, doc="0 = x (r), 1 = y (z)")
+    where: Box | None = spec(None, doc="box selecting the boundary nodes (inclusive)")
+    group: str | None = spec(None, doc="3D geometry files: a physical surface group whose nodes are held")
+    components: tuple[int, ...] = spec((0, 1), unit="-", ge=0, le=2, doc="0 = x (r), 1 = y (z), 2 = z (3D)")
 
     def validate(self, path: str) -> None:
         if not self.components:
-            raise SchemaError(f"{path}.components", "got an empty list; allowed: [0], [1] or [0, 1]")
+            raise SchemaError(f"{path}.components", "got an empty list; allowed: [0], [1] or [0, 1] ([0, 1, 2] in 3D)")
+        if (self.where is None) == (self.group is None):
+            raise SchemaError(f"{path}.where", "give exactly one of where (a box) or group (a physical surface "
+                              "group of a 3D geometry file)")
 
 
 @dataclass(frozen=True, kw_only=True)
 class EndStopTable:
     """A limit of a rigid body's translation: a support it rests on, or the end of its travel."""
 
-    component: int = spec(1, unit="-", ge=0, le=1, doc="translation component it limits: 0 = x (r), 1 = y (z)")
+    component: int = spec(1, unit="-", ge=0, le=2, doc="translation component it limits: 0 = x (r), 1 = y (z); "
+                           "2 = z in 3D")
     position: float = spec(unit="m", doc="the limit, as a value of that translation "
                            "component (0: the body's initial place)")
     side: Literal["min", "max"] = spec("min", doc="'min': the translation stays >= position (a support below); "
@@ -97,8 +111,10 @@ class BodyTable:
     material: str = spec(doc="key of a [materials.<name>] table")
     shape: Shape | None = spec(None, doc="own geometry (rectangle or polygon; box or cylinder in 3D); or "
                                                 "give region")
-    region: Literal["workpiece", "die", "outer_tube"] | None = spec(
-        None, doc="the [geometry] conductor region this body is (its EM and mechanical meshes share nodes)")
+    region: str | None = spec(
+        None, doc="the [geometry] conductor region this body is (its EM and mechanical meshes share nodes): "
+                  "'workpiece', 'die', 'outer_tube' of the built-in geometries, a physical volume group of a 3D "
+                  "geometry file")
     mesh_size: float | None = spec(None, unit="m", gt=0.0, doc="target element size (with shape)")
     initial_velocity: Vec = spec((0.0, 0.0), unit="m/s", doc="uniform initial velocity ([vx, vy, vz] in 3D)")
     fixed: tuple[FixedBoundary, ...] = spec((), doc="clamped boundary parts")
@@ -107,11 +123,13 @@ class BodyTable:
     mass: float | None = spec(None, unit="kg", gt=0.0, doc="rigid body's mass (default: material density × "
                               "the region's volume, the full 2πr ring in axisymmetry, × mechanics.thickness in "
                               "plane models)")
-    moves: tuple[int, ...] | None = spec(None, unit="-", ge=0, le=1, doc="rigid body's free translation "
+    moves: tuple[int, ...] | None = spec(None, unit="-", ge=0, le=2, doc="rigid body's free translation "
                                          "components: [1] axial (the only one in axisymmetry, its default), "
                                          "[0], [1] or [0, 1] in plane models (default [0, 1])")
-    offset: Vec2 = spec((0.0, 0.0), unit="m", doc="rigid body's initial translation from its place in the geometry")
-    gravity: Vec2 | None = spec(None, unit="m/s^2", doc="rigid body's gravity (default: mechanics.gravity)")
+    offset: Vec = spec((0.0, 0.0), unit="m", doc="rigid body's initial translation from its place in the geometry "
+                       "([x, y, z] in 3D)")
+    gravity: Vec | None = spec(None, unit="m/s^2", doc="rigid body's gravity (default: mechanics.gravity; [gx, gy, gz] "
+                               "in 3D, default none)")
     stops: tuple[EndStopTable, ...] = spec((), doc="[[bodies.stops]] rigid body's end stops (supports, limits "
                                                    "of travel)")
 
@@ -132,10 +150,10 @@ class BodyTable:
             if self.moves is not None and not self.moves:
                 raise SchemaError(f"{path}.moves", "got an empty list; allowed: [0], [1] or [0, 1]")
             for j, s in enumerate(self.stops):
-                if s.side == "min" and self.offset[s.component] < s.position or \
-                        s.side == "max" and self.offset[s.component] > s.position:
+                start = self.offset[s.component] if s.component < len(self.offset) else 0.0
+                if s.side == "min" and start < s.position or s.side == "max" and start > s.position:
                     raise SchemaError(f"{path}.stops[{j}].position", f"got {s.position:g}; the initial offset "
-                                      f"{self.offset[s.component]:g} m lies beyond this stop (side = {s.side!r})")
+                                      f"{start:g} m lies beyond this stop (side = {s.side!r})")
         else:
             for key, default in (("mass", None), ("moves", None), ("offset", (0.0, 0.0)), ("gravity", None),
                                  ("stops", ())):
@@ -183,12 +201,21 @@ def check_file_name(name: str, path: str, names: str) -> None:
                           f"'.', '_' or '-', not '.' or '..' (it names {names})")
 
 
-def rigid_moves(b: BodyTable, formulation: str) -> tuple[int, ...]:
+def rigid_moves(b: BodyTable, formulation: str, symmetry=()) -> tuple[int, ...]:
     """The free translation components of rigid body ``b``: its ``moves``, or the default of the
-    formulation ([1] in axisymmetry, [0, 1] in plane models)."""
+    formulation ([1] in axisymmetry, [0, 1] in plane models; in 3D the components parallel to every
+    ``symmetry`` plane acting on it: a translation that keeps the modelled part symmetric)."""
     if b.moves is not None:
         return tuple(sorted(set(b.moves)))
+    if formulation == "3d":
+        return allowed_moves_3d(b, symmetry)
     return (1,) if formulation == "axisymmetric" else (0, 1)
+
+
+def allowed_moves_3d(b: BodyTable, symmetry) -> tuple[int, ...]:
+    """The translation components (0, 1, 2) of a 3D body that lie in every symmetry plane acting on it."""
+    planes = [s for s in symmetry if not s.bodies or b.name in s.bodies]
+    return tuple(i for i in range(3) if all(abs(s.normal[i]) <= 1e-12 * math.hypot(*s.normal) for s in planes))
 
 
 def validate_rigid(case) -> None:

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from typing import Any, Literal
 
 from .schema import SchemaError, spec
+from .geometry3d import validate_geometry_3d
 from .racetrack3d import validate_racetrack
 from .sector3d import validate_coupled_3d
 
@@ -77,6 +78,10 @@ class SymmetryPlane:
     point: Vec3 = spec((0.0, 0.0, 0.0), unit="m", doc="a point on the plane")
     normal: Vec3 = spec(unit="-", doc="normal (any non-zero vector), e.g. [0, 1, 0] or [-sin(a), cos(a), 0]")
     bodies: tuple[str, ...] = spec((), doc="bodies it acts on (empty = all)")
+    field: Literal["b_tangential", "b_normal"] = spec(
+        "b_tangential", doc="coupled 3D geometry files, its EM condition: 'b_tangential' (n x a = 0: the currents "
+                            "cross the plane at right angles, B lies in it) or 'b_normal' (n x h = 0: the currents "
+                            "run along the plane, B crosses it)")
 
     def validate(self, path: str) -> None:
         if len(self.normal) != 3 or math.hypot(*self.normal) == 0.0:
@@ -116,7 +121,10 @@ def validate_dimension(case) -> None:
 
 
 def _validate_3d(case) -> None:
-    if case.case.kind == "coupled":
+    file3d = case.case.kind == "coupled" and getattr(case.geometry, "type", None) == "geometry_3d"
+    if file3d:
+        validate_geometry_3d(case)  # the user's own geometry file (.geometry3d)
+    elif case.case.kind == "coupled":
         if case.racetrack is not None:
             validate_racetrack(case)  # the racetrack quarter model (.racetrack3d)
         else:
@@ -138,9 +146,9 @@ def _validate_3d(case) -> None:
         if b.shape is not None and b.shape.type not in SOLID_TYPES:
             raise SchemaError(f"bodies[{i}].shape.type", f"got {b.shape.type!r}, a 2D shape; a 3D case "
                               f"(mechanics.formulation = '3d') allows: {', '.join(map(repr, SOLID_TYPES))}")
-        if b.fixed:
-            raise SchemaError(f"bodies[{i}].fixed", "a 2D-only key (its box selects by x and y); in a 3D case "
-                              "hold the body with [[symmetry]] planes or [[walls]]")
+        if b.fixed and not file3d:
+            raise SchemaError(f"bodies[{i}].fixed", "a key of 2D cases and 3D geometry files (geometry.type = "
+                              "'geometry_3d'); in this 3D case hold the body with [[symmetry]] planes or [[walls]]")
         if len(b.initial_velocity) != 3 and any(b.initial_velocity):
             raise SchemaError(f"bodies[{i}].initial_velocity", f"got {len(b.initial_velocity)} components; a 3D "
                               "case needs [vx, vy, vz] (m/s)")
@@ -199,6 +207,26 @@ def _validate_2d(case) -> None:
         if len(b.initial_velocity) != 2:
             raise SchemaError(f"bodies[{i}].initial_velocity", f"got 3 components, a 3D vector; with "
                               f"mechanics.formulation = {f!r} give [vx, vy] (m/s)")
+        for name in ("offset", "gravity"):
+            v = getattr(b, name)
+            if v is not None and len(v) != 2:
+                raise SchemaError(f"bodies[{i}].{name}", f"got {len(v)} components, a 3D vector; with "
+                                  f"mechanics.formulation = {f!r} give [x, y]")
+        for name, values in (("moves", b.moves or ()), ("stops", [st.component for st in b.stops])):
+            if any(c > 1 for c in values):
+                raise SchemaError(f"bodies[{i}].{name}", f"component 2 (z) is 3D only; with mechanics.formulation = "
+                                  f"{f!r} allowed: 0 (x or r), 1 (y or z)")
+        for j, fx in enumerate(b.fixed):
+            key = f"bodies[{i}].fixed[{j}]"
+            if fx.group is not None:
+                raise SchemaError(f"{key}.group", f"a key of 3D geometry files; with mechanics.formulation = {f!r} "
+                                  "give where (a box)")
+            if fx.where.has_z():
+                raise SchemaError(f"{key}.where.zmin", f"a 3D bound; with mechanics.formulation = {f!r} the box "
+                                  "selects by x and y only: remove zmin/zmax")
+            if max(fx.components) > 1:
+                raise SchemaError(f"{key}.components", f"got {list(fx.components)}; with mechanics.formulation = "
+                                  f"{f!r} allowed: [0], [1] or [0, 1]")
     for i, w in enumerate(case.walls):
         for key in ("point", "normal"):
             if len(getattr(w, key)) != 2:

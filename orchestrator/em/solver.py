@@ -25,12 +25,13 @@ def source_waveform(source: SineSource | DCSource | TableSource) -> DampedSine |
     raise TypeError(f"not a prescribed source: {source!r}")
 
 
-def _coils(case: Case) -> tuple[list[Coil], Circuit | None]:
-    """The coils of a coupled case in the mesh's coil order (coil k is physical 100 + k: the order of
-    ``[[geometry.coils]]`` where the geometry names its coils), and the circuit (None without a bank)."""
-    em, g = case.em, case.geometry
-    kw = {"sigma": em.coil_conductivity, "density": em.coil_density, "heat_capacity": em.coil_heat_capacity}
-    if not em.sources:  # em.circuit or em.current: the geometry's one coil
+def coil_drives(case: Case, names: list[str | None]) -> tuple[list[tuple[DampedSine | CurrentTable | None, int]],
+                                                              Circuit | None]:
+    """(waveform or None on the bank, sign) of each coil ``names`` (the geometry's coil order; ``[None]`` for
+    the one coil of a geometry on em.circuit / em.current), and the circuit (None without a bank): every coil
+    on em.circuit or em.current, or each on its ``[[em.coils]]`` source with that entry's sign."""
+    em = case.em
+    if not em.sources:
         wave = None
         if em.current is not None:
             wave = DampedSine(I0=em.current.amplitude, beta=em.current.beta, omega=em.current.omega)
@@ -38,23 +39,36 @@ def _coils(case: Case) -> tuple[list[Coil], Circuit | None]:
         if em.circuit is not None:
             c = em.circuit
             circuit = Circuit(C=c.capacitance, V0=c.voltage, R_ext=c.resistance, L_ext=c.inductance)
-        return [Coil(turns=g.turns, waveform=wave, **kw)], circuit
+        return [(wave, 1) for _ in names], circuit
     sources = {s.name: s for s in em.sources}
     connection = {c.name: c for c in em.coils}
+    drives, circuit = [], None
+    for name in names:
+        con = connection[name if name is not None else em.coils[0].name]
+        src = sources[con.source]
+        if isinstance(src, BankSource):
+            circuit = Circuit(C=src.capacitance, V0=src.voltage, R_ext=src.resistance, L_ext=src.inductance)
+            drives.append((None, con.sign))
+        else:
+            drives.append((source_waveform(src), con.sign))
+    return drives, circuit
+
+
+def _coils(case: Case) -> tuple[list[Coil], Circuit | None]:
+    """The coils of a coupled case in the mesh's coil order (coil k is physical 100 + k: the order of
+    ``[[geometry.coils]]`` where the geometry names its coils), and the circuit (None without a bank)."""
+    em, g = case.em, case.geometry
+    kw = {"sigma": em.coil_conductivity, "density": em.coil_density, "heat_capacity": em.coil_heat_capacity}
+    if not em.sources:  # em.circuit or em.current: the geometry's one coil
+        drives, circuit = coil_drives(case, [None])
+        return [Coil(turns=g.turns, waveform=drives[0][0], **kw)], circuit
     if getattr(g, "coils", ()):  # named coils: coaxial_coils, a user deck's [[geometry.coils]]
         shapes = [(c.name, c.turns) for c in g.coils]
     else:
         shapes = [(em.coils[0].name, g.turns)]
-    coils, circuit = [], None
-    for name, turns in shapes:
-        con = connection[name]
-        src = sources[con.source]
-        if isinstance(src, BankSource):
-            circuit = Circuit(C=src.capacitance, V0=src.voltage, R_ext=src.resistance, L_ext=src.inductance)
-            wave = None
-        else:
-            wave = source_waveform(src)
-        coils.append(Coil(turns=turns, waveform=wave, sign=con.sign, name=name, **kw))
+    drives, circuit = coil_drives(case, [name for name, _ in shapes])
+    coils = [Coil(turns=turns, waveform=wave, sign=sign, name=name, **kw)
+             for (name, turns), (wave, sign) in zip(shapes, drives)]
     return coils, circuit
 
 

@@ -42,11 +42,12 @@ from .coupled3d import sector_participants
 from .em_fields import EMFieldWriter, write_peak_snapshot
 from .em_fields3d import FOLDER as EM3D_FOLDER
 from .em_fields3d import STEM as EM3D_STEM
-from .extremes3d import body_extremes_3d
+from .extremes3d import body_extremes_3d, contact_columns_3d, contact_metrics_3d
 from .history import History
 from .observer import NoObserver
 from .pressure3d import sector_pressure_participants
 from .progress import Progress
+from .participants3d import participants_3d
 from .racetrack_case import racetrack_participants
 from .results import ResultsFolder
 
@@ -96,7 +97,9 @@ class CaseDriver:
         # a coupled 3D case: a sector of a flat_coil_sheet setup (run/coupled3d.py), its sheet's EM fields
         self.sector = case.case.kind == "coupled" and case.mechanics.formulation == "3d"
         self.observer = NoObserver()  # what only a case records (a racetrack's: run/racetrack_case.py)
-        if self.sector and case.racetrack is not None:
+        if self.sector and getattr(case.geometry, "type", None) == "geometry_3d":  # any 3D geometry file
+            self.solver, self.rigid, load, options, _ = participants_3d(case, results.root / "em")
+        elif self.sector and case.racetrack is not None:
             self.solver, load, options, self.observer = racetrack_participants(case, results.root / "em")
         elif self.sector and cp.load == "pressure":  # the same sector driven by [[loads]] (run/pressure3d.py)
             self.solver, load, options = sector_pressure_participants(case, results.root / "em")
@@ -139,6 +142,8 @@ class CaseDriver:
         if s is not None:
             row.update(probe_mod.sample(s, self.probes, self.comm))
             row.update(body_extremes(s, self.comm))
+            if s.formulation == "3d" and s.contact_pairs:
+                row.update(contact_columns_3d(s))
         if self.rigid is not None:
             row.update(self.rigid.history())
         for a in self.analyses:
@@ -316,6 +321,8 @@ class CaseDriver:
             metrics["force_impulse_Ns"] = float(np.linalg.norm(c.impulse))
             metrics["force_impulse_z_Ns"] = float(c.impulse[1])
         metrics.update(mech_metrics(self.solver, case, self.history, self.energies()))
+        if self.solver is not None and self.solver.formulation == "3d" and self.solver.contact_pairs:
+            metrics.update(contact_metrics_3d(self.solver, self.history))
         metrics.update(self.load.run_metrics(self.history, c))  # a 3D sector's: the device's figures
         metrics.update(self.observer.metrics(self.history, c))
         if self.rigid is not None:

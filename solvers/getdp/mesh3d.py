@@ -37,6 +37,7 @@ import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Sequence
 
 import numpy as np
 
@@ -400,10 +401,32 @@ def ring_sector_mesh(
             fmin = model.mesh.field.add("Min")
             model.mesh.field.setNumbers(fmin, "FieldsList", fields)
             model.mesh.field.setAsBackgroundMesh(fmin)
+        name_groups(gmsh)
         generate_tets(gmsh, path)
     mesh = read_mesh3d(path, float(sector_deg), electrode_area)
     logger.info("3D mesh %s: %d tetrahedra, %d nodes", path.name, mesh.n_tets, mesh.n_nodes)
     return mesh
+
+
+def group_name(dim: int, tag: int, conductors: Sequence[str] = ()) -> str:
+    """The name of the physical group ``tag`` of dimension ``dim`` (the ids of the module docstring) in the
+    meshes written here: "air", "shell", "outer", "symmetry", "symmetry_h", "coil" (coil 1; "coil_k"),
+    its terminals "coil_in" / "coil_out" ("coil_k_in", ...), conductor k ``conductors[k-1]`` (default
+    "conductor_k") and its skin "<conductor>_skin": what a 3D geometry file's role map names."""
+    fixed = {(3, 1): "air", (3, 2): "shell", (2, 12): "outer", (2, SYM_A): "symmetry", (2, SYM_H): "symmetry_h"}
+    if (dim, tag) in fixed:
+        return fixed[(dim, tag)]
+    base, k = divmod(tag, 100)
+    coil = "coil" if k == 1 else f"coil_{k}"
+    cond = conductors[k - 1] if 0 < k <= len(conductors) else f"conductor_{k}"
+    named = {(3, 1): coil, (3, 2): cond, (2, 4): f"{cond}_skin", (2, 5): f"{coil}_in", (2, 6): f"{coil}_out"}
+    return named.get((dim, base), f"group_{dim}_{tag}")
+
+
+def name_groups(gmsh, conductors: Sequence[str] = ()) -> None:
+    """Give every physical group of the open gmsh model its :func:`group_name`."""
+    for dim, tag in gmsh.model.getPhysicalGroups():
+        gmsh.model.setPhysicalName(dim, tag, group_name(dim, tag, conductors))
 
 
 def generate_tets(gmsh, path: Path) -> None:

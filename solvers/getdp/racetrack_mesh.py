@@ -36,7 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from .mesh import AIR, OUTER, SHELL, coil_tag, conductor_tag, gmsh_session
-from .mesh3d import ELEC_IN_BASE, ELEC_OUT_BASE, SYM_A, Mesh3D, generate_tets, read_mesh3d, skin_tag
+from .mesh3d import ELEC_IN_BASE, ELEC_OUT_BASE, SYM_A, Mesh3D, generate_tets, name_groups, read_mesh3d, skin_tag
 
 logger = logging.getLogger(__name__)
 
@@ -231,6 +231,7 @@ def racetrack_groove_mesh(path: str | Path, g: RacetrackGroove = RacetrackGroove
         _boundaries(gmsh, out, coil_v, alpha, g.shell_radius or g.air_radius)
         electrode_area = {1: float(sum(occ.getMass(2, t) for t in model.getEntitiesForPhysicalGroup(2, ELEC_IN_BASE + 1)))}
         _sizes(gmsh, g, half, air_v + sorted(shell), coil_v, sheet_v, die_v)
+        name_groups(gmsh, ["sheet", "die"][:len(cond)])
         generate_tets(gmsh, path)
     mesh = read_mesh3d(path, sector, electrode_area)
     logger.info("racetrack mesh %s (%s): %d tetrahedra, %d nodes", path.name, "half" if half else "quarter",

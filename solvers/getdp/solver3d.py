@@ -58,7 +58,8 @@ class Coil3D:
     current (times ``sign``) crosses the cut along this vector (x, y, z), e.g. (0, 1, 0) for a ring about
     +z cut by the half-plane y = 0, x > 0 and a current along +e_phi; None: along the normal
     (x1 - x0) x (x2 - x0) of the cut's triangles as written in the mesh file (:func:`~.mesh3d.cut_orientation`).
-    ``waveform`` without a circuit (A); ``sign`` +1 or -1.
+    ``waveform`` without a circuit (A); ``sign`` +1 or -1;
+    ``name`` names its history columns when a model has several coils.
     """
 
     turns: int
@@ -68,6 +69,7 @@ class Coil3D:
     direction: str = "azimuthal"
     axis: tuple[float, float] = (0.0, 0.0)
     section: float | None = None
+    name: str = ""
     cut_normal: tuple[float, float, float] | None = None
 
     def __post_init__(self) -> None:

@@ -1,0 +1,43 @@
+"""Gmsh builder of the racetrack / sheet / grooved-die quarter model (a 3D geometry file of
+``cases/emf_racetrack_groove``): ``python racetrack_geometry.py OUT.msh [name=value ...]``.
+
+It writes OUT.msh with the named physical groups the case's role map uses: "air", "shell", "coil" with its
+terminals "coil_in" (on y = 0) and "coil_out" (on x = 0), "sheet", "die" (and their skins, "symmetry",
+"outer", which the runner recomputes). The names ``name=value`` are the fields of
+:class:`pulseform.solvers.getdp.racetrack_mesh.RacetrackGroove` (m; ``turns`` and ``sheet_layers`` integers;
+``h_coil``, ``h_sheet``, ``h_die``, ``h_air`` the element sizes, ``grading`` the growth of the size per metre
+away from the coil's footprint). The mesher is pulseform's OpenCASCADE build of this geometry (the sheet
+extruded in layers through its thickness), so the mesh is the one of the study's reference run
+(studies/emf_racetrack_groove).
+"""
+
+import sys
+from dataclasses import fields
+
+from pulseform.solvers.getdp.racetrack_mesh import RacetrackGroove, racetrack_groove_mesh
+
+INTEGERS = ("turns", "sheet_layers")
+
+
+def main(argv: list[str]) -> int:
+    if not argv:
+        print("usage: python racetrack_geometry.py OUT.msh [name=value ...]", file=sys.stderr)
+        return 2
+    known = {f.name for f in fields(RacetrackGroove)}
+    values = {}
+    for item in argv[1:]:
+        name, _, text = item.partition("=")
+        if name not in known:
+            print(f"Error: unknown parameter {name!r}; known: {', '.join(sorted(known))}", file=sys.stderr)
+            return 2
+        values[name] = int(float(text)) if name in INTEGERS else float(text)
+    try:
+        racetrack_groove_mesh(argv[0], RacetrackGroove(**values))
+    except ValueError as exc:
+        print(f"Error: {exc}", file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

@@ -1,0 +1,158 @@
+"""The participants of a coupled 3D case built from a geometry file (``[geometry] type = "geometry_3d"``): one
+path for every 3D geometry (issue 29).
+
+The EM mesh (:func:`~..mesh.geometry3d.build_geometry3d`) holds every conductor body's tetrahedra; each body's
+mechanical mesh is cut from it (shared nodes, :mod:`~..mesh.shared3d`) and held by the case's supports:
+``[[symmetry]]`` planes as rollers (axis-aligned: the normal component held; with an oblique plane every plane of
+the body slides), ``[[bodies.fixed]]`` boxes (3D bounds, every node inside) or physical surface groups; soft
+contact from ``[[contact]]``. The air follows the bodies harmonically (:class:`~..mesh.motion3d.MeshMover3D`:
+coils, shell, fixed conductors and the outer boundary stay, the planes slide); when it breaks
+(``geometry.on_mesh_break``) it is meshed again with the EM state carried, the EM mesh freezes, or the run stops.
+The loop's options come from ``[coupling]``; ``geometry.em_step`` sets n from the stable mechanical step.
+"""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+from mpi4py import MPI
+from scipy.spatial import cKDTree
+
+from pulseform.solvers import dolfinx as mech
+from pulseform.solvers.dolfinx.solver3d import ExplicitSolver3D
+from pulseform.solvers.getdp.mesh import COIL_BASE, CONDUCTOR_BASE, SHELL, conductor_tag
+from pulseform.solvers.getdp.mesh3d import Mesh3D
+
+from ..case.model import Case
+from ..coupling.loop import LoopOptions
+from ..em.frozen3d import FreezingGetDPLoad3D
+from ..em.model3d import em_model3d
+from ..em.participant3d import ConductorBody3D
+from ..em.remesh3d import RemeshingGetDPLoad3D
+from ..mech.mixed import rigid_bodies
+from ..mech.model import solver_material
+from ..mech.rigid import RigidMechanics
+from ..mech.model3d import plane_marker
+from ..mesh.geometry3d import Geometry3D, PlaneSpec, boundary_faces, build_geometry3d
+from ..mesh.motion3d import MeshMover3D, nodes_on_plane
+from ..mesh.shared3d import conductor_submesh3d, match_nodes3d, to_dolfinx3d
+
+log = logging.getLogger(__name__)
+
+
+def box_marker3d(where, tol: float) -> Callable[[np.ndarray], np.ndarray]:
+    """Marker of the nodes inside a case-file box (inclusive, widened by ``tol`` m; x given as (3, N))."""
+    lo = np.array([where.xmin, where.ymin, where.zmin], float)[:, None] - tol
+    hi = np.array([where.xmax, where.ymax, where.zmax], float)[:, None] + tol
+    return lambda x: np.all((x >= lo) & (x <= hi), axis=0)
+
+
+def points_marker(points: np.ndarray, tol: float) -> Callable[[np.ndarray], np.ndarray]:
+    """Marker of the nodes within ``tol`` (m) of one of ``points`` (n, 3) (a surface group's nodes)."""
+    tree = cKDTree(points)
+    return lambda x: tree.query(np.asarray(x).T, distance_upper_bound=tol)[0] <= tol
+
+
+def _supports(case: Case, name: str, fixed, geo: Geometry3D, tol: float) -> tuple[tuple, tuple]:
+    """(fixed, sliding) of a body's :class:`~pulseform.solvers.dolfinx.BodySpec`: its symmetry planes (module
+    docstring) then its ``[[bodies.fixed]]`` supports."""
+    own = [s for s in case.symmetry if not s.bodies or name in s.bodies]
+    aligned = all(s.axis_aligned() for s in own)
+    held = tuple((plane_marker(s, tol), (s.component(),)) for s in own) if aligned else ()
+    sliding = () if aligned else tuple((plane_marker(s, tol), tuple(s.normal)) for s in own)
+    for f in fixed:
+        marker = box_marker3d(f.where, tol) if f.where is not None else \
+            points_marker(geo.mesh.points[geo.surface_nodes[f.group]], tol)
+        held += ((marker, tuple(f.components)),)
+    return held, sliding
+
+
+def air_mover3d(mesh: Mesh3D, planes: list[PlaneSpec], tol: float) -> MeshMover3D:
+    """The air's motion on ``mesh`` (also on a remeshed one): conductors prescribed (the bodies move, the fixed
+    ones stay), coils, shell and the outer boundary fixed, the symmetry planes sliding."""
+    tags = mesh.tet_tags
+    held = (tags > COIL_BASE) & (tags < COIL_BASE + 100) | (tags == SHELL) | \
+        (tags > CONDUCTOR_BASE) & (tags < CONDUCTOR_BASE + 100)
+    faces = boundary_faces(mesh.tets)
+    scale = float(np.abs(mesh.points).max())
+    on_plane = np.zeros(len(faces), dtype=bool)
+    for p in planes:
+        on_plane |= np.all(np.abs((mesh.points[faces] - p.point) @ p.normal) <= 1e-7 * scale, axis=1)
+    fixed = np.unique(np.concatenate([mesh.tets[held].ravel(), faces[~on_plane].ravel()]))
+    return MeshMover3D(mesh.points, mesh.tets, fixed,
+                       [(nodes_on_plane(mesh.points, p.point, p.normal, tol), p.normal) for p in planes])
+
+
+def participants_3d(case: Case, work: Path):
+    """(3D solver or None, rigid bodies' mechanics or None, 3D GetDP load, loop options, :class:`Geometry3D`) of a
+    coupled 3D geometry-file case; the mesh and the getdp runs in ``work`` (the results folder's ``em/``)."""
+    g = case.geometry
+    work = Path(work).resolve()
+    geo = build_geometry3d(case, work)
+    mesh = geo.mesh
+    model = em_model3d(case, geo)
+    tol = 1e-9 * float(np.abs(mesh.points).max())
+    specs, subs = [], {}
+    for k, b in enumerate(case.bodies, start=1):
+        sub = subs[b.region] = conductor_submesh3d(mesh, conductor_tag(k))
+        if b.rigid:
+            continue
+        held, sliding = _supports(case, b.name, b.fixed, geo, tol)
+        v0 = tuple(b.initial_velocity) if len(b.initial_velocity) == 3 else (0.0, 0.0, 0.0)
+        specs.append(mech.BodySpec(name=b.name, mesh=to_dolfinx3d(sub, MPI.COMM_SELF),
+                                   material=solver_material(case.materials[b.material]), initial_velocity=v0,
+                                   fixed=held, sliding=sliding))
+    pairs = tuple(mech.ContactPairSpec(slave=c.slave, master=c.master, stiffness=c.stiffness, h0=c.h0,
+                                       friction=c.friction, viscosity=c.viscosity, two_pass=c.two_pass)
+                  for c in case.contact)
+    mo = case.mechanics
+    solver = ExplicitSolver3D(specs, contact_pairs=pairs, cfl=case.time.cfl, bulk_viscosity=mo.bulk_viscosity,
+                              bulk_linear=mo.bulk_viscosity_linear, bulk_quadratic=mo.bulk_viscosity_quadratic,
+                              comm=MPI.COMM_SELF) if specs else None
+    dt_mech = solver.stable_time_step() if solver is not None else rigid_step_3d(case)
+    rigid = None
+    if any(b.rigid for b in case.bodies):
+        rigid = RigidMechanics(rigid_bodies(case, subs), dt_mech)
+    bodies = []
+    for k, b in enumerate(case.bodies, start=1):
+        sub = subs[b.region]
+        nodes = sub.em_nodes if b.rigid else match_nodes3d(solver.bodies[b.name].X0, mesh.points, tol)
+        bodies.append(ConductorBody3D(b.name, conductor_tag(k), sub, nodes))
+    planes = geo.planes
+    mover = air_mover3d(mesh, planes, tol)
+    mover.min_quality = g.break_quality * float(mover.q_ref.min())
+    args = (mesh, model, work / "getdp", bodies, mover)
+    kw = {"time_scheme": case.em.time_scheme, "getdp_timeout": case.limits.getdp_time_limit_s}
+    if g.on_mesh_break == "remesh":   # a failed remesh freezes (orchestrator/em/remesh3d.py)
+        load = RemeshingGetDPLoad3D(*args, make_mover=lambda m: air_mover3d(m, planes, tol),
+                                    planes=[(p.point, p.normal) for p in planes], **kw)
+    else:
+        load = FreezingGetDPLoad3D(*args, freeze=g.on_mesh_break == "freeze", **kw)
+    options = loop_options_3d(case, dt_mech if solver is not None else None)
+    log.info("3D geometry: %d EM tets, bodies %s, mechanical step %.3g s, n = %d", mesh.n_tets,
+             {b.name: len(subs[b.region].cells) for b in case.bodies}, dt_mech, options.n)
+    return solver, rigid, load, options, geo
+
+
+def rigid_step_3d(case: Case) -> float:
+    """The mechanical step (s) of a 3D case whose bodies are all rigid: geometry.em_step / coupling.n, capped
+    by time.dt_max (which alone sets it without an EM step)."""
+    em_step = case.geometry.em_step
+    dt = em_step / case.coupling.n if em_step is not None else case.time.dt_max
+    return dt if case.time.dt_max is None else min(dt, case.time.dt_max)
+
+
+def loop_options_3d(case: Case, dt_mech: float | None) -> LoopOptions:
+    """The loop's options: ``[coupling]``'s, with n = round(geometry.em_step / ``dt_mech``) when the EM step
+    is given (then n_min 1 and n_max n unless adaptive); ``dt_mech`` None (rigid bodies only: their step is
+    already em_step / n) keeps coupling.n."""
+    cp, em_step = case.coupling, case.geometry.em_step
+    if em_step is None or dt_mech is None:
+        return LoopOptions.from_coupling(cp)
+    n = max(1, round(em_step / dt_mech))
+    if cp.adaptive:
+        return LoopOptions.from_coupling(cp, n=n, n_min=min(cp.n_min, n), n_max=max(cp.n_max, n))
+    return LoopOptions.from_coupling(cp, n=n, n_min=1, n_max=n)
