@@ -55,6 +55,9 @@ class CoilGroup3D:
                                              "coil gives its direction; the section is the 'in' terminal's area)")
     cut: str | None = spec(None, doc="physical surface group cutting a closed loop across its section (the "
                            "potential jumps by one there; the section is the cut's area)")
+    cut_direction: tuple[float, float, float] | None = spec(
+        None, unit="-", doc="with cut: the direction [x, y, z] in which the current crosses the cut (default: the "
+                            "normal of the cut's triangles as the mesh file orients them)")
     axis: tuple[float, float] | None = spec(None, unit="m", doc="[x, y] of a z-parallel axis: the current runs "
                                             "azimuthally about it (ring coils; the section from the mesh)")
     section: float | None = spec(None, unit="m^2", gt=0.0, magnitude=(1e-14, 10.0),
@@ -66,6 +69,8 @@ class CoilGroup3D:
             raise SchemaError(f"{path}.terminals", "give exactly one current path: terminals = [in, out] (an open "
                               "coil), cut (a closed loop) or axis = [x, y] (azimuthal)"
                               + (f"; got {', '.join(given)}" if given else ""))
+        if self.cut_direction is not None and (self.cut is None or not any(self.cut_direction)):
+            raise SchemaError(f"{path}.cut_direction", "a non-zero vector [x, y, z], given with cut")
         if self.terminals is not None and self.terminals[0] == self.terminals[1]:
             raise SchemaError(f"{path}.terminals", f"got the same group {self.terminals[0]!r} twice; the current "
                               "enters and leaves through two different surfaces")

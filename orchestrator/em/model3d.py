@@ -25,7 +25,8 @@ def em_model3d(case: Case, geo: Geometry3D) -> EM3DModel:
         section = c.section if c.section is not None else geo.coil_sections.get(k)
         axis = tuple(c.axis) if c.axis is not None else (0.0, 0.0)
         coils.append(Coil3D(turns=c.turns, sigma=em.coil_conductivity, waveform=wave, sign=sign,
-                            direction=c.direction, axis=axis, section=section, name=c.name))
+                            direction=c.direction, axis=axis, section=section, name=c.name,
+                            cut_normal=tuple(c.cut_direction) if c.cut_direction is not None else None))
     conductors = [Conductor(case.materials[b.material].electrical_conductivity, name=b.name) for b in case.bodies]
     conductors += [Conductor(case.materials[c.material].electrical_conductivity, name=c.name) for c in g.conductors]
     model = EM3DModel(coils=coils, conductors=conductors, circuit=circuit, shell=geo.shell,

@@ -33,12 +33,10 @@ from typing import Sequence
 import numpy as np
 
 from pulseform.solvers.getdp.mesh import AIR, OUTER, SHELL, coil_tag, conductor_tag
-from pulseform.solvers.getdp.mesh3d import ELEC_IN_BASE, ELEC_OUT_BASE, SYM_A, SYM_H, Mesh3D, skin_tag
+from pulseform.solvers.getdp.mesh3d import CUT_BASE, ELEC_IN_BASE, ELEC_OUT_BASE, SYM_A, SYM_H, Mesh3D, skin_tag
 
 log = logging.getLogger(__name__)
 
-#: the physical id of the cut of coil k is CUT_BASE + k (the deck's Phys_Cut_Base)
-CUT_BASE = 700
 #: gmsh's element kinds of interest in meshio's names
 _TETRA, _TRIANGLE = "tetra", "triangle"
 #: faces of a tetrahedron (local node indices), outward for a positively oriented one
