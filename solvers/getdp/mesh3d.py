@@ -28,6 +28,7 @@ import logging
 import math
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Sequence
 
 import numpy as np
 
@@ -112,6 +113,24 @@ class Mesh3D:
         if not np.array_equal(self.tet_ids[rows], ids):
             raise KeyError("element ids not in the mesh")
         return rows
+
+
+def read_msh22_triangles(path: str | Path, tags: Sequence[int]) -> tuple[np.ndarray, np.ndarray]:
+    """(triangles (m, 3) as 0-based node rows -- the rows of :func:`read_msh22_tets`' points --, their
+    physical ids) of the triangles of an ASCII MSH 2.2 file whose physical id is one of ``tags``."""
+    text = Path(path).read_text()
+    nodes = text.split("$Nodes\n", 1)[1].split("$EndNodes", 1)[0].split("\n", 1)[1]
+    ids = np.array(nodes.split(), dtype=float).reshape(-1, 4)[:, 0].astype(np.int64)
+    index = np.zeros(int(ids.max()) + 1, dtype=np.int64)
+    index[ids] = np.arange(len(ids))
+    body = text.split("$Elements\n", 1)[1].split("$EndElements", 1)[0].split("\n", 1)[1]
+    want = {str(int(t)) for t in tags}
+    rows = [r.split() for r in body.splitlines() if r]
+    tri = [(int(r[3]), [int(v) for v in r[3 + int(r[2]):6 + int(r[2])]]) for r in rows
+           if r[1] == "2" and r[3] in want]
+    if not tri:
+        return np.zeros((0, 3), np.int64), np.zeros(0, np.int64)
+    return index[np.array([c for _, c in tri], np.int64)], np.array([t for t, _ in tri], np.int64)
 
 
 def read_msh22_tets(path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
