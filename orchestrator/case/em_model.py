@@ -7,6 +7,7 @@ from operator import attrgetter
 from typing import ClassVar, Literal
 
 from .deck_files import remesh_air_error
+from .em_applied import AppliedField
 from .em_sources import CoilConnection, Source, check_sources
 from .schema import SchemaError, spec
 
@@ -472,6 +473,9 @@ class EM:
                                           "these with [[em.coils]], or circuit, or current)")
     coils: tuple[CoilConnection, ...] = spec((), doc="[[em.coils]] each coil of the geometry on a source, with its "
                                                  "orientation; coils on a bank are in series on it")
+    applied_field: AppliedField | None = spec(None, doc="[em.applied_field] a uniform applied magnetic field beside "
+                                                       "the coils, type = 'dc' | 'sine' | 'table' (time function as a "
+                                                       "source's, times the magnitude)")
     keep_runs: bool = spec(False, doc="keep every getdp run folder (default: the last two)")
     time_scheme: Literal["euler", "bdf2"] = spec(
         "euler", doc="EM time scheme: 'euler' (implicit Euler, first order: damps the bank's ringing by "
