@@ -134,9 +134,10 @@ def test_series_references_hold_the_field_energy():
 def test_step_field_diffusion_2d(work, axisymmetric):
     """A suddenly applied B_z = 0.5 T (axisymmetric: long cylinder R = 5 mm; planar: slab 2 x 5 mm),
     sigma = 3.5e7 S/m, to t = 0.2 tau (220 us), 40 elements along the radius (h = 0.125 mm), 40 implicit
-    Euler steps. Measured (t >= 0.05 tau): axisymmetric max |B - B_exact| / B0 = 0.0125 at 0.105 tau,
-    0.0084 at 0.2 tau (centre 0.492 vs 0.499), Joule power +2.0..3.3 %; planar 0.0122 / 0.0069, Joule
-    power +0.6..1.7 %; force on the half slab vs the magnetic pressure difference 0.5 %."""
+    Euler steps. Measured at 0.05 / 0.1 / 0.2 tau: axisymmetric max |B - B_exact| / B0 = 0.023 / 0.013 /
+    0.0084 (centre 0.492 vs 0.499 at the end), Joule power +2.8 / +2.0 / +3.3 %; planar 0.022 / 0.013 /
+    0.0069, Joule power +1.9 / +0.8 / +0.6 %; force on the half slab vs the magnetic pressure difference
+    +0.05 % at 0.2 tau. 0.2 s each."""
     mesh, res = run_2d(work, axisymmetric, 40, 40)
     err = errors_2d(mesh, res, axisymmetric)
     print(f"\n(t/tau, max B error, P rel error):\n{np.round(err, 4)}")
@@ -221,10 +222,11 @@ MODEL3D = EM3DModel(conductors=[Conductor(SIGMA)], applied_field=AppliedField(B0
 @pytest.mark.parametrize("scheme", ["euler", "bdf2"])
 def test_step_field_diffusion_3d_slab(tmp_path, scheme):
     """3D: the half slab as a box 5 x 1 x 1 mm (254 tetrahedra, h = 0.5 mm, Whitney elements), B_z = 0.5 T
-    switched on at t = 0, 20 steps to 0.2 tau. Measured, implicit Euler: rms B_z error / B0 0.0155 at
-    0.06 tau, 0.0075 at 0.2 tau; Joule power +2.4 % / +0.9 %; force vs the pressure difference -0.2 %;
-    BDF2: rms 0.0102 / 0.0067, Joule power -0.26 % / -0.25 %. (h = 0.25 mm, 1810 tetrahedra, 40 Euler
-    steps: rms 0.0083 / 0.0037, power +1.6 % / +0.56 %.)"""
+    switched on at t = 0, 20 steps to 0.2 tau. Measured at 0.05 / 0.1 / 0.2 tau, implicit Euler: rms B_z
+    error / B0 0.017 / 0.012 / 0.0075, Joule power +2.9 / +1.2 / +0.9 %, force vs the pressure difference
+    -1.0 / -0.6 / -0.2 %; BDF2: rms 0.011 / 0.009 / 0.0067, Joule power -0.2 / -0.3 / -0.25 %. 0.3-0.4 s.
+    (h = 0.25 mm, 1810 tetrahedra, 40 Euler steps, 5 s: rms 0.0083 / 0.0057 / 0.0037 at 0.055 / 0.105 /
+    0.2 tau, power +1.6 / +0.7 / +0.56 %: first order.)"""
     mesh = box_mesh(tmp_path / "box.msh", 0.5e-3)
     res = solve_transient3d(MODEL3D, mesh, 0.2 * TAU, 20, tmp_path / "run", time_scheme=scheme)
     err = errors_3d(mesh, res)
