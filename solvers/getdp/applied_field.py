@@ -197,6 +197,8 @@ class AppliedField:
                                  f"with n x h = 0 (physical {_SYM_H_3D}, normal {np.round(n, 6).tolist()}): B must "
                                  "be normal to it")
         m, c = linear_potential(b, planes_a)
+        logger.debug("applied field B = %s T: a_app = M r + c, M = %s, c = %s (%d n x a = 0 planes, %d n x h = 0)",
+                     b.tolist(), m.round(12).tolist(), c.round(15).tolist(), len(planes_a), len(planes_h))
         out: dict[str, float] = {"Flag_AppField": 1, "App_Bx": float(b[0]), "App_By": float(b[1]),
                                  "App_Bz": float(b[2])}
         for i in range(3):

@@ -161,7 +161,8 @@ class PersistentEM3DStepper:
              field_output: bool = False) -> tuple[EM3DResult, EM3DState]:
         """One BDF2 step from ``state`` to ``t1`` (s) on ``mesh`` (the connectivity of the process, nodes at
         their positions for this step; only ``points``, ``tets``, ``tet_ids``, ``tet_tags`` are used, the
-        file ``mesh.path`` is not read); see :meth:`.EM3DStepper.step`. A state that is not the process's
+        file ``mesh.path`` is not read -- except its symmetry faces when a process starts with an applied
+        field); see :meth:`.EM3DStepper.step`. A state that is not the process's
         (another connectivity, a restored state) starts a new process from it."""
         dt = t1 - state.t
         if not dt > 0:
