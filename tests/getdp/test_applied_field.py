@@ -38,6 +38,7 @@ from scipy.special import j0, j1, jn_zeros
 from pulseform.solvers.getdp import (AppliedField, Coil, Conductor, CurrentTable, DampedSine, EMModel, EMState,
                                      GetDPSolver, Rect, coil_conductor_mesh)
 from pulseform.solvers.getdp.applied_field import linear_potential
+from pulseform.solvers.getdp.harmonic import solve_harmonic
 from pulseform.solvers.getdp.mesh import AXIS, OUTER, EMMesh, conductor_tag, gmsh_session
 from pulseform.solvers.getdp.mesh3d import SYM_A, SYM_H, generate_tets, read_mesh3d, skin_tag
 from pulseform.solvers.getdp.persistent import PersistentGetDPSolver
@@ -367,6 +368,9 @@ def test_refused_directions_and_inputs(tmp_path):
         AppliedField(1.0, (0.0, 0.0, 0.0), STEP)
     with pytest.raises(ValueError, match="finite"):
         AppliedField(float("nan"), (0.0, 0.0, 1.0), STEP)
+    with pytest.raises(ValueError, match="time-harmonic"):
+        solve_harmonic(EMModel(False, conductors=cond, applied_field=AppliedField(1.0, (0.0, 1.0), STEP)), mesh,
+                       1e3, [], tmp_path)
     with pytest.raises(ValueError, match="TimeTheta"):
         GetDPSolver(EMModel(False, conductors=cond, applied_field=AppliedField(1.0, (0.0, 1.0), STEP)), tmp_path,
                     extra_numbers={"TimeTheta": 0.5})._numbers(mesh)
