@@ -111,7 +111,7 @@ class GeometryFile3D:
     shell_radii: tuple[float, float] | None = spec(None, unit="m", gt=0.0, doc="[inner, outer] radius of the shell "
                                                    "(default from the mesh: the outer its largest node radius, the "
                                                    "inner below its faceted inner face)")
-    coils: tuple[CoilGroup3D, ...] = spec(doc="[[geometry.coils]] the coils")
+    coils: tuple[CoilGroup3D, ...] = spec((), doc="[[geometry.coils]] the coils (none: an applied field alone)")
     conductors: tuple[FixedConductor3D, ...] = spec((), doc="[[geometry.conductors]] fixed conductors (no body)")
     symmetry_factor: float | None = spec(None, unit="-", ge=1.0, le=1e6, doc="whole device / modelled part "
                                          "(device figures, the bank's voltage over the part); default from the "
@@ -129,8 +129,6 @@ class GeometryFile3D:
     def validate(self, path: str) -> None:
         if not self.file.lower().endswith(ALL_SUFFIXES):
             raise SchemaError(f"{path}.file", f"got {self.file!r}; allowed suffixes: {', '.join(ALL_SUFFIXES)}")
-        if not self.coils:
-            raise SchemaError(f"{path}.coils", "no coil: give at least one [[geometry.coils]] entry")
         if self.shell_radii is not None and (self.shell is None or self.shell_radii[1] <= self.shell_radii[0]):
             raise SchemaError(f"{path}.shell_radii", "give an increasing [inner, outer] pair (m), with geometry.shell")
         if self.em_order == 2 and self.on_mesh_break == "remesh":
@@ -239,6 +237,15 @@ def validate_geometry_3d(case) -> None:
         if case.materials[c.material].electrical_conductivity <= 0.0:
             raise SchemaError(f"materials.{c.material}.electrical_conductivity", "got 0; a fixed conductor needs its "
                               "conductivity (S/m)")
+    from .em_applied import check_applied_field
+
+    if not g.coils and em.applied_field is None:
+        raise SchemaError("geometry.coils", "no coil: give at least one [[geometry.coils]] entry (or an "
+                          "[em.applied_field] alone)")
+    if g.coils and not any((em.circuit, em.current, em.sources)):
+        raise SchemaError("em.circuit", "the coils need a source: give em.circuit (a capacitor bank), em.current or "
+                          "[[em.sources]] with [[em.coils]]")
+    check_applied_field(case)
     coil_names = [c.name for c in g.coils]
     for i, c in enumerate(em.coils):
         if c.name not in coil_names:

@@ -10,6 +10,7 @@ from typing import Any
 import tomli_w
 
 from .deck_files import resolve_deck_paths
+from .em_applied import resolve_applied_field_file
 from .em_sources import resolve_source_files
 from .geometry3d import is_geometry_3d, resolve_geometry_file
 from .errors import MAX_MESSAGE, CaseError, one_line  # noqa: F401  (the case-file API)
@@ -203,6 +204,7 @@ def load_case(path: str | Path, overrides: list[str] | tuple[str, ...] = ()) -> 
         raise CaseError(source, "geometry", f"cannot resolve mesh/pro: {getattr(exc, 'strerror', None) or exc}") \
             from None
     resolve_source_files(data, file, source)
+    resolve_applied_field_file(data, file, source)
     try:
         check_explicit_2d_keys(data)
         check_raw_racetrack(data)

@@ -15,6 +15,7 @@ from typing import Literal
 from .analysis_names import ANALYSES, ANALYSIS_PAIRS
 from .em_model import (EM, CapacitorBank, DampedSineCurrent, FlatCoilSheet, Geometry, OuterTube, PlanarCoilBlankDie,
                       SheetDie, SolenoidTube)
+from .em_applied import check_applied_field
 from .em_sources import check_coils
 from .guards import check_resources
 from .racetrack3d import Racetrack
@@ -350,7 +351,11 @@ class Case:
             if self.em.time_scheme == "bdf2" and self.coupling.em_substeps != 1:
                 raise SchemaError("coupling.em_substeps", f"got {self.coupling.em_substeps}; em.time_scheme = "
                                   "'bdf2' takes one step per getdp run: use 1 (and a smaller coupling.n)")
+            if not any((self.em.circuit, self.em.current, self.em.sources)):
+                raise SchemaError("em.circuit", "the geometry's coil needs a source: give em.circuit (a capacitor "
+                                  "bank), em.current or [[em.sources]] with [[em.coils]]")
             check_coils(self)
+            check_applied_field(self)
             if getattr(self.geometry, "library", None) == "getdp_template" and self.em.getdp_process == "persistent":
                 raise SchemaError("em.getdp_process", "got 'persistent'; a deck on GetDP's template runs a getdp "
                                   "process per EM step (its state carried by -restart): set em.getdp_process = "

@@ -11,7 +11,7 @@ from pulseform.solvers.getdp.solver3d import Coil3D, EM3DModel
 
 from ..case.model import Case
 from ..mesh.geometry3d import Geometry3D
-from .solver import coil_drives
+from .solver import applied_field, coil_drives
 
 
 def em_model3d(case: Case, geo: Geometry3D) -> EM3DModel:
@@ -31,7 +31,7 @@ def em_model3d(case: Case, geo: Geometry3D) -> EM3DModel:
     conductors += [Conductor(case.materials[c.material].electrical_conductivity, name=c.name) for c in g.conductors]
     model = EM3DModel(coils=coils, conductors=conductors, circuit=circuit, shell=geo.shell,
                       shell_centre=tuple(g.shell_centre), sector_deg=geo.mesh.sector_deg,
-                      symmetry_factor=360.0 / geo.mesh.sector_deg)
+                      symmetry_factor=360.0 / geo.mesh.sector_deg, applied_field=applied_field(em.applied_field))
     if g.em_order != 1:
         model = replace(model, order=g.em_order, order2_air=False)
     return model

@@ -25,6 +25,7 @@ from pulseform.solvers import dolfinx as mech
 from pulseform.solvers.dolfinx.solver3d import ExplicitSolver3D
 from pulseform.solvers.getdp.mesh import COIL_BASE, CONDUCTOR_BASE, SHELL, conductor_tag
 from pulseform.solvers.getdp.mesh3d import Mesh3D
+from pulseform.solvers.getdp.solver3d import model_numbers
 
 from ..case.model import Case
 from ..coupling.loop import LoopOptions
@@ -37,7 +38,7 @@ from ..mech.model import solver_material
 from ..mech.pulses import box_marker
 from ..mech.rigid import RigidMechanics
 from ..mech.model3d import plane_marker
-from ..mesh.geometry3d import Geometry3D, PlaneSpec, boundary_faces, build_geometry3d
+from ..mesh.geometry3d import Geometry3D, GeometryError, PlaneSpec, boundary_faces, build_geometry3d
 from ..mesh.motion3d import MeshMover3D, nodes_on_plane
 from ..mesh.shared3d import conductor_submesh3d, match_nodes3d, to_dolfinx3d
 
@@ -88,6 +89,10 @@ def participants_3d(case: Case, work: Path):
     geo = build_geometry3d(case, work)
     mesh = geo.mesh
     model = em_model3d(case, geo)
+    try:   # what the deck would refuse (a cut, an applied field against a symmetry plane): bad input, found now
+        model_numbers(model, mesh)
+    except ValueError as exc:
+        raise GeometryError(f"{Path(g.file).name}: geometry: {exc}") from None
     tol = 1e-9 * float(np.abs(mesh.points).max())
     specs, subs = [], {}
     for k, b in enumerate(case.bodies, start=1):

@@ -153,7 +153,7 @@ def _triangles_cached(path: str, mtime_ns: int, size: int, tag: int) -> tuple[np
     return points, np.vectorize(index.__getitem__, otypes=[np.int64])(tri)
 
 
-def read_msh22_triangles(path: str | Path, tag: int) -> tuple[np.ndarray, np.ndarray]:
+def read_surface_triangles(path: str | Path, tag: int) -> tuple[np.ndarray, np.ndarray]:
     """The 3-node triangles of physical surface group ``tag`` of an ASCII MSH 2.2 file: (points (n, 3) m,
     the nodes they use; triangles (m, 3), rows of ``points`` in the file's node order, so that
     (x1 - x0) x (x2 - x0) is the normal GetDP sees). Both empty when the group has no triangle.
@@ -165,7 +165,7 @@ def read_msh22_triangles(path: str | Path, tag: int) -> tuple[np.ndarray, np.nda
 
 def _triangle_normals(path: str | Path, tag: int) -> np.ndarray:
     """(m, 3) half cross products 0.5 (x1 - x0) x (x2 - x0) (m^2) of the triangles of group ``tag``."""
-    points, tri = read_msh22_triangles(path, tag)
+    points, tri = read_surface_triangles(path, tag)
     p = points[tri]
     return 0.5 * np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
 
@@ -192,7 +192,7 @@ def cut_orientation(path: str | Path, tag: int, direction: tuple[float, float, f
     ValueError
         No triangle in the group, inconsistent orientation, or an ambiguous ``direction``.
     """
-    points, tri = read_msh22_triangles(path, tag)
+    points, tri = read_surface_triangles(path, tag)
     if tri.shape[0] == 0:
         raise ValueError(f"{path}: the cut (physical surface {tag}) has no triangles")
     edges = np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]])
@@ -213,6 +213,25 @@ def cut_orientation(path: str | Path, tag: int, direction: tuple[float, float, f
         raise ValueError(f"{path}: the direction {tuple(d)} is nearly tangent to the cut {tag} "
                          f"(its vector area along it {along:.3g} m^2 of {area:.3g} m^2)")
     return 1 if along > 0 else -1
+
+
+def read_msh22_triangles(path: str | Path, tags: Sequence[int] | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """(triangles (m, 3) as 0-based node rows -- the rows of :func:`read_msh22_tets`' points --, their
+    physical ids) of the triangles of an ASCII MSH 2.2 file whose physical id is one of ``tags`` (None: all;
+    a triangle in two physical groups appears twice)."""
+    text = Path(path).read_text()
+    nodes = text.split("$Nodes\n", 1)[1].split("$EndNodes", 1)[0].split("\n", 1)[1]
+    ids = np.array(nodes.split(), dtype=float).reshape(-1, 4)[:, 0].astype(np.int64)
+    index = np.zeros(int(ids.max()) + 1, dtype=np.int64)
+    index[ids] = np.arange(len(ids))
+    body = text.split("$Elements\n", 1)[1].split("$EndElements", 1)[0].split("\n", 1)[1]
+    want = None if tags is None else {str(int(t)) for t in tags}
+    rows = [r.split() for r in body.splitlines() if r]
+    tri = [(int(r[3]), [int(v) for v in r[3 + int(r[2]):6 + int(r[2])]]) for r in rows
+           if r[1] == "2" and (want is None or r[3] in want)]
+    if not tri:
+        return np.zeros((0, 3), np.int64), np.zeros(0, np.int64)
+    return index[np.array([c for _, c in tri], np.int64)], np.array([t for t, _ in tri], np.int64)
 
 
 def read_msh22_tets(path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

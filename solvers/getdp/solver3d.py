@@ -24,8 +24,9 @@ import numpy as np
 
 from .files import read_element_table, read_table
 from .mesh import AIR, COIL_BASE, CONDUCTOR_BASE, OUTER, SHELL, coil_tag, conductor_tag
-from .mesh3d import (CUT_BASE, ELEC_IN_BASE, ELEC_OUT_BASE, SKIN_BASE, SYM_A, Mesh3D, cut_orientation, cut_tag,
-                     physical_surface_area, skin_tag)
+from .applied_field import AppliedField, planes_of_faces
+from .mesh3d import (CUT_BASE, ELEC_IN_BASE, ELEC_OUT_BASE, SKIN_BASE, SYM_A, SYM_H, Mesh3D, cut_orientation, cut_tag,
+                     physical_surface_area, read_msh22_triangles, skin_tag)
 from .model import Circuit, Conductor, CurrentTable, DampedSine
 from .runner import RunInfo, run_getdp
 
@@ -96,6 +97,11 @@ class EM3DModel:
     ``order2_air`` False leaves the air and the shell first order (the face functions only on the coils'
     and conductors' faces) and ``order2_conductors`` (1-based numbers; None: all) chooses the
     conductors made second order, the others staying first order.
+    ``applied_field``: a uniform applied field (:class:`~.applied_field.AppliedField` with a 3-component
+    direction), alone or beside coils, by the reduced-field split (:mod:`.applied_field`): B, j, forces,
+    Joule power and probes are total, the magnetic energy is the reaction field's. It must be tangential
+    to the symmetry planes with n x a = 0 (physical 14: a sector's meridian planes admit only B_z) and
+    normal to those with n x h = 0 (physical 15); the run refuses other directions (``ValueError``).
     """
 
     coils: list[Coil3D] = field(default_factory=list)
@@ -109,8 +115,13 @@ class EM3DModel:
     order: int = 1
     order2_air: bool = True
     order2_conductors: tuple[int, ...] | None = None
+    applied_field: AppliedField | None = None
 
     def __post_init__(self) -> None:
+        if isinstance(self.applied_field, dict):
+            self.applied_field = AppliedField(**self.applied_field)
+        if self.applied_field is not None:
+            self.applied_field.unit_vector(3)   # 3 components, or a ValueError
         if self.order not in (1, 2):
             raise ValueError(f"the 3D EM order is 1 or 2, got {self.order!r}")
         if self.order2_conductors is not None and not set(self.order2_conductors) <= set(range(1, len(self.conductors) + 1)):
@@ -240,7 +251,28 @@ def model_numbers(model: EM3DModel, mesh: Mesh3D) -> tuple[dict[str, float], lis
     if model.circuit is not None:
         nb.update(C_bank=model.circuit.C, R_ext=model.circuit.R_ext, L_ext=model.circuit.L_ext,
                   Init_Vc=model.circuit.V0, Init_I=0.0)
+    if model.applied_field is not None:   # App_F1 / App_F2 (the state's) are the caller's
+        nb.update(model.applied_field.numbers_3d(*symmetry_planes(mesh)))
+        lines += model.applied_field.table_lines()
     return nb, lines
+
+
+def symmetry_planes(mesh: Mesh3D) -> tuple[list, list]:
+    """The symmetry planes of ``mesh`` (read from its file): those with n x a = 0 (physical 14) and
+    those with n x h = 0 (physical 15), each as (unit normal, offset n . p) (m)."""
+    tri, tags = read_msh22_triangles(mesh.path, (SYM_A, SYM_H))
+    return (planes_of_faces(mesh.points, tri[tags == SYM_A]), planes_of_faces(mesh.points, tri[tags == SYM_H]))
+
+
+def applied_state_values(model: EM3DModel, t: float, steps: int, dt_prev: float) -> tuple[float, float]:
+    """The applied field's unit time function (``App_F1``, ``App_F2``) of the states x_n at ``t`` (s) and
+    x_{n-1} at ``t - dt_prev``, after ``steps`` steps from rest (the state at rest has 0: no field)."""
+    f = model.applied_field
+    if f is None:
+        return 0.0, 0.0
+    f1 = float(f.unit_f(t)) if steps >= 1 else 0.0
+    f2 = float(f.unit_f(t - dt_prev)) if steps >= 2 else 0.0
+    return f1, f2
 
 
 _WALL = re.compile(r"^Info\s*:\s*\(Wall = ([0-9.eE+-]+)s, CPU = ([0-9.eE+-]+)s", re.M)
@@ -281,7 +313,7 @@ def solve_transient3d(model: EM3DModel, mesh: Mesh3D, t_end: float, n_steps: int
                       direction_output: bool = False,
                       restart_res: str | Path | None = None, circuit_state: tuple[float, float] | None = None,
                       time_scheme: str = "euler", extra_numbers: dict[str, float] | None = None,
-                      executable: str = "getdp",
+                      applied_start: float | None = None, executable: str = "getdp",
                       petsc_args: Sequence[str] = DEFAULT_PETSC_ARGS_3D, timeout: float | None = None) -> EM3DResult:
     """Run the 3D deck from ``t0`` to ``t_end`` (s) in ``n_steps`` implicit Euler steps.
 
@@ -297,6 +329,8 @@ def solve_transient3d(model: EM3DModel, mesh: Mesh3D, t_end: float, n_steps: int
     ``extra_numbers``: more ``-setnumber`` inputs of the deck (e.g. ``Flag_SaveInit``).
     ``time_scheme``: ``"euler"`` (implicit Euler) or ``"bdf2"`` (second order, equal steps, the first one
     implicit Euler; from zero fields only: no ``restart_res``).
+    ``applied_start``: with an applied field, its unit time function of the start state (``App_F1``;
+    default: 0 from rest, f(t0) with ``restart_res``; a BDF2 x~ passes its combination c1 f_n - c2 f_{n-1}).
     One getdp process in ``work_dir`` (created; its log ``getdp.log``); ``timeout`` in s.
     Raises :class:`~.runner.GetDPError` when getdp fails.
     """
@@ -315,6 +349,13 @@ def solve_transient3d(model: EM3DModel, mesh: Mesh3D, t_end: float, n_steps: int
         numbers["Flag_DirOut"] = 1
     if time_scheme not in ("euler", "bdf2"):
         raise ValueError(f"time_scheme is 'euler' or 'bdf2', got {time_scheme!r}")
+    if model.applied_field is not None:
+        if numbers.get("TimeTheta", 1.0) != 1.0:
+            raise ValueError("an applied field needs TimeTheta = 1 (its source is the implicit-Euler / BDF2 "
+                             "difference of the step)")
+        if applied_start is None:
+            applied_start = float(model.applied_field.unit_f(float(t0))) if restart_res is not None else 0.0
+        numbers["App_F1"] = float(applied_start)
     if time_scheme == "bdf2" and (restart_res is not None or circuit_state is not None):
         raise ValueError("bdf2 starts from zero fields: its restart (two history states) is not done")
     restart: list[str] = []
@@ -395,4 +436,5 @@ def read_results3d(model: EM3DModel, mesh: Mesh3D, out_dir: Path, n_steps: int, 
 
 
 __all__ = ["Coil3D", "EM3DModel", "EM3DResult", "solve_transient3d", "read_results3d", "model_numbers",
-           "coil_section_from_mesh", "ball_average", "DEFAULT_PETSC_ARGS_3D", "skin_tag"]
+           "coil_section_from_mesh", "ball_average", "DEFAULT_PETSC_ARGS_3D", "skin_tag", "AppliedField",
+           "symmetry_planes", "applied_state_values"]

@@ -24,7 +24,7 @@ import numpy as np
 import pytest
 
 from pulseform.solvers.getdp import Circuit, Conductor, DampedSine, Rect
-from pulseform.solvers.getdp.mesh3d import cut_orientation, cut_tag, physical_surface_area, read_msh22_triangles
+from pulseform.solvers.getdp.mesh3d import cut_orientation, cut_tag, physical_surface_area, read_surface_triangles
 from pulseform.solvers.getdp.solver3d import Coil3D, EM3DModel, ball_average, model_numbers, solve_transient3d
 
 from closed_ring_mesh import closed_ring_mesh, flip_physical_triangles
@@ -61,7 +61,7 @@ def test_cut_area_orientation_and_numbers(tmp_path):
     checked (consistent, or an error) and gives the sign of the deck; the deck numbers carry both."""
     mesh = _ring_mesh(tmp_path / "ring.msh")
     assert physical_surface_area(mesh.path, cut_tag(1)) == pytest.approx(SECTION, rel=1e-12)
-    points, tri = read_msh22_triangles(mesh.path, cut_tag(1))
+    points, tri = read_surface_triangles(mesh.path, cut_tag(1))
     assert np.abs(points[:, 1]).max() < 1e-12        # the cut lies in the plane y = 0 ...
     assert points[:, 0].min() > 0                     # ... on the side x > 0
     normals = np.cross(points[tri[:, 1]] - points[tri[:, 0]], points[tri[:, 2]] - points[tri[:, 0]])
