@@ -219,11 +219,17 @@ def _check_geometry_3d(case, file: Path) -> list[str] | int:
 
     from .mesh.geometry3d import GeometryError, build_geometry3d
 
+    from .em.model3d import em_model3d
+    from pulseform.solvers.getdp.solver3d import model_numbers
+
     with tempfile.TemporaryDirectory(prefix="pulseform_check3d_") as tmp:
         try:
             geo = build_geometry3d(case, Path(tmp))
+            model_numbers(em_model3d(case, geo), geo.mesh)   # what the deck would refuse
         except GeometryError as exc:
             return _error(f"{file}: {exc.message}", EXIT_BAD_INPUT)
+        except ValueError as exc:
+            return _error(f"{file}: {Path(case.geometry.file).name}: geometry: {exc}", EXIT_BAD_INPUT)
     m = geo.mesh
     return [f"# {case.geometry.file}: {m.n_tets} tetrahedra, {m.n_nodes} nodes; groups: {geo.groups}",
             f"# coils (physical 100 + k): {geo.coils}; conductors (200 + k): {geo.conductors}; symmetry factor "

