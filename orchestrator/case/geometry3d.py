@@ -115,7 +115,8 @@ class GeometryFile3D:
     conductors: tuple[FixedConductor3D, ...] = spec((), doc="[[geometry.conductors]] fixed conductors (no body)")
     symmetry_factor: float | None = spec(None, unit="-", ge=1.0, le=1e6, doc="whole device / modelled part "
                                          "(device figures, the bank's voltage over the part); default from the "
-                                         "[[symmetry]] planes: 1, 2, 4 or 8 for 0-3 mutually perpendicular planes")
+                                         "[[symmetry]] planes: 1, 2, 4 or 8 for 0-3 mutually perpendicular planes, "
+                                         "360 deg / the wedge's angle (read from the mesh) for two others")
     em_step: float | None = spec(None, unit="s", gt=0.0, doc="target EM step: n = round(em_step / stable "
                                  "mechanical step) (unset: coupling.n)")
     em_order: int = spec(1, unit="-", ge=1, le=2, doc="edge elements: 1 (Whitney) or 2 (second order in the coils and "
@@ -186,21 +187,6 @@ def _one_role(seen: dict[str, str], group: str, key: str) -> None:
     if group in seen:
         raise SchemaError(key, f"got {group!r}, which is already {seen[group]}; a physical group has one role")
     seen[group] = key
-
-
-def symmetry_factor(g: GeometryFile3D, planes) -> float:
-    """Whole device / modelled part: ``geometry.symmetry_factor``, else 2^k for k (<= 3) mutually perpendicular
-    ``planes`` (:class:`~.solid3d.SymmetryPlane`); raises :class:`SchemaError` for oblique planes without it."""
-    if g.symmetry_factor is not None:
-        return float(g.symmetry_factor)
-    normals = [tuple(c / math.hypot(*p.normal) for c in p.normal) for p in planes]
-    for i, a in enumerate(normals):
-        for b in normals[:i]:
-            if abs(sum(x * y for x, y in zip(a, b))) > 1e-9:
-                raise SchemaError("geometry.symmetry_factor", "missing: the [[symmetry]] planes are not mutually "
-                                  "perpendicular (a sector): give the whole device / modelled part, e.g. "
-                                  "360 / sector angle in degrees")
-    return float(2 ** len(normals))
 
 
 def validate_geometry_3d(case) -> None:

@@ -24,6 +24,7 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+from .memory import MEMORY_BASE, MEMORY_PER_TET, available_memory  # noqa: F401  (racetrack3d)
 from .schema import SchemaError, spec
 
 #: what a coupled 3D run does when the air's worst tetrahedron falls below its break quality times the fresh
@@ -174,11 +175,6 @@ MESH_OVER_SHEET = 2.5
 #: tetrahedra per h^3 of volume at element size h, taken low: a regular tetrahedron of edge h holds
 #: h^3 / 8.49, and gmsh's elements scatter about the size (a lower estimate)
 TETS_PER_H3 = 8.49 / 2.0
-#: memory of a run (bytes): the Python process and libraries, then per EM tetrahedron (getdp with its LU
-#: ~5.5 kB at 46k tets and growing, plus the air motion's factorisation, meshes and solver); a lower
-#: estimate from the runs measured (getdp 255 MB at 46k tets, the run's Python process ~350 MB)
-MEMORY_BASE = 0.4e9
-MEMORY_PER_TET = 8e3
 
 
 def _strip_triangles(alpha: float, r0: float, r1: float, h: float) -> float:
@@ -212,18 +208,6 @@ def estimated_sector_tets(case) -> tuple[float, float]:
     air = alpha / 3.0 * g.shell_radius ** 3 * 2.0   # the sector of the sphere of the shell's radius
     by_volume = TETS_PER_H3 * (coil / g.mesh_size_coil ** 3 + air / g.mesh_size_air ** 3)
     return max(MESH_OVER_SHEET * sheet, sheet + by_volume), sheet
-
-
-def available_memory() -> float | None:
-    """Bytes of memory available to a new process (``MemAvailable`` of /proc/meminfo); None if unknown."""
-    try:
-        with open("/proc/meminfo") as f:
-            for line in f:
-                if line.startswith("MemAvailable:"):
-                    return float(line.split()[1]) * 1024.0
-    except (OSError, ValueError, IndexError):
-        return None
-    return None
 
 
 def check_sector_resources(case, available: float | None = None) -> None:

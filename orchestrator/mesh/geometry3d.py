@@ -33,6 +33,8 @@ from typing import Sequence
 import numpy as np
 
 from pulseform.solvers.getdp.mesh import AIR, OUTER, SHELL, coil_tag, conductor_tag
+
+from ..case.memory import available_memory, memory_needed
 from pulseform.solvers.getdp.mesh3d import CUT_BASE, ELEC_IN_BASE, ELEC_OUT_BASE, SYM_A, SYM_H, Mesh3D, skin_tag
 
 log = logging.getLogger(__name__)
@@ -282,12 +284,14 @@ def shell_radii(x: np.ndarray, tets: np.ndarray, tet_tags: np.ndarray, centre) -
 
 
 def map_roles(raw: RawGroups, g, bodies: Sequence[tuple[str, str]], planes: Sequence[PlaneSpec], out: Path,
-              symmetry_factor: float, label: str, max_cells: float | None = None) -> Geometry3D:
+              symmetry_factor: float, label: str, max_cells: float | None = None,
+              available: float | None = None) -> Geometry3D:
     """The deck's mesh of ``raw`` (module docstring, 3.), written to ``out`` (MSH 2.2).
 
     ``g`` the case's :class:`~pulseform.orchestrator.case.geometry3d.GeometryFile3D`; ``bodies`` (key, group)
     of the conductor bodies in [[bodies]] order; ``planes`` the symmetry planes; ``label`` the file named in
-    messages; ``max_cells`` ``limits.max_cells``. Raises :class:`GeometryError` naming the case key."""
+    messages; ``max_cells`` ``limits.max_cells``; ``available`` the memory (bytes; default: the machine's
+    available memory). Raises :class:`GeometryError` naming the case key."""
     vols, surfs = set(raw.volumes), raw.surfaces
 
     def need(group: str, key: str, kind: str) -> None:
@@ -298,6 +302,10 @@ def map_roles(raw: RawGroups, g, bodies: Sequence[tuple[str, str]], planes: Sequ
     if max_cells is not None and len(raw.tets) > max_cells:
         raise GeometryError(f"{label}: limits.max_cells: the mesh has {len(raw.tets)} tetrahedra, above "
                             f"limits.max_cells = {max_cells:.3g}; coarsen geometry.mesh_sizes or raise the limit")
+    memory, have = memory_needed(len(raw.tets)), available_memory() if available is None else available
+    if have is not None and memory > have:
+        raise GeometryError(f"{label}: geometry.mesh_sizes: the mesh has {len(raw.tets)} tetrahedra, a run needs "
+                            f"~{memory / 1e9:.3g} GB and {have / 1e9:.3g} GB are available; coarsen the mesh")
     need(g.air, "geometry.air", "volume")
     role = {g.air: AIR}
     if g.shell is not None:
@@ -410,20 +418,51 @@ def plane_specs(symmetry) -> list[PlaneSpec]:
 def build_geometry3d(case, work: Path) -> Geometry3D:
     """Mesh the case's geometry file in ``work`` and map its roles (:func:`mesh_file3d`, :func:`read_groups`,
     :func:`map_roles`): the EM mesh ``work/em3d.msh``."""
-    from ..case.geometry3d import symmetry_factor
-
     g = case.geometry
     label = Path(g.file).name
     raw_path = mesh_file3d(g, work, case.limits.gmsh_time_limit_s)
     raw = read_groups(raw_path, label)
+    planes = plane_specs(case.symmetry)
     bodies = [(f"bodies[{i}].region", b.region) for i, b in enumerate(case.bodies)]
     for i, b in enumerate(case.bodies):
         for j, f in enumerate(b.fixed):
             if f.group is not None and f.group not in raw.surfaces:
                 raise GeometryError(f"{label}: bodies[{i}].fixed[{j}].group: got {f.group!r}, not a physical surface "
                                     f"group of the mesh; its groups: {raw.listing()}")
-    return map_roles(raw, g, bodies, plane_specs(case.symmetry), Path(work) / "em3d.msh",
-                     symmetry_factor(g, case.symmetry), label, case.limits.max_cells)
+    return map_roles(raw, g, bodies, planes, Path(work) / "em3d.msh",
+                     symmetry_factor(g, planes, raw.points, label), label, case.limits.max_cells)
+
+
+def symmetry_factor(g, planes: Sequence[PlaneSpec], points: np.ndarray, label: str) -> float:
+    """Whole device / modelled part: ``geometry.symmetry_factor`` when given; else 2^k for k (<= 3) mutually
+    perpendicular planes; else, for two planes (a wedge: a sector about their common line), 360 degrees over the
+    wedge's angle, the angular extent of the mesh's ``points`` about that line. Raises :class:`GeometryError`
+    for other plane sets without ``geometry.symmetry_factor``."""
+    if g.symmetry_factor is not None:
+        return float(g.symmetry_factor)
+    n = [p.normal for p in planes]
+    if all(abs(float(a @ b)) <= 1e-9 for i, a in enumerate(n) for b in n[:i]):
+        return float(2 ** len(n))
+    if len(planes) != 2:
+        raise GeometryError(f"{label}: geometry.symmetry_factor: missing; {len(planes)} [[symmetry]] planes, not "
+                            "mutually perpendicular: give the whole device / modelled part")
+    axis = np.cross(n[0], n[1])
+    axis /= np.linalg.norm(axis)
+    # a point on both planes: the least-squares solution of n_i . x = n_i . p_i
+    a = np.array(n)
+    x0 = np.linalg.lstsq(a, np.array([float(p.normal @ p.point) for p in planes]), rcond=None)[0]
+    e1 = np.cross(n[0], axis)   # in plane 0, normal to the axis
+    e2 = np.cross(axis, e1)
+    d = points - x0
+    d = d - np.outer(d @ axis, axis)
+    far = np.linalg.norm(d, axis=1) > 1e-6 * float(np.abs(points).max())
+    phi = np.arctan2(d[far] @ e2, d[far] @ e1)
+    phi = np.where(phi < -1e-9, phi + 2 * np.pi, phi)   # angles from plane 0, in [0, 2 pi)
+    span = float(phi.max() - phi.min())
+    if not 1e-6 < span < 2 * np.pi - 1e-6:
+        raise GeometryError(f"{label}: geometry.symmetry_factor: missing; the mesh does not lie in one wedge of the "
+                            "two [[symmetry]] planes: give the whole device / modelled part")
+    return 2 * np.pi / span
 
 
 def main(argv: Sequence[str] | None = None) -> int:
