@@ -101,6 +101,9 @@ class GeometryFile3D:
                                                   "builder (name=value arguments)")
     mesh_sizes: dict[str, float] | None = spec(None, unit="m", gt=0.0, doc="element size per physical volume group "
                                                   "(its points); unset: the file's own sizes")
+    mesh_size_factor: float = spec(1.0, unit="-", gt=0.0, le=100.0, doc="every element size times this (gmsh's "
+                                   "Mesh.MeshSizeFactor; a .py builder gets mesh_size_factor=<value>: "
+                                   "pulseform converge refines it)")
     allow_outside: bool = spec(False, doc="allow a file outside the case folder")
     allow_system_calls: bool = spec(False, doc="run a .py builder, or a .geo that runs programs (SystemCall, ...): "
                                     "allow only files you trust")
