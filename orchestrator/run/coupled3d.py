@@ -55,7 +55,7 @@ class SectorOptions:
     ``h_coil``, ``h_air`` sizes in the turns and at the sphere; ``em_step`` the target EM step
     (n = em_step / stable mechanical step, the loop's even landing); ``remesh_quality`` the air's worst
     quality as a fraction of the fresh mesh's below which the air mesh counts as broken, ``on_mesh_break``
-    what then happens ("remesh", "freeze" or "stop": :class:`~.coupled_racetrack.RacetrackOptions`);
+    what then happens ("remesh", "freeze" or "stop": as ``geometry.on_mesh_break`` of a 3D geometry file);
     ``clamp_rmin`` the sheet is held for r >= clamp_rmin (m; None: the smallest ``xmin`` of the
     axisymmetric case's fixed boxes, none: free).
     """

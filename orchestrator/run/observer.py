@@ -1,6 +1,6 @@
 """What a case adds to the driver's run beside its participants (:mod:`.driver`): an observer called
-after every EM step, with history columns, checkpoint state and metrics of its own (the racetrack
-case's: :class:`~.racetrack_case.RacetrackObserver`). :class:`NoObserver` is the one of every other case."""
+after every EM step, with history columns, checkpoint state and metrics of its own (a case with a
+``[racetrack]`` table had one until issue 29). :class:`NoObserver` is the one of every case."""
 
 from __future__ import annotations
 
