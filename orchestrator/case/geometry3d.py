@@ -259,8 +259,8 @@ def validate_geometry_3d(case) -> None:
     if case.coupling.em_substeps != 1:
         raise SchemaError("coupling.em_substeps", f"got {case.coupling.em_substeps}; the 3D path takes one BDF2 "
                           "step per EM step: 1")
-    if case.sector is not None or case.racetrack is not None:
-        raise SchemaError("sector" if case.sector is not None else "racetrack", "a table of the built-in 3D devices; "
+    if case.sector is not None:
+        raise SchemaError("sector", "a table of the built-in 3D sector; "
                           "a 3D geometry file has none: remove it")
 
 
@@ -268,6 +268,21 @@ def is_geometry_3d(data: dict) -> bool:
     """True for the raw mapping of a case whose ``[geometry]`` is a 3D geometry file."""
     g = data.get("geometry")
     return isinstance(g, dict) and g.get("type") == "geometry_3d"
+
+
+#: keys of other tables that a 3D geometry file does not use, and what it uses instead
+RAW_REFUSED = (("em", "remesh_quality", "the 2D air remesh's threshold; a 3D geometry file's is geometry.break_quality"),)
+
+
+def check_raw_geometry_3d(data: dict) -> None:
+    """In the raw case mapping of a 3D geometry-file case: refuse keys of other paths whose defaults it would
+    ignore (:data:`RAW_REFUSED`): one :class:`SchemaError` naming the key."""
+    if not is_geometry_3d(data):
+        return
+    for table, key, why in RAW_REFUSED:
+        t = data.get(table)
+        if isinstance(t, dict) and key in t:
+            raise SchemaError(f"{table}.{key}", f"{why}: remove it")
 
 
 def resolve_geometry_file(data: dict, file, source: str) -> None:

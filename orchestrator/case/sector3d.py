@@ -24,7 +24,7 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from .memory import MEMORY_BASE, MEMORY_PER_TET, available_memory  # noqa: F401  (racetrack3d)
+from .memory import MEMORY_BASE, MEMORY_PER_TET, available_memory
 from .schema import SchemaError, spec
 
 #: what a coupled 3D run does when the air's worst tetrahedron falls below its break quality times the fresh

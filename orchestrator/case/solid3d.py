@@ -17,7 +17,6 @@ from typing import Any, Literal
 
 from .schema import SchemaError, spec
 from .geometry3d import validate_geometry_3d
-from .racetrack3d import validate_racetrack
 from .sector3d import validate_coupled_3d
 
 Vec3 = tuple[float, float, float]
@@ -125,10 +124,7 @@ def _validate_3d(case) -> None:
     if file3d:
         validate_geometry_3d(case)  # the user's own geometry file (.geometry3d)
     elif case.case.kind == "coupled":
-        if case.racetrack is not None:
-            validate_racetrack(case)  # the racetrack quarter model (.racetrack3d)
-        else:
-            validate_coupled_3d(case)  # a sector of a flat_coil_sheet setup (.sector3d)
+        validate_coupled_3d(case)  # a sector of a flat_coil_sheet setup (.sector3d)
     elif case.sector is not None:
         raise SchemaError("sector", "a key of coupled 3D cases (case.kind = 'coupled'); a mechanics case has "
                           "none: remove [sector]")
