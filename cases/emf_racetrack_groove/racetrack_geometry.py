@@ -15,30 +15,17 @@ extruded in layers through its thickness), so the mesh is the one of the study's
 import sys
 from dataclasses import fields
 
+from pulseform.orchestrator.mesh.geometry3d import BuilderArgumentError, builder_arguments
 from pulseform.solvers.getdp.racetrack_mesh import RacetrackGroove, racetrack_groove_mesh
-
-INTEGERS = ("turns", "sheet_layers")
 
 
 def main(argv: list[str]) -> int:
-    if not argv:
-        print("usage: python racetrack_geometry.py OUT.msh [name=value ...]", file=sys.stderr)
-        return 2
-    known = {f.name for f in fields(RacetrackGroove)}
-    values, factor = {}, 1.0
-    for item in argv[1:]:
-        name, _, text = item.partition("=")
-        if name == "mesh_size_factor":   # pulseform's refinement: every size times it, the layers over it
-            factor = float(text)
-            continue
-        if name not in known:
-            print(f"Error: unknown parameter {name!r}; known: {', '.join(sorted(known))}", file=sys.stderr)
-            return 2
-        values[name] = int(float(text)) if name in INTEGERS else float(text)
     try:
+        out, values, factor = builder_arguments(argv, [f.name for f in fields(RacetrackGroove)],
+                                                integers=("turns", "sheet_layers"))
         g = RacetrackGroove(**values)
-        racetrack_groove_mesh(argv[0], g if factor == 1.0 else g.scaled(factor))
-    except ValueError as exc:
+        racetrack_groove_mesh(out, g if factor == 1.0 else g.scaled(factor))
+    except (BuilderArgumentError, ValueError) as exc:   # an unknown name, an inconsistent geometry
         print(f"Error: {exc}", file=sys.stderr)
         return 2
     return 0

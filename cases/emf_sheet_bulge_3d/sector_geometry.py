@@ -17,6 +17,7 @@ mesh is that of the sector's reference runs.
 import math
 import sys
 
+from pulseform.orchestrator.mesh.geometry3d import BuilderArgumentError, builder_arguments
 from pulseform.solvers.getdp.mesh import Rect
 from pulseform.solvers.getdp.mesh3d import ring_sector_mesh
 
@@ -45,26 +46,19 @@ def build(out: str, p: dict) -> None:
 
 
 def main(argv: list[str]) -> int:
-    if not argv:
-        print("usage: python sector_geometry.py OUT.msh [name=value ...]", file=sys.stderr)
+    try:
+        out, values, factor = builder_arguments(argv, list(DEFAULTS), integers=INTEGERS)
+    except BuilderArgumentError as exc:
+        print(f"Error: {exc}", file=sys.stderr)
         return 2
-    p, factor = dict(DEFAULTS), 1.0
-    for item in argv[1:]:
-        name, _, text = item.partition("=")
-        if name == "mesh_size_factor":   # pulseform's refinement: every size times it, the layers over it
-            factor = float(text)
-            continue
-        if name not in DEFAULTS:
-            print(f"Error: unknown parameter {name!r}; known: {', '.join(sorted(DEFAULTS))}", file=sys.stderr)
-            return 2
-        p[name] = int(float(text)) if name in INTEGERS else float(text)
+    p = {**DEFAULTS, **values}
     if not 0 < p["angle_deg"] < 180:
         print(f"Error: angle_deg must lie in (0, 180) degrees, got {p['angle_deg']}", file=sys.stderr)
         return 2
-    if factor != 1.0:
+    if factor != 1.0:   # every size times the factor (the air's at the sphere only refined), the layers over it
         p.update({k: p[k] * factor for k in ("h_sheet", "h_sheet_out", "h_coil")}, h_air=p["h_air"] * min(factor, 1.0),
                  sheet_layers=max(1, round(p["sheet_layers"] / factor)))
-    build(argv[0], p)
+    build(out, p)
     return 0
 
 

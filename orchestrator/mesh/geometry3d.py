@@ -62,7 +62,7 @@ def mesh_file3d(g, work: Path, time_limit: float = 600.0) -> Path:
     ``.msh`` itself or the file meshed by a child process into ``work/geometry.msh`` (log
     ``work/gmsh.log``); raises :class:`GeometryError` with the log's tail when meshing fails or exceeds
     ``time_limit`` (s)."""
-    from pulseform.solvers.getdp.runner import child_preexec
+    from pulseform.solvers.getdp.runner import run_logged
 
     src = Path(g.file)
     if src.suffix.lower() == ".msh":
@@ -80,21 +80,43 @@ def mesh_file3d(g, work: Path, time_limit: float = 600.0) -> Path:
         argv = [sys.executable, "-m", __name__, str(src), str(out), json.dumps(g.mesh_sizes or {}), repr(factor)] + params
         what = "gmsh"
     log_path = work / "gmsh.log"
-    with open(log_path, "w") as fh:
-        fh.write("# argv: " + " ".join(argv) + "\n")
-        fh.flush()
-        try:
-            r = subprocess.run(argv, cwd=src.parent, stdout=fh, stderr=subprocess.STDOUT, timeout=time_limit,
-                               check=False, preexec_fn=child_preexec)
-        except subprocess.TimeoutExpired:
-            raise GeometryError(f"{src.name}: geometry.file: meshing exceeded its time limit of {time_limit:g} s "
-                                "(limits.gmsh_time_limit_s) and was stopped", log_path=log_path) from None
-    text = log_path.read_text(errors="replace")
-    if r.returncode != 0 or not out.is_file():
-        lines = [ln for ln in text.splitlines()[1:] if ln.strip()]
-        last = next((ln for ln in reversed(lines) if "rror" in ln), lines[-1] if lines else f"exit code {r.returncode}")
+    try:
+        code, text = run_logged(argv, src.parent, log_path, time_limit)
+    except subprocess.TimeoutExpired:
+        raise GeometryError(f"{src.name}: geometry.file: meshing exceeded its time limit of {time_limit:g} s "
+                            "(limits.gmsh_time_limit_s) and was stopped", log_path=log_path) from None
+    except OSError as exc:
+        raise GeometryError(f"{src.name}: geometry.file: could not start {what}: {exc}", log_path=log_path) from None
+    if code != 0 or not out.is_file():
+        lines = [ln for ln in text.splitlines() if ln.strip()]
+        last = next((ln for ln in reversed(lines) if "rror" in ln), lines[-1] if lines else f"exit code {code}")
         raise GeometryError(f"{src.name}: geometry.file: {what} failed: {last.strip()[:200]}", log_path=log_path)
     return out
+
+
+class BuilderArgumentError(ValueError):
+    """A gmsh builder script was called with arguments it does not know."""
+
+
+def builder_arguments(argv: Sequence[str], known: Sequence[str], integers: Sequence[str] = ()
+                      ) -> tuple[str, dict[str, float | int], float]:
+    """The arguments a ``.py`` builder receives (``python FILE OUT.msh name=value ... [mesh_size_factor=f]``):
+    (OUT.msh, the values by name -- ints for ``integers`` --, the mesh size factor, 1.0 when not given).
+    A builder script calls this on ``sys.argv[1:]``; raises :class:`BuilderArgumentError` naming an unknown name
+    (the builder prints it as an ``Error:`` line, which pulseform quotes)."""
+    if not argv:
+        raise BuilderArgumentError("usage: python BUILDER.py OUT.msh [name=value ...]")
+    values: dict[str, float | int] = {}
+    factor = 1.0
+    for item in argv[1:]:
+        name, _, text = item.partition("=")
+        if name == "mesh_size_factor":   # pulseform's refinement (geometry.mesh_size_factor)
+            factor = float(text)
+        elif name in known:
+            values[name] = int(float(text)) if name in integers else float(text)
+        else:
+            raise BuilderArgumentError(f"unknown parameter {name!r}; known: {', '.join(sorted(known))}")
+    return argv[0], values, factor
 
 
 def _child(src: str, out: str, sizes_json: str, factor: float, params: Sequence[str]) -> int:
