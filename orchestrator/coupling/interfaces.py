@@ -174,6 +174,10 @@ class LoadCapabilities:
         """The field snapshot at the peak coil current once, when it is new (None: nothing to write)."""
         return None
 
+    def take_peak_conductors(self) -> tuple | None:
+        """Every conductor's field snapshot at the peak coil current once, when it is new (None: nothing)."""
+        return None
+
     def snapshot(self) -> tuple | None:
         """The current EM field snapshot (None: nothing to write)."""
         return None

@@ -145,6 +145,7 @@ class GetDPLoad3D(LoadCapabilities):
         self.coil_heat = 0.0        # Σ s P_coil(t1) dt (J), the whole coil's
         self.peak_current = 0.0     # largest |I| at the end of a step (A) and the snapshot there
         self._peak: tuple | None = None
+        self._peak_conductors: tuple | None = None   # every conductor at the peak (:meth:`take_peak_conductors`)
         self.last_snapshot: tuple | None = None
         sub = self.bodies[0].sub
         self._sheet_pos = np.full(len(mesh.tets), -1, dtype=np.int64)
@@ -221,6 +222,7 @@ class GetDPLoad3D(LoadCapabilities):
         self.last_snapshot = self._sheet_snapshot(t1, current, x_em, result)
         if abs(current) > self.peak_current:
             self.peak_current, self._peak = abs(current), self.last_snapshot
+            self._peak_conductors = self._conductor_snapshot(t1, current, x_em, result)
         return LoadStep(forces, integral, values)
 
     @staticmethod
@@ -243,6 +245,28 @@ class GetDPLoad3D(LoadCapabilities):
             q[pos[on]] = result.joule_density[-1][on]
             cells["joule_power_density_W_m3"] = q
         return float(t), current, x_em[sub.em_nodes].copy(), sub.cells, cells
+
+    def _conductor_snapshot(self, t: float, current: float, x_em: np.ndarray, result) -> tuple:
+        """(t s, coil current A, node positions (n, 3) m, tetrahedra (m, 4), cell data) of every conductor -- the
+        bodies and the fixed ones -- at the end of the step: force density (N/m^3), Joule power density q (W/m^3),
+        the eddy current density's magnitude |j| = sqrt(sigma q) (A/m^2) and the conductor's number k (200 + k)."""
+        rows = result.elements
+        nodes, inverse = np.unique(self.mesh.tets[rows], return_inverse=True)
+        k = result.element_tags - CONDUCTOR_BASE
+        sigma = np.array([c.sigma for c in self.model.conductors])[k - 1]
+        f = result.force_density[-1]
+        cells = {"force_density_N_m3": f, "force_density_magnitude_N_m3": np.linalg.norm(f, axis=1),
+                 "conductor": k.astype(float)}
+        if result.joule_density is not None:
+            q = np.maximum(result.joule_density[-1], 0.0)
+            cells["joule_power_density_W_m3"] = q
+            cells["current_density_magnitude_A_m2"] = np.sqrt(sigma * q)
+        return float(t), current, x_em[nodes].copy(), inverse.reshape(-1, 4), cells
+
+    def take_peak_conductors(self) -> tuple | None:
+        """Every conductor's snapshot at the largest |coil current| so far, once when it is new (else None)."""
+        peak, self._peak_conductors = self._peak_conductors, None
+        return peak
 
     def initial(self, mechanics) -> LoadStep:
         """The load at t = 0: no force, the bank charged to V0 (the history's first row)."""
@@ -341,4 +365,4 @@ class GetDPLoad3D(LoadCapabilities):
         self.impulse_device, self.coil_heat, self.peak_current, self.min_quality = (float(v) for v in state["sums"])
         if "body_impulse" in state:   # checkpoints before 2026-11-28 have none
             self.body_impulse = np.array(state["body_impulse"], dtype=float).reshape(len(self.bodies), 3)
-        self._peak = None  # the checkpoint wrote the snapshot at the peak so far
+        self._peak = self._peak_conductors = None  # the checkpoint wrote the snapshots at the peak so far

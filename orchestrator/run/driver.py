@@ -40,6 +40,7 @@ from .analyses import create as create_analysis
 from .checkpoint import CHECKPOINT_NAME, load_checkpoint, save_checkpoint
 from .coupled3d import sector_participants
 from .em_fields import EMFieldWriter, write_peak_snapshot
+from .em_fields3d import CONDUCTORS_PEAK
 from .em_fields3d import FOLDER as EM3D_FOLDER
 from .em_fields3d import STEM as EM3D_STEM
 from .extremes3d import body_extremes_3d, contact_columns_3d, contact_metrics_3d
@@ -189,6 +190,9 @@ class CaseDriver:
         peak = self.load.take_peak_snapshot() if self.comm.rank == 0 else None
         if peak is not None:
             write_peak_snapshot(self.results.fields / (EM3D_FOLDER if self.sector else "em"), *peak)
+        conductors = self.load.take_peak_conductors() if self.comm.rank == 0 else None
+        if conductors is not None:   # every 3D conductor (bodies and fixed ones: a field shaper's current)
+            write_peak_snapshot(self.results.fields / EM3D_FOLDER, *conductors, name=CONDUCTORS_PEAK)
         arrays = {f"solver/{k}": v for k, v in self.mechanics.state_dict().items()}
         arrays.update({f"loop/{k}": v for k, v in self.loop.counters.state_dict().items()})
         arrays.update({f"load/{k}": v for k, v in self.load.checkpoint_state_dict().items()})
