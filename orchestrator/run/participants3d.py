@@ -71,17 +71,6 @@ def _supports(case: Case, name: str, fixed, geo: Geometry3D, tol: float) -> tupl
     return held, sliding
 
 
-def _check_supports(case: Case, subs: dict, tol: float) -> None:
-    """Every ``[[bodies.fixed]]`` box of a deformable body holds at least one of its nodes; raises
-    :class:`GeometryError` naming the key otherwise (a clamp beyond the body is a mistake, not a free body)."""
-    for i, b in enumerate(case.bodies):
-        x = subs[b.region].points.T
-        for j, f in enumerate(b.fixed):
-            if not b.rigid and f.where is not None and not np.any(box_marker(f.where, tol)(x)):
-                raise GeometryError(f"{Path(case.geometry.file).name}: bodies[{i}].fixed[{j}].where: the box holds no "
-                                    f"node of body {b.name!r} (bounds x, y, z, and rmin/rmax about the z-axis, m)")
-
-
 def air_mover3d(mesh: Mesh3D, planes: list[PlaneSpec], tol: float) -> MeshMover3D:
     """The air's motion on ``mesh`` (also on a remeshed one): conductors prescribed (the bodies move, the fixed
     ones stay), coils, shell and the outer boundary fixed, the symmetry planes sliding."""
@@ -124,7 +113,6 @@ def participants_3d(case: Case, work: Path):
     pairs = tuple(mech.ContactPairSpec(slave=c.slave, master=c.master, stiffness=c.stiffness, h0=c.h0,
                                        friction=c.friction, viscosity=c.viscosity, two_pass=c.two_pass)
                   for c in case.contact)
-    _check_supports(case, subs, tol)
     mo = case.mechanics
     solver = ExplicitSolver3D(specs, contact_pairs=pairs, cfl=case.time.cfl, bulk_viscosity=mo.bulk_viscosity,
                               bulk_linear=mo.bulk_viscosity_linear, bulk_quadratic=mo.bulk_viscosity_quadratic,
