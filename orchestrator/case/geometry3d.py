@@ -255,8 +255,9 @@ def validate_geometry_3d(case) -> None:
     if case.coupling.em_substeps != 1:
         raise SchemaError("coupling.em_substeps", f"got {case.coupling.em_substeps}; the 3D path takes one BDF2 "
                           "step per EM step: 1")
-    if case.sector is not None or case.racetrack is not None:
-        raise SchemaError("sector" if case.sector is not None else "racetrack", "a table of the built-in 3D devices; "
+    built_in = [k for k in ("sector", "racetrack") if getattr(case, k, None) is not None]   # while the tables exist
+    if built_in:
+        raise SchemaError(built_in[0], "a table of the built-in 3D devices; "
                           "a 3D geometry file has none: remove it")
 
 
