@@ -6,7 +6,8 @@ terminals "coil_in" (on y = 0) and "coil_out" (on x = 0), "sheet", "die" (and th
 "outer", which the runner recomputes). The names ``name=value`` are the fields of
 :class:`pulseform.solvers.getdp.racetrack_mesh.RacetrackGroove` (m; ``turns`` and ``sheet_layers`` integers;
 ``h_coil``, ``h_sheet``, ``h_die``, ``h_air`` the element sizes, ``grading`` the growth of the size per metre
-away from the coil's footprint). The mesher is pulseform's OpenCASCADE build of this geometry (the sheet
+away from the coil's footprint); ``mesh_size_factor`` (pulseform's ``geometry.mesh_size_factor``) multiplies the
+sizes and divides the sheet's layers (:meth:`RacetrackGroove.scaled`: the air's size at the sphere only refined). The mesher is pulseform's OpenCASCADE build of this geometry (the sheet
 extruded in layers through its thickness), so the mesh is the one of the study's reference run
 (studies/emf_racetrack_groove).
 """
@@ -24,15 +25,19 @@ def main(argv: list[str]) -> int:
         print("usage: python racetrack_geometry.py OUT.msh [name=value ...]", file=sys.stderr)
         return 2
     known = {f.name for f in fields(RacetrackGroove)}
-    values = {}
+    values, factor = {}, 1.0
     for item in argv[1:]:
         name, _, text = item.partition("=")
+        if name == "mesh_size_factor":   # pulseform's refinement: every size times it, the layers over it
+            factor = float(text)
+            continue
         if name not in known:
             print(f"Error: unknown parameter {name!r}; known: {', '.join(sorted(known))}", file=sys.stderr)
             return 2
         values[name] = int(float(text)) if name in INTEGERS else float(text)
     try:
-        racetrack_groove_mesh(argv[0], RacetrackGroove(**values))
+        g = RacetrackGroove(**values)
+        racetrack_groove_mesh(argv[0], g if factor == 1.0 else g.scaled(factor))
     except ValueError as exc:
         print(f"Error: {exc}", file=sys.stderr)
         return 2

@@ -7,7 +7,9 @@ z = 0) as one coil, the sheet (radius ``sheet_radius``, ``sheet_thickness`` thic
 as its sector face extruded in ``sheet_layers`` layers, in-plane size ``h_sheet`` over the coil (to its outer
 radius + 5 mm, graded 0.3 m/m beyond) and ``h_sheet_out`` elsewhere, the air sphere ``air_radius`` (size
 ``h_air``) and the shell to ``shell_radius``. It writes OUT.msh with the named groups "air", "shell", "coil",
-"sheet" (and "symmetry", "outer", "coil_in", "coil_out", "sheet_skin"). Lengths in m, the angle in degrees.
+"sheet" (and "symmetry", "outer", "coil_in", "coil_out", "sheet_skin"). Lengths in m, the angle in degrees;
+``mesh_size_factor`` (pulseform's ``geometry.mesh_size_factor``) multiplies the sizes (the air's at the sphere
+only when it refines: a coarser faceted sphere would reach into the shell) and divides the sheet's layers.
 The mesher is pulseform's ring-sector builder (:func:`pulseform.solvers.getdp.mesh3d.ring_sector_mesh`), so the
 mesh is that of the sector's reference runs.
 """
@@ -46,9 +48,12 @@ def main(argv: list[str]) -> int:
     if not argv:
         print("usage: python sector_geometry.py OUT.msh [name=value ...]", file=sys.stderr)
         return 2
-    p = dict(DEFAULTS)
+    p, factor = dict(DEFAULTS), 1.0
     for item in argv[1:]:
         name, _, text = item.partition("=")
+        if name == "mesh_size_factor":   # pulseform's refinement: every size times it, the layers over it
+            factor = float(text)
+            continue
         if name not in DEFAULTS:
             print(f"Error: unknown parameter {name!r}; known: {', '.join(sorted(DEFAULTS))}", file=sys.stderr)
             return 2
@@ -56,6 +61,9 @@ def main(argv: list[str]) -> int:
     if not 0 < p["angle_deg"] < 180:
         print(f"Error: angle_deg must lie in (0, 180) degrees, got {p['angle_deg']}", file=sys.stderr)
         return 2
+    if factor != 1.0:
+        p.update({k: p[k] * factor for k in ("h_sheet", "h_sheet_out", "h_coil")}, h_air=p["h_air"] * min(factor, 1.0),
+                 sheet_layers=max(1, round(p["sheet_layers"] / factor)))
     build(argv[0], p)
     return 0
 

@@ -101,6 +101,9 @@ class GeometryFile3D:
                                                   "builder (name=value arguments)")
     mesh_sizes: dict[str, float] | None = spec(None, unit="m", gt=0.0, doc="element size per physical volume group "
                                                   "(its points); unset: the file's own sizes")
+    mesh_size_factor: float = spec(1.0, unit="-", gt=0.0, le=100.0, doc="every element size times this (gmsh's "
+                                   "Mesh.MeshSizeFactor; a .py builder gets mesh_size_factor=<value>: "
+                                   "pulseform converge refines it)")
     allow_outside: bool = spec(False, doc="allow a file outside the case folder")
     allow_system_calls: bool = spec(False, doc="run a .py builder, or a .geo that runs programs (SystemCall, ...): "
                                     "allow only files you trust")
@@ -255,9 +258,8 @@ def validate_geometry_3d(case) -> None:
     if case.coupling.em_substeps != 1:
         raise SchemaError("coupling.em_substeps", f"got {case.coupling.em_substeps}; the 3D path takes one BDF2 "
                           "step per EM step: 1")
-    built_in = [k for k in ("sector", "racetrack") if getattr(case, k, None) is not None]   # while the tables exist
-    if built_in:
-        raise SchemaError(built_in[0], "a table of the built-in 3D devices; "
+    if getattr(case, "sector", None) is not None:   # while the table exists (the lead removes it)
+        raise SchemaError("sector", "a table of the built-in 3D sector; "
                           "a 3D geometry file has none: remove it")
 
 
@@ -287,6 +289,21 @@ def is_geometry_3d(data: dict) -> bool:
     """True for the raw mapping of a case whose ``[geometry]`` is a 3D geometry file."""
     g = data.get("geometry")
     return isinstance(g, dict) and g.get("type") == "geometry_3d"
+
+
+#: keys of other tables that a 3D geometry file does not use, and what it uses instead
+RAW_REFUSED = (("em", "remesh_quality", "the 2D air remesh's threshold; a 3D geometry file's is geometry.break_quality"),)
+
+
+def check_raw_geometry_3d(data: dict) -> None:
+    """In the raw case mapping of a 3D geometry-file case: refuse keys of other paths whose defaults it would
+    ignore (:data:`RAW_REFUSED`): one :class:`SchemaError` naming the key."""
+    if not is_geometry_3d(data):
+        return
+    for table, key, why in RAW_REFUSED:
+        t = data.get(table)
+        if isinstance(t, dict) and key in t:
+            raise SchemaError(f"{table}.{key}", f"{why}: remove it")
 
 
 def resolve_geometry_file(data: dict, file, source: str) -> None:

@@ -18,7 +18,6 @@ from .em_model import (EM, CapacitorBank, DampedSineCurrent, FlatCoilSheet, Geom
 from .em_applied import check_applied_field
 from .em_sources import check_coils
 from .guards import check_resources
-from .racetrack3d import Racetrack
 from .parts import (Box, BodyTable, ContactPair, EndStopTable, FixedBoundary, Polygon, Rectangle, RigidWall, Shape,
                     Vec, Vec2, check_file_name, rigid_moves, validate_rigid)
 from .rigid_steps import check_rigid_time_scale
@@ -26,7 +25,7 @@ from .schema import SchemaError, spec
 from .sector3d import Sector
 from .solid3d import SolidBox, SolidCylinder, SymmetryPlane, validate_dimension
 
-__all__ = ["Box", "Rectangle", "Polygon", "SolidBox", "SolidCylinder", "SymmetryPlane", "Sector", "Racetrack", "Shape", "CowperSymondsTable", "JohnsonCookTable", "MaterialTable", "FixedBoundary",
+__all__ = ["Box", "Rectangle", "Polygon", "SolidBox", "SolidCylinder", "SymmetryPlane", "Sector", "Shape", "CowperSymondsTable", "JohnsonCookTable", "MaterialTable", "FixedBoundary",
            "EndStopTable", "BodyTable", "ContactPair", "RigidWall", "PulseSin2", "PulseExp", "Load", "CaseInfo", "TimeControl",
            "MechanicsTable", "Coupling", "Probe", "Output", "Limits", "Case", "EM", "CapacitorBank", "DampedSineCurrent",
            "FlatCoilSheet", "Geometry", "SolenoidTube", "SheetDie", "OuterTube", "PlanarCoilBlankDie"]
@@ -250,8 +249,6 @@ class Case:
     em: EM | None = spec(None, doc="[em] table (coupled cases)")
     sector: Sector | None = spec(None, doc="[sector] the modelled sector of a coupled 3D case (its angle, sheet "
                                  "layers, EM step, clamp)")
-    racetrack: Racetrack | None = spec(None, doc="[racetrack] the coupled 3D racetrack case: coil, sheet, grooved die "
-                                       "(a quarter model), mesh sizes, EM step (its bank in [em], bodies, contact)")
     probes: tuple[Probe, ...] = spec((), doc="[[probes]] point histories")
     output: Output = spec(Output(), doc="[output] table")
     analysis: tuple[str, ...] = spec((), doc="case-specific analyses (extra history columns, metrics, plots)")
@@ -320,7 +317,7 @@ class Case:
     def _validate_coupled(self) -> None:
         regions = [b.region for b in self.bodies if b.region is not None]
         file3d = getattr(self.geometry, "type", None) == "geometry_3d"  # .geometry3d (validate_dimension)
-        if self.case.kind == "coupled" and self.racetrack is None and not file3d:  # a racetrack: .racetrack3d
+        if self.case.kind == "coupled" and not file3d:
             for key in ("geometry", "em"):
                 if getattr(self, key) is None:
                     raise SchemaError(key, f"missing required table [{key}] for case.kind = 'coupled'")

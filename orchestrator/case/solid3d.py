@@ -17,7 +17,6 @@ from typing import Any, Literal
 
 from .schema import SchemaError, spec
 from .geometry3d import validate_geometry_3d
-from .racetrack3d import validate_racetrack
 from .sector3d import validate_coupled_3d
 
 Vec3 = tuple[float, float, float]
@@ -125,10 +124,7 @@ def _validate_3d(case) -> None:
     if file3d:
         validate_geometry_3d(case)  # the user's own geometry file (.geometry3d)
     elif case.case.kind == "coupled":
-        if case.racetrack is not None:
-            validate_racetrack(case)  # the racetrack quarter model (.racetrack3d)
-        else:
-            validate_coupled_3d(case)  # a sector of a flat_coil_sheet setup (.sector3d)
+        validate_coupled_3d(case)  # a sector of a flat_coil_sheet setup (.sector3d)
     elif case.sector is not None:
         raise SchemaError("sector", "a key of coupled 3D cases (case.kind = 'coupled'); a mechanics case has "
                           "none: remove [sector]")
@@ -213,9 +209,11 @@ def _validate_2d(case) -> None:
                 raise SchemaError(f"bodies[{i}].{name}", f"got {len(v)} components, a 3D vector; with "
                                   f"mechanics.formulation = {f!r} give [x, y]")
         for name, values in (("moves", b.moves or ()), ("stops", [st.component for st in b.stops])):
-            if any(c > 1 for c in values):
-                raise SchemaError(f"bodies[{i}].{name}", f"component 2 (z) is 3D only; with mechanics.formulation = "
-                                  f"{f!r} allowed: 0 (x or r), 1 (y or z)")
+            for c, comp in enumerate(values):
+                if comp > 1:
+                    where = f"moves[{c}]" if name == "moves" else f"stops[{c}].component"
+                    raise SchemaError(f"bodies[{i}].{where}", f"got {comp}: z is 3D only; with mechanics.formulation "
+                                      f"= {f!r} allowed: 0 (x or r), 1 (y or z)")
         for j, fx in enumerate(b.fixed):
             key = f"bodies[{i}].fixed[{j}]"
             if fx.group is not None:
@@ -224,9 +222,10 @@ def _validate_2d(case) -> None:
             if fx.where.has_z():
                 raise SchemaError(f"{key}.where.zmin", f"a 3D bound; with mechanics.formulation = {f!r} the box "
                                   "selects by x and y only: remove zmin/zmax/rmin/rmax")
-            if max(fx.components) > 1:
-                raise SchemaError(f"{key}.components", f"got {list(fx.components)}; with mechanics.formulation = "
-                                  f"{f!r} allowed: [0], [1] or [0, 1]")
+            for c, comp in enumerate(fx.components):
+                if comp > 1:
+                    raise SchemaError(f"{key}.components[{c}]", f"got {comp}; with mechanics.formulation = {f!r} "
+                                      "allowed: 0 (x or r), 1 (y or z)")
     for i, w in enumerate(case.walls):
         for key in ("point", "normal"):
             if len(getattr(w, key)) != 2:

@@ -72,11 +72,12 @@ def mesh_file3d(g, work: Path, time_limit: float = 600.0) -> Path:
     out = work / "geometry.msh"
     out.unlink(missing_ok=True)
     params = [f"{k}={float(v)!r}" for k, v in (g.parameters or {}).items()]
+    factor = float(getattr(g, "mesh_size_factor", 1.0))
     if src.suffix.lower() == ".py":
-        argv = [sys.executable, str(src), str(out)] + params
+        argv = [sys.executable, str(src), str(out)] + params + ([f"mesh_size_factor={factor!r}"] if factor != 1.0 else [])
         what = "the builder"
     else:
-        argv = [sys.executable, "-m", __name__, str(src), str(out), json.dumps(g.mesh_sizes or {})] + params
+        argv = [sys.executable, "-m", __name__, str(src), str(out), json.dumps(g.mesh_sizes or {}), repr(factor)] + params
         what = "gmsh"
     log_path = work / "gmsh.log"
     with open(log_path, "w") as fh:
@@ -96,9 +97,10 @@ def mesh_file3d(g, work: Path, time_limit: float = 600.0) -> Path:
     return out
 
 
-def _child(src: str, out: str, sizes_json: str, params: Sequence[str]) -> int:
+def _child(src: str, out: str, sizes_json: str, factor: float, params: Sequence[str]) -> int:
     """The meshing child (module docstring, 1.): open ``src`` with ``params`` (``name=value``), size the
-    named volume groups, mesh in 3D, write MSH 2.2 to ``out``. Prints gmsh's messages (the log)."""
+    named volume groups, every size times ``factor``, mesh in 3D, write MSH 2.2 to ``out``. Prints gmsh's
+    messages (the log)."""
     import gmsh
 
     argv = ["gmsh"]
@@ -125,6 +127,8 @@ def _child(src: str, out: str, sizes_json: str, params: Sequence[str]) -> int:
             return 3
         gmsh.option.setNumber("Mesh.Algorithm3D", 1)
         gmsh.option.setNumber("Mesh.Optimize", 1)
+        if factor != 1.0:
+            gmsh.option.setNumber("Mesh.MeshSizeFactor", factor)
         gmsh.model.mesh.generate(3)
         gmsh.option.setNumber("Mesh.MshFileVersion", 2.2)
         gmsh.option.setNumber("Mesh.Binary", 0)
@@ -486,12 +490,13 @@ def symmetry_factor(g, planes: Sequence[PlaneSpec], points: np.ndarray, label: s
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """``python -m pulseform.orchestrator.mesh.geometry3d SRC OUT SIZES_JSON [name=value ...]``: the meshing child."""
+    """``python -m pulseform.orchestrator.mesh.geometry3d SRC OUT SIZES_JSON FACTOR [name=value ...]``: the meshing
+    child."""
     args = list(sys.argv[1:] if argv is None else argv)
-    if len(args) < 3:
-        print("usage: python -m pulseform.orchestrator.mesh.geometry3d SRC OUT SIZES_JSON [name=value ...]")
+    if len(args) < 4:
+        print("usage: python -m pulseform.orchestrator.mesh.geometry3d SRC OUT SIZES_JSON FACTOR [name=value ...]")
         return 2
-    return _child(args[0], args[1], args[2], args[3:])
+    return _child(args[0], args[1], args[2], float(args[3]), args[4:])
 
 
 if __name__ == "__main__":

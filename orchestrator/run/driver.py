@@ -44,11 +44,9 @@ from .em_fields3d import FOLDER as EM3D_FOLDER
 from .em_fields3d import STEM as EM3D_STEM
 from .extremes3d import body_extremes_3d, contact_columns_3d, contact_metrics_3d
 from .history import History
-from .observer import NoObserver
 from .pressure3d import sector_pressure_participants
 from .progress import Progress
 from .participants3d import participants_3d
-from .racetrack_case import racetrack_participants
 from .results import ResultsFolder
 
 log = logging.getLogger(__name__)
@@ -96,11 +94,8 @@ class CaseDriver:
         self.rigid: RigidMechanics | None = None  # the rigid bodies (coupled cases), None without
         # a coupled 3D case: a sector of a flat_coil_sheet setup (run/coupled3d.py), its sheet's EM fields
         self.sector = case.case.kind == "coupled" and case.mechanics.formulation == "3d"
-        self.observer = NoObserver()  # what only a case records (a racetrack's: run/racetrack_case.py)
         if self.sector and getattr(case.geometry, "type", None) == "geometry_3d":  # any 3D geometry file
             self.solver, self.rigid, load, options, _ = participants_3d(case, results.root / "em")
-        elif self.sector and case.racetrack is not None:
-            self.solver, load, options, self.observer = racetrack_participants(case, results.root / "em")
         elif self.sector and cp.load == "pressure":  # the same sector driven by [[loads]] (run/pressure3d.py)
             self.solver, load, options = sector_pressure_participants(case, results.root / "em")
         elif self.sector:
@@ -150,7 +145,6 @@ class CaseDriver:
             row.update(a.record(s, row))
         for key in self.load_columns:
             row[key] = step_row.get(key, 0.0) if step_row else 0.0
-        row.update(self.observer.values())
         self.history.record(row)
 
     def energies(self) -> dict[str, float]:
@@ -171,7 +165,6 @@ class CaseDriver:
         return row
 
     def _on_em_step(self, row: dict[str, float]) -> None:
-        self.observer.on_em_step(row)
         self._last_row = row
         self._since_record += 1
         if self._since_record >= self.case.output.history_every:
@@ -199,8 +192,6 @@ class CaseDriver:
         arrays = {f"solver/{k}": v for k, v in self.mechanics.state_dict().items()}
         arrays.update({f"loop/{k}": v for k, v in self.loop.counters.state_dict().items()})
         arrays.update({f"load/{k}": v for k, v in self.load.checkpoint_state_dict().items()})
-        self.observer.flush()
-        arrays.update({f"observer/{k}": v for k, v in self.observer.state_dict().items()})
         for name, a in zip(self.case.analysis, self.analyses):
             arrays.update({f"analysis/{name}/{k}": v for k, v in a.state_dict().items()})
         arrays["history/rows"] = self.history.array()
@@ -227,7 +218,6 @@ class CaseDriver:
                                         if k.startswith("solver/") and not k.startswith("solver/analysis/")})
         self.loop.counters.load_state_dict({k[5:]: v for k, v in arrays.items() if k.startswith("loop/")})
         self.load.load_state_dict({k[5:]: v for k, v in arrays.items() if k.startswith("load/")})
-        self.observer.load_state_dict({k[9:]: v for k, v in arrays.items() if k.startswith("observer/")})
         self.history.columns = list(meta["columns"])
         self.history.rows = [list(r) for r in arrays["history/rows"]]
         self.part = int(meta["part"]) + 1
@@ -324,7 +314,6 @@ class CaseDriver:
         if self.solver is not None and self.solver.formulation == "3d" and self.solver.contact_pairs:
             metrics.update(contact_metrics_3d(self.solver, self.history))
         metrics.update(self.load.run_metrics(self.history, c))  # a 3D sector's: the device's figures
-        metrics.update(self.observer.metrics(self.history, c))
         if self.rigid is not None:
             metrics.update(rigid_metrics(case, self.history, {n: b.mass for n, b in self.rigid.bodies.items()}))
         for a in self.analyses:

@@ -133,7 +133,8 @@ def participants_3d(case: Case, work: Path):
     mover = air_mover3d(mesh, planes, tol)
     mover.min_quality = g.break_quality * float(mover.q_ref.min())
     args = (mesh, model, work / "getdp", bodies, mover)
-    kw = {"time_scheme": case.em.time_scheme, "getdp_timeout": case.limits.getdp_time_limit_s}
+    kw = {"time_scheme": case.em.time_scheme, "getdp_process": case.em.getdp_process,
+          "getdp_timeout": case.limits.getdp_time_limit_s}
     if g.on_mesh_break == "remesh":   # a failed remesh freezes (orchestrator/em/remesh3d.py)
         load = RemeshingGetDPLoad3D(*args, make_mover=lambda m: air_mover3d(m, planes, tol),
                                     planes=[(p.point, p.normal) for p in planes], **kw)

@@ -14,6 +14,8 @@
   symmetry over 270° about z and seen like a revolved one (:mod:`.pictures_wedge`).
 * ``mechanics/<field>_<k>.png``: the same at every output time ``k`` (one frame per time, same
   camera and colour scale, for flipping through or an animation).
+* ``section_<plane>_{von_mises,plastic_strain}.png`` (3D geometry-file cases: :mod:`.pictures_section3d`):
+  the 3D bodies cut by each axis-aligned ``[[symmetry]]`` plane (or y = 0), deformed, at up to six times.
 
 Workpieces are the bodies with ``region = "workpiece"`` (coupled cases), else the bodies that carry
 a ``[[loads]]`` pulse, else every body.
@@ -381,10 +383,19 @@ def _screenshot(p, out: Path) -> Path:
 
 # --------------------------------------------------------------------------------------- entry
 def _outlines(bodies: dict[str, BodyFields], root: Path) -> list[Path]:
-    """[shapes.png] of 2D bodies; none for 3D bodies (their deformed surfaces are the 3D pictures)."""
+    """[shapes.png] of 2D bodies; for 3D bodies no outlines (their deformed surfaces are the 3D pictures) but,
+    in a 3D geometry-file case, the sections of the bodies by its symmetry planes (:mod:`.pictures_section3d`;
+    a failure there is logged and costs no other picture)."""
     if any(b.solid for b in bodies.values()):
         log.info("shapes.png (outlines of 2D bodies) not drawn for 3D bodies")
-        return []
+        from .pictures_section3d import draw_sections3d
+
+        try:
+            return draw_sections3d(root)
+        except Exception as exc:  # the sections must not cost the 3D pictures drawn beside them
+            log.warning("section pictures not drawn: %s: %s", type(exc).__name__, " ".join(str(exc).split())[:200])
+            log.debug("section pictures", exc_info=True)
+            return []
     return [plot_shapes(bodies, workpieces(root, list(bodies)), root / "plots", _run_name(root))]
 
 

@@ -447,3 +447,28 @@ electrical_conductivity = 1e-3
           f"{f[:, 0].sum():.3g}, {f[:, 1].sum():.3g} N")
     assert res.conductor_power[-1, 0] > 0 and radial < 0
     assert max(abs(f[:, 0].sum()), abs(f[:, 1].sum())) < 0.02 * abs(radial)
+
+
+@pytest.mark.getdp
+def test_iterated_and_adaptive_coupling_on_a_users_geometry(case_dir, run, tmp_path):
+    """[coupling] iterate and adaptive on the 3D path. Iterated: each EM step is redone on its end geometry from
+    the restored EM state (the persistent getdp's vectors put back, a new process); in 0.05 us the plate moves
+    ~1e-11 m, so the redone step must give the first run's forces (the plain run above, same steps) to 1e-9 and
+    converge in 2 iterations. Adaptive: n changes from the force's rate of change and the run completes with
+    its ledger at round-off."""
+    plain = np.genfromtxt(run / "history.csv", delimiter=",", names=True)
+    out = tmp_path / "iterated"
+    assert main(["run", str(case_dir), "--out", str(out), "--quiet", "--set", "coupling.iterate=true",
+                 "--set", "time.end=0.05e-6", "--set", "output.field_interval=0.05e-6", "--set", "output.plots=false"]) == 0
+    m = json.loads((out / "metrics.json").read_text())
+    h = np.genfromtxt(out / "history.csv", delimiter=",", names=True)
+    n = len(h)
+    assert m["coupling_iterations_max"] == 2 and m["coupling_unconverged_steps"] == 0
+    for col in ("plate_force_z_N", "slug_force_z_N", "a_current_A"):
+        np.testing.assert_allclose(h[col][1:n], plain[col][1:n], rtol=1e-9, atol=1e-12 * np.abs(plain[col]).max())
+    out = tmp_path / "adaptive"
+    assert main(["run", str(case_dir), "--out", str(out), "--quiet", "--set", "coupling.adaptive=true",
+                 "--set", "coupling.n_max=12", "--set", "time.end=0.1e-6", "--set", "output.field_interval=0.1e-6"]) == 0
+    m = json.loads((out / "metrics.json").read_text())
+    print(f"\nadaptive: {m['em_steps']:.0f} EM steps, final n {m['n_final']:.0f}; ledger {m['conservation_error_rel']:.1e}")
+    assert m["status"] == "ok" and m["conservation_error_rel"] < 1e-12 and m["n_final"] != 3

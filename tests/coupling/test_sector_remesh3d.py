@@ -39,12 +39,14 @@ def _sector(work: Path):
 
 
 def _racetrack(work: Path):
-    """(EM mesh, planes) of the coarse racetrack (sizes x 2, tests/coupling/test_racetrack_remesh3d.py)."""
-    from pulseform.orchestrator.run.coupled_racetrack import PLANES
-    from pulseform.orchestrator.run.racetrack_design import RACETRACK
-    from pulseform.solvers.getdp.racetrack_mesh import racetrack_groove_mesh
+    """(EM mesh, planes) of the coarse racetrack (sizes x 2, tests/coupling/racetrack_coarse.py: the case file's
+    builder, the 3D geometry path)."""
+    from pulseform.orchestrator.mesh.geometry3d import build_geometry3d
 
-    return racetrack_groove_mesh(work / "r.msh", RACETRACK.scaled(2.0)), list(PLANES)
+    from .racetrack_coarse import coarse_case
+
+    geo = build_geometry3d(coarse_case(), work)
+    return geo.mesh, [(p.point, p.normal) for p in geo.planes]
 
 
 def _area(p: np.ndarray, t: np.ndarray) -> float:
