@@ -102,6 +102,13 @@ def _parser() -> argparse.ArgumentParser:
                       help="fitted pulse: eq. (7) P0 e^-bt sin^2(wt) (default) or eq. (8) p0 e^-t/T")
     cmp_.add_argument("--pressure-case", metavar="FILE",
                       help="take the pressure pulses from this case's [[loads]] instead of fitting them")
+    cmp_.add_argument("--surface", metavar="BOX",
+                      help="3D models (geometry files): the loaded surface to fit the pulse on, a box as a TOML inline "
+                           "table of bounds in m (xmin ... zmax, rmin/rmax about the z-axis), e.g. "
+                           "'{rmin = 0.01, rmax = 0.034, zmin = 1.4999e-3, zmax = 1.5001e-3}': the loaded body's "
+                           "exterior triangles with three nodes inside; the pressure pushes along their area vector")
+    cmp_.add_argument("--body", metavar="NAME",
+                      help="the loaded body (default: the workpiece, or a 3D model's only body)")
     cmp_.add_argument("--fail-if", metavar="METRIC>TOL", action="append", default=[], dest="fail_if",
                       help="e.g. 'shape_distance_max_mm>0.05' or 'impulse_rel_diff>0.01' (repeatable; > or <)")
     cmp_.add_argument("--force", action="store_true", help="replace an existing folder")
@@ -385,14 +392,19 @@ def _cmd_validate(args: argparse.Namespace) -> int:
 def _cmd_compare(args: argparse.Namespace) -> int:
     from .case.io import CaseError, load_case
     from .workflows.compare import CompareError, parse_conditions, run_compare
+    from .workflows.compare3d import parse_surface
     from .run.results import ResultsExistError
 
     try:
         conditions = parse_conditions(args.fail_if)
+        surface = parse_surface(args.surface) if args.surface is not None else None
+    except (CompareError, ValueError) as exc:
+        return _error(str(exc), EXIT_BAD_INPUT)
+    try:
         case, _ = load_case(args.case, args.overrides)
         out = args.out or Path("results") / f"{case.case.name}_compare"
         report = run_compare(args.case, out, overrides=args.overrides, pulse=args.pulse,
-                             pressure_case=args.pressure_case, force=args.force)
+                             pressure_case=args.pressure_case, force=args.force, surface=surface, body=args.body)
     except (CaseError, ResultsExistError, CompareError) as exc:
         return _error(str(exc), EXIT_BAD_INPUT if not getattr(exc, "run_failed", False) else EXIT_FAILED)
     for k in ("shape_distance_max_mm", "max_speed_coupled_m_s", "max_speed_pressure_m_s", "impulse_coupled_Ns",

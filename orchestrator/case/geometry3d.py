@@ -249,19 +249,40 @@ def validate_geometry_3d(case) -> None:
         if any(getattr(s, "type", "") == "bank" for s in em.sources) and len(em.sources) > 1:
             raise SchemaError("em.sources", "a 3D case has one circuit: one bank with every coil in series on it, "
                               "or prescribed sources only")
-    for key in ("walls", "loads", "analysis", "probes"):
+    for key in ("walls", "analysis", "probes"):
         if getattr(case, key):
             raise SchemaError(key, f"[[{key}]] is not in the 3D geometry path yet: remove it")
-    if case.coupling.load != "getdp":
-        raise SchemaError("coupling.load", "got 'pressure'; a 3D geometry file is driven by GetDP's forces")
+    _check_pressure_3d(case)
     if case.em.time_scheme != "bdf2":
         raise SchemaError("em.time_scheme", f"got {case.em.time_scheme!r}; the 3D path steps with 'bdf2'")
     if case.coupling.em_substeps != 1:
         raise SchemaError("coupling.em_substeps", f"got {case.coupling.em_substeps}; the 3D path takes one BDF2 "
                           "step per EM step: 1")
-    if case.sector is not None:
+    if getattr(case, "sector", None) is not None:   # while the table exists (the lead removes it)
         raise SchemaError("sector", "a table of the built-in 3D sector; "
                           "a 3D geometry file has none: remove it")
+
+
+def _check_pressure_3d(case) -> None:
+    """``coupling.load = "pressure"`` (the model driven by the ``[[loads]]`` pulses instead of getdp: the
+    pressure run of ``pulseform compare``) needs loads, on deformable bodies; loads need it; damping acts only
+    with it."""
+    if case.coupling.load == "pressure":
+        if not case.loads:
+            raise SchemaError("loads", "coupling.load = 'pressure' needs at least one [[loads]] pulse")
+        rigid = {b.name for b in case.bodies if b.rigid}
+        for i, ld in enumerate(case.loads):
+            if ld.body in rigid:
+                raise SchemaError(f"loads[{i}].body", f"got {ld.body!r}, a rigid body; pressure pulses load "
+                                  "deformable bodies")
+        return
+    if case.loads:
+        raise SchemaError("loads", "pressure [[loads]] are used only with coupling.load = 'pressure'; remove them "
+                          "or set coupling.load = 'pressure'")
+    for key in ("mass_damping", "kinetic_damping_until"):
+        if getattr(case.mechanics, key) > 0.0:
+            raise SchemaError(f"mechanics.{key}", "damping acts with pressure loads only (coupling.load = "
+                              "'pressure'); a GetDP-coupled run would ignore it: remove it")
 
 
 def is_geometry_3d(data: dict) -> bool:

@@ -455,8 +455,28 @@ def build_geometry3d(case, work: Path) -> Geometry3D:
             if f.group is not None and f.group not in raw.surfaces:
                 raise GeometryError(f"{label}: bodies[{i}].fixed[{j}].group: got {f.group!r}, not a physical surface "
                                     f"group of the mesh; its groups: {raw.listing()}")
-    return map_roles(raw, g, bodies, planes, Path(work) / "em3d.msh",
-                     symmetry_factor(g, planes, raw.points, label), label, case.limits.max_cells)
+    geo = map_roles(raw, g, bodies, planes, Path(work) / "em3d.msh",
+                    symmetry_factor(g, planes, raw.points, label), label, case.limits.max_cells)
+    check_fixed_boxes(case, geo, label)
+    return geo
+
+
+def check_fixed_boxes(case, geo: Geometry3D, label: str) -> None:
+    """Every ``[[bodies.fixed]]`` box of a deformable body holds at least one of its nodes (the 3D semantics of
+    :func:`~..mech.pulses.box_marker`, widened by 1e-9 of the mesh's size); raises :class:`GeometryError`
+    naming the key otherwise: a support beyond its body is a mistake, not a free body."""
+    from ..mech.pulses import box_marker
+
+    m = geo.mesh
+    tol = 1e-9 * float(np.abs(m.points).max())
+    for i, b in enumerate(case.bodies):
+        if b.rigid or not any(f.where is not None for f in b.fixed):
+            continue
+        x = m.points[np.unique(m.tets[m.tet_tags == conductor_tag(geo.conductors[b.region])])].T
+        for j, f in enumerate(b.fixed):
+            if f.where is not None and not np.any(box_marker(f.where, tol)(x)):
+                raise GeometryError(f"{label}: bodies[{i}].fixed[{j}].where: the box holds no node of body "
+                                    f"{b.name!r} (bounds x, y, z, and rmin/rmax about the z-axis, m)")
 
 
 def symmetry_factor(g, planes: Sequence[PlaneSpec], points: np.ndarray, label: str) -> float:

@@ -9,6 +9,10 @@ contact from ``[[contact]]``. The air follows the bodies harmonically (:class:`~
 coils, shell, fixed conductors and the outer boundary stay, the planes slide); when it breaks
 (``geometry.on_mesh_break``) it is meshed again with the EM state carried, the EM mesh freezes, or the run stops.
 The loop's options come from ``[coupling]``; ``geometry.em_step`` sets n from the stable mechanical step.
+
+With ``coupling.load = "pressure"`` the same meshes, supports and loop are driven by the ``[[loads]]`` pulses
+(:class:`~..mech.pulses3d.PressurePulses3D`: boxes with 3D bounds, the device's figures × the symmetry factor)
+instead of getdp: the pressure run of ``pulseform compare`` (the rigid bodies, if any, stay where they are).
 """
 
 from __future__ import annotations
@@ -35,7 +39,9 @@ from ..em.participant3d import ConductorBody3D
 from ..em.remesh3d import RemeshingGetDPLoad3D
 from ..mech.mixed import rigid_bodies
 from ..mech.model import solver_material
+from ..mech.participants import DolfinxMechanics
 from ..mech.pulses import box_marker
+from ..mech.pulses3d import PressurePulses3D
 from ..mech.rigid import RigidMechanics
 from ..mech.model3d import plane_marker
 from ..mesh.geometry3d import Geometry3D, GeometryError, PlaneSpec, boundary_faces, build_geometry3d
@@ -112,6 +118,9 @@ def participants_3d(case: Case, work: Path):
                               bulk_linear=mo.bulk_viscosity_linear, bulk_quadratic=mo.bulk_viscosity_quadratic,
                               comm=MPI.COMM_SELF) if specs else None
     dt_mech = solver.stable_time_step() if solver is not None else rigid_step_3d(case)
+    if case.coupling.load == "pressure":   # the same meshes and loop, the [[loads]] pulses instead of getdp
+        load = pressure_pulses_3d(case, solver, float(model.symmetry_factor), Path(g.file).name)
+        return solver, None, load, loop_options_3d(case, dt_mech), geo
     rigid = None
     if any(b.rigid for b in case.bodies):
         rigid = RigidMechanics(rigid_bodies(case, subs), dt_mech)
@@ -135,6 +144,23 @@ def participants_3d(case: Case, work: Path):
     log.info("3D geometry: %d EM tets, bodies %s, mechanical step %.3g s, n = %d", mesh.n_tets,
              {b.name: len(subs[b.region].cells) for b in case.bodies}, dt_mech, options.n)
     return solver, rigid, load, options, geo
+
+
+def pressure_pulses_3d(case: Case, solver: ExplicitSolver3D, symmetry_factor: float, label: str) -> PressurePulses3D:
+    """The ``[[loads]]`` pulses of a pressure-driven 3D geometry-file case (``coupling.load = "pressure"``) on
+    ``solver``'s bodies, the device's figures × ``symmetry_factor``; raises :class:`GeometryError` (``label``:
+    the geometry file) naming the load whose box holds no boundary triangle of its body."""
+    mo = case.mechanics
+    load = PressurePulses3D(case.loads, symmetry_factor, mo.mass_damping, mo.mass_damping_until,
+                            mo.mass_damping_from, mo.kinetic_damping_until)
+    areas = load.loaded_areas(DolfinxMechanics(solver), solver.bodies)
+    for i, (ld, a) in enumerate(zip(case.loads, areas)):
+        if a <= 0.0:
+            raise GeometryError(f"{label}: loads[{i}].surface: the box holds no boundary triangle of body {ld.body!r} "
+                                "(all three nodes inside; bounds x, y, z, and rmin/rmax about the z-axis, m)")
+    log.info("3D geometry driven by %d pressure pulse(s) on %s m^2 (the model's)", len(case.loads),
+             ", ".join(f"{a:.6g}" for a in areas))
+    return load
 
 
 def rigid_step_3d(case: Case) -> float:

@@ -238,6 +238,8 @@ BAD = [
     (["geometry.em_order=2"], "geometry.em_order"),
     (["em.applied_field={type=\"dc\", magnitude=0.5, direction=[0.0, 1.0, 0.0]}"], "applied"),  # crosses y = 0
     (["em.applied_field={type=\"dc\", magnitude=0.5, direction=[0.0, 1.0]}"], "em.applied_field.direction"),
+    (["coupling.load=\"pressure\"", "loads=[{type=\"pulse_exp\", body=\"slug\", surface={zmin=0.0}, amplitude=1e6, "
+      "decay_time=1e-5, t_end=1e-4}]"], "loads[0].body: got 'slug', a rigid body"),   # pressure pulses load deformable bodies
 ]
 
 
