@@ -258,9 +258,6 @@ def validate_geometry_3d(case) -> None:
     if case.coupling.em_substeps != 1:
         raise SchemaError("coupling.em_substeps", f"got {case.coupling.em_substeps}; the 3D path takes one BDF2 "
                           "step per EM step: 1")
-    if getattr(case, "sector", None) is not None:   # while the table exists (the lead removes it)
-        raise SchemaError("sector", "a table of the built-in 3D sector; "
-                          "a 3D geometry file has none: remove it")
 
 
 def _check_pressure_3d(case) -> None:

@@ -22,10 +22,9 @@ from .parts import (Box, BodyTable, ContactPair, EndStopTable, FixedBoundary, Po
                     Vec, Vec2, check_file_name, rigid_moves, validate_rigid)
 from .rigid_steps import check_rigid_time_scale
 from .schema import SchemaError, spec
-from .sector3d import Sector
 from .solid3d import SolidBox, SolidCylinder, SymmetryPlane, validate_dimension
 
-__all__ = ["Box", "Rectangle", "Polygon", "SolidBox", "SolidCylinder", "SymmetryPlane", "Sector", "Shape", "CowperSymondsTable", "JohnsonCookTable", "MaterialTable", "FixedBoundary",
+__all__ = ["Box", "Rectangle", "Polygon", "SolidBox", "SolidCylinder", "SymmetryPlane", "Shape", "CowperSymondsTable", "JohnsonCookTable", "MaterialTable", "FixedBoundary",
            "EndStopTable", "BodyTable", "ContactPair", "RigidWall", "PulseSin2", "PulseExp", "Load", "CaseInfo", "TimeControl",
            "MechanicsTable", "Coupling", "Probe", "Output", "Limits", "Case", "EM", "CapacitorBank", "DampedSineCurrent",
            "FlatCoilSheet", "Geometry", "SolenoidTube", "SheetDie", "OuterTube", "PlanarCoilBlankDie"]
@@ -139,8 +138,8 @@ class MechanicsTable:
     """Mechanical model options."""
 
     formulation: Literal["plane_stress", "plane_strain", "axisymmetric", "3d"] = spec(
-        "plane_strain", doc="kinematics: 2D (triangles), or '3d' (tetrahedra: mechanics cases, and coupled cases as a "
-            "[sector] of a flat_coil_sheet setup)")
+        "plane_strain", doc="kinematics: 2D (triangles), or '3d' (tetrahedra: mechanics cases, and coupled cases "
+            "from a 3D geometry file, geometry.type = 'geometry_3d')")
     thickness: float = spec(1.0, unit="m", gt=0.0, doc="out-of-plane thickness (planar only)")
     bulk_viscosity: bool = spec(True, doc="linear + quadratic artificial bulk viscosity")
     bulk_viscosity_linear: float = spec(0.06, unit="-", ge=0.0, doc="linear coefficient")
@@ -247,8 +246,6 @@ class Case:
     coupling: Coupling = spec(Coupling(), doc="[coupling] table")
     geometry: Geometry | None = spec(None, doc="[geometry] EM setup (coupled cases)")
     em: EM | None = spec(None, doc="[em] table (coupled cases)")
-    sector: Sector | None = spec(None, doc="[sector] the modelled sector of a coupled 3D case (its angle, sheet "
-                                 "layers, EM step, clamp)")
     probes: tuple[Probe, ...] = spec((), doc="[[probes]] point histories")
     output: Output = spec(Output(), doc="[output] table")
     analysis: tuple[str, ...] = spec((), doc="case-specific analyses (extra history columns, metrics, plots)")
@@ -344,7 +341,7 @@ class Case:
                                   "geometry is planar: use 'plane_strain' or 'plane_stress'")
             if not self.geometry.planar and self.mechanics.formulation not in ("axisymmetric", "3d"):
                 raise SchemaError("mechanics.formulation", f"got {self.mechanics.formulation!r}; the "
-                                  f"{self.geometry.type} geometry is axisymmetric: use 'axisymmetric' (or '3d': a [sector] of it)")
+                                  f"{self.geometry.type} geometry is axisymmetric: use 'axisymmetric'")
             if self.em.time_scheme == "bdf2" and self.coupling.em_substeps != 1:
                 raise SchemaError("coupling.em_substeps", f"got {self.coupling.em_substeps}; em.time_scheme = "
                                   "'bdf2' takes one step per getdp run: use 1 (and a smaller coupling.n)")

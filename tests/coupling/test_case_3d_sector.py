@@ -202,7 +202,7 @@ def test_a_sector_mesh_too_large_for_the_memory_is_refused(tmp_path):
 
 
 @pytest.mark.parametrize("sets,says", [(["geometry.parameters={angle_deg=5.0}"], "geometry.parameters"),
-                                       (["mechanics.formulation=\"3d\""], "coupling.n")])
+                                       (["mechanics.formulation=\"3d\""], "geometry.type")])
 def test_3d_keys_refused_in_the_2d_demo_and_the_reverse(capsys, sets, says):
     args = ["check", str(REPO / "cases/emf_sheet_bulge")]
     for s in sets:
