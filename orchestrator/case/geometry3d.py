@@ -23,7 +23,6 @@ The coils are driven by ``em.circuit`` / ``em.current`` (every coil in series) o
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Literal
 

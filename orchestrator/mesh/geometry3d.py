@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import json
 import logging
-import math
 import subprocess
 import sys
 from dataclasses import dataclass, field
@@ -357,7 +356,6 @@ def map_roles(raw: RawGroups, g, bodies: Sequence[tuple[str, str]], planes: Sequ
     tet_tags = np.array([role[gname] for gname in raw.tet_group.tolist()], dtype=np.int64)
     x, tets, n = raw.points, raw.tets, len(raw.points)
     scale = float(np.abs(x).max())
-    tol = 1e-9 * scale
     # the domain's boundary: on a plane (14 / 15) or the outer boundary (12)
     outer_faces = boundary_faces(tets)
     on_plane = np.zeros(len(outer_faces), dtype=bool)
