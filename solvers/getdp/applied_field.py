@@ -209,6 +209,19 @@ class AppliedField:
         return out
 
 
+def applied_start(f_now: float, f_prev: float, t: float, dt_prev: float | None, t_end: float,
+                  bdf2_restart: bool) -> float:
+    """The applied field's unit time function of a run's start state (the step t -> ``t_end``, s): ``f_now``
+    (implicit Euler, or a BDF2 step from fields at rest), or with a BDF2 restart the combination
+    c1 f_{n-1} - c2 f_{n-2} that the restarted x~ is of the unknowns (``dt_prev`` the last step, s)."""
+    if not bdf2_restart:
+        return float(f_now)
+    from .bdf2 import bdf2_coefficients
+
+    _, c1, c2 = bdf2_coefficients(t_end - t, dt_prev)
+    return float(c1 * f_now - c2 * f_prev)
+
+
 def _cross_matrix(n: np.ndarray) -> np.ndarray:
     """[n]x: the matrix of v -> n x v."""
     return np.array([[0.0, -n[2], n[1]], [n[2], 0.0, -n[0]], [-n[1], n[0], 0.0]])

@@ -27,7 +27,7 @@ from .mesh import AIR, COIL_BASE, CONDUCTOR_BASE, OUTER, SHELL, coil_tag, conduc
 from .applied_field import AppliedField, planes_of_faces
 from .mesh3d import (CUT_BASE, ELEC_IN_BASE, ELEC_OUT_BASE, SKIN_BASE, SYM_A, SYM_H, Mesh3D, cut_orientation, cut_tag,
                      physical_surface_area, read_msh22_triangles, skin_tag)
-from .model import Circuit, Conductor, CurrentTable, DampedSine
+from .model import Circuit, Conductor, CurrentTable, DampedSine, table_lines
 from .runner import RunInfo, run_getdp
 
 logger = logging.getLogger(__name__)
@@ -218,7 +218,6 @@ def model_numbers(model: EM3DModel, mesh: Mesh3D) -> tuple[dict[str, float], lis
     if model.shell is not None:
         nb.update(Flag_Shell=1, Val_Rint=model.shell[0], Val_Rext=model.shell[1], Val_Cx=model.shell_centre[0],
                   Val_Cy=model.shell_centre[1], Val_Cz=model.shell_centre[2])
-    lines = []
     for k, c in enumerate(model.coils, start=1):
         section = c.section
         if section is None and c.direction == "electrokinetic":
@@ -240,10 +239,6 @@ def model_numbers(model: EM3DModel, mesh: Mesh3D) -> tuple[dict[str, float], lis
                        f"Coil_omega_{k}": w.omega, f"Coil_phase_{k}": w.phase, f"Coil_ton_{k}": w.t_on})
         elif isinstance(c.waveform, CurrentTable):
             nb.update({f"Coil_Wave_{k}": 1, f"Coil_I0_{k}": 1.0})
-            times = list(c.waveform.times) + [c.waveform.times[-1] + 1e3]   # hold the last value
-            values = list(c.waveform.values) + [c.waveform.values[-1]]
-            pairs = ", ".join(f"{t:.17g}, {v:.17g}" for t, v in zip(times, values))
-            lines.append(f"Coil_Table_{k}() = {{{pairs}}};")
     for k, c in enumerate(model.conductors, start=1):
         if not np.any(mesh.tet_tags == conductor_tag(k)):
             raise ValueError(f"conductor {k}: region {conductor_tag(k)} is empty in the mesh")
@@ -253,8 +248,7 @@ def model_numbers(model: EM3DModel, mesh: Mesh3D) -> tuple[dict[str, float], lis
                   Init_Vc=model.circuit.V0, Init_I=0.0)
     if model.applied_field is not None:   # App_F1 / App_F2 (the state's) are the caller's
         nb.update(model.applied_field.numbers_3d(*symmetry_planes(mesh)))
-        lines += model.applied_field.table_lines()
-    return nb, lines
+    return nb, table_lines(model.coils, model.applied_field)
 
 
 def symmetry_planes(mesh: Mesh3D) -> tuple[list, list]:

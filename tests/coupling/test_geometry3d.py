@@ -306,7 +306,7 @@ def test_a_cad_file_gets_a_group_per_volume_and_surface(tmp_path):
     with one group per volume and per surface (its CAD label or volume_<tag>): what a role map then names."""
     from types import SimpleNamespace
 
-    from pulseform.orchestrator.mesh.geometry3d import mesh_file3d, read_groups
+    from pulseform.orchestrator.mesh.gmsh_file import mesh_file3d, read_groups
     from pulseform.solvers.getdp.mesh import gmsh_session
 
     step = tmp_path / "part.step"
