@@ -17,8 +17,7 @@ from .model import (Circuit, Coil, Conductor, CurrentTable, DampedSine, EMModel,
 from .runner import GetDPError, run_getdp
 
 DECK_DIR = Path(__file__).resolve().parent / "decks"
-#: PETSc options passed on getdp's command line: direct LU with UMFPACK.  Same results as the
-#: default MUMPS, ~30 % less wall time per run here (MUMPS start-up and factorisation).
+#: PETSc options on getdp's command line: LU with UMFPACK (as MUMPS to round-off, ~30 % less wall time per run here)
 DEFAULT_PETSC_ARGS = ("-ksp_type", "preonly", "-pc_type", "lu", "-pc_factor_mat_solver_type", "umfpack")
 CASE_DECK = DECK_DIR / "em_case.pro"
 RESOLUTION = "EM_Transient"
