@@ -305,3 +305,23 @@ def symmetry_factor(g, planes: Sequence[PlaneSpec], points: np.ndarray, label: s
         raise GeometryError(f"{label}: geometry.symmetry_factor: missing; the mesh does not lie in one wedge of the "
                             "two [[symmetry]] planes: give the whole device / modelled part")
     return 2 * np.pi / span
+
+
+def stable_step_estimate(case, geo: Geometry3D) -> float:
+    """An upper bound (s) of the explicit stable step of the case's deformable bodies on the mapped mesh: cfl x
+    the smallest altitude of their tetrahedra (3 V / largest face area) over the dilatational wave speed
+    sqrt((K + 4 G / 3) / rho) -- the solver's own rule without the bulk viscosity's reduction; inf without
+    deformable bodies. What ``pulseform check`` holds against ``limits.max_steps`` before a run."""
+    m = geo.mesh
+    dt = float("inf")
+    for k, b in enumerate(case.bodies, start=1):
+        if b.rigid:
+            continue
+        t = m.points[m.tets[m.tet_tags == conductor_tag(k)]]
+        vol = np.abs(np.einsum("ij,ij->i", np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), t[:, 3] - t[:, 0])) / 6.0
+        faces = t[:, [[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]]]
+        area = 0.5 * np.linalg.norm(np.cross(faces[:, :, 1] - faces[:, :, 0], faces[:, :, 2] - faces[:, :, 0]), axis=2)
+        mat = case.materials[b.material]
+        c = np.sqrt((mat.bulk_modulus + 4.0 * mat.shear_modulus / 3.0) / mat.density)
+        dt = min(dt, float((3.0 * vol / area.max(axis=1)).min()) / c)
+    return case.time.cfl * dt

@@ -168,7 +168,7 @@ class GetDPSolver:
         numbers.update(TimeInit=t_init, TimeFinal=float(t_end), NbSteps=int(n_sub))
         if model.applied_field is not None:
             bdf2_restart = self.time_scheme == "bdf2" and bool(state.dt_prev and state.res_path is not None)
-            numbers["App_F1"] = applied_start(state.applied_f, state.applied_f_prev, state.t, state.dt_prev,
+            numbers["Field_F1"] = applied_start(state.applied_f, state.applied_f_prev, state.t, state.dt_prev,
                                               float(t_end), bdf2_restart)
         if model.circuit is not None:
             numbers["Init_Vc"] = init_vc
