@@ -317,9 +317,9 @@ def stable_step_estimate(case, geo: Geometry3D) -> float:
     for k, b in enumerate(case.bodies, start=1):
         if b.rigid:
             continue
-        t = m.points[m.tets[m.tet_tags == conductor_tag(k)]]
-        vol = np.abs(np.einsum("ij,ij->i", np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), t[:, 3] - t[:, 0])) / 6.0
-        faces = t[:, [[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]]]
+        rows = np.flatnonzero(m.tet_tags == conductor_tag(k))
+        vol, t = m.volumes(rows), m.points[m.tets[rows]]
+        faces = t[:, _TET_FACES]
         area = 0.5 * np.linalg.norm(np.cross(faces[:, :, 1] - faces[:, :, 0], faces[:, :, 2] - faces[:, :, 0]), axis=2)
         mat = case.materials[b.material]
         c = np.sqrt((mat.bulk_modulus + 4.0 * mat.shear_modulus / 3.0) / mat.density)
