@@ -3,7 +3,8 @@ index of its headline metrics (:mod:`.gci`).
 
 ``pulseform converge CASE`` runs the case on ``levels`` (>= 3) meshes refined by a constant ``ratio``:
 level 0 is the case as given, level k divides **every** element size of the case by ratio^k (the keys
-named ``mesh_size*`` of ``[geometry]`` and its nested tables, and each body's ``mesh_size``), so the
+named ``mesh_size*`` of ``[geometry]`` and its nested tables -- a 3D geometry file's ``geometry.parameters``
+among them --, every entry of a 3D geometry file's ``geometry.mesh_sizes``, and each body's ``mesh_size``), so the
 meshes are refined alike everywhere, as the GCI procedure asks. With ``refine = "em_step"`` it
 divides ``coupling.n`` instead (the EM step, the mechanical step fixed). Each level is its own
 ``pulseform run`` process (``jobs`` at a time, as the members of a sweep). For each metric it computes,
@@ -23,6 +24,7 @@ from __future__ import annotations
 import json
 import logging
 import math
+import re
 import tomllib
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
@@ -35,6 +37,9 @@ from .gci import grid_convergence
 from .sweep import Member, run_member
 
 log = logging.getLogger(__name__)
+
+#: a group name --set can address (orchestrator/case/io.py's key path segment, without an index)
+_KEY = re.compile(r"^[A-Za-z_][A-Za-z0-9_\-]*$")
 
 __all__ = ["refinement_keys", "study_levels", "run_converge", "DEFAULT_METRICS"]
 
@@ -49,18 +54,30 @@ class ConvergeError(ValueError):
 
 def refinement_keys(resolved: dict) -> dict[str, float]:
     """The element sizes (m) of a resolved case (the TOML of :func:`case_to_toml`), by ``--set`` key
-    path: ``geometry.mesh_size*`` (also in nested tables such as ``geometry.die``) and
-    ``bodies.<name>.mesh_size``."""
+    path: ``geometry.mesh_size*`` (also in nested tables such as ``geometry.die``, and the ``mesh_size*``
+    numbers of a 3D geometry file's ``geometry.parameters``), every entry of a 3D geometry file's
+    ``geometry.mesh_sizes`` (``geometry.mesh_sizes.<group>``) and ``bodies.<name>.mesh_size``."""
     out: dict[str, float] = {}
+
+    def number(v) -> bool:
+        return isinstance(v, (int, float)) and not isinstance(v, bool)
 
     def walk(table: dict, path: str) -> None:
         for k, v in table.items():
             if isinstance(v, dict):
                 walk(v, f"{path}.{k}")
-            elif k.startswith("mesh_size") and isinstance(v, (int, float)) and not isinstance(v, bool):
+            elif k.startswith("mesh_size") and number(v):
                 out[f"{path}.{k}"] = float(v)
 
-    walk(resolved.get("geometry", {}), "geometry")
+    geometry = resolved.get("geometry", {})
+    walk(geometry, "geometry")
+    if geometry.get("type") == "geometry_3d":   # the sizes per physical volume group: every entry is a size
+        for group, v in (geometry.get("mesh_sizes") or {}).items():
+            if number(v):
+                if not _KEY.match(group):
+                    raise ConvergeError(f"geometry.mesh_sizes: the group name {group!r} cannot be refined by --set "
+                                        "(a key path segment is letters, digits, '_' and '-'); rename the group")
+                out[f"geometry.mesh_sizes.{group}"] = float(v)
     for b in resolved.get("bodies", []):
         if isinstance(b.get("mesh_size"), (int, float)):
             out[f"bodies.{b['name']}.mesh_size"] = float(b["mesh_size"])
@@ -72,8 +89,9 @@ def study_levels(resolved: dict, ratio: float, levels: int, refine: str) -> list
     if refine == "mesh":
         keys = refinement_keys(resolved)
         if not keys:
-            raise ConvergeError("the case has no element size to refine (no mesh_size key: a user deck's mesh is "
-                                "its .geo's; refine its [geometry.parameters] with sweep)")
+            raise ConvergeError("the case has no element size to refine (no mesh_size key, no geometry.mesh_sizes "
+                                "entry: a user deck's mesh is its .geo's; name its size parameters mesh_size* or "
+                                "refine its [geometry.parameters] with sweep)")
         return [{k: repr(v / ratio ** i) for k, v in keys.items()} for i in range(levels)]
     n = int(resolved.get("coupling", {}).get("n", 10))
     out = []

@@ -68,3 +68,34 @@ def test_fixed_disk_peak_force_converges_to_the_reference(tmp_path, capsys):
           f"GCI {100 * r['gci_fine']:.3g} %")
     assert r["convergence"] == "monotone" and 1.5 < r["order"] < 3.5
     assert r["extrapolated"] == pytest.approx(15.18e3, rel=0.005)
+
+
+def test_geometry_3d_sizes_are_refined():
+    """A 3D geometry-file case (cases/emf_tube_field_shaper): every entry of geometry.mesh_sizes (per physical
+    volume group) and the .geo's parameters named mesh_size* are divided by ratio^k; the other parameters
+    (dimensions) are not; a level's overrides load (the --set paths exist)."""
+    import tomllib
+
+    from pulseform.orchestrator.case.io import case_to_toml, load_case
+    from pulseform.orchestrator.workflows.converge import refinement_keys, study_levels
+
+    case = str(REPO / "cases/emf_tube_field_shaper")
+    resolved = tomllib.loads(case_to_toml(load_case(case, [])[0]))
+    sizes = resolved["geometry"]["mesh_sizes"]
+    keys = refinement_keys(resolved)
+    assert {k: v for k, v in keys.items() if k.startswith("geometry.mesh_sizes.")} == \
+        {f"geometry.mesh_sizes.{g}": h for g, h in sizes.items()}
+    assert keys["geometry.parameters.mesh_size_air"] == resolved["geometry"]["parameters"]["mesh_size_air"]
+    assert not any(k.endswith((".R_tube_in", ".t_tube", ".w_slit")) for k in keys)
+    levels = study_levels(resolved, 1.5, 3, "mesh")
+    for k, level in enumerate(levels):
+        assert float(level["geometry.mesh_sizes.tube"]) == pytest.approx(sizes["tube"] / 1.5 ** k, rel=1e-15)
+    c, _ = load_case(case, [f"{k}={v}" for k, v in levels[2].items()])
+    assert c.geometry.mesh_sizes["shaper"] == pytest.approx(sizes["shaper"] / 2.25, rel=1e-15)
+
+
+def test_geometry_3d_group_name_not_addressable():
+    from pulseform.orchestrator.workflows.converge import ConvergeError, refinement_keys
+
+    with pytest.raises(ConvergeError, match="group name 'my coil'"):
+        refinement_keys({"geometry": {"type": "geometry_3d", "mesh_sizes": {"my coil": 1e-3}}})
