@@ -14,6 +14,8 @@ bank. Physics checked (the field-shaper principle: a transformer whose secondary
 The current direction comes from GetDP's per-element f = j x B and B (both printed per element): the
 component of j normal to B is B x f / |B|^2; here j is azimuthal and B meridional, so it is all of j.
 
+A .geo with inconsistent dimensions fails with its own message (one line).
+
 Slow tier: the case run end to end by the CLI at coarse sizes: the tube is compressed (its mid-section
 moves inwards, plastically), the EM mesh follows, the ledgers hold.
 """
@@ -127,6 +129,16 @@ def test_shaper_currents_and_tube_force(em_first_steps):
     assert res.conductor_force[-1, 0] == pytest.approx(total, rel=1e-6, abs=1e-9 * abs(f_r))
     # the coil is pushed outwards (the quarter coil towards +y)
     assert res.coil_force[-1, 0, 1] > 0
+
+
+def test_inconsistent_dimensions_name_the_geo_error(tmp_path):
+    """The .geo's own Error(...) (here a taper radius outside the shaper) reaches the user as its message (the
+    meshing child used to report the line of gmsh's Python traceback that contains 'rror')."""
+    from pulseform.orchestrator.mesh.geometry3d import GeometryError
+
+    case, _ = load_case(CASE, ["geometry.parameters.R_taper=0.05"])
+    with pytest.raises(GeometryError, match=r"gmsh failed: Error: field_shaper.geo: inconsistent dimensions"):
+        build_geometry3d(case, tmp_path)
 
 
 def _history(out: Path) -> dict[str, np.ndarray]:
