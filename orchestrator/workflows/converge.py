@@ -6,7 +6,8 @@ level 0 is the case as given, level k divides **every** element size of the case
 named ``mesh_size*`` of ``[geometry]`` and its nested tables -- a 3D geometry file's ``geometry.parameters``
 among them --, every entry of a 3D geometry file's ``geometry.mesh_sizes``, and each body's ``mesh_size``), so the
 meshes are refined alike everywhere, as the GCI procedure asks. With ``refine = "em_step"`` it
-divides ``coupling.n`` instead (the EM step, the mechanical step fixed). Each level is its own
+divides ``coupling.n`` instead (the EM step, the mechanical step fixed) -- or, for a 3D geometry file with
+``geometry.em_step`` (which sets n), that EM step (n = round(em_step / mechanical step) per level). Each level is its own
 ``pulseform run`` process (``jobs`` at a time, as the members of a sweep). For each metric it computes,
 on the three finest levels, the observed order, the Richardson-extrapolated value and the GCI
 (Celik et al. 2008), and writes:
@@ -93,6 +94,10 @@ def study_levels(resolved: dict, ratio: float, levels: int, refine: str) -> list
                                 "entry: a user deck's mesh is its .geo's; name its size parameters mesh_size* or "
                                 "refine its [geometry.parameters] with sweep)")
         return [{k: repr(v / ratio ** i) for k, v in keys.items()} for i in range(levels)]
+    geometry = resolved.get("geometry", {})
+    if geometry.get("type") == "geometry_3d" and isinstance(geometry.get("em_step"), (int, float)):
+        # n = round(geometry.em_step / mechanical step) there: coupling.n is not used
+        return [{"geometry.em_step": repr(float(geometry["em_step"]) / ratio ** i)} for i in range(levels)]
     n = int(resolved.get("coupling", {}).get("n", 10))
     out = []
     for i in range(levels):

@@ -99,3 +99,18 @@ def test_geometry_3d_group_name_not_addressable():
 
     with pytest.raises(ConvergeError, match="group name 'my coil'"):
         refinement_keys({"geometry": {"type": "geometry_3d", "mesh_sizes": {"my coil": 1e-3}}})
+
+
+def test_geometry_3d_em_step_is_refined():
+    """--refine em_step on a 3D geometry file whose geometry.em_step sets n divides that EM step (coupling.n is
+    not used there: dividing it would run the same case three times)."""
+    import tomllib
+
+    from pulseform.orchestrator.case.io import case_to_toml, load_case
+    from pulseform.orchestrator.workflows.converge import study_levels
+
+    resolved = tomllib.loads(case_to_toml(load_case(str(REPO / "cases/emf_tube_field_shaper"), [])[0]))
+    em_step = resolved["geometry"]["em_step"]
+    levels = study_levels(resolved, 2.0, 3, "em_step")
+    assert [float(lv["geometry.em_step"]) for lv in levels] == [em_step, em_step / 2, em_step / 4]
+    assert all(list(lv) == ["geometry.em_step"] for lv in levels)
