@@ -164,7 +164,9 @@ def summarise(members: list[Member], ratio: float, metrics: list[str] | None, re
 
 def report_markdown(report: dict, case: str) -> str:
     """``report.md``: one row per metric."""
-    what = "element sizes" if report["refine"] == "mesh" else "EM step (coupling.n)"
+    what = "element sizes" if report["refine"] == "mesh" else \
+        "EM step (geometry.em_step)" if any("geometry.em_step" in lv["overrides"] for lv in report["levels"]) else \
+        "EM step (coupling.n)"
     lines = [f"# Convergence study of {case}", "",
              f"{len(report['levels'])} levels, {what} divided by {report['ratio']:g} per level; the GCI of the "
              "three finest (Celik et al., J. Fluids Eng. 130 (2008) 078001; safety factor 1.25).", "",
