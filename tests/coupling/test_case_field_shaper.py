@@ -178,7 +178,7 @@ def test_mid_plane_symmetry_b_normal(tmp_path):
 def test_symmetry_plane_the_model_does_not_end_on(tmp_path):
     """Both halves in z (z_symmetric = 0) but the case's z = 0 [[symmetry]] entry kept: the plane holds no
     boundary face, and the run stops with one line naming it (it used to go on silently with a symmetry factor
-    of 4 for a half model: the bank's voltage over the part and every device figure twice too small)."""
+    of 4 for a half model: the bank's voltage over the part halved, the device figures scaled by 4, not 2)."""
     from pulseform.orchestrator.mesh.geometry3d import GeometryError
 
     sizes = [f"{k}={v!r}" for k, v in COARSE.items()] + ["geometry.mesh_sizes.tube=6e-3", "geometry.mesh_sizes.shaper=8e-3"]
