@@ -102,6 +102,13 @@ def _parser() -> argparse.ArgumentParser:
                       help="fitted pulse: eq. (7) P0 e^-bt sin^2(wt) (default) or eq. (8) p0 e^-t/T")
     cmp_.add_argument("--pressure-case", metavar="FILE",
                       help="take the pressure pulses from this case's [[loads]] instead of fitting them")
+    cmp_.add_argument("--surface", metavar="BOX",
+                      help="3D models (geometry files): the loaded surface to fit the pulse on, a box as a TOML inline "
+                           "table of bounds in m (xmin ... zmax, rmin/rmax about the z-axis), e.g. "
+                           "'{rmin = 0.01, rmax = 0.034, zmin = 1.4999e-3, zmax = 1.5001e-3}': the loaded body's "
+                           "exterior triangles with three nodes inside; the pressure pushes along their area vector")
+    cmp_.add_argument("--body", metavar="NAME",
+                      help="the loaded body (default: the workpiece, or a 3D model's only body)")
     cmp_.add_argument("--fail-if", metavar="METRIC>TOL", action="append", default=[], dest="fail_if",
                       help="e.g. 'shape_distance_max_mm>0.05' or 'impulse_rel_diff>0.01' (repeatable; > or <)")
     cmp_.add_argument("--force", action="store_true", help="replace an existing folder")
@@ -181,9 +188,11 @@ def _cmd_run(args: argparse.Namespace) -> int:
     except RunFailed as exc:
         from .case.guards import LimitExceeded
         from .em.deck_check import DeckContractError
+        from .mesh.geometry3d import GeometryError
 
-        # a user deck that breaks the contract, or meshes beyond [limits], is bad input found before the first step
-        bad_input = isinstance(exc.__cause__, (DeckContractError, LimitExceeded))
+        # a user deck that breaks the contract, a 3D geometry file whose groups do not fit its role map, or a
+        # mesh beyond [limits], is bad input found before the first step
+        bad_input = isinstance(exc.__cause__, (DeckContractError, GeometryError, LimitExceeded))
         code = _error(str(exc), EXIT_BAD_INPUT if bad_input else EXIT_FAILED)
         if exc.details:  # the tail of the failing program's log
             print("  --- log tail ---\n" + "\n".join("  " + ln for ln in exc.details.splitlines()), file=sys.stderr)
@@ -210,6 +219,30 @@ def _summary(case, metrics: dict, out: Path) -> list[str]:
     return ["summary:"] + ["  " + ln for ln in lines] if lines else []
 
 
+def _check_geometry_3d(case, file: Path) -> list[str] | int:
+    """Mesh a 3D geometry file in a temporary folder and map its roles: the lines ``check`` prints (its
+    groups, tetrahedra, coils and conductors), or the exit code of a one-line refusal."""
+    import tempfile
+
+    from .mesh.geometry3d import GeometryError, build_geometry3d
+
+    from .em.model3d import em_model3d
+    from pulseform.solvers.getdp.solver3d import model_numbers
+
+    with tempfile.TemporaryDirectory(prefix="pulseform_check3d_") as tmp:
+        try:
+            geo = build_geometry3d(case, Path(tmp))
+            model_numbers(em_model3d(case, geo), geo.mesh)   # what the deck would refuse
+        except GeometryError as exc:
+            return _error(f"{file}: {exc.message}", EXIT_BAD_INPUT)
+        except ValueError as exc:
+            return _error(f"{file}: {Path(case.geometry.file).name}: geometry: {exc}", EXIT_BAD_INPUT)
+    m = geo.mesh
+    return [f"# {case.geometry.file}: {m.n_tets} tetrahedra, {m.n_nodes} nodes; groups: {geo.groups}",
+            f"# coils (physical 100 + k): {geo.coils}; conductors (200 + k): {geo.conductors}; symmetry factor "
+            f"{360.0 / m.sector_deg:g}" + (f"; shell radii {geo.shell[0]:.6g}, {geo.shell[1]:.6g} m" if geo.shell else "")]
+
+
 def _cmd_check(args: argparse.Namespace) -> int:
     from .case.io import CaseError, case_to_toml, load_case
     from .em.skin_depth import default_sizes, resolve_defaults
@@ -228,6 +261,12 @@ def _cmd_check(args: argparse.Namespace) -> int:
         except DeckContractError as exc:
             return _error(str(exc), EXIT_BAD_INPUT)
         print(f"# {case.geometry.pro}: honours the deck contract")
+    if case.geometry is not None and case.geometry.type == "geometry_3d":
+        lines = _check_geometry_3d(case, file)
+        if isinstance(lines, int):
+            return lines
+        for line in lines:
+            print(line)
     for line in _mesh_advice(case):
         print(f"pulseform: warning: {line}", file=sys.stderr)
     print(f"# {file}: valid")
@@ -353,14 +392,19 @@ def _cmd_validate(args: argparse.Namespace) -> int:
 def _cmd_compare(args: argparse.Namespace) -> int:
     from .case.io import CaseError, load_case
     from .workflows.compare import CompareError, parse_conditions, run_compare
+    from .workflows.compare3d import parse_surface
     from .run.results import ResultsExistError
 
     try:
         conditions = parse_conditions(args.fail_if)
+        surface = parse_surface(args.surface) if args.surface is not None else None
+    except (CompareError, ValueError) as exc:
+        return _error(str(exc), EXIT_BAD_INPUT)
+    try:
         case, _ = load_case(args.case, args.overrides)
         out = args.out or Path("results") / f"{case.case.name}_compare"
         report = run_compare(args.case, out, overrides=args.overrides, pulse=args.pulse,
-                             pressure_case=args.pressure_case, force=args.force)
+                             pressure_case=args.pressure_case, force=args.force, surface=surface, body=args.body)
     except (CaseError, ResultsExistError, CompareError) as exc:
         return _error(str(exc), EXIT_BAD_INPUT if not getattr(exc, "run_failed", False) else EXIT_FAILED)
     for k in ("shape_distance_max_mm", "max_speed_coupled_m_s", "max_speed_pressure_m_s", "impulse_coupled_Ns",

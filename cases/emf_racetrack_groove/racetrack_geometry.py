@@ -6,7 +6,8 @@ terminals "coil_in" (on y = 0) and "coil_out" (on x = 0), "sheet", "die" (and th
 "outer", which the runner recomputes). The names ``name=value`` are the fields of
 :class:`pulseform.solvers.getdp.racetrack_mesh.RacetrackGroove` (m; ``turns`` and ``sheet_layers`` integers;
 ``h_coil``, ``h_sheet``, ``h_die``, ``h_air`` the element sizes, ``grading`` the growth of the size per metre
-away from the coil's footprint). The mesher is pulseform's OpenCASCADE build of this geometry (the sheet
+away from the coil's footprint); ``mesh_size_factor`` (pulseform's ``geometry.mesh_size_factor``) multiplies the
+sizes and divides the sheet's layers (:meth:`RacetrackGroove.scaled`: the air's size at the sphere only refined). The mesher is pulseform's OpenCASCADE build of this geometry (the sheet
 extruded in layers through its thickness), so the mesh is the one of the study's reference run
 (studies/emf_racetrack_groove).
 """
@@ -14,26 +15,17 @@ extruded in layers through its thickness), so the mesh is the one of the study's
 import sys
 from dataclasses import fields
 
+from pulseform.orchestrator.mesh.geometry3d import BuilderArgumentError, builder_arguments
 from pulseform.solvers.getdp.racetrack_mesh import RacetrackGroove, racetrack_groove_mesh
-
-INTEGERS = ("turns", "sheet_layers")
 
 
 def main(argv: list[str]) -> int:
-    if not argv:
-        print("usage: python racetrack_geometry.py OUT.msh [name=value ...]", file=sys.stderr)
-        return 2
-    known = {f.name for f in fields(RacetrackGroove)}
-    values = {}
-    for item in argv[1:]:
-        name, _, text = item.partition("=")
-        if name not in known:
-            print(f"Error: unknown parameter {name!r}; known: {', '.join(sorted(known))}", file=sys.stderr)
-            return 2
-        values[name] = int(float(text)) if name in INTEGERS else float(text)
     try:
-        racetrack_groove_mesh(argv[0], RacetrackGroove(**values))
-    except ValueError as exc:
+        out, values, factor = builder_arguments(argv, [f.name for f in fields(RacetrackGroove)],
+                                                integers=("turns", "sheet_layers"))
+        g = RacetrackGroove(**values)
+        racetrack_groove_mesh(out, g if factor == 1.0 else g.scaled(factor))
+    except (BuilderArgumentError, ValueError) as exc:   # an unknown name, an inconsistent geometry
         print(f"Error: {exc}", file=sys.stderr)
         return 2
     return 0

@@ -7,6 +7,7 @@ from operator import attrgetter
 from typing import ClassVar, Literal
 
 from .deck_files import remesh_air_error
+from .em_applied import AppliedField
 from .em_sources import CoilConnection, Source, check_sources
 from .geometry3d import GeometryFile3D
 from .schema import SchemaError, spec
@@ -473,6 +474,9 @@ class EM:
                                           "these with [[em.coils]], or circuit, or current)")
     coils: tuple[CoilConnection, ...] = spec((), doc="[[em.coils]] each coil of the geometry on a source, with its "
                                                  "orientation; coils on a bank are in series on it")
+    applied_field: AppliedField | None = spec(None, doc="[em.applied_field] a uniform applied magnetic field beside "
+                                                       "the coils, type = 'dc' | 'sine' | 'table' (time function as a "
+                                                       "source's, times the magnitude)")
     keep_runs: bool = spec(False, doc="keep every getdp run folder (default: the last two)")
     time_scheme: Literal["euler", "bdf2"] = spec(
         "euler", doc="EM time scheme: 'euler' (implicit Euler, first order: damps the bank's ringing by "
@@ -488,6 +492,8 @@ class EM:
 
     def validate(self, path: str) -> None:
         given = [k for k in ("circuit", "current", "sources") if getattr(self, k)]
+        if not given and self.applied_field is not None:
+            return  # the applied field alone (3D geometry files without coils: .geometry3d checks)
         if len(given) != 1:
             raise SchemaError(f"{path}.{given[1] if given else 'circuit'}", "give exactly one of circuit (capacitor "
                               "bank), current or [[em.sources]] with [[em.coils]]")

@@ -182,8 +182,10 @@ def check_coils(case: Any) -> None:
 
 
 # --------------------------------------------------------------------------- table files
-def read_current_table(path: str | Path) -> tuple[list[float], list[float]]:
-    """Times (s) and currents (A) of a ``table`` source's CSV file.
+def read_current_table(path: str | Path, quantity: tuple[str, str] = ("current", "A")
+                       ) -> tuple[list[float], list[float]]:
+    """Times (s) and currents (A) of a ``table`` source's CSV file (``quantity``: the second column's name
+    and unit in the messages and the plausible range; an applied field's table holds factors, "-").
 
     Lines starting with ``#`` and blank lines are skipped; the first other line may be a header (its
     fields are not numbers); every other line holds two numbers, time and current. The times must be
@@ -200,7 +202,8 @@ def read_current_table(path: str | Path) -> tuple[list[float], list[float]]:
     times: list[float] = []
     values: list[float] = []
     header_allowed = True
-    t_max, i_max = PLAUSIBLE["s"][1], PLAUSIBLE["A"][1]
+    name, unit = quantity
+    t_max, i_max = PLAUSIBLE["s"][1], PLAUSIBLE[unit][1]
     with open(path, newline="", encoding="utf-8", errors="replace") as fh:
         for lineno, row in enumerate(csv.reader(fh), start=1):
             if not row or not "".join(row).strip() or row[0].lstrip().startswith("#"):
@@ -212,14 +215,14 @@ def read_current_table(path: str | Path) -> tuple[list[float], list[float]]:
                     header_allowed = False
                     continue
                 raise ValueError(f"line {lineno}: {shorten(','.join(row), 40)!r} is not two numbers "
-                                 "(time s, current A)") from None
+                                 f"(time s, {name} {unit})") from None
             header_allowed = False
             if len(numbers) != 2:
-                raise ValueError(f"line {lineno}: {len(numbers)} columns; need 2 (time s, current A)")
+                raise ValueError(f"line {lineno}: {len(numbers)} columns; need 2 (time s, {name} {unit})")
             t, i = numbers
             if not (math.isfinite(t) and math.isfinite(i)) or abs(t) > t_max or abs(i) > i_max:
-                raise ValueError(f"line {lineno}: time {t!r}, current {i!r}: need finite numbers with |time| <= "
-                                 f"{t_max:g} s and |current| <= {i_max:g} A")
+                raise ValueError(f"line {lineno}: time {t!r}, {name} {i!r}: need finite numbers with |time| <= "
+                                 f"{t_max:g} s and |{name}| <= {i_max:g} {unit}")
             if times and t <= times[-1]:
                 raise ValueError(f"line {lineno}: time {t!r} s after {times[-1]!r} s; times must be strictly "
                                  "increasing")
@@ -228,7 +231,7 @@ def read_current_table(path: str | Path) -> tuple[list[float], list[float]]:
             if len(times) > MAX_TABLE_ROWS:
                 raise ValueError(f"more than {MAX_TABLE_ROWS} rows")
     if len(times) < 2:
-        raise ValueError(f"{len(times)} data rows; need at least 2 (time s, current A)")
+        raise ValueError(f"{len(times)} data rows; need at least 2 (time s, {name} {unit})")
     if times[0] > 0.0:
         raise ValueError(f"the first time is {times[0]!r} s; the table must start at or before t = 0")
     return times, values

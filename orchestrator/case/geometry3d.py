@@ -23,7 +23,6 @@ The coils are driven by ``em.circuit`` / ``em.current`` (every coil in series) o
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Literal
 
@@ -55,6 +54,9 @@ class CoilGroup3D:
                                              "coil gives its direction; the section is the 'in' terminal's area)")
     cut: str | None = spec(None, doc="physical surface group cutting a closed loop across its section (the "
                            "potential jumps by one there; the section is the cut's area)")
+    cut_direction: tuple[float, float, float] | None = spec(
+        None, unit="-", doc="with cut: the direction [x, y, z] in which the current crosses the cut (default: the "
+                            "normal of the cut's triangles as the mesh file orients them)")
     axis: tuple[float, float] | None = spec(None, unit="m", doc="[x, y] of a z-parallel axis: the current runs "
                                             "azimuthally about it (ring coils; the section from the mesh)")
     section: float | None = spec(None, unit="m^2", gt=0.0, magnitude=(1e-14, 10.0),
@@ -66,6 +68,8 @@ class CoilGroup3D:
             raise SchemaError(f"{path}.terminals", "give exactly one current path: terminals = [in, out] (an open "
                               "coil), cut (a closed loop) or axis = [x, y] (azimuthal)"
                               + (f"; got {', '.join(given)}" if given else ""))
+        if self.cut_direction is not None and (self.cut is None or not any(self.cut_direction)):
+            raise SchemaError(f"{path}.cut_direction", "a non-zero vector [x, y, z], given with cut")
         if self.terminals is not None and self.terminals[0] == self.terminals[1]:
             raise SchemaError(f"{path}.terminals", f"got the same group {self.terminals[0]!r} twice; the current "
                               "enters and leaves through two different surfaces")
@@ -96,6 +100,9 @@ class GeometryFile3D:
                                                   "builder (name=value arguments)")
     mesh_sizes: dict[str, float] | None = spec(None, unit="m", gt=0.0, doc="element size per physical volume group "
                                                   "(its points); unset: the file's own sizes")
+    mesh_size_factor: float = spec(1.0, unit="-", gt=0.0, le=100.0, doc="every element size times this (gmsh's "
+                                   "Mesh.MeshSizeFactor; a .py builder gets mesh_size_factor=<value>: "
+                                   "pulseform converge refines it)")
     allow_outside: bool = spec(False, doc="allow a file outside the case folder")
     allow_system_calls: bool = spec(False, doc="run a .py builder, or a .geo that runs programs (SystemCall, ...): "
                                     "allow only files you trust")
@@ -103,11 +110,15 @@ class GeometryFile3D:
     shell: str | None = spec(None, doc="shell of the transformation to infinity: a physical volume group between two "
                              "spheres about shell_centre (radii read from the mesh)")
     shell_centre: Vec3 = spec((0.0, 0.0, 0.0), unit="m", doc="centre of the shell's spheres")
-    coils: tuple[CoilGroup3D, ...] = spec(doc="[[geometry.coils]] the coils")
+    shell_radii: tuple[float, float] | None = spec(None, unit="m", gt=0.0, doc="[inner, outer] radius of the shell "
+                                                   "(default from the mesh: the outer its largest node radius, the "
+                                                   "inner below its faceted inner face)")
+    coils: tuple[CoilGroup3D, ...] = spec((), doc="[[geometry.coils]] the coils (none: an applied field alone)")
     conductors: tuple[FixedConductor3D, ...] = spec((), doc="[[geometry.conductors]] fixed conductors (no body)")
     symmetry_factor: float | None = spec(None, unit="-", ge=1.0, le=1e6, doc="whole device / modelled part "
                                          "(device figures, the bank's voltage over the part); default from the "
-                                         "[[symmetry]] planes: 1, 2, 4 or 8 for 0-3 mutually perpendicular planes")
+                                         "[[symmetry]] planes: 1, 2, 4 or 8 for 0-3 mutually perpendicular planes, "
+                                         "360 deg / the wedge's angle (read from the mesh) for two others")
     em_step: float | None = spec(None, unit="s", gt=0.0, doc="target EM step: n = round(em_step / stable "
                                  "mechanical step) (unset: coupling.n)")
     em_order: int = spec(1, unit="-", ge=1, le=2, doc="edge elements: 1 (Whitney) or 2 (second order in the coils and "
@@ -121,8 +132,8 @@ class GeometryFile3D:
     def validate(self, path: str) -> None:
         if not self.file.lower().endswith(ALL_SUFFIXES):
             raise SchemaError(f"{path}.file", f"got {self.file!r}; allowed suffixes: {', '.join(ALL_SUFFIXES)}")
-        if not self.coils:
-            raise SchemaError(f"{path}.coils", "no coil: give at least one [[geometry.coils]] entry")
+        if self.shell_radii is not None and (self.shell is None or self.shell_radii[1] <= self.shell_radii[0]):
+            raise SchemaError(f"{path}.shell_radii", "give an increasing [inner, outer] pair (m), with geometry.shell")
         if self.em_order == 2 and self.on_mesh_break == "remesh":
             raise SchemaError(f"{path}.em_order", "got 2; second-order edge elements cannot remesh (the carry maps "
                               "Whitney edge unknowns only): set geometry.on_mesh_break = 'freeze' or 'stop'")
@@ -180,21 +191,6 @@ def _one_role(seen: dict[str, str], group: str, key: str) -> None:
     seen[group] = key
 
 
-def symmetry_factor(g: GeometryFile3D, planes) -> float:
-    """Whole device / modelled part: ``geometry.symmetry_factor``, else 2^k for k (<= 3) mutually perpendicular
-    ``planes`` (:class:`~.solid3d.SymmetryPlane`); raises :class:`SchemaError` for oblique planes without it."""
-    if g.symmetry_factor is not None:
-        return float(g.symmetry_factor)
-    normals = [tuple(c / math.hypot(*p.normal) for c in p.normal) for p in planes]
-    for i, a in enumerate(normals):
-        for b in normals[:i]:
-            if abs(sum(x * y for x, y in zip(a, b))) > 1e-9:
-                raise SchemaError("geometry.symmetry_factor", "missing: the [[symmetry]] planes are not mutually "
-                                  "perpendicular (a sector): give the whole device / modelled part, e.g. "
-                                  "360 / sector angle in degrees")
-    return float(2 ** len(normals))
-
-
 def validate_geometry_3d(case) -> None:
     """Cross-checks of a coupled 3D geometry-file case that need the whole case (the file's groups are
     checked when it is meshed): bodies' regions, materials, sources and coils, keys that do not apply."""
@@ -215,9 +211,8 @@ def validate_geometry_3d(case) -> None:
             raise SchemaError(f"{key}.region", f"got {b.region!r}; each group may be used by one body only")
         regions.append(b.region)
         if b.rigid:
-            raise SchemaError(f"{key}.rigid", "rigid bodies are not in the 3D geometry path yet (2D only): make it "
-                              "deformable, or a fixed conductor in [[geometry.conductors]]")
-        if case.materials[b.material].electrical_conductivity <= 0.0:
+            _check_rigid_3d(case, i, b)
+        if b.material in case.materials and case.materials[b.material].electrical_conductivity <= 0.0:
             raise SchemaError(f"materials.{b.material}.electrical_conductivity", "got 0; a body of a 3D geometry "
                               "file is a conductor: give its conductivity (S/m)")
         for j, f in enumerate(b.fixed):
@@ -230,6 +225,15 @@ def validate_geometry_3d(case) -> None:
         if case.materials[c.material].electrical_conductivity <= 0.0:
             raise SchemaError(f"materials.{c.material}.electrical_conductivity", "got 0; a fixed conductor needs its "
                               "conductivity (S/m)")
+    from .em_applied import check_applied_field
+
+    if not g.coils and em.applied_field is None:
+        raise SchemaError("geometry.coils", "no coil: give at least one [[geometry.coils]] entry (or an "
+                          "[em.applied_field] alone)")
+    if g.coils and not any((em.circuit, em.current, em.sources)):
+        raise SchemaError("em.circuit", "the coils need a source: give em.circuit (a capacitor bank), em.current or "
+                          "[[em.sources]] with [[em.coils]]")
+    check_applied_field(case)
     coil_names = [c.name for c in g.coils]
     for i, c in enumerate(em.coils):
         if c.name not in coil_names:
@@ -244,25 +248,58 @@ def validate_geometry_3d(case) -> None:
         if any(getattr(s, "type", "") == "bank" for s in em.sources) and len(em.sources) > 1:
             raise SchemaError("em.sources", "a 3D case has one circuit: one bank with every coil in series on it, "
                               "or prescribed sources only")
-    for key in ("walls", "loads", "analysis", "probes"):
+    for key in ("walls", "analysis", "probes"):
         if getattr(case, key):
             raise SchemaError(key, f"[[{key}]] is not in the 3D geometry path yet: remove it")
-    if case.coupling.load != "getdp":
-        raise SchemaError("coupling.load", "got 'pressure'; a 3D geometry file is driven by GetDP's forces")
+    _check_pressure_3d(case)
     if case.em.time_scheme != "bdf2":
         raise SchemaError("em.time_scheme", f"got {case.em.time_scheme!r}; the 3D path steps with 'bdf2'")
     if case.coupling.em_substeps != 1:
         raise SchemaError("coupling.em_substeps", f"got {case.coupling.em_substeps}; the 3D path takes one BDF2 "
                           "step per EM step: 1")
-    if case.sector is not None or case.racetrack is not None:
-        raise SchemaError("sector" if case.sector is not None else "racetrack", "a table of the built-in 3D devices; "
-                          "a 3D geometry file has none: remove it")
+
+
+def _check_pressure_3d(case) -> None:
+    """``coupling.load = "pressure"`` (the model driven by the ``[[loads]]`` pulses instead of getdp: the
+    pressure run of ``pulseform compare``) needs loads, on deformable bodies; loads need it; damping acts only
+    with it."""
+    if case.coupling.load == "pressure":
+        if not case.loads:
+            raise SchemaError("loads", "coupling.load = 'pressure' needs at least one [[loads]] pulse")
+        rigid = {b.name for b in case.bodies if b.rigid}
+        for i, ld in enumerate(case.loads):
+            if ld.body in rigid:
+                raise SchemaError(f"loads[{i}].body", f"got {ld.body!r}, a rigid body; pressure pulses load "
+                                  "deformable bodies")
+        return
+    if case.loads:
+        raise SchemaError("loads", "pressure [[loads]] are used only with coupling.load = 'pressure'; remove them "
+                          "or set coupling.load = 'pressure'")
+    for key in ("mass_damping", "kinetic_damping_until"):
+        if getattr(case.mechanics, key) > 0.0:
+            raise SchemaError(f"mechanics.{key}", "damping acts with pressure loads only (coupling.load = "
+                              "'pressure'); a GetDP-coupled run would ignore it: remove it")
 
 
 def is_geometry_3d(data: dict) -> bool:
     """True for the raw mapping of a case whose ``[geometry]`` is a 3D geometry file."""
     g = data.get("geometry")
     return isinstance(g, dict) and g.get("type") == "geometry_3d"
+
+
+#: keys of other tables that a 3D geometry file does not use, and what it uses instead
+RAW_REFUSED = (("em", "remesh_quality", "the 2D air remesh's threshold; a 3D geometry file's is geometry.break_quality"),)
+
+
+def check_raw_geometry_3d(data: dict) -> None:
+    """In the raw case mapping of a 3D geometry-file case: refuse keys of other paths whose defaults it would
+    ignore (:data:`RAW_REFUSED`): one :class:`SchemaError` naming the key."""
+    if not is_geometry_3d(data):
+        return
+    for table, key, why in RAW_REFUSED:
+        t = data.get(table)
+        if isinstance(t, dict) and key in t:
+            raise SchemaError(f"{table}.{key}", f"{why}: remove it")
 
 
 def resolve_geometry_file(data: dict, file, source: str) -> None:
@@ -302,3 +339,22 @@ def resolve_geometry_file(data: dict, file, source: str) -> None:
             where, what = found
             raise CaseError(source, "geometry.file", f"{where}: {what}; refused unless geometry.allow_system_calls = "
                             "true (a .geo is code)")
+
+
+def _check_rigid_3d(case, i: int, b) -> None:
+    """A rigid body of a 3D geometry file: 3-component vectors, translations that keep the model symmetric."""
+    from .parts import allowed_moves_3d
+
+    key = f"bodies[{i}]"
+    for name in ("offset", "gravity", "initial_velocity"):
+        v = getattr(b, name)
+        if v is not None and any(v) and len(v) != 3:
+            raise SchemaError(f"{key}.{name}", f"got {len(v)} components; a 3D case needs [x, y, z]")
+    allowed = allowed_moves_3d(b, case.symmetry)
+    for c in case.rigid_moves(b):
+        if c not in allowed:
+            raise SchemaError(f"{key}.moves", f"got {list(case.rigid_moves(b))}; a translation along {'xyz'[c]} "
+                              f"crosses a [[symmetry]] plane of the body: allowed {list(allowed)}")
+    if not allowed:
+        raise SchemaError(f"{key}.rigid", "the body's [[symmetry]] planes leave it no translation: make it "
+                          "deformable or a fixed conductor")

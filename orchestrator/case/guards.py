@@ -26,10 +26,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from .racetrack3d import check_racetrack_resources
 from .rigid_steps import all_rigid, period_upper_bound
 from .schema import SchemaError
-from .sector3d import Sector, check_sector_resources
 from .skin import provisional_size
 
 #: cells per (area / h²) of a mesh of equilateral triangles of side h
@@ -179,10 +177,6 @@ def _em_steps(case, steps: float) -> float:
         return 0.0
     if getattr(case.geometry, "type", None) == "geometry_3d":  # one getdp step per geometry.em_step, or per n
         return case.time.end / case.geometry.em_step if case.geometry.em_step else steps / case.coupling.n
-    if case.mechanics.formulation == "3d" and case.racetrack is not None:  # one getdp step per racetrack.em_step
-        return case.time.end / case.racetrack.em_step
-    if case.mechanics.formulation == "3d":  # a sector: one getdp run per sector.em_step
-        return case.time.end / (case.sector.em_step if case.sector is not None else Sector().em_step)
     return steps / case.coupling.n
 
 
@@ -190,15 +184,8 @@ def check_resources(case) -> None:
     """Raise :class:`SchemaError` if the estimated cells or explicit steps exceed ``case.limits``."""
     lim = case.limits
     if getattr(case.geometry, "type", None) == "geometry_3d":
-        return  # the file's mesh is known only once meshed: its cells are checked then (mesh/geometry3d.py)
-    if case.case.kind == "coupled" and case.mechanics.formulation == "3d":
-        if case.racetrack is not None:
-            check_racetrack_resources(case)  # the racetrack's tetrahedra and the machine's memory (.racetrack3d)
-        else:
-            check_sector_resources(case)  # tetrahedra of the sector and the machine's memory (.sector3d)
-        region = None
-    else:
-        cells, region = estimated_cells(case)
+        return  # the file's mesh is known only once meshed: its cells, memory and steps are checked then
+    cells, region = estimated_cells(case)
     if region is not None and cells > lim.max_cells:
         raise SchemaError(region.key, f"got {region.size:g} m: the meshes would have ~{cells:.3g} cells "
                           f"(this region ~{region.cells:.3g}), above limits.max_cells = {lim.max_cells:.3g}; "
@@ -210,13 +197,10 @@ def check_resources(case) -> None:
                           "mesh or raise limits.max_steps")
     em = _em_steps(case, steps)
     if em > lim.max_em_steps:
-        table = "racetrack" if case.racetrack is not None else "sector"
-        em_key = f"{table}.em_step" if case.mechanics.formulation == "3d" else "coupling.n"
-        em_val = f"{(getattr(case, table) or Sector()).em_step:g} s" if case.mechanics.formulation == "3d" \
-            else f"{case.coupling.n}"
         raise SchemaError("time.end", f"got {case.time.end:g} s: ~{em:.3g} EM steps (getdp runs; stable step set by "
-                          f"{key}, {em_key} = {em_val}), above limits.max_em_steps = {lim.max_em_steps:.3g}; "
-                          f"shorten time.end, coarsen the mesh, raise {em_key} or raise limits.max_em_steps")
+                          f"{key}, coupling.n = {case.coupling.n}), above limits.max_em_steps = "
+                          f"{lim.max_em_steps:.3g}; shorten time.end, coarsen the mesh, raise coupling.n or raise "
+                          "limits.max_em_steps")
 
 
 class LimitExceeded(ValueError):

@@ -10,13 +10,12 @@ from typing import Any
 import tomli_w
 
 from .deck_files import resolve_deck_paths
+from .em_applied import resolve_applied_field_file
 from .em_sources import resolve_source_files
-from .geometry3d import is_geometry_3d, resolve_geometry_file
+from .geometry3d import check_raw_geometry_3d, resolve_geometry_file
 from .errors import MAX_MESSAGE, CaseError, one_line  # noqa: F401  (the case-file API)
 from .model import Case
 from .schema import SchemaError, from_dict, shorten, to_dict
-from .racetrack3d import check_raw_racetrack
-from .sector3d import check_raw_coupled_3d
 from .solid3d import check_explicit_2d_keys
 
 CASE_FILE_NAME = "case.toml"
@@ -203,11 +202,10 @@ def load_case(path: str | Path, overrides: list[str] | tuple[str, ...] = ()) -> 
         raise CaseError(source, "geometry", f"cannot resolve mesh/pro: {getattr(exc, 'strerror', None) or exc}") \
             from None
     resolve_source_files(data, file, source)
+    resolve_applied_field_file(data, file, source)
     try:
         check_explicit_2d_keys(data)
-        check_raw_racetrack(data)
-        if not is_geometry_3d(data):  # a 3D geometry file takes [coupling] and [em]'s keys
-            check_raw_coupled_3d(data)
+        check_raw_geometry_3d(data)
         case = from_dict(Case, data)
     except SchemaError as exc:
         raise CaseError(source, exc.path, exc.message) from None

@@ -15,17 +15,16 @@ from typing import Literal
 from .analysis_names import ANALYSES, ANALYSIS_PAIRS
 from .em_model import (EM, CapacitorBank, DampedSineCurrent, FlatCoilSheet, Geometry, OuterTube, PlanarCoilBlankDie,
                       SheetDie, SolenoidTube)
+from .em_applied import check_applied_field
 from .em_sources import check_coils
 from .guards import check_resources
-from .racetrack3d import Racetrack
 from .parts import (Box, BodyTable, ContactPair, EndStopTable, FixedBoundary, Polygon, Rectangle, RigidWall, Shape,
                     Vec, Vec2, check_file_name, rigid_moves, validate_rigid)
 from .rigid_steps import check_rigid_time_scale
 from .schema import SchemaError, spec
-from .sector3d import Sector
 from .solid3d import SolidBox, SolidCylinder, SymmetryPlane, validate_dimension
 
-__all__ = ["Box", "Rectangle", "Polygon", "SolidBox", "SolidCylinder", "SymmetryPlane", "Sector", "Racetrack", "Shape", "CowperSymondsTable", "JohnsonCookTable", "MaterialTable", "FixedBoundary",
+__all__ = ["Box", "Rectangle", "Polygon", "SolidBox", "SolidCylinder", "SymmetryPlane", "Shape", "CowperSymondsTable", "JohnsonCookTable", "MaterialTable", "FixedBoundary",
            "EndStopTable", "BodyTable", "ContactPair", "RigidWall", "PulseSin2", "PulseExp", "Load", "CaseInfo", "TimeControl",
            "MechanicsTable", "Coupling", "Probe", "Output", "Limits", "Case", "EM", "CapacitorBank", "DampedSineCurrent",
            "FlatCoilSheet", "Geometry", "SolenoidTube", "SheetDie", "OuterTube", "PlanarCoilBlankDie"]
@@ -139,8 +138,8 @@ class MechanicsTable:
     """Mechanical model options."""
 
     formulation: Literal["plane_stress", "plane_strain", "axisymmetric", "3d"] = spec(
-        "plane_strain", doc="kinematics: 2D (triangles), or '3d' (tetrahedra: mechanics cases, and coupled cases as a "
-            "[sector] of a flat_coil_sheet setup)")
+        "plane_strain", doc="kinematics: 2D (triangles), or '3d' (tetrahedra: mechanics cases, and coupled cases "
+            "from a 3D geometry file, geometry.type = 'geometry_3d')")
     thickness: float = spec(1.0, unit="m", gt=0.0, doc="out-of-plane thickness (planar only)")
     bulk_viscosity: bool = spec(True, doc="linear + quadratic artificial bulk viscosity")
     bulk_viscosity_linear: float = spec(0.06, unit="-", ge=0.0, doc="linear coefficient")
@@ -247,10 +246,6 @@ class Case:
     coupling: Coupling = spec(Coupling(), doc="[coupling] table")
     geometry: Geometry | None = spec(None, doc="[geometry] EM setup (coupled cases)")
     em: EM | None = spec(None, doc="[em] table (coupled cases)")
-    sector: Sector | None = spec(None, doc="[sector] the modelled sector of a coupled 3D case (its angle, sheet "
-                                 "layers, EM step, clamp)")
-    racetrack: Racetrack | None = spec(None, doc="[racetrack] the coupled 3D racetrack case: coil, sheet, grooved die "
-                                       "(a quarter model), mesh sizes, EM step (its bank in [em], bodies, contact)")
     probes: tuple[Probe, ...] = spec((), doc="[[probes]] point histories")
     output: Output = spec(Output(), doc="[output] table")
     analysis: tuple[str, ...] = spec((), doc="case-specific analyses (extra history columns, metrics, plots)")
@@ -319,7 +314,7 @@ class Case:
     def _validate_coupled(self) -> None:
         regions = [b.region for b in self.bodies if b.region is not None]
         file3d = getattr(self.geometry, "type", None) == "geometry_3d"  # .geometry3d (validate_dimension)
-        if self.case.kind == "coupled" and self.racetrack is None and not file3d:  # a racetrack: .racetrack3d
+        if self.case.kind == "coupled" and not file3d:
             for key in ("geometry", "em"):
                 if getattr(self, key) is None:
                     raise SchemaError(key, f"missing required table [{key}] for case.kind = 'coupled'")
@@ -346,11 +341,15 @@ class Case:
                                   "geometry is planar: use 'plane_strain' or 'plane_stress'")
             if not self.geometry.planar and self.mechanics.formulation not in ("axisymmetric", "3d"):
                 raise SchemaError("mechanics.formulation", f"got {self.mechanics.formulation!r}; the "
-                                  f"{self.geometry.type} geometry is axisymmetric: use 'axisymmetric' (or '3d': a [sector] of it)")
+                                  f"{self.geometry.type} geometry is axisymmetric: use 'axisymmetric'")
             if self.em.time_scheme == "bdf2" and self.coupling.em_substeps != 1:
                 raise SchemaError("coupling.em_substeps", f"got {self.coupling.em_substeps}; em.time_scheme = "
                                   "'bdf2' takes one step per getdp run: use 1 (and a smaller coupling.n)")
+            if not any((self.em.circuit, self.em.current, self.em.sources)):
+                raise SchemaError("em.circuit", "the geometry's coil needs a source: give em.circuit (a capacitor "
+                                  "bank), em.current or [[em.sources]] with [[em.coils]]")
             check_coils(self)
+            check_applied_field(self)
             if getattr(self.geometry, "library", None) == "getdp_template" and self.em.getdp_process == "persistent":
                 raise SchemaError("em.getdp_process", "got 'persistent'; a deck on GetDP's template runs a getdp "
                                   "process per EM step (its state carried by -restart): set em.getdp_process = "
@@ -368,7 +367,7 @@ class Case:
 
     def rigid_moves(self, b: BodyTable) -> tuple[int, ...]:
         """The free translation components of rigid body ``b`` (see :func:`.parts.rigid_moves`)."""
-        return rigid_moves(b, self.mechanics.formulation)
+        return rigid_moves(b, self.mechanics.formulation, self.symmetry)
 
     def body(self, name: str) -> BodyTable:
         """The body called ``name``."""

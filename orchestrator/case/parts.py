@@ -28,6 +28,9 @@ class Box:
     ymax: float = spec(math.inf, unit="m", doc="upper y (or z) bound")
     zmin: float = spec(-math.inf, unit="m", doc="lower z bound (3D cases)")
     zmax: float = spec(math.inf, unit="m", doc="upper z bound (3D cases)")
+    rmin: float = spec(0.0, unit="m", ge=0.0, doc="3D cases: lower bound of the distance sqrt(x² + y²) from the "
+                                                  "z-axis (a cylindrical shell selects a sector's rim)")
+    rmax: float = spec(math.inf, unit="m", gt=0.0, doc="3D cases: upper bound of the distance from the z-axis")
 
     def validate(self, path: str) -> None:
         if not self.xmin <= self.xmax:
@@ -36,10 +39,12 @@ class Box:
             raise SchemaError(f"{path}.ymax", f"got {self.ymax:g}; must be >= ymin = {self.ymin:g} (m)")
         if not self.zmin <= self.zmax:
             raise SchemaError(f"{path}.zmax", f"got {self.zmax:g}; must be >= zmin = {self.zmin:g} (m)")
+        if not self.rmin <= self.rmax:
+            raise SchemaError(f"{path}.rmax", f"got {self.rmax:g}; must be >= rmin = {self.rmin:g} (m)")
 
     def has_z(self) -> bool:
-        """True if a z bound is set (a 3D box)."""
-        return math.isfinite(self.zmin) or math.isfinite(self.zmax)
+        """True if a bound of 3D cases is set (z, or the distance from the z-axis)."""
+        return math.isfinite(self.zmin) or math.isfinite(self.zmax) or self.rmin > 0.0 or math.isfinite(self.rmax)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -94,7 +99,8 @@ class FixedBoundary:
 class EndStopTable:
     """A limit of a rigid body's translation: a support it rests on, or the end of its travel."""
 
-    component: int = spec(1, unit="-", ge=0, le=1, doc="translation component it limits: 0 = x (r), 1 = y (z)")
+    component: int = spec(1, unit="-", ge=0, le=2, doc="translation component it limits: 0 = x (r), 1 = y (z); "
+                           "2 = z in 3D")
     position: float = spec(unit="m", doc="the limit, as a value of that translation "
                            "component (0: the body's initial place)")
     side: Literal["min", "max"] = spec("min", doc="'min': the translation stays >= position (a support below); "
@@ -122,11 +128,13 @@ class BodyTable:
     mass: float | None = spec(None, unit="kg", gt=0.0, doc="rigid body's mass (default: material density × "
                               "the region's volume, the full 2πr ring in axisymmetry, × mechanics.thickness in "
                               "plane models)")
-    moves: tuple[int, ...] | None = spec(None, unit="-", ge=0, le=1, doc="rigid body's free translation "
+    moves: tuple[int, ...] | None = spec(None, unit="-", ge=0, le=2, doc="rigid body's free translation "
                                          "components: [1] axial (the only one in axisymmetry, its default), "
                                          "[0], [1] or [0, 1] in plane models (default [0, 1])")
-    offset: Vec2 = spec((0.0, 0.0), unit="m", doc="rigid body's initial translation from its place in the geometry")
-    gravity: Vec2 | None = spec(None, unit="m/s^2", doc="rigid body's gravity (default: mechanics.gravity)")
+    offset: Vec = spec((0.0, 0.0), unit="m", doc="rigid body's initial translation from its place in the geometry "
+                       "([x, y, z] in 3D)")
+    gravity: Vec | None = spec(None, unit="m/s^2", doc="rigid body's gravity (default: mechanics.gravity; [gx, gy, gz] "
+                               "in 3D, default none)")
     stops: tuple[EndStopTable, ...] = spec((), doc="[[bodies.stops]] rigid body's end stops (supports, limits "
                                                    "of travel)")
 
@@ -147,10 +155,10 @@ class BodyTable:
             if self.moves is not None and not self.moves:
                 raise SchemaError(f"{path}.moves", "got an empty list; allowed: [0], [1] or [0, 1]")
             for j, s in enumerate(self.stops):
-                if s.side == "min" and self.offset[s.component] < s.position or \
-                        s.side == "max" and self.offset[s.component] > s.position:
+                start = self.offset[s.component] if s.component < len(self.offset) else 0.0
+                if s.side == "min" and start < s.position or s.side == "max" and start > s.position:
                     raise SchemaError(f"{path}.stops[{j}].position", f"got {s.position:g}; the initial offset "
-                                      f"{self.offset[s.component]:g} m lies beyond this stop (side = {s.side!r})")
+                                      f"{start:g} m lies beyond this stop (side = {s.side!r})")
         else:
             for key, default in (("mass", None), ("moves", None), ("offset", (0.0, 0.0)), ("gravity", None),
                                  ("stops", ())):
@@ -198,12 +206,21 @@ def check_file_name(name: str, path: str, names: str) -> None:
                           f"'.', '_' or '-', not '.' or '..' (it names {names})")
 
 
-def rigid_moves(b: BodyTable, formulation: str) -> tuple[int, ...]:
+def rigid_moves(b: BodyTable, formulation: str, symmetry=()) -> tuple[int, ...]:
     """The free translation components of rigid body ``b``: its ``moves``, or the default of the
-    formulation ([1] in axisymmetry, [0, 1] in plane models)."""
+    formulation ([1] in axisymmetry, [0, 1] in plane models; in 3D the components parallel to every
+    ``symmetry`` plane acting on it: a translation that keeps the modelled part symmetric)."""
     if b.moves is not None:
         return tuple(sorted(set(b.moves)))
+    if formulation == "3d":
+        return allowed_moves_3d(b, symmetry)
     return (1,) if formulation == "axisymmetric" else (0, 1)
+
+
+def allowed_moves_3d(b: BodyTable, symmetry) -> tuple[int, ...]:
+    """The translation components (0, 1, 2) of a 3D body that lie in every symmetry plane acting on it."""
+    planes = [s for s in symmetry if not s.bodies or b.name in s.bodies]
+    return tuple(i for i in range(3) if all(abs(s.normal[i]) <= 1e-12 * math.hypot(*s.normal) for s in planes))
 
 
 def validate_rigid(case) -> None:

@@ -86,6 +86,11 @@ def check_rigid_time_scale(case) -> None:
     """A case whose bodies are all rigid needs a time scale: a periodic source or ``time.dt_max``."""
     if case.case.kind != "coupled" or not all_rigid(case) or case.time.dt_max is not None:
         return
+    if getattr(case.geometry, "type", None) == "geometry_3d":
+        if case.geometry.em_step is None:
+            raise SchemaError("geometry.em_step", "missing: every body is rigid (no stability limit): give the EM "
+                              "step (s; the mechanical step is em_step / coupling.n) or time.dt_max")
+        return
     if period_upper_bound(case) is None:
         raise SchemaError("time.dt_max", "missing: every body is rigid (no stability limit) and no source has a "
                           "period to resolve (a direct current, a table, or a user deck's coil on a bank): give "

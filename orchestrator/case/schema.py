@@ -51,6 +51,7 @@ PLAUSIBLE: dict[str, tuple[float, float]] = {
     "H": (1e-15, 1.0),
     "Ω": (1e-12, 1e6),
     "J/(kg·K)": (1e-3, 1e6),
+    "T": (1e-9, 1e3),
 }
 #: Range of a number without a unit in :data:`PLAUSIBLE` (e.g. user-deck parameters): finite and not huge.
 PLAUSIBLE_OTHER: tuple[float, float] = (0.0, 1e15)

@@ -3,8 +3,7 @@ tetrahedra, symmetry planes, and the checks that keep 2D-only keys out of 3D cas
 out of 2D cases.
 
 3D mechanics cases: the explicit solver on tetrahedra, rigid walls, symmetry planes, soft contact
-between bodies; coupled 3D cases (a sector of a ``flat_coil_sheet`` setup) add their keys in
-:mod:`.sector3d`. A body's ``shape`` is a
+between bodies; coupled 3D cases are 3D geometry files (:mod:`.geometry3d`). A body's ``shape`` is a
 ``box`` or a ``cylinder`` (a sector of one with ``angle``), vectors (velocities, wall points and
 normals, probe points) take three components, and ``[[symmetry]]`` planes cut a quarter or a sector.
 """
@@ -17,8 +16,6 @@ from typing import Any, Literal
 
 from .schema import SchemaError, spec
 from .geometry3d import validate_geometry_3d
-from .racetrack3d import validate_racetrack
-from .sector3d import validate_coupled_3d
 
 Vec3 = tuple[float, float, float]
 
@@ -125,19 +122,15 @@ def _validate_3d(case) -> None:
     if file3d:
         validate_geometry_3d(case)  # the user's own geometry file (.geometry3d)
     elif case.case.kind == "coupled":
-        if case.racetrack is not None:
-            validate_racetrack(case)  # the racetrack quarter model (.racetrack3d)
-        else:
-            validate_coupled_3d(case)  # a sector of a flat_coil_sheet setup (.sector3d)
-    elif case.sector is not None:
-        raise SchemaError("sector", "a key of coupled 3D cases (case.kind = 'coupled'); a mechanics case has "
-                          "none: remove [sector]")
+        got = getattr(case.geometry, "type", None)
+        raise SchemaError("geometry.type", f"got {got!r}; a coupled 3D case is a 3D geometry file: geometry.type = "
+                          "'geometry_3d' with its file and role map (docs/geometry3d.md)")
     mo = case.mechanics
     if mo.threads != 1:
         raise SchemaError("mechanics.threads", f"got {mo.threads}; the 3D element kernel runs on one thread: 1")
     if tuple(mo.gravity) != (0.0, 0.0):
         raise SchemaError("mechanics.gravity", "a 2D-only key (rigid bodies of coupled cases); remove it")
-    if case.loads and case.case.kind != "coupled":  # a coupled sector's: .sector3d
+    if case.loads and case.case.kind != "coupled":  # a coupled 3D geometry file's: .geometry3d
         raise SchemaError("loads", "pressure pulses are 2D-only for now; a 3D case takes initial velocities, "
                           "rigid walls and symmetry planes")
     if case.analysis:
@@ -193,9 +186,6 @@ def _check_plane_touches(case, i: int, plane: SymmetryPlane) -> None:
 
 def _validate_2d(case) -> None:
     f = case.mechanics.formulation
-    if case.sector is not None:
-        raise SchemaError("sector", f"a 3D-only key (the sector of a coupled 3D case); with mechanics.formulation "
-                          f"= {f!r} remove [sector] or set mechanics.formulation = '3d'")
     if case.symmetry:
         raise SchemaError("symmetry", f"a 3D-only key; with mechanics.formulation = {f!r} use [[bodies.fixed]] "
                           "or set mechanics.formulation = '3d'")
@@ -207,6 +197,17 @@ def _validate_2d(case) -> None:
         if len(b.initial_velocity) != 2:
             raise SchemaError(f"bodies[{i}].initial_velocity", f"got 3 components, a 3D vector; with "
                               f"mechanics.formulation = {f!r} give [vx, vy] (m/s)")
+        for name in ("offset", "gravity"):
+            v = getattr(b, name)
+            if v is not None and len(v) != 2:
+                raise SchemaError(f"bodies[{i}].{name}", f"got {len(v)} components, a 3D vector; with "
+                                  f"mechanics.formulation = {f!r} give [x, y]")
+        for name, values in (("moves", b.moves or ()), ("stops", [st.component for st in b.stops])):
+            for c, comp in enumerate(values):
+                if comp > 1:
+                    where = f"moves[{c}]" if name == "moves" else f"stops[{c}].component"
+                    raise SchemaError(f"bodies[{i}].{where}", f"got {comp}: z is 3D only; with mechanics.formulation "
+                                      f"= {f!r} allowed: 0 (x or r), 1 (y or z)")
         for j, fx in enumerate(b.fixed):
             key = f"bodies[{i}].fixed[{j}]"
             if fx.group is not None:
@@ -214,10 +215,11 @@ def _validate_2d(case) -> None:
                                   "give where (a box)")
             if fx.where.has_z():
                 raise SchemaError(f"{key}.where.zmin", f"a 3D bound; with mechanics.formulation = {f!r} the box "
-                                  "selects by x and y only: remove zmin/zmax")
-            if max(fx.components) > 1:
-                raise SchemaError(f"{key}.components", f"got {list(fx.components)}; with mechanics.formulation = "
-                                  f"{f!r} allowed: [0], [1] or [0, 1]")
+                                  "selects by x and y only: remove zmin/zmax/rmin/rmax")
+            for c, comp in enumerate(fx.components):
+                if comp > 1:
+                    raise SchemaError(f"{key}.components[{c}]", f"got {comp}; with mechanics.formulation = {f!r} "
+                                      "allowed: 0 (x or r), 1 (y or z)")
     for i, w in enumerate(case.walls):
         for key in ("point", "normal"):
             if len(getattr(w, key)) != 2:

@@ -88,11 +88,14 @@ class Mechanics(Protocol):
         """Restore :meth:`state_dict`."""
 
 
-def plain_total(forces: dict[str, np.ndarray]) -> np.ndarray:
-    """Resultant (N) of nodal forces held entirely on this process."""
-    total = np.zeros(2)
-    for f in forces.values():
-        total += np.asarray(f)[:, :2].sum(axis=0)
+def plain_total(forces: dict[str, np.ndarray], dim: int | None = None) -> np.ndarray:
+    """Resultant (N) of nodal forces held entirely on this process: ``dim`` components (default: those of the
+    first array, 2 without any)."""
+    arrays = [np.asarray(f) for f in forces.values()]
+    d = dim if dim is not None else (arrays[0].shape[1] if arrays else 2)
+    total = np.zeros(d)
+    for f in arrays:
+        total += f[:, :d].sum(axis=0)
     return total
 
 
@@ -169,6 +172,10 @@ class LoadCapabilities:
 
     def take_peak_snapshot(self) -> tuple | None:
         """The field snapshot at the peak coil current once, when it is new (None: nothing to write)."""
+        return None
+
+    def take_peak_conductors(self) -> tuple | None:
+        """Every conductor's field snapshot at the peak coil current once, when it is new (None: nothing)."""
         return None
 
     def snapshot(self) -> tuple | None:

@@ -87,7 +87,7 @@ class FreezingGetDPLoad3D(GetDPLoad3D):
         written after a 3D air remesh (``remesh/*``) is refused: only a remeshing load restores its mesh."""
         if any(k.startswith("remesh/") for k in state):
             raise ValueError("the checkpoint holds a remeshed 3D EM mesh: resume it with the air remesh on "
-                             "(on_mesh_break = \"remesh\" in [racetrack] or [sector])")
+                             "(geometry.on_mesh_break = \"remesh\")")
         super().load_state_dict(state)
         if "freeze/last_valid" in state:
             self._last_valid = np.array(state["freeze/last_valid"], dtype=float)

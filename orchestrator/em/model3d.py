@@ -11,7 +11,7 @@ from pulseform.solvers.getdp.solver3d import Coil3D, EM3DModel
 
 from ..case.model import Case
 from ..mesh.geometry3d import Geometry3D
-from .solver import coil_drives
+from .solver import applied_field, coil_drives
 
 
 def em_model3d(case: Case, geo: Geometry3D) -> EM3DModel:
@@ -25,12 +25,13 @@ def em_model3d(case: Case, geo: Geometry3D) -> EM3DModel:
         section = c.section if c.section is not None else geo.coil_sections.get(k)
         axis = tuple(c.axis) if c.axis is not None else (0.0, 0.0)
         coils.append(Coil3D(turns=c.turns, sigma=em.coil_conductivity, waveform=wave, sign=sign,
-                            direction=c.direction, axis=axis, section=section))
+                            direction=c.direction, axis=axis, section=section, name=c.name,
+                            cut_normal=tuple(c.cut_direction) if c.cut_direction is not None else None))
     conductors = [Conductor(case.materials[b.material].electrical_conductivity, name=b.name) for b in case.bodies]
     conductors += [Conductor(case.materials[c.material].electrical_conductivity, name=c.name) for c in g.conductors]
     model = EM3DModel(coils=coils, conductors=conductors, circuit=circuit, shell=geo.shell,
                       shell_centre=tuple(g.shell_centre), sector_deg=geo.mesh.sector_deg,
-                      symmetry_factor=360.0 / geo.mesh.sector_deg)
+                      symmetry_factor=360.0 / geo.mesh.sector_deg, applied_field=applied_field(em.applied_field))
     if g.em_order != 1:
         model = replace(model, order=g.em_order, order2_air=False)
     return model

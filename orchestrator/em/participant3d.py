@@ -131,14 +131,21 @@ class GetDPLoad3D(LoadCapabilities):
         self.tags = np.array([b.tag for b in self.bodies])
         if len(self.bodies) > 1:
             self.columns = LOAD_COLUMNS_3D + tuple(f"{b.name}_{k}" for b in self.bodies for k in BODY_COLUMNS_3D)
+        #: with several coils each has its current and Joule power column (``<name>_current_A``, ...)
+        self.coil_names = [c.name or f"coil_{k}" for k, c in enumerate(model.coils, start=1)] \
+            if len(model.coils) > 1 else []
+        self.columns = tuple(self.columns) + tuple(f"{n}_{q}" for n in self.coil_names
+                                                   for q in ("current_A", "joule_power_W"))
         self.min_quality = float(mover.q_ref.min())
         self._moved: tuple[float, np.ndarray] | None = None
         self._runs: list[Path] = []
         self.timers = {"mesh_motion_s": 0.0, "getdp_s": 0.0, "transfer_s": 0.0}
         self.impulse_device = 0.0   # Σ s ∫f_z dV dt over the steps (N·s), the device's
+        self.body_impulse = np.zeros((len(self.bodies), 3))   # per body Σ s F dt of its nodal forces (N·s)
         self.coil_heat = 0.0        # Σ s P_coil(t1) dt (J), the whole coil's
         self.peak_current = 0.0     # largest |I| at the end of a step (A) and the snapshot there
         self._peak: tuple | None = None
+        self._peak_conductors: tuple | None = None   # every conductor at the peak (:meth:`take_peak_conductors`)
         self.last_snapshot: tuple | None = None
         sub = self.bodies[0].sub
         self._sheet_pos = np.full(len(mesh.tets), -1, dtype=np.int64)
@@ -198,7 +205,9 @@ class GetDPLoad3D(LoadCapabilities):
         fz = float(result.conductor_force[-1, i0, 2])
         current = float(result.coil_current[-1, 0])
         self.impulse_device += s * float(integral[2]) * (t1 - t0)
-        self.coil_heat += s * float(result.coil_power[-1, 0]) * (t1 - t0)
+        for i, b in enumerate(self.bodies):
+            self.body_impulse[i] += s * forces[b.name].sum(axis=0) * (t1 - t0)
+        self.coil_heat += s * float(result.coil_power[-1].sum()) * (t1 - t0)   # every coil's
         values = {"coil_current_A": current, "coil_current_abs_max_A": abs(current),
                   "capacitor_voltage_V": float(result.capacitor_voltage[-1]) if result.capacitor_voltage is not None else 0.0,
                   "coil_joule_heat_J": self.coil_heat,
@@ -206,10 +215,14 @@ class GetDPLoad3D(LoadCapabilities):
                   "workpiece_joule_power_W": float(result.conductor_power[-1, i0]),
                   "getdp_force_z_N": fz, "device_force_z_N": s * fz, "device_impulse_z_Ns": self.impulse_device,
                   "em_mesh_min_quality": float(self.mover.last_min_quality), **per_body}
+        for k, name in enumerate(self.coil_names):   # several coils: each one's current and power (whole device)
+            values[f"{name}_current_A"] = float(result.coil_current[-1, k])
+            values[f"{name}_joule_power_W"] = s * float(result.coil_power[-1, k])
         self.last = (x_em, result)   # the moved nodes and GetDP's result of the last step
         self.last_snapshot = self._sheet_snapshot(t1, current, x_em, result)
         if abs(current) > self.peak_current:
             self.peak_current, self._peak = abs(current), self.last_snapshot
+            self._peak_conductors = self._conductor_snapshot(t1, current, x_em, result)
         return LoadStep(forces, integral, values)
 
     @staticmethod
@@ -232,6 +245,28 @@ class GetDPLoad3D(LoadCapabilities):
             q[pos[on]] = result.joule_density[-1][on]
             cells["joule_power_density_W_m3"] = q
         return float(t), current, x_em[sub.em_nodes].copy(), sub.cells, cells
+
+    def _conductor_snapshot(self, t: float, current: float, x_em: np.ndarray, result) -> tuple:
+        """(t s, coil current A, node positions (n, 3) m, tetrahedra (m, 4), cell data) of every conductor -- the
+        bodies and the fixed ones -- at the end of the step: force density (N/m^3), Joule power density q (W/m^3),
+        the eddy current density's magnitude |j| = sqrt(sigma q) (A/m^2) and the conductor's number k (200 + k)."""
+        rows = result.elements
+        nodes, inverse = np.unique(self.mesh.tets[rows], return_inverse=True)
+        k = result.element_tags - CONDUCTOR_BASE
+        sigma = np.array([c.sigma for c in self.model.conductors])[k - 1]
+        f = result.force_density[-1]
+        cells = {"force_density_N_m3": f, "force_density_magnitude_N_m3": np.linalg.norm(f, axis=1),
+                 "conductor": k.astype(float)}
+        if result.joule_density is not None:
+            q = np.maximum(result.joule_density[-1], 0.0)
+            cells["joule_power_density_W_m3"] = q
+            cells["current_density_magnitude_A_m2"] = np.sqrt(sigma * q)
+        return float(t), current, x_em[nodes].copy(), inverse.reshape(-1, 4), cells
+
+    def take_peak_conductors(self) -> tuple | None:
+        """Every conductor's snapshot at the largest |coil current| so far, once when it is new (else None)."""
+        peak, self._peak_conductors = self._peak_conductors, None
+        return peak
 
     def initial(self, mechanics) -> LoadStep:
         """The load at t = 0: no force, the bank charged to V0 (the history's first row)."""
@@ -263,6 +298,11 @@ class GetDPLoad3D(LoadCapabilities):
                 "coil_joule_heat_J": self.coil_heat, "conservation_error_rel": float(counters.ledger_max),
                 "em_time_s": float(counters.em_time_s), "em_min_quality": self.min_quality,
                 "symmetry_factor": float(self.model.symmetry_factor),
+                "em_tets": float(self.mesh.n_tets), "em_nodes": float(self.mesh.n_nodes),
+                **{f"{b.name}_impulse_z_Ns": float(self.body_impulse[i, 2]) for i, b in enumerate(self.bodies)},
+                **{f"{b.name}_tets": float(len(b.sub.cells)) for b in self.bodies},
+                **{f"{b.name}_ledger_rel": float(np.max(history.column(f"{b.name}_ledger_rel")))
+                   for b in self.bodies if f"{b.name}_ledger_rel" in history.columns},
                 **{f"em_{k}": v for k, v in self.timers.items()},
                 **{f"em_{k}": v for k, v in self.state.timers.items()}}
 
@@ -284,6 +324,7 @@ class GetDPLoad3D(LoadCapabilities):
         st = self.stepper.complete_state(self.state)
         out = {"t": np.float64(st.t), "steps": np.int64(st.steps), "dt_prev": np.float64(st.dt_prev),
                "sums": np.array([self.impulse_device, self.coil_heat, self.peak_current, self.min_quality]),
+               "body_impulse": self.body_impulse.copy(),
                "timers": np.array([*self.timers.values(), *st.timers.values()])}
         if st.res_path is not None:
             dofdata, t_res, x = read_res_vector(st.res_path)
@@ -322,4 +363,6 @@ class GetDPLoad3D(LoadCapabilities):
                                dt_prev=float(state["dt_prev"]), force_density=opt("force_density"), steps=steps,
                                timers=dict(zip(self.state.timers, timers[len(self.timers):])))
         self.impulse_device, self.coil_heat, self.peak_current, self.min_quality = (float(v) for v in state["sums"])
-        self._peak = None  # the checkpoint wrote the snapshot at the peak so far
+        if "body_impulse" in state:   # checkpoints before 2026-11-28 have none
+            self.body_impulse = np.array(state["body_impulse"], dtype=float).reshape(len(self.bodies), 3)
+        self._peak = self._peak_conductors = None  # the checkpoint wrote the snapshots at the peak so far

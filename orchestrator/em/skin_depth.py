@@ -23,7 +23,6 @@ from pathlib import Path
 from ..case.io import CaseError
 from ..case.model import Case
 from ..case.schema import SchemaError, from_dict, to_dict
-from ..case.sector3d import Sector
 from ..case.skin import SKIN_FRACTION, conductor_sizes, default_size, region_sigma, skin_depth
 from .time_scale import source_period
 
@@ -134,13 +133,8 @@ def mesh_advice(case: Case) -> list[str]:
             continue
         delta = skin_depth(omega, sigma)
         h = min(size, thickness)
-        if case.mechanics.formulation == "3d" and key == "geometry.mesh_size_sheet":
-            # a 3D sector: the current layer is resolved through the sheet by its tetrahedron layers
-            layers = (case.sector or Sector()).layers(thickness, size)
-            key, size, h = "sector.sheet_layers", thickness / layers, thickness / layers
         if h > SKIN_FRACTION * delta * (1.0 + 1e-9):
-            what = f"{key} = {size * 1e3:.3g} mm" if key != "sector.sheet_layers" else \
-                f"{key}: {size * 1e3:.3g} mm through the sheet"
+            what = f"{key} = {size * 1e3:.3g} mm"
             out.append(f"{what} is coarser than δ/3 = {delta / 3 * 1e3:.3g} mm (skin depth "
                        f"{delta * 1e3:.3g} mm at ω = {omega:.3g} rad/s, σ = {sigma:.3g} S/m): forces and motion may be "
                        "a few % off (pulseform converge measures it)")

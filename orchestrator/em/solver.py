@@ -5,8 +5,10 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from pulseform.solvers.getdp import Circuit, Coil, Conductor, CurrentTable, DampedSine, EMModel, GetDPSolver
+from pulseform.solvers.getdp import (AppliedField, Circuit, Coil, Conductor, CurrentTable, DampedSine, EMModel,
+                                     GetDPSolver)
 
+from ..case.em_applied import AppliedDC, AppliedSine, AppliedTable
 from ..case.em_sources import BankSource, DCSource, SineSource, TableSource, read_current_table
 from ..case.model import Case
 
@@ -23,6 +25,21 @@ def source_waveform(source: SineSource | DCSource | TableSource) -> DampedSine |
     if isinstance(source, TableSource):
         return CurrentTable(*read_current_table(source.file))
     raise TypeError(f"not a prescribed source: {source!r}")
+
+
+def applied_field(spec: AppliedDC | AppliedSine | AppliedTable | None) -> AppliedField | None:
+    """The GetDP applied field of ``[em.applied_field]`` (None without one): magnitude (T) and direction,
+    its time function as a source's waveform of amplitude 1 (:func:`source_waveform`'s formulas)."""
+    if spec is None:
+        return None
+    if isinstance(spec, AppliedSine):
+        wave = DampedSine(I0=1.0, beta=spec.decay, omega=2.0 * math.pi * spec.frequency, phase=spec.phase,
+                          t_on=spec.t_on)
+    elif isinstance(spec, AppliedDC):
+        wave = DampedSine(I0=1.0, beta=0.0, omega=0.0, phase=0.5 * math.pi, t_on=spec.t_on)
+    else:
+        wave = CurrentTable(*read_current_table(spec.file, quantity=("factor", "-")))
+    return AppliedField(B0=spec.magnitude, direction=spec.direction, waveform=wave)
 
 
 def coil_drives(case: Case, names: list[str | None]) -> tuple[list[tuple[DampedSine | CurrentTable | None, int]],
@@ -75,7 +92,7 @@ def _coils(case: Case) -> tuple[list[Coil], Circuit | None]:
 def em_model(case: Case, shell: tuple[float, float] | None) -> EMModel:
     """The GetDP model of a coupled case: its stranded coils (the geometry's one coil on em.circuit or
     em.current, or every coil on its [[em.sources]] entry with its sign), the conductor bodies as massive
-    conductors 1, 2, ... in the geometry's conductor order (workpiece first).
+    conductors 1, 2, ... in the geometry's conductor order (workpiece first), and [em.applied_field].
 
     ``shell``: inner and outer radius (m) of the shell transformation to infinity, or None.
     """
@@ -88,7 +105,8 @@ def em_model(case: Case, shell: tuple[float, float] | None) -> EMModel:
         if sigma <= 0.0:
             raise ValueError(f"materials.{body.material}.electrical_conductivity must be > 0 for the {role}")
         conductors.append(Conductor(sigma=sigma, name=body.name))
-    return EMModel(axisymmetric=not g.planar, coils=coils, conductors=conductors, circuit=circuit, shell=shell)
+    return EMModel(axisymmetric=not g.planar, coils=coils, conductors=conductors, circuit=circuit, shell=shell,
+                   applied_field=applied_field(case.em.applied_field))
 
 
 def make_em_solver(model: EMModel, work_dir: Path, time_scheme: str, getdp_process: str, **kw) -> GetDPSolver:

@@ -37,7 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from pulseform.solvers.getdp import EMMesh, coil_tag
-from pulseform.solvers.getdp.runner import child_preexec
+from pulseform.solvers.getdp.runner import run_logged
 from pulseform.solvers.getdp.solver import DECK_DIR
 from pulseform.solvers.getdp.contract import (CIRCUIT_TABLES, CURVE_ROLES, OPTIONAL_ROLES, REQUIRED_TABLES,  # noqa: F401
                                               ROLE_IDS, ROLE_NUMBERS, SURFACE_ROLES, coil_number_name)
@@ -86,22 +86,17 @@ def mesh_file(g, work: Path, time_limit: float = GMSH_TIME_LIMIT_S) -> Path:
     for k, v in (g.parameters or {}).items():
         argv += ["-setnumber", k, repr(float(v))]
     log_path = work / "gmsh.log"
-    with open(log_path, "w") as fh:
-        fh.write("# argv: " + " ".join(argv) + "\n")
-        fh.flush()
-        try:
-            r = subprocess.run(argv, cwd=src.parent, stdout=fh, stderr=subprocess.STDOUT, timeout=time_limit,
-                               check=False, preexec_fn=child_preexec)
-        except subprocess.TimeoutExpired:
-            raise DeckContractError(f"{src}: meshing with gmsh exceeded its time limit of {time_limit:g} s "
-                                    "(limits.gmsh_time_limit_s) and was stopped", log_path=log_path) from None
-        except OSError as exc:
-            raise DeckContractError(f"{src}: could not start gmsh: {exc}", log_path=log_path) from None
-    text = log_path.read_text(errors="replace").split("\n", 1)[-1]
+    try:
+        returncode, text = run_logged(argv, src.parent, log_path, time_limit)
+    except subprocess.TimeoutExpired:
+        raise DeckContractError(f"{src}: meshing with gmsh exceeded its time limit of {time_limit:g} s "
+                                "(limits.gmsh_time_limit_s) and was stopped", log_path=log_path) from None
+    except OSError as exc:
+        raise DeckContractError(f"{src}: could not start gmsh: {exc}", log_path=log_path) from None
     errors = [ln for ln in text.splitlines() if ln.startswith("Error")]
-    if r.returncode != 0 or errors or not out.is_file():
-        first = errors[0] if errors else (f"killed by signal {-r.returncode}" if r.returncode < 0
-                                          else f"exit code {r.returncode}")
+    if returncode != 0 or errors or not out.is_file():
+        first = errors[0] if errors else (f"killed by signal {-returncode}" if returncode < 0
+                                          else f"exit code {returncode}")
         raise DeckContractError(f"{src}: gmsh failed: {short(first, 200)}", log_path=log_path)
     log.info("meshed %s -> %s", src, out)
     return out

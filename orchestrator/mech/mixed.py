@@ -37,7 +37,11 @@ RIGID_ENERGY_KEYS = ("kinetic_J", "external_work_J", "stop_dissipated_J")
 def region_mass(sub: ConductorMesh, density: float, axisymmetric: bool, thickness: float = 1.0) -> float:
     """Mass (kg) of a region of P1 triangles: ``density`` (kg/m³) × its volume, Σ A_e 2π r_c in
     axisymmetry (r_c the triangle's centroid radius: exact for triangles), Σ A_e × ``thickness`` (m)
-    in plane models."""
+    in plane models; of tetrahedra (3D): Σ V_e."""
+    if sub.cells.shape[1] == 4:
+        q = sub.points[sub.cells]
+        vol = np.abs(np.einsum("ij,ij->i", np.cross(q[:, 1] - q[:, 0], q[:, 2] - q[:, 0]), q[:, 3] - q[:, 0])) / 6.0
+        return float(density * vol.sum())
     p = sub.points[:, :2][sub.cells]
     area = 0.5 * np.abs((p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1])
                         - (p[:, 2, 0] - p[:, 0, 0]) * (p[:, 1, 1] - p[:, 0, 1]))
@@ -58,9 +62,14 @@ def rigid_bodies(case: Case, subs: dict[str, ConductorMesh]) -> list[RigidBody]:
                                                              case.mechanics.thickness)
         moves = case.rigid_moves(b)
         stops = tuple(EndStop(s.component, s.position, 1 if s.side == "min" else -1, s.restitution) for s in b.stops)
-        out.append(RigidBody(b.name, sub.points, mass, free=(0 in moves, 1 in moves),
-                             gravity=tuple(b.gravity if b.gravity is not None else case.mechanics.gravity),
-                             offset=tuple(b.offset), velocity=tuple(b.initial_velocity), stops=stops))
+        dim = 3 if case.mechanics.formulation == "3d" else 2
+        gravity = b.gravity if b.gravity is not None else (case.mechanics.gravity if dim == 2 else None)
+
+        def vec(v):
+            return None if v is None or (not any(v) and len(v) != dim) else tuple(v)
+
+        out.append(RigidBody(b.name, sub.points, mass, free=tuple(i in moves for i in range(dim)),
+                             gravity=vec(gravity), offset=vec(b.offset), velocity=vec(b.initial_velocity), stops=stops))
     return out
 
 
@@ -76,7 +85,7 @@ def rigid_metrics(case: Case, history, masses: dict[str, float]) -> dict[str, fl
             continue
         out[f"{b.name}_mass_kg"] = float(masses[b.name])
         speed2 = np.zeros(len(t))
-        for c in ("xy"[i] for i in case.rigid_moves(b)):
+        for c in ("xyz"[i] for i in case.rigid_moves(b)):
             u = history.column(f"{b.name}_position_{c}_m")
             v = history.column(f"{b.name}_velocity_{c}_m_s")
             speed2 += v * v
@@ -137,7 +146,7 @@ class MixedMechanics:
     def total_force(self, forces: dict[str, np.ndarray]) -> np.ndarray:
         """Resultant (N) of nodal forces on every body."""
         deformable, rigid = self._split(forces)
-        total = plain_total(rigid)
+        total = plain_total(rigid, self.rigid.dim)
         if self.deformable is not None and deformable:
             total = total + self.deformable.total_force(deformable)
         return total

@@ -43,6 +43,11 @@ class RigidMechanics:
         self.time = 0.0
         self.step_count = 0
 
+    @property
+    def dim(self) -> int:
+        """The bodies' dimension (2, or 3 in 3D)."""
+        return max((b.dim for b in self.bodies.values()), default=2)
+
     def stable_time_step(self) -> float:
         """The configured step (s): rigid bodies have no stability limit."""
         return self.dt
@@ -50,7 +55,7 @@ class RigidMechanics:
     def advance(self, dt: float, n_steps: int, forces: dict[str, np.ndarray] | None) -> None:
         """``n_steps`` steps of ``dt`` (s); each body under the resultant (N) of its nodal forces."""
         for name, b in self.bodies.items():
-            f = None if not forces or name not in forces else np.asarray(forces[name])[:, :2].sum(axis=0)
+            f = None if not forces or name not in forces else np.asarray(forces[name])[:, :b.dim].sum(axis=0)
             b.advance(dt, n_steps, f)
         self.time += dt * n_steps
         self.step_count += int(n_steps)
@@ -61,7 +66,7 @@ class RigidMechanics:
 
     def total_force(self, forces: dict[str, np.ndarray]) -> np.ndarray:
         """Resultant (N) of the nodal forces."""
-        return plain_total(forces)
+        return plain_total(forces, self.dim)
 
     def history(self) -> dict[str, float]:
         """Position, velocity, acceleration and applied force of every body (SI units in the names)."""

@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import json
 import logging
-import math
 import subprocess
 import sys
 from dataclasses import dataclass, field
@@ -33,12 +32,12 @@ from typing import Sequence
 import numpy as np
 
 from pulseform.solvers.getdp.mesh import AIR, OUTER, SHELL, coil_tag, conductor_tag
-from pulseform.solvers.getdp.mesh3d import ELEC_IN_BASE, ELEC_OUT_BASE, SYM_A, SYM_H, Mesh3D, skin_tag
+
+from ..case.memory import available_memory, memory_needed
+from pulseform.solvers.getdp.mesh3d import CUT_BASE, ELEC_IN_BASE, ELEC_OUT_BASE, SYM_A, SYM_H, Mesh3D, skin_tag
 
 log = logging.getLogger(__name__)
 
-#: the physical id of the cut of coil k is CUT_BASE + k (the deck's Phys_Cut_Base)
-CUT_BASE = 700
 #: gmsh's element kinds of interest in meshio's names
 _TETRA, _TRIANGLE = "tetra", "triangle"
 #: faces of a tetrahedron (local node indices), outward for a positively oriented one
@@ -62,7 +61,7 @@ def mesh_file3d(g, work: Path, time_limit: float = 600.0) -> Path:
     ``.msh`` itself or the file meshed by a child process into ``work/geometry.msh`` (log
     ``work/gmsh.log``); raises :class:`GeometryError` with the log's tail when meshing fails or exceeds
     ``time_limit`` (s)."""
-    from pulseform.solvers.getdp.runner import child_preexec
+    from pulseform.solvers.getdp.runner import run_logged
 
     src = Path(g.file)
     if src.suffix.lower() == ".msh":
@@ -72,33 +71,57 @@ def mesh_file3d(g, work: Path, time_limit: float = 600.0) -> Path:
     out = work / "geometry.msh"
     out.unlink(missing_ok=True)
     params = [f"{k}={float(v)!r}" for k, v in (g.parameters or {}).items()]
+    factor = float(getattr(g, "mesh_size_factor", 1.0))
     if src.suffix.lower() == ".py":
-        argv = [sys.executable, str(src), str(out)] + params
+        argv = [sys.executable, str(src), str(out)] + params + ([f"mesh_size_factor={factor!r}"] if factor != 1.0 else [])
         what = "the builder"
     else:
-        argv = [sys.executable, "-m", __name__, str(src), str(out), json.dumps(g.mesh_sizes or {})] + params
+        argv = [sys.executable, "-m", __name__, str(src), str(out), json.dumps(g.mesh_sizes or {}), repr(factor)] + params
         what = "gmsh"
     log_path = work / "gmsh.log"
-    with open(log_path, "w") as fh:
-        fh.write("# argv: " + " ".join(argv) + "\n")
-        fh.flush()
-        try:
-            r = subprocess.run(argv, cwd=src.parent, stdout=fh, stderr=subprocess.STDOUT, timeout=time_limit,
-                               check=False, preexec_fn=child_preexec)
-        except subprocess.TimeoutExpired:
-            raise GeometryError(f"{src.name}: geometry.file: meshing exceeded its time limit of {time_limit:g} s "
-                                "(limits.gmsh_time_limit_s) and was stopped", log_path=log_path) from None
-    text = log_path.read_text(errors="replace")
-    if r.returncode != 0 or not out.is_file():
-        lines = [ln for ln in text.splitlines()[1:] if ln.strip()]
-        last = next((ln for ln in reversed(lines) if "rror" in ln), lines[-1] if lines else f"exit code {r.returncode}")
+    try:
+        code, text = run_logged(argv, src.parent, log_path, time_limit)
+    except subprocess.TimeoutExpired:
+        raise GeometryError(f"{src.name}: geometry.file: meshing exceeded its time limit of {time_limit:g} s "
+                            "(limits.gmsh_time_limit_s) and was stopped", log_path=log_path) from None
+    except OSError as exc:
+        raise GeometryError(f"{src.name}: geometry.file: could not start {what}: {exc}", log_path=log_path) from None
+    if code != 0 or not out.is_file():
+        lines = [ln for ln in text.splitlines() if ln.strip()]
+        last = next((ln for ln in reversed(lines) if "rror" in ln), lines[-1] if lines else f"exit code {code}")
         raise GeometryError(f"{src.name}: geometry.file: {what} failed: {last.strip()[:200]}", log_path=log_path)
     return out
 
 
-def _child(src: str, out: str, sizes_json: str, params: Sequence[str]) -> int:
+class BuilderArgumentError(ValueError):
+    """A gmsh builder script was called with arguments it does not know."""
+
+
+def builder_arguments(argv: Sequence[str], known: Sequence[str], integers: Sequence[str] = ()
+                      ) -> tuple[str, dict[str, float | int], float]:
+    """The arguments a ``.py`` builder receives (``python FILE OUT.msh name=value ... [mesh_size_factor=f]``):
+    (OUT.msh, the values by name -- ints for ``integers`` --, the mesh size factor, 1.0 when not given).
+    A builder script calls this on ``sys.argv[1:]``; raises :class:`BuilderArgumentError` naming an unknown name
+    (the builder prints it as an ``Error:`` line, which pulseform quotes)."""
+    if not argv:
+        raise BuilderArgumentError("usage: python BUILDER.py OUT.msh [name=value ...]")
+    values: dict[str, float | int] = {}
+    factor = 1.0
+    for item in argv[1:]:
+        name, _, text = item.partition("=")
+        if name == "mesh_size_factor":   # pulseform's refinement (geometry.mesh_size_factor)
+            factor = float(text)
+        elif name in known:
+            values[name] = int(float(text)) if name in integers else float(text)
+        else:
+            raise BuilderArgumentError(f"unknown parameter {name!r}; known: {', '.join(sorted(known))}")
+    return argv[0], values, factor
+
+
+def _child(src: str, out: str, sizes_json: str, factor: float, params: Sequence[str]) -> int:
     """The meshing child (module docstring, 1.): open ``src`` with ``params`` (``name=value``), size the
-    named volume groups, mesh in 3D, write MSH 2.2 to ``out``. Prints gmsh's messages (the log)."""
+    named volume groups, every size times ``factor``, mesh in 3D, write MSH 2.2 to ``out``. Prints gmsh's
+    messages (the log)."""
     import gmsh
 
     argv = ["gmsh"]
@@ -129,6 +152,8 @@ def _child(src: str, out: str, sizes_json: str, params: Sequence[str]) -> int:
             return 3
         gmsh.option.setNumber("Mesh.Algorithm3D", 1)
         gmsh.option.setNumber("Mesh.Optimize", 1)
+        if factor != 1.0:
+            gmsh.option.setNumber("Mesh.MeshSizeFactor", factor)
         gmsh.model.mesh.generate(3)
         gmsh.option.setNumber("Mesh.MshFileVersion", 2.2)
         gmsh.option.setNumber("Mesh.Binary", 0)
@@ -269,13 +294,33 @@ def triangle_area(points: np.ndarray, tris: np.ndarray) -> float:
     return float(0.5 * np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1).sum())
 
 
+def shell_radii(x: np.ndarray, tets: np.ndarray, tet_tags: np.ndarray, centre) -> tuple[float, float]:
+    """(R_int, R_ext) (m) of the shell region about ``centre`` as the mesh has it: R_ext the largest node
+    radius, R_int the smallest distance from the centre to the planes of the shell's inner faces (their chords
+    of the inner sphere lie inside it: every point of the shell's tetrahedra, GetDP's integration points
+    among them, then has a radius within [R_int, R_ext])."""
+    c = np.asarray(centre, float)
+    rows = np.flatnonzero(tet_tags == SHELL)
+    r = np.linalg.norm(x[np.unique(tets[rows])] - c, axis=1)
+    faces = boundary_faces(tets, rows)
+    inner = faces[np.isin(faces, tets[tet_tags != SHELL]).all(axis=1)]
+    if not len(inner):
+        return float(r.min()), float(r.max())
+    p = x[inner]
+    nrm = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    d = np.abs(np.einsum("ij,ij->i", nrm, p[:, 0] - c)) / np.linalg.norm(nrm, axis=1)
+    return float(min(d.min(), r.min())), float(r.max())
+
+
 def map_roles(raw: RawGroups, g, bodies: Sequence[tuple[str, str]], planes: Sequence[PlaneSpec], out: Path,
-              symmetry_factor: float, label: str, max_cells: float | None = None) -> Geometry3D:
+              symmetry_factor: float, label: str, max_cells: float | None = None,
+              available: float | None = None) -> Geometry3D:
     """The deck's mesh of ``raw`` (module docstring, 3.), written to ``out`` (MSH 2.2).
 
     ``g`` the case's :class:`~pulseform.orchestrator.case.geometry3d.GeometryFile3D`; ``bodies`` (key, group)
     of the conductor bodies in [[bodies]] order; ``planes`` the symmetry planes; ``label`` the file named in
-    messages; ``max_cells`` ``limits.max_cells``. Raises :class:`GeometryError` naming the case key."""
+    messages; ``max_cells`` ``limits.max_cells``; ``available`` the memory (bytes; default: the machine's
+    available memory). Raises :class:`GeometryError` naming the case key."""
     vols, surfs = set(raw.volumes), raw.surfaces
 
     def need(group: str, key: str, kind: str) -> None:
@@ -286,6 +331,10 @@ def map_roles(raw: RawGroups, g, bodies: Sequence[tuple[str, str]], planes: Sequ
     if max_cells is not None and len(raw.tets) > max_cells:
         raise GeometryError(f"{label}: limits.max_cells: the mesh has {len(raw.tets)} tetrahedra, above "
                             f"limits.max_cells = {max_cells:.3g}; coarsen geometry.mesh_sizes or raise the limit")
+    memory, have = memory_needed(len(raw.tets)), available_memory() if available is None else available
+    if have is not None and memory > have:
+        raise GeometryError(f"{label}: geometry.mesh_sizes: the mesh has {len(raw.tets)} tetrahedra, a run needs "
+                            f"~{memory / 1e9:.3g} GB and {have / 1e9:.3g} GB are available; coarsen the mesh")
     need(g.air, "geometry.air", "volume")
     role = {g.air: AIR}
     if g.shell is not None:
@@ -311,7 +360,6 @@ def map_roles(raw: RawGroups, g, bodies: Sequence[tuple[str, str]], planes: Sequ
     tet_tags = np.array([role[gname] for gname in raw.tet_group.tolist()], dtype=np.int64)
     x, tets, n = raw.points, raw.tets, len(raw.points)
     scale = float(np.abs(x).max())
-    tol = 1e-9 * scale
     # the domain's boundary: on a plane (14 / 15) or the outer boundary (12)
     outer_faces = boundary_faces(tets)
     on_plane = np.zeros(len(outer_faces), dtype=bool)
@@ -372,8 +420,7 @@ def map_roles(raw: RawGroups, g, bodies: Sequence[tuple[str, str]], planes: Sequ
     surface_nodes = {name: np.unique(t) for name, t in surfs.items()}
     shell = None
     if g.shell is not None:
-        r = np.linalg.norm(x[np.unique(tets[tet_tags == SHELL])] - np.asarray(g.shell_centre, float), axis=1)
-        shell = (float(r.min()), float(r.max()))
+        shell = g.shell_radii if g.shell_radii is not None else shell_radii(x, tets, tet_tags, g.shell_centre)
         if not shell[1] > shell[0] * (1 + 1e-6):
             raise GeometryError(f"{label}: geometry.shell: the group {g.shell!r} is not a layer between two spheres "
                                 f"about geometry.shell_centre = {list(g.shell_centre)}")
@@ -385,7 +432,7 @@ def map_roles(raw: RawGroups, g, bodies: Sequence[tuple[str, str]], planes: Sequ
     ids = write_msh22_3d(out, x, tets, tet_tags, tris, np.concatenate(tag_parts))
     mesh = Mesh3D(points=x.copy(), tets=tets, tet_ids=ids, tet_tags=tet_tags, path=out,
                   sector_deg=360.0 / symmetry_factor, electrode_area=electrode_area or None)
-    log.info("3D geometry %s: %d tetrahedra, %d nodes; coils %s, conductors %s", label, mesh.n_tets, mesh.n_nodes,
+    log.debug("3D geometry %s: %d tetrahedra, %d nodes; coils %s, conductors %s", label, mesh.n_tets, mesh.n_nodes,
              coils, conductors)
     return Geometry3D(mesh=mesh, conductors=conductors, coils=coils, surface_nodes=surface_nodes, shell=shell,
                       planes=list(planes), groups=raw.listing(), coil_sections=sections)
@@ -403,29 +450,81 @@ def plane_specs(symmetry) -> list[PlaneSpec]:
 def build_geometry3d(case, work: Path) -> Geometry3D:
     """Mesh the case's geometry file in ``work`` and map its roles (:func:`mesh_file3d`, :func:`read_groups`,
     :func:`map_roles`): the EM mesh ``work/em3d.msh``."""
-    from ..case.geometry3d import symmetry_factor
-
     g = case.geometry
     label = Path(g.file).name
     raw_path = mesh_file3d(g, work, case.limits.gmsh_time_limit_s)
     raw = read_groups(raw_path, label)
+    planes = plane_specs(case.symmetry)
     bodies = [(f"bodies[{i}].region", b.region) for i, b in enumerate(case.bodies)]
     for i, b in enumerate(case.bodies):
         for j, f in enumerate(b.fixed):
             if f.group is not None and f.group not in raw.surfaces:
                 raise GeometryError(f"{label}: bodies[{i}].fixed[{j}].group: got {f.group!r}, not a physical surface "
                                     f"group of the mesh; its groups: {raw.listing()}")
-    return map_roles(raw, g, bodies, plane_specs(case.symmetry), Path(work) / "em3d.msh",
-                     symmetry_factor(g, case.symmetry), label, case.limits.max_cells)
+    geo = map_roles(raw, g, bodies, planes, Path(work) / "em3d.msh",
+                    symmetry_factor(g, planes, raw.points, label), label, case.limits.max_cells)
+    check_fixed_boxes(case, geo, label)
+    return geo
+
+
+def check_fixed_boxes(case, geo: Geometry3D, label: str) -> None:
+    """Every ``[[bodies.fixed]]`` box of a deformable body holds at least one of its nodes (the 3D semantics of
+    :func:`~..mech.pulses.box_marker`, widened by 1e-9 of the mesh's size); raises :class:`GeometryError`
+    naming the key otherwise: a support beyond its body is a mistake, not a free body."""
+    from ..mech.pulses import box_marker
+
+    m = geo.mesh
+    tol = 1e-9 * float(np.abs(m.points).max())
+    for i, b in enumerate(case.bodies):
+        if b.rigid or not any(f.where is not None for f in b.fixed):
+            continue
+        x = m.points[np.unique(m.tets[m.tet_tags == conductor_tag(geo.conductors[b.region])])].T
+        for j, f in enumerate(b.fixed):
+            if f.where is not None and not np.any(box_marker(f.where, tol)(x)):
+                raise GeometryError(f"{label}: bodies[{i}].fixed[{j}].where: the box holds no node of body "
+                                    f"{b.name!r} (bounds x, y, z, and rmin/rmax about the z-axis, m)")
+
+
+def symmetry_factor(g, planes: Sequence[PlaneSpec], points: np.ndarray, label: str) -> float:
+    """Whole device / modelled part: ``geometry.symmetry_factor`` when given; else 2^k for k (<= 3) mutually
+    perpendicular planes; else, for two planes (a wedge: a sector about their common line), 360 degrees over the
+    wedge's angle, the angular extent of the mesh's ``points`` about that line. Raises :class:`GeometryError`
+    for other plane sets without ``geometry.symmetry_factor``."""
+    if g.symmetry_factor is not None:
+        return float(g.symmetry_factor)
+    n = [p.normal for p in planes]
+    if all(abs(float(a @ b)) <= 1e-9 for i, a in enumerate(n) for b in n[:i]):
+        return float(2 ** len(n))
+    if len(planes) != 2:
+        raise GeometryError(f"{label}: geometry.symmetry_factor: missing; {len(planes)} [[symmetry]] planes, not "
+                            "mutually perpendicular: give the whole device / modelled part")
+    axis = np.cross(n[0], n[1])
+    axis /= np.linalg.norm(axis)
+    # a point on both planes: the least-squares solution of n_i . x = n_i . p_i
+    a = np.array(n)
+    x0 = np.linalg.lstsq(a, np.array([float(p.normal @ p.point) for p in planes]), rcond=None)[0]
+    e1 = np.cross(n[0], axis)   # in plane 0, normal to the axis
+    e2 = np.cross(axis, e1)
+    d = points - x0
+    d = d - np.outer(d @ axis, axis)
+    far = np.linalg.norm(d, axis=1) > 1e-6 * float(np.abs(points).max())
+    phi = np.arctan2(d[far] @ e2, d[far] @ e1)
+    phi = np.where(phi < -1e-9, phi + 2 * np.pi, phi)   # angles from plane 0, in [0, 2 pi)
+    span = float(phi.max() - phi.min())
+    if not 1e-6 < span < 2 * np.pi - 1e-6:
+        raise GeometryError(f"{label}: geometry.symmetry_factor: missing; the mesh does not lie in one wedge of the "
+                            "two [[symmetry]] planes: give the whole device / modelled part")
+    return 2 * np.pi / span
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """``python -m pulseform.orchestrator.mesh.geometry3d SRC OUT SIZES_JSON [name=value ...]``: the meshing child."""
+    """``python -m pulseform.orchestrator.mesh.geometry3d SRC OUT SIZES_JSON FACTOR [name=value ...]``: the meshing
+    child."""
     args = list(sys.argv[1:] if argv is None else argv)
-    if len(args) < 3:
-        print("usage: python -m pulseform.orchestrator.mesh.geometry3d SRC OUT SIZES_JSON [name=value ...]")
+    if len(args) < 4:
+        print("usage: python -m pulseform.orchestrator.mesh.geometry3d SRC OUT SIZES_JSON FACTOR [name=value ...]")
         return 2
-    return _child(args[0], args[1], args[2], args[3:])
+    return _child(args[0], args[1], args[2], float(args[3]), args[4:])
 
 
 if __name__ == "__main__":

@@ -37,6 +37,7 @@ from scipy.spatial import cKDTree
 
 from pulseform.solvers.getdp import EMMesh
 from pulseform.solvers.getdp.mesh import AIR, gmsh_session
+from pulseform.solvers.getdp.mesh3d import read_msh22_triangles
 from pulseform.solvers.getdp.mesh3d import SYM_A, Mesh3D, read_msh22_tets
 from pulseform.solvers.getdp.runner import call_in_child
 
@@ -51,23 +52,6 @@ __all__ = ["remesh_air3d", "plane_air", "PlaneAir", "read_msh22_triangles", "wri
 #: a temporary 2D id of the kept (non-air) faces on a plane while the plane's air is re-triangulated
 AIR_REMESH_TAG_PLANE = 999
 _FACES = np.array([[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]])
-
-
-def read_msh22_triangles(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
-    """(triangles (f, 3) as 0-based node rows, physical ids) of an ASCII MSH 2.2 file (a triangle in two
-    physical groups appears twice)."""
-    text = Path(path).read_text()
-    nodes = text.split("$Nodes\n", 1)[1].split("$EndNodes", 1)[0].split("\n", 1)[1]
-    nid = np.array(nodes.split(), dtype=float).reshape(-1, 4)[:, 0].astype(np.int64)
-    index = np.zeros(int(nid.max()) + 1, dtype=np.int64)
-    index[nid] = np.arange(len(nid))
-    body = text.split("$Elements\n", 1)[1].split("$EndElements", 1)[0].split("\n", 1)[1]
-    rows = [r.split() for r in body.splitlines() if r and r.split()[1] == "2"]
-    if not rows:
-        return np.zeros((0, 3), np.int64), np.zeros(0, np.int64)
-    tri = np.array([[int(v) for v in r] for r in rows], dtype=np.int64)
-    nt = tri[:, 2]
-    return index[np.stack([tri[np.arange(len(tri)), 3 + nt + k] for k in range(3)], axis=1)], tri[:, 3]
 
 
 def write_msh22_3d(path: str | Path, points: np.ndarray, tets: np.ndarray, tet_tags: np.ndarray,

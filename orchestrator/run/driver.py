@@ -38,17 +38,14 @@ from ..mesh.shared import ConductorBody, conductor_submesh, match_nodes, to_dolf
 from . import interrupt
 from .analyses import create as create_analysis
 from .checkpoint import CHECKPOINT_NAME, load_checkpoint, save_checkpoint
-from .coupled3d import sector_participants
 from .em_fields import EMFieldWriter, write_peak_snapshot
+from .em_fields3d import CONDUCTORS_PEAK
 from .em_fields3d import FOLDER as EM3D_FOLDER
 from .em_fields3d import STEM as EM3D_STEM
-from .extremes3d import body_extremes_3d
+from .extremes3d import body_extremes_3d, contact_columns_3d, contact_metrics_3d
 from .history import History
-from .observer import NoObserver
-from .pressure3d import sector_pressure_participants
 from .progress import Progress
 from .participants3d import participants_3d
-from .racetrack_case import racetrack_participants
 from .results import ResultsFolder
 
 log = logging.getLogger(__name__)
@@ -94,17 +91,10 @@ class CaseDriver:
         self.wall_before_s = 0.0
         cp = case.coupling
         self.rigid: RigidMechanics | None = None  # the rigid bodies (coupled cases), None without
-        # a coupled 3D case: a sector of a flat_coil_sheet setup (run/coupled3d.py), its sheet's EM fields
-        self.sector = case.case.kind == "coupled" and case.mechanics.formulation == "3d"
-        self.observer = NoObserver()  # what only a case records (a racetrack's: run/racetrack_case.py)
-        if self.sector and getattr(case.geometry, "type", None) == "geometry_3d":  # any 3D geometry file
-            self.solver, load, options, _ = participants_3d(case, results.root / "em")
-        elif self.sector and case.racetrack is not None:
-            self.solver, load, options, self.observer = racetrack_participants(case, results.root / "em")
-        elif self.sector and cp.load == "pressure":  # the same sector driven by [[loads]] (run/pressure3d.py)
-            self.solver, load, options = sector_pressure_participants(case, results.root / "em")
-        elif self.sector:
-            self.solver, load, options, _ = sector_participants(case, results.root / "em")
+        # a coupled 3D case: any 3D geometry file (run/participants3d.py), its first body's EM fields in fields/em3d
+        self.three_d = case.case.kind == "coupled" and case.mechanics.formulation == "3d"
+        if self.three_d:
+            self.solver, self.rigid, load, options, _ = participants_3d(case, results.root / "em")
         elif case.case.kind == "coupled":
             self.solver, load, self.rigid = _coupled_participants(case, results, comm, em_geometry)
             options = LoopOptions.from_coupling(cp)
@@ -142,13 +132,14 @@ class CaseDriver:
         if s is not None:
             row.update(probe_mod.sample(s, self.probes, self.comm))
             row.update(body_extremes(s, self.comm))
+            if s.formulation == "3d" and s.contact_pairs:
+                row.update(contact_columns_3d(s))
         if self.rigid is not None:
             row.update(self.rigid.history())
         for a in self.analyses:
             row.update(a.record(s, row))
         for key in self.load_columns:
             row[key] = step_row.get(key, 0.0) if step_row else 0.0
-        row.update(self.observer.values())
         self.history.record(row)
 
     def energies(self) -> dict[str, float]:
@@ -169,7 +160,6 @@ class CaseDriver:
         return row
 
     def _on_em_step(self, row: dict[str, float]) -> None:
-        self.observer.on_em_step(row)
         self._last_row = row
         self._since_record += 1
         if self._since_record >= self.case.output.history_every:
@@ -193,12 +183,13 @@ class CaseDriver:
         peak coil current (the checkpoint's EM state counts it as written)."""
         peak = self.load.take_peak_snapshot() if self.comm.rank == 0 else None
         if peak is not None:
-            write_peak_snapshot(self.results.fields / (EM3D_FOLDER if self.sector else "em"), *peak)
+            write_peak_snapshot(self.results.fields / (EM3D_FOLDER if self.three_d else "em"), *peak)
+        conductors = self.load.take_peak_conductors() if self.comm.rank == 0 else None
+        if conductors is not None:   # every 3D conductor (bodies and fixed ones: a field shaper's current)
+            write_peak_snapshot(self.results.fields / EM3D_FOLDER, *conductors, name=CONDUCTORS_PEAK)
         arrays = {f"solver/{k}": v for k, v in self.mechanics.state_dict().items()}
         arrays.update({f"loop/{k}": v for k, v in self.loop.counters.state_dict().items()})
         arrays.update({f"load/{k}": v for k, v in self.load.checkpoint_state_dict().items()})
-        self.observer.flush()
-        arrays.update({f"observer/{k}": v for k, v in self.observer.state_dict().items()})
         for name, a in zip(self.case.analysis, self.analyses):
             arrays.update({f"analysis/{name}/{k}": v for k, v in a.state_dict().items()})
         arrays["history/rows"] = self.history.array()
@@ -225,7 +216,6 @@ class CaseDriver:
                                         if k.startswith("solver/") and not k.startswith("solver/analysis/")})
         self.loop.counters.load_state_dict({k[5:]: v for k, v in arrays.items() if k.startswith("loop/")})
         self.load.load_state_dict({k[5:]: v for k, v in arrays.items() if k.startswith("load/")})
-        self.observer.load_state_dict({k[9:]: v for k, v in arrays.items() if k.startswith("observer/")})
         self.history.columns = list(meta["columns"])
         self.history.rows = [list(r) for r in arrays["history/rows"]]
         self.part = int(meta["part"]) + 1
@@ -253,7 +243,7 @@ class CaseDriver:
         writer = mech.FieldWriter(self.solver, str(prefix)) if self.solver is not None else _NoFieldWriter()
         em_writer = EMFieldWriter(self.results.fields / (f"em_part{self.part}" if self.part else "em")) \
             if self.load.em_fields and self.comm.rank == 0 else None
-        if self.sector and case.coupling.load == "getdp" and self.comm.rank == 0:  # the sheet's force density
+        if self.three_d and case.coupling.load == "getdp" and self.comm.rank == 0:  # the first body's force density
             em_writer = EMFieldWriter(self.results.fields / (f"{EM3D_FOLDER}_part{self.part}" if self.part
                                                              else EM3D_FOLDER), stem=EM3D_STEM)
         if em_writer is not None:
@@ -319,8 +309,9 @@ class CaseDriver:
             metrics["force_impulse_Ns"] = float(np.linalg.norm(c.impulse))
             metrics["force_impulse_z_Ns"] = float(c.impulse[1])
         metrics.update(mech_metrics(self.solver, case, self.history, self.energies()))
-        metrics.update(self.load.run_metrics(self.history, c))  # a 3D sector's: the device's figures
-        metrics.update(self.observer.metrics(self.history, c))
+        if self.solver is not None and self.solver.formulation == "3d" and self.solver.contact_pairs:
+            metrics.update(contact_metrics_3d(self.solver, self.history))
+        metrics.update(self.load.run_metrics(self.history, c))  # in 3D: the device's figures (x symmetry factor)
         if self.rigid is not None:
             metrics.update(rigid_metrics(case, self.history, {n: b.mass for n, b in self.rigid.bodies.items()}))
         for a in self.analyses:

@@ -75,14 +75,16 @@ class EMFieldWriter:
 
 
 def write_peak_snapshot(folder: Path, t: float, current: float, points: np.ndarray, triangles: np.ndarray,
-                        cell_data: dict[str, np.ndarray], point_data: dict[str, np.ndarray] | None = None) -> Path:
+                        cell_data: dict[str, np.ndarray], point_data: dict[str, np.ndarray] | None = None, *,
+                        name: str = PEAK_NAME) -> Path:
     """The snapshot at the EM step of the largest |coil current| so far (replaces an earlier one):
-    ``em_peak_current.vtu`` + ``.pvd`` (its time) + ``.json`` (``time_s``, ``coil_current_A``)."""
+    ``<name>.vtu`` + ``.pvd`` (its time) + ``.json`` (``time_s``, ``coil_current_A``); ``name`` default
+    ``em_peak_current``."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    path = write_vtu(folder / f"{PEAK_NAME}.vtu", points, triangles, cell_data, point_data)
-    atomic_write_text(folder / f"{PEAK_NAME}.pvd", _pvd([(t, path.name)]))
-    atomic_write_text(folder / f"{PEAK_NAME}.json", json.dumps(
+    path = write_vtu(folder / f"{name}.vtu", points, triangles, cell_data, point_data)
+    atomic_write_text(folder / f"{name}.pvd", _pvd([(t, path.name)]))
+    atomic_write_text(folder / f"{name}.json", json.dumps(
         {"time_s": float(t), "coil_current_A": float(current), "file": path.name}, indent=1) + "\n")
     return path
 

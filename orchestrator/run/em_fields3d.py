@@ -24,6 +24,8 @@ FOLDER = "em3d"
 SERIES = "sheet_em.pvd"
 #: the snapshots' file stem (:class:`~.em_fields.EMFieldWriter`'s ``stem``)
 STEM = "sheet_em"
+#: every conductor (bodies and fixed conductors) at the peak coil current: ``<CONDUCTORS_PEAK>.vtu`` / ``.json``
+CONDUCTORS_PEAK = "em_peak_current_conductors"
 
 
 @dataclass
@@ -37,12 +39,13 @@ class TetSnapshot:
     current: float
 
 
-def read_peak3d(root: Path) -> TetSnapshot | None:
-    """The peak-current snapshot of a coupled 3D results folder, or None when there is none."""
-    meta = Path(root) / "fields" / FOLDER / f"{PEAK_NAME}.json"
+def read_peak3d(root: Path, name: str = PEAK_NAME) -> TetSnapshot | None:
+    """The peak-current snapshot of a coupled 3D results folder (``name``: the sheet's ``em_peak_current``, or
+    :data:`CONDUCTORS_PEAK`), or None when there is none."""
+    meta = Path(root) / "fields" / FOLDER / f"{name}.json"
     try:
         d = json.loads(meta.read_text())
-        mesh = meshio.read(meta.parent / d.get("file", f"{PEAK_NAME}.vtu"))
+        mesh = meshio.read(meta.parent / d.get("file", f"{name}.vtu"))
     except (OSError, ValueError, KeyError) as exc:
         log.info("3D EM pictures: no peak snapshot (%s)", exc)
         return None

@@ -3,6 +3,7 @@ the z displacement and z-momentum, with the speed and von Mises stress from all 
 
 from __future__ import annotations
 
+import math
 from typing import Callable
 
 import numpy as np
@@ -26,3 +27,30 @@ def body_extremes_3d(name: str, b, reduce: Callable[[float, object], float]) -> 
             f"{name}_momentum_y_Ns": reduce(float(b.mass[:n] @ b.v[:n, 1]), MPI.SUM),
             f"{name}_momentum_z_Ns": reduce(float(b.mass[:n] @ b.v[:n, 2]), MPI.SUM),
             f"{name}_max_von_mises_Pa": reduce(vm, MPI.MAX)}
+
+
+def contact_columns_3d(solver) -> dict[str, float]:
+    """Per contact pair of a 3D solver: the largest contact stress (Pa) and the number of slave nodes in
+    contact now, as ``<slave>_<master>_contact_pressure_max_Pa`` and ``..._contact_nodes``."""
+    out = {}
+    for i, pair in enumerate(solver.contact_pairs):
+        _, _, p, _ = solver.contact_pressure(i)
+        name = f"{pair.slave}_{pair.master}"
+        out[f"{name}_contact_pressure_max_Pa"] = float(p.max()) if p.size else 0.0
+        out[f"{name}_contact_nodes"] = float(p.size)
+    return out
+
+
+def contact_metrics_3d(solver, history) -> dict[str, float]:
+    """The largest contact stress of every pair over the run (Pa) and the time of the first contact (s; NaN
+    without one), from the history columns of :func:`contact_columns_3d`."""
+    t = history.column("time_s")
+    peak, first = 0.0, math.inf
+    for pair in solver.contact_pairs:
+        name = f"{pair.slave}_{pair.master}"
+        p, n = history.column(f"{name}_contact_pressure_max_Pa"), history.column(f"{name}_contact_nodes")
+        peak = max(peak, float(p.max()))
+        touching = np.flatnonzero(n > 0)
+        if touching.size:
+            first = min(first, float(t[touching[0]]))
+    return {"contact_pressure_peak_Pa": peak, "first_contact_s": first if math.isfinite(first) else math.nan}

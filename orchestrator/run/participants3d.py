@@ -9,6 +9,10 @@ contact from ``[[contact]]``. The air follows the bodies harmonically (:class:`~
 coils, shell, fixed conductors and the outer boundary stay, the planes slide); when it breaks
 (``geometry.on_mesh_break``) it is meshed again with the EM state carried, the EM mesh freezes, or the run stops.
 The loop's options come from ``[coupling]``; ``geometry.em_step`` sets n from the stable mechanical step.
+
+With ``coupling.load = "pressure"`` the same meshes, supports and loop are driven by the ``[[loads]]`` pulses
+(:class:`~..mech.pulses3d.PressurePulses3D`: boxes with 3D bounds, the device's figures × the symmetry factor)
+instead of getdp: the pressure run of ``pulseform compare`` (the rigid bodies, if any, stay where they are).
 """
 
 from __future__ import annotations
@@ -25,6 +29,7 @@ from pulseform.solvers import dolfinx as mech
 from pulseform.solvers.dolfinx.solver3d import ExplicitSolver3D
 from pulseform.solvers.getdp.mesh import COIL_BASE, CONDUCTOR_BASE, SHELL, conductor_tag
 from pulseform.solvers.getdp.mesh3d import Mesh3D
+from pulseform.solvers.getdp.solver3d import model_numbers
 
 from ..case.model import Case
 from ..coupling.loop import LoopOptions
@@ -32,20 +37,18 @@ from ..em.frozen3d import FreezingGetDPLoad3D
 from ..em.model3d import em_model3d
 from ..em.participant3d import ConductorBody3D
 from ..em.remesh3d import RemeshingGetDPLoad3D
+from ..mech.mixed import rigid_bodies
 from ..mech.model import solver_material
+from ..mech.participants import DolfinxMechanics
+from ..mech.pulses import box_marker
+from ..mech.pulses3d import PressurePulses3D
+from ..mech.rigid import RigidMechanics
 from ..mech.model3d import plane_marker
-from ..mesh.geometry3d import Geometry3D, PlaneSpec, boundary_faces, build_geometry3d
+from ..mesh.geometry3d import Geometry3D, GeometryError, PlaneSpec, boundary_faces, build_geometry3d
 from ..mesh.motion3d import MeshMover3D, nodes_on_plane
 from ..mesh.shared3d import conductor_submesh3d, match_nodes3d, to_dolfinx3d
 
 log = logging.getLogger(__name__)
-
-
-def box_marker3d(where, tol: float) -> Callable[[np.ndarray], np.ndarray]:
-    """Marker of the nodes inside a case-file box (inclusive, widened by ``tol`` m; x given as (3, N))."""
-    lo = np.array([where.xmin, where.ymin, where.zmin], float)[:, None] - tol
-    hi = np.array([where.xmax, where.ymax, where.zmax], float)[:, None] + tol
-    return lambda x: np.all((x >= lo) & (x <= hi), axis=0)
 
 
 def points_marker(points: np.ndarray, tol: float) -> Callable[[np.ndarray], np.ndarray]:
@@ -62,7 +65,7 @@ def _supports(case: Case, name: str, fixed, geo: Geometry3D, tol: float) -> tupl
     held = tuple((plane_marker(s, tol), (s.component(),)) for s in own) if aligned else ()
     sliding = () if aligned else tuple((plane_marker(s, tol), tuple(s.normal)) for s in own)
     for f in fixed:
-        marker = box_marker3d(f.where, tol) if f.where is not None else \
+        marker = box_marker(f.where, tol) if f.where is not None else \
             points_marker(geo.mesh.points[geo.surface_nodes[f.group]], tol)
         held += ((marker, tuple(f.components)),)
     return held, sliding
@@ -85,53 +88,95 @@ def air_mover3d(mesh: Mesh3D, planes: list[PlaneSpec], tol: float) -> MeshMover3
 
 
 def participants_3d(case: Case, work: Path):
-    """(3D solver, 3D GetDP load, loop options, :class:`Geometry3D`) of a coupled 3D geometry-file case; the
-    mesh and the getdp runs in ``work`` (the results folder's ``em/``)."""
+    """(3D solver or None, rigid bodies' mechanics or None, 3D GetDP load, loop options, :class:`Geometry3D`) of a
+    coupled 3D geometry-file case; the mesh and the getdp runs in ``work`` (the results folder's ``em/``)."""
     g = case.geometry
     work = Path(work).resolve()
     geo = build_geometry3d(case, work)
     mesh = geo.mesh
     model = em_model3d(case, geo)
+    try:   # what the deck would refuse (a cut, an applied field against a symmetry plane): bad input, found now
+        model_numbers(model, mesh)
+    except ValueError as exc:
+        raise GeometryError(f"{Path(g.file).name}: geometry: {exc}") from None
     tol = 1e-9 * float(np.abs(mesh.points).max())
-    specs, subs = [], []
+    specs, subs = [], {}
     for k, b in enumerate(case.bodies, start=1):
-        sub = conductor_submesh3d(mesh, conductor_tag(k))
+        sub = subs[b.region] = conductor_submesh3d(mesh, conductor_tag(k))
+        if b.rigid:
+            continue
         held, sliding = _supports(case, b.name, b.fixed, geo, tol)
         v0 = tuple(b.initial_velocity) if len(b.initial_velocity) == 3 else (0.0, 0.0, 0.0)
         specs.append(mech.BodySpec(name=b.name, mesh=to_dolfinx3d(sub, MPI.COMM_SELF),
                                    material=solver_material(case.materials[b.material]), initial_velocity=v0,
                                    fixed=held, sliding=sliding))
-        subs.append(sub)
     pairs = tuple(mech.ContactPairSpec(slave=c.slave, master=c.master, stiffness=c.stiffness, h0=c.h0,
                                        friction=c.friction, viscosity=c.viscosity, two_pass=c.two_pass)
                   for c in case.contact)
     mo = case.mechanics
     solver = ExplicitSolver3D(specs, contact_pairs=pairs, cfl=case.time.cfl, bulk_viscosity=mo.bulk_viscosity,
                               bulk_linear=mo.bulk_viscosity_linear, bulk_quadratic=mo.bulk_viscosity_quadratic,
-                              comm=MPI.COMM_SELF)
-    bodies = [ConductorBody3D(b.name, conductor_tag(k), sub, match_nodes3d(solver.bodies[b.name].X0, mesh.points, tol))
-              for k, (b, sub) in enumerate(zip(case.bodies, subs), start=1)]
+                              comm=MPI.COMM_SELF) if specs else None
+    dt_mech = solver.stable_time_step() if solver is not None else rigid_step_3d(case)
+    if case.coupling.load == "pressure":   # the same meshes and loop, the [[loads]] pulses instead of getdp
+        load = pressure_pulses_3d(case, solver, float(model.symmetry_factor), Path(g.file).name)
+        return solver, None, load, loop_options_3d(case, dt_mech), geo
+    rigid = None
+    if any(b.rigid for b in case.bodies):
+        rigid = RigidMechanics(rigid_bodies(case, subs), dt_mech)
+    bodies = []
+    for k, b in enumerate(case.bodies, start=1):
+        sub = subs[b.region]
+        nodes = sub.em_nodes if b.rigid else match_nodes3d(solver.bodies[b.name].X0, mesh.points, tol)
+        bodies.append(ConductorBody3D(b.name, conductor_tag(k), sub, nodes))
     planes = geo.planes
     mover = air_mover3d(mesh, planes, tol)
     mover.min_quality = g.break_quality * float(mover.q_ref.min())
     args = (mesh, model, work / "getdp", bodies, mover)
-    kw = {"time_scheme": case.em.time_scheme, "getdp_timeout": case.limits.getdp_time_limit_s}
+    kw = {"time_scheme": case.em.time_scheme, "getdp_process": case.em.getdp_process,
+          "getdp_timeout": case.limits.getdp_time_limit_s}
     if g.on_mesh_break == "remesh":   # a failed remesh freezes (orchestrator/em/remesh3d.py)
         load = RemeshingGetDPLoad3D(*args, make_mover=lambda m: air_mover3d(m, planes, tol),
                                     planes=[(p.point, p.normal) for p in planes], **kw)
     else:
         load = FreezingGetDPLoad3D(*args, freeze=g.on_mesh_break == "freeze", **kw)
-    options = loop_options_3d(case, solver.stable_time_step())
+    options = loop_options_3d(case, dt_mech if solver is not None else None)
     log.info("3D geometry: %d EM tets, bodies %s, mechanical step %.3g s, n = %d", mesh.n_tets,
-             {b.name: len(solver.bodies[b.name].cells) for b in case.bodies}, solver.stable_time_step(), options.n)
-    return solver, load, options, geo
+             {b.name: len(subs[b.region].cells) for b in case.bodies}, dt_mech, options.n)
+    return solver, rigid, load, options, geo
 
 
-def loop_options_3d(case: Case, dt_mech: float) -> LoopOptions:
+def pressure_pulses_3d(case: Case, solver: ExplicitSolver3D, symmetry_factor: float, label: str) -> PressurePulses3D:
+    """The ``[[loads]]`` pulses of a pressure-driven 3D geometry-file case (``coupling.load = "pressure"``) on
+    ``solver``'s bodies, the device's figures × ``symmetry_factor``; raises :class:`GeometryError` (``label``:
+    the geometry file) naming the load whose box holds no boundary triangle of its body."""
+    mo = case.mechanics
+    load = PressurePulses3D(case.loads, symmetry_factor, mo.mass_damping, mo.mass_damping_until,
+                            mo.mass_damping_from, mo.kinetic_damping_until)
+    areas = load.loaded_areas(DolfinxMechanics(solver), solver.bodies)
+    for i, (ld, a) in enumerate(zip(case.loads, areas)):
+        if a <= 0.0:
+            raise GeometryError(f"{label}: loads[{i}].surface: the box holds no boundary triangle of body {ld.body!r} "
+                                "(all three nodes inside; bounds x, y, z, and rmin/rmax about the z-axis, m)")
+    log.info("3D geometry driven by %d pressure pulse(s) on %s m^2 (the model's)", len(case.loads),
+             ", ".join(f"{a:.6g}" for a in areas))
+    return load
+
+
+def rigid_step_3d(case: Case) -> float:
+    """The mechanical step (s) of a 3D case whose bodies are all rigid: geometry.em_step / coupling.n, capped
+    by time.dt_max (which alone sets it without an EM step)."""
+    em_step = case.geometry.em_step
+    dt = em_step / case.coupling.n if em_step is not None else case.time.dt_max
+    return dt if case.time.dt_max is None else min(dt, case.time.dt_max)
+
+
+def loop_options_3d(case: Case, dt_mech: float | None) -> LoopOptions:
     """The loop's options: ``[coupling]``'s, with n = round(geometry.em_step / ``dt_mech``) when the EM step
-    is given (then n_min 1 and n_max n unless adaptive)."""
+    is given (then n_min 1 and n_max n unless adaptive); ``dt_mech`` None (rigid bodies only: their step is
+    already em_step / n) keeps coupling.n."""
     cp, em_step = case.coupling, case.geometry.em_step
-    if em_step is None:
+    if em_step is None or dt_mech is None:
         return LoopOptions.from_coupling(cp)
     n = max(1, round(em_step / dt_mech))
     if cp.adaptive:

@@ -9,9 +9,13 @@
   coloured by the cell values of von Mises stress (MPa) and equivalent plastic strain (-) at up
   to six output times, one colour scale over all times and bodies. An axisymmetric model is
   revolved by 270° about the z axis and seen from the open quarter (a 3/4 view that shows the
-  r-z section); a planar model is shown as it is (x-y plane, parallel projection).
+  r-z section); a planar model is shown as it is (x-y plane, parallel projection); a 3D model is shown
+  as its exterior surface, and a 3D wedge model (two symmetry planes through the z-axis) unfolded by its
+  symmetry over 270° about z and seen like a revolved one (:mod:`.pictures_wedge`).
 * ``mechanics/<field>_<k>.png``: the same at every output time ``k`` (one frame per time, same
   camera and colour scale, for flipping through or an animation).
+* ``section_<plane>_{von_mises,plastic_strain}.png`` (3D geometry-file cases: :mod:`.pictures_section3d`):
+  the 3D bodies cut by each axis-aligned ``[[symmetry]]`` plane (or y = 0), deformed, at up to six times.
 
 Workpieces are the bodies with ``region = "workpiece"`` (coupled cases), else the bodies that carry
 a ``[[loads]]`` pulse, else every body.
@@ -25,6 +29,7 @@ the caller reports as a warning. ``shapes.png`` (matplotlib) is drawn first, in 
 from __future__ import annotations
 
 import json
+import math
 import logging
 import os
 import signal
@@ -38,7 +43,7 @@ import numpy as np
 
 from .mech_fields import BodyFields, read_fields
 from .pictures_child import Renderer, spawn, warm_up
-from .pictures_sector import MeridianSection, sector_angle
+from .pictures_wedge import UnfoldedBody, Wedge, wedge_planes
 from .pictures_solid import boundary_faces, solid_camera, solid_surface
 from .units import time_axis
 
@@ -200,16 +205,18 @@ def _planar(points2: np.ndarray, triangles: np.ndarray, values: np.ndarray):
 class _Scene:
     """Per body the 3D (revolved) or planar surface of the deformed mesh at one output time, mm."""
 
-    def __init__(self, bodies: dict[str, BodyFields], sector_deg: float | None = None):
+    def __init__(self, bodies: dict[str, BodyFields], wedge: list[np.ndarray] | None = None):
         self.bodies = bodies
         self.axi = next(iter(bodies.values())).axisymmetric
         self.solid = next(iter(bodies.values())).solid  # 3D bodies: the surface of the tetrahedra
-        # a sector of an axisymmetric part: its meridian face, revolved as an axisymmetric mesh is
-        self.sections = {n: MeridianSection(b.points, b.triangles) for n, b in bodies.items()} \
-            if self.solid and sector_deg else None
-        if self.sections is not None:
+        # a wedge model (two symmetry planes through z, their normals ``wedge``): unfolded over 270 deg about z
+        # by its own symmetry and seen as a revolved axisymmetric model is (.pictures_wedge)
+        self.unfolded = None
+        if self.solid and wedge is not None:
+            w = Wedge.of(wedge, np.vstack([b.points for b in bodies.values()]))
+            self.unfolded = {n: UnfoldedBody(w, b.points, b.triangles) for n, b in bodies.items()}
             self.solid, self.axi = False, True
-            self.edges = {n: boundary_edges(s.triangles) for n, s in self.sections.items()}
+            self.wedge_deg = math.degrees(w.angle)
         else:
             self.edges = {n: (boundary_faces if self.solid else boundary_edges)(b.triangles)
                           for n, b in bodies.items()}
@@ -221,10 +228,8 @@ class _Scene:
         d = b.read(k, ("displacement_m", field))
         vals = np.asarray(d[field], dtype=float).ravel() * scale
         x = (b.points[:, :2] + d["displacement_m"][:, :2]) * 1e3
-        if self.sections is not None:
-            sec = self.sections[name]
-            x2 = sec.points2((b.points + d["displacement_m"]) * 1e3)
-            pts, faces, v = _revolved(x2, sec.triangles, *self.edges[name], vals[sec.owner])
+        if self.unfolded is not None:
+            pts, faces, v = self.unfolded[name].surface((b.points + d["displacement_m"]) * 1e3, vals)
         elif self.solid:
             pts, faces, v = solid_surface((b.points + d["displacement_m"]) * 1e3, *self.edges[name], vals)
         elif self.axi:
@@ -273,8 +278,7 @@ def render_fields(results_dir: Path) -> list[Path]:
     pv.global_theme.multi_samples = 0  # no MSAA: software rendering (llvmpipe) pays for every sample
     root = Path(results_dir)
     bodies = read_fields(root)
-    sector = sector_angle(root)
-    scene = _Scene(bodies, sector)
+    scene = _Scene(bodies, wedge_planes(root))
     name = _run_name(root)
     ref = max(bodies.values(), key=lambda b: len(b.times))
     times = ref.times
@@ -284,8 +288,8 @@ def render_fields(results_dir: Path) -> list[Path]:
     frames_dir.mkdir(parents=True, exist_ok=True)
     paths: list[Path] = []
     where = "revolved 270° about the z axis" if scene.axi else "3D" if scene.solid else "x-y plane"
-    if scene.sections is not None:
-        where = f"a {sector:g}° sector's meridian face revolved 270° about the z axis"
+    if scene.unfolded is not None:
+        where = f"the {scene.wedge_deg:.4g}° wedge unfolded by its symmetry over 270° about the z axis"
 
     def tlabel(t: float) -> str:
         return f"t = {t * axis.scale:.4g} {axis.unit}"
@@ -379,10 +383,19 @@ def _screenshot(p, out: Path) -> Path:
 
 # --------------------------------------------------------------------------------------- entry
 def _outlines(bodies: dict[str, BodyFields], root: Path) -> list[Path]:
-    """[shapes.png] of 2D bodies; none for 3D bodies (their deformed surfaces are the 3D pictures)."""
+    """[shapes.png] of 2D bodies; for 3D bodies no outlines (their deformed surfaces are the 3D pictures) but,
+    in a 3D geometry-file case, the sections of the bodies by its symmetry planes (:mod:`.pictures_section3d`;
+    a failure there is logged and costs no other picture)."""
     if any(b.solid for b in bodies.values()):
         log.info("shapes.png (outlines of 2D bodies) not drawn for 3D bodies")
-        return []
+        from .pictures_section3d import draw_sections3d
+
+        try:
+            return draw_sections3d(root)
+        except Exception as exc:  # the sections must not cost the 3D pictures drawn beside them
+            log.warning("section pictures not drawn: %s: %s", type(exc).__name__, " ".join(str(exc).split())[:200])
+            log.debug("section pictures", exc_info=True)
+            return []
     return [plot_shapes(bodies, workpieces(root, list(bodies)), root / "plots", _run_name(root))]
 
 

@@ -267,9 +267,8 @@ def draw_all(results_dir: Path, *, case=None, history: History | None = None, sh
         attempt(f"analysis {type(a).__name__}", a.plots, history, shapes or [], folder)
         done.paths.extend(p for p, s in _stamps(folder).items() if before.get(p) != s)
     if case is not None and case.case.kind == "coupled" and case.coupling.load == "getdp":  # EM fields exist
-        three_d = case.mechanics.formulation == "3d"  # a sector: the force density on its sheet
-        em = _picture_module(*(("racetrack_case", "draw_racetrack_case") if case.racetrack is not None  # its own
-                               else ("pictures_em3d", "draw_em3d") if three_d else PICTURE_MODULES[1]), skip)
+        three_d = case.mechanics.formulation == "3d"  # a 3D model: the force density on its bodies
+        em = _picture_module(*(("pictures_em3d", "draw_em3d") if three_d else PICTURE_MODULES[1]), skip)
         if em is not None:
             attempt("EM pictures", em, root)
     if finish_mech is not None:  # shapes.png (workpiece outlines) and the 3D pictures, from fields/

@@ -12,8 +12,10 @@
    shapes, max speeds, die stresses if there is a die, impulses, wall times); ``OUT/plots/``:
    pressure history with the fitted pulse, final shapes, deflection and speed histories.
 
-A coupled 3D sector (``mechanics.formulation = "3d"``): its axial force over the area its mesh loads
-(:mod:`.compare3d`), the 3D final positions, the lower surface's meridian profile.
+A 3D model (``mechanics.formulation = "3d"``, a geometry file): the loaded surface is given (``surface``, a box
+with 3D bounds, and ``body``: ``--surface`` / ``--body``); the force along its area vector over the area the
+pressure run loads on the coupled run's mesh, the device's figures × the symmetry factor (:mod:`.compare3d`),
+the 3D final positions, the loaded surface's profile.
 """
 
 from __future__ import annotations
@@ -34,7 +36,7 @@ from ..case.model import Case, FlatCoilSheet, PlanarCoilBlankDie, SolenoidTube
 from ..mech.pulses import exp_pulse, sin2_pulse
 from ..run.children import run_pulseform
 from ..run.results import ResultsFolder, read_metrics
-from .compare3d import nominal_area, plot_meridian, sector_loading
+from .compare3d import loading_3d, nominal_area, plot_profile
 from .compare_area import loaded_area_2d
 from .validate import write_json
 
@@ -254,9 +256,30 @@ def shape_distance(xa, ua, xb, ub) -> float:
     return float(max(cKDTree(yb).query(ya)[0].max(), cKDTree(ya).query(yb)[0].max()))
 
 
+def _loaded_body(case: Case, case_path: str, body: str | None):
+    """The loaded body: ``body`` (``--body``), else the workpiece of a built-in geometry, else the only
+    deformable body of a 3D model."""
+    names = [b.name for b in case.bodies]
+    if body is not None:
+        if body not in names:
+            raise CompareError(f"{case_path}: --body {body!r}: not a body of the case; its bodies: "
+                               + ", ".join(repr(n) for n in names))
+        return case.body(body)
+    work = [b for b in case.bodies if b.region == "workpiece"]
+    if work:
+        return work[0]
+    if len(case.bodies) == 1:
+        return case.bodies[0]
+    raise CompareError(f"{case_path}: give the loaded body with --body (the case's bodies: "
+                       + ", ".join(repr(n) for n in names) + ")")
+
+
 def run_compare(case_path: str, out: Path, *, overrides: list[str] | None = None, pulse: str = "sin2",
-                pressure_case: str | None = None, force: bool = False) -> dict:
-    """Run both and write ``compare.json`` + plots; returns the report dict (see module docstring)."""
+                pressure_case: str | None = None, force: bool = False, surface: dict | None = None,
+                body: str | None = None) -> dict:
+    """Run both and write ``compare.json`` + plots; returns the report dict (see module docstring).
+    ``surface`` the loaded surface of a 3D model (a box with 3D bounds, m: ``--surface``), ``body`` the loaded
+    body (``--body``)."""
     overrides = list(overrides or [])
     case, _ = load_case(case_path, overrides)
     if case.case.kind != "coupled" or case.coupling.load != "getdp":
@@ -266,17 +289,28 @@ def run_compare(case_path: str, out: Path, *, overrides: list[str] | None = None
     if rigid:  # the pressure pulses act on deformable bodies (a rigid body's motion is the force's alone)
         raise CompareError(f"{case_path}: compare loads deformable bodies with pressure pulses; {rigid[0]!r} is "
                            "rigid (its motion follows from the force history in history.csv)")
-    work = next(b for b in case.bodies if b.region == "workpiece")
-    dies = [b.name for b in case.bodies if b.region != "workpiece"]  # own shapes, or the EM die/collar
+    three_d = case.mechanics.formulation == "3d"  # a 3D model: the force along the given surface's area vector
+    if surface is not None and not three_d:
+        raise CompareError(f"{case_path}: --surface is for 3D models (mechanics.formulation = '3d'); a 2D built-in "
+                           "geometry knows its loaded surface, a user deck takes --pressure-case FILE")
+    work = _loaded_body(case, case_path, body)
+    dies = [b.name for b in case.bodies if b.name != work.name]  # own shapes, or the EM die/collar
     given = _given_loads(pressure_case) if pressure_case else None
-    try:
-        box, area, comp, sign = loaded_surface(case)
-    except CompareError:
-        if given is None:
-            raise CompareError(f"{case_path}: geometry type {case.geometry.type!r} has no known loaded surface "
-                               "to fit a pulse on; give the pulses with --pressure-case FILE") from None
-        box, area, comp, sign = None, 1.0, 1, 1.0  # given pulses: histories shown as force (N) along z
-    three_d = case.mechanics.formulation == "3d"  # a sector: the force along z on its loaded mesh area
+    direction = None   # the unit area vector of a 3D model's loaded surface
+    if three_d:
+        if surface is None and given is None:
+            raise CompareError(f"{case_path}: a 3D model has no known loaded surface to fit a pulse on: give it with "
+                               "--surface '{rmin = ..., rmax = ..., zmin = ..., zmax = ...}' (a box, m; and --body) "
+                               "or the pulses with --pressure-case FILE")
+        box, area, comp, sign = surface, 1.0, 2, 1.0
+    else:
+        try:
+            box, area, comp, sign = loaded_surface(case)
+        except CompareError:
+            if given is None:
+                raise CompareError(f"{case_path}: geometry type {case.geometry.type!r} has no known loaded surface "
+                                   "to fit a pulse on; give the pulses with --pressure-case FILE") from None
+            box, area, comp, sign = None, 1.0, 1, 1.0  # given pulses: histories shown as force (N) along z
     results = ResultsFolder(out, force=force)
     root = results.root
 
@@ -284,15 +318,21 @@ def run_compare(case_path: str, out: Path, *, overrides: list[str] | None = None
     mc = _run(str(case_path), root / "coupled", overrides)
     hc = _history(root / "coupled")
     t = hc["time_s"]
-    sym = 1.0
-    if three_d:
-        comp = 2
-        if box is not None:
-            area, sym = sector_loading(case, root / "coupled", work.name, box)
+    sym = float(mc.get("symmetry_factor", 1.0)) if three_d else 1.0
+    if three_d and box is not None:  # the area the pressure run loads on the coupled run's mesh (compare3d.py)
+        area, s_vec = loading_3d(root / "coupled", work.name, box)
+        effective = float(np.linalg.norm(s_vec))
+        direction = s_vec / effective
+        comp = int(np.argmax(np.abs(direction)))
+        log.info("compare: loaded area %.6g cm^2 of the model (x %g: the device's %.6g cm^2), direction %s",
+                 area * 1e4, sym, area * sym * 1e4, np.array2string(direction, precision=4))
     nominal = area
     if not three_d and box is not None:  # the area the pressure run loads on this mesh (compare_area.py)
         area = _mesh_area(case, root / "coupled", work.name, box, area)
-    force_col = hc[FORCE_COLUMNS[comp]]
+    if direction is not None:   # p = F.S / |S|^2: the pressure that pushes the model's force along S
+        force_col = sum(direction[c] * hc[FORCE_COLUMNS[c]] for c in range(3)) * (area / effective)
+    else:
+        force_col = hc[FORCE_COLUMNS[comp]]
     p_hist = sign * force_col / area
     if given is None:
         # each history row holds the force held over the EM step that ends there (the mean of GetDP's
@@ -315,11 +355,15 @@ def run_compare(case_path: str, out: Path, *, overrides: list[str] | None = None
                       "surface": box, "description": desc}
         if not three_d and box is not None:
             pulse_info["nominal_area_m2"] = nominal
-        if three_d:  # the device's area: the sector's loaded triangles x 360 / angle (compare3d.py)
-            pulse_info.update(sector_area_m2=area, nominal_area_m2=nominal_area(box), symmetry_factor=sym)
-            pulse_info["description"] = desc.replace(f"on {area * 1e4:.4g} cm^2", f"on {area * sym * 1e4:.4g} cm^2 "
-                                                     f"(the sector's loaded triangles x {sym:g}; nominal "
-                                                     f"{nominal_area(box) * 1e4:.4g} cm^2)")
+        if three_d:  # the device's area: the model's loaded triangles x the symmetry factor (compare3d.py)
+            pulse_info.update(model_area_m2=area, effective_area_m2=effective, direction=direction.tolist(),
+                              symmetry_factor=sym, body=work.name)
+            annulus = nominal_area(box, direction)
+            if annulus is not None:
+                pulse_info["nominal_area_m2"] = annulus
+            pulse_info["description"] = desc.replace(
+                f"on {area * 1e4:.4g} cm^2", f"on {area * sym * 1e4:.4g} cm^2 (the model's loaded triangles x {sym:.6g}"
+                + (f"; nominal {annulus * 1e4:.4g} cm^2)" if annulus is not None else ")"))
     else:
         loads = given
         pulse_info = {"source": f"given: {pressure_case}", "loads": given, "area_m2": area,
@@ -347,7 +391,7 @@ def run_compare(case_path: str, out: Path, *, overrides: list[str] | None = None
     metrics["max_speed_rel_diff"] = abs(metrics["max_speed_pressure_m_s"] / metrics["max_speed_coupled_m_s"] - 1)
     metrics["impulse_rel_diff"] = abs(metrics["impulse_pressure_Ns"] / metrics["impulse_coupled_Ns"] - 1)
     metrics["wall_time_ratio"] = metrics["wall_time_coupled_s"] / metrics["wall_time_pressure_s"]
-    for key in ("max_deflection_mm", "max_radial_displacement_mm"):
+    for key in ("max_deflection_mm", "max_radial_displacement_mm") + tuple(f"{work.name}_max_u{c}_mm" for c in "xyz"):
         if key in mc and key in mp:
             metrics[f"{key}_coupled"], metrics[f"{key}_pressure"] = mc[key], mp[key]
             metrics[f"{key}_rel_diff"] = abs(mp[key] / mc[key] - 1) if mc[key] else float("nan")
@@ -365,7 +409,7 @@ def run_compare(case_path: str, out: Path, *, overrides: list[str] | None = None
               "coupled_metrics": mc, "pressure_metrics": mp}
     write_json(root / "compare.json", report)
     try:
-        _plots(root, hc, hp, comp, sign * area, loads, (xc, uc), (xp, up), work.name, case, three_d)
+        _plots(root, hc, hp, comp, sign * area, loads, (xc, uc), (xp, up), work.name, box, direction)
     except Exception as exc:  # plots never decide the result
         log.warning("compare plots failed: %s", exc)
     return report
@@ -407,7 +451,10 @@ def _given_loads(path: str) -> list[dict]:
 
 
 def _plots(root: Path, hc, hp, comp: int, area: float, loads: list[dict], shape_c, shape_p, body: str,
-           case: Case, three_d: bool = False) -> None:
+           box: dict | None = None, direction: np.ndarray | None = None) -> None:
+    """``compare_pressure.png`` (F / A of both runs: F along ``direction``, a 3D model's unit area vector, else
+    component ``comp``), ``compare_shapes.png`` (a 3D model: the profile of the loaded surface ``box``) and
+    ``compare_histories.png`` in ``root / "plots"``."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -415,10 +462,14 @@ def _plots(root: Path, hc, hp, comp: int, area: float, loads: list[dict], shape_
 
 
     plots = root / "plots"
-    col = FORCE_COLUMNS[comp]
+    def along(h):
+        if direction is None:
+            return h[FORCE_COLUMNS[comp]]
+        return sum(direction[c] * h[FORCE_COLUMNS[c]] for c in range(3))
+
     fig, ax = plt.subplots(figsize=(6, 3.4))
-    ax.plot(hc["time_s"] * 1e6, hc[col] / area / 1e6, "o-", ms=3, label="coupled: F / A")
-    ax.plot(hp["time_s"] * 1e6, hp[col] / area / 1e6, "--", label="pressure run: F / A")
+    ax.plot(hc["time_s"] * 1e6, along(hc) / area / 1e6, "o-", ms=3, label="coupled: F / A")
+    ax.plot(hp["time_s"] * 1e6, along(hp) / area / 1e6, "--", label="pressure run: F / A")
     ax.set(xlabel="time (µs)", ylabel="pressure on the workpiece (MPa)", title="coupled vs pressure pulse")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
@@ -427,14 +478,14 @@ def _plots(root: Path, hc, hp, comp: int, area: float, loads: list[dict], shape_
     plt.close(fig)
 
     fig, ax = plt.subplots(figsize=(6, 3.4))
-    if three_d:  # the sector's sheet: the meridian profile of its lower surface
-        g = case.geometry
-        plot_meridian(ax, shape_c, shape_p, g.coil_gap, 1e-6 * g.sheet_thickness)
+    if direction is not None:  # a 3D model: the profile of its loaded surface
+        plot_profile(ax, shape_c, shape_p, box, direction)
+        ax.set(title=f"final shape of {body} (the loaded surface)")
     else:
         for (x, u), lab, st in ((shape_c, "coupled", "."), (shape_p, "pressure", "x")):
             y = x + u
             ax.plot(y[:, 0] * 1e3, y[:, 1] * 1e3, st, ms=2, label=lab)
-    ax.set(xlabel="r (mm)", ylabel="z (mm)", title=f"final shape of {body}" + (" (lower surface)" if three_d else ""))
+        ax.set(xlabel="r (mm)", ylabel="z (mm)", title=f"final shape of {body}")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     fig.tight_layout()

@@ -2,8 +2,8 @@
 levitated plates, projectiles), integrated by the same central differences as the explicit solver.
 
 A rigid body carries its nodes (the EM mesh's nodes of that conductor follow them) and moves by one
-translation u(t): along the axis only in axisymmetry, in x and y in plane models (each component may
-be fixed). Forces are resultants: the sum of the nodal forces handed to :meth:`RigidBody.advance`,
+translation u(t): along the axis only in axisymmetry, in x and y in plane models, in x, y and z in 3D
+(each component may be fixed; the dimension is the length of ``free``). Forces are resultants: the sum of the nodal forces handed to :meth:`RigidBody.advance`,
 held from the current time on (as for the deformable bodies), plus gravity. A constant force is
 integrated exactly (central differences are exact for quadratic trajectories).
 
@@ -27,7 +27,7 @@ __all__ = ["EndStop", "RigidBody"]
 
 @dataclass(frozen=True)
 class EndStop:
-    """A limit of a rigid body's translation: component ``axis`` (0: x or r, 1: y or z) of the
+    """A limit of a rigid body's translation: component ``axis`` (0: x or r, 1: y or z in 2D; 2: z in 3D) of the
     translation stays >= ``position`` (m) when ``side`` is +1 (a support below), <= when -1 (a stop
     above); ``restitution`` in [0, 1] is the ratio of rebound to impact speed."""
 
@@ -37,8 +37,8 @@ class EndStop:
     restitution: float = 0.0
 
     def __post_init__(self) -> None:
-        if self.axis not in (0, 1):
-            raise ValueError(f"end stop axis must be 0 (x/r) or 1 (y/z), got {self.axis}")
+        if self.axis not in (0, 1, 2):
+            raise ValueError(f"end stop axis must be 0 (x/r), 1 (y/z) or 2 (z in 3D), got {self.axis}")
         if self.side not in (1, -1):
             raise ValueError(f"end stop side must be +1 (stays above) or -1 (stays below), got {self.side}")
         if not 0.0 <= self.restitution <= 1.0:
@@ -57,18 +57,18 @@ class RigidBody:
     ----------
     name : str
         Body name (the key of its forces and positions).
-    nodes : ndarray (N, 2)
-        Node coordinates at zero translation, m.
+    nodes : ndarray (N, dim)
+        Node coordinates at zero translation, m (dim = len(free): 2, or 3 in 3D).
     mass : float
         kg (an axisymmetric body: the whole ring's mass).
-    free : (bool, bool)
-        Which translation components move: (False, True) in axisymmetry (axial only).
-    gravity : (float, float)
-        Acceleration of gravity, m/s^2 (e.g. (0, -9.81)).
-    offset : (float, float)
-        Initial translation, m.
-    velocity : (float, float)
-        Initial velocity, m/s.
+    free : (bool, bool) or (bool, bool, bool)
+        Which translation components move: (False, True) in axisymmetry (axial only); three in 3D.
+    gravity : tuple of dim floats
+        Acceleration of gravity, m/s^2 (e.g. (0, -9.81)); default zero.
+    offset : tuple of dim floats
+        Initial translation, m; default zero.
+    velocity : tuple of dim floats
+        Initial velocity, m/s; default zero.
     stops : tuple of EndStop
         Limits of the translation.
     """
@@ -76,10 +76,10 @@ class RigidBody:
     name: str
     nodes: np.ndarray
     mass: float
-    free: tuple[bool, bool] = (False, True)
-    gravity: tuple[float, float] = (0.0, 0.0)
-    offset: tuple[float, float] = (0.0, 0.0)
-    velocity: tuple[float, float] = (0.0, 0.0)
+    free: tuple[bool, ...] = (False, True)
+    gravity: tuple[float, ...] | None = None
+    offset: tuple[float, ...] | None = None
+    velocity: tuple[float, ...] | None = None
     stops: tuple[EndStop, ...] = ()
     #: translation (m), velocity at the last half step (m/s), acceleration (m/s^2), applied force (N)
     u: np.ndarray = field(init=False)
@@ -96,11 +96,23 @@ class RigidBody:
     def __post_init__(self) -> None:
         if not (math.isfinite(self.mass) and self.mass > 0.0):
             raise ValueError(f"rigid body {self.name!r}: mass must be > 0 kg, got {self.mass}")
-        self.nodes = np.asarray(self.nodes, float)[:, :2].copy()
+        dim = self.dim = len(self.free)
+        if dim not in (2, 3):
+            raise ValueError(f"rigid body {self.name!r}: free has 2 or 3 components, got {self.free!r}")
+        zero = (0.0,) * dim
+        self.gravity = zero if self.gravity is None else tuple(self.gravity)
+        self.offset = zero if self.offset is None else tuple(self.offset)
+        self.velocity = zero if self.velocity is None else tuple(self.velocity)
+        for key in ("gravity", "offset", "velocity"):
+            if len(getattr(self, key)) != dim:
+                raise ValueError(f"rigid body {self.name!r}: {key} needs {dim} components, got {getattr(self, key)!r}")
+        if any(st.axis >= dim for st in self.stops):
+            raise ValueError(f"rigid body {self.name!r}: an end stop's axis is beyond the {dim} components")
+        self.nodes = np.asarray(self.nodes, float)[:, :dim].copy()
         self._mask = np.array(self.free, bool)
         self.u = np.array(self.offset, float) * self._mask
         self.v = np.array(self.velocity, float) * self._mask
-        self.force = np.zeros(2)
+        self.force = np.zeros(dim)
         self._dt_prev = 0.0
         for s in self.stops:
             if s.gap(self.u) < -1e-15 * max(1.0, abs(s.position)):
@@ -123,8 +135,8 @@ class RigidBody:
 
     def advance(self, dt: float, n_steps: int, force: np.ndarray | None = None) -> None:
         """``n_steps`` central-difference steps of ``dt`` (s) with the resultant ``force`` (N, shape
-        (2,)) held from now on (None: no applied force)."""
-        self.force = np.zeros(2) if force is None else np.asarray(force, float).reshape(2).copy()
+        (dim,)) held from now on (None: no applied force)."""
+        self.force = np.zeros(self.dim) if force is None else np.asarray(force, float).reshape(self.dim).copy()
         f_total = (self.force + self.mass * np.asarray(self.gravity, float)) * self._mask
         for _ in range(int(n_steps)):
             self.a = self._acceleration()
@@ -147,7 +159,7 @@ class RigidBody:
 
     # ------------------------------------------------------------------ outputs
     def positions(self) -> np.ndarray:
-        """Node coordinates (N, 2), m."""
+        """Node coordinates (N, dim), m."""
         return self.nodes + self.u
 
     def velocity_now(self) -> np.ndarray:
@@ -162,9 +174,9 @@ class RigidBody:
 
     def history(self) -> dict[str, float]:
         """History values: translation (m), velocity (m/s), acceleration (m/s^2), applied force (N)
-        of each free component, named ``<body>_<quantity>_<x|y>_<unit>``."""
+        of each free component, named ``<body>_<quantity>_<x|y|z>_<unit>``."""
         out = {}
-        for i, c in enumerate("xy"):
+        for i, c in enumerate("xyz"[:self.dim]):
             if self._mask[i]:
                 out[f"{self.name}_position_{c}_m"] = float(self.u[i])
                 out[f"{self.name}_velocity_{c}_m_s"] = float(self.velocity_now()[i])
@@ -181,6 +193,7 @@ class RigidBody:
     def load_state_dict(self, d: dict[str, np.ndarray]) -> None:
         """Restore a :meth:`state_dict`."""
         vec, sc = np.asarray(d["vectors"], float), np.asarray(d["scalars"], float)
-        self.u, self.v, self.a, self.force = vec[0:2].copy(), vec[2:4].copy(), vec[4:6].copy(), vec[6:8].copy()
+        d = self.dim
+        self.u, self.v, self.a, self.force = (vec[i * d:(i + 1) * d].copy() for i in range(4))
         self.time, self.step_count, self._dt_prev = float(sc[0]), int(sc[1]), float(sc[2])
         self.stop_dissipated_J, self.work_J = float(sc[3]), float(sc[4])

@@ -65,6 +65,7 @@ Conventions: GetDP frame (x, y) = (r, z) in axisymmetry; a positive coil current
 direction (receptor convention).  Massive conductors carry only induced current (no electric
 scalar potential): exact for closed rings in axisymmetry; in planar they are shorted at infinity.
 """
+from .applied_field import AppliedField
 from .mesh import EMMesh, Rect, coil_conductor_mesh, coil_tag, conductor_tag, slab_mesh, write_msh22
 from .metrics import em_metrics
 from .runner import FAST_MPI_ENV, GetDPError, RunInfo, find_getdp, run_getdp
@@ -75,5 +76,5 @@ __all__ = [
     "EMMesh", "Rect", "coil_conductor_mesh", "coil_tag", "conductor_tag", "slab_mesh", "write_msh22",
     "em_metrics", "FAST_MPI_ENV", "GetDPError", "RunInfo", "find_getdp", "run_getdp", "Circuit", "Coil",
     "Conductor", "CurrentTable", "DampedSine", "EMModel", "EMState", "EMStepResult", "GetDPSolver",
-    "DEFAULT_PETSC_ARGS",
+    "DEFAULT_PETSC_ARGS", "AppliedField",
 ]

@@ -56,6 +56,8 @@ def solve_harmonic(model: EMModel, mesh: EMMesh, frequency: float, currents: Seq
     ``work_dir`` is touched)."""
     if model.circuit is not None:
         raise ValueError("a time-harmonic solve takes prescribed coil currents, not a capacitor-bank circuit")
+    if model.applied_field is not None:
+        raise ValueError("a time-harmonic solve has no applied field (its source is a transient's step difference)")
     if len(currents) != len(model.coils):
         raise ValueError(f"{len(model.coils)} coils but {len(currents)} current phasors")
     if not frequency > 0.0:

@@ -20,12 +20,21 @@ Physical ids (as in 2D where they exist, :mod:`.mesh`):
 400 + k               skin of conductor k (the tree of the gauge starts there)
 500 + k, 600 + k      faces of coil k on the planes phi = 0 and phi = angle: the electrodes
                       (current in, out) of the electrokinetic pre-solve of its direction
+700 + k               the cut of closed coil k: triangles spanning its whole cross-section,
+                      conforming with its tetrahedra (``Coil3D(direction="cut")``; the current
+                      crosses it along the triangles' normal (x1 - x0) x (x2 - x0))
 ====================  ==================================================================
+
+:func:`physical_surface_area` measures a physical surface group of an MSH 2.2 file (an electrode's or a
+cut's area: a coil's section); :func:`cut_orientation` checks a cut's triangles and gives the sign of its
+normal against a direction.
 """
 from __future__ import annotations
 
+import functools
 import logging
 import math
+import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Sequence
@@ -37,6 +46,7 @@ from .mesh import AIR, OUTER, SHELL, Rect, coil_tag, conductor_tag, gmsh_session
 logger = logging.getLogger(__name__)
 
 SYM_A, SYM_H, SKIN_BASE, ELEC_IN_BASE, ELEC_OUT_BASE = 14, 15, 400, 500, 600
+CUT_BASE = 700  # the cut of closed coil k is physical CUT_BASE + k (Coil_DirType = 3)
 
 
 def skin_tag(k: int) -> int:
@@ -115,6 +125,115 @@ class Mesh3D:
         return rows
 
 
+def cut_tag(k: int) -> int:
+    """Physical id of the cut surface of closed coil ``k`` (1-based)."""
+    return CUT_BASE + k
+
+
+@functools.lru_cache(maxsize=16)
+def _triangles_cached(path: str, mtime_ns: int, size: int, tag: int) -> tuple[np.ndarray, np.ndarray]:
+    text = Path(path).read_text()
+    nodes = text.split("$Nodes\n", 1)[1].split("$EndNodes", 1)[0].split("\n", 1)[1]
+    nd = np.array(nodes.split(), dtype=float).reshape(-1, 4)
+    body = text.split("$Elements\n", 1)[1].split("$EndElements", 1)[0].split("\n", 1)[1]
+    tris = []
+    for line in body.splitlines():
+        r = line.split()
+        # id, type (2: 3-node triangle), number of tags, tags (the first: the physical id), nodes
+        if len(r) > 3 and r[1] == "2" and int(r[3]) == tag:
+            tris.append([int(v) for v in r[3 + int(r[2]):]])
+    if not tris:
+        return np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int64)
+    tri = np.array(tris, dtype=np.int64)
+    used = np.unique(tri)
+    index = {int(n): i for i, n in enumerate(used)}
+    node_row = np.zeros(int(nd[:, 0].max()) + 1, dtype=np.int64)
+    node_row[nd[:, 0].astype(np.int64)] = np.arange(len(nd))
+    points = nd[node_row[used], 1:]
+    return points, np.vectorize(index.__getitem__, otypes=[np.int64])(tri)
+
+
+def read_surface_triangles(path: str | Path, tag: int) -> tuple[np.ndarray, np.ndarray]:
+    """The 3-node triangles of physical surface group ``tag`` of an ASCII MSH 2.2 file: (points (n, 3) m,
+    the nodes they use; triangles (m, 3), rows of ``points`` in the file's node order, so that
+    (x1 - x0) x (x2 - x0) is the normal GetDP sees). Both empty when the group has no triangle.
+    Cached per file (path, modification time and size)."""
+    st = os.stat(path)
+    points, tri = _triangles_cached(str(Path(path).resolve()), st.st_mtime_ns, st.st_size, int(tag))
+    return points.copy(), tri.copy()
+
+
+def _triangle_normals(path: str | Path, tag: int) -> np.ndarray:
+    """(m, 3) half cross products 0.5 (x1 - x0) x (x2 - x0) (m^2) of the triangles of group ``tag``."""
+    points, tri = read_surface_triangles(path, tag)
+    p = points[tri]
+    return 0.5 * np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+
+
+def physical_surface_area(path: str | Path, tag: int) -> float:
+    """Area (m^2) of the physical surface group ``tag`` of an ASCII MSH 2.2 file: the sum of its triangles'
+    areas (exact for a plane face; a curved face's facets otherwise). 0.0 for a group without triangles.
+    Used for a coil's conductor section: its electrode 500 + k or its cut 700 + k."""
+    return float(np.linalg.norm(_triangle_normals(path, tag), axis=1).sum())
+
+
+def cut_orientation(path: str | Path, tag: int, direction: tuple[float, float, float] | None = None) -> int:
+    """Check the cut surface ``tag`` of an MSH 2.2 file and return the sign that makes a coil's current
+    cross it along ``direction``.
+
+    The cut must have triangles, oriented consistently (every edge shared by two triangles runs once each
+    way: what GetDP's ``OnPositiveSideOf`` needs to tell the sides apart). With ``direction`` None the
+    current crosses the cut along its triangles' normal (x1 - x0) x (x2 - x0): +1. Otherwise +1 or -1,
+    the sign of (sum of the triangles' vector areas) . ``direction``; a direction within about 6 degrees
+    of the cut's plane (|cos| < 0.1 against the mean normal) is refused as ambiguous.
+
+    Raises
+    ------
+    ValueError
+        No triangle in the group, inconsistent orientation, or an ambiguous ``direction``.
+    """
+    points, tri = read_surface_triangles(path, tag)
+    if tri.shape[0] == 0:
+        raise ValueError(f"{path}: the cut (physical surface {tag}) has no triangles")
+    edges = np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]])
+    n = points.shape[0]
+    directed = edges[:, 0] * n + edges[:, 1]
+    if np.unique(directed).size != directed.size:
+        raise ValueError(f"{path}: the triangles of the cut {tag} are not consistently oriented (an edge runs "
+                         "twice the same way): reorient its surfaces so that their normals agree")
+    if direction is None:
+        return 1
+    d = np.asarray(direction, float)
+    if d.shape != (3,) or not np.linalg.norm(d) > 0:
+        raise ValueError(f"the cut's direction must be a non-zero 3-vector, got {direction!r}")
+    normals = _triangle_normals(path, tag)
+    along = float(normals.sum(axis=0) @ d) / float(np.linalg.norm(d))
+    area = float(np.linalg.norm(normals, axis=1).sum())
+    if abs(along) < 0.1 * area:
+        raise ValueError(f"{path}: the direction {tuple(d)} is nearly tangent to the cut {tag} "
+                         f"(its vector area along it {along:.3g} m^2 of {area:.3g} m^2)")
+    return 1 if along > 0 else -1
+
+
+def read_msh22_triangles(path: str | Path, tags: Sequence[int] | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """(triangles (m, 3) as 0-based node rows -- the rows of :func:`read_msh22_tets`' points --, their
+    physical ids) of the triangles of an ASCII MSH 2.2 file whose physical id is one of ``tags`` (None: all;
+    a triangle in two physical groups appears twice)."""
+    text = Path(path).read_text()
+    nodes = text.split("$Nodes\n", 1)[1].split("$EndNodes", 1)[0].split("\n", 1)[1]
+    ids = np.array(nodes.split(), dtype=float).reshape(-1, 4)[:, 0].astype(np.int64)
+    index = np.zeros(int(ids.max()) + 1, dtype=np.int64)
+    index[ids] = np.arange(len(ids))
+    body = text.split("$Elements\n", 1)[1].split("$EndElements", 1)[0].split("\n", 1)[1]
+    want = None if tags is None else {str(int(t)) for t in tags}
+    rows = [r.split() for r in body.splitlines() if r]
+    tri = [(int(r[3]), [int(v) for v in r[3 + int(r[2]):6 + int(r[2])]]) for r in rows
+           if r[1] == "2" and (want is None or r[3] in want)]
+    if not tri:
+        return np.zeros((0, 3), np.int64), np.zeros(0, np.int64)
+    return index[np.array([c for _, c in tri], np.int64)], np.array([t for t, _ in tri], np.int64)
+
+
 def read_msh22_tets(path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(points (n, 3) m, tets (m, 4) 0-based, element ids, physical ids) of the tetrahedra of an ASCII
     MSH 2.2 file. Read from the file, not from gmsh's API: gmsh renumbers the elements it writes
@@ -153,6 +272,7 @@ def ring_sector_mesh(
     fine_box: tuple[tuple[float, float, float, float, float, float], float] | None = None,
     z_cut: float | None = None,
     racetrack: float = 0.0,
+    conductor_names: Sequence[str] = (),
 ) -> Mesh3D:
     """Tetrahedral mesh of a sector of ring turns (one coil) and conductor rings/disks about the z-axis.
 
@@ -166,6 +286,7 @@ def ring_sector_mesh(
     h_coil, h_conductor, h_air : element sizes (m) in the turns, the conductors, at the sphere.
     h_centre : element size at the origin (m), growing by ``grading`` per metre of distance (the
         region where the centre field is probed); None: no local refinement.
+    conductor_names : names of the conductors' physical groups (:func:`group_name`; default "conductor_k").
     """
     if not 0 < sector_deg <= 180:
         raise ValueError("sector_deg must be in (0, 180]")
@@ -301,7 +422,7 @@ def ring_sector_mesh(
             fmin = model.mesh.field.add("Min")
             model.mesh.field.setNumbers(fmin, "FieldsList", fields)
             model.mesh.field.setAsBackgroundMesh(fmin)
-        name_groups(gmsh)
+        name_groups(gmsh, conductor_names)
         generate_tets(gmsh, path)
     mesh = read_mesh3d(path, float(sector_deg), electrode_area)
     logger.info("3D mesh %s: %d tetrahedra, %d nodes", path.name, mesh.n_tets, mesh.n_nodes)

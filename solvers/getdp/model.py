@@ -5,12 +5,15 @@ import hashlib
 import json
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
-from typing import Sequence
+from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 
 from .mesh import EMMesh
 from .runner import RunInfo
+
+if TYPE_CHECKING:
+    from .applied_field import AppliedField
 
 
 # ----------------------------------------------------------------------------- model
@@ -104,6 +107,10 @@ class EMModel:
     centred at ``shell_centre``.  ``h0_step`` imposes a tangential field step H0 (A/m)
     on boundary 13 (used by the diffusion verification).  ``probes``: points (x, y) where
     B is reported every sub-step (avoid x = 0 exactly in axisymmetry: NaN on the axis).
+    ``applied_field``: a uniform applied field (:class:`~.applied_field.AppliedField`, 2 components:
+    (x, y), in axisymmetry (r, z) with only z allowed), with or without coils; the decks' reduced-field
+    split (see :mod:`.applied_field`): B, j, forces and Joule power are total, the magnetic energy and
+    the nodal unknown (``a_nodes``, the state) are those of the reaction field.
     """
 
     axisymmetric: bool
@@ -114,8 +121,18 @@ class EMModel:
     shell_centre: tuple[float, float] = (0.0, 0.0)
     h0_step: float = 0.0
     probes: list = field(default_factory=list)
+    applied_field: AppliedField | None = None
 
     def __post_init__(self):
+        from .applied_field import AppliedField
+
+        if isinstance(self.applied_field, dict):
+            self.applied_field = AppliedField(**self.applied_field)
+        if self.applied_field is not None:
+            self.applied_field.unit_vector(2)   # 2 components, or a ValueError
+            if self.h0_step:
+                raise ValueError("an applied field and h0_step (the tangential field on boundary 13) are two ways "
+                                 "to impose an external field: give one")
         self.coils = [c if isinstance(c, Coil) else Coil(**c) for c in self.coils]
         self.conductors = [c if isinstance(c, Conductor) else Conductor(**c) for c in self.conductors]
         if isinstance(self.circuit, dict):
@@ -154,6 +171,8 @@ class EMState:
     (``capacitor_voltage_prev`` V, ``current_prev`` A), and the values at ``t`` that open the
     next step's trapezoid means: ``coil_power`` (W per coil), ``force_density`` (N/m^3 per
     conductor element) at element centroids ``force_points`` (material coordinates).
+    ``applied_f``, ``applied_f_prev``: with an applied field, its unit time function of the states at
+    ``t`` and at ``t - dt_prev`` (0 for the state at rest).
     """
 
     t: float = 0.0
@@ -177,6 +196,10 @@ class EMState:
     force_points: list | None = None
     # BDF2 by restart (a template deck, :mod:`.template`): a .res whose last solution is the whole x_{n-1}
     res_prev_path: str | None = None
+    # applied field (EMModel.applied_field): the deck's unit time function of the state x_n and of x_{n-1}
+    # (0 at rest: a run starts with no field, so f(t0) != 0 switches the field on in the first step)
+    applied_f: float = 0.0
+    applied_f_prev: float = 0.0
 
     def to_dict(self) -> dict:
         """The fields as a dict for JSON: lists are shared, not copied (``dataclasses.asdict``'s

@@ -116,6 +116,9 @@ class PersistentGetDPSolver(GetDPSolver):
                     numbers["Init2_Vc"], numbers["Init2_I"] = state.capacitor_voltage_prev, state.current_prev
         elif state.step_index or state.res_path:
             raise ValueError("the EM state has no nodal values to start a getdp process from")
+        if m.applied_field is not None:   # the unit time function of the seed states (0 at rest)
+            numbers["App_F1"] = state.applied_f
+            numbers["App_F2"] = state.applied_f_prev if numbers["PF_Seed"] == 2 else state.applied_f
         numbers.update(extra_numbers or {})
         return PersistentProcess(run_dir, mesh, numbers, lines, self.deck, executable=self.executable,
                                  petsc_args=self.petsc_args, time_limit=self.timeout, verbosity=self.verbosity)
@@ -222,6 +225,9 @@ class PersistentGetDPSolver(GetDPSolver):
                             coil_heat=result.coil_heat.tolist(), dt_prev=result.dt,
                             capacitor_voltage_prev=state.capacitor_voltage, current_prev=state.current,
                             coil_power=result.coil_power[-1].tolist())
+        if self.model.applied_field is not None:
+            new_state.applied_f = float(self.model.applied_field.unit_f(float(t_end)))
+            new_state.applied_f_prev = float(state.applied_f)
         return result, new_state
 
     def _result_of(self, ans: StepAnswer, mesh: EMMesh, mat: np.ndarray, state: EMState, t_end: float,

@@ -38,7 +38,8 @@ from .mesh3d import Mesh3D
 from .persistent_process import FLAG_ELEM, FLAG_FIELDS, FLAG_STATE, PersistentProcess, read_binary_res
 from .runner import GetDPError, RunInfo, log_tail
 from .solver import DECK_DIR
-from .solver3d import DECK3D, DEFAULT_PETSC_ARGS_3D, EM3DModel, EM3DResult, model_numbers, read_results3d
+from .solver3d import (DECK3D, DEFAULT_PETSC_ARGS_3D, EM3DModel, EM3DResult, applied_state_values, model_numbers,
+                       read_results3d)
 from .stepper3d import EM3DState, read_res_vector, write_res_vector
 
 log = logging.getLogger(__name__)
@@ -108,6 +109,8 @@ class PersistentEM3DStepper:
         self.segment += 1
         numbers, lines = model_numbers(self.model, mesh)
         numbers.update(PF_T1=float(state.t), PF_Step0=int(state.steps), PF_DtPrev=0.0, PF_Seed=1)
+        if self.model.applied_field is not None:   # the unit time function of the seed states (0 at rest)
+            numbers["App_F1"], numbers["App_F2"] = applied_state_values(self.model, state.t, state.steps, state.dt_prev)
         seed = None
         if state.steps or state.res_path is not None:
             if state.res_path is None or state.x_prev is None:
@@ -158,7 +161,8 @@ class PersistentEM3DStepper:
              field_output: bool = False) -> tuple[EM3DResult, EM3DState]:
         """One BDF2 step from ``state`` to ``t1`` (s) on ``mesh`` (the connectivity of the process, nodes at
         their positions for this step; only ``points``, ``tets``, ``tet_ids``, ``tet_tags`` are used, the
-        file ``mesh.path`` is not read); see :meth:`.EM3DStepper.step`. A state that is not the process's
+        file ``mesh.path`` is not read -- except its symmetry faces when a process starts with an applied
+        field); see :meth:`.EM3DStepper.step`. A state that is not the process's
         (another connectivity, a restored state) starts a new process from it."""
         dt = t1 - state.t
         if not dt > 0:

@@ -224,6 +224,20 @@ class RunInfo:
     warnings: list[str] = field(default_factory=list)
 
 
+def run_logged(argv: list[str], cwd: Path, log_path: Path, time_limit: float | None) -> tuple[int, str]:
+    """Run an external program (``argv``, in ``cwd``) with its output in ``log_path`` (first line: the argv),
+    stopped after ``time_limit`` seconds and never outliving this process (:func:`child_preexec`).
+
+    Returns (return code, the log's text after the argv line). Raises ``subprocess.TimeoutExpired`` past the
+    limit and ``OSError`` when the program cannot start: the caller names the input in its own error."""
+    with open(log_path, "w") as fh:
+        fh.write("# argv: " + " ".join(argv) + "\n")
+        fh.flush()
+        r = subprocess.run(argv, cwd=cwd, stdout=fh, stderr=subprocess.STDOUT, timeout=time_limit, check=False,
+                           preexec_fn=child_preexec)
+    return r.returncode, Path(log_path).read_text(errors="replace").split("\n", 1)[-1]
+
+
 def find_getdp(executable: str | os.PathLike = "getdp") -> str:
     """Absolute path of the getdp executable, or GetDPError."""
     exe = str(executable)

@@ -166,6 +166,8 @@ class GetDPSolver:
             numbers["Flag_InitA"] = 1
             data_lines.append(init_list_line("InitA_List", ids, vals))
         numbers.update(TimeInit=t_init, TimeFinal=float(t_end), NbSteps=int(n_sub))
+        if model.applied_field is not None:
+            numbers["App_F1"] = self._applied_start(state, float(t_end))
         if model.circuit is not None:
             numbers["Init_Vc"] = init_vc
             numbers["Init_I"] = init_i
@@ -189,6 +191,9 @@ class GetDPSolver:
             self._bdf2_history(mesh, pts, state, result, new_state, a_prev)
         # the .pre of a run without the Init list is reusable by later restarts on this connectivity
         new_state.pre_path = str(run_dir / "em.pre") if "Flag_InitA" not in numbers else None
+        if model.applied_field is not None:
+            new_state.applied_f = float(model.applied_field.unit_f(float(t_end)))
+            new_state.applied_f_prev = float(state.applied_f)
         if self.keep_runs is not None:  # bound the disk use of long runs; never the newest runs
             if run_dir in self._runs:
                 self._runs.remove(run_dir)
@@ -196,6 +201,14 @@ class GetDPSolver:
             while len(self._runs) > self.keep_runs:
                 discard_folder(self._runs.pop(0))
         return result, new_state
+
+    def _applied_start(self, state: EMState, t_end: float) -> float:
+        """The applied field's unit time function of the run's start state: ``state.applied_f`` (implicit
+        Euler), or with BDF2 the combination c1 f_{n-1} - c2 f_{n-2} that x~ is of the unknowns."""
+        if self.time_scheme != "bdf2" or not (state.dt_prev and state.res_path is not None):
+            return float(state.applied_f)
+        _, c1, c2 = bdf2_coefficients(t_end - state.t, state.dt_prev)
+        return float(c1 * state.applied_f - c2 * state.applied_f_prev)
 
     #: BDF2 by restart from a synthetic x_tilde (a subclass's ``_bdf2_restart``), not the Init path
     bdf2_by_restart = False
@@ -351,6 +364,11 @@ class GetDPSolver:
             nb[f"Cond_sigma_{k}"] = c.sigma
         if m.circuit is not None:
             nb.update(C_bank=m.circuit.C, R_ext=m.circuit.R_ext, L_ext=m.circuit.L_ext)
+        if m.applied_field is not None:
+            if self.extra_numbers.get("TimeTheta", 1.0) != 1.0:
+                raise ValueError("an applied field needs TimeTheta = 1 (its source is the implicit-Euler / BDF2 "
+                                 "difference of the step)")
+            nb.update(m.applied_field.numbers_2d(m.axisymmetric, mesh.points, mesh.lines, mesh.line_tags, m.h0_step))
         return nb
 
     def _table_lines(self) -> list[str]:
@@ -363,6 +381,8 @@ class GetDPSolver:
                 pairs = [f"{t:.17g}, {v:.17g}" for t, v in zip(times, values)]
                 body = ",\n  ".join(", ".join(pairs[j:j + 8]) for j in range(0, len(pairs), 8))
                 lines.append(f"Coil_Table_{k}() = {{\n  {body}}};")
+        if self.model.applied_field is not None:
+            lines += self.model.applied_field.table_lines()
         return lines
 
     def conductor_nodes(self, mesh: EMMesh) -> tuple[np.ndarray, np.ndarray]:

@@ -24,7 +24,9 @@ import numpy as np
 
 from .files import read_element_table, read_table
 from .mesh import AIR, COIL_BASE, CONDUCTOR_BASE, OUTER, SHELL, coil_tag, conductor_tag
-from .mesh3d import ELEC_IN_BASE, ELEC_OUT_BASE, SKIN_BASE, SYM_A, Mesh3D, skin_tag
+from .applied_field import AppliedField, planes_of_faces
+from .mesh3d import (CUT_BASE, ELEC_IN_BASE, ELEC_OUT_BASE, SKIN_BASE, SYM_A, SYM_H, Mesh3D, cut_orientation, cut_tag,
+                     physical_surface_area, read_msh22_triangles, skin_tag)
 from .model import Circuit, Conductor, CurrentTable, DampedSine
 from .runner import RunInfo, run_getdp
 
@@ -37,7 +39,7 @@ DEFAULT_PETSC_ARGS_3D = ("-ksp_type", "preonly", "-pc_type", "lu", "-pc_factor_m
 
 
 #: ``Coil3D.direction`` -> the deck's ``Coil_DirType``
-DIRECTIONS = {"azimuthal": 0, "deck": 1, "electrokinetic": 2}
+DIRECTIONS = {"azimuthal": 0, "deck": 1, "electrokinetic": 2, "cut": 3}
 
 
 @dataclass
@@ -47,10 +49,18 @@ class Coil3D:
     ``direction``: ``"azimuthal"`` (about the z-parallel axis through ``axis`` = (x, y), m: ring or
     circular coils; a positive current flows along +e_phi), ``"electrokinetic"`` (-grad v / |grad v|
     of a pre-solve in the coil, v = 1 on its electrode 500+k, 0 on 600+k: the current enters at 500+k)
+    , ``"cut"`` (a CLOSED coil: -grad v / |grad v| of a pre-solve in which v jumps by 1 across the cut
+    surface 700+k, a surface spanning the coil's whole cross-section, conforming with its tetrahedra)
     or ``"deck"`` (the case deck defines ``CoilDir[Coil~{k}]``). ``section``: conductor cross-section
     of all turns (m^2); None: from the mesh -- azimuthal: sum over the coil's tetrahedra of
     V / (r alpha) (the ring's meridian section, alpha the sector angle); electrokinetic: the area of
-    the electrode where the current enters (``Mesh3D.electrode_area``). ``waveform`` without a circuit (A); ``sign`` +1 or -1.
+    the electrode where the current enters (``Mesh3D.electrode_area``); cut: the area of the cut
+    (:func:`~.mesh3d.physical_surface_area` of 700+k). ``cut_normal`` (direction ``"cut"`` only): the
+    current (times ``sign``) crosses the cut along this vector (x, y, z), e.g. (0, 1, 0) for a ring about
+    +z cut by the half-plane y = 0, x > 0 and a current along +e_phi; None: along the normal
+    (x1 - x0) x (x2 - x0) of the cut's triangles as written in the mesh file (:func:`~.mesh3d.cut_orientation`).
+    ``waveform`` without a circuit (A); ``sign`` +1 or -1;
+    ``name`` names its history columns when a model has several coils.
     """
 
     turns: int
@@ -60,6 +70,8 @@ class Coil3D:
     direction: str = "azimuthal"
     axis: tuple[float, float] = (0.0, 0.0)
     section: float | None = None
+    name: str = ""
+    cut_normal: tuple[float, float, float] | None = None
 
     def __post_init__(self) -> None:
         if self.sign not in (1, -1):
@@ -68,6 +80,8 @@ class Coil3D:
             raise ValueError(f"coil direction is one of {sorted(DIRECTIONS)}, got {self.direction!r}")
         if self.direction == "deck" and self.section is None:
             raise ValueError("a coil whose direction comes from the deck needs its section (m^2)")
+        if self.cut_normal is not None and self.direction != "cut":
+            raise ValueError("cut_normal orients the cut of a coil with direction='cut' only")
 
 
 @dataclass
@@ -83,6 +97,11 @@ class EM3DModel:
     ``order2_air`` False leaves the air and the shell first order (the face functions only on the coils'
     and conductors' faces) and ``order2_conductors`` (1-based numbers; None: all) chooses the
     conductors made second order, the others staying first order.
+    ``applied_field``: a uniform applied field (:class:`~.applied_field.AppliedField` with a 3-component
+    direction), alone or beside coils, by the reduced-field split (:mod:`.applied_field`): B, j, forces,
+    Joule power and probes are total, the magnetic energy is the reaction field's. It must be tangential
+    to the symmetry planes with n x a = 0 (physical 14: a sector's meridian planes admit only B_z) and
+    normal to those with n x h = 0 (physical 15); the run refuses other directions (``ValueError``).
     """
 
     coils: list[Coil3D] = field(default_factory=list)
@@ -96,8 +115,13 @@ class EM3DModel:
     order: int = 1
     order2_air: bool = True
     order2_conductors: tuple[int, ...] | None = None
+    applied_field: AppliedField | None = None
 
     def __post_init__(self) -> None:
+        if isinstance(self.applied_field, dict):
+            self.applied_field = AppliedField(**self.applied_field)
+        if self.applied_field is not None:
+            self.applied_field.unit_vector(3)   # 3 components, or a ValueError
         if self.order not in (1, 2):
             raise ValueError(f"the 3D EM order is 1 or 2, got {self.order!r}")
         if self.order2_conductors is not None and not set(self.order2_conductors) <= set(range(1, len(self.conductors) + 1)):
@@ -123,7 +147,8 @@ class EM3DResult:
     ``mesh.tets`` in the conductors; ``force_density`` (n_out, n_el, 3) N/m^3 and ``joule_density``
     (n_out, n_el) W/m^3 as element averages (element integral / volume); ``flux_density``
     (n_out, n_el, 3) T at the centroids; ``b_cells`` (n_tets, 3) T, B of every tetrahedron (rows of
-    ``mesh.tets``) after the last step (``field_output=True``); ``res_path`` getdp's solution file
+    ``mesh.tets``) after the last step (``field_output=True``); ``coil_dir`` (n_tets, 3), the unit current
+    direction of every coil tetrahedron (NaN elsewhere; ``direction_output=True``); ``res_path`` getdp's solution file
     (``restart_res`` of a following run); ``n_dofs``; ``wall_pre``, ``wall_loop`` s (getdp's own
     timers: pre-processing, the time loop), ``wall_per_step`` and ``cpu_per_step`` s (CPU time of the
     time loop per step: what a loaded machine does not inflate).
@@ -147,6 +172,7 @@ class EM3DResult:
     joule_density: np.ndarray | None = None
     flux_density: np.ndarray | None = None
     b_cells: np.ndarray | None = None
+    coil_dir: np.ndarray | None = None
     res_path: Path | None = None
     n_dofs: int = 0
     wall_pre: float = math.nan
@@ -176,7 +202,7 @@ def model_numbers(model: EM3DModel, mesh: Mesh3D) -> tuple[dict[str, float], lis
         raise ValueError(f"model sector {model.sector_deg} deg but mesh sector {mesh.sector_deg} deg")
     nb: dict[str, float] = {"Phys_Air": AIR, "Phys_Shell": SHELL, "Phys_Outer": OUTER, "Phys_SymA": SYM_A,
                             "Phys_Coil_Base": COIL_BASE, "Phys_Cond_Base": CONDUCTOR_BASE, "Phys_Skin_Base": SKIN_BASE,
-                            "Phys_ElecIn_Base": ELEC_IN_BASE, "Phys_ElecOut_Base": ELEC_OUT_BASE,
+                            "Phys_ElecIn_Base": ELEC_IN_BASE, "Phys_ElecOut_Base": ELEC_OUT_BASE, "Phys_Cut_Base": CUT_BASE,
                             "NbCoils": len(model.coils), "NbConductors": len(model.conductors),
                             "Flag_Circuit": int(model.circuit is not None), "NbProbes": len(model.probes),
                             "SymmetryFactor": float(model.symmetry_factor)}
@@ -199,11 +225,15 @@ def model_numbers(model: EM3DModel, mesh: Mesh3D) -> tuple[dict[str, float], lis
             if not mesh.electrode_area or not mesh.electrode_area.get(k):
                 raise ValueError(f"coil {k}: electrokinetic direction but the mesh has no electrode {k}")
             section = mesh.electrode_area[k]
+        elif section is None and c.direction == "cut":
+            section = physical_surface_area(mesh.path, cut_tag(k))
         elif section is None:
             section = coil_section_from_mesh(mesh, k, c.axis)
         nb.update({f"Coil_Ns_{k}": c.turns, f"Coil_Sc_{k}": section, f"Coil_sigma_{k}": c.sigma,
                    f"Coil_Sign_{k}": c.sign, f"Coil_DirType_{k}": DIRECTIONS[c.direction],
                    f"Coil_Cx_{k}": c.axis[0], f"Coil_Cy_{k}": c.axis[1]})
+        if c.direction == "cut":   # checks the cut (triangles, orientation) and orients it
+            nb[f"Coil_CutSign_{k}"] = cut_orientation(mesh.path, cut_tag(k), c.cut_normal)
         if isinstance(c.waveform, DampedSine):
             w = c.waveform
             nb.update({f"Coil_Wave_{k}": 0, f"Coil_I0_{k}": w.I0, f"Coil_beta_{k}": w.beta,
@@ -221,19 +251,46 @@ def model_numbers(model: EM3DModel, mesh: Mesh3D) -> tuple[dict[str, float], lis
     if model.circuit is not None:
         nb.update(C_bank=model.circuit.C, R_ext=model.circuit.R_ext, L_ext=model.circuit.L_ext,
                   Init_Vc=model.circuit.V0, Init_I=0.0)
+    if model.applied_field is not None:   # App_F1 / App_F2 (the state's) are the caller's
+        nb.update(model.applied_field.numbers_3d(*symmetry_planes(mesh)))
+        lines += model.applied_field.table_lines()
     return nb, lines
+
+
+def symmetry_planes(mesh: Mesh3D) -> tuple[list, list]:
+    """The symmetry planes of ``mesh`` (read from its file): those with n x a = 0 (physical 14) and
+    those with n x h = 0 (physical 15), each as (unit normal, offset n . p) (m)."""
+    tri, tags = read_msh22_triangles(mesh.path, (SYM_A, SYM_H))
+    return (planes_of_faces(mesh.points, tri[tags == SYM_A]), planes_of_faces(mesh.points, tri[tags == SYM_H]))
+
+
+def applied_state_values(model: EM3DModel, t: float, steps: int, dt_prev: float) -> tuple[float, float]:
+    """The applied field's unit time function (``App_F1``, ``App_F2``) of the states x_n at ``t`` (s) and
+    x_{n-1} at ``t - dt_prev``, after ``steps`` steps from rest (the state at rest has 0: no field)."""
+    f = model.applied_field
+    if f is None:
+        return 0.0, 0.0
+    f1 = float(f.unit_f(t)) if steps >= 1 else 0.0
+    f2 = float(f.unit_f(t - dt_prev)) if steps >= 2 else 0.0
+    return f1, f2
 
 
 _WALL = re.compile(r"^Info\s*:\s*\(Wall = ([0-9.eE+-]+)s, CPU = ([0-9.eE+-]+)s", re.M)
 _DOFS = re.compile(r"System \d+/\d+: (\d+) Dofs")
+_SYSTEMS = re.compile(r"^Info\s*:\s*System '(\w+)' :", re.M)
 
 
 def _timers(log_text: str) -> tuple[int, float, float, float]:
-    """(dofs of the magnetic system, the last one listed; wall after pre-processing; wall at the end of
-    the time loop; CPU time of the time loop) from a ``-v 5`` log (s)."""
+    """(dofs of the magnetic system A -- the last one listed when the systems' names are not found; wall
+    after pre-processing; wall at the end of the time loop; CPU time of the time loop) from a ``-v 5``
+    log (s)."""
     marks = [(float(m.group(1)), float(m.group(2))) for m in _WALL.finditer(log_text)]
     found = _DOFS.findall(log_text)
-    dofs = int(found[-1]) if found else 0
+    names = _SYSTEMS.findall(log_text)
+    if found and len(names) == len(found) and "A" in names:   # the systems are listed in their order
+        dofs = int(found[names.index("A")])
+    else:
+        dofs = int(found[-1]) if found else 0
     if len(marks) < 2:
         return dofs, math.nan, math.nan, math.nan
     return dofs, marks[0][0], marks[-1][0], marks[-1][1] - marks[0][1]
@@ -253,9 +310,10 @@ def ball_average(mesh: Mesh3D, values: np.ndarray, centre: Sequence[float], radi
 
 def solve_transient3d(model: EM3DModel, mesh: Mesh3D, t_end: float, n_steps: int, work_dir: str | Path, *,
                       t0: float = 0.0, element_output: str = "all", field_output: bool = False,
+                      direction_output: bool = False,
                       restart_res: str | Path | None = None, circuit_state: tuple[float, float] | None = None,
                       time_scheme: str = "euler", extra_numbers: dict[str, float] | None = None,
-                      executable: str = "getdp",
+                      applied_start: float | None = None, executable: str = "getdp",
                       petsc_args: Sequence[str] = DEFAULT_PETSC_ARGS_3D, timeout: float | None = None) -> EM3DResult:
     """Run the 3D deck from ``t0`` to ``t_end`` (s) in ``n_steps`` implicit Euler steps.
 
@@ -266,10 +324,13 @@ def solve_transient3d(model: EM3DModel, mesh: Mesh3D, t_end: float, n_steps: int
     ``circuit_current``.
 
     ``element_output``: ``"all"`` (per-tetrahedron tables every step), ``"last"`` or ``"none"``;
-    ``field_output``: also B on every tetrahedron after the last step (``b_cells``).
+    ``field_output``: also B on every tetrahedron after the last step (``b_cells``);
+    ``direction_output``: the coils' unit current direction per tetrahedron (``coil_dir``).
     ``extra_numbers``: more ``-setnumber`` inputs of the deck (e.g. ``Flag_SaveInit``).
     ``time_scheme``: ``"euler"`` (implicit Euler) or ``"bdf2"`` (second order, equal steps, the first one
     implicit Euler; from zero fields only: no ``restart_res``).
+    ``applied_start``: with an applied field, its unit time function of the start state (``App_F1``;
+    default: 0 from rest, f(t0) with ``restart_res``; a BDF2 x~ passes its combination c1 f_n - c2 f_{n-1}).
     One getdp process in ``work_dir`` (created; its log ``getdp.log``); ``timeout`` in s.
     Raises :class:`~.runner.GetDPError` when getdp fails.
     """
@@ -284,8 +345,17 @@ def solve_transient3d(model: EM3DModel, mesh: Mesh3D, t_end: float, n_steps: int
     numbers, lines = model_numbers(model, mesh)
     numbers.update(TimeInit=float(t0), TimeFinal=float(t_end), NbSteps=int(n_steps), Flag_ElemOut=flag_elem,
                    Flag_FieldOut=int(field_output), **(extra_numbers or {}))
+    if direction_output:
+        numbers["Flag_DirOut"] = 1
     if time_scheme not in ("euler", "bdf2"):
         raise ValueError(f"time_scheme is 'euler' or 'bdf2', got {time_scheme!r}")
+    if model.applied_field is not None:
+        if numbers.get("TimeTheta", 1.0) != 1.0:
+            raise ValueError("an applied field needs TimeTheta = 1 (its source is the implicit-Euler / BDF2 "
+                             "difference of the step)")
+        if applied_start is None:
+            applied_start = float(model.applied_field.unit_f(float(t0))) if restart_res is not None else 0.0
+        numbers["App_F1"] = float(applied_start)
     if time_scheme == "bdf2" and (restart_res is not None or circuit_state is not None):
         raise ValueError("bdf2 starts from zero fields: its restart (two history states) is not done")
     restart: list[str] = []
@@ -306,6 +376,10 @@ def solve_transient3d(model: EM3DModel, mesh: Mesh3D, t_end: float, n_steps: int
         ids, b = read_element_table(out_dir / "field_b.txt", 3, 1)
         res.b_cells = np.full((mesh.n_tets, 3), np.nan)
         res.b_cells[mesh.rows_of_ids(ids)] = b[0]
+    if direction_output:
+        ids, d = read_element_table(out_dir / "coil_dir.txt", 3, 1)
+        res.coil_dir = np.full((mesh.n_tets, 3), np.nan)
+        res.coil_dir[mesh.rows_of_ids(ids)] = d[0]
     res.run = info
     res.res_path = run_dir / "em.res"
     res.n_dofs, res.wall_pre, wall_end, cpu_loop = _timers(info.log_path.read_text(errors="replace"))
@@ -362,4 +436,5 @@ def read_results3d(model: EM3DModel, mesh: Mesh3D, out_dir: Path, n_steps: int, 
 
 
 __all__ = ["Coil3D", "EM3DModel", "EM3DResult", "solve_transient3d", "read_results3d", "model_numbers",
-           "coil_section_from_mesh", "ball_average", "DEFAULT_PETSC_ARGS_3D", "skin_tag"]
+           "coil_section_from_mesh", "ball_average", "DEFAULT_PETSC_ARGS_3D", "skin_tag", "AppliedField",
+           "symmetry_planes", "applied_state_values"]

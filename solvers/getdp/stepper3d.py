@@ -29,7 +29,7 @@ import numpy as np
 
 from .bdf2 import bdf2_coefficients
 from .mesh3d import Mesh3D
-from .solver3d import EM3DModel, EM3DResult, solve_transient3d
+from .solver3d import EM3DModel, EM3DResult, applied_state_values, solve_transient3d
 
 logger = logging.getLogger(__name__)
 
@@ -118,8 +118,11 @@ class EM3DStepper:
         run_dir.mkdir(parents=True, exist_ok=True)
         c0 = time.perf_counter()
         t0, restart, circuit = state.t, state.res_path, state.circuit
+        f1, f2 = applied_state_values(self.model, state.t, state.steps, state.dt_prev)
+        applied_start = f1   # the applied field's unit time function of the start state (unused without one)
         if state.res_path is not None and self.time_scheme == "bdf2":
             gamma, c1, c2 = bdf2_coefficients(dt, state.dt_prev)
+            applied_start = c1 * f1 - c2 * f2
             dofdata, _, x1 = read_res_vector(state.res_path)
             x0 = state.x_prev
             t0 = t1 - gamma * dt
@@ -131,7 +134,9 @@ class EM3DStepper:
         first_bdf2 = self.time_scheme == "bdf2" and state.res_path is None
         res = solve_transient3d(self.model, mesh, t1, 1, run_dir, t0=t0, element_output="last",
                                 field_output=field_output, restart_res=restart, circuit_state=circuit,
-                                extra_numbers={"Flag_SaveInit": 1} if first_bdf2 else None, **self.run_kwargs)
+                                extra_numbers={"Flag_SaveInit": 1} if first_bdf2 else None,
+                                applied_start=applied_start if self.model.applied_field is not None else None,
+                                **self.run_kwargs)
         c2_ = time.perf_counter()
         x_prev = None
         if self.time_scheme == "bdf2":   # x_{n-1}: the carried x_n, or x_0 saved by the first run

@@ -4,8 +4,7 @@ motion), with the grid convergence index of ``orchestrator/workflows/gci.py``.
 
 Usage: python em_convergence.py OUT [--factors 1.25 1 0.8] [--t-end 6e-5] [--steps 40] [--order 2]
 Prints one line per level and the GCI of each quantity; writes OUT/em_convergence.json.
-The geometry and bank are :data:`pulseform.orchestrator.run.racetrack_design.RACETRACK` /
-``RACETRACK_BANK`` (``--old``: the first design, C = 50 uF, 6 kV, long straight sides). ``--order 2``: the
+The geometry and bank are :data:`design.RACETRACK` / ``RACETRACK_BANK`` (this folder) (``--old``: the first design, C = 50 uF, 6 kV, long straight sides). ``--order 2``: the
 deck's hierarchical second-order edge elements (``EM3DModel.order``).
 """
 import argparse
@@ -17,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pulseform.orchestrator.run.racetrack_design import RACETRACK, em_model, OLD_DESIGN
+from design import OLD_DESIGN, RACETRACK, em_model
 from pulseform.orchestrator.workflows.gci import grid_convergence
 from pulseform.solvers.getdp.racetrack_mesh import racetrack_groove_mesh
 from pulseform.solvers.getdp.solver3d import solve_transient3d

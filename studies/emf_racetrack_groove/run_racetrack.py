@@ -4,9 +4,10 @@ coupled end to end in 3D (quarter model).
     .venv/bin/python studies/emf_racetrack_groove/run_racetrack.py OUT [--scale 1] [--t-end 80e-6]
         [--no-pictures] [--reference]
 
-Runs :func:`pulseform.orchestrator.run.coupled_racetrack.run_racetrack` (geometry, bank and
-materials of :mod:`pulseform.orchestrator.run.racetrack_design`), prints the figures and draws the
-pictures (:mod:`pulseform.orchestrator.run.pictures_racetrack`) into OUT/plots. ``--reference``
+Runs :func:`racetrack_run.run_racetrack` (this folder: the study's own runner; geometry, bank and
+materials of :mod:`design`), prints the figures and draws the pictures (:mod:`racetrack_pictures`) into
+OUT/plots. The case file ``cases/emf_racetrack_groove`` runs the same model through ``pulseform run`` (the 3D
+geometry path) and reproduces these figures to round-off. ``--reference``
 copies metrics, history and the pictures into ``reference/`` beside this file (the figures of
 docs/coupling.md, "Case (b)").
 """
@@ -18,8 +19,8 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
-from pulseform.orchestrator.run.coupled_racetrack import RacetrackOptions, run_racetrack
-from pulseform.orchestrator.run.pictures_racetrack import draw_racetrack
+from racetrack_pictures import draw_racetrack
+from racetrack_run import RacetrackOptions, run_racetrack
 
 HERE = Path(__file__).resolve().parent
 SHOWN = ("max_deflection_into_groove_mm", "die_max_displacement_mm", "impulse_device_z_Ns", "sheet_impulse_device_z_Ns",
@@ -37,7 +38,7 @@ def fixed_mesh_check(out: Path, opt: RacetrackOptions, k: int) -> dict:
     the same model, mesh (re-meshed: the same nodes as the run's racetrack.msh, checked) and steps."""
     import numpy as np
 
-    from pulseform.orchestrator.run.racetrack_design import em_model
+    from design import em_model
     from pulseform.solvers.getdp.mesh3d import read_msh22_tets
     from pulseform.solvers.getdp.racetrack_mesh import racetrack_groove_mesh
     from pulseform.solvers.getdp.solver3d import solve_transient3d

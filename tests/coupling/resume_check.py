@@ -30,29 +30,34 @@ def sigint_then_resume(args: list[str], out: Path, delay: float = 0.2
     return proc, err, stopped, resumed
 
 
-#: metrics that are wall times or timers (a resumed run's differ) in the racetrack's results
-RACETRACK_TIMERS = ("load_time_s", "mech_time_s", "setup_time_s", "wall_time_s", "em_time_s", "em_s_per_step",
-                    "mech_ms_per_step")
-RACETRACK_TIMER_PREFIXES = ("em_getdp", "em_mesh_motion", "em_transfer", "em_res", "em_remesh_s", "getdp_")
+#: metrics that are wall times or timers (a resumed run's differ) in the results of a coupled 3D run
+TIMERS_3D = ("load_time_s", "mech_time_s", "setup_time_s", "wall_time_s", "em_time_s", "em_s_per_step",
+             "mech_ms_per_step")
+TIMER_PREFIXES_3D = ("em_getdp", "em_mesh_motion", "em_transfer", "em_res", "em_remesh_s", "getdp_")
 
 
-def assert_racetrack_outputs_bitwise(ref: Path, out: Path) -> dict:
-    """The racetrack results folder ``out`` (a resumed run) equals ``ref`` (the uninterrupted one) bit for bit:
-    every metric but the timers and the status, the whole history.csv, and the force density per tetrahedron
-    at the peak coil current (``em/force_density_peak.vtu``). Returns ``out``'s metrics."""
+def assert_coupled3d_outputs_bitwise(ref: Path, out: Path) -> dict:
+    """The results folder ``out`` of a coupled 3D run (a resumed run) equals ``ref`` (the uninterrupted one) bit
+    for bit: every metric but the timers and the status, the whole history.csv, and the force density per
+    tetrahedron of the EM snapshot at the peak coil current (``fields/em3d/em_peak_current.vtu``, with its time
+    and current). Returns ``out``'s metrics."""
     import meshio
     import numpy as np
 
     want = json.loads((ref / "metrics.json").read_text())
     got = json.loads((out / "metrics.json").read_text())
     for k, v in want.items():
-        if k not in RACETRACK_TIMERS and not k.startswith(RACETRACK_TIMER_PREFIXES) and k != "status":
+        if k not in TIMERS_3D and not k.startswith(TIMER_PREFIXES_3D) and k != "status":
             assert got[k] == v, k   # bitwise
     h_ref = np.loadtxt(ref / "history.csv", delimiter=",", skiprows=1)
     h_got = np.loadtxt(out / "history.csv", delimiter=",", skiprows=1)
     assert h_got.shape == h_ref.shape and np.array_equal(h_got, h_ref)
-    a, b = (meshio.read(p / "em" / "force_density_peak.vtu") for p in (ref, out))
+    peak = Path("fields") / "em3d" / "em_peak_current"
+    a, b = (meshio.read(p / peak.with_suffix(".vtu")) for p in (ref, out))
+    assert np.array_equal(a.points, b.points)
     assert np.array_equal(a.cell_data["force_density_N_m3"][0], b.cell_data["force_density_N_m3"][0])
+    assert json.loads((ref / peak.with_suffix(".json")).read_text()) == \
+        json.loads((out / peak.with_suffix(".json")).read_text())
     return got
 
 

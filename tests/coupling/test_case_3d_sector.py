@@ -1,13 +1,14 @@
-"""The coupled 3D case file (issue 20, case (a)): ``pulseform run cases/emf_sheet_bulge_3d`` on a coarse,
-short sector through the driver (history, metrics under the 2D names, XDMF and VTU fields, pictures,
-checkpoints), a stop signal then ``--resume`` equal to the uninterrupted run, a sweep of it, and the
-bad inputs of coupled 3D cases (one line, exit 2).
+"""The coupled 3D case file (issue 20, case (a); issue 29: on the general 3D geometry-file path): ``pulseform run
+cases/emf_sheet_bulge_3d`` (a gmsh builder of its folder, sector_geometry.py) on a coarse, short sector through the
+driver (history, metrics under the 2D names, XDMF and VTU fields, pictures, checkpoints), a stop signal then
+``--resume`` equal to the uninterrupted run, a sweep of it, and what a user of the sector's geometry file can get
+wrong (one line, exit 2).
 
 References: (1) resume = the uninterrupted run bitwise: the checkpoint sits on an EM-step boundary and
 carries the EM state's doubles exactly (x_n written back in 17 digits); (2) the run's device metrics
-are the sector's times 360 / angle (the history's sector columns), and GetDP's force at the end of
-each step vs the loop's held force; (3) the slow comparison with the axisymmetric run is in
-tests/coupling/test_coupled_3d_sector.py (the same model built from Python).
+are the sector's times the symmetry factor 360 / angle (read from the mesh's angular extent, to round-off; the
+history's sector columns), and GetDP's force at the end of each step vs the loop's held force; (3) the slow
+comparison with the axisymmetric run is in tests/coupling/test_coupled_3d_sector.py.
 """
 
 from __future__ import annotations
@@ -27,14 +28,12 @@ import pytest
 from pulseform.orchestrator.cli import main
 
 from .bad_input import one_line_refusal
+from .sector_case import CASE as CASE_DIR, COARSE as COARSE_SETS, MESH, REPO, planes, sets
 
-REPO = Path(__file__).resolve().parents[2]
 EXE = str(Path(sys.executable).with_name("pulseform"))
-CASE = str(REPO / "cases/emf_sheet_bulge_3d")
+CASE = str(CASE_DIR)
 #: a coarse 5 degree sector (11.7k EM tets, 1.8k sheet tets), 3 µs: 9 EM steps, ~10 s
-COARSE = ["--set", "sector.angle_deg=5", "--set", "geometry.mesh_size_sheet=1e-3", "--set", "sector.sheet_layers=2",
-          "--set", "geometry.mesh_size_coil=3e-3", "--set", "geometry.mesh_size_air=0.02",
-          "--set", "time.end=3e-6", "--set", "output.field_interval=1e-6"]
+COARSE = sets(COARSE_SETS)
 TIMERS = ("load_time_s", "mech_time_s", "setup_time_s", "wall_time_s", "em_time_s")
 
 
@@ -57,14 +56,14 @@ def test_coupled_3d_case_runs_through_the_driver(coarse_run):
     m = json.loads((out / "metrics.json").read_text())
     rows = list(csv.DictReader(open(out / "history.csv")))
     col = {k: np.array([float(r[k]) for r in rows]) for k in rows[0]}
-    s = m["symmetry_factor"]
-    assert s == 72.0 and m["status"] == "ok" and m["em_steps"] == 9
+    s = m["symmetry_factor"]   # 360 deg over the mesh's angular extent about the planes' common line
+    assert s == pytest.approx(72.0, rel=1e-12) and m["status"] == "ok" and m["em_steps"] == 9
     # the 2D demo's metric names, the device's values = the sector's x 360/5
-    for k in ("max_deflection_mm", "force_impulse_z_Ns", "force_peak_N", "coil_current_peak_kA",
+    for k in ("force_impulse_z_Ns", "force_peak_N", "coil_current_peak_kA",
               "conservation_error_rel", "plastic_work_J", "sheet_max_uz_mm"):
         assert k in m, k
     assert m["force_impulse_z_Ns"] == pytest.approx(s * m["sector_force_impulse_z_Ns"], rel=1e-15)
-    assert m["max_deflection_mm"] == m["sheet_max_uz_mm"] > 0
+    assert m["sheet_max_uz_mm"] > 0   # the deflection (the sheet's largest |u_z|)
     # history.csv holds 10 significant digits
     assert m["force_peak_N"] == pytest.approx(s * np.abs(col["getdp_force_z_N"]).max(), rel=1e-9)
     # the impulse column: the device's Σ s ∫f_z dV dt of the held (BDF2 trapezoid) force = the loop's Σ F dt
@@ -112,8 +111,8 @@ def test_sigint_then_resume_equals_the_uninterrupted_run(coarse_run, tmp_path):
                         "--resume"], capture_output=True, text=True)
     assert r.returncode == 0, r.stderr[-3000:]
     got = json.loads((out / "metrics.json").read_text())
-    print(f"\ninterrupted at {cut['end_time_s']:.3g} s; resumed: deflection {got['max_deflection_mm']!r} vs "
-          f"{ref['max_deflection_mm']!r} mm, impulse {got['force_impulse_z_Ns']!r} vs {ref['force_impulse_z_Ns']!r}")
+    print(f"\ninterrupted at {cut['end_time_s']:.3g} s; resumed: deflection {got['sheet_max_uz_mm']!r} vs "
+          f"{ref['sheet_max_uz_mm']!r} mm, impulse {got['force_impulse_z_Ns']!r} vs {ref['force_impulse_z_Ns']!r}")
     for k, v in ref.items():
         if k not in TIMERS and not k.startswith(("em_getdp", "em_mesh", "em_transfer", "em_res")) and k != "status":
             assert got[k] == v, k   # bitwise
@@ -139,59 +138,71 @@ def test_sweep_of_the_3d_case(tmp_path):
     print(f"\nimpulse (device): 3 kV {a:.6g}, 6 kV {b:.6g} N s, ratio {a / b:.6f} (0.25); peak current ratio "
           f"{ia / ib:.6f} (0.5)")
     assert abs(a / b - 0.25) < 1e-3 and abs(ia / ib - 0.5) < 1e-4   # motion: ~1e-7 m / 1.5 mm
-    assert all(float(rows[k]["max_deflection_mm"]) > 0 for k in ("3000.0", "6000.0"))
+    assert all(float(rows[k]["sheet_max_uz_mm"]) > 0 for k in ("3000.0", "6000.0"))
 
 
-BAD = [  # (--set overrides, text the one line must hold)
-    (["sector.angle_deg=0.0"], "sector.angle_deg"),
-    (["sector.angle_deg=180.0"], "sector.angle_deg"),
-    (["sector.angle_deg=-5.0"], "sector.angle_deg"),
-    (["sector.clamp_rmin=0.06"], "sector.clamp_rmin"),
-    (["bodies.sheet.fixed=[{where={xmin=0.05}}]"], "bodies[0].fixed"),
+BAD = [  # (--set overrides, text the one line must hold): what a user of the sector's geometry file can get wrong
+    (["geometry.parameters.angle_deg=0.0"], "angle_deg must lie in (0, 180)"),   # the builder refuses
+    (["geometry.parameters.angle_deg=180.0"], "angle_deg must lie in (0, 180)"),
+    (["geometry.parameters.angle_deg=-5.0"], "angle_deg must lie in (0, 180)"),
+    (["geometry.parameters.sheet_layer=2"], "unknown parameter 'sheet_layer'"),
+    # the clamp beyond the sheet's rim (the old sector.clamp_rmin >= sheet radius): a box that holds no node
+    (["bodies.sheet.fixed=[{where={rmin=0.07}, components=[0, 1, 2]}]"], "bodies[0].fixed[0].where"),
+    (["bodies.sheet.fixed=[{where={rmin=0.05}, components=[3]}]"], "bodies[0].fixed[0].components"),
     (["mechanics.thickness=1.0"], "mechanics.thickness"),
-    (["coupling.n=20"], "coupling.n"),
-    (["em.getdp_process=\"persistent\""], "em.getdp_process"),
-    (["symmetry=[{normal=[0.0, 1.0, 0.0]}]"], "symmetry"),
+    # one meridian plane only, or a second plane at another angle than the builder's: the sheet then touches
+    # the outer boundary of the air
+    (["symmetry=[{normal=[0.0, 1.0, 0.0]}]"], "bodies[0].region"),
+    ([planes(15.0)], "bodies[0].region"),
     (["geometry.die={cavity_radius=0.04, cavity_depth=0.01, outer_radius=0.06, height=0.02, gap=1e-4, "
       "mesh_size=2e-3}"], "geometry.die"),
     (["bodies.sheet.region=\"die\""], "bodies[0].region"),
-    (["limits.max_cells=1e4"], "geometry.mesh_size_sheet"),
-    (["limits.max_em_steps=100"], "sector.em_step"),
-    (["sector.on_mesh_break=\"refine\""], "sector.on_mesh_break"),
-    (["sector.stop_quality=0.1"], "sector.stop_quality"),
+    (["limits.max_cells=1e4"], "limits.max_cells"),
+    (["geometry.on_mesh_break=\"refine\""], "geometry.on_mesh_break"),
+    (["geometry.break_quality=1.5"], "geometry.break_quality"),
+    (["coupling.load=\"pressure\""], "loads"),
 ]
 
 
-@pytest.mark.parametrize("sets,says", BAD, ids=[s[0].split("=")[0] + f"[{i}]" for i, (s, _) in enumerate(BAD)])
-def test_bad_input_of_a_coupled_3d_case(capsys, sets, says):
-    print(one_line_refusal(capsys, CASE, sets, says))
+@pytest.mark.parametrize("sets_,says", BAD, ids=[s[0].split("=")[0] + f"[{i}]" for i, (s, _) in enumerate(BAD)])
+def test_bad_input_of_a_coupled_3d_case(capsys, sets_, says):
+    print(one_line_refusal(capsys, CASE, MESH + sets_, says))
 
 
-def test_a_sector_mesh_too_large_for_the_memory_is_refused_before_meshing():
-    """The demo sector is estimated at fewer tetrahedra than gmsh makes (33.8k: a lower estimate) and is
-    refused on a machine with 0.3 GB available; a 0.05 mm sheet size on a 20 degree sector is refused on
-    this machine's memory (its estimate: ~1e9 tetrahedra) in one line naming the key."""
-    from dataclasses import replace
+@pytest.mark.getdp
+def test_too_many_em_steps_are_refused_before_the_first_step(tmp_path):
+    """limits.max_em_steps below the run's EM steps (60 us / 0.45 us: 133): one line naming time.end, exit 2,
+    found once the mesh's stable step is known (before any getdp run)."""
+    r = subprocess.run([EXE, "run", CASE, "--out", str(tmp_path / "x"), "--quiet", *sets(MESH),
+                        "--set", "limits.max_em_steps=100"], capture_output=True, text=True)
+    lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
+    assert r.returncode == 2 and len(lines) == 1 and "limits.max_em_steps" in lines[0], r.stderr
+    assert not (tmp_path / "x" / "em" / "getdp").exists() or not any((tmp_path / "x" / "em" / "getdp").iterdir())
 
+
+def test_a_sector_mesh_too_large_for_the_memory_is_refused(tmp_path):
+    """The memory guard after meshing (orchestrator/mesh/geometry3d.map_roles, orchestrator/case/memory.py): the
+    coarse sector's mesh is refused in one line naming the key when the machine has one byte less than a run of
+    it needs, and accepted with exactly that much."""
     from pulseform.orchestrator.case.io import load_case
-    from pulseform.orchestrator.case.schema import SchemaError
-    from pulseform.orchestrator.case.sector3d import check_sector_resources, estimated_sector_tets
+    from pulseform.orchestrator.case.memory import memory_needed
+    from pulseform.orchestrator.mesh.geometry3d import GeometryError, map_roles, mesh_file3d, plane_specs, read_groups
 
-    case, _ = load_case(CASE)
-    tets, sheet = estimated_sector_tets(case)
-    print(f"\ndemo sector estimate: {tets:.0f} EM tets (gmsh: 33779), sheet {sheet:.0f} (gmsh: 12216)")
-    assert 0.5 * 33779 < tets < 33779 and 0.5 * 12216 < sheet < 12216
-    with pytest.raises(SchemaError, match="GB available") as e:
-        check_sector_resources(case, available=0.3e9)
-    assert e.value.path == "geometry.mesh_size_sheet"
-    big = replace(case, limits=replace(case.limits, max_cells=1e12), sector=replace(case.sector, angle_deg=20.0),
-                  geometry=replace(case.geometry, mesh_size_sheet=0.05e-3))
-    with pytest.raises(SchemaError, match="GB available"):
-        check_sector_resources(big)
+    case, _ = load_case(CASE, MESH)
+    g = case.geometry
+    raw = read_groups(mesh_file3d(g, tmp_path), "sector_geometry.py")
+    need = memory_needed(len(raw.tets))
+    args = (raw, g, [("bodies[0].region", "sheet")], plane_specs(case.symmetry), tmp_path / "em3d.msh", 72.0,
+            "sector_geometry.py")
+    with pytest.raises(GeometryError, match="GB are available") as e:
+        map_roles(*args, available=need - 1.0)
+    assert str(e.value).startswith("sector_geometry.py: geometry.mesh_sizes:")
+    print(f"\n{len(raw.tets)} tetrahedra need ~{need / 1e9:.3g} GB: {e.value}")
+    assert map_roles(*args, available=need).mesh.n_tets == len(raw.tets)
 
 
-@pytest.mark.parametrize("sets,says", [(["sector.angle_deg=5.0"], "sector"),
-                                       (["mechanics.formulation=\"3d\""], "coupling.n")])
+@pytest.mark.parametrize("sets,says", [(["geometry.parameters={angle_deg=5.0}"], "geometry.parameters"),
+                                       (["mechanics.formulation=\"3d\""], "geometry.type")])
 def test_3d_keys_refused_in_the_2d_demo_and_the_reverse(capsys, sets, says):
     args = ["check", str(REPO / "cases/emf_sheet_bulge")]
     for s in sets:

@@ -1,5 +1,5 @@
 """Checkpoints and ``--resume`` of a racetrack case run whose 3D air was meshed again (orchestrator/em/remesh3d.py,
-``RemeshingGetDPLoad3D.state_dict``): the coarse racetrack case through the CLI (sizes x 2 as
+``RemeshingGetDPLoad3D.state_dict``): the coarse racetrack case (the 3D geometry path) through the CLI (sizes x 2 as
 tests/coupling/test_case_racetrack.py), 4 EM steps of 1 us, a field output (and a checkpoint) after every step,
 the air meshed again before EM steps 3 and 4 whatever its quality (``remesh_before_steps``, set by the helper
 tests/coupling/forced_remesh_run.py: the undeformed racetrack's air never breaks in 4 us); the second remesh
@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from .resume_check import assert_racetrack_outputs_bitwise, checkpoint_arrays, sigint_after_em_step
+from .resume_check import assert_coupled3d_outputs_bitwise, checkpoint_arrays, sigint_after_em_step
 
 pytestmark = pytest.mark.getdp
 
@@ -35,10 +35,10 @@ HELPER = str(Path(__file__).with_name("forced_remesh_run.py"))
 REMESH_STEP = 3
 REMESH_STEPS = f"{REMESH_STEP},{REMESH_STEP + 1}"
 #: coarse mesh, 4 us, outputs (and checkpoints) every 1 us = every EM step: ~6 s a run
-ARGS = ["--set", "racetrack.mesh_size_sheet=4e-3", "--set", "racetrack.sheet_layers=2",
-        "--set", "racetrack.mesh_size_coil=6e-3", "--set", "racetrack.mesh_size_die=8e-3",
+ARGS = ["--set", "geometry.parameters.h_sheet=4e-3", "--set", "geometry.parameters.sheet_layers=2",
+        "--set", "geometry.parameters.h_coil=6e-3", "--set", "geometry.parameters.h_die=8e-3",
         "--set", "time.end=4e-6", "--set", "output.field_interval=1e-6", "--set", "output.plots=false",
-        "--set", 'racetrack.on_mesh_break="remesh"']
+        "--set", 'geometry.on_mesh_break="remesh"']
 
 
 def _argv(out: Path, *extra: str) -> list[str]:
@@ -74,8 +74,9 @@ def test_a_run_with_a_remesh_writes_its_checkpoints_and_completes(remeshed_run):
     assert int(cp["load/remesh/count"]) == 2 and int(cp["load/steps"]) == 4
     for name, ref in (("points", points), ("tets", tets), ("tet_ids", ids), ("tet_tags", tags)):
         assert np.array_equal(cp[f"load/remesh/{name}"], ref), name
-    assert len(tets) != m["em_tets"]   # another air than the fresh mesh's
-    print(f"\nremeshes at 2 and 3 us: {m['em_tets']} -> {len(tets)} EM tets, {m['em_remesh_s']:.2f} s; ledger "
+    fresh = len(read_msh22_tets(out / "em" / "em3d.msh")[1])   # the fresh EM mesh (metrics' em_tets: the last one's)
+    assert len(tets) != fresh and m["em_tets"] == len(tets)   # another air than the fresh mesh's
+    print(f"\nremeshes at 2 and 3 us: {fresh} -> {len(tets)} EM tets, {m['em_remesh_s']:.2f} s; ledger "
           f"{m['conservation_error_rel']:.1e}; checkpoint {(out / 'checkpoint.npz').stat().st_size / 1e6:.2f} MB")
 
 
@@ -90,7 +91,7 @@ def _resume_equals(out: Path, ref: Path) -> dict:
     r = subprocess.run(_argv(out, "--resume"), capture_output=True, text=True)
     assert r.returncode == 0, r.stderr[-3000:]
     # the force density at the peak coil current: the last step's (4 us, the current still rising), after the resume
-    return assert_racetrack_outputs_bitwise(ref, out)
+    return assert_coupled3d_outputs_bitwise(ref, out)
 
 
 def test_sigint_after_the_remesh_then_resume_equals_the_uninterrupted_run(remeshed_run, tmp_path):
@@ -100,7 +101,7 @@ def test_sigint_after_the_remesh_then_resume_equals_the_uninterrupted_run(remesh
     assert int(cp["load/steps"]) == REMESH_STEP and int(cp["load/remesh/count"]) == 1
     got = _resume_equals(out, remeshed_run)
     h = _history(out)
-    print(f"\nstopped at {REMESH_STEP} us, after the remesh; resumed: impulse {got['impulse_device_z_Ns']!r} N s, "
+    print(f"\nstopped at {REMESH_STEP} us, after the remesh; resumed: impulse {got['force_impulse_z_Ns']!r} N s, "
           f"coil current at 4 us {h['coil_current_A'][-1]!r} A (bitwise the uninterrupted run's)")
 
 

@@ -1,6 +1,6 @@
 """The coupled 3D sector case with its air meshed again mid-run, through the CLI (``pulseform run
-cases/emf_sheet_bulge_3d``, ``sector.on_mesh_break = "remesh"``, the default): the coarse 5 degree sector of
-tests/coupling/test_case_3d_sector.py, 2 us (6 EM steps of 1/3 us), a field output and checkpoint every 1 us;
+cases/emf_sheet_bulge_3d``, a 3D geometry file: ``geometry.on_mesh_break = "remesh"``, the default): the coarse
+5 degree sector of tests/coupling/sector_case.py, 2 us (6 EM steps of 1/3 us), a field output and checkpoint every 1 us;
 the air is meshed again before EM step ``K`` whatever its quality (``remesh_before_steps``, set by the helper
 tests/coupling/forced_remesh_run.py: the coarse sector's air never breaks in 2 us).
 
@@ -29,17 +29,15 @@ import numpy as np
 import pytest
 
 from .resume_check import checkpoint_arrays, sigint_after_em_step
+from .sector_case import CASE as CASE_DIR, MESH, sets
 
 pytestmark = pytest.mark.getdp
 
-REPO = Path(__file__).resolve().parents[2]
-CASE = str(REPO / "cases/emf_sheet_bulge_3d")
+CASE = str(CASE_DIR)
 HELPER = str(Path(__file__).with_name("forced_remesh_run.py"))
 #: the air meshed again before this EM step (t = 2/3 us)
 K = 3
-ARGS = ["--set", "sector.angle_deg=5", "--set", "geometry.mesh_size_sheet=1e-3", "--set", "sector.sheet_layers=2",
-        "--set", "geometry.mesh_size_coil=3e-3", "--set", "geometry.mesh_size_air=0.02",
-        "--set", "time.end=2e-6", "--set", "output.field_interval=1e-6", "--set", "output.plots=false"]
+ARGS = sets(MESH + ["time.end=2e-6", "output.field_interval=1e-6", "output.plots=false"])
 TIMERS = ("load_time_s", "mech_time_s", "setup_time_s", "wall_time_s", "em_time_s")
 #: the history's force columns compared (N): the loop's held force on the sheet and GetDP's at the step's end
 FORCES = ("force_z_N", "getdp_force_z_N")
@@ -110,4 +108,4 @@ def test_sigint_after_the_remesh_then_resume_equals_the_uninterrupted_run(runs, 
     h_got = np.loadtxt(out / "history.csv", delimiter=",", skiprows=1)
     assert h_got.shape == h_ref.shape and np.array_equal(h_got, h_ref)
     print(f"\nstopped after EM step {steps} (remesh before step {K}); resumed: impulse {got['force_impulse_z_Ns']!r} "
-          f"N s, deflection {got['max_deflection_mm']!r} mm (bitwise the uninterrupted run's)")
+          f"N s, deflection {got['sheet_max_uz_mm']!r} mm (bitwise the uninterrupted run's)")

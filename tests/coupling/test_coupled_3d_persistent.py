@@ -1,4 +1,5 @@
-"""The coupled 3D loop on its two EM paths: one persistent getdp for the run (the default with BDF2,
+"""The coupled 3D loop (the coarse sector of cases/emf_sheet_bulge_3d, tests/coupling/sector_case.py) on its two EM
+paths: one persistent getdp for the run (the default with BDF2,
 :class:`~pulseform.solvers.getdp.persistent3d.PersistentEM3DStepper`) and one getdp process per EM
 step (``getdp_process="per_step"``, :class:`~pulseform.solvers.getdp.stepper3d.EM3DStepper`).
 
@@ -13,28 +14,27 @@ import numpy as np
 import pytest
 
 from pulseform.orchestrator.case.io import load_case
-from pulseform.orchestrator.coupling.loop import LoopOptions, StaggeredLoop
+from pulseform.orchestrator.coupling.loop import StaggeredLoop
 from pulseform.orchestrator.em.participant3d import GetDPLoad3D
 from pulseform.orchestrator.mech.participants import DolfinxMechanics
-from pulseform.orchestrator.run.coupled3d import SectorOptions, build_sector
+from pulseform.orchestrator.run.participants3d import participants_3d
 from pulseform.solvers.getdp.persistent3d import PersistentEM3DStepper
 from pulseform.solvers.getdp.stepper3d import EM3DStepper
 
-REPO = Path(__file__).resolve().parents[2]
-COARSE = SectorOptions(sector_deg=5.0, h_sheet=1e-3, sheet_layers=2, h_coil=3e-3)
+from .sector_case import CASE, MESH
+
 COLUMNS = ("force_z_N", "getdp_force_z_N", "coil_current_A", "capacitor_voltage_V", "magnetic_energy_J",
            "workpiece_joule_power_W")
 
 
 def _run(tmp_path: Path, name: str, getdp_process: str):
-    case, _ = load_case(REPO / "cases/emf_sheet_bulge/case.toml")
-    mesh, model, solver, load = build_sector(case, tmp_path / name, COARSE)
+    case, _ = load_case(CASE, MESH)
+    solver, _, load, options, _ = participants_3d(case, tmp_path / name)
     if getdp_process != "auto":
         load.close()
-        load = GetDPLoad3D(mesh, model, load.work_dir, load.bodies, load.mover, getdp_process=getdp_process)
+        load = GetDPLoad3D(load.mesh, load.model, load.work_dir, load.bodies, load.mover, getdp_process=getdp_process)
     mech = DolfinxMechanics(solver)
-    n = max(1, round(COARSE.em_step / solver.stable_time_step()))
-    loop = StaggeredLoop(load, mech, LoopOptions(n=n, n_min=1, n_max=n))
+    loop = StaggeredLoop(load, mech, options)
     rows = []
     loop.run_until(2e-6, on_em_step=rows.append)
     load.close()

@@ -1,5 +1,6 @@
-"""The coupled 3D loop on a coarse sector of the demo (cases/emf_sheet_bulge as a 5 degree sector,
-:mod:`...run.coupled3d`): a few EM steps of the staggered loop with the 3D participants.
+"""The coupled 3D loop on a coarse sector of the demo (cases/emf_sheet_bulge_3d as a 5 degree sector on the general
+3D geometry-file path, :func:`...run.participants3d.participants_3d`): a few EM steps of the staggered loop with the
+3D participants.
 
 References: (1) the conservation ledger (Σ nodal forces vs Σ f V of GetDP's element densities) is
 exact by construction: round-off; (2) the fixed-mesh 3D EM solve of the same model, mesh and steps
@@ -19,23 +20,21 @@ import numpy as np
 import pytest
 
 from pulseform.orchestrator.case.io import load_case
-from pulseform.orchestrator.run.coupled3d import DEMO_SECTOR, SectorOptions, build_sector, run_sector
-from pulseform.orchestrator.coupling.loop import LoopOptions, StaggeredLoop
+from pulseform.orchestrator.coupling.loop import StaggeredLoop
 from pulseform.orchestrator.mech.participants import DolfinxMechanics
+from pulseform.orchestrator.run.participants3d import participants_3d
 from pulseform.solvers.getdp.solver3d import solve_transient3d
 
-REPO = Path(__file__).resolve().parents[2]
-
-COARSE = SectorOptions(sector_deg=5.0, h_sheet=1e-3, sheet_layers=2, h_coil=3e-3)
+from .sector_case import CASE, MESH, REPO
 
 
 @pytest.mark.getdp
 def test_a_few_coupled_em_steps_of_the_3d_sector(tmp_path):
-    case, _ = load_case(REPO / "cases/emf_sheet_bulge/case.toml")
-    mesh, model, solver, load = build_sector(case, tmp_path, COARSE)
+    case, _ = load_case(CASE, MESH)
+    solver, _, load, options, _ = participants_3d(case, tmp_path)
+    mesh, model, n = load.mesh, load.model, options.n
     mech = DolfinxMechanics(solver)
-    n = max(1, round(COARSE.em_step / solver.stable_time_step()))
-    loop = StaggeredLoop(load, mech, LoopOptions(n=n, n_min=1, n_max=n))
+    loop = StaggeredLoop(load, mech, options)
     rows = []
     loop.run_until(2e-6, on_em_step=rows.append)
     load.close()
@@ -62,24 +61,25 @@ def test_a_few_coupled_em_steps_of_the_3d_sector(tmp_path):
 @pytest.mark.slow
 @pytest.mark.getdp
 def test_3d_sector_of_the_demo_vs_the_axisymmetric_run(tmp_path):
-    """Issue 20 case (a): the demo as a coupled 1.25 degree sector (60 µs, ~6-7 min on 2 shared cores)
-    against `pulseform run cases/emf_sheet_bulge` on the 0.25 mm mesh (the axisymmetric reference:
-    cases/emf_sheet_bulge/reference/convergence.md finds it within 0.7 % of converged; the shipped
-    0.5 mm mesh is 6.9 % low in deflection itself). The issue's bars: max deflection 3 %, impulse
-    2 % (the sector's axial impulse times 360 / 1.25), ledger at round-off."""
-    case, _ = load_case(REPO / "cases/emf_sheet_bulge/case.toml")
-    m3 = run_sector(case, tmp_path / "sector", DEMO_SECTOR)
+    """Issue 20 case (a): the demo as a coupled 1.25 degree sector (`pulseform run cases/emf_sheet_bulge_3d`, 60 µs,
+    ~6-7 min on 2 shared cores) against `pulseform run cases/emf_sheet_bulge` on the 0.25 mm mesh (the
+    axisymmetric reference: cases/emf_sheet_bulge/reference/convergence.md finds it within 0.7 % of converged; the
+    shipped 0.5 mm mesh is 6.9 % low in deflection itself). The issue's bars: max deflection 3 % (the sheet's
+    largest |u_z|), impulse 2 % (the sector's axial impulse times 360 / 1.25), ledger at round-off."""
     exe = str(Path(sys.executable).with_name("pulseform"))
+    subprocess.run([exe, "run", str(CASE), "--out", str(tmp_path / "sector"), "--quiet", "--set", "output.plots=false"],
+                   check=True)
+    m3 = json.loads((tmp_path / "sector" / "metrics.json").read_text())
     subprocess.run([exe, "run", str(REPO / "cases/emf_sheet_bulge"), "--out", str(tmp_path / "axi"), "--quiet",
                     "--set", "output.plots=false", "--set", "geometry.mesh_size_sheet=0.25e-3",
                     "--set", "geometry.mesh_size_coil=0.5e-3", "--set", "geometry.mesh_size_air=0.01"], check=True)
     m2 = json.loads((tmp_path / "axi" / "metrics.json").read_text())
-    d = m3["max_deflection_mm"] / m2["max_deflection_mm"] - 1
-    i = m3["impulse_device_Ns"] / m2["force_impulse_z_Ns"] - 1
-    print(f"\n3D sector ({m3['em_tets']} EM tets, {m3['sheet_tets']} sheet tets, {m3['em_steps']} EM / "
-          f"{m3['mech_steps']} mechanical steps, {m3['wall_s']:.0f} s) vs axisymmetric 0.25 mm: deflection "
-          f"{m3['max_deflection_mm']:.4f} vs {m2['max_deflection_mm']:.4f} mm ({d:+.2%}), impulse "
-          f"{m3['impulse_device_Ns']:.5f} vs {m2['force_impulse_z_Ns']:.5f} N s ({i:+.2%}), ledger "
+    d = m3["sheet_max_uz_mm"] / m2["max_deflection_mm"] - 1
+    i = m3["force_impulse_z_Ns"] / m2["force_impulse_z_Ns"] - 1
+    print(f"\n3D sector ({m3['em_tets']:.0f} EM tets, {m3['sheet_tets']:.0f} sheet tets, {m3['em_steps']:.0f} EM / "
+          f"{m3['mech_steps']:.0f} mechanical steps, {m3['wall_time_s']:.0f} s) vs axisymmetric 0.25 mm: deflection "
+          f"{m3['sheet_max_uz_mm']:.4f} vs {m2['max_deflection_mm']:.4f} mm ({d:+.2%}), impulse "
+          f"{m3['force_impulse_z_Ns']:.5f} vs {m2['force_impulse_z_Ns']:.5f} N s ({i:+.2%}), ledger "
           f"{m3['conservation_error_rel']:.1e}")
     assert abs(d) < 0.03 and abs(i) < 0.02
     assert m3["conservation_error_rel"] < 1e-12

@@ -1,5 +1,6 @@
-"""The coupled 3D racetrack case (issue 20, case (b); orchestrator/run/coupled_racetrack.py): a racetrack
-coil, a sheet and a conducting, deformable die in the staggered loop, on a coarse mesh (sizes x 2).
+"""The coupled 3D racetrack case (issue 20, case (b)) on the 3D geometry path (orchestrator/run/participants3d.py,
+the case file cases/emf_racetrack_groove): a racetrack coil, a sheet and a conducting, deformable die in the
+staggered loop, on a coarse mesh (sizes x 2), built in Python (tests/coupling/racetrack_coarse.py).
 
 References: (1) the conservation ledger per body (Σ nodal forces of the body vs Σ f V over its own
 tetrahedra) is exact by construction: round-off; the two bodies' nodal forces add up to the loop's
@@ -12,19 +13,22 @@ nodes (less the half step of the first force: the explicit scheme's first veloci
 step). Not for the die: its fixed top is one or two elements (8 mm here) above its loaded lower face,
 so the support reacts from the first step (its momentum is printed, 10 % off its free impulse).
 """
-from dataclasses import replace
+import json
+import subprocess
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 
-from pulseform.orchestrator.coupling.loop import LoopOptions, StaggeredLoop
+from pulseform.orchestrator.coupling.loop import StaggeredLoop
 from pulseform.orchestrator.em.participant3d import ConductorBody3D, GetDPLoad3D
 from pulseform.orchestrator.mech.participants import DolfinxMechanics
-from pulseform.orchestrator.run.coupled_racetrack import RacetrackOptions, RacetrackRecorder, build_racetrack
-from pulseform.orchestrator.run.racetrack_design import RACETRACK
 from pulseform.solvers.getdp.solver3d import solve_transient3d
 
-COARSE = RacetrackOptions(geometry=RACETRACK.scaled(2.0))
+from .racetrack_coarse import CASE, COARSE_SIZES, StepRecorder, coarse_participants
+
+EXE = str(Path(sys.executable).with_name("pulseform"))
 
 
 def test_two_bodies_must_not_share_a_region_or_a_name(tmp_path):
@@ -41,15 +45,15 @@ def test_two_bodies_must_not_share_a_region_or_a_name(tmp_path):
 
 @pytest.mark.getdp
 def test_a_few_coupled_em_steps_with_sheet_and_die(tmp_path):
-    rm = build_racetrack(tmp_path, COARSE)
-    mech = DolfinxMechanics(rm.solver)
-    n = max(1, round(COARSE.em_step / rm.solver.stable_time_step()))
-    loop = StaggeredLoop(rm.load, mech, LoopOptions(n=n, n_min=1, n_max=n))
-    rec = RacetrackRecorder(rm, mech)
+    case, solver, load, options, geo = coarse_participants(tmp_path)
+    mech = DolfinxMechanics(solver)
+    loop = StaggeredLoop(load, mech, options)
+    rec = StepRecorder(case, solver, load)
     loop.run_until(3e-6, on_em_step=rec)
-    rm.load.close()
-    rows, m = rec.rows, len(rec.rows)
-    ref = solve_transient3d(rm.model, rm.mesh, 3e-6, m, tmp_path / "fixed", time_scheme="bdf2", element_output="none")
+    load.close()
+    rows, m, n = rec.rows, len(rec.rows), options.n
+    ref = solve_transient3d(load.model, geo.mesh, 3e-6, m, tmp_path / "fixed", time_scheme="bdf2",
+                            element_output="none")
     errs = {}
     for k, name in enumerate(("sheet", "die")):
         got = np.array([r[f"{name}_getdp_force_z_N"] for r in rows])
@@ -61,8 +65,8 @@ def test_a_few_coupled_em_steps_with_sheet_and_die(tmp_path):
     mom_sheet = max(abs(r["sheet_momentum_z_kg_m_s"] / r["sheet_free_impulse_z_Ns"] - 1) for r in rows)
     mom_die = abs(rows[0]["die_momentum_z_kg_m_s"] / rows[0]["die_free_impulse_z_Ns"] - 1)
     uz = max(r["sheet_max_uz_m"] for r in rows)
-    print(f"\n{rm.mesh.n_tets} EM tets (sheet {len(rm.solver.bodies['sheet'].cells)}, die "
-          f"{len(rm.solver.bodies['die'].cells)}), {m} EM steps of {n} mechanical steps: GetDP force vs fixed-mesh "
+    print(f"\n{geo.mesh.n_tets} EM tets (sheet {len(solver.bodies['sheet'].cells)}, die "
+          f"{len(solver.bodies['die'].cells)}), {m} EM steps of {n} mechanical steps: GetDP force vs fixed-mesh "
           f"solve sheet {errs['sheet']:.1e}, die {errs['die']:.1e}; ledgers {ledgers}; momentum vs free impulse: "
           f"sheet {mom_sheet:.1e}, die (1st step) {mom_die:.1e}; max u_z {uz:.2e} m; die/sheet force "
           f"{rows[-1]['die_force_z_N'] / rows[-1]['sheet_force_z_N']:.2e}")
@@ -76,27 +80,34 @@ def test_a_few_coupled_em_steps_with_sheet_and_die(tmp_path):
 @pytest.mark.slow
 @pytest.mark.getdp
 def test_coarse_racetrack_end_to_end(tmp_path):
-    """The whole run (60 µs: the current's first half wave) on the coarse mesh (sizes x 2), with the
-    outputs the study writes: ledgers at round-off over every step (exact by construction), the energy
+    """The whole run (60 µs: the current's first half wave) on the coarse mesh (sizes x 2) through ``pulseform
+    run``, with four field outputs: ledgers at round-off over every step (exact by construction), the energy
     ledger of the mechanics (external work = kinetic + elastic + plastic + contact + viscous, to its
-    time-discretisation error), the sheet formed upwards into the groove (not below its start), the EM
-    mesh frozen (no 3D remesh) only after the force's main pulse (observed 51.8 µs, with 7.5 % of the
-    impulse after it) and the pictures drawn. The figures of the default mesh are in
+    time-discretisation error), the sheet formed upwards into the groove (not below its start: its lowest node at
+    the output times, from the field files), the EM mesh frozen (a failed remesh) only after the force's main pulse
+    with little of the impulse after it, and the section pictures drawn. The figures of the default mesh are in
     studies/emf_racetrack_groove/reference/ and docs/coupling.md."""
-    from pulseform.orchestrator.run.coupled_racetrack import run_racetrack
-    from pulseform.orchestrator.run.pictures_racetrack import draw_racetrack
+    from pulseform.orchestrator.run.mech_fields import read_fields
+    from pulseform.orchestrator.run.pictures_section3d import draw_sections3d
 
-    m = run_racetrack(tmp_path, replace(COARSE, outputs=4))
+    out = tmp_path / "run"
+    r = subprocess.run([EXE, "run", str(CASE), "--out", str(out), "--quiet", "--set", "output.plots=false",
+                        "--set", "output.field_interval=15e-6", *(a for s in COARSE_SIZES for a in ("--set", s))],
+                       capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr[-3000:]
+    m = json.loads((out / "metrics.json").read_text())
     print("\n" + ", ".join(f"{k} {v:.4g}" for k, v in m.items() if isinstance(v, float)))
-    assert m["end_time_s"] == pytest.approx(COARSE.t_end, rel=1e-9) and not m["stopped"]
+    assert m["status"] == "ok" and m["end_time_s"] == pytest.approx(60e-6, rel=1e-9)
     assert max(m["conservation_error_rel"], m["sheet_ledger_rel"], m["die_ledger_rel"]) < 1e-12
-    assert abs(m["energy_balance_error_rel"]) < 0.02
-    assert m["max_deflection_into_groove_mm"] > 0.5 and m["sheet_min_uz_mm"] > -0.1
-    if not np.isnan(m["em_mesh_frozen_at_s"]):
+    assert abs(m["energy_error_rel"]) < 0.02
+    sheet = read_fields(out)["sheet"]
+    min_uz = min(float(sheet.read(k, ("displacement_m",))["displacement_m"][:, 2].min()) for k in range(len(sheet.times)))
+    assert m["sheet_max_uz_mm"] > 0.5 and 1e3 * min_uz > -0.1
+    if m.get("em_mesh_frozen_at_s") is not None:
         assert m["em_mesh_frozen_at_s"] > 45e-6
-        assert abs(m["impulse_after_freeze_device_z_Ns"]) < 0.1 * abs(m["impulse_device_z_Ns"])
-    paths = draw_racetrack(tmp_path, COARSE.geometry, three_d=False)
-    assert len(paths) == 3 and all(p.stat().st_size > 10_000 for p in paths)
+        assert abs(m["impulse_after_freeze_device_z_Ns"]) < 0.1 * abs(m["force_impulse_z_Ns"])
+    paths = draw_sections3d(out)
+    assert len(paths) == 4 and all(p.stat().st_size > 10_000 for p in paths)
 
 
 def _freezing_load(freeze: bool, breaks_at: int):
@@ -146,23 +157,28 @@ def test_the_em_mesh_freezes_at_the_last_valid_one_or_stops():
 
 @pytest.mark.getdp
 def test_order2_em_in_the_coupled_loop_freezes_instead_of_remeshing(tmp_path):
-    """Second-order edge elements (``em_order=2``): the remeshing load refuses them (its state carry maps
-    Whitney edge unknowns only); with ``on_mesh_break="freeze"`` the coupled loop runs them (the persistent
-    getdp gets the order from the model) and its sheet and die forces equal a fixed-mesh order-2 solve with the
-    same steps (the mesh barely moves in 2 us: bar 1e-3, as above), with the ledgers closed."""
+    """Second-order edge elements (``geometry.em_order = 2``): the remeshing load refuses them (its state carry
+    maps Whitney edge unknowns only; the case file refuses the pair too: tests/coupling/test_case_racetrack.py);
+    with ``on_mesh_break = "freeze"`` the coupled loop runs them (the persistent getdp gets the order from the
+    model) and its sheet and die forces equal a fixed-mesh order-2 solve with the same steps (the mesh barely
+    moves in 2 us: bar 1e-3, as above), with the ledgers closed."""
+    from pulseform.orchestrator.em.remesh3d import RemeshingGetDPLoad3D
+
+    case, solver, load, options, geo = coarse_participants(tmp_path, "geometry.em_order=2",
+                                                           'geometry.on_mesh_break="freeze"')
+    assert load.model.order == 2 and not load.model.order2_air
+    assert not isinstance(load, RemeshingGetDPLoad3D)
     with pytest.raises(ValueError, match="remesh with order 2"):
-        build_racetrack(tmp_path / "refused", replace(COARSE, em_order=2))
-    opt = replace(COARSE, em_order=2, em_order2_air=False, on_mesh_break="freeze")
-    rm = build_racetrack(tmp_path, opt)
-    assert rm.model.order == 2 and not rm.model.order2_air
-    mech = DolfinxMechanics(rm.solver)
-    n = max(1, round(opt.em_step / rm.solver.stable_time_step()))
-    loop = StaggeredLoop(rm.load, mech, LoopOptions(n=n, n_min=1, n_max=n))
-    rec = RacetrackRecorder(rm, mech)
+        RemeshingGetDPLoad3D(geo.mesh, load.model, tmp_path / "refused", load.bodies, load.mover,
+                             make_mover=lambda m: None, planes=[(p.point, p.normal) for p in geo.planes])
+    mech = DolfinxMechanics(solver)
+    loop = StaggeredLoop(load, mech, options)
+    rec = StepRecorder(case, solver, load)
     loop.run_until(2e-6, on_em_step=rec)
-    rm.load.close()
+    load.close()
     rows, m = rec.rows, len(rec.rows)
-    ref = solve_transient3d(rm.model, rm.mesh, 2e-6, m, tmp_path / "fixed", time_scheme="bdf2", element_output="none")
+    ref = solve_transient3d(load.model, geo.mesh, 2e-6, m, tmp_path / "fixed", time_scheme="bdf2",
+                            element_output="none")
     for k, name in enumerate(("sheet", "die")):
         got = np.array([r[f"{name}_getdp_force_z_N"] for r in rows])
         err = np.abs(got - ref.conductor_force[:, k, 2]).max() / np.abs(ref.conductor_force[:, k, 2]).max()

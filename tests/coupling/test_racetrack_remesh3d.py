@@ -1,5 +1,6 @@
 """The 3D air remesh with the EM state carried (orchestrator/em/remesh3d.py, orchestrator/mesh/remesh3d.py,
-solvers/getdp/state_carry3d.py) on the coarse racetrack (sizes x 2), EM only: the bodies stay where they
+solvers/getdp/state_carry3d.py) on the coarse racetrack (sizes x 2; the case file on the 3D geometry path,
+tests/coupling/racetrack_coarse.py), EM only: the bodies stay where they
 are (a mechanics that does not move), BDF2 steps of 1 us on the capacitor bank, the persistent getdp.
 
 References:
@@ -21,15 +22,14 @@ import numpy as np
 import pytest
 
 from pulseform.orchestrator.em.remesh3d import RemeshingGetDPLoad3D
-from pulseform.orchestrator.run.coupled_racetrack import RacetrackOptions, build_racetrack
-from pulseform.orchestrator.run.racetrack_design import RACETRACK
 from pulseform.solvers.getdp.runner import run_getdp
 from pulseform.solvers.getdp.solver3d import model_numbers
 from pulseform.solvers.getdp.stepper3d import read_res_vector, write_res_vector
 
+from .racetrack_coarse import coarse_participants
+
 pytestmark = pytest.mark.getdp
 
-COARSE = RacetrackOptions(geometry=RACETRACK.scaled(2.0))
 STEPS, K, DT = 4, 3, 1e-6
 
 
@@ -47,8 +47,7 @@ def _run(work: Path, remesh_before: int | None, post: list | None = None) -> lis
     """STEPS EM steps of the coarse racetrack's load; the air meshed again before step ``remesh_before``
     (1: before the first step, from scratch; None: never); ``post`` receives GetDP's conductor fields
     of the state just before and just after that remesh."""
-    rm = build_racetrack(work, COARSE)
-    load = rm.load
+    load = coarse_participants(work)[2]
     assert isinstance(load, RemeshingGetDPLoad3D)
     mech = Still(load)
     rows = []
@@ -173,18 +172,21 @@ def test_a_failed_remesh_freezes_the_em_mesh():
 
 
 def test_air_remesh_keeps_conductors_coil_shell_and_groups(tmp_path):
-    """remesh_air3d on the coarse racetrack's undeformed mesh (gmsh only): every non-air tetrahedron and
+    """remesh_air3d on the coarse racetrack's undeformed EM mesh (the builder and gmsh only): every non-air tetrahedron and
     every surface element off the air's plane faces is kept node for node in the same order (so GetDP's
     low-to-high edge orientation of the conductors is kept), the new air is valid and fills the same
     volume (the sphere cut by the kept parts: its volume to round-off), the planes' faces stay in group 14."""
     from pulseform.orchestrator.mesh.motion3d import tet_quality
     from pulseform.orchestrator.mesh.remesh3d import read_msh22_triangles, remesh_air3d
-    from pulseform.orchestrator.run.coupled_racetrack import PLANES
+    from pulseform.orchestrator.mesh.geometry3d import build_geometry3d
     from pulseform.solvers.getdp.mesh3d import SYM_A
-    from pulseform.solvers.getdp.racetrack_mesh import racetrack_groove_mesh
 
-    m = racetrack_groove_mesh(tmp_path / "r.msh", COARSE.geometry)
-    new, o2n = remesh_air3d(m, m.points, tmp_path / "new.msh", PLANES)
+    from .racetrack_coarse import coarse_case
+
+    geo = build_geometry3d(coarse_case(), tmp_path)
+    m = geo.mesh
+    assert len(geo.planes) == 2   # x = 0 and y = 0
+    new, o2n = remesh_air3d(m, m.points, tmp_path / "new.msh", [(p.point, p.normal) for p in geo.planes])
     air0, air1 = m.tet_tags == 1, new.tet_tags == 1
     np.testing.assert_array_equal(o2n[m.tets[~air0]], new.tets[~air1])
     np.testing.assert_array_equal(m.tet_tags[~air0], new.tet_tags[~air1])

@@ -1,6 +1,6 @@
-"""The coupled 3D sector driven by pressure pulses (``coupling.load = "pressure"`` with ``[[loads]]``):
-the counterpart of its coupled run that ``pulseform compare`` uses (orchestrator/mech/sector_pulses.py,
-orchestrator/run/pressure3d.py).
+"""The coupled 3D sector driven by pressure pulses (``coupling.load = "pressure"`` with ``[[loads]]``): the
+counterpart of its coupled run that ``pulseform compare`` uses, on the general 3D geometry-file path
+(orchestrator/mech/pulses3d.py, the pressure branch of orchestrator/run/participants3d.py).
 
 References: (1) the follower pressure's consistent nodal forces over a flat face sum to p × its area,
 and the sector's lower face is the fan of its arc nodes about the apex: A = ½ R² Σ sin Δθ (exact for
@@ -21,15 +21,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-REPO = Path(__file__).resolve().parents[2]
+from .sector_case import CASE, COARSE
+
 EXE = str(Path(sys.executable).with_name("pulseform"))
-CASE = REPO / "cases/emf_sheet_bulge_3d"
-#: the coarse 5 degree sector of tests/coupling/test_case_3d_sector.py, 3 µs
-COARSE = ["sector.angle_deg=5", "geometry.mesh_size_sheet=1e-3", "sector.sheet_layers=2", "geometry.mesh_size_coil=3e-3",
-          "geometry.mesh_size_air=0.02", "time.end=3e-6", "output.field_interval=1e-6"]
 #: the 2D demo's loaded surface (compare.loaded_surface: the sheet's lower face over the coil, r in
-#: [10, 34] mm at z = 1.5 mm) with an eq. (7) pulse of the demo's discharge
-PULSE = ('loads=[{type="pulse_sin2", body="sheet", surface={xmin=0.01, xmax=0.034, ymin=1.4999e-3, ymax=1.5001e-3}, '
+#: [10, 34] mm at z = 1.5 mm) as a 3D box (rmin/rmax about the z-axis, z bounds) with an eq. (7) pulse of the
+#: demo's discharge
+PULSE = ('loads=[{type="pulse_sin2", body="sheet", surface={rmin=0.01, rmax=0.034, zmin=1.4999e-3, zmax=1.5001e-3}, '
          'amplitude=8.7e6, beta=8.9e3, omega=9.3e4, t_end=60e-6}]')
 
 
@@ -44,16 +42,17 @@ def test_pressure_on_the_lower_face_sums_to_p_times_its_area(tmp_path):
     from pulseform.orchestrator.case.io import load_case
     from pulseform.orchestrator.case.model import Box
     from pulseform.orchestrator.mech.participants import DolfinxMechanics
-    from pulseform.orchestrator.mech.sector_pulses import rz_marker
-    from pulseform.orchestrator.run.coupled3d import sector_mechanics, sector_options
+    from pulseform.orchestrator.mech.pulses3d import PressurePulses3D, box_nodes
+    from pulseform.orchestrator.run.participants3d import participants_3d
 
     case, _ = load_case(str(CASE), [*COARSE, 'coupling.load="pressure"', PULSE])
-    _, _, solver = sector_mechanics(case, tmp_path, sector_options(case))
+    solver, rigid, load, _, _ = participants_3d(case, tmp_path)
+    assert rigid is None and isinstance(load, PressurePulses3D)
     body = solver.bodies["sheet"]
-    g = case.geometry
-    z0, R, alpha = g.coil_gap, g.sheet_radius, math.radians(case.sector.angle_deg)
-    box = Box(xmin=0.0, xmax=R * (1 + 1e-9), ymin=z0 - 1e-7, ymax=z0 + 1e-7)   # the whole lower face
-    marked = rz_marker(box, body.X0)
+    g = case.geometry.parameters
+    z0, R, alpha = g["coil_gap"], g["sheet_radius"], math.radians(g["angle_deg"])
+    box = Box(rmax=R * (1 + 1e-9), zmin=z0 - 1e-7, zmax=z0 + 1e-7)   # the whole lower face
+    marked = box_nodes(box, body.X0)
     p = 7.5e6
     f = DolfinxMechanics(solver).pressure_forces("sheet", marked, p)
     F = f[: body.n_owned].sum(axis=0)
@@ -70,17 +69,14 @@ def test_pressure_on_the_lower_face_sums_to_p_times_its_area(tmp_path):
     # the chords' area deficit of the true sector: (Δθ)² / 6 relative at most
     assert fan == pytest.approx(0.5 * alpha * R ** 2, rel=np.diff(theta).max() ** 2 / 6)
     # the upper face is not loaded by a box at the lower one
-    assert not np.any(marked & (np.abs(X[:, 2] - (z0 + g.sheet_thickness)) <= 1e-9))
+    assert not np.any(marked & (np.abs(X[:, 2] - (z0 + g["sheet_thickness"])) <= 1e-9))
 
 
 @pytest.fixture(scope="module")
 def free_sheet(tmp_path_factory) -> Path:
     """The coarse sector without its clamp (a free sheet), 3 µs of the eq. (7) pulse."""
-    folder = tmp_path_factory.mktemp("free3d")
-    text = "\n".join(ln for ln in (CASE / "case.toml").read_text().splitlines() if not ln.startswith("clamp_rmin"))
-    (folder / "case.toml").write_text(text)
-    out = folder / "run"
-    r = subprocess.run([EXE, "run", str(folder / "case.toml"), "--out", str(out), "--quiet", *_sets(),
+    out = tmp_path_factory.mktemp("free3d") / "run"
+    r = subprocess.run([EXE, "run", str(CASE), "--out", str(out), "--quiet", *_sets("bodies.sheet.fixed=[]"),
                         "--set", "output.plots=false"], capture_output=True, text=True)
     assert r.returncode == 0, r.stderr[-3000:]
     return out
@@ -102,37 +98,40 @@ def test_momentum_equals_the_impulse_of_the_held_pressure_forces(free_sheet):
     assert got == pytest.approx(expected, rel=1e-9)
     # the loop's impulse Σ F (t1 − t0), and the device's (× 360 / 5) under the 2D names
     assert m["sector_force_impulse_z_Ns"] == pytest.approx(np.sum(forces * dts), rel=1e-12)
-    assert m["symmetry_factor"] == 72.0
-    assert m["force_impulse_z_Ns"] == pytest.approx(72.0 * m["sector_force_impulse_z_Ns"], rel=1e-15)
+    s = m["symmetry_factor"]   # 360 deg over the mesh's angular extent (round-off)
+    assert s == pytest.approx(72.0, rel=1e-12)
+    assert m["force_impulse_z_Ns"] == pytest.approx(s * m["sector_force_impulse_z_Ns"], rel=1e-15)
     assert h["device_impulse_z_Ns"][-1] == pytest.approx(m["force_impulse_z_Ns"], rel=1e-9)
-    assert m["load0_area_m2"] > 0 and m["max_deflection_mm"] > 0 and m["em_steps"] == 9
+    assert m["load0_area_m2"] > 0 and m["sheet_max_uz_mm"] > 0 and m["em_steps"] == 9
     assert not (free_sheet / "em" / "getdp").exists()   # no getdp run
 
 
 def _check(*sets: str) -> subprocess.CompletedProcess:
     args = [EXE, "check", str(CASE)]
-    for s in sets:
+    for s in (*COARSE, *sets):
         args += ["--set", s]
     return subprocess.run(args, capture_output=True, text=True)
 
 
-def test_loads_and_coupling_keys_of_a_sector():
-    """[[loads]] need coupling.load = 'pressure'; [coupling] takes no other key in a sector."""
+def test_loads_and_coupling_keys_of_a_3d_geometry_file():
+    """[[loads]] need coupling.load = 'pressure' and the reverse; damping acts only with the pulses."""
     r = _check(PULSE)
     assert r.returncode == 2 and "coupling.load = 'pressure'" in r.stderr, r.stderr
-    r = _check('coupling.load="pressure"', "coupling.n=20", PULSE)
-    assert r.returncode == 2 and "coupling.n" in r.stderr, r.stderr
     r = _check('coupling.load="pressure"')
     assert r.returncode == 2 and "loads" in r.stderr, r.stderr
+    r = _check("mechanics.mass_damping=1e3")
+    assert r.returncode == 2 and "mechanics.mass_damping" in r.stderr, r.stderr
     assert _check('coupling.load="pressure"', PULSE).returncode == 0
+    assert _check('coupling.load="pressure"', PULSE, "mechanics.mass_damping=1e3").returncode == 0
 
 
 def test_a_box_that_loads_nothing_is_named(tmp_path):
-    """A box in x/y instead of (r, z) (here z = 0, below the sheet) loads no triangle: the run stops
-    with a line naming the load."""
-    bad = PULSE.replace("ymin=1.4999e-3, ymax=1.5001e-3", "ymin=-1e-4, ymax=1e-4")
+    """A 2D-style box (x, y bounds read as the axisymmetric case's r, z: here y in a 0.2 um slab) loads no
+    triangle of the 3D sheet: the run stops before its first step with one line naming the load, exit 2."""
+    bad = PULSE.replace("rmin=0.01, rmax=0.034, zmin=1.4999e-3, zmax=1.5001e-3", "xmin=0.01, xmax=0.034, "
+                        "ymin=1.4999e-3, ymax=1.5001e-3")
     r = subprocess.run([EXE, "run", str(CASE), "--out", str(tmp_path / "x"), "--quiet", *_sets(bad)],
                        capture_output=True, text=True)
     lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
-    assert r.returncode != 0 and "loads[0].surface" in r.stderr and "(r, z)" in r.stderr, r.stderr
+    assert r.returncode == 2 and len(lines) == 1 and "loads[0].surface" in lines[0] and "rmin/rmax" in lines[0], r.stderr
     print(lines[-1])

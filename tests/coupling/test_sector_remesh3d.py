@@ -2,7 +2,7 @@
 (orchestrator/mesh/remesh3d.py, orchestrator/em/remesh3d.py; gmsh only, a few seconds).
 
 References:
-(1) a remesh of the undeformed coarse 5 degree sector (tests/coupling/test_case_3d_sector.py's set-up) changes
+(1) a remesh of the undeformed coarse 5 degree sector (tests/coupling/sector_case.py: the case file's builder) changes
     only the air: every other tetrahedron and every surface group but the planes' is the same node for node,
     the new air fills the same volume (the sector of the sphere less the kept parts) and each plane's faces
     cover the same area (its half-disc sector face): both to round-off, 1e-12 -- exact by construction, the
@@ -15,7 +15,6 @@ References:
 """
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import numpy as np
@@ -25,30 +24,29 @@ from pulseform.orchestrator.mesh.motion3d import tet_quality
 from pulseform.orchestrator.mesh.remesh3d import plane_air, read_msh22_triangles, remesh_air3d
 from pulseform.solvers.getdp.mesh3d import SYM_A
 
-REPO = Path(__file__).resolve().parents[2]
-#: the coarse 5 degree sector of tests/coupling/test_case_3d_sector.py (11.7k EM tets, 8.4k of them air)
-COARSE = ["sector.angle_deg=5", "geometry.mesh_size_sheet=1e-3", "sector.sheet_layers=2",
-          "geometry.mesh_size_coil=3e-3", "geometry.mesh_size_air=0.02"]
+from .sector_case import CASE, MESH
+
 
 
 def _sector(work: Path):
-    """(EM mesh, planes) of the coarse sector."""
+    """(EM mesh, planes) of the coarse sector: the case file's geometry (its builder) meshed and mapped."""
     from pulseform.orchestrator.case.io import load_case
-    from pulseform.orchestrator.run.coupled3d import sector_mechanics, sector_options, sector_planes
+    from pulseform.orchestrator.mesh.geometry3d import build_geometry3d
 
-    case, _ = load_case(REPO / "cases/emf_sheet_bulge_3d", COARSE)
-    opt = sector_options(case)
-    mesh, _, _ = sector_mechanics(case, work, opt)
-    return mesh, sector_planes(math.radians(opt.sector_deg))
+    case, _ = load_case(CASE, MESH)
+    geo = build_geometry3d(case, work)
+    return geo.mesh, [(p.point, p.normal) for p in geo.planes]
 
 
 def _racetrack(work: Path):
-    """(EM mesh, planes) of the coarse racetrack (sizes x 2, tests/coupling/test_racetrack_remesh3d.py)."""
-    from pulseform.orchestrator.run.coupled_racetrack import PLANES
-    from pulseform.orchestrator.run.racetrack_design import RACETRACK
-    from pulseform.solvers.getdp.racetrack_mesh import racetrack_groove_mesh
+    """(EM mesh, planes) of the coarse racetrack (sizes x 2, tests/coupling/racetrack_coarse.py: the case file's
+    builder, the 3D geometry path)."""
+    from pulseform.orchestrator.mesh.geometry3d import build_geometry3d
 
-    return racetrack_groove_mesh(work / "r.msh", RACETRACK.scaled(2.0)), list(PLANES)
+    from .racetrack_coarse import coarse_case
+
+    geo = build_geometry3d(coarse_case(), work)
+    return geo.mesh, [(p.point, p.normal) for p in geo.planes]
 
 
 def _area(p: np.ndarray, t: np.ndarray) -> float:

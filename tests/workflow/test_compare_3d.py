@@ -1,7 +1,8 @@
-"""`pulseform compare` on the coupled 3D sector (cases/emf_sheet_bulge_3d): coupled GetDP load vs the
-fitted eq. (7) pulse on the same sector mesh, and --fail-if.
+"""`pulseform compare` on a 3D geometry file, the coupled 3D sector (cases/emf_sheet_bulge_3d): coupled GetDP load
+vs the fitted eq. (7) pulse on the same sector mesh, the loaded surface given with --surface (the sheet's lower
+face over the coil as a 3D box), and --fail-if.
 
-Coarse and short (the 5 degree sector of tests/coupling/test_case_3d_sector.py for 3 µs: 9 EM steps).
+Coarse and short (the 5 degree sector of tests/coupling/sector_case.py for 3 µs: 9 EM steps).
 References: (1) the fitted pulse is a least-squares fit (P0 with β, ω from the discharge), not an
 impulse-conserving one: by Cauchy–Schwarz its impulse on the coupled run's step grid differs from the
 coupled impulse by at most A T × the fit's RMS residual (``fit_residual_rel`` × max p);
@@ -9,7 +10,8 @@ coupled impulse by at most A T × the fit's RMS residual (``fit_residual_rel`` �
 of each EM step, held over the step) times the loaded area, and that sum differs from the closed-form
 ∫ p dt (mech.pulses.pulse_impulse_per_area) by the composite midpoint rule's Euler–Maclaurin term
 −h²/24 (p'(T) − p'(0)) and the −dt/2 shift −dt/2 (p(T) − p(0)); (3) the loaded area from the coupled
-run's field mesh (compare3d.py) against the pressure run's own (the solver's boundary triangles).
+run's field mesh (compare3d.py) against the pressure run's own (the solver's boundary triangles); (4) a flat
+face's inward area vector is its area times its normal: exactly +z for the lower face.
 """
 
 from __future__ import annotations
@@ -24,16 +26,24 @@ from pulseform.orchestrator.mech.pulses import pulse_impulse_per_area, sin2_puls
 
 from wf_helpers import REPO, pulseform
 
-COARSE = ["--set", "sector.angle_deg=5", "--set", "geometry.mesh_size_sheet=1e-3", "--set", "sector.sheet_layers=2",
-          "--set", "geometry.mesh_size_coil=3e-3", "--set", "geometry.mesh_size_air=0.02",
+import math
+
+A = math.radians(5.0)
+COARSE = ["--set", "geometry.parameters.angle_deg=5",
+          "--set", f"symmetry=[{{normal=[0.0, 1.0, 0.0]}}, {{normal=[{-math.sin(A)!r}, {math.cos(A)!r}, 0.0]}}]",
+          "--set", "geometry.parameters.h_sheet=1e-3", "--set", "geometry.parameters.sheet_layers=2",
+          "--set", "geometry.parameters.h_coil=3e-3", "--set", "geometry.parameters.h_air=0.02",
           "--set", "time.end=3e-6", "--set", "output.field_interval=1e-6"]
+#: the 2D demo's loaded surface (the sheet's lower face over the coil, r in [10, 34] mm at z = 1.5 mm) as a 3D box
+SURFACE = "{rmin = 0.01, rmax = 0.034, zmin = 1.4999e-3, zmax = 1.5001e-3}"
+CASE = str(REPO / "cases/emf_sheet_bulge_3d")
 
 
 @pytest.fixture(scope="module")
 def compared(tmp_path_factory):
     """One compare run with a condition that cannot hold and one that must: exit 1 naming the second."""
     out = tmp_path_factory.mktemp("cmp3d") / "c"
-    r = pulseform("compare", str(REPO / "cases/emf_sheet_bulge_3d"), "--out", str(out), *COARSE,
+    r = pulseform("compare", CASE, "--out", str(out), *COARSE, "--surface", SURFACE, "--body", "sheet",
                   "--fail-if", "impulse_rel_diff>1e9", "--fail-if", "wall_time_coupled_s>0.001")
     print(r.stdout, r.stderr[-2000:])
     return out, json.loads((out / "compare.json").read_text()), r
@@ -56,18 +66,21 @@ def test_fail_if_on_the_3d_case(compared):
 def test_the_pulse_is_fitted_on_the_sectors_loaded_area(compared):
     out, rep, _ = compared
     p, mc, mp = rep["pulse"], rep["coupled_metrics"], rep["pressure_metrics"]
-    s = p["symmetry_factor"]
-    assert s == 72.0 and p["source"] == "fitted to the coupled run" and "circuit" in p["fit_method"]
+    s = p["symmetry_factor"]   # the coupled run's: 360 deg over the mesh's angular extent (round-off)
+    assert s == pytest.approx(72.0, rel=1e-12) and s == mc["symmetry_factor"] == mp["symmetry_factor"]
+    assert p["source"] == "fitted to the coupled run" and "circuit" in p["fit_method"] and p["body"] == "sheet"
+    # the lower face is flat: its inward area vector is its area along +z
+    assert p["direction"] == [0.0, 0.0, 1.0] and p["effective_area_m2"] == pytest.approx(p["model_area_m2"], rel=1e-12)
     # the same area from the coupled run's sheet mesh and from the pressure run's solver (round-off)
-    assert p["sector_area_m2"] == pytest.approx(mp["load0_area_m2"], rel=1e-12)
-    assert p["area_m2"] == pytest.approx(s * p["sector_area_m2"], rel=1e-15)
+    assert p["model_area_m2"] == pytest.approx(mp["load0_area_m2"], rel=1e-12)
+    assert p["area_m2"] == pytest.approx(s * p["model_area_m2"], rel=1e-15)
     # the mesh's loaded triangles lie inside the nominal annulus (those straddling r1, r2 are not loaded)
     assert 0.8 * p["nominal_area_m2"] < p["area_m2"] < p["nominal_area_m2"]
     # the fitted pulse's impulse on the coupled run's steps vs the coupled impulse: within the
     # Cauchy-Schwarz bound of the fit's residual (a least-squares fit does not conserve the impulse)
     h = np.genfromtxt(out / "coupled" / "history.csv", delimiter=",", names=True)
     t = h["time_s"]
-    area = p["sector_area_m2"]
+    area = p["model_area_m2"]
     pressure = h["force_z_N"][1:] / area
     fitted = s * area * float(np.sum(sin2_pulse(0.5 * (t[1:] + t[:-1]), p["amplitude"], p["beta"], p["omega"])
                                      * np.diff(t)))
@@ -120,7 +133,32 @@ def test_shapes_compared_on_the_same_nodes_in_3d(compared):
     assert rep["metrics"]["shape_distance_max_mm"] == pytest.approx(1e3 * d, rel=1e-12) and d > 0
     assert shape_distance(xc, uc, xp, up) == d
     m = rep["metrics"]
-    assert m["max_deflection_mm_coupled"] > 0 and m["max_deflection_mm_pressure"] > 0
+    assert m["sheet_max_uz_mm_coupled"] > 0 and m["sheet_max_uz_mm_pressure"] > 0
     for name in ("compare_pressure.png", "compare_shapes.png", "compare_histories.png"):
         assert (out / "plots" / name).stat().st_size > 5000, name
     assert (out / "pressure" / "case.toml").read_text().count('load = "pressure"') == 1
+
+
+@pytest.mark.parametrize("args,says", [
+    ((), "--surface"),   # a geometry file does not know its loaded surface
+    (("--surface", "{rmin = 0.01"), "not a TOML inline table"),
+    (("--surface", "{r = 0.01}"), "unknown bound 'r'"),
+    (("--surface", "{zmin = 2e-3, zmax = 1e-3}"), "--surface.zmax"),
+    (("--surface", SURFACE, "--body", "coil"), "--body 'coil'"),
+])
+def test_bad_compare_inputs_of_a_3d_geometry_file(tmp_path, args, says):
+    """One line, exit 2, before any run."""
+    from wf_helpers import one_line_error
+
+    r = pulseform("compare", CASE, "--out", str(tmp_path / "c"), *COARSE, *args)
+    line = one_line_error(r)
+    assert r.returncode == 2 and says in line, line
+    assert not (tmp_path / "c" / "coupled").exists()
+
+
+def test_a_surface_is_refused_on_a_2d_case(tmp_path):
+    from wf_helpers import one_line_error
+
+    r = pulseform("compare", str(REPO / "cases/emf_sheet_bulge"), "--out", str(tmp_path / "c"), "--surface", SURFACE)
+    line = one_line_error(r)
+    assert r.returncode == 2 and "--surface is for 3D models" in line, line

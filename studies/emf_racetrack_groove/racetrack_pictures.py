@@ -1,4 +1,6 @@
-"""Pictures of a coupled racetrack run (:mod:`.coupled_racetrack`), drawn from its output folder.
+"""Pictures of the study's coupled racetrack run (:mod:`racetrack_run`), drawn from its output folder (the
+sections y = 0 are also drawn for every 3D geometry-file case by the product:
+orchestrator/run/pictures_section3d.py).
 
 * ``plots/section_y0_{von_mises,plastic_strain}.png`` (matplotlib): the deformed sheet and die in the
   symmetry plane y = 0 (the faces of their tetrahedra on that plane, true scale), coloured by the
@@ -9,7 +11,7 @@
 * ``plots/deformed_sheet_{plastic_strain,von_mises}.png`` and ``plots/deformed_die_von_mises.png``
   (pyvista, off-screen): the deformed sheet seen from above (the die would hide it) and the die seen
   from below (its groove), true scale, at four output times, one colour scale per picture; rendered in
-  a child process (``python -m pulseform.orchestrator.run.pictures_racetrack ROOT FOLDER``).
+  a child process (``python racetrack_pictures.py ROOT FOLDER``).
 
 Lengths are shown in mm, stresses in MPa, force densities in GN/m^3.
 """
@@ -24,9 +26,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .mech_fields import read_fields
-from .pictures_mech import _pick, _save_fig
-from .pictures_solid import boundary_faces
+from pulseform.orchestrator.run.mech_fields import read_fields
+from pulseform.orchestrator.run.pictures_mech import _pick, _save_fig
+from pulseform.orchestrator.run.pictures_solid import boundary_faces
 
 log = logging.getLogger(__name__)
 
@@ -159,10 +161,10 @@ def draw_racetrack(root: Path, geometry=None, *, three_d: bool = True) -> list[P
 
 
 def render_3d_isolated(root: Path, folder: Path, time_limit: float = 600.0) -> list[Path]:
-    """:func:`render_3d` in a child process (``python -m`` this module): VTK aborted the process once
+    """:func:`render_3d` in a child process (``python`` this file): VTK aborted the process once
     (std::bad_alloc in the scalar bar's layout, after a run in the same process), which must not take
     the caller down; a failure is logged as a warning and gives no paths."""
-    argv = [sys.executable, "-m", __name__, str(root), str(folder)]
+    argv = [sys.executable, str(Path(__file__).resolve()), str(root), str(folder)]
     try:
         r = subprocess.run(argv, capture_output=True, text=True, timeout=time_limit)
     except subprocess.TimeoutExpired:
@@ -188,8 +190,8 @@ def render_3d(root: Path, folder: Path, panels: int = 4) -> list[Path]:
     """The pyvista pictures of the module docstring (off-screen, in this process)."""
     import pyvista as pv
 
-    from .pictures_mech import _screenshot
-    from .pictures_solid import solid_surface
+    from pulseform.orchestrator.run.pictures_mech import _screenshot
+    from pulseform.orchestrator.run.pictures_solid import solid_surface
 
     pv.OFF_SCREEN = True
     pv.global_theme.multi_samples = 0
@@ -239,7 +241,7 @@ def render_3d(root: Path, folder: Path, panels: int = 4) -> list[Path]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m pulseform.orchestrator.run.pictures_racetrack ROOT FOLDER``: the 3D pictures; prints
+    """``python racetrack_pictures.py ROOT FOLDER``: the 3D pictures; prints
     their paths as one JSON list."""
     args = sys.argv[1:] if argv is None else argv
     print(json.dumps([str(p) for p in render_3d(Path(args[0]), Path(args[1]))]))

@@ -1,6 +1,8 @@
 """The racetrack / sheet / grooved-die design of issue 20, case (b): geometry, bank and materials in one
-place, for the coupled run (:mod:`.coupled_racetrack`), its tests and the EM convergence study
-(``studies/emf_racetrack_groove/em_convergence.py``).
+place, for the study's own coupled run (:mod:`racetrack_run`, ``run_racetrack.py``) and its EM convergence
+study (``em_convergence.py``). The case file ``cases/emf_racetrack_groove`` holds the same design in its
+``[geometry.parameters]``, ``[em]`` and ``[materials]`` (run on the 3D geometry path; its slow test compares it
+with this study's reference run).
 
 Why these numbers (docs/em_geometries.md, racetrack section): the first design (C = 50 uF at 6 kV,
 straight sides 50 mm long, 4 sheet layers, 2.5 mm in-plane over the coil) rang at omega ~ 1.6e5 rad/s

@@ -1,7 +1,7 @@
 """The coupled 3D racetrack case (issue 20, case (b)): a racetrack coil forms a rectangular aluminium
 sheet into the groove of a deformable steel die.
 
-The quarter model of :mod:`.racetrack_design` (planes x = 0 and y = 0) meshed by
+The study's own runner of the quarter model of :mod:`design` (planes x = 0 and y = 0) meshed by
 :func:`~pulseform.solvers.getdp.racetrack_mesh.racetrack_groove_mesh`. The sheet's and the die's
 tetrahedra of the EM mesh are the two mechanical bodies (shared nodes,
 :mod:`~pulseform.orchestrator.mesh.shared3d`); both conduct and both get their Lorentz forces
@@ -22,7 +22,13 @@ The loop is the 2D :class:`~pulseform.orchestrator.coupling.loop.StaggeredLoop` 
 (:class:`~pulseform.orchestrator.mesh.motion3d.MeshMover3D`), coil, shell and the outer sphere stay.
 Outputs (:func:`run_racetrack`): ``history.csv``, ``metrics.json``, ``fields/mech_{sheet,die}.xdmf``
 (+ .h5) at the output times, ``em/force_density_peak.vtu`` (per-tet Lorentz force density at the
-peak coil current) and ``em/force_density_peak.npz`` for the pictures (:mod:`.pictures_racetrack`).
+peak coil current) and ``em/force_density_peak.npz`` for the pictures (:mod:`racetrack_pictures`).
+
+It was ``pulseform.orchestrator.run.coupled_racetrack`` until the case file moved to the 3D geometry path
+(issue 29): the product now runs the case through the driver (``pulseform run cases/emf_racetrack_groove``,
+orchestrator/run/participants3d.py), which reproduces this runner's reference to round-off
+(tests/coupling/test_case_racetrack.py); this runner stays as the study's reference and its per-body
+bookkeeping (momentum vs free impulse, the force density of both bodies at the peak current).
 """
 
 from __future__ import annotations
@@ -45,16 +51,16 @@ from pulseform.solvers.getdp.mesh3d import Mesh3D
 from pulseform.solvers.getdp.racetrack_mesh import DIE, SHEET, RacetrackGroove, racetrack_groove_mesh
 from pulseform.solvers.getdp.solver3d import EM3DModel
 
-from ..coupling.loop import LoopOptions, StaggeredLoop
-from ..em.frozen3d import FreezingGetDPLoad3D
-from ..em.remesh3d import RemeshingGetDPLoad3D
-from ..em.participant3d import ConductorBody3D
-from ..mech.participants import DolfinxMechanics
-from ..mesh.motion import MeshQualityError
-from ..mesh.motion3d import MeshMover3D, nodes_on_plane
-from ..mesh.shared3d import conductor_submesh3d, match_nodes3d, to_dolfinx3d
-from .racetrack_design import (DIE_MATERIAL, RACETRACK, RACETRACK_BANK, SHEET_MATERIAL, SIGMA_COIL, SIGMA_DIE,
-                               SIGMA_SHEET, em_model)
+from pulseform.orchestrator.coupling.loop import LoopOptions, StaggeredLoop
+from pulseform.orchestrator.em.frozen3d import FreezingGetDPLoad3D
+from pulseform.orchestrator.em.remesh3d import RemeshingGetDPLoad3D
+from pulseform.orchestrator.em.participant3d import ConductorBody3D
+from pulseform.orchestrator.mech.participants import DolfinxMechanics
+from pulseform.orchestrator.mesh.motion import MeshQualityError
+from pulseform.orchestrator.mesh.motion3d import MeshMover3D, nodes_on_plane
+from pulseform.orchestrator.mesh.shared3d import conductor_submesh3d, match_nodes3d, to_dolfinx3d
+from design import (DIE_MATERIAL, RACETRACK, RACETRACK_BANK, SHEET_MATERIAL, SIGMA_COIL, SIGMA_DIE,
+                    SIGMA_SHEET, em_model)
 
 log = logging.getLogger(__name__)
 
@@ -71,7 +77,7 @@ PLANES = ((np.zeros(3), np.array([1.0, 0.0, 0.0])), (np.zeros(3), np.array([0.0,
 class RacetrackOptions:
     """The coupled racetrack run (SI units: m, s, Pa m).
 
-    ``geometry`` and ``bank`` (:mod:`.racetrack_design`); ``em_step`` the target EM step (n = em_step
+    ``geometry`` and ``bank`` (:mod:`design`); ``em_step`` the target EM step (n = em_step
     / the stable mechanical step); ``t_end`` the end of the run and ``outputs`` the number of equal
     intervals at whose ends the fields are written; ``contact_stiffness`` k (Pa m) and ``contact_h0`` (m,
     below the sheet-die gap, so the layer is open at t = 0) of eq. (5): the layer's energy
@@ -89,10 +95,10 @@ class RacetrackOptions:
     :mod:`~pulseform.orchestrator.em.frozen3d`) or "stop" (the run ends there, its outputs kept); ``cfl``
     the mechanics' safety factor. ``sheet_material`` and ``die_material`` the bodies' mechanics, ``sigma``
     the conductivities (S/m) of the sheet, the die and the coil, ``getdp_timeout`` the wall-time limit of a
-    getdp answer (s; None: the runner's default) -- a case file sets them (:mod:`.racetrack_case`).
+    getdp answer (s; None: the runner's default).
     ``em_order`` 1 or 2 and ``em_order2_air`` (:class:`EM3DModel`'s ``order``, ``order2_air``): the EM
     deck's edge elements (docs/em_geometries.md, racetrack: the figures of order 2); order 2 cannot remesh
-    (``on_mesh_break`` "freeze" or "stop"); a case file sets ``racetrack.em_order`` (with the air first order).
+    (``on_mesh_break`` "freeze" or "stop"); the case file sets ``geometry.em_order`` (with the air first order).
     """
 
     geometry: RacetrackGroove = RACETRACK
