@@ -3,12 +3,12 @@ index of its headline metrics (:mod:`.gci`).
 
 ``pulseform converge CASE`` runs the case on ``levels`` (>= 3) meshes refined by a constant ``ratio``:
 level 0 is the case as given, level k divides **every** element size of the case by ratio^k (the keys
-named ``mesh_size*`` of ``[geometry]`` and its nested tables -- a 3D geometry file's ``geometry.parameters``
-among them --, every entry of a 3D geometry file's ``geometry.mesh_sizes``, and each body's ``mesh_size``), so the
+named ``mesh_size*`` of ``[geometry]`` and its nested tables, and each body's ``mesh_size``; of a 3D geometry
+file ``geometry.mesh_size_factor`` alone, which multiplies all its sizes), so the
 meshes are refined alike everywhere, as the GCI procedure asks. With ``refine = "em_step"`` it
-divides ``coupling.n`` instead (the EM step, the mechanical step fixed) -- or, for a 3D geometry file with
-``geometry.em_step`` (which sets n), that EM step (n = round(em_step / mechanical step) per level). Each level is its own
-``pulseform run`` process (``jobs`` at a time, as the members of a sweep). For each metric it computes,
+divides ``coupling.n`` instead (the EM step, the mechanical step fixed) -- or, for a 3D geometry file
+with ``geometry.em_step`` (which sets n), that EM step (n = round(em_step / mechanical step) per level).
+Each level is its own ``pulseform run`` process (``jobs`` at a time, as the members of a sweep). For each metric it computes,
 on the three finest levels, the observed order, the Richardson-extrapolated value and the GCI
 (Celik et al. 2008), and writes:
 
@@ -25,7 +25,6 @@ from __future__ import annotations
 import json
 import logging
 import math
-import re
 import tomllib
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
@@ -38,9 +37,6 @@ from .gci import grid_convergence
 from .sweep import Member, run_member
 
 log = logging.getLogger(__name__)
-
-#: a group name --set can address (orchestrator/case/io.py's key path segment, without an index)
-_KEY = re.compile(r"^[A-Za-z_][A-Za-z0-9_\-]*$")
 
 __all__ = ["refinement_keys", "study_levels", "run_converge", "DEFAULT_METRICS"]
 
@@ -55,9 +51,9 @@ class ConvergeError(ValueError):
 
 def refinement_keys(resolved: dict) -> dict[str, float]:
     """The element sizes (m) of a resolved case (the TOML of :func:`case_to_toml`), by ``--set`` key
-    path: ``geometry.mesh_size*`` (also in nested tables such as ``geometry.die``, and the ``mesh_size*``
-    numbers of a 3D geometry file's ``geometry.parameters``), every entry of a 3D geometry file's
-    ``geometry.mesh_sizes`` (``geometry.mesh_sizes.<group>``) and ``bodies.<name>.mesh_size``."""
+    path: ``geometry.mesh_size*`` (also in nested tables such as ``geometry.die``) and
+    ``bodies.<name>.mesh_size``; of a 3D geometry file only ``geometry.mesh_size_factor``, which scales all of
+    its sizes (its ``geometry.mesh_sizes`` and a .geo's size parameters, even those named ``mesh_size*``)."""
     out: dict[str, float] = {}
 
     def number(v) -> bool:
@@ -71,14 +67,13 @@ def refinement_keys(resolved: dict) -> dict[str, float]:
                 out[f"{path}.{k}"] = float(v)
 
     geometry = resolved.get("geometry", {})
-    walk(geometry, "geometry")
-    if geometry.get("type") == "geometry_3d":   # the sizes per physical volume group: every entry is a size
-        for group, v in (geometry.get("mesh_sizes") or {}).items():
-            if number(v):
-                if not _KEY.match(group):
-                    raise ConvergeError(f"geometry.mesh_sizes: the group name {group!r} cannot be refined by --set "
-                                        "(a key path segment is letters, digits, '_' and '-'); rename the group")
-                out[f"geometry.mesh_sizes.{group}"] = float(v)
+    if geometry.get("type") == "geometry_3d":
+        # geometry.mesh_size_factor scales every size of the file (its own, geometry.mesh_sizes, a .geo's
+        # parameters): refining anything else as well would refine those twice
+        if number(geometry.get("mesh_size_factor")):
+            out["geometry.mesh_size_factor"] = float(geometry["mesh_size_factor"])
+    else:
+        walk(geometry, "geometry")
     for b in resolved.get("bodies", []):
         if isinstance(b.get("mesh_size"), (int, float)):
             out[f"bodies.{b['name']}.mesh_size"] = float(b["mesh_size"])
@@ -90,9 +85,8 @@ def study_levels(resolved: dict, ratio: float, levels: int, refine: str) -> list
     if refine == "mesh":
         keys = refinement_keys(resolved)
         if not keys:
-            raise ConvergeError("the case has no element size to refine (no mesh_size key, no geometry.mesh_sizes "
-                                "entry: a user deck's mesh is its .geo's; name its size parameters mesh_size* or "
-                                "refine its [geometry.parameters] with sweep)")
+            raise ConvergeError("the case has no element size to refine (no mesh_size key: a user deck's mesh is "
+                                "its .geo's; refine its [geometry.parameters] with sweep)")
         return [{k: repr(v / ratio ** i) for k, v in keys.items()} for i in range(levels)]
     geometry = resolved.get("geometry", {})
     if geometry.get("type") == "geometry_3d" and isinstance(geometry.get("em_step"), (int, float)):

@@ -80,7 +80,8 @@ def _cyl(c):
 def test_geometry_file_roles(em_first_steps):
     case, geo, model, res = em_first_steps
     assert geo.conductors == {"tube": 1, "shaper": 2} and geo.coils == {"coil": 1}
-    assert model.symmetry_factor == 4.0 and geo.shell == pytest.approx((0.12, 0.15), rel=1e-6)
+    assert model.symmetry_factor == 4.0 and geo.shell[1] == pytest.approx(0.15, rel=1e-6)
+    assert 0.97 * 0.12 < geo.shell[0] <= 0.12   # R_int: the nearest plane of the faceted inner sphere's faces
     p = case.geometry.parameters
     # the coil's section from the mesh (V / (r alpha), alpha = 360 / 4 deg) is its whole meridian section
     from pulseform.solvers.getdp.solver3d import coil_section_from_mesh

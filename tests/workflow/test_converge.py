@@ -71,34 +71,24 @@ def test_fixed_disk_peak_force_converges_to_the_reference(tmp_path, capsys):
 
 
 def test_geometry_3d_sizes_are_refined():
-    """A 3D geometry-file case (cases/emf_tube_field_shaper): every entry of geometry.mesh_sizes (per physical
-    volume group) and the .geo's parameters named mesh_size* are divided by ratio^k; the other parameters
-    (dimensions) are not; a level's overrides load (the --set paths exist)."""
+    """A 3D geometry-file case (cases/emf_tube_field_shaper): geometry.mesh_size_factor alone is divided by
+    ratio^k; it scales every size of the file, so neither geometry.mesh_sizes nor the .geo's parameters named
+    mesh_size* (field_shaper.geo's mesh_size_air, mesh_size_shell) are refined as well (that would refine them
+    twice); a level's overrides load."""
     import tomllib
 
     from pulseform.orchestrator.case.io import case_to_toml, load_case
     from pulseform.orchestrator.workflows.converge import refinement_keys, study_levels
 
     case = str(REPO / "cases/emf_tube_field_shaper")
-    resolved = tomllib.loads(case_to_toml(load_case(case, [])[0]))
-    sizes = resolved["geometry"]["mesh_sizes"]
-    keys = refinement_keys(resolved)
-    assert {k: v for k, v in keys.items() if k.startswith("geometry.mesh_sizes.")} == \
-        {f"geometry.mesh_sizes.{g}": h for g, h in sizes.items()}
-    assert keys["geometry.parameters.mesh_size_air"] == resolved["geometry"]["parameters"]["mesh_size_air"]
-    assert not any(k.endswith((".R_tube_in", ".t_tube", ".w_slit")) for k in keys)
+    resolved = tomllib.loads(case_to_toml(load_case(case, ["geometry.mesh_size_factor=1.5"])[0]))
+    assert "mesh_size_air" in resolved["geometry"]["parameters"] and resolved["geometry"]["mesh_sizes"]
+    assert refinement_keys(resolved) == {"geometry.mesh_size_factor": 1.5}
     levels = study_levels(resolved, 1.5, 3, "mesh")
-    for k, level in enumerate(levels):
-        assert float(level["geometry.mesh_sizes.tube"]) == pytest.approx(sizes["tube"] / 1.5 ** k, rel=1e-15)
+    assert [float(lv["geometry.mesh_size_factor"]) for lv in levels] == pytest.approx([1.5, 1.0, 1.0 / 1.5], rel=1e-15)
     c, _ = load_case(case, [f"{k}={v}" for k, v in levels[2].items()])
-    assert c.geometry.mesh_sizes["shaper"] == pytest.approx(sizes["shaper"] / 2.25, rel=1e-15)
-
-
-def test_geometry_3d_group_name_not_addressable():
-    from pulseform.orchestrator.workflows.converge import ConvergeError, refinement_keys
-
-    with pytest.raises(ConvergeError, match="group name 'my coil'"):
-        refinement_keys({"geometry": {"type": "geometry_3d", "mesh_sizes": {"my coil": 1e-3}}})
+    assert c.geometry.mesh_size_factor == pytest.approx(1.0 / 1.5, rel=1e-15)
+    assert c.geometry.mesh_sizes == load_case(case, [])[0].geometry.mesh_sizes
 
 
 def test_geometry_3d_em_step_is_refined():
