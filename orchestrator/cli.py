@@ -226,15 +226,20 @@ def _check_geometry_3d(case, file: Path) -> list[str] | int:
 
     from .mesh.geometry3d import GeometryError, build_geometry3d
 
+    from .case.guards import LimitExceeded, check_steps_of_meshes
     from .em.model3d import em_model3d
+    from .mesh.geometry3d import stable_step_estimate
     from pulseform.solvers.getdp.solver3d import model_numbers
 
     with tempfile.TemporaryDirectory(prefix="pulseform_check3d_") as tmp:
         try:
             geo = build_geometry3d(case, Path(tmp))
             model_numbers(em_model3d(case, geo), geo.mesh)   # what the deck would refuse
+            check_steps_of_meshes(case, stable_step_estimate(case, geo))   # explicit and EM steps vs [limits]
         except GeometryError as exc:
             return _error(f"{file}: {exc.message}", EXIT_BAD_INPUT)
+        except LimitExceeded as exc:
+            return _error(f"{file}: {exc}", EXIT_BAD_INPUT)
         except ValueError as exc:
             return _error(f"{file}: {Path(case.geometry.file).name}: geometry: {exc}", EXIT_BAD_INPUT)
     m = geo.mesh
@@ -261,15 +266,17 @@ def _cmd_check(args: argparse.Namespace) -> int:
         except DeckContractError as exc:
             return _error(str(exc), EXIT_BAD_INPUT)
         print(f"# {case.geometry.pro}: honours the deck contract")
+    geometry_lines: list[str] = []
     if case.geometry is not None and case.geometry.type == "geometry_3d":
         lines = _check_geometry_3d(case, file)
         if isinstance(lines, int):
             return lines
-        for line in lines:
-            print(line)
+        geometry_lines = lines
     for line in _mesh_advice(case):
         print(f"pulseform: warning: {line}", file=sys.stderr)
     print(f"# {file}: valid")
+    for line in geometry_lines:
+        print(line)
     for d in filled:
         print(f"# {d.text()}")
     print(case_to_toml(case), end="")

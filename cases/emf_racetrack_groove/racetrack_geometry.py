@@ -15,7 +15,7 @@ extruded in layers through its thickness), so the mesh is the one of the study's
 import sys
 from dataclasses import fields
 
-from pulseform.orchestrator.mesh.geometry3d import BuilderArgumentError, builder_arguments
+from pulseform.orchestrator.mesh.gmsh_file import BuilderArgumentError, builder_arguments
 from pulseform.solvers.getdp.racetrack_mesh import RacetrackGroove, racetrack_groove_mesh
 
 

@@ -17,7 +17,7 @@ mesh is that of the sector's reference runs.
 import math
 import sys
 
-from pulseform.orchestrator.mesh.geometry3d import BuilderArgumentError, builder_arguments
+from pulseform.orchestrator.mesh.gmsh_file import BuilderArgumentError, builder_arguments
 from pulseform.solvers.getdp.mesh import Rect
 from pulseform.solvers.getdp.mesh3d import ring_sector_mesh
 

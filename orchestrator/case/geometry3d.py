@@ -59,7 +59,7 @@ class CoilGroup3D:
                             "normal of the cut's triangles as the mesh file orients them)")
     axis: tuple[float, float] | None = spec(None, unit="m", doc="[x, y] of a z-parallel axis: the current runs "
                                             "azimuthally about it (ring coils; the section from the mesh)")
-    section: float | None = spec(None, unit="m^2", gt=0.0, magnitude=(1e-14, 10.0),
+    section: float | None = spec(None, unit="m^2", gt=0.0,
                                  doc="cross-section of all turns (default: from the terminal, the cut or the mesh)")
 
     def validate(self, path: str) -> None:

@@ -13,7 +13,8 @@ from dataclasses import dataclass
 from typing import Literal
 
 from .analysis_names import ANALYSES, ANALYSIS_PAIRS
-from .em_model import (EM, CapacitorBank, DampedSineCurrent, FlatCoilSheet, Geometry, OuterTube, PlanarCoilBlankDie,
+from .em_table import EM, CapacitorBank, DampedSineCurrent
+from .em_model import (FlatCoilSheet, Geometry, OuterTube, PlanarCoilBlankDie,
                       SheetDie, SolenoidTube)
 from .em_applied import check_applied_field
 from .em_sources import check_coils

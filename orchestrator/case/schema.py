@@ -30,6 +30,7 @@ MISSING = dataclasses.MISSING
 #: Zero passes wherever the field's own bounds allow it. The README's case-file section lists this table.
 PLAUSIBLE: dict[str, tuple[float, float]] = {
     "m": (1e-12, 10.0),
+    "m^2": (1e-20, 100.0),
     "s": (1e-15, 1e3),
     "-": (1e-12, 1e9),
     "kg/m^3": (1e-3, 1e5),

@@ -122,7 +122,10 @@ def _validate_3d(case) -> None:
     if file3d:
         validate_geometry_3d(case)  # the user's own geometry file (.geometry3d)
     elif case.case.kind == "coupled":
-        got = getattr(case.geometry, "type", None)
+        if case.geometry is None:
+            raise SchemaError("geometry", "missing required table [geometry] for case.kind = 'coupled' (a 3D geometry "
+                              "file: type = 'geometry_3d', docs/geometry3d.md)")
+        got = case.geometry.type
         raise SchemaError("geometry.type", f"got {got!r}; a coupled 3D case is a 3D geometry file: geometry.type = "
                           "'geometry_3d' with its file and role map (docs/geometry3d.md)")
     mo = case.mechanics

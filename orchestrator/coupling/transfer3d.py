@@ -10,11 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-
-def tet_volumes(x: np.ndarray, cells: np.ndarray) -> np.ndarray:
-    """Volumes (m^3, positive) of the tetrahedra ``cells`` (M, 4) on nodes ``x`` (N, 3) m."""
-    p = x[cells]
-    return np.abs(np.einsum("ij,ij->i", np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), p[:, 3] - p[:, 0])) / 6.0
+from pulseform.solvers.getdp.mesh3d import tet_volumes
 
 
 def tet_nodal_forces(x: np.ndarray, cells: np.ndarray, f_cell: np.ndarray) -> np.ndarray:

@@ -20,6 +20,7 @@ import math
 
 import numpy as np
 
+from pulseform.solvers.getdp.mesh3d import tet_volumes
 from pulseform.solvers.dolfinx.rigid import EndStop, RigidBody
 
 from ..case.model import Case
@@ -39,9 +40,7 @@ def region_mass(sub: ConductorMesh, density: float, axisymmetric: bool, thicknes
     axisymmetry (r_c the triangle's centroid radius: exact for triangles), Σ A_e × ``thickness`` (m)
     in plane models; of tetrahedra (3D): Σ V_e."""
     if sub.cells.shape[1] == 4:
-        q = sub.points[sub.cells]
-        vol = np.abs(np.einsum("ij,ij->i", np.cross(q[:, 1] - q[:, 0], q[:, 2] - q[:, 0]), q[:, 3] - q[:, 0])) / 6.0
-        return float(density * vol.sum())
+        return float(density * tet_volumes(sub.points, sub.cells).sum())
     p = sub.points[:, :2][sub.cells]
     area = 0.5 * np.abs((p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1])
                         - (p[:, 2, 0] - p[:, 0, 0]) * (p[:, 1, 1] - p[:, 0, 1]))

@@ -9,7 +9,7 @@ from pulseform.solvers import dolfinx as mech
 from ..case.model import Case, CowperSymondsTable, MaterialTable
 from ..mesh.shapes import mesh_shape
 from .model3d import build_solver_3d
-from .pulses import box_marker
+from ..mesh.markers import box_marker
 
 
 def solver_material(m: MaterialTable) -> "mech.Material":

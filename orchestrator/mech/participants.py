@@ -16,7 +16,8 @@ from mpi4py import MPI
 from ..case.model import Load
 from ..coupling.interfaces import LoadCapabilities, LoadStep, Mechanics, StepBlock
 from .pulse_block import PulseBlock, PulseProgram, block_plan, run_pulse_block
-from .pulses import box_marker, pulse_pressure, pulse_table
+from ..mesh.markers import box_marker
+from .pulses import pulse_pressure, pulse_table
 
 log = logging.getLogger(__name__)
 

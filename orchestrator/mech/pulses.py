@@ -7,7 +7,7 @@ import math
 import numba
 import numpy as np
 
-from ..case.model import Box, Load, PulseExp, PulseSin2
+from ..case.model import Load, PulseExp, PulseSin2
 
 
 #: columns of :func:`pulse_table`
@@ -86,14 +86,3 @@ def pulse_impulse_per_area(load: Load) -> float:
     return load.amplitude * load.decay_time * (1.0 - math.exp(-tau / load.decay_time))
 
 
-def box_marker(box: Box, tol: float = 0.0):
-    """A DOLFINx-style marker: callable on coordinates of shape (3, N) -> bool array; the box's bounds
-    (inclusive, widened by ``tol`` m) in x and y, and in 3D cases z and the distance from the z-axis."""
-    def inside(x: np.ndarray) -> np.ndarray:
-        out = ((x[0] >= box.xmin - tol) & (x[0] <= box.xmax + tol) & (x[1] >= box.ymin - tol)
-               & (x[1] <= box.ymax + tol))
-        if box.has_z():
-            r = np.hypot(x[0], x[1])
-            out &= (x[2] >= box.zmin - tol) & (x[2] <= box.zmax + tol) & (r >= box.rmin - tol) & (r <= box.rmax + tol)
-        return out
-    return inside

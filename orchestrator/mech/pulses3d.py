@@ -23,7 +23,7 @@ import numpy as np
 from ..case.model import Load
 from ..coupling.interfaces import LoadStep
 from .participants import PressureMechanics, PressurePulses
-from .pulses import box_marker
+from ..mesh.markers import box_marker
 
 #: faces of a tetrahedron (local node indices), outward for a positively oriented one
 _TET_FACES = np.array([[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]])

@@ -1,5 +1,5 @@
-"""The EM mesh of a 3D geometry file (``[geometry] type = "geometry_3d"``): mesh the user's file, read its named
-physical groups, map the role map onto the 3D deck's physical ids.
+"""The EM mesh of a 3D geometry file (``[geometry] type = "geometry_3d"``): the user's file meshed and its named
+physical groups read (:mod:`.gmsh_file`, steps 1 and 2 below), the role map mapped onto the 3D deck's physical ids.
 
 1. :func:`mesh_file3d`: a ``.msh`` is read as it is; a ``.geo`` or a CAD file (``.step``/``.stp``, ``.brep``,
    ``.iges``/``.igs``) is meshed with tetrahedra by gmsh in a child process (``python -m
@@ -21,10 +21,7 @@ Every mistake of the role map is a :class:`GeometryError`: one line naming the f
 
 from __future__ import annotations
 
-import json
 import logging
-import subprocess
-import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Sequence
@@ -32,217 +29,16 @@ from typing import Sequence
 import numpy as np
 
 from pulseform.solvers.getdp.mesh import AIR, OUTER, SHELL, coil_tag, conductor_tag
+from pulseform.solvers.getdp.mesh3d import CUT_BASE, ELEC_IN_BASE, ELEC_OUT_BASE, SYM_A, SYM_H, Mesh3D, skin_tag
 
 from ..case.memory import available_memory, memory_needed
-from pulseform.solvers.getdp.mesh3d import CUT_BASE, ELEC_IN_BASE, ELEC_OUT_BASE, SYM_A, SYM_H, Mesh3D, skin_tag
+from .gmsh_file import GeometryError, RawGroups, mesh_file3d, read_groups
+from .markers import box_marker
 
 log = logging.getLogger(__name__)
 
-#: gmsh's element kinds of interest in meshio's names
-_TETRA, _TRIANGLE = "tetra", "triangle"
 #: faces of a tetrahedron (local node indices), outward for a positively oriented one
 _TET_FACES = np.array([[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]])
-
-
-class GeometryError(RuntimeError):
-    """A 3D geometry file or its role map is not usable (one line naming the file and the key).
-
-    ``log_path``: the gmsh log it refers to, if any."""
-
-    def __init__(self, message: str, *, log_path: Path | None = None) -> None:
-        self.message = message
-        self.log_path = None if log_path is None else Path(log_path)
-        super().__init__(message if log_path is None else f"{message} (log: {log_path})")
-
-
-# ----------------------------------------------------------------------------- 1. meshing
-def mesh_file3d(g, work: Path, time_limit: float = 600.0) -> Path:
-    """The raw mesh of ``g`` (a :class:`~pulseform.orchestrator.case.geometry3d.GeometryFile3D`): the
-    ``.msh`` itself or the file meshed by a child process into ``work/geometry.msh`` (log
-    ``work/gmsh.log``); raises :class:`GeometryError` with the log's tail when meshing fails or exceeds
-    ``time_limit`` (s)."""
-    from pulseform.solvers.getdp.runner import run_logged
-
-    src = Path(g.file)
-    if src.suffix.lower() == ".msh":
-        return src
-    work = Path(work).resolve()
-    work.mkdir(parents=True, exist_ok=True)
-    out = work / "geometry.msh"
-    out.unlink(missing_ok=True)
-    params = [f"{k}={float(v)!r}" for k, v in (g.parameters or {}).items()]
-    factor = float(getattr(g, "mesh_size_factor", 1.0))
-    if src.suffix.lower() == ".py":
-        argv = [sys.executable, str(src), str(out)] + params + ([f"mesh_size_factor={factor!r}"] if factor != 1.0 else [])
-        what = "the builder"
-    else:
-        argv = [sys.executable, "-m", __name__, str(src), str(out), json.dumps(g.mesh_sizes or {}), repr(factor)] + params
-        what = "gmsh"
-    log_path = work / "gmsh.log"
-    try:
-        code, text = run_logged(argv, src.parent, log_path, time_limit)
-    except subprocess.TimeoutExpired:
-        raise GeometryError(f"{src.name}: geometry.file: meshing exceeded its time limit of {time_limit:g} s "
-                            "(limits.gmsh_time_limit_s) and was stopped", log_path=log_path) from None
-    except OSError as exc:
-        raise GeometryError(f"{src.name}: geometry.file: could not start {what}: {exc}", log_path=log_path) from None
-    if code != 0 or not out.is_file():
-        lines = [ln for ln in text.splitlines() if ln.strip()]
-        last = next((ln for ln in reversed(lines) if "rror" in ln), lines[-1] if lines else f"exit code {code}")
-        raise GeometryError(f"{src.name}: geometry.file: {what} failed: {last.strip()[:200]}", log_path=log_path)
-    return out
-
-
-class BuilderArgumentError(ValueError):
-    """A gmsh builder script was called with arguments it does not know."""
-
-
-def builder_arguments(argv: Sequence[str], known: Sequence[str], integers: Sequence[str] = ()
-                      ) -> tuple[str, dict[str, float | int], float]:
-    """The arguments a ``.py`` builder receives (``python FILE OUT.msh name=value ... [mesh_size_factor=f]``):
-    (OUT.msh, the values by name -- ints for ``integers`` --, the mesh size factor, 1.0 when not given).
-    A builder script calls this on ``sys.argv[1:]``; raises :class:`BuilderArgumentError` naming an unknown name
-    (the builder prints it as an ``Error:`` line, which pulseform quotes)."""
-    if not argv:
-        raise BuilderArgumentError("usage: python BUILDER.py OUT.msh [name=value ...]")
-    values: dict[str, float | int] = {}
-    factor = 1.0
-    for item in argv[1:]:
-        name, _, text = item.partition("=")
-        if name == "mesh_size_factor":   # pulseform's refinement (geometry.mesh_size_factor)
-            factor = float(text)
-        elif name in known:
-            values[name] = int(float(text)) if name in integers else float(text)
-        else:
-            raise BuilderArgumentError(f"unknown parameter {name!r}; known: {', '.join(sorted(known))}")
-    return argv[0], values, factor
-
-
-def _child(src: str, out: str, sizes_json: str, factor: float, params: Sequence[str]) -> int:
-    """The meshing child (module docstring, 1.): open ``src`` with ``params`` (``name=value``), size the
-    named volume groups, every size times ``factor``, mesh in 3D, write MSH 2.2 to ``out``. Prints gmsh's
-    messages (the log)."""
-    import gmsh
-
-    argv = ["gmsh"]
-    for p in params:
-        name, value = p.split("=", 1)
-        argv += ["-setnumber", name, value]
-    gmsh.initialize(argv, readConfigFiles=False)
-    try:
-        gmsh.option.setNumber("General.Terminal", 1)
-        try:
-            gmsh.open(src)
-        except Exception as exc:   # a parse error or the file's own Error(...): its message, not the traceback's
-            print(f"Error: {exc}")
-            return 3
-        if Path(src).suffix.lower() != ".geo" and not gmsh.model.getPhysicalGroups():
-            _name_cad_entities(gmsh)
-        names = {gmsh.model.getPhysicalName(d, t): (d, t) for d, t in gmsh.model.getPhysicalGroups()}
-        for group, h in json.loads(sizes_json).items():
-            if group not in names or names[group][0] != 3:
-                vols = sorted(n for n, (d, _) in names.items() if d == 3)
-                print(f"Error: geometry.mesh_sizes: no physical volume group {group!r}; the file's: {vols}")
-                return 3
-            ents = gmsh.model.getEntitiesForPhysicalGroup(3, names[group][1])
-            pts = gmsh.model.getBoundary([(3, int(e)) for e in ents], combined=False, oriented=False, recursive=True)
-            gmsh.model.mesh.setSize([p for p in pts if p[0] == 0], float(h))
-        if gmsh.model.getDimension() < 3 or not gmsh.model.getEntities(3):
-            print("Error: the geometry has no volume")
-            return 3
-        gmsh.option.setNumber("Mesh.Algorithm3D", 1)
-        gmsh.option.setNumber("Mesh.Optimize", 1)
-        if factor != 1.0:
-            gmsh.option.setNumber("Mesh.MeshSizeFactor", factor)
-        gmsh.model.mesh.generate(3)
-        gmsh.option.setNumber("Mesh.MshFileVersion", 2.2)
-        gmsh.option.setNumber("Mesh.Binary", 0)
-        gmsh.write(out)
-    finally:
-        gmsh.finalize()
-    return 0
-
-
-def _name_cad_entities(gmsh) -> None:
-    """A CAD file without physical groups: make its volumes conforming (one fragment) and give every volume
-    and surface a physical group named by its CAD label or ``volume_<tag>`` / ``surface_<tag>``."""
-    vols = gmsh.model.getEntities(3)
-    if len(vols) > 1:
-        gmsh.model.occ.fragment(vols[:1], vols[1:])
-        gmsh.model.occ.synchronize()
-    for dim, what in ((3, "volume"), (2, "surface")):
-        used: set[str] = set()
-        for _, tag in gmsh.model.getEntities(dim):
-            label = gmsh.model.getEntityName(dim, tag).split("/")[-1].strip()
-            name = label if label and label not in used else f"{what}_{tag}"
-            used.add(name)
-            p = gmsh.model.addPhysicalGroup(dim, [tag])
-            gmsh.model.setPhysicalName(dim, p, name)
-
-
-# ----------------------------------------------------------------------------- 2. reading
-@dataclass
-class RawGroups:
-    """A raw 3D mesh by named physical group: ``points`` (n, 3) m (only nodes of tetrahedra, file order);
-    ``tets`` (m, 4) node rows, ``tet_group`` the group name of each; ``surfaces`` name -> (f, 3) node rows;
-    ``volumes`` the volume groups' names; ``path`` the file."""
-
-    points: np.ndarray
-    tets: np.ndarray
-    tet_group: np.ndarray
-    surfaces: dict[str, np.ndarray]
-    volumes: list[str]
-    path: Path
-
-    def listing(self) -> str:
-        """The groups for a message: volumes then surfaces, each quoted."""
-        return ("volumes " + ", ".join(repr(v) for v in self.volumes) + "; surfaces "
-                + (", ".join(repr(s) for s in self.surfaces) or "(none)"))
-
-
-def read_groups(path: Path, label: str) -> RawGroups:
-    """Read a MSH file's tetrahedra and triangles by physical-group name (``label``: the file named in
-    messages). Unnamed groups are named by their number. Nodes used by no tetrahedron are dropped (the
-    order of the others kept)."""
-    import meshio
-
-    try:
-        m = meshio.read(path)
-    except Exception as exc:  # meshio raises many kinds for a file that is not a mesh
-        raise GeometryError(f"{label}: geometry.file: not a readable mesh: {str(exc)[:150]}") from None
-    names = {}
-    for name, (tag, dim) in ((k, (int(v[0]), int(v[1]))) for k, v in (m.field_data or {}).items()):
-        names[(dim, tag)] = name
-    phys = m.cell_data.get("gmsh:physical")
-    if phys is None:
-        raise GeometryError(f"{label}: geometry.file: the mesh has no physical groups; name its volumes and "
-                            "surfaces (Physical Volume(\"air\") = {...}; ...)")
-    tets, tet_tag, tris = [], [], {}
-    for block, tags in zip(m.cells, phys):
-        if block.type == _TETRA:
-            tets.append(block.data)
-            tet_tag.append(np.asarray(tags, int))
-        elif block.type == _TRIANGLE:
-            for t in np.unique(tags):
-                name = names.get((2, int(t)), str(int(t)))
-                tris.setdefault(name, []).append(block.data[np.asarray(tags) == t])
-    if not tets:
-        raise GeometryError(f"{label}: geometry.file: the mesh has no tetrahedra in a physical volume group")
-    tets_a, tag_a = np.concatenate(tets).astype(np.int64), np.concatenate(tet_tag)
-    used = np.unique(tets_a)
-    new = np.full(len(m.points), -1, dtype=np.int64)
-    new[used] = np.arange(len(used))
-    group_of = np.array([names.get((3, int(t)), str(int(t))) for t in np.unique(tag_a)], dtype=object)
-    lookup = dict(zip(np.unique(tag_a).tolist(), group_of.tolist()))
-    surfaces = {}
-    for name, parts in tris.items():
-        t = np.concatenate(parts).astype(np.int64)
-        if np.all(new[t] >= 0):
-            surfaces[name] = new[t]
-    volumes = sorted(set(lookup.values()))
-    return RawGroups(points=np.asarray(m.points[used], float)[:, :3].copy(), tets=new[tets_a],
-                     tet_group=np.array([lookup[t] for t in tag_a.tolist()], dtype=object), surfaces=surfaces,
-                     volumes=volumes, path=Path(path))
 
 
 # ----------------------------------------------------------------------------- 3. roles
@@ -469,10 +265,8 @@ def build_geometry3d(case, work: Path) -> Geometry3D:
 
 def check_fixed_boxes(case, geo: Geometry3D, label: str) -> None:
     """Every ``[[bodies.fixed]]`` box of a deformable body holds at least one of its nodes (the 3D semantics of
-    :func:`~..mech.pulses.box_marker`, widened by 1e-9 of the mesh's size); raises :class:`GeometryError`
+    :func:`~.markers.box_marker`, widened by 1e-9 of the mesh's size); raises :class:`GeometryError`
     naming the key otherwise: a support beyond its body is a mistake, not a free body."""
-    from ..mech.pulses import box_marker
-
     m = geo.mesh
     tol = 1e-9 * float(np.abs(m.points).max())
     for i, b in enumerate(case.bodies):
@@ -517,15 +311,21 @@ def symmetry_factor(g, planes: Sequence[PlaneSpec], points: np.ndarray, label: s
     return 2 * np.pi / span
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    """``python -m pulseform.orchestrator.mesh.geometry3d SRC OUT SIZES_JSON FACTOR [name=value ...]``: the meshing
-    child."""
-    args = list(sys.argv[1:] if argv is None else argv)
-    if len(args) < 4:
-        print("usage: python -m pulseform.orchestrator.mesh.geometry3d SRC OUT SIZES_JSON FACTOR [name=value ...]")
-        return 2
-    return _child(args[0], args[1], args[2], float(args[3]), args[4:])
-
-
-if __name__ == "__main__":
-    sys.exit(main())
+def stable_step_estimate(case, geo: Geometry3D) -> float:
+    """An upper bound (s) of the explicit stable step of the case's deformable bodies on the mapped mesh: cfl x
+    the smallest altitude of their tetrahedra (3 V / largest face area) over the dilatational wave speed
+    sqrt((K + 4 G / 3) / rho) -- the solver's own rule without the bulk viscosity's reduction; inf without
+    deformable bodies. What ``pulseform check`` holds against ``limits.max_steps`` before a run."""
+    m = geo.mesh
+    dt = float("inf")
+    for k, b in enumerate(case.bodies, start=1):
+        if b.rigid:
+            continue
+        rows = np.flatnonzero(m.tet_tags == conductor_tag(k))
+        vol, t = m.volumes(rows), m.points[m.tets[rows]]
+        faces = t[:, _TET_FACES]
+        area = 0.5 * np.linalg.norm(np.cross(faces[:, :, 1] - faces[:, :, 0], faces[:, :, 2] - faces[:, :, 0]), axis=2)
+        mat = case.materials[b.material]
+        c = np.sqrt((mat.bulk_modulus + 4.0 * mat.shear_modulus / 3.0) / mat.density)
+        dt = min(dt, float((3.0 * vol / area.max(axis=1)).min()) / c)
+    return case.time.cfl * dt

@@ -19,11 +19,9 @@ from __future__ import annotations
 
 import logging
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 from mpi4py import MPI
-from scipy.spatial import cKDTree
 
 from pulseform.solvers import dolfinx as mech
 from pulseform.solvers.dolfinx.solver3d import ExplicitSolver3D
@@ -40,21 +38,15 @@ from ..em.remesh3d import RemeshingGetDPLoad3D
 from ..mech.mixed import rigid_bodies
 from ..mech.model import solver_material
 from ..mech.participants import DolfinxMechanics
-from ..mech.pulses import box_marker
 from ..mech.pulses3d import PressurePulses3D
 from ..mech.rigid import RigidMechanics
 from ..mech.model3d import plane_marker
 from ..mesh.geometry3d import Geometry3D, GeometryError, PlaneSpec, boundary_faces, build_geometry3d
+from ..mesh.markers import box_marker, points_marker
 from ..mesh.motion3d import MeshMover3D, nodes_on_plane
 from ..mesh.shared3d import conductor_submesh3d, match_nodes3d, to_dolfinx3d
 
 log = logging.getLogger(__name__)
-
-
-def points_marker(points: np.ndarray, tol: float) -> Callable[[np.ndarray], np.ndarray]:
-    """Marker of the nodes within ``tol`` (m) of one of ``points`` (n, 3) (a surface group's nodes)."""
-    tree = cKDTree(points)
-    return lambda x: tree.query(np.asarray(x).T, distance_upper_bound=tol)[0] <= tol
 
 
 def _supports(case: Case, name: str, fixed, geo: Geometry3D, tol: float) -> tuple[tuple, tuple]:

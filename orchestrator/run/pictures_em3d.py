@@ -18,6 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
+from pulseform.solvers.getdp.mesh3d import tet_volumes
+
 from .em_fields3d import CONDUCTORS_PEAK, read_peak3d
 from .pictures_solid import VIEW, boundary_faces
 
@@ -25,12 +27,6 @@ log = logging.getLogger(__name__)
 
 PICTURE = "em3d_force_density_peak_current.png"
 CURRENT_PICTURE = "em3d_current_density_peak_current.png"
-
-
-def tet_volumes(points: np.ndarray, tets: np.ndarray) -> np.ndarray:
-    """Volumes (m^3) of the tetrahedra ``tets`` (rows of ``points``, m)."""
-    p = points[tets]
-    return np.abs(np.einsum("ij,ij->i", p[:, 1] - p[:, 0], np.cross(p[:, 2] - p[:, 0], p[:, 3] - p[:, 0]))) / 6.0
 
 
 def draw_em3d(results_dir: Path) -> list[Path]:

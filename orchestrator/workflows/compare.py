@@ -37,7 +37,7 @@ from ..mech.pulses import exp_pulse, sin2_pulse
 from ..run.children import run_pulseform
 from ..run.results import ResultsFolder, read_metrics
 from .compare3d import loading_3d, nominal_area, plot_profile
-from .compare_area import loaded_area_2d
+from .compare_area import mesh_area
 from .validate import write_json
 
 log = logging.getLogger(__name__)
@@ -102,24 +102,6 @@ def loaded_surface(case: Case) -> tuple[dict[str, float], float, int, float]:
         y = g.blank_thickness
         return {"xmin": x1, "xmax": x2, "ymin": y - eps, "ymax": y + eps}, (x2 - x1) * case.mechanics.thickness, 1, -1.0
     raise CompareError(f"compare: geometry type {getattr(g, 'type', None)!r} has no known loaded surface")
-
-
-def _mesh_area(case: Case, folder: Path, body: str, box: dict, nominal: float) -> float:
-    """The loaded area (m²) of the 2D workpiece mesh of the coupled run in ``folder`` (the nominal one,
-    logged, when its fields cannot be read)."""
-    from ..run.mech_fields import FieldFileError, read_fields
-
-    try:
-        bf = read_fields(folder)[body]
-    except (FieldFileError, KeyError) as exc:
-        log.warning("compare: no mesh of %r in %s (%s): the nominal area %.4g cm^2", body, folder, exc, nominal * 1e4)
-        return nominal
-    area = loaded_area_2d(bf.points, bf.triangles, box, axisymmetric=case.mechanics.formulation == "axisymmetric",
-                          thickness=case.mechanics.thickness)
-    if area <= 0.0:
-        raise CompareError(f"compare: the loaded surface {box} holds no boundary edge of {body!r}")
-    log.info("compare: loaded area %.6g cm^2 on the mesh (nominal %.6g cm^2)", area * 1e4, nominal * 1e4)
-    return area
 
 
 # --------------------------------------------------------------------------- fits
@@ -328,7 +310,7 @@ def run_compare(case_path: str, out: Path, *, overrides: list[str] | None = None
                  area * 1e4, sym, area * sym * 1e4, np.array2string(direction, precision=4))
     nominal = area
     if not three_d and box is not None:  # the area the pressure run loads on this mesh (compare_area.py)
-        area = _mesh_area(case, root / "coupled", work.name, box, area)
+        area = mesh_area(case, root / "coupled", work.name, box, area)
     if direction is not None:   # p = F.S / |S|^2: the pressure that pushes the model's force along S
         force_col = sum(direction[c] * hc[FORCE_COLUMNS[c]] for c in range(3)) * (area / effective)
     else:

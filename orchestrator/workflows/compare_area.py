@@ -7,7 +7,12 @@ loads 32.11 cm² of the nominal 33.18 cm², 3.2 % less)."""
 
 from __future__ import annotations
 
+import logging
+from pathlib import Path
+
 import numpy as np
+
+log = logging.getLogger(__name__)
 
 
 def boundary_edges(triangles: np.ndarray) -> np.ndarray:
@@ -30,3 +35,22 @@ def loaded_area_2d(points: np.ndarray, triangles: np.ndarray, box: dict, *, axis
     if axisymmetric:
         return float(np.sum(np.pi * (a[:, 0] + b[:, 0]) * length))
     return float(np.sum(length) * thickness)
+
+
+def mesh_area(case, folder: Path, body: str, box: dict, nominal: float) -> float:
+    """The loaded area (m²) of the 2D workpiece mesh of the coupled run in ``folder`` (the nominal one,
+    logged, when its fields cannot be read)."""
+    from ..run.mech_fields import FieldFileError, read_fields
+    from .compare import CompareError
+
+    try:
+        bf = read_fields(folder)[body]
+    except (FieldFileError, KeyError) as exc:
+        log.warning("compare: no mesh of %r in %s (%s): the nominal area %.4g cm^2", body, folder, exc, nominal * 1e4)
+        return nominal
+    area = loaded_area_2d(bf.points, bf.triangles, box, axisymmetric=case.mechanics.formulation == "axisymmetric",
+                          thickness=case.mechanics.thickness)
+    if area <= 0.0:
+        raise CompareError(f"compare: the loaded surface {box} holds no boundary edge of {body!r}")
+    log.info("compare: loaded area %.6g cm^2 on the mesh (nominal %.6g cm^2)", area * 1e4, nominal * 1e4)
+    return area

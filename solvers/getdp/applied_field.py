@@ -109,7 +109,7 @@ class AppliedField:
         return self.B0 * self.amplitude * self.unit_vector(dim)
 
     def unit_f(self, t) -> np.ndarray | float:
-        """The deck's time function App_F(t) (dimensionless): f(t) / amplitude."""
+        """The deck's time function Field_F(t) (dimensionless): f(t) / amplitude."""
         w = self.waveform
         if isinstance(w, DampedSine):
             return DampedSine(1.0, w.beta, w.omega, w.phase, w.t_on)(t)
@@ -122,14 +122,14 @@ class AppliedField:
 
     # -- deck inputs
     def time_numbers(self) -> dict[str, float]:
-        """The deck's ``App_Wave``, ``App_beta``, ... of the time function (2D and 3D decks alike)."""
+        """The deck's ``Field_Wave``, ``Field_beta``, ... of the time function (2D and 3D decks alike)."""
         w = self.waveform
         if isinstance(w, DampedSine):
-            return {"App_Wave": 0, "App_beta": w.beta, "App_omega": w.omega, "App_phase": w.phase, "App_ton": w.t_on}
-        return {"App_Wave": 1}
+            return {"Field_Wave": 0, "Field_beta": w.beta, "Field_omega": w.omega, "Field_phase": w.phase, "Field_ton": w.t_on}
+        return {"Field_Wave": 1}
 
     def table_lines(self) -> list[str]:
-        """``App_Table() = {...};`` for a table waveform (the last value held: one more point far after)."""
+        """``Field_Table() = {...};`` for a table waveform (the last value held: one more point far after)."""
         w = self.waveform
         if not isinstance(w, CurrentTable):
             return []
@@ -137,11 +137,11 @@ class AppliedField:
         values = list(w.values) + [w.values[-1]]
         pairs = [f"{t:.17g}, {v:.17g}" for t, v in zip(times, values)]
         body = ",\n  ".join(", ".join(pairs[j:j + 8]) for j in range(0, len(pairs), 8))
-        return [f"App_Table() = {{\n  {body}}};"]
+        return [f"Field_Table() = {{\n  {body}}};"]
 
     def numbers_2d(self, axisymmetric: bool, points: np.ndarray, lines: np.ndarray, line_tags: np.ndarray,
                    h0_step: float = 0.0) -> dict[str, float]:
-        """The 2D deck's ``-setnumber`` inputs (without ``App_F1``/``App_F2``, the state's) on a mesh.
+        """The 2D deck's ``-setnumber`` inputs (without ``Field_F1``/``Field_F2``, the state's) on a mesh.
 
         Raises ``ValueError`` for a radial field in axisymmetry, a field crossing an a = 0 symmetry line
         (physical 11) in planar, and beside the imposed tangential field ``h0_step``.
@@ -170,8 +170,8 @@ class AppliedField:
                     raise ValueError(f"planar applied field along {list(self.direction)!r} crosses the a = 0 "
                                      f"symmetry line(s) (physical {_AXIS_2D}): B must be tangential to them "
                                      f"(and they collinear); use a natural boundary (B normal) there instead")
-        out = {"Flag_AppField": 1, "App_Bx": float(b[0]), "App_By": float(b[1]), "App_Mx": mx, "App_My": my,
-               "App_C": c}
+        out = {"Flag_AppField": 1, "Field_Bx": float(b[0]), "Field_By": float(b[1]), "Field_Mx": mx, "Field_My": my,
+               "Field_C": c}
         out.update(self.time_numbers())
         return out
 
@@ -199,14 +199,27 @@ class AppliedField:
         m, c = linear_potential(b, planes_a)
         logger.debug("applied field B = %s T: a_app = M r + c, M = %s, c = %s (%d n x a = 0 planes, %d n x h = 0)",
                      b.tolist(), m.round(12).tolist(), c.round(15).tolist(), len(planes_a), len(planes_h))
-        out: dict[str, float] = {"Flag_AppField": 1, "App_Bx": float(b[0]), "App_By": float(b[1]),
-                                 "App_Bz": float(b[2])}
+        out: dict[str, float] = {"Flag_AppField": 1, "Field_Bx": float(b[0]), "Field_By": float(b[1]),
+                                 "Field_Bz": float(b[2])}
         for i in range(3):
             for j in range(3):
-                out[f"App_M{i + 1}{j + 1}"] = float(m[i, j])
-            out[f"App_c{i + 1}"] = float(c[i])
+                out[f"Field_M{i + 1}{j + 1}"] = float(m[i, j])
+            out[f"Field_c{i + 1}"] = float(c[i])
         out.update(self.time_numbers())
         return out
+
+
+def applied_start(f_now: float, f_prev: float, t: float, dt_prev: float | None, t_end: float,
+                  bdf2_restart: bool) -> float:
+    """The applied field's unit time function of a run's start state (the step t -> ``t_end``, s): ``f_now``
+    (implicit Euler, or a BDF2 step from fields at rest), or with a BDF2 restart the combination
+    c1 f_{n-1} - c2 f_{n-2} that the restarted x~ is of the unknowns (``dt_prev`` the last step, s)."""
+    if not bdf2_restart:
+        return float(f_now)
+    from .bdf2 import bdf2_coefficients
+
+    _, c1, c2 = bdf2_coefficients(t_end - t, dt_prev)
+    return float(c1 * f_now - c2 * f_prev)
 
 
 def _cross_matrix(n: np.ndarray) -> np.ndarray:

@@ -298,3 +298,20 @@ class EMStepResult:
     def total_conductor_force(self) -> np.ndarray:
         """(n, 2) sum over all massive conductors."""
         return self.conductor_force.sum(axis=1)
+
+
+def table_lines(coils, applied_field=None) -> list[str]:
+    """The lines a run deck defines for its tables: ``Coil_Table_<k>() = {t, I, ...};`` of every coil whose
+    waveform is a :class:`CurrentTable` (s, A; the last value held beyond the table: GetDP would extrapolate the
+    last segment), and the applied field's (its ``table_lines()``). 2D and 3D decks alike."""
+    lines = []
+    for k, c in enumerate(coils, start=1):
+        if isinstance(c.waveform, CurrentTable):
+            times = list(c.waveform.times) + [c.waveform.times[-1] + 1e3]
+            values = list(c.waveform.values) + [c.waveform.values[-1]]
+            pairs = [f"{t:.17g}, {v:.17g}" for t, v in zip(times, values)]
+            body = ",\n  ".join(", ".join(pairs[j:j + 8]) for j in range(0, len(pairs), 8))
+            lines.append(f"Coil_Table_{k}() = {{\n  {body}}};")
+    if applied_field is not None:
+        lines += applied_field.table_lines()
+    return lines

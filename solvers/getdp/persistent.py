@@ -117,8 +117,8 @@ class PersistentGetDPSolver(GetDPSolver):
         elif state.step_index or state.res_path:
             raise ValueError("the EM state has no nodal values to start a getdp process from")
         if m.applied_field is not None:   # the unit time function of the seed states (0 at rest)
-            numbers["App_F1"] = state.applied_f
-            numbers["App_F2"] = state.applied_f_prev if numbers["PF_Seed"] == 2 else state.applied_f
+            numbers["Field_F1"] = state.applied_f
+            numbers["Field_F2"] = state.applied_f_prev if numbers["PF_Seed"] == 2 else state.applied_f
         numbers.update(extra_numbers or {})
         return PersistentProcess(run_dir, mesh, numbers, lines, self.deck, executable=self.executable,
                                  petsc_args=self.petsc_args, time_limit=self.timeout, verbosity=self.verbosity)

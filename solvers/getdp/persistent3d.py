@@ -110,7 +110,7 @@ class PersistentEM3DStepper:
         numbers, lines = model_numbers(self.model, mesh)
         numbers.update(PF_T1=float(state.t), PF_Step0=int(state.steps), PF_DtPrev=0.0, PF_Seed=1)
         if self.model.applied_field is not None:   # the unit time function of the seed states (0 at rest)
-            numbers["App_F1"], numbers["App_F2"] = applied_state_values(self.model, state.t, state.steps, state.dt_prev)
+            numbers["Field_F1"], numbers["Field_F2"] = applied_state_values(self.model, state.t, state.steps, state.dt_prev)
         seed = None
         if state.steps or state.res_path is not None:
             if state.res_path is None or state.x_prev is None:

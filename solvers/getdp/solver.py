@@ -8,16 +8,16 @@ from typing import Sequence
 
 import numpy as np
 
+from .applied_field import applied_start
 from .bdf2 import bdf2_coefficients, match_rows, trapezoid_mean
 from .files import discard_folder, element_volumes, init_list_line, read_element_table, read_table
 from .mesh import AXIS, OUTER, EMMesh, coil_tag, conductor_tag, physical_numbers, write_msh22
 from .model import (Circuit, Coil, Conductor, CurrentTable, DampedSine, EMModel, EMState, EMStepResult,  # noqa: F401
-                    mesh_signature)
-from .runner import GetDPError, RunInfo, run_getdp
+                    mesh_signature, table_lines)
+from .runner import GetDPError, run_getdp
 
 DECK_DIR = Path(__file__).resolve().parent / "decks"
-#: PETSc options passed on getdp's command line: direct LU with UMFPACK.  Same results as the
-#: default MUMPS, ~30 % less wall time per run here (MUMPS start-up and factorisation).
+#: PETSc options on getdp's command line: LU with UMFPACK (as MUMPS to round-off, ~30 % less wall time per run here)
 DEFAULT_PETSC_ARGS = ("-ksp_type", "preonly", "-pc_type", "lu", "-pc_factor_mat_solver_type", "umfpack")
 CASE_DECK = DECK_DIR / "em_case.pro"
 RESOLUTION = "EM_Transient"
@@ -167,7 +167,9 @@ class GetDPSolver:
             data_lines.append(init_list_line("InitA_List", ids, vals))
         numbers.update(TimeInit=t_init, TimeFinal=float(t_end), NbSteps=int(n_sub))
         if model.applied_field is not None:
-            numbers["App_F1"] = self._applied_start(state, float(t_end))
+            bdf2_restart = self.time_scheme == "bdf2" and bool(state.dt_prev and state.res_path is not None)
+            numbers["Field_F1"] = applied_start(state.applied_f, state.applied_f_prev, state.t, state.dt_prev,
+                                              float(t_end), bdf2_restart)
         if model.circuit is not None:
             numbers["Init_Vc"] = init_vc
             numbers["Init_I"] = init_i
@@ -201,14 +203,6 @@ class GetDPSolver:
             while len(self._runs) > self.keep_runs:
                 discard_folder(self._runs.pop(0))
         return result, new_state
-
-    def _applied_start(self, state: EMState, t_end: float) -> float:
-        """The applied field's unit time function of the run's start state: ``state.applied_f`` (implicit
-        Euler), or with BDF2 the combination c1 f_{n-1} - c2 f_{n-2} that x~ is of the unknowns."""
-        if self.time_scheme != "bdf2" or not (state.dt_prev and state.res_path is not None):
-            return float(state.applied_f)
-        _, c1, c2 = bdf2_coefficients(t_end - state.t, state.dt_prev)
-        return float(c1 * state.applied_f - c2 * state.applied_f_prev)
 
     #: BDF2 by restart from a synthetic x_tilde (a subclass's ``_bdf2_restart``), not the Init path
     bdf2_by_restart = False
@@ -372,18 +366,8 @@ class GetDPSolver:
         return nb
 
     def _table_lines(self) -> list[str]:
-        lines = []
-        for k, c in enumerate(self.model.coils, start=1):
-            if isinstance(c.waveform, CurrentTable):
-                # hold the last value beyond the table (GetDP would extrapolate the last segment)
-                times = list(c.waveform.times) + [c.waveform.times[-1] + 1e3]
-                values = list(c.waveform.values) + [c.waveform.values[-1]]
-                pairs = [f"{t:.17g}, {v:.17g}" for t, v in zip(times, values)]
-                body = ",\n  ".join(", ".join(pairs[j:j + 8]) for j in range(0, len(pairs), 8))
-                lines.append(f"Coil_Table_{k}() = {{\n  {body}}};")
-        if self.model.applied_field is not None:
-            lines += self.model.applied_field.table_lines()
-        return lines
+        """The run deck's table lines (:func:`.model.table_lines`)."""
+        return table_lines(self.model.coils, self.model.applied_field)
 
     def conductor_nodes(self, mesh: EMMesh) -> tuple[np.ndarray, np.ndarray]:
         """(triangles, sorted unique nodes) of the coil and conductor regions.
@@ -501,9 +485,7 @@ class GetDPSolver:
                             coil_temperature_rise=heat / mass_cp if nc else heat)
 
     def _next_state(self, mesh, material_points, out, run_dir, state, result, sig, t_end) -> EMState:
-        m = self.model
-        nodes_file = out / "nodes_a.txt"
-        d = np.loadtxt(nodes_file, skiprows=1, ndmin=2)
+        d = np.loadtxt(out / "nodes_a.txt", skiprows=1, ndmin=2)
         pts = mesh.points if material_points is None else np.asarray(material_points, float)
         tri, used = self.conductor_nodes(mesh)
         remap = np.full(mesh.n_nodes, -1, np.int64)

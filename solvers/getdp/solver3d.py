@@ -27,7 +27,7 @@ from .mesh import AIR, COIL_BASE, CONDUCTOR_BASE, OUTER, SHELL, coil_tag, conduc
 from .applied_field import AppliedField, planes_of_faces
 from .mesh3d import (CUT_BASE, ELEC_IN_BASE, ELEC_OUT_BASE, SKIN_BASE, SYM_A, SYM_H, Mesh3D, cut_orientation, cut_tag,
                      physical_surface_area, read_msh22_triangles, skin_tag)
-from .model import Circuit, Conductor, CurrentTable, DampedSine
+from .model import Circuit, Conductor, CurrentTable, DampedSine, table_lines
 from .runner import RunInfo, run_getdp
 
 logger = logging.getLogger(__name__)
@@ -218,7 +218,6 @@ def model_numbers(model: EM3DModel, mesh: Mesh3D) -> tuple[dict[str, float], lis
     if model.shell is not None:
         nb.update(Flag_Shell=1, Val_Rint=model.shell[0], Val_Rext=model.shell[1], Val_Cx=model.shell_centre[0],
                   Val_Cy=model.shell_centre[1], Val_Cz=model.shell_centre[2])
-    lines = []
     for k, c in enumerate(model.coils, start=1):
         section = c.section
         if section is None and c.direction == "electrokinetic":
@@ -240,10 +239,6 @@ def model_numbers(model: EM3DModel, mesh: Mesh3D) -> tuple[dict[str, float], lis
                        f"Coil_omega_{k}": w.omega, f"Coil_phase_{k}": w.phase, f"Coil_ton_{k}": w.t_on})
         elif isinstance(c.waveform, CurrentTable):
             nb.update({f"Coil_Wave_{k}": 1, f"Coil_I0_{k}": 1.0})
-            times = list(c.waveform.times) + [c.waveform.times[-1] + 1e3]   # hold the last value
-            values = list(c.waveform.values) + [c.waveform.values[-1]]
-            pairs = ", ".join(f"{t:.17g}, {v:.17g}" for t, v in zip(times, values))
-            lines.append(f"Coil_Table_{k}() = {{{pairs}}};")
     for k, c in enumerate(model.conductors, start=1):
         if not np.any(mesh.tet_tags == conductor_tag(k)):
             raise ValueError(f"conductor {k}: region {conductor_tag(k)} is empty in the mesh")
@@ -251,10 +246,9 @@ def model_numbers(model: EM3DModel, mesh: Mesh3D) -> tuple[dict[str, float], lis
     if model.circuit is not None:
         nb.update(C_bank=model.circuit.C, R_ext=model.circuit.R_ext, L_ext=model.circuit.L_ext,
                   Init_Vc=model.circuit.V0, Init_I=0.0)
-    if model.applied_field is not None:   # App_F1 / App_F2 (the state's) are the caller's
+    if model.applied_field is not None:   # Field_F1 / Field_F2 (the state's) are the caller's
         nb.update(model.applied_field.numbers_3d(*symmetry_planes(mesh)))
-        lines += model.applied_field.table_lines()
-    return nb, lines
+    return nb, table_lines(model.coils, model.applied_field)
 
 
 def symmetry_planes(mesh: Mesh3D) -> tuple[list, list]:
@@ -265,7 +259,7 @@ def symmetry_planes(mesh: Mesh3D) -> tuple[list, list]:
 
 
 def applied_state_values(model: EM3DModel, t: float, steps: int, dt_prev: float) -> tuple[float, float]:
-    """The applied field's unit time function (``App_F1``, ``App_F2``) of the states x_n at ``t`` (s) and
+    """The applied field's unit time function (``Field_F1``, ``Field_F2``) of the states x_n at ``t`` (s) and
     x_{n-1} at ``t - dt_prev``, after ``steps`` steps from rest (the state at rest has 0: no field)."""
     f = model.applied_field
     if f is None:
@@ -329,7 +323,7 @@ def solve_transient3d(model: EM3DModel, mesh: Mesh3D, t_end: float, n_steps: int
     ``extra_numbers``: more ``-setnumber`` inputs of the deck (e.g. ``Flag_SaveInit``).
     ``time_scheme``: ``"euler"`` (implicit Euler) or ``"bdf2"`` (second order, equal steps, the first one
     implicit Euler; from zero fields only: no ``restart_res``).
-    ``applied_start``: with an applied field, its unit time function of the start state (``App_F1``;
+    ``applied_start``: with an applied field, its unit time function of the start state (``Field_F1``;
     default: 0 from rest, f(t0) with ``restart_res``; a BDF2 x~ passes its combination c1 f_n - c2 f_{n-1}).
     One getdp process in ``work_dir`` (created; its log ``getdp.log``); ``timeout`` in s.
     Raises :class:`~.runner.GetDPError` when getdp fails.
@@ -355,7 +349,7 @@ def solve_transient3d(model: EM3DModel, mesh: Mesh3D, t_end: float, n_steps: int
                              "difference of the step)")
         if applied_start is None:
             applied_start = float(model.applied_field.unit_f(float(t0))) if restart_res is not None else 0.0
-        numbers["App_F1"] = float(applied_start)
+        numbers["Field_F1"] = float(applied_start)
     if time_scheme == "bdf2" and (restart_res is not None or circuit_state is not None):
         raise ValueError("bdf2 starts from zero fields: its restart (two history states) is not done")
     restart: list[str] = []

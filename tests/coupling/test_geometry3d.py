@@ -236,6 +236,7 @@ BAD = [
     (["bodies.slug.moves=[1]"], "bodies[1].moves"),
     (["em.coils=[{name=\"a\", source=\"sa\"}, {name=\"c\", source=\"sb\"}]"], "em.coils[1].name"),
     (["geometry.em_order=2"], "geometry.em_order"),
+    (["time.end=500.0"], "time.end: got 500 s"),   # explicit steps at the meshed bodies' stable step (estimated)
     (["em.applied_field={type=\"dc\", magnitude=0.5, direction=[0.0, 1.0, 0.0]}"], "applied"),  # crosses y = 0
     (["em.applied_field={type=\"dc\", magnitude=0.5, direction=[0.0, 1.0]}"], "em.applied_field.direction"),
     (["coupling.load=\"pressure\"", "loads=[{type=\"pulse_exp\", body=\"slug\", surface={zmin=0.0}, amplitude=1e6, "
@@ -306,7 +307,7 @@ def test_a_cad_file_gets_a_group_per_volume_and_surface(tmp_path):
     with one group per volume and per surface (its CAD label or volume_<tag>): what a role map then names."""
     from types import SimpleNamespace
 
-    from pulseform.orchestrator.mesh.geometry3d import mesh_file3d, read_groups
+    from pulseform.orchestrator.mesh.gmsh_file import mesh_file3d, read_groups
     from pulseform.solvers.getdp.mesh import gmsh_session
 
     step = tmp_path / "part.step"

@@ -10,9 +10,11 @@ unicode and NUL, deep nesting, bad ``--set`` strings and broken files. Each runs
 - if 2: print exactly one line ``pulseform: error: ...`` of at most :data:`MAX_LINE` characters;
 - if the mutation must be refused (:func:`must_refuse`): exit 2.
 
-The user-deck cases' deck contract check (gmsh + getdp, seconds per call) is replaced by a stub here:
-what is fuzzed is the loading and validation of the case file, the CLI's messages and the resolved-case
-output; tests/workflow/test_user_deck.py runs the real contract check. ``pytest -s`` prints the counts.
+The user-deck cases' deck contract check (gmsh + getdp, seconds per call) and the 3D geometry files' meshing
+check (gmsh, a second or more per call) are replaced by stubs here: what is fuzzed is the loading and validation
+of the case file, the CLI's messages and the resolved-case output; tests/workflow/test_user_deck.py runs the real
+contract check, tests/coupling/test_geometry3d.py (and the racetrack's and sector's bad inputs) the real meshing
+check. ``pytest -s`` prints the counts.
 """
 
 from __future__ import annotations
@@ -37,6 +39,7 @@ import pytest
 import tomli_w
 
 from pulseform.orchestrator.em import user_deck
+from pulseform.orchestrator import cli
 from pulseform.orchestrator.cli import main
 
 REPO = Path(__file__).resolve().parents[2]
@@ -245,8 +248,9 @@ def mutations(data: dict, text: str, rng: random.Random, n: int) -> list[Mutatio
             return Mutation(kind, "file", text + "\nx = = 1\n")
         if kind == "truncated":
             return Mutation(kind, "file", text[: rng.randrange(len(text))])
-        if kind == "long_time":  # a user deck's mesh size is known only once its .geo is meshed: the run's guard
-            deck = data.get("geometry", {}).get("type") == "user_deck"
+        if kind == "long_time":  # a user deck's / a 3D geometry file's mesh size is known only once meshed: the
+            # guard of `check`'s meshing (stubbed here) and the run's
+            deck = data.get("geometry", {}).get("type") in ("user_deck", "geometry_3d")
             return edit("long_time_deck" if deck else kind, ("time", "end"), 500.0)
         if kind == "tiny_length":
             mesh = [(p, v) for p, v in numbers if any(fnmatch.fnmatchcase(_key(p), g)
@@ -318,8 +322,10 @@ def _problem(m: Mutation, rc: int | str, out: str, err: str, dt: float) -> str |
 
 @pytest.fixture(autouse=True)
 def _no_deck_contract_run(monkeypatch):
-    """The deck contract check runs gmsh + getdp (seconds); the fuzz is about loading and validation."""
+    """The deck contract check runs gmsh + getdp (seconds), a 3D geometry file's check gmsh (a second or more); the
+    fuzz is about loading and validation."""
     monkeypatch.setattr(user_deck, "check_user_deck", lambda case: None)
+    monkeypatch.setattr(cli, "_check_geometry_3d", lambda case, file: [])
 
 
 @pytest.mark.parametrize("case_file", CASE_FILES, ids=[f"{p.parent.name}/{p.name}" for p in CASE_FILES])

@@ -359,7 +359,7 @@ def test_refused_directions_and_inputs(tmp_path):
                     tmp_path)._numbers(mesh)
     nb = GetDPSolver(EMModel(False, conductors=cond, applied_field=AppliedField(2.0, (0.0, -1.0), STEP)),
                      tmp_path)._numbers(mesh)
-    assert (nb["App_Bx"], nb["App_By"], nb["App_Mx"], nb["App_My"], nb["App_C"]) == (0.0, -2.0, 2.0, 0.0, 0.0)
+    assert (nb["Field_Bx"], nb["Field_By"], nb["Field_Mx"], nb["Field_My"], nb["Field_C"]) == (0.0, -2.0, 2.0, 0.0, 0.0)
     with pytest.raises(ValueError, match="two ways"):
         EMModel(False, conductors=cond, h0_step=1e5, applied_field=AppliedField(1.0, (0.0, 1.0), STEP))
     with pytest.raises(ValueError, match="3D model needs 3"):
@@ -387,9 +387,9 @@ def test_refused_3d_directions(tmp_path):
             model_numbers(model, mesh)
     nb, _ = model_numbers(EM3DModel(conductors=[Conductor(SIGMA)], applied_field=AppliedField(2.0, (0, 0, 1), STEP)),
                           mesh)
-    m = np.array([[nb[f"App_M{i}{j}"] for j in (1, 2, 3)] for i in (1, 2, 3)])
+    m = np.array([[nb[f"Field_M{i}{j}"] for j in (1, 2, 3)] for i in (1, 2, 3)])
     np.testing.assert_allclose(m, [[0, 0, 0], [2.0, 0, 0], [0, 0, 0]], atol=1e-12)
-    np.testing.assert_allclose([nb["App_c1"], nb["App_c2"], nb["App_c3"]], 0.0, atol=1e-12 * 2.0 * 5e-3)
+    np.testing.assert_allclose([nb["Field_c1"], nb["Field_c2"], nb["Field_c3"]], 0.0, atol=1e-12 * 2.0 * 5e-3)
     # a plane n x h = 0 needs B normal: B_z with the plane x = 0 of type 15
     planes_h = [(np.array([1.0, 0.0, 0.0]), 0.0)]
     with pytest.raises(ValueError, match="not normal"):

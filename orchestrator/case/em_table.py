@@ -1,0 +1,77 @@
+"""The ``[em]`` table of a coupled case: the coil's source (a capacitor bank, a prescribed current or named
+``[[em.sources]]`` with ``[[em.coils]]``), an applied field, the time scheme and how getdp runs (SI units,
+validated; the geometry tables are :mod:`.em_model`'s)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+from .em_applied import AppliedField
+from .em_sources import CoilConnection, Source, check_sources
+from .schema import SchemaError, spec
+
+
+@dataclass(frozen=True, kw_only=True)
+class CapacitorBank:
+    """Capacitor bank C charged to V0 discharging through R_ext, L_ext and the coil."""
+
+    capacitance: float = spec(unit="F", gt=0.0, doc="bank capacitance C")
+    voltage: float = spec(unit="V", gt=0.0, doc="charging voltage V0")
+    resistance: float = spec(0.0, unit="Ω", ge=0.0, doc="external resistance R_ext")
+    inductance: float = spec(0.0, unit="H", ge=0.0, doc="external inductance L_ext")
+
+
+@dataclass(frozen=True, kw_only=True)
+class DampedSineCurrent:
+    """Prescribed coil current I(t) = I0 e^(−βt) sin(ωt)."""
+
+    amplitude: float = spec(unit="A", gt=0.0, doc="I0")
+    beta: float = spec(unit="1/s", ge=0.0, doc="decay rate β")
+    omega: float = spec(unit="rad/s", gt=0.0, doc="angular frequency ω")
+
+
+@dataclass(frozen=True, kw_only=True)
+class EM:
+    """Electromagnetic model (GetDP): coil, its source, and what to keep."""
+
+    coil_conductivity: float = spec(5.8e7, unit="S/m", gt=0.0, doc="coil conductor (copper)")
+    coil_density: float = spec(8960.0, unit="kg/m^3", gt=0.0, doc="for the coil's adiabatic heating")
+    coil_heat_capacity: float = spec(385.0, unit="J/(kg·K)", gt=0.0, doc="for the coil's adiabatic heating")
+    circuit: CapacitorBank | None = spec(None, doc="capacitor-bank discharge (give this, current or sources)")
+    current: DampedSineCurrent | None = spec(None, doc="prescribed coil current (give this, circuit or sources)")
+    sources: tuple[Source, ...] = spec((), doc="[[em.sources]] named current sources and at most one bank (give "
+                                          "these with [[em.coils]], or circuit, or current)")
+    coils: tuple[CoilConnection, ...] = spec((), doc="[[em.coils]] each coil of the geometry on a source, with its "
+                                                 "orientation; coils on a bank are in series on it")
+    applied_field: AppliedField | None = spec(None, doc="[em.applied_field] a uniform applied magnetic field beside "
+                                                       "the coils, type = 'dc' | 'sine' | 'table' (time function as a "
+                                                       "source's, times the magnitude)")
+    keep_runs: bool = spec(False, doc="keep every getdp run folder (default: the last two)")
+    time_scheme: Literal["euler", "bdf2"] = spec(
+        "euler", doc="EM time scheme: 'euler' (implicit Euler, first order: damps the bank's ringing by "
+                     "(ω dt)²/2 per step; sub-steps allowed) or 'bdf2' (second order, one step per getdp run "
+                     "from a shifted state: coupling.em_substeps = 1; docs/coupling.md)")
+    getdp_process: Literal["auto", "persistent", "per_step"] = spec(
+        "auto", doc="how getdp runs: 'persistent' (one process advances every EM step, moving its mesh: "
+                    "bdf2 only, ~8x less EM time on the demo), 'per_step' (a getdp process per EM step), "
+                    "'auto' (persistent with bdf2 where the deck has Resolution EM_Persistent, else per_step)")
+    remesh_quality: float = spec(0.3, unit="-", gt=0.0, lt=1.0,
+                                 doc="remesh the air when the worst element quality 4√3A/Σl² falls below this "
+                                     "fraction of the fresh mesh's worst")
+
+    def validate(self, path: str) -> None:
+        given = [k for k in ("circuit", "current", "sources") if getattr(self, k)]
+        if not given and self.applied_field is not None:
+            return  # the applied field alone (3D geometry files without coils: .geometry3d checks)
+        if len(given) != 1:
+            raise SchemaError(f"{path}.{given[1] if given else 'circuit'}", "give exactly one of circuit (capacitor "
+                              "bank), current or [[em.sources]] with [[em.coils]]")
+        if self.sources:
+            check_sources(self.sources, self.coils, path)
+        elif self.coils:
+            raise SchemaError(f"{path}.coils", "[[em.coils]] connect coils to [[em.sources]]: give the sources "
+                              "(or drop the coils and keep em.circuit / em.current)")
+        if self.getdp_process == "persistent" and self.time_scheme != "bdf2":
+            raise SchemaError(f"{path}.getdp_process", "got 'persistent'; the persistent getdp implements "
+                              "em.time_scheme = 'bdf2' only: set it, or getdp_process = 'auto' or 'per_step'")
