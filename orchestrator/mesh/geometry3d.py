@@ -160,8 +160,12 @@ def map_roles(raw: RawGroups, g, bodies: Sequence[tuple[str, str]], planes: Sequ
     outer_faces = boundary_faces(tets)
     on_plane = np.zeros(len(outer_faces), dtype=bool)
     tri_parts, tag_parts = [], []
-    for p in planes:
+    for i, p in enumerate(planes):
         hit = np.all(np.abs((x[outer_faces] - p.point) @ p.normal) <= 1e-7 * scale, axis=1) & ~on_plane
+        if not hit.any():   # a plane the model does not end on: its factor and roller would be wrong
+            raise GeometryError(f"{label}: symmetry[{i}]: the plane through {p.point.tolist()} with normal "
+                                f"{p.normal.tolist()} holds no boundary face of the mesh; a symmetry plane is "
+                                "where the model ends: remove the [[symmetry]] entry or cut the geometry there")
         on_plane |= hit
         tri_parts.append(outer_faces[hit])
         tag_parts.append(np.full(hit.sum(), SYM_A if p.field == "b_tangential" else SYM_H))

@@ -112,7 +112,11 @@ def _child(src: str, out: str, sizes_json: str, factor: float, params: Sequence[
     gmsh.initialize(argv, readConfigFiles=False)
     try:
         gmsh.option.setNumber("General.Terminal", 1)
-        gmsh.open(src)
+        try:
+            gmsh.open(src)
+        except Exception as exc:   # a parse error or the file's own Error(...): its message, not the traceback's
+            print(f"Error: {exc}")
+            return 3
         if Path(src).suffix.lower() != ".geo" and not gmsh.model.getPhysicalGroups():
             _name_cad_entities(gmsh)
         names = {gmsh.model.getPhysicalName(d, t): (d, t) for d, t in gmsh.model.getPhysicalGroups()}

@@ -3,10 +3,12 @@ index of its headline metrics (:mod:`.gci`).
 
 ``pulseform converge CASE`` runs the case on ``levels`` (>= 3) meshes refined by a constant ``ratio``:
 level 0 is the case as given, level k divides **every** element size of the case by ratio^k (the keys
-named ``mesh_size*`` of ``[geometry]`` and its nested tables, and each body's ``mesh_size``), so the
+named ``mesh_size*`` of ``[geometry]`` and its nested tables, and each body's ``mesh_size``; of a 3D geometry
+file ``geometry.mesh_size_factor`` alone, which multiplies all its sizes), so the
 meshes are refined alike everywhere, as the GCI procedure asks. With ``refine = "em_step"`` it
-divides ``coupling.n`` instead (the EM step, the mechanical step fixed). Each level is its own
-``pulseform run`` process (``jobs`` at a time, as the members of a sweep). For each metric it computes,
+divides ``coupling.n`` instead (the EM step, the mechanical step fixed) -- or, for a 3D geometry file
+with ``geometry.em_step`` (which sets n), that EM step (n = round(em_step / mechanical step) per level).
+Each level is its own ``pulseform run`` process (``jobs`` at a time, as the members of a sweep). For each metric it computes,
 on the three finest levels, the observed order, the Richardson-extrapolated value and the GCI
 (Celik et al. 2008), and writes:
 
@@ -50,17 +52,28 @@ class ConvergeError(ValueError):
 def refinement_keys(resolved: dict) -> dict[str, float]:
     """The element sizes (m) of a resolved case (the TOML of :func:`case_to_toml`), by ``--set`` key
     path: ``geometry.mesh_size*`` (also in nested tables such as ``geometry.die``) and
-    ``bodies.<name>.mesh_size``."""
+    ``bodies.<name>.mesh_size``; of a 3D geometry file only ``geometry.mesh_size_factor``, which scales all of
+    its sizes (its ``geometry.mesh_sizes`` and a .geo's size parameters, even those named ``mesh_size*``)."""
     out: dict[str, float] = {}
+
+    def number(v) -> bool:
+        return isinstance(v, (int, float)) and not isinstance(v, bool)
 
     def walk(table: dict, path: str) -> None:
         for k, v in table.items():
             if isinstance(v, dict):
                 walk(v, f"{path}.{k}")
-            elif k.startswith("mesh_size") and isinstance(v, (int, float)) and not isinstance(v, bool):
+            elif k.startswith("mesh_size") and number(v):
                 out[f"{path}.{k}"] = float(v)
 
-    walk(resolved.get("geometry", {}), "geometry")
+    geometry = resolved.get("geometry", {})
+    if geometry.get("type") == "geometry_3d":
+        # geometry.mesh_size_factor scales every size of the file (its own, geometry.mesh_sizes, a .geo's
+        # parameters): refining anything else as well would refine those twice
+        if number(geometry.get("mesh_size_factor")):
+            out["geometry.mesh_size_factor"] = float(geometry["mesh_size_factor"])
+    else:
+        walk(geometry, "geometry")
     for b in resolved.get("bodies", []):
         if isinstance(b.get("mesh_size"), (int, float)):
             out[f"bodies.{b['name']}.mesh_size"] = float(b["mesh_size"])
@@ -75,6 +88,10 @@ def study_levels(resolved: dict, ratio: float, levels: int, refine: str) -> list
             raise ConvergeError("the case has no element size to refine (no mesh_size key: a user deck's mesh is "
                                 "its .geo's; refine its [geometry.parameters] with sweep)")
         return [{k: repr(v / ratio ** i) for k, v in keys.items()} for i in range(levels)]
+    geometry = resolved.get("geometry", {})
+    if geometry.get("type") == "geometry_3d" and isinstance(geometry.get("em_step"), (int, float)):
+        # n = round(geometry.em_step / mechanical step) there: coupling.n is not used
+        return [{"geometry.em_step": repr(float(geometry["em_step"]) / ratio ** i)} for i in range(levels)]
     n = int(resolved.get("coupling", {}).get("n", 10))
     out = []
     for i in range(levels):
@@ -141,7 +158,9 @@ def summarise(members: list[Member], ratio: float, metrics: list[str] | None, re
 
 def report_markdown(report: dict, case: str) -> str:
     """``report.md``: one row per metric."""
-    what = "element sizes" if report["refine"] == "mesh" else "EM step (coupling.n)"
+    what = "element sizes" if report["refine"] == "mesh" else \
+        "EM step (geometry.em_step)" if any("geometry.em_step" in lv["overrides"] for lv in report["levels"]) else \
+        "EM step (coupling.n)"
     lines = [f"# Convergence study of {case}", "",
              f"{len(report['levels'])} levels, {what} divided by {report['ratio']:g} per level; the GCI of the "
              "three finest (Celik et al., J. Fluids Eng. 130 (2008) 078001; safety factor 1.25).", "",

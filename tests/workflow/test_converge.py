@@ -68,3 +68,39 @@ def test_fixed_disk_peak_force_converges_to_the_reference(tmp_path, capsys):
           f"GCI {100 * r['gci_fine']:.3g} %")
     assert r["convergence"] == "monotone" and 1.5 < r["order"] < 3.5
     assert r["extrapolated"] == pytest.approx(15.18e3, rel=0.005)
+
+
+def test_geometry_3d_sizes_are_refined():
+    """A 3D geometry-file case (cases/emf_tube_field_shaper): geometry.mesh_size_factor alone is divided by
+    ratio^k; it scales every size of the file, so neither geometry.mesh_sizes nor the .geo's parameters named
+    mesh_size* (field_shaper.geo's mesh_size_air, mesh_size_shell) are refined as well (that would refine them
+    twice); a level's overrides load."""
+    import tomllib
+
+    from pulseform.orchestrator.case.io import case_to_toml, load_case
+    from pulseform.orchestrator.workflows.converge import refinement_keys, study_levels
+
+    case = str(REPO / "cases/emf_tube_field_shaper")
+    resolved = tomllib.loads(case_to_toml(load_case(case, ["geometry.mesh_size_factor=1.5"])[0]))
+    assert "mesh_size_air" in resolved["geometry"]["parameters"] and resolved["geometry"]["mesh_sizes"]
+    assert refinement_keys(resolved) == {"geometry.mesh_size_factor": 1.5}
+    levels = study_levels(resolved, 1.5, 3, "mesh")
+    assert [float(lv["geometry.mesh_size_factor"]) for lv in levels] == pytest.approx([1.5, 1.0, 1.0 / 1.5], rel=1e-15)
+    c, _ = load_case(case, [f"{k}={v}" for k, v in levels[2].items()])
+    assert c.geometry.mesh_size_factor == pytest.approx(1.0 / 1.5, rel=1e-15)
+    assert c.geometry.mesh_sizes == load_case(case, [])[0].geometry.mesh_sizes
+
+
+def test_geometry_3d_em_step_is_refined():
+    """--refine em_step on a 3D geometry file whose geometry.em_step sets n divides that EM step (coupling.n is
+    not used there: dividing it would run the same case three times)."""
+    import tomllib
+
+    from pulseform.orchestrator.case.io import case_to_toml, load_case
+    from pulseform.orchestrator.workflows.converge import study_levels
+
+    resolved = tomllib.loads(case_to_toml(load_case(str(REPO / "cases/emf_tube_field_shaper"), [])[0]))
+    em_step = resolved["geometry"]["em_step"]
+    levels = study_levels(resolved, 2.0, 3, "em_step")
+    assert [float(lv["geometry.em_step"]) for lv in levels] == [em_step, em_step / 2, em_step / 4]
+    assert all(list(lv) == ["geometry.em_step"] for lv in levels)
