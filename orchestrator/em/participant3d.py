@@ -142,6 +142,9 @@ class GetDPLoad3D(LoadCapabilities):
         self.timers = {"mesh_motion_s": 0.0, "getdp_s": 0.0, "transfer_s": 0.0}
         self.impulse_device = 0.0   # Σ s ∫f_z dV dt over the steps (N·s), the device's
         self.body_impulse = np.zeros((len(self.bodies), 3))   # per body Σ s F dt of its nodal forces (N·s)
+        #: 1 for the force components the whole device has (every symmetry plane contains that axis), 0 for
+        #: those its mirror images cancel (a plane normal to z: no device axial force); set by the caller
+        self.device_axes = np.ones(3)
         self.coil_heat = 0.0        # Σ s P_coil(t1) dt (J), the whole coil's
         self.peak_current = 0.0     # largest |I| at the end of a step (A) and the snapshot there
         self._peak: tuple | None = None
@@ -204,16 +207,16 @@ class GetDPLoad3D(LoadCapabilities):
         i0 = self._index(self.bodies[0])
         fz = float(result.conductor_force[-1, i0, 2])
         current = float(result.coil_current[-1, 0])
-        self.impulse_device += s * float(integral[2]) * (t1 - t0)
+        self.impulse_device += s * self.device_axes[2] * float(integral[2]) * (t1 - t0)
         for i, b in enumerate(self.bodies):
-            self.body_impulse[i] += s * forces[b.name].sum(axis=0) * (t1 - t0)
+            self.body_impulse[i] += s * self.device_axes * forces[b.name].sum(axis=0) * (t1 - t0)
         self.coil_heat += s * float(result.coil_power[-1].sum()) * (t1 - t0)   # every coil's
         values = {"coil_current_A": current, "coil_current_abs_max_A": abs(current),
                   "capacitor_voltage_V": float(result.capacitor_voltage[-1]) if result.capacitor_voltage is not None else 0.0,
                   "coil_joule_heat_J": self.coil_heat,
                   "magnetic_energy_J": float(result.magnetic_energy[-1]),
                   "workpiece_joule_power_W": float(result.conductor_power[-1, i0]),
-                  "getdp_force_z_N": fz, "device_force_z_N": s * fz, "device_impulse_z_Ns": self.impulse_device,
+                  "getdp_force_z_N": fz, "device_force_z_N": s * self.device_axes[2] * fz, "device_impulse_z_Ns": self.impulse_device,
                   "em_mesh_min_quality": float(self.mover.last_min_quality), **per_body}
         for k, name in enumerate(self.coil_names):   # several coils: each one's current and power (whole device)
             values[f"{name}_current_A"] = float(result.coil_current[-1, k])
@@ -289,7 +292,8 @@ class GetDPLoad3D(LoadCapabilities):
         s = float(self.model.symmetry_factor)
         impulse_z = float(counters.impulse[2]) if len(counters.impulse) > 2 else 0.0
         last = {k: float(history.column(f"energy_{k}_J")[-1]) for k in ("plastic", "kinetic")}
-        return {"force_impulse_z_Ns": s * impulse_z, "force_impulse_Ns": s * abs(impulse_z),
+        sz = s * self.device_axes[2]   # 0 where a symmetry plane's mirror cancels the device's axial force
+        return {"force_impulse_z_Ns": sz * impulse_z, "force_impulse_Ns": sz * abs(impulse_z),
                 "sector_force_impulse_z_Ns": impulse_z,
                 "plastic_work_J": s * last["plastic"], "kinetic_energy_final_J": s * last["kinetic"],
                 "sector_plastic_work_J": last["plastic"],

@@ -132,6 +132,7 @@ def participants_3d(case: Case, work: Path):
                                     planes=[(p.point, p.normal) for p in planes], **kw)
     else:
         load = FreezingGetDPLoad3D(*args, freeze=g.on_mesh_break == "freeze", **kw)
+    load.device_axes = device_axes(planes)
     options = loop_options_3d(case, dt_mech if solver is not None else None)
     log.info("3D geometry: %d EM tets, bodies %s, mechanical step %.3g s, n = %d", mesh.n_tets,
              {b.name: len(subs[b.region].cells) for b in case.bodies}, dt_mech, options.n)
@@ -153,6 +154,13 @@ def pressure_pulses_3d(case: Case, solver: ExplicitSolver3D, symmetry_factor: fl
     log.info("3D geometry driven by %d pressure pulse(s) on %s m^2 (the model's)", len(case.loads),
              ", ".join(f"{a:.6g}" for a in areas))
     return load
+
+
+def device_axes(planes: list[PlaneSpec]) -> np.ndarray:
+    """1.0 for each axis x, y, z that lies in every symmetry plane (the whole device's resultant along it is the
+    model's times the symmetry factor), 0.0 for an axis a plane's mirror image reverses (the device's resultant
+    along it vanishes: a z = 0 mid-plane, the x and y of a wedge about z)."""
+    return np.array([float(all(abs(p.normal[i]) <= 1e-12 for p in planes)) for i in range(3)])
 
 
 def rigid_step_3d(case: Case) -> float:

@@ -111,13 +111,15 @@ def _whose(names: list[str]) -> str:
 
 
 def _energy_lines(bank: float | None, metrics: dict[str, float], history, cols: set[str]) -> list[Headline]:
-    """Peak kinetic energy and plastic work in % of the energy put in."""
+    """Peak kinetic energy and plastic work in % of the energy put in (a 3D model's energies times its symmetry
+    factor: the whole device's, as the bank's energy is)."""
     if "energy_kinetic_J" not in cols:
         return []
-    ke = history.column("energy_kinetic_J")
-    plastic = float(history.column("energy_plastic_J")[-1]) if "energy_plastic_J" in cols else \
+    s = float(metrics.get("symmetry_factor", 1.0))
+    ke = s * history.column("energy_kinetic_J")
+    plastic = s * float(history.column("energy_plastic_J")[-1]) if "energy_plastic_J" in cols else \
         metrics.get("plastic_work_J", 0.0)
-    external = float(history.column("energy_external_work_J")[-1]) if "energy_external_work_J" in cols else 0.0
+    external = s * float(history.column("energy_external_work_J")[-1]) if "energy_external_work_J" in cols else 0.0
     if bank is not None and bank > 0.0:
         ref, of = bank, "of the bank energy"
     elif external > 0.0:
