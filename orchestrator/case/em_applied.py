@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
+from .em_sources import SineTime, TableTime
 from .errors import CaseError
 from .schema import SchemaError, shorten, spec
 
@@ -45,29 +46,21 @@ class AppliedDC(_Applied):
 
 
 @dataclass(frozen=True, kw_only=True)
-class AppliedSine(_Applied):
+class AppliedSine(_Applied, SineTime):
     """B0 · d · e^(−decay (t − t_on)) sin(2π frequency (t − t_on) + phase) for t >= t_on, 0 before."""
 
     type: Literal["sine"] = spec(doc="time function kind")
-    frequency: float = spec(unit="Hz", gt=0.0, doc="f (ω = 2π f)")
-    phase: float = spec(0.0, unit="rad", doc="phase φ at t_on")
-    decay: float = spec(0.0, unit="1/s", ge=0.0, doc="decay rate β")
-    t_on: float = spec(0.0, unit="s", ge=0.0, doc="switch-on time: no field before")
 
 
 @dataclass(frozen=True, kw_only=True)
-class AppliedTable(_Applied):
+class AppliedTable(_Applied, TableTime):
     """B0 · d · f(t), f linearly interpolated in a CSV file's rows (time s, factor), held after them."""
 
     type: Literal["table"] = spec(doc="time function kind")
-    file: str = spec(doc="CSV file, relative to the case folder: rows time (s), factor of the magnitude (-); '#' "
-                         "comments and one header line allowed; times strictly increasing from <= 0")
-    allow_outside: bool = spec(False, doc="allow a file outside the case folder")
 
     def validate(self, path: str) -> None:
-        super().validate(path)
-        if not self.file.endswith(".csv"):
-            raise SchemaError(f"{path}.file", f"got {shorten(repr(self.file))}; must be a .csv file")
+        _Applied.validate(self, path)
+        TableTime.validate(self, path)
 
 
 AppliedField = AppliedDC | AppliedSine | AppliedTable

@@ -46,15 +46,37 @@ class _Named:
 
 
 @dataclass(frozen=True, kw_only=True)
-class SineSource(_Named):
+class SineTime:
+    """The time function e^(−decay (t − t_on)) sin(2π frequency (t − t_on) + phase) for t >= t_on, 0 before: of a
+    ``sine`` source's current and of a ``sine`` applied field (:mod:`.em_applied`)."""
+
+    frequency: float = spec(unit="Hz", gt=0.0, doc="f (ω = 2π f)")
+    phase: float = spec(0.0, unit="rad", doc="phase φ at t_on")
+    decay: float = spec(0.0, unit="1/s", ge=0.0, doc="decay rate β")
+    t_on: float = spec(0.0, unit="s", ge=0.0, doc="switch-on time: nothing before")
+
+
+@dataclass(frozen=True, kw_only=True)
+class TableTime:
+    """A time function linearly interpolated in a CSV file's rows (time s, value), held at its last value after
+    them: a ``table`` source's current (A) and a ``table`` applied field's factor of its magnitude (-)."""
+
+    file: str = spec(doc="CSV file, relative to the case folder: rows time (s), value (a source's current in A, an "
+                         "applied field's factor of its magnitude); '#' comments and one header line allowed; times "
+                         "strictly increasing from <= 0; at most 100000 rows")
+    allow_outside: bool = spec(False, doc="allow a file outside the case folder")
+
+    def validate(self, path: str) -> None:
+        if not self.file.endswith(".csv"):
+            raise SchemaError(f"{path}.file", f"got {shorten(repr(self.file))}; must be a .csv file")
+
+
+@dataclass(frozen=True, kw_only=True)
+class SineSource(_Named, SineTime):
     """I(t) = amplitude e^(−decay (t − t_on)) sin(2π frequency (t − t_on) + phase) for t >= t_on, 0 before."""
 
     type: Literal["sine"] = spec(doc="source kind")
     amplitude: float = spec(unit="A", gt=0.0, doc="I0")
-    frequency: float = spec(unit="Hz", gt=0.0, doc="f (ω = 2π f)")
-    phase: float = spec(0.0, unit="rad", doc="phase φ at t_on")
-    decay: float = spec(0.0, unit="1/s", ge=0.0, doc="decay rate β")
-    t_on: float = spec(0.0, unit="s", ge=0.0, doc="switch-on time: no current before")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -67,18 +89,14 @@ class DCSource(_Named):
 
 
 @dataclass(frozen=True, kw_only=True)
-class TableSource(_Named):
+class TableSource(_Named, TableTime):
     """I(t) linearly interpolated in a CSV file's rows (time s, current A), held at its last value after them."""
 
     type: Literal["table"] = spec(doc="source kind")
-    file: str = spec(doc="CSV file, relative to the case folder: rows time (s), current (A); '#' comments and one "
-                         "header line allowed; times strictly increasing from <= 0; at most 100000 rows")
-    allow_outside: bool = spec(False, doc="allow a file outside the case folder")
 
     def validate(self, path: str) -> None:
-        super().validate(path)
-        if not self.file.endswith(".csv"):
-            raise SchemaError(f"{path}.file", f"got {shorten(repr(self.file))}; must be a .csv file")
+        _Named.validate(self, path)
+        TableTime.validate(self, path)
 
 
 @dataclass(frozen=True, kw_only=True)
