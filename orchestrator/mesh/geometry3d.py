@@ -248,7 +248,7 @@ def build_geometry3d(case, work: Path) -> Geometry3D:
     :func:`map_roles`): the EM mesh ``work/em3d.msh``."""
     g = case.geometry
     label = Path(g.file).name
-    raw_path = mesh_file3d(g, work, case.limits.gmsh_time_limit_s)
+    raw_path = mesh_file3d(g, work, case.limits.gmsh_time_limit_s, case.limits.max_cells)
     raw = read_groups(raw_path, label)
     planes = plane_specs(case.symmetry)
     bodies = [(f"bodies[{i}].region", b.region) for i, b in enumerate(case.bodies)]

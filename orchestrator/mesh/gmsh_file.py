@@ -37,11 +37,12 @@ class GeometryError(RuntimeError):
 
 
 # ----------------------------------------------------------------------------- 1. meshing
-def mesh_file3d(g, work: Path, time_limit: float = 600.0) -> Path:
+def mesh_file3d(g, work: Path, time_limit: float = 600.0, max_cells: float = 2e6) -> Path:
     """The raw mesh of ``g`` (a :class:`~pulseform.orchestrator.case.geometry3d.GeometryFile3D`): the
     ``.msh`` itself or the file meshed by a child process into ``work/geometry.msh`` (log
     ``work/gmsh.log``); raises :class:`GeometryError` with the log's tail when meshing fails or exceeds
-    ``time_limit`` (s)."""
+    ``time_limit`` (s), and before meshing when the case's sizes would give more than ``max_cells`` tetrahedra
+    (``limits.max_cells``; estimated from the volumes: :func:`_too_many_cells`)."""
     from pulseform.solvers.getdp.runner import run_logged
 
     src = Path(g.file)
@@ -57,7 +58,8 @@ def mesh_file3d(g, work: Path, time_limit: float = 600.0) -> Path:
         argv = [sys.executable, str(src), str(out)] + params + ([f"mesh_size_factor={factor!r}"] if factor != 1.0 else [])
         what = "the builder"
     else:
-        argv = [sys.executable, "-m", __name__, str(src), str(out), json.dumps(g.mesh_sizes or {}), repr(factor)] + params
+        argv = [sys.executable, "-m", __name__, str(src), str(out), json.dumps(g.mesh_sizes or {}), repr(factor),
+                repr(float(max_cells))] + params
         what = "gmsh"
     log_path = work / "gmsh.log"
     try:
@@ -99,10 +101,41 @@ def builder_arguments(argv: Sequence[str], known: Sequence[str], integers: Seque
     return argv[0], values, factor
 
 
-def _child(src: str, out: str, sizes_json: str, factor: float, params: Sequence[str]) -> int:
+#: tetrahedra per h^3 of volume at element size h, taken low (a regular tetrahedron of edge h holds h^3 / 8.49,
+#: gmsh's elements scatter about the size): the estimate before meshing is a lower one
+TETS_PER_H3 = 8.49 / 2.0
+
+
+def _too_many_cells(gmsh, names: dict, sizes: dict[str, float], factor: float, max_cells: float) -> str | None:
+    """Before meshing: the line refusing sizes that would give more than ``max_cells`` tetrahedra (a lower estimate:
+    :data:`TETS_PER_H3` per (h x factor)^3 of each sized volume group's volume; the whole model's volume at gmsh's
+    Mesh.MeshSizeMax x factor, the largest size any element may have), None when they fit. Volumes from
+    OpenCASCADE (a built-in-kernel volume is not estimated)."""
+    def volume(tags) -> float:
+        try:
+            return float(sum(gmsh.model.occ.getMass(3, int(t)) for t in tags))
+        except Exception:   # a built-in kernel entity: no mass
+            return 0.0
+
+    for group, h in sizes.items():
+        n = TETS_PER_H3 * volume(gmsh.model.getEntitiesForPhysicalGroup(3, names[group][1])) / (h * factor) ** 3
+        if n > max_cells:
+            key = f"geometry.mesh_sizes.{group}" + (" x geometry.mesh_size_factor" if factor != 1.0 else "")
+            return (f"Error: {key}: ~{n:.3g} tetrahedra at {h:g} m" + (f" x {factor:g}" if factor != 1.0 else "")
+                    + f", above limits.max_cells = {max_cells:.3g}; coarsen it (or raise the limit)")
+    h_max = gmsh.option.getNumber("Mesh.MeshSizeMax")
+    if 0.0 < h_max < 1e22:
+        n = TETS_PER_H3 * volume([t for _, t in gmsh.model.getEntities(3)]) / (h_max * factor) ** 3
+        if n > max_cells:
+            return (f"Error: geometry.mesh_size_factor: ~{n:.3g} tetrahedra at least (the file's largest size "
+                    f"{h_max:g} m x {factor:g}), above limits.max_cells = {max_cells:.3g}")
+    return None
+
+
+def _child(src: str, out: str, sizes_json: str, factor: float, max_cells: float, params: Sequence[str]) -> int:
     """The meshing child (module docstring, 1.): open ``src`` with ``params`` (``name=value``), size the
-    named volume groups, every size times ``factor``, mesh in 3D, write MSH 2.2 to ``out``. Prints gmsh's
-    messages (the log)."""
+    named volume groups, every size times ``factor``, refuse sizes that would exceed ``max_cells`` tetrahedra
+    (:func:`_too_many_cells`), mesh in 3D, write MSH 2.2 to ``out``. Prints gmsh's messages (the log)."""
     import gmsh
 
     argv = ["gmsh"]
@@ -130,6 +163,10 @@ def _child(src: str, out: str, sizes_json: str, factor: float, params: Sequence[
             gmsh.model.mesh.setSize([p for p in pts if p[0] == 0], float(h))
         if gmsh.model.getDimension() < 3 or not gmsh.model.getEntities(3):
             print("Error: the geometry has no volume")
+            return 3
+        refusal = _too_many_cells(gmsh, names, json.loads(sizes_json), factor, max_cells)
+        if refusal is not None:
+            print(refusal)
             return 3
         gmsh.option.setNumber("Mesh.Algorithm3D", 1)
         gmsh.option.setNumber("Mesh.Optimize", 1)
@@ -227,13 +264,14 @@ def read_groups(path: Path, label: str) -> RawGroups:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """``python -m pulseform.orchestrator.mesh.gmsh_file SRC OUT SIZES_JSON FACTOR [name=value ...]``: the meshing
-    child."""
+    """``python -m pulseform.orchestrator.mesh.gmsh_file SRC OUT SIZES_JSON FACTOR MAX_CELLS [name=value ...]``: the
+    meshing child."""
     args = list(sys.argv[1:] if argv is None else argv)
-    if len(args) < 4:
-        print("usage: python -m pulseform.orchestrator.mesh.gmsh_file SRC OUT SIZES_JSON FACTOR [name=value ...]")
+    if len(args) < 5:
+        print("usage: python -m pulseform.orchestrator.mesh.gmsh_file SRC OUT SIZES_JSON FACTOR MAX_CELLS "
+              "[name=value ...]")
         return 2
-    return _child(args[0], args[1], args[2], float(args[3]), args[4:])
+    return _child(args[0], args[1], args[2], float(args[3]), float(args[4]), args[5:])
 
 
 if __name__ == "__main__":

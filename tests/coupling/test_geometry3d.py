@@ -237,6 +237,8 @@ BAD = [
     (["em.coils=[{name=\"a\", source=\"sa\"}, {name=\"c\", source=\"sb\"}]"], "em.coils[1].name"),
     (["geometry.em_order=2"], "geometry.em_order"),
     (["time.end=500.0"], "time.end: got 500 s"),   # explicit steps at the meshed bodies' stable step (estimated)
+    (["geometry.mesh_sizes={plate=1e-6}"], "geometry.mesh_sizes.plate: ~"),   # estimated before meshing
+    (["geometry.mesh_size_factor=1e-3"], "x geometry.mesh_size_factor: ~"),   # every size times the factor
     (["em.applied_field={type=\"dc\", magnitude=0.5, direction=[0.0, 1.0, 0.0]}"], "applied"),  # crosses y = 0
     (["em.applied_field={type=\"dc\", magnitude=0.5, direction=[0.0, 1.0]}"], "em.applied_field.direction"),
     (["coupling.load=\"pressure\"", "loads=[{type=\"pulse_exp\", body=\"slug\", surface={zmin=0.0}, amplitude=1e6, "

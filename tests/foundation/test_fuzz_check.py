@@ -57,7 +57,7 @@ REFUSED_KINDS = {"huge", "nonfinite", "nul_value", "nul_key", "unknown_key", "ty
 #: A user deck's own mesh parameters (`Lc_*`) are guarded by gmsh's time limit when the deck is meshed,
 #: which this test replaces by a stub (tests/workflow/test_user_deck_safety.py runs it for real); its
 #: step count is guarded once its mesh exists (driver: before the first step; test_signals.py).
-AWAITING_GUARDS = [("*.Lc_*", "tiny_length"), ("time.end", "long_time_deck")]
+AWAITING_GUARDS = [("*.Lc_*", "tiny_length"), ("time.end", "long_time_deck"), ("geometry.*", "tiny_length_file")]
 #: (key glob, kind) that the guards refuse: asserted like REFUSED_KINDS.
 GUARDED: list[tuple[str, str]] = [("*mesh_size*", "tiny_length"), ("time.end", "long_time")]
 #: keys whose default is an infinity: that infinity is a valid input there
@@ -258,7 +258,11 @@ def mutations(data: dict, text: str, rng: random.Random, n: int) -> list[Mutatio
             if not mesh:
                 return number("tiny")
             path, _ = rng.choice(mesh)
-            return edit(kind, path, 1e-9)
+            # a 3D geometry file's sizes are guarded when it is meshed (the estimate of `check`'s meshing, stubbed
+            # here, tests/coupling/test_geometry3d.py; a .geo's own size parameters: gmsh's time limit, then
+            # limits.max_cells), as a user deck's Lc_* are
+            file3d = data.get("geometry", {}).get("type") == "geometry_3d"
+            return edit("tiny_length_file" if file3d else kind, path, 1e-9)
         raise ValueError(kind)
 
     kinds = ["huge", "nonfinite", "zero_negative", "scaled", "tiny", "delete", "type", "unknown_key", "nul_value",
