@@ -150,10 +150,10 @@ BAD = [  # (--set overrides, text the one line must hold): what a user of the se
     (["bodies.sheet.fixed=[{where={rmin=0.07}, components=[0, 1, 2]}]"], "bodies[0].fixed[0].where"),
     (["bodies.sheet.fixed=[{where={rmin=0.05}, components=[3]}]"], "bodies[0].fixed[0].components"),
     (["mechanics.thickness=1.0"], "mechanics.thickness"),
-    # one meridian plane only, or a second plane at another angle than the builder's: the sheet then touches
-    # the outer boundary of the air
+    # one meridian plane only: the sheet then touches the outer boundary of the air; a second plane at another
+    # angle than the builder's: no boundary face lies on it (refused as such since the field-shaper case's check)
     (["symmetry=[{normal=[0.0, 1.0, 0.0]}]"], "bodies[0].region"),
-    ([planes(15.0)], "bodies[0].region"),
+    ([planes(15.0)], "symmetry[1]: the plane"),
     (["geometry.die={cavity_radius=0.04, cavity_depth=0.01, outer_radius=0.06, height=0.02, gap=1e-4, "
       "mesh_size=2e-3}"], "geometry.die"),
     (["bodies.sheet.region=\"die\""], "bodies[0].region"),
