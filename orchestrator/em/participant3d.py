@@ -303,7 +303,8 @@ class GetDPLoad3D(LoadCapabilities):
                 "em_time_s": float(counters.em_time_s), "em_min_quality": self.min_quality,
                 "symmetry_factor": float(self.model.symmetry_factor),
                 "em_tets": float(self.mesh.n_tets), "em_nodes": float(self.mesh.n_nodes),
-                **{f"{b.name}_impulse_z_Ns": float(self.body_impulse[i, 2]) for i, b in enumerate(self.bodies)},
+                **{f"{b.name}_impulse_{c}_Ns": float(self.body_impulse[i, j]) for i, b in enumerate(self.bodies)
+                   for j, c in enumerate("xyz") if c == "z" or self.device_axes[j]},   # the device's components
                 **{f"{b.name}_tets": float(len(b.sub.cells)) for b in self.bodies},
                 **{f"{b.name}_ledger_rel": float(np.max(history.column(f"{b.name}_ledger_rel")))
                    for b in self.bodies if f"{b.name}_ledger_rel" in history.columns},

@@ -90,6 +90,9 @@ class PressurePulses3D(PressurePulses):
                  damping_until: float = float("inf"), damping_from: float = 0.0, kinetic_until: float = 0.0) -> None:
         super().__init__(loads, damping, damping_until, damping_from, kinetic_until)
         self.symmetry_factor = float(symmetry_factor)
+        #: 1 along the axes the whole device has a resultant on, 0 where a symmetry plane's mirror cancels it
+        #: (:func:`~pulseform.orchestrator.run.participants3d.device_axes`; set by the caller)
+        self.device_axes = np.ones(3)
         self.impulse_device = 0.0  # Σ s F_z (t1 − t0) over the EM steps (N·s), the device's
         self.areas: list[float] = []  # the pulses' loaded reference areas (m², the model's): loaded_areas
 
@@ -104,8 +107,9 @@ class PressurePulses3D(PressurePulses):
         """:meth:`PressurePulses.load` plus the device's axial force and its running impulse."""
         step = super().load(t0, t1, t_mid, mechanics)
         fz = float(mechanics.total_force(step.forces)[2]) if step.forces else 0.0
-        self.impulse_device += self.symmetry_factor * fz * (t1 - t0)
-        step.values.update({"device_force_z_N": self.symmetry_factor * fz, "device_impulse_z_Ns": self.impulse_device})
+        sz = self.symmetry_factor * self.device_axes[2]
+        self.impulse_device += sz * fz * (t1 - t0)
+        step.values.update({"device_force_z_N": sz * fz, "device_impulse_z_Ns": self.impulse_device})
         return step
 
     def loaded_areas(self, mechanics: PressureMechanics, bodies: dict) -> list[float]:
@@ -130,10 +134,11 @@ class PressurePulses3D(PressurePulses):
         peak force, plastic work, final kinetic energy: the model's × symmetry factor; ``sector_*`` the
         modelled part's)."""
         s = self.symmetry_factor
+        sz = s * self.device_axes[2]
         impulse_z = float(counters.impulse[2]) if len(counters.impulse) > 2 else 0.0
         last = {k: float(history.column(f"energy_{k}_J")[-1]) for k in ("plastic", "kinetic")}
         return {**super().run_metrics(history, counters),
-                "force_impulse_z_Ns": s * impulse_z, "force_impulse_Ns": s * abs(impulse_z),
+                "force_impulse_z_Ns": sz * impulse_z, "force_impulse_Ns": sz * abs(impulse_z),
                 "sector_force_impulse_z_Ns": impulse_z,
                 "plastic_work_J": s * last["plastic"], "kinetic_energy_final_J": s * last["kinetic"],
                 "sector_plastic_work_J": last["plastic"],

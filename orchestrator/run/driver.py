@@ -468,8 +468,9 @@ def mech_metrics(solver, case: Case, history: History, e: dict[str, float]) -> d
             continue
         out[f"{b.name}_max_ux_mm"] = float(history.column(f"{b.name}_max_ux_m").max()) * 1e3
         out[f"{b.name}_max_uy_mm"] = float(history.column(f"{b.name}_max_uy_m").max()) * 1e3
-        if f"{b.name}_max_uz_m" in history.columns:
-            out[f"{b.name}_max_uz_mm"] = float(history.column(f"{b.name}_max_uz_m").max()) * 1e3
+        for c in ("z", "r"):   # 3D bodies: the z and radial (about the z-axis) displacements too
+            if f"{b.name}_max_u{c}_m" in history.columns:
+                out[f"{b.name}_max_u{c}_mm"] = float(history.column(f"{b.name}_max_u{c}_m").max()) * 1e3
         out[f"{b.name}_max_speed_m_s"] = float(history.column(f"{b.name}_max_speed_m_s").max())
         out[f"{b.name}_max_von_mises_MPa"] = float(history.column(f"{b.name}_max_von_mises_Pa").max()) / 1e6
         if b.region == "workpiece" and case.geometry is not None:

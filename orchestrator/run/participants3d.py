@@ -112,6 +112,7 @@ def participants_3d(case: Case, work: Path):
     dt_mech = solver.stable_time_step() if solver is not None else rigid_step_3d(case)
     if case.coupling.load == "pressure":   # the same meshes and loop, the [[loads]] pulses instead of getdp
         load = pressure_pulses_3d(case, solver, float(model.symmetry_factor), Path(g.file).name)
+        load.device_axes = device_axes(geo.planes)
         return solver, None, load, loop_options_3d(case, dt_mech), geo
     rigid = None
     if any(b.rigid for b in case.bodies):
