@@ -14,6 +14,7 @@ and reading its groups; :mod:`.geometry3d` maps them onto the deck's roles.
 from __future__ import annotations
 
 import json
+import logging
 import subprocess
 import sys
 from dataclasses import dataclass
@@ -21,6 +22,8 @@ from pathlib import Path
 from typing import Sequence
 
 import numpy as np
+
+log = logging.getLogger(__name__)
 
 #: gmsh's element kinds of interest in meshio's names
 _TETRA, _TRIANGLE = "tetra", "triangle"
@@ -148,7 +151,7 @@ def _child(src: str, out: str, sizes_json: str, factor: float, max_cells: float,
         try:
             gmsh.open(src)
         except Exception as exc:   # a parse error or the file's own Error(...): its message, not the traceback's
-            print(f"Error: {exc}")
+            log.error("Error: %s", exc)
             return 3
         if Path(src).suffix.lower() != ".geo" and not gmsh.model.getPhysicalGroups():
             _name_cad_entities(gmsh)
@@ -156,17 +159,17 @@ def _child(src: str, out: str, sizes_json: str, factor: float, max_cells: float,
         for group, h in json.loads(sizes_json).items():
             if group not in names or names[group][0] != 3:
                 vols = sorted(n for n, (d, _) in names.items() if d == 3)
-                print(f"Error: geometry.mesh_sizes: no physical volume group {group!r}; the file's: {vols}")
+                log.error("Error: geometry.mesh_sizes: no physical volume group %r; the file's: %s", group, vols)
                 return 3
             ents = gmsh.model.getEntitiesForPhysicalGroup(3, names[group][1])
             pts = gmsh.model.getBoundary([(3, int(e)) for e in ents], combined=False, oriented=False, recursive=True)
             gmsh.model.mesh.setSize([p for p in pts if p[0] == 0], float(h))
         if gmsh.model.getDimension() < 3 or not gmsh.model.getEntities(3):
-            print("Error: the geometry has no volume")
+            log.error("Error: the geometry has no volume")
             return 3
         refusal = _too_many_cells(gmsh, names, json.loads(sizes_json), factor, max_cells)
         if refusal is not None:
-            print(refusal)
+            log.error("%s", refusal)
             return 3
         gmsh.option.setNumber("Mesh.Algorithm3D", 1)
         gmsh.option.setNumber("Mesh.Optimize", 1)
@@ -266,10 +269,11 @@ def read_groups(path: Path, label: str) -> RawGroups:
 def main(argv: Sequence[str] | None = None) -> int:
     """``python -m pulseform.orchestrator.mesh.gmsh_file SRC OUT SIZES_JSON FACTOR MAX_CELLS [name=value ...]``: the
     meshing child."""
+    logging.basicConfig(stream=sys.stdout, format="%(message)s", level=logging.INFO)   # the child's log: gmsh.log
     args = list(sys.argv[1:] if argv is None else argv)
     if len(args) < 5:
-        print("usage: python -m pulseform.orchestrator.mesh.gmsh_file SRC OUT SIZES_JSON FACTOR MAX_CELLS "
-              "[name=value ...]")
+        log.error("usage: python -m pulseform.orchestrator.mesh.gmsh_file SRC OUT SIZES_JSON FACTOR MAX_CELLS "
+                  "[name=value ...]")
         return 2
     return _child(args[0], args[1], args[2], float(args[3]), float(args[4]), args[5:])
 
