@@ -1,6 +1,6 @@
-# Convenience targets; the README's two commands are scripts/demo.sh and scripts/test.sh
+# Convenience targets; the README's two commands are scripts/demo.sh and scripts/test.sh (docs: scripts/docs.sh)
 # (a fresh Debian machine may not have make).
-.PHONY: setup demo test test-slow test-mpi clean
+.PHONY: setup demo test test-slow test-mpi docs clean
 
 setup:
 	@bash scripts/setup.sh
@@ -17,5 +17,8 @@ test-slow:
 test-mpi:
 	@bash scripts/test.sh -q -m mpi
 
+docs:
+	@bash scripts/docs.sh
+
 clean:
-	rm -rf results .pytest_cache
+	rm -rf results site .pytest_cache

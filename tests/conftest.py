@@ -1,4 +1,4 @@
-"""Shared fixtures. Markers (slow, getdp, mpi) are defined once, in pyproject.toml."""
+"""Shared fixtures. Markers (slow, getdp, mpi, docs) are defined once, in pyproject.toml."""
 
 from pathlib import Path
 

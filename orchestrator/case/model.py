@@ -1,7 +1,7 @@
 """The case file model: typed, frozen dataclasses in SI units, validated from TOML.
 
 Every key states its unit and allowed range through :func:`~pulseform.orchestrator.case.schema.spec`;
-the README's case-file reference is generated from these declarations
+the case-file reference page (docs/reference/case-file.md) is generated from these declarations
 (``python -m pulseform.orchestrator.case.reference``) and a test keeps the two in step.
 """
 

@@ -27,7 +27,7 @@ MISSING = dataclasses.MISSING
 
 #: Plausible magnitudes of a number by its unit: (smallest non-zero |value|, largest |value|). Generous for
 #: pulsed forming and its EM circuits, they refuse absurd inputs (1e308 Pa, 1e30 s) before any meshing.
-#: Zero passes wherever the field's own bounds allow it. The README's case-file section lists this table.
+#: Zero passes wherever the field's own bounds allow it. docs/reference/case-file.md lists this table (generated).
 PLAUSIBLE: dict[str, tuple[float, float]] = {
     "m": (1e-12, 10.0),
     "m^2": (1e-20, 100.0),
