@@ -44,7 +44,7 @@ def _module(label: str, module: str, version_of=lambda m: getattr(m, "__version_
     try:
         m = importlib.import_module(module)
     except Exception as exc:  # report any import failure, e.g. a numpy ABI mismatch
-        return Component(label, "MISSING", f"import failed: {exc}", "see README troubleshooting")
+        return Component(label, "MISSING", f"import failed: {exc}", "see docs/guide/troubleshooting.md")
     loc = getattr(m, "__file__", "") or ""
     return Component(label, str(version_of(m)), str(Path(loc).parent), _debian_package(loc))
 

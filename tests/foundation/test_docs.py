@@ -61,8 +61,8 @@ def test_readme_links_resolve():
 @pytest.mark.docs
 def test_site_builds_strict(tmp_path):
     """`mkdocs build --strict` (what scripts/docs.sh runs) into a temporary folder: no warning."""
-    if importlib.util.find_spec("mkdocs") is None or importlib.util.find_spec("material") is None:
-        pytest.fail("mkdocs / mkdocs-material missing: run `bash scripts/docs.sh` once (installs them)")
+    if importlib.util.find_spec("mkdocs") is None:  # (Debian's mkdocs-material has no entry point to look for)
+        pytest.fail("mkdocs missing: run `bash scripts/docs.sh` once (installs Debian's mkdocs packages)")
     start = time.monotonic()
     r = subprocess.run([sys.executable, "-m", "mkdocs", "build", "--strict", "--site-dir", str(tmp_path / "site")],
                        cwd=REPO, capture_output=True, text=True, env={**os.environ, "NO_COLOR": "1"}, timeout=600)
