@@ -9,6 +9,8 @@
    without a second copy in docs/ (a page at the top of docs/ links them as ``cases/...``).
 3. ``pymdownx.snippets`` (the changelog page includes the root CHANGELOG.md) resolves from the
    repository root whatever the working directory.
+4. The docstrings' Sphinx roles (:func:`name`, :class:`~.mod.Name`), which the numpy-style parser
+   leaves as text, are shown as code: ``name``, ``Name``.
 
 Nothing here imports pulseform: the site builds with Debian's ``/usr/bin/mkdocs`` too.
 """
