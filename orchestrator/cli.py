@@ -198,25 +198,14 @@ def _cmd_run(args: argparse.Namespace) -> int:
             print("  --- log tail ---\n" + "\n".join("  " + ln for ln in exc.details.splitlines()), file=sys.stderr)
         return code
     if not args.quiet:
-        for line in _summary(case, metrics, out):
+        from .run.summary import summary_lines
+
+        for line in summary_lines(case, metrics, out):
             print(line)
         print(f"results: {out}")
         for k in sorted(metrics):
             print(f"  {k} = {metrics[k]:.6g}")
     return EXIT_OK
-
-
-def _summary(case, metrics: dict, out: Path) -> list[str]:
-    """The headline lines of a finished run (:func:`.summary.headline`), indented under ``summary:``."""
-    from .run.history import History
-    from .run.summary import headline
-
-    try:
-        history = History.read(out / "history.csv")
-    except (OSError, ValueError):
-        history = None
-    lines = [h.text() for h in headline(case, metrics, history)]
-    return ["summary:"] + ["  " + ln for ln in lines] if lines else []
 
 
 def _check_geometry_3d(case, file: Path) -> list[str] | int:
@@ -250,7 +239,7 @@ def _check_geometry_3d(case, file: Path) -> list[str] | int:
 
 def _cmd_check(args: argparse.Namespace) -> int:
     from .case.io import CaseError, case_to_toml, load_case
-    from .em.skin_depth import default_sizes, resolve_defaults
+    from .em.skin_depth import default_sizes, mesh_advice, resolve_defaults
 
     try:
         loaded, file = load_case(args.case, args.overrides)
@@ -272,7 +261,12 @@ def _cmd_check(args: argparse.Namespace) -> int:
         if isinstance(lines, int):
             return lines
         geometry_lines = lines
-    for line in _mesh_advice(case):
+    try:
+        advice = mesh_advice(case)
+    except (ArithmeticError, ValueError) as exc:  # an extreme but valid case: no advice rather than a failure
+        logging.getLogger(__name__).debug("no mesh advice: %s", exc)
+        advice = []
+    for line in advice:  # advice never stops a check
         print(f"pulseform: warning: {line}", file=sys.stderr)
     print(f"# {file}: valid")
     for line in geometry_lines:
@@ -281,17 +275,6 @@ def _cmd_check(args: argparse.Namespace) -> int:
         print(f"# {d.text()}")
     print(case_to_toml(case), end="")
     return EXIT_OK
-
-
-def _mesh_advice(case) -> list[str]:
-    """The skin-depth advice of a case (:func:`~.em.skin_depth.mesh_advice`); advice never stops a check."""
-    from .em.skin_depth import mesh_advice
-
-    try:
-        return mesh_advice(case)
-    except (ArithmeticError, ValueError) as exc:  # an extreme but valid case: no advice rather than a failure
-        logging.getLogger(__name__).debug("no mesh advice: %s", exc)
-        return []
 
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
