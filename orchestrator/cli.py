@@ -119,6 +119,10 @@ def _parser() -> argparse.ArgumentParser:
                                       "and fields, also when the run had output.plots = false.")
     plot.add_argument("results", metavar="RESULTS_DIR", type=Path, help="a results folder of `pulseform run`")
 
+    schema = sub.add_parser("schema", help="the JSON Schema of the case file (editor completion and checks)",
+                            description="Print the JSON Schema (draft 2020-12) of the case file, or write it to FILE.")
+    schema.add_argument("--out", metavar="FILE", type=Path, help="write it to FILE (atomically) instead of printing it")
+
     sub.add_parser("info", help="versions and locations of getdp, gmsh, dolfinx, PETSc, meshio, numpy",
                    description="Print the versions of the external programs and libraries and where each comes from.")
     return p
@@ -438,6 +442,22 @@ def _cmd_info(_: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _cmd_schema(args: argparse.Namespace) -> int:
+    from .case.json_schema import case_json_schema_text
+    from .run.results import atomic_write_text
+
+    text = case_json_schema_text()
+    if args.out is None:
+        print(text, end="")
+        return EXIT_OK
+    try:
+        atomic_write_text(args.out, text)
+    except OSError as exc:
+        return _error(f"--out: cannot write {args.out}: {exc.strerror or exc}", EXIT_BAD_INPUT)
+    print(f"schema: {args.out}")
+    return EXIT_OK
+
+
 def entry() -> int:
     """The ``pulseform`` console script (and ``python -m pulseform.orchestrator``): :func:`main` in a
     process of its own. Started by itself (not by ``mpirun``), the process's MPI is a singleton: Open
@@ -458,7 +478,7 @@ def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     _setup_logging(getattr(args, "quiet", False))
     handlers = {"run": _cmd_run, "check": _cmd_check, "sweep": _cmd_sweep, "converge": _cmd_converge, "info": _cmd_info,
-                "validate": _cmd_validate, "compare": _cmd_compare, "plot": _cmd_plot}
+                "validate": _cmd_validate, "compare": _cmd_compare, "plot": _cmd_plot, "schema": _cmd_schema}
     try:
         return handlers[args.command](args)
     except KeyboardInterrupt:
