@@ -119,6 +119,10 @@ def _parser() -> argparse.ArgumentParser:
                                       "and fields, also when the run had output.plots = false.")
     plot.add_argument("results", metavar="RESULTS_DIR", type=Path, help="a results folder of `pulseform run`")
 
+    schema = sub.add_parser("schema", help="the JSON Schema of the case file (editor completion and checks)",
+                            description="Print the JSON Schema (draft 2020-12) of the case file, or write it to FILE.")
+    schema.add_argument("--out", metavar="FILE", type=Path, help="write it to FILE (atomically) instead of printing it")
+
     sub.add_parser("info", help="versions and locations of getdp, gmsh, dolfinx, PETSc, meshio, numpy",
                    description="Print the versions of the external programs and libraries and where each comes from.")
     return p
@@ -198,25 +202,14 @@ def _cmd_run(args: argparse.Namespace) -> int:
             print("  --- log tail ---\n" + "\n".join("  " + ln for ln in exc.details.splitlines()), file=sys.stderr)
         return code
     if not args.quiet:
-        for line in _summary(case, metrics, out):
+        from .run.summary import summary_lines
+
+        for line in summary_lines(case, metrics, out):
             print(line)
         print(f"results: {out}")
         for k in sorted(metrics):
             print(f"  {k} = {metrics[k]:.6g}")
     return EXIT_OK
-
-
-def _summary(case, metrics: dict, out: Path) -> list[str]:
-    """The headline lines of a finished run (:func:`.summary.headline`), indented under ``summary:``."""
-    from .run.history import History
-    from .run.summary import headline
-
-    try:
-        history = History.read(out / "history.csv")
-    except (OSError, ValueError):
-        history = None
-    lines = [h.text() for h in headline(case, metrics, history)]
-    return ["summary:"] + ["  " + ln for ln in lines] if lines else []
 
 
 def _check_geometry_3d(case, file: Path) -> list[str] | int:
@@ -250,7 +243,7 @@ def _check_geometry_3d(case, file: Path) -> list[str] | int:
 
 def _cmd_check(args: argparse.Namespace) -> int:
     from .case.io import CaseError, case_to_toml, load_case
-    from .em.skin_depth import default_sizes, resolve_defaults
+    from .em.skin_depth import default_sizes, mesh_advice, resolve_defaults
 
     try:
         loaded, file = load_case(args.case, args.overrides)
@@ -272,7 +265,12 @@ def _cmd_check(args: argparse.Namespace) -> int:
         if isinstance(lines, int):
             return lines
         geometry_lines = lines
-    for line in _mesh_advice(case):
+    try:
+        advice = mesh_advice(case)
+    except (ArithmeticError, ValueError) as exc:  # an extreme but valid case: no advice rather than a failure
+        logging.getLogger(__name__).debug("no mesh advice: %s", exc)
+        advice = []
+    for line in advice:  # advice never stops a check
         print(f"pulseform: warning: {line}", file=sys.stderr)
     print(f"# {file}: valid")
     for line in geometry_lines:
@@ -281,17 +279,6 @@ def _cmd_check(args: argparse.Namespace) -> int:
         print(f"# {d.text()}")
     print(case_to_toml(case), end="")
     return EXIT_OK
-
-
-def _mesh_advice(case) -> list[str]:
-    """The skin-depth advice of a case (:func:`~.em.skin_depth.mesh_advice`); advice never stops a check."""
-    from .em.skin_depth import mesh_advice
-
-    try:
-        return mesh_advice(case)
-    except (ArithmeticError, ValueError) as exc:  # an extreme but valid case: no advice rather than a failure
-        logging.getLogger(__name__).debug("no mesh advice: %s", exc)
-        return []
 
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
@@ -455,6 +442,22 @@ def _cmd_info(_: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _cmd_schema(args: argparse.Namespace) -> int:
+    from .case.json_schema import case_json_schema_text
+    from .run.results import atomic_write_text
+
+    text = case_json_schema_text()
+    if args.out is None:
+        print(text, end="")
+        return EXIT_OK
+    try:
+        atomic_write_text(args.out, text)
+    except OSError as exc:
+        return _error(f"--out: cannot write {args.out}: {exc.strerror or exc}", EXIT_BAD_INPUT)
+    print(f"schema: {args.out}")
+    return EXIT_OK
+
+
 def entry() -> int:
     """The ``pulseform`` console script (and ``python -m pulseform.orchestrator``): :func:`main` in a
     process of its own. Started by itself (not by ``mpirun``), the process's MPI is a singleton: Open
@@ -475,7 +478,7 @@ def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     _setup_logging(getattr(args, "quiet", False))
     handlers = {"run": _cmd_run, "check": _cmd_check, "sweep": _cmd_sweep, "converge": _cmd_converge, "info": _cmd_info,
-                "validate": _cmd_validate, "compare": _cmd_compare, "plot": _cmd_plot}
+                "validate": _cmd_validate, "compare": _cmd_compare, "plot": _cmd_plot, "schema": _cmd_schema}
     try:
         return handlers[args.command](args)
     except KeyboardInterrupt:

@@ -11,9 +11,11 @@ loads, of the initial kinetic energy.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
+from .history import History
 from .units import time_axis
 
 #: body regions (and, for mechanics cases, body names) whose peak stress is a die's
@@ -104,6 +106,17 @@ def headline(case, metrics: dict[str, float], history) -> list[Headline]:
 
     out.extend(_energy_lines(bank, metrics, history, cols))
     return out
+
+
+def summary_lines(case, metrics: dict[str, float], folder: Path) -> list[str]:
+    """The lines printed after a run: ``summary:`` and the :func:`headline` lines indented under it (none when
+    no headline applies), from ``metrics`` and ``folder``'s history.csv (left out when it cannot be read)."""
+    try:
+        history = History.read(Path(folder) / "history.csv")
+    except (OSError, ValueError):
+        history = None
+    lines = [h.text() for h in headline(case, metrics, history)]
+    return ["summary:"] + ["  " + ln for ln in lines] if lines else []
 
 
 def _whose(names: list[str]) -> str:
