@@ -35,8 +35,6 @@ What the schema cannot express, left to ``pulseform check`` (which runs the Pyth
   the case folder and read; no NUL character in a string; path lengths; 2D-only keys in a 3D case
   (``mechanics.thickness``, ``mechanics.gravity``) and ``em.remesh_quality`` in a 3D geometry-file case;
 * JSON has one number type: ``1.0`` for an integer key passes the schema, ``pulseform check`` refuses it;
-* the values of a ``dict[str, float]`` table are checked as ``convert`` checks them: without the field's bounds
-  and unit (finite, ``|value| <= 1e15``), also where the field declares some (``geometry.mesh_sizes``).
 
 Editors: taplo follows ``$ref`` and the branches of ``oneOf``/``anyOf`` but does not narrow a ``oneOf`` by the
 ``type`` value: it offers every branch's keys and flags the wrong ones when it validates. The schema therefore
@@ -166,7 +164,7 @@ def type_schema(tp: Any, meta: dict[str, Any] | None = None) -> dict[str, Any]:
     if origin is dict:
         _, val_t = get_args(tp)
         return {"type": "object", "propertyNames": {"maxLength": MAX_STRING},
-                "additionalProperties": type_schema(val_t)}  # convert passes no metadata to a table's values
+                "additionalProperties": type_schema(val_t, meta)}  # the field's bounds hold for each value
     if dataclasses.is_dataclass(tp):
         return _object_schema(tp)
     raise TypeError(f"unsupported schema type {tp!r}")

@@ -291,7 +291,7 @@ def convert(tp: Any, value: Any, path: str, meta: dict[str, Any] | None = None) 
         key_t, val_t = get_args(tp)
         if not isinstance(value, dict):
             raise SchemaError(path, f"got {_describe_value(value)}; expected a table")
-        return {k: convert(val_t, v, f"{path}.{k}" if path else k) for k, v in value.items()}
+        return {k: convert(val_t, v, f"{path}.{k}" if path else k, meta) for k, v in value.items()}
     if dataclasses.is_dataclass(tp):
         return from_dict(tp, value, path)
     raise TypeError(f"unsupported schema type {tp!r} at {path}")

@@ -5,6 +5,7 @@ both, and every field's numbers, lists and values are accepted by one exactly wh
 from __future__ import annotations
 
 import copy
+import shutil
 import dataclasses
 import json
 import math
@@ -127,6 +128,8 @@ BAD = [
     ("missing_required_in_union", "emf_sheet_bulge", (("geometry", "turns"), _DELETE), "geometry.turns"),
     ("bad_literal", "bar_impact", (("mechanics", "formulation"), "planar"), "mechanics.formulation"),
     ("bad_literal_in_list", "bar_impact", (("probes", 0, "quantity"), "stress"), "probes[0].quantity"),
+    ("table_value_zero", "emf_tube_field_shaper", (("geometry", "mesh_sizes", "tube"), 0.0),
+     "geometry.mesh_sizes.tube"),
     ("string_too_long", "bar_impact", (("case", "description"), "x" * 10_001), "case.description"),
 ]
 
@@ -137,6 +140,9 @@ def _write(tmp_path: Path, base: str, mutation) -> Path:
         mutation(data)
     else:
         _set(data, *mutation)
+    for f in (REPO / "cases" / base).iterdir():  # the files the case names (a geometry file, a deck)
+        if f.is_file() and f.suffix != ".toml":
+            shutil.copy(f, tmp_path / f.name)
     path = tmp_path / "case.toml"
     path.write_text(tomli_w.dumps(data), encoding="utf-8")
     return path
