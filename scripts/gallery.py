@@ -387,6 +387,26 @@ def _stop(proc: subprocess.Popen) -> None:
             continue
 
 
+def draw_pictures(out: Path, exe: Path, log_file: Path, limit_s: float = 600.0) -> str:
+    """``pulseform plot`` on a results folder whose ``plots/`` has no picture (a case file with
+    ``output.plots = false``). Returns an empty string, or one line on what failed."""
+    argv = [str(exe), "plot", str(out)]
+    log.info("%s: no pictures: %s", out, shlex.join(argv))
+    with open(log_file, "a") as fh:
+        fh.write(f"# {shlex.join(argv)}\n")
+        fh.flush()
+        try:
+            code = subprocess.run(argv, cwd=REPO, stdout=fh, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
+                                  timeout=limit_s, check=False).returncode
+        except subprocess.TimeoutExpired:
+            return f"pulseform plot {out}: stopped at the time limit {limit_s:.0f} s"
+    return "" if code == 0 else f"pulseform plot {out} exited {code}: {_last_error(log_file)}"
+
+
+def _has_pictures(out: Path) -> bool:
+    return any((out / "plots").rglob("*.png"))
+
+
 def run_entry(entry: Entry, runs_root: Path, exe: Path, version: str, rerun: bool = False,
               no_run: bool = False) -> RunRecord:
     """Run (or reuse) one entry's ``pulseform run``.
@@ -415,7 +435,13 @@ def run_entry(entry: Entry, runs_root: Path, exe: Path, version: str, rerun: boo
     if not rerun:
         stamp = _complete(out, entry)
         if stamp is not None:
-            return RunRecord(entry, out, ok=True, reused=True, stamp=stamp)
+            error = ""
+            if not _has_pictures(out):   # output.plots = false in the case file: draw them from the results
+                error = draw_pictures(out, exe, log_file)
+                if not error:
+                    stamp["pictures_by"] = "pulseform plot"
+                    (out / STAMP).write_text(json.dumps(stamp, indent=1) + "\n")
+            return RunRecord(entry, out, ok=not error, reused=True, stamp=stamp, error=error)
     if no_run:
         return RunRecord(entry, out, ok=False, error=f"no complete run in {out} (--no-run)")
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -457,6 +483,12 @@ def run_entry(entry: Entry, runs_root: Path, exe: Path, version: str, rerun: boo
         return RunRecord(entry, out, ok=False, stamp=stamp, error=f"no readable metrics.json in {out}: {exc}")
     stamp["run_wall_time_s"] = metrics.get("wall_time_s")
     (out / STAMP).write_text(json.dumps(stamp, indent=1) + "\n")
+    if not _has_pictures(out):   # output.plots = false in the case file: draw them from the results
+        error = draw_pictures(out, exe, log_file)
+        if error:
+            return RunRecord(entry, out, ok=False, stamp=stamp, error=error)
+        stamp["pictures_by"] = "pulseform plot"
+        (out / STAMP).write_text(json.dumps(stamp, indent=1) + "\n")
     return RunRecord(entry, out, ok=True, stamp=stamp)
 
 
@@ -546,7 +578,10 @@ def metric_rows(names: tuple[str, ...], metrics: dict[str, Any]) -> list[tuple[s
             continue
         u = unit_of(name)
         unit = {"-": "", "count": "", "?": ""}.get(u.shown, u.shown)
-        rows.append((name, _fmt(float(metrics[name]) * u.scale), unit))
+        value = float(metrics[name]) * u.scale
+        if unit == "s" and 0.0 < abs(value) < 1.0:   # instants of a pulse: in ms or µs, as the plots' time axes
+            value, unit = (value * 1e6, "µs") if abs(value) < 1e-3 else (value * 1e3, "ms")
+        rows.append((name, _fmt(value), unit))
     return rows
 
 
@@ -589,6 +624,9 @@ def entry_markdown(rec: RunRecord, pictures: list[tuple[str, Picture]], level: i
     commit = stamp.get("commit", "")[:10] + ("" if stamp.get("code_clean", True) else " + local changes")
     md += [f"Gallery run: **{duration(stamp.get('wall_time_s', 0.0))}** wall on 2 shared cores "
            f"({when}, commit `{commit}`, pulseform {stamp.get('pulseform_version', '?')}).", ""]
+    if stamp.get("pictures_by"):
+        md += [f"The case file sets `output.plots = false`; the gallery drew the pictures afterwards with "
+               f"`pulseform plot RESULTS_DIR`.", ""]
     rows = metric_rows(entry.headline, metrics)
     if rows:
         md += [f"{h} Headline figures", "", "| metrics.json | value | unit |", "|---|---:|---|"]
@@ -683,8 +721,9 @@ def index_page(all_settings: dict[str, CaseSettings], runs: dict[str, Any]) -> s
             st = info.get("entries", {}).get(e.name)
             if st:
                 runs_text.append(f"{'coarse' if st.get('coarse') else 'full'}, {duration(st.get('wall_time_s', 0))}")
+        page = f"[{name}]({name}.md)" if (GALLERY / f"{name}.md").is_file() else "no page yet (no complete run)"
         md.append(f"| {cell} | {case_cell} | {_cell(shows)} | {_cell(s.kind)} | {'; '.join(runs_text) or 'not run'} "
-                  f"| [{name}]({name}.md) |")
+                  f"| {page} |")
     return "\n".join(md) + "\n"
 
 
@@ -733,7 +772,7 @@ def write_case(settings: CaseSettings, records: dict[str, RunRecord], runs: dict
             del entries[name]
     for name, rec in records.items():
         keep = ("file", "overrides", "coarse", "reason", "commit", "code_clean", "wall_time_s", "run_wall_time_s",
-                "date", "pulseform_version", "argv")
+                "date", "pulseform_version", "argv", "pictures_by")
         entries[name] = {k: rec.stamp.get(k) for k in keep}
     return warnings
 
