@@ -566,23 +566,51 @@ def _fmt(value: float) -> str:
     return f"{value:.4g}" if 1e-3 <= a < 1e6 else f"{value:.3e}"
 
 
-def metric_rows(names: tuple[str, ...], metrics: dict[str, Any]) -> list[tuple[str, str, str]]:
-    """``(name, value, unit)`` of the headline metrics, in the unit pulseform's plots show them
-    (:func:`pulseform.orchestrator.run.units.unit_of`: Pa as MPa, m as mm, A as kA...)."""
+def shown_value(name: str, value: float) -> tuple[str, str]:
+    """A metric's value and unit as pulseform's plots show them
+    (:func:`pulseform.orchestrator.run.units.unit_of`: Pa as MPa, m as mm, A as kA...); instants below
+    a second in ms or µs."""
     from pulseform.orchestrator.run.units import unit_of
 
+    u = unit_of(name)
+    unit = {"-": "", "count": "", "?": ""}.get(u.shown, u.shown)
+    value = float(value) * u.scale
+    if unit == "s" and 0.0 < abs(value) < 1.0:   # instants of a pulse: in ms or µs, as the plots' time axes
+        value, unit = (value * 1e6, "µs") if abs(value) < 1e-3 else (value * 1e3, "ms")
+    return _fmt(value), unit
+
+
+def metric_rows(names: tuple[str, ...], metrics: dict[str, Any],
+                reference: dict[str, Any] | None = None) -> list[tuple[str, str, str, str]]:
+    """``(name, value, unit, reference value)`` of the headline metrics (:func:`shown_value`); the
+    reference value (same unit) is ``""`` without ``reference`` or when it lacks the metric."""
     rows = []
     for name in names:
         if name not in metrics or not isinstance(metrics[name], (int, float)):
-            rows.append((name, "—", "not in this run's metrics.json"))
+            rows.append((name, "—", "not in this run's metrics.json", ""))
             continue
-        u = unit_of(name)
-        unit = {"-": "", "count": "", "?": ""}.get(u.shown, u.shown)
-        value = float(metrics[name]) * u.scale
-        if unit == "s" and 0.0 < abs(value) < 1.0:   # instants of a pulse: in ms or µs, as the plots' time axes
-            value, unit = (value * 1e6, "µs") if abs(value) < 1e-3 else (value * 1e3, "ms")
-        rows.append((name, _fmt(value), unit))
+        value, unit = shown_value(name, metrics[name])
+        ref = ""
+        if reference is not None and isinstance(reference.get(name), (int, float)):
+            ref = shown_value(name, reference[name])[0]
+        rows.append((name, value, unit, ref))
     return rows
+
+
+#: a case's stored metrics of a full run (compared with a coarse gallery run)
+FULL_RUN_METRICS = "reference/metrics_cli_run.json"
+
+
+def full_run_metrics(entry: Entry) -> dict[str, Any] | None:
+    """The metrics of a full run of ``entry``'s case stored in its folder (:data:`FULL_RUN_METRICS`), for a
+    coarse run of the case file itself; ``None`` otherwise."""
+    file = entry.file.parent / FULL_RUN_METRICS
+    if not entry.coarse or entry.name != "case" or not file.is_file():
+        return None
+    try:
+        return json.loads(file.read_text())
+    except ValueError:
+        return None
 
 
 def summary_lines(entry: Entry, out: Path, metrics: dict[str, Any]) -> list[str]:
@@ -615,9 +643,9 @@ def entry_markdown(rec: RunRecord, pictures: list[tuple[str, Picture]], level: i
     h = "#" * level
     md = [f"{h} Run it", "", "```bash", entry.command(False), "```", ""]
     if entry.coarse:
-        full = f" A full run takes {entry.full_run}." if entry.full_run else ""
+        cost = f" A full run takes {entry.full_run}." if entry.full_run else ""
         md += [f"**coarse run**: the pictures and figures below are from a coarse run, not the case as shipped: "
-               f"{entry.reason}.{full} The gallery ran:", "", "```bash", entry.command(True), "```", ""]
+               f"{entry.reason}.{cost} The gallery ran:", "", "```bash", entry.command(True), "```", ""]
     else:
         md += ["The pictures and figures below are from this full run.", ""]
     when = stamp.get("date", "")[:10]
@@ -627,10 +655,18 @@ def entry_markdown(rec: RunRecord, pictures: list[tuple[str, Picture]], level: i
     if stamp.get("pictures_by"):
         md += [f"The case file sets `output.plots = false`; the gallery drew the pictures afterwards with "
                f"`pulseform plot RESULTS_DIR`.", ""]
-    rows = metric_rows(entry.headline, metrics)
-    if rows:
+    full = full_run_metrics(entry)
+    rows = metric_rows(entry.headline, metrics, full)
+    if rows and full is not None:
+        ref = f"`cases/{entry.case}/{FULL_RUN_METRICS}`"
+        md += [f"{h} Headline figures", "",
+               f"The coarse run beside the full run stored in {ref}:", "",
+               "| metrics.json | coarse run | full run | unit |", "|---|---:|---:|---|"]
+        md += [f"| `{n}` | {v} | {r or '—'} | {u} |" for n, v, u, r in rows]
+        md.append("")
+    elif rows:
         md += [f"{h} Headline figures", "", "| metrics.json | value | unit |", "|---|---:|---|"]
-        md += [f"| `{n}` | {v} | {u} |" for n, v, u in rows]
+        md += [f"| `{n}` | {v} | {u} |" for n, v, u, _ in rows]
         md.append("")
     summary = summary_lines(entry, rec.out, metrics)
     if summary:
@@ -704,7 +740,8 @@ def index_page(all_settings: dict[str, CaseSettings], runs: dict[str, Any]) -> s
           f"*Generated by `scripts/gallery.py` from real runs of every case in `cases/` (`{COMMAND}`); do not "
           "edit by hand.* Each page has the case's description, the command to run it, its headline figures "
           "and pictures from the gallery's own run. Where a full run takes more than a few minutes the "
-          "gallery ran it coarse (shorter or on larger elements) and the page says so.", "",
+          "gallery ran it coarse and the page says so.", "",
+          _coarse_text(all_settings, cases), "",
           f"{len(all_settings)} cases, {sum(len(s.entries) for s in all_settings.values())} runs listed; the "
           f"gallery's runs took {duration(total)} of wall time on 2 shared cores. What each run used "
           "(commit, overrides, wall time, date, version) is in `docs/gallery/runs.json`.", "",
@@ -725,6 +762,15 @@ def index_page(all_settings: dict[str, CaseSettings], runs: dict[str, Any]) -> s
         md.append(f"| {cell} | {case_cell} | {_cell(shows)} | {_cell(s.kind)} | {'; '.join(runs_text) or 'not run'} "
                   f"| {page} |")
     return "\n".join(md) + "\n"
+
+
+def _coarse_text(all_settings: dict[str, CaseSettings], cases: dict[str, Any]) -> str:
+    """One sentence: which runs were coarse, and how (or that every run was full)."""
+    coarse = [f"`{e.label}` ({' '.join(f'`--set {o}`' for o in e.overrides)})" for s in all_settings.values()
+              for e in s.entries if e.coarse and e.name in cases.get(s.case, {}).get("entries", {})]
+    if not coarse:
+        return "Every run is the case file as shipped (no coarse run)."
+    return (f"Coarse runs: {', '.join(coarse)}; every other run is the case file as shipped.")
 
 
 def _cell(text: str) -> str:
@@ -774,6 +820,7 @@ def write_case(settings: CaseSettings, records: dict[str, RunRecord], runs: dict
         keep = ("file", "overrides", "coarse", "reason", "commit", "code_clean", "wall_time_s", "run_wall_time_s",
                 "date", "pulseform_version", "argv", "pictures_by")
         entries[name] = {k: rec.stamp.get(k) for k in keep}
+        entries[name]["argv"] = [a.removeprefix(f"{REPO}/") for a in entries[name].get("argv") or []]
     return warnings
 
 
