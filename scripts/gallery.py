@@ -30,7 +30,6 @@ import hashlib
 import json
 import logging
 import os
-import re
 import shlex
 import signal
 import subprocess
@@ -174,6 +173,7 @@ class SettingsError(ValueError):
 
 
 def _pictures(value: Any, where: str) -> tuple[Picture, ...]:
+    """The ``pictures`` list of a table row (names or ``{file, caption}`` tables) as :class:`Picture` s."""
     if not isinstance(value, list):
         raise SettingsError(f"{where}.pictures: a list of file names or {{file, caption}} tables")
     out = []
@@ -194,6 +194,7 @@ def _caption(file: str) -> str:
 
 
 def _entry(case: str, name: str, file: Path, row: dict[str, Any], allowed: set[str], where: str) -> Entry:
+    """An :class:`Entry` from a table row; its keys checked against ``allowed`` (``where`` names the row)."""
     unknown = set(row) - allowed
     if unknown:
         raise SettingsError(f"{where}: unknown key(s) {', '.join(sorted(unknown))}; allowed: "
@@ -313,6 +314,7 @@ class RunRecord:
 
 
 def _git(*args: str) -> str:
+    """The output of ``git ARGS`` in the repository (empty if git fails)."""
     return subprocess.run(["git", *args], cwd=REPO, capture_output=True, text=True, check=False).stdout.strip()
 
 
@@ -404,6 +406,7 @@ def draw_pictures(out: Path, exe: Path, log_file: Path, limit_s: float = 600.0) 
 
 
 def _has_pictures(out: Path) -> bool:
+    """True when the results folder's ``plots/`` holds a picture."""
     return any((out / "plots").rglob("*.png"))
 
 
@@ -554,12 +557,14 @@ def choose_pictures(entry: Entry, out: Path) -> tuple[list[Picture], list[str]]:
 
 
 def _picture_name(entry: Entry, pic: Picture) -> str:
+    """The picture's file name in ``docs/gallery/<case>/`` (a variant's prefixed ``<variant>--``)."""
     stem = pic.file.replace("/", "-")
     return stem if entry.name == "case" else f"{entry.name}--{stem}"
 
 
 # --------------------------------------------------------------------------------------------- markdown
 def _fmt(value: float) -> str:
+    """4 significant digits; scientific notation outside 1e-3 .. 1e6."""
     if value == 0.0:
         return "0"
     a = abs(value)
@@ -653,8 +658,8 @@ def entry_markdown(rec: RunRecord, pictures: list[tuple[str, Picture]], level: i
     md += [f"Gallery run: **{duration(stamp.get('wall_time_s', 0.0))}** wall on 2 shared cores "
            f"({when}, commit `{commit}`, pulseform {stamp.get('pulseform_version', '?')}).", ""]
     if stamp.get("pictures_by"):
-        md += [f"The case file sets `output.plots = false`; the gallery drew the pictures afterwards with "
-               f"`pulseform plot RESULTS_DIR`.", ""]
+        md += ["The case file sets `output.plots = false`; the gallery drew the pictures afterwards with "
+               "`pulseform plot RESULTS_DIR`.", ""]
     full = full_run_metrics(entry)
     rows = metric_rows(entry.headline, metrics, full)
     if rows and full is not None:
@@ -774,6 +779,7 @@ def _coarse_text(all_settings: dict[str, CaseSettings], cases: dict[str, Any]) -
 
 
 def _cell(text: str) -> str:
+    """Text safe in one markdown table cell."""
     return text.replace("|", "\\|").replace("\n", " ")
 
 
@@ -832,12 +838,14 @@ def main(argv: list[str] | None = None) -> int:
                    help=f"scratch folder for the runs (default {DEFAULT_RUNS})")
     p.add_argument("--rerun", action="store_true", help="run again even where a complete run exists")
     p.add_argument("--no-run", action="store_true", help="only write pages from complete runs")
+    p.add_argument("--settings", type=Path, default=SETTINGS, metavar="FILE",
+                   help=f"the settings table (default {SETTINGS.relative_to(REPO)})")
     p.add_argument("-v", "--verbose", action="store_true", help="log every step")
     args = p.parse_args(argv)
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
                         format="%(asctime)s %(levelname)s %(name)s: %(message)s", stream=sys.stderr)
     try:
-        all_settings = load_settings()
+        all_settings = load_settings(args.settings)
     except (SettingsError, tomllib.TOMLDecodeError) as exc:
         print(f"gallery: error: {exc}", file=sys.stderr)
         return 2
@@ -883,7 +891,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"warning: {w}", file=sys.stderr)
             failures.append(f"picture missing: {w}")
         runs["command"] = COMMAND
-        runs["generated"] = _dt.datetime.now(_dt.timezone.utc).replace(microsecond=0).isoformat()
+        runs.pop("generated", None)   # each run has its date: a page written again changes nothing here
         runs_file.write_text(json.dumps(runs, indent=1, sort_keys=True) + "\n")
     runs["cases"] = {k: v for k, v in sorted(runs.get("cases", {}).items()) if k in all_settings}
     runs_file.write_text(json.dumps(runs, indent=1, sort_keys=True) + "\n")
