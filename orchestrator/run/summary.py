@@ -80,7 +80,7 @@ def headline(case, metrics: dict[str, float], history) -> list[Headline]:
     elif "max_radial_displacement_mm" in metrics:
         out.append(Headline("max radial displacement", metrics["max_radial_displacement_mm"], "mm", _whose(workpiece)))
     else:
-        disp = {n: max(metrics.get(f"{n}_max_ux_mm", np.nan), metrics.get(f"{n}_max_uy_mm", np.nan))
+        disp = {n: float(np.nanmax([metrics.get(f"{n}_max_u{c}_mm", np.nan) for c in "xyz"]))  # 3D: z too
                 for n in movers if f"{n}_max_ux_mm" in metrics}
         if disp:
             name = max(disp, key=disp.get)
