@@ -290,7 +290,7 @@ def user_deck_load(case, geometry, work_dir: Path, bodies, em_substeps: int):
     if mode == "persistent" and case.em.getdp_process == "persistent":
         solver.timeout = case.limits.getdp_time_limit_s
         if not solver.probe(geometry.mesh):
-            raise DeckContractError(f"deck {case.geometry.pro}: em.getdp_process = 'persistent' needs Resolution "
+            raise DeckContractError(f"deck {Path(case.geometry.pro).name}: em.getdp_process = 'persistent' needs Resolution "
                                     "EM_Persistent (Include PulseformLib provides it), or set getdp_process = 'per_step'")
     if mode is not None:
         log.info("user deck: %s", "one persistent getdp process" if mode == "persistent" else "a getdp process per EM step")
