@@ -1,13 +1,15 @@
 #!/usr/bin/env bash
 # README command 2: install what is missing, then run the default (fast) test tier.
 # Extra arguments go to pytest, e.g. `bash scripts/test.sh -m slow` for the long validations.
+# Tests run on every core (pytest-xdist, `-n auto`; a test module is the unit a worker takes, so a
+# module's shared runs are made once): `bash scripts/test.sh -n 0` runs them in this process, one by one.
 set -euo pipefail
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 bash "$here/scripts/setup.sh"
 cd "$here"
 export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
 set +e
-.venv/bin/python -m pytest "$@"
+.venv/bin/python -m pytest -n auto --dist loadfile "$@"
 rc=$?
 set -e
 if [ "$rc" -eq 5 ]; then

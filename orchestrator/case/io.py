@@ -16,7 +16,7 @@ from .geometry3d import check_raw_geometry_3d, resolve_geometry_file
 from .errors import MAX_MESSAGE, CaseError, one_line  # noqa: F401  (the case-file API)
 from .model import Case
 from .schema import SchemaError, from_dict, shorten, to_dict
-from .solid3d import check_explicit_2d_keys
+from .solid3d import FORMULATION_3D, TWO_D_ONLY_KEYS, check_explicit_2d_keys
 
 CASE_FILE_NAME = "case.toml"
 MAX_CASE_FILE = 2 * 2**20  # bytes: a case is a few kB; 2 MiB hold a polygon of ~80,000 vertices
@@ -269,8 +269,15 @@ def _check_string(text: str, what: str, path: str, source: str) -> None:
 
 
 def case_to_toml(case: Case) -> str:
-    """The resolved case (defaults filled in, overrides applied) as TOML text."""
+    """The resolved case (defaults filled in, overrides applied) as TOML text.
+
+    A 3D case is written without the 2D-only keys (their defaults are unused; :func:`load_case` refuses them
+    in a 3D file), so the resolved case of a 3D run loads as a case file again.
+    """
     data = to_dict(case)
+    if case.mechanics.formulation == FORMULATION_3D:
+        for key in TWO_D_ONLY_KEYS:
+            data["mechanics"].pop(key, None)
     return tomli_w.dumps(_finite(data))
 
 

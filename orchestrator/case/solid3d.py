@@ -95,6 +95,10 @@ class SymmetryPlane:
 
 SOLID_TYPES = ("box", "cylinder")
 
+#: Keys of ``[mechanics]`` that only plane and axisymmetric models have, and why.
+TWO_D_ONLY_KEYS = {"thickness": "the out-of-plane thickness of plane models",
+                   "gravity": "the 2D gravity of rigid bodies"}
+
 
 def check_explicit_2d_keys(data: dict[str, Any]) -> None:
     """Refuse, in the raw case mapping, 2D-only keys whose defaults are harmless but whose presence in a
@@ -102,8 +106,7 @@ def check_explicit_2d_keys(data: dict[str, Any]) -> None:
     mech = data.get("mechanics")
     if not isinstance(mech, dict) or mech.get("formulation") != FORMULATION_3D:
         return
-    for key, why in (("thickness", "the out-of-plane thickness of plane models"),
-                     ("gravity", "the 2D gravity of rigid bodies")):
+    for key, why in TWO_D_ONLY_KEYS.items():
         if key in mech:
             raise SchemaError(f"mechanics.{key}", f"a 2D-only key ({why}); a 3D case "
                               "(mechanics.formulation = '3d') has none: remove it")
