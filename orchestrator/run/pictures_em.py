@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import json
 import logging
+import textwrap
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -131,7 +132,13 @@ def _layout(boxes: list, title: str, max_side: float = 7.5, footnote: bool = Fal
             axes.append(fig.add_axes([left / fig_w, y / fig_h, w / fig_w, h / fig_h]))
             y -= gap
     cax = fig.add_axes([(left + width + 0.25) / fig_w, bottom / fig_h, 0.18 / fig_w, height / fig_h])
-    fig.text(0.5 * (left + width) / fig_w, 1.0 - 0.2 / fig_h, title, ha="center", va="top", fontsize=10)
+    # centred over the panels where it fits, else over the figure, wrapped to its width (a tall narrow
+    # panel: the title is wider than the panel and was cut at the figure's left edge)
+    chars = max(int(fig_w * 72 / (10 * 0.6)), 20)  # 10 pt text: ~0.6 em per character
+    lines = textwrap.wrap(title, chars) or [""]
+    half = 0.5 * max(len(t) for t in lines) * 10 * 0.6 / 72  # inches
+    x = min(max(0.5 * (left + width), half + 0.1), fig_w - half - 0.1)
+    fig.text(x / fig_w, 1.0 - 0.2 / fig_h, "\n".join(lines), ha="center", va="top", fontsize=10)
     return fig, axes, cax
 
 
