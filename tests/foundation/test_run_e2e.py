@@ -26,10 +26,9 @@ def _run(*args, check_rc=None, **kw):
 
 
 @pytest.fixture(scope="module")
-def coarse_run(tmp_path_factory):
-    out = tmp_path_factory.mktemp("e2e") / "bar"
-    _run("--out", str(out), "--quiet", *COARSE, check_rc=0)
-    return out
+def coarse_run(shared_run):
+    """`pulseform run cases/bar_impact --quiet` with COARSE (exit 0): the same run as test_field_files' (conftest.py)."""
+    return shared_run("bar_impact", COARSE)
 
 
 def test_results_folder_has_every_file(coarse_run):

@@ -66,15 +66,33 @@ def _children(pid: int, name: str) -> list[int]:
 
 
 @pytest.fixture(scope="module")
-def reference(tmp_path_factory) -> dict:
-    out = tmp_path_factory.mktemp("signals") / "ref"
-    r = subprocess.run([*CORNER, "--out", str(out)], capture_output=True, text=True)
-    assert r.returncode == 0, r.stderr[-2000:]
-    return json.loads((out / "metrics.json").read_text())
+def uninterrupted(tmp_path_factory) -> dict:
+    """One uninterrupted CORNER run, shared by the resume tests (its metrics: the reference) and
+    test_two_runs_on_one_folder (while it steps, three more runs on its folder are started; they must be refused).
+    What those three did and how the run ended is recorded here; the tests assert on it."""
+    out = tmp_path_factory.mktemp("signals") / "shared"
+    first = subprocess.Popen([*CORNER, "--out", str(out)], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    _wait_for(lambda: _stepping(out), first, what="the first run's first step")
+    second = {}
+    for extra in ([], ["--force"], ["--resume"]):
+        second[tuple(extra)] = subprocess.run([*CORNER, "--out", str(out), *extra], capture_output=True, text=True)
+    _, err = first.communicate(timeout=300)
+    return {"out": out, "second": second, "returncode": first.returncode, "stderr": err,
+            "metrics": json.loads((out / "metrics.json").read_text()) if (out / "metrics.json").is_file() else None}
 
 
-@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+@pytest.fixture(scope="module")
+def reference(uninterrupted) -> dict:
+    assert uninterrupted["returncode"] == 0, uninterrupted["stderr"][-2000:]
+    return uninterrupted["metrics"]
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, pytest.param(signal.SIGTERM, marks=pytest.mark.slow)],
+                         ids=["SIGINT", "SIGTERM"])
 def test_signal_mid_run_then_resume_equals_uninterrupted(sig, reference, tmp_path):
+    """SIGTERM (slow tier) takes the same path as SIGINT: one handler for both (SIGTERM stopping a run with a
+    checkpoint in the default tier: test_sweep_killed_its_members_stop_with_a_checkpoint and
+    test_signal_while_drawing_the_pictures[TERM])."""
     out = tmp_path / "run"
     proc = subprocess.Popen([*CORNER, "--out", str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     _wait_for(lambda: _stepping(out), proc, what="the first explicit step")
@@ -105,16 +123,16 @@ def test_signal_mid_run_then_resume_equals_uninterrupted(sig, reference, tmp_pat
     assert got["wall_time_s"] == pytest.approx(m["wall_time_s"] + (t[1] - t[0]), abs=0.8), (m["wall_time_s"], t)
 
 
-def test_two_runs_on_one_folder(tmp_path):
-    out = tmp_path / "shared"
-    first = subprocess.Popen([*CORNER, "--out", str(out)], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-    _wait_for(lambda: _stepping(out), first, what="the first run's first step")
-    for extra in ([], ["--force"], ["--resume"]):
-        r = subprocess.run([*CORNER, "--out", str(out), *extra], capture_output=True, text=True)
+def test_two_runs_on_one_folder(uninterrupted):
+    """The first run is the shared uninterrupted run; the three runs started on its folder while it stepped
+    (the fixture) were refused."""
+    out = uninterrupted["out"]
+    assert list(uninterrupted["second"]) == [(), ("--force",), ("--resume",)]
+    for extra, r in uninterrupted["second"].items():
         assert r.returncode == 2, (extra, r.stderr)
         assert "in use by a running pulseform" in r.stderr, (extra, r.stderr)
-    _, err = first.communicate(timeout=300)
-    assert first.returncode == 0, err
+    err = uninterrupted["stderr"]
+    assert uninterrupted["returncode"] == 0, err
     m = json.loads((out / "metrics.json").read_text())
     assert m["status"] == "ok" and m["end_time_s"] == pytest.approx(3.2e-4)
     # the lock died with the first run: --force may now replace the folder
@@ -230,11 +248,15 @@ def test_sweep_killed_its_members_stop_with_a_checkpoint(tmp_path):
     assert m["status"] == "interrupted" and (member_out / "checkpoint.npz").is_file(), m
 
 
-@pytest.mark.parametrize("end,limit", [("500", "limits.max_steps = 5e+07"), ("0.05", "limits.max_em_steps = 5e+04")])
+@pytest.mark.parametrize("end,limit", [("500", "limits.max_steps = 5e+07"),
+                                       pytest.param("0.05", "limits.max_em_steps = 5e+04", marks=pytest.mark.slow)])
 def test_user_deck_steps_guarded_once_meshed(tmp_path, end, limit):
     """A user deck's element size is known only after its .geo is meshed: the step guards run then,
     before the first step (at the deck's ~2.3e-8 s stable step, 500 s would be ~2e10 explicit steps,
-    50 ms ~2e6 explicit steps but ~1.1e5 getdp runs at coupling.n = 20)."""
+    50 ms ~2e6 explicit steps but ~1.1e5 getdp runs at coupling.n = 20). The EM-step guard's case (slow tier)
+    is the same function after meshing (guards.check_steps_of_meshes, called by the driver); its EM-step
+    branch in the default tier: tests/coupling/test_case_3d_sector.py::
+    test_too_many_em_steps_are_refused_before_the_first_step."""
     r = subprocess.run([EXE, "run", str(REPO / "cases/user_deck_sheet_bulge"), "--out", str(tmp_path / "r"), "--quiet",
                         "--set", f"time.end={end}"], capture_output=True, text=True, timeout=300)
     lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
@@ -273,16 +295,23 @@ sys.exit(main(sys.argv[5:]))
 '''
 
 
-@pytest.mark.parametrize("case,module,attr,what", [
-    ("bar_impact", "pulseform.orchestrator.mesh.shapes", "_gmsh_triangles", "meshing body 'left' with gmsh"),
-    ("emf_sheet_bulge", "pulseform.orchestrator.mesh.em_geometry", "coil_conductor_mesh",
-     "meshing the flat_coil_sheet EM geometry with gmsh"),
-], ids=["body_shape", "em_geometry"])
-@pytest.mark.parametrize("mode", ["hang", "abort"])
+_GMSH_MESHING = {
+    "body_shape": ("bar_impact", "pulseform.orchestrator.mesh.shapes", "_gmsh_triangles", "meshing body 'left' with gmsh"),
+    "em_geometry": ("emf_sheet_bulge", "pulseform.orchestrator.mesh.em_geometry", "coil_conductor_mesh",
+                    "meshing the flat_coil_sheet EM geometry with gmsh"),
+}
+
+
+@pytest.mark.parametrize("mode,case,module,attr,what", [
+    pytest.param(mode, *args, id=f"{mode}-{name}",
+                 marks=[pytest.mark.slow] if (mode, name) == ("hang", "em_geometry") else [])
+    for mode in ("hang", "abort") for name, args in _GMSH_MESHING.items()])
 def test_gmsh_api_meshing_that_never_returns_or_crashes(tmp_path, case, module, attr, what, mode):
     """A gmsh (API, built-in geometries) that never returns is stopped at limits.gmsh_time_limit_s, one
     that crashes (an abort, as std::bad_alloc does) is a ChildFailed: one line naming the meshing step,
-    exit 1, metrics status "failed", and the meshing child does not live on."""
+    exit 1, metrics status "failed", and the meshing child does not live on. [hang-em_geometry] is in the slow
+    tier: the time limit of the same meshing child (runner.call_in_child) in [hang-body_shape], the EM geometry's
+    meshing step and its message in [abort-em_geometry]."""
     driver = tmp_path / "driver.py"
     driver.write_text(_FAKE_GMSH_DRIVER)
     pidfile, out = tmp_path / "pid", tmp_path / "run"
