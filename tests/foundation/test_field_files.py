@@ -154,10 +154,12 @@ def test_demo_pictures(demo):
     _check_pictures(demo, len(DEMO_TIMES))
 
 
-@pytest.mark.parametrize("alive", [True, False])
+@pytest.mark.parametrize("alive", [pytest.param(True, marks=pytest.mark.slow), False])
 def test_pictures_from_a_renderer_started_early(bar, tmp_path, alive):
     """The 3D renderer a run starts ahead of time (pictures_mech.Renderer) draws the same pictures;
-    one that died meanwhile is replaced by a new child, and the pictures are still drawn."""
+    one that died meanwhile is replaced by a new child, and the pictures are still drawn. [True] is in the
+    slow tier: every run with pictures draws them with its renderer started early (run/runner._early_renderer),
+    checked on the bar run by test_bar_pictures."""
     import shutil
 
     from pulseform.orchestrator.run.pictures_child import Renderer

@@ -196,8 +196,11 @@ def test_sigkill_of_pulseform_ends_its_getdp(tmp_path):
     _wait_for(lambda: not _alive(child), timeout=10, what=f"getdp {child} to end after pulseform was killed")
 
 
+@pytest.mark.slow
 @pytest.mark.getdp
 def test_sigkill_during_a_real_getdp_step_leaves_no_getdp(tmp_path):
+    """Slow tier: the same parent-death signal of the getdp child as test_sigkill_of_pulseform_ends_its_getdp
+    (a fake getdp, default tier), here with a real getdp mid-step."""
     proc = subprocess.Popen([EXE, "run", str(REPO / "cases/emf_sheet_bulge"), "--out", str(tmp_path / "run"),
                              "--quiet"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     found: list[int] = []
@@ -384,11 +387,13 @@ sys.exit(main(sys.argv[1:]))
 '''
 
 
-@pytest.mark.parametrize("sig", ["INT", "TERM"])
+@pytest.mark.parametrize("sig", [pytest.param("INT", marks=pytest.mark.slow), "TERM"])
 def test_signal_while_drawing_the_pictures(tmp_path, sig):
     """Issue 13 (audit): a stop signal during the end-of-run pictures ends the drawing at the next
     picture group and kills the 3D renderer: one line saying the run is complete and how to draw the
-    pictures, exit 128 + signal, metrics.json complete with status "ok" (was: ignored, exit 0)."""
+    pictures, exit 128 + signal, metrics.json complete with status "ok" (was: ignored, exit 0).
+    [INT] is in the slow tier: SIGINT and SIGTERM share one handler (run/interrupt.STOP_SIGNALS); [TERM] here,
+    SIGINT mid-run in test_signal_mid_run_then_resume_equals_uninterrupted[SIGINT]."""
     driver = tmp_path / "driver.py"
     driver.write_text(_SIGNAL_IN_PICTURES.replace("{sig}", sig))
     out = tmp_path / "run"
