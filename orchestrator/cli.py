@@ -6,6 +6,7 @@ Exit codes: 0 success, 1 a run that started and failed, 2 bad input (case file, 
 from __future__ import annotations
 
 import argparse
+import functools
 import logging
 import os
 import signal
@@ -17,6 +18,7 @@ from . import __version__
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
 
 
+@functools.cache  # once per process: building it costs ms (argparse's gettext); parse_args leaves it unchanged
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="pulseform",

@@ -6,6 +6,7 @@ Meshing and running the deck: :mod:`pulseform.orchestrator.em.user_deck`."""
 
 from __future__ import annotations
 
+import functools
 import math
 import re
 from pathlib import Path
@@ -174,6 +175,13 @@ def deck_tokens(text: str) -> list[tuple[str, str, int]]:
     return out
 
 
+@functools.lru_cache(maxsize=32)
+def _deck_tokens_of_text(text: str) -> list[tuple[str, str, int]]:
+    """:func:`deck_tokens` of ``text``, once per text (a deck and the files it includes are scanned several
+    times per `check`); keyed on the text itself, read each time. Read the list, never change it."""
+    return deck_tokens(text)
+
+
 def _file_argument(tokens: list, i: int) -> str | None:
     """The string literal right after ``tokens[i]`` (past one ``[`` or ``(``), or None."""
     j = i + 1
@@ -196,7 +204,7 @@ def _read_deck(path: Path, seen: set) -> tuple[Path, list] | None:
         if path in seen or not path.is_file():
             return None
         seen.add(path)
-        return path, deck_tokens(path.read_text(errors="replace"))
+        return path, _deck_tokens_of_text(path.read_text(errors="replace"))
     except (OSError, ValueError, RuntimeError):  # a NUL or an over-long name, a symlink loop, no permission
         return None
 

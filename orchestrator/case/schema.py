@@ -18,6 +18,7 @@ can print a single line. No string from the input is ever evaluated.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import operator
 import types
@@ -147,12 +148,19 @@ def _type_name(tp: Any) -> str:
     return getattr(tp, "__name__", str(tp))
 
 
+@functools.cache
+def _type_hints(cls: type) -> dict[str, Any]:
+    """``get_type_hints(cls)``, once per class (a case file is validated on every `check`; the hints of a schema
+    class never change). Read it, never change it."""
+    return get_type_hints(cls)
+
+
 def _is_union(tp: Any) -> bool:
     return get_origin(tp) in (Union, types.UnionType)
 
 
 def _tag(cls: type) -> str:
-    hints = get_type_hints(cls)
+    hints = _type_hints(cls)
     args = get_args(hints.get("type", None))
     if not args:
         raise TypeError(f"{cls.__name__} in a tagged union needs a `type: Literal[...]` field")
@@ -321,7 +329,7 @@ def from_dict(cls: type, data: Any, path: str = "") -> Any:
     """
     if not isinstance(data, dict):
         raise SchemaError(path, f"got {_describe_value(data)}; expected a table")
-    hints = get_type_hints(cls)
+    hints = _type_hints(cls)
     fields = {f.name: f for f in dataclasses.fields(cls) if f.init}
     unknown = [k for k in data if k not in fields]
     if unknown:

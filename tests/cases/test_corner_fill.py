@@ -114,13 +114,19 @@ def test_p0_sweep_fill_grows_with_pressure(tmp_path):
     assert [f >= FILLED for f in fill] == [False] * 5 + [True] * 2, fill
 
 
+@pytest.mark.slow
 def test_touched_so_far_survives_kill_and_resume(tmp_path):
     """The fill fraction is a "touched at some time so far" record: a run killed after its first
     checkpoint and resumed must report the same fill metrics as the uninterrupted run (the record
     travels in the checkpoint, orchestrator/mech/participants.py). Very coarse meshes (blank 1 mm,
     die 4 mm) and 160 us; the checkpoint at 120 us is taken after the blank has struck the bottom
     and rebounded, so that what was touched before it is not all touched again afterwards (checked
-    on the uninterrupted run: fill so far > contact now there)."""
+    on the uninterrupted run: fill so far > contact now there).
+
+    Slow tier (a second kill-and-resume of a 2D case): kill -9 and --resume in the default tier:
+    tests/foundation/test_run_e2e.py::test_kill9_then_resume_gives_same_metrics; the corner-fill case with
+    this record through a checkpoint and --resume, every metric (fill_fraction ...) bit for bit:
+    tests/foundation/test_signals.py::test_signal_mid_run_then_resume_equals_uninterrupted[SIGINT]."""
     import json
     import signal
     import subprocess

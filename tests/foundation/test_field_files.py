@@ -49,17 +49,16 @@ def _run(case: str, out: Path, *extra: str, env=None, mpi: bool = False) -> subp
 
 
 @pytest.fixture(scope="module")
-def bar(tmp_path_factory):
-    out = tmp_path_factory.mktemp("fields") / "bar"
-    _run("bar_impact", out, *BAR)  # no DISPLAY: the pictures render off-screen
-    return out
+def bar(shared_run):
+    """No DISPLAY: the pictures render off-screen. The same run as test_run_e2e's (conftest.py)."""
+    return shared_run("bar_impact", BAR)
 
 
 @pytest.fixture(scope="module")
-def demo(tmp_path_factory):
-    out = tmp_path_factory.mktemp("fields") / "demo"
-    _run("emf_sheet_bulge", out, *DEMO)
-    return out
+def demo(shared_run):
+    """No DISPLAY. The same run as test_results_and_loads' file-mode test, which runs it under umask 027
+    (conftest.py): the umask changes no field, picture or number."""
+    return shared_run("emf_sheet_bulge", DEMO, umask=0o027)
 
 
 def _check_field_files(out: Path, bodies: set[str], times: list[float]) -> None:
@@ -155,10 +154,12 @@ def test_demo_pictures(demo):
     _check_pictures(demo, len(DEMO_TIMES))
 
 
-@pytest.mark.parametrize("alive", [True, False])
+@pytest.mark.parametrize("alive", [pytest.param(True, marks=pytest.mark.slow), False])
 def test_pictures_from_a_renderer_started_early(bar, tmp_path, alive):
     """The 3D renderer a run starts ahead of time (pictures_mech.Renderer) draws the same pictures;
-    one that died meanwhile is replaced by a new child, and the pictures are still drawn."""
+    one that died meanwhile is replaced by a new child, and the pictures are still drawn. [True] is in the
+    slow tier: every run with pictures draws them with its renderer started early (run/runner._early_renderer),
+    checked on the bar run by test_bar_pictures."""
     import shutil
 
     from pulseform.orchestrator.run.pictures_child import Renderer

@@ -26,10 +26,9 @@ def _run(*args, check_rc=None, **kw):
 
 
 @pytest.fixture(scope="module")
-def coarse_run(tmp_path_factory):
-    out = tmp_path_factory.mktemp("e2e") / "bar"
-    _run("--out", str(out), "--quiet", *COARSE, check_rc=0)
-    return out
+def coarse_run(shared_run):
+    """`pulseform run cases/bar_impact --quiet` with COARSE (exit 0): the same run as test_field_files' (conftest.py)."""
+    return shared_run("bar_impact", COARSE)
 
 
 def test_results_folder_has_every_file(coarse_run):
@@ -83,8 +82,9 @@ def test_kill9_then_resume_gives_same_metrics(tmp_path, coarse_run):
     """Kill -9 after the first checkpoint, resume, and compare every physics metric with the
     uninterrupted run (the issue asks <= 1e-12 relative)."""
     out = tmp_path / "killed"
+    # no pictures: nothing here looks at them (test_field_files does), and they were half of each run's time
     args = [EXE, "run", str(REPO / "cases/bar_impact"), "--out", str(out), "--quiet", *COARSE,
-            "--set", "output.field_interval=1e-4"]
+            "--set", "output.field_interval=1e-4", "--set", "output.plots=false"]
     ref_args = args[:3] + ["--out", str(tmp_path / "ref")] + args[5:]
     subprocess.run(ref_args, check=True, capture_output=True)
     proc = subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)

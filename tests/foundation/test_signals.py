@@ -1,80 +1,51 @@
-"""Faults a user's run must survive (issue 13): Ctrl-C / SIGTERM mid-run, SIGKILL with children
-running, a second run on the same folder, --force on a folder pulseform did not make, a hanging
-getdp, a full disk. Each checks real processes and real files, not mocks."""
+"""Faults a user's run must survive (issue 13): Ctrl-C / SIGTERM mid-run, a second run on the same folder,
+--force on a folder pulseform did not make, a killed sweep, out of memory, a stop while drawing the pictures.
+Each checks real processes and real files, not mocks. The faults of the children (getdp, gmsh) and of the
+machine (a full disk): test_signals_children.py."""
 
 from __future__ import annotations
 
 import json
-import os
 import signal
 import subprocess
 import sys
 import time
 from datetime import datetime
-from pathlib import Path
 
 import pytest
 
 from pulseform.orchestrator.cli import main
-
-REPO = Path(__file__).resolve().parents[2]
-EXE = str(Path(sys.executable).with_name("pulseform"))
-#: the paper's corner fill on very coarse meshes: ~15,000 explicit steps, a few seconds of stepping (its full
-#: 320 us: with history rows at ~0.3 ms, 160 us ran ~1.7 s from the first step to the end, shorter than the
-#: 1.5 s wait + shutdown of the signal test)
-CORNER = [EXE, "run", str(REPO / "cases/corner_fill"), "--quiet", "--set", "bodies.die.mesh_size=4e-3",
-          "--set", "bodies.blank.mesh_size=1e-3", "--set", "time.end=3.2e-4", "--set", "output.plots=false"]
-TIMERS = ("load_time_s", "mech_time_s", "setup_time_s", "wall_time_s")
-
-
-def _wait_for(predicate, proc: subprocess.Popen | None = None, timeout: float = 300.0, what: str = "") -> None:
-    deadline = time.time() + timeout
-    while not predicate():
-        if proc is not None and proc.poll() is not None:
-            pytest.fail(f"the run ended (exit {proc.returncode}) before {what}")
-        if time.time() > deadline:
-            pytest.fail(f"timed out waiting for {what}")
-        time.sleep(0.005)
-
-
-def _stepping(out: Path) -> bool:
-    log = out / "run.log"
-    return log.is_file() and "ExplicitSolver:" in log.read_text(errors="replace")
-
-
-def _alive(pid: int) -> bool:
-    """True while ``pid`` runs (a zombie, dead but not yet reaped by init, counts as ended)."""
-    try:
-        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
-    except (OSError, IndexError):
-        return False
-    return state not in ("Z", "X")
-
-
-def _children(pid: int, name: str) -> list[int]:
-    out = []
-    for p in Path("/proc").iterdir():
-        if p.name.isdigit():
-            try:
-                stat = (p / "stat").read_text()
-            except OSError:
-                continue
-            comm, rest = stat[stat.index("(") + 1: stat.rindex(")")], stat[stat.rindex(")") + 2:].split()
-            if comm == name and int(rest[1]) == pid:
-                out.append(int(p.name))
-    return out
+from signals_common import CORNER, EXE, REPO, TIMERS, _alive, _children, _stepping, _wait_for
 
 
 @pytest.fixture(scope="module")
-def reference(tmp_path_factory) -> dict:
-    out = tmp_path_factory.mktemp("signals") / "ref"
-    r = subprocess.run([*CORNER, "--out", str(out)], capture_output=True, text=True)
-    assert r.returncode == 0, r.stderr[-2000:]
-    return json.loads((out / "metrics.json").read_text())
+def uninterrupted(tmp_path_factory) -> dict:
+    """One uninterrupted CORNER run, shared by the resume tests (its metrics: the reference) and
+    test_two_runs_on_one_folder (while it steps, three more runs on its folder are started; they must be refused).
+    What those three did and how the run ended is recorded here; the tests assert on it."""
+    out = tmp_path_factory.mktemp("signals") / "shared"
+    first = subprocess.Popen([*CORNER, "--out", str(out)], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    _wait_for(lambda: _stepping(out), first, what="the first run's first step")
+    second = {}
+    for extra in ([], ["--force"], ["--resume"]):
+        second[tuple(extra)] = subprocess.run([*CORNER, "--out", str(out), *extra], capture_output=True, text=True)
+    _, err = first.communicate(timeout=300)
+    return {"out": out, "second": second, "returncode": first.returncode, "stderr": err,
+            "metrics": json.loads((out / "metrics.json").read_text()) if (out / "metrics.json").is_file() else None}
 
 
-@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+@pytest.fixture(scope="module")
+def reference(uninterrupted) -> dict:
+    assert uninterrupted["returncode"] == 0, uninterrupted["stderr"][-2000:]
+    return uninterrupted["metrics"]
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, pytest.param(signal.SIGTERM, marks=pytest.mark.slow)],
+                         ids=["SIGINT", "SIGTERM"])
 def test_signal_mid_run_then_resume_equals_uninterrupted(sig, reference, tmp_path):
+    """SIGTERM (slow tier) takes the same path as SIGINT: one handler for both (SIGTERM stopping a run with a
+    checkpoint in the default tier: test_sweep_killed_its_members_stop_with_a_checkpoint and
+    test_signal_while_drawing_the_pictures[TERM])."""
     out = tmp_path / "run"
     proc = subprocess.Popen([*CORNER, "--out", str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     _wait_for(lambda: _stepping(out), proc, what="the first explicit step")
@@ -105,16 +76,16 @@ def test_signal_mid_run_then_resume_equals_uninterrupted(sig, reference, tmp_pat
     assert got["wall_time_s"] == pytest.approx(m["wall_time_s"] + (t[1] - t[0]), abs=0.8), (m["wall_time_s"], t)
 
 
-def test_two_runs_on_one_folder(tmp_path):
-    out = tmp_path / "shared"
-    first = subprocess.Popen([*CORNER, "--out", str(out)], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-    _wait_for(lambda: _stepping(out), first, what="the first run's first step")
-    for extra in ([], ["--force"], ["--resume"]):
-        r = subprocess.run([*CORNER, "--out", str(out), *extra], capture_output=True, text=True)
+def test_two_runs_on_one_folder(uninterrupted):
+    """The first run is the shared uninterrupted run; the three runs started on its folder while it stepped
+    (the fixture) were refused."""
+    out = uninterrupted["out"]
+    assert list(uninterrupted["second"]) == [(), ("--force",), ("--resume",)]
+    for extra, r in uninterrupted["second"].items():
         assert r.returncode == 2, (extra, r.stderr)
         assert "in use by a running pulseform" in r.stderr, (extra, r.stderr)
-    _, err = first.communicate(timeout=300)
-    assert first.returncode == 0, err
+    err = uninterrupted["stderr"]
+    assert uninterrupted["returncode"] == 0, err
     m = json.loads((out / "metrics.json").read_text())
     assert m["status"] == "ok" and m["end_time_s"] == pytest.approx(3.2e-4)
     # the lock died with the first run: --force may now replace the folder
@@ -130,86 +101,6 @@ def test_force_never_deletes_a_foreign_folder(tmp_path, capsys):
     err = capsys.readouterr().err
     assert code == 2 and "not a results folder made by pulseform" in err and str(victim) in err
     assert [p.name for p in victim.iterdir()] == ["thesis.tex"]
-
-
-def _fake_getdp(folder: Path) -> Path:
-    """A getdp that prints one line, records its pid and never returns."""
-    folder.mkdir()
-    fake = folder / "getdp"
-    fake.write_text('#!/bin/sh\necho "Info    : fake getdp hangs"\necho $$ > "$PULSEFORM_TEST_PIDFILE"\n'
-                    "exec sleep 1000\n")
-    fake.chmod(0o755)
-    return folder
-
-
-@pytest.mark.parametrize("process, run_folder", [("per_step", "step_00000"), ("persistent", "persistent_001")])
-def test_hanging_getdp_stopped_by_the_time_limit(tmp_path, process, run_folder):
-    """A getdp that never answers (a fake that sleeps) is stopped after limits.getdp_time_limit_s on
-    both EM paths: one line naming the limit and the run folder with its log, exit 1, no child left."""
-    env = dict(os.environ, PATH=f"{_fake_getdp(tmp_path / 'bin')}:{os.environ['PATH']}",
-               PULSEFORM_TEST_PIDFILE=str(tmp_path / "pid"))
-    out = tmp_path / "run"
-    t0 = time.time()
-    r = subprocess.run([EXE, "run", str(REPO / "cases/emf_sheet_bulge"), "--out", str(out), "--quiet",
-                        "--set", "limits.getdp_time_limit_s=2", "--set", f"em.getdp_process={process}"],
-                       capture_output=True, text=True, env=env, timeout=120)
-    assert r.returncode == 1
-    lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
-    assert len(lines) == 1, r.stderr
-    assert "getdp exceeded limits.getdp_time_limit_s = 2 s" in lines[0] and run_folder in lines[0], lines[0]
-    assert time.time() - t0 < 60
-    assert not _alive(int((tmp_path / "pid").read_text()))
-    assert json.loads((out / "metrics.json").read_text())["status"] == "failed"
-    assert "fake getdp hangs" in (out / "em" / run_folder / "getdp.log").read_text()
-
-
-def test_sigkill_of_pulseform_ends_its_getdp(tmp_path):
-    """A getdp that would run for 1000 s dies with pulseform (parent-death signal), not 1000 s later."""
-    pidfile = tmp_path / "pid"
-    env = dict(os.environ, PATH=f"{_fake_getdp(tmp_path / 'bin')}:{os.environ['PATH']}",
-               PULSEFORM_TEST_PIDFILE=str(pidfile))
-    proc = subprocess.Popen([EXE, "run", str(REPO / "cases/emf_sheet_bulge"), "--out", str(tmp_path / "run"),
-                             "--quiet"], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    _wait_for(lambda: pidfile.is_file() and pidfile.read_text().strip(), proc, what="getdp to start")
-    child = int(pidfile.read_text())
-    assert _alive(child)
-    proc.kill()
-    proc.wait()
-    _wait_for(lambda: not _alive(child), timeout=10, what=f"getdp {child} to end after pulseform was killed")
-
-
-@pytest.mark.getdp
-def test_sigkill_during_a_real_getdp_step_leaves_no_getdp(tmp_path):
-    proc = subprocess.Popen([EXE, "run", str(REPO / "cases/emf_sheet_bulge"), "--out", str(tmp_path / "run"),
-                             "--quiet"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    found: list[int] = []
-    _wait_for(lambda: found.extend(_children(proc.pid, "getdp")) or found, proc, what="a getdp child")
-    proc.kill()
-    proc.wait()
-    _wait_for(lambda: not any(_alive(c) for c in found), timeout=10, what="getdp to end")
-
-
-def test_full_disk_is_one_line_and_keeps_what_was_written(tmp_path):
-    """A 400 kB tmpfs fills during the bar-impact run (needs root to mount; skipped elsewhere)."""
-    disk = tmp_path / "small"
-    disk.mkdir()
-    r = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=400k", "tmpfs", str(disk)], capture_output=True, text=True)
-    if r.returncode != 0:
-        pytest.skip(f"cannot mount a small tmpfs here: {r.stderr.strip()}")
-    try:
-        out = disk / "r"
-        r = subprocess.run([EXE, "run", str(REPO / "cases/bar_impact"), "--out", str(out), "--quiet"],
-                           capture_output=True, text=True, timeout=300)
-        assert r.returncode == 1
-        lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
-        assert len(lines) == 1, r.stderr[-3000:]
-        assert "no space left to write" in lines[0] and str(out) in lines[0], lines[0]
-        import tomllib
-
-        assert tomllib.loads((out / "case.toml").read_text())["case"]["name"] == "bar_impact"  # readable
-        assert "ExplicitSolver" in (out / "run.log").read_text(errors="replace")
-    finally:
-        subprocess.run(["umount", str(disk)], check=False)
 
 
 def test_sweep_killed_its_members_stop_with_a_checkpoint(tmp_path):
@@ -228,79 +119,6 @@ def test_sweep_killed_its_members_stop_with_a_checkpoint(tmp_path):
     _wait_for(lambda: not _alive(members[0]), timeout=60, what="the member to stop")
     m = json.loads((member_out / "metrics.json").read_text())
     assert m["status"] == "interrupted" and (member_out / "checkpoint.npz").is_file(), m
-
-
-@pytest.mark.parametrize("end,limit", [("500", "limits.max_steps = 5e+07"), ("0.05", "limits.max_em_steps = 5e+04")])
-def test_user_deck_steps_guarded_once_meshed(tmp_path, end, limit):
-    """A user deck's element size is known only after its .geo is meshed: the step guards run then,
-    before the first step (at the deck's ~2.3e-8 s stable step, 500 s would be ~2e10 explicit steps,
-    50 ms ~2e6 explicit steps but ~1.1e5 getdp runs at coupling.n = 20)."""
-    r = subprocess.run([EXE, "run", str(REPO / "cases/user_deck_sheet_bulge"), "--out", str(tmp_path / "r"), "--quiet",
-                        "--set", f"time.end={end}"], capture_output=True, text=True, timeout=300)
-    lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
-    assert r.returncode == 2 and len(lines) == 1, r.stderr
-    assert "time.end" in lines[0] and f"above {limit}" in lines[0], lines[0]
-
-
-def test_sigkill_during_built_in_meshing_ends_the_gmsh_child(tmp_path):
-    """The gmsh API meshes the built-in geometries in a forked child (solvers/getdp/runner.call_in_child):
-    SIGKILL of pulseform while it meshes (a fine sheet mesh, ~3e5 cells, seconds of gmsh) ends it too."""
-    proc = subprocess.Popen([EXE, "run", str(REPO / "cases/emf_sheet_bulge"), "--out", str(tmp_path / "run"), "--quiet",
-                             "--set", "geometry.mesh_size_sheet=2e-5"], stdout=subprocess.DEVNULL,
-                            stderr=subprocess.DEVNULL)
-    found: list[int] = []
-    _wait_for(lambda: found.extend(_children(proc.pid, "pulseform")) or found, proc, what="the meshing child")
-    proc.kill()
-    proc.wait()
-    _wait_for(lambda: not any(_alive(c) for c in found), timeout=10, what="the meshing child to end")
-
-
-#: runs `pulseform` with the gmsh API meshing function replaced by a fake that records its pid and
-#: then hangs or aborts (in the forked meshing child: solvers/getdp/runner.call_in_child)
-_FAKE_GMSH_DRIVER = '''
-import importlib, logging, os, sys, time
-logging.getLogger().addHandler(logging.NullHandler())  # as the CLI's console handler: no basicConfig output
-mode, module, attr, pidfile = sys.argv[1:5]
-def fake(*args, **kwargs):
-    with open(pidfile, "w") as fh:
-        fh.write(str(os.getpid()))
-    if mode == "hang":
-        time.sleep(1000)
-    os.abort()
-setattr(importlib.import_module(module), attr, fake)
-from pulseform.orchestrator.cli import main
-sys.exit(main(sys.argv[5:]))
-'''
-
-
-@pytest.mark.parametrize("case,module,attr,what", [
-    ("bar_impact", "pulseform.orchestrator.mesh.shapes", "_gmsh_triangles", "meshing body 'left' with gmsh"),
-    ("emf_sheet_bulge", "pulseform.orchestrator.mesh.em_geometry", "coil_conductor_mesh",
-     "meshing the flat_coil_sheet EM geometry with gmsh"),
-], ids=["body_shape", "em_geometry"])
-@pytest.mark.parametrize("mode", ["hang", "abort"])
-def test_gmsh_api_meshing_that_never_returns_or_crashes(tmp_path, case, module, attr, what, mode):
-    """A gmsh (API, built-in geometries) that never returns is stopped at limits.gmsh_time_limit_s, one
-    that crashes (an abort, as std::bad_alloc does) is a ChildFailed: one line naming the meshing step,
-    exit 1, metrics status "failed", and the meshing child does not live on."""
-    driver = tmp_path / "driver.py"
-    driver.write_text(_FAKE_GMSH_DRIVER)
-    pidfile, out = tmp_path / "pid", tmp_path / "run"
-    t0 = time.monotonic()
-    r = subprocess.run([sys.executable, str(driver), mode, module, attr, str(pidfile), "run", str(REPO / "cases" / case),
-                        "--out", str(out), "--quiet", "--set", "limits.gmsh_time_limit_s=2"],
-                       capture_output=True, text=True, timeout=120)
-    wall = time.monotonic() - t0
-    lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
-    assert r.returncode == 1 and len(lines) == 1, r.stderr[-3000:]
-    assert lines[0].startswith(f"pulseform: error: {case}: {what} ") and len(lines[0]) <= 300, lines[0]
-    if mode == "hang":
-        assert "exceeded limits.gmsh_time_limit_s = 2 s and was stopped" in lines[0], lines[0]
-        assert 2.0 <= wall < 60, wall
-    else:
-        assert "died before it finished: killed by signal SIGABRT" in lines[0], lines[0]
-    assert json.loads((out / "metrics.json").read_text())["status"] == "failed"
-    _wait_for(lambda: not _alive(int(pidfile.read_text())), timeout=10, what="the meshing child to end")
 
 
 _OOM_DRIVER = '''
@@ -355,11 +173,13 @@ sys.exit(main(sys.argv[1:]))
 '''
 
 
-@pytest.mark.parametrize("sig", ["INT", "TERM"])
+@pytest.mark.parametrize("sig", [pytest.param("INT", marks=pytest.mark.slow), "TERM"])
 def test_signal_while_drawing_the_pictures(tmp_path, sig):
     """Issue 13 (audit): a stop signal during the end-of-run pictures ends the drawing at the next
     picture group and kills the 3D renderer: one line saying the run is complete and how to draw the
-    pictures, exit 128 + signal, metrics.json complete with status "ok" (was: ignored, exit 0)."""
+    pictures, exit 128 + signal, metrics.json complete with status "ok" (was: ignored, exit 0).
+    [INT] is in the slow tier: SIGINT and SIGTERM share one handler (run/interrupt.STOP_SIGNALS); [TERM] here,
+    SIGINT mid-run in test_signal_mid_run_then_resume_equals_uninterrupted[SIGINT]."""
     driver = tmp_path / "driver.py"
     driver.write_text(_SIGNAL_IN_PICTURES.replace("{sig}", sig))
     out = tmp_path / "run"
