@@ -90,6 +90,11 @@ def test_coupled_3d_case_runs_through_the_driver(coarse_run):
         assert (out / "plots" / name).is_file(), name
 
 
+# slow (a repeated end-to-end run; covered in the default tier by the same SIGINT/--resume bitwise check of a 3D
+# coupled case through the CLI:
+# test_case_racetrack_remesh.py::test_sigint_after_the_remesh_then_resume_equals_the_uninterrupted_run; the 3D
+# loop's checkpoint/resume: test_loop_fake3d.py)
+@pytest.mark.slow
 @pytest.mark.getdp
 def test_sigint_then_resume_equals_the_uninterrupted_run(coarse_run, tmp_path):
     ref = json.loads((coarse_run / "metrics.json").read_text())
@@ -121,6 +126,10 @@ def test_sigint_then_resume_equals_the_uninterrupted_run(coarse_run, tmp_path):
     assert h_got.shape == h_ref.shape and np.array_equal(h_got, h_ref)
 
 
+# slow (a repeated end-to-end run; covered in the default tier by `pulseform sweep` of a 3D case file:
+# tests/foundation/test_sweep.py::test_sweep_of_a_3d_case_plots_its_physics; the coarse sector through the driver:
+# test_coupled_3d_case_runs_through_the_driver)
+@pytest.mark.slow
 @pytest.mark.getdp
 def test_sweep_of_the_3d_case(tmp_path):
     """Two members (the bank charged to 3 kV and 6 kV) of the coarse sector: both run and sweep.csv holds

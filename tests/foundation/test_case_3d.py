@@ -114,6 +114,10 @@ def test_two_ranks_match_serial(run3d, tmp_path):
             assert got[k] == pytest.approx(v, rel=1e-10, abs=1e-300), k
 
 
+# slow (a repeated end-to-end run; covered in the default tier by the 3D mechanics' restart, bitwise:
+# tests/mechanics/test_3d_restart_output.py::test_restart_is_bitwise; SIGINT/--resume of a 3D case through the CLI:
+# tests/coupling/test_case_racetrack_remesh.py::test_sigint_after_the_remesh_then_resume_equals_the_uninterrupted_run)
+@pytest.mark.slow
 def test_sigint_then_resume_equals_uninterrupted(tmp_path):
     """The 2D checkpoint machinery carries over: SIGINT after the first checkpoint, --resume, and
     every physics metric equals the uninterrupted run's (coarse 0.25 m mesh)."""
