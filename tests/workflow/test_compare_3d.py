@@ -17,6 +17,7 @@ face's inward area vector is its area times its normal: exactly +z for the lower
 from __future__ import annotations
 
 import json
+import subprocess
 
 import numpy as np
 import pytest
@@ -139,6 +140,17 @@ def test_shapes_compared_on_the_same_nodes_in_3d(compared):
     assert (out / "pressure" / "case.toml").read_text().count('load = "pressure"') == 1
 
 
+def _in_process(capsys, *args: str) -> subprocess.CompletedProcess:
+    """``pulseform *args`` through the CLI's ``main`` in this process, as a finished process (exit code, stdout,
+    stderr) for ``one_line_error``."""
+    from pulseform.orchestrator.cli import main
+
+    capsys.readouterr()
+    rc = main(list(args))
+    out, err = capsys.readouterr()
+    return subprocess.CompletedProcess(["pulseform", *args], rc, out, err)
+
+
 @pytest.mark.parametrize("args,says", [
     ((), "--surface"),   # a geometry file does not know its loaded surface
     (("--surface", "{rmin = 0.01"), "not a TOML inline table"),
@@ -146,19 +158,19 @@ def test_shapes_compared_on_the_same_nodes_in_3d(compared):
     (("--surface", "{zmin = 2e-3, zmax = 1e-3}"), "--surface.zmax"),
     (("--surface", SURFACE, "--body", "coil"), "--body 'coil'"),
 ])
-def test_bad_compare_inputs_of_a_3d_geometry_file(tmp_path, args, says):
-    """One line, exit 2, before any run."""
+def test_bad_compare_inputs_of_a_3d_geometry_file(tmp_path, capsys, args, says):
+    """One line, exit 2, before any run (the CLI's ``main`` in this process: no interpreter start per input)."""
     from wf_helpers import one_line_error
 
-    r = pulseform("compare", CASE, "--out", str(tmp_path / "c"), *COARSE, *args)
+    r = _in_process(capsys, "compare", CASE, "--out", str(tmp_path / "c"), *COARSE, *args)
     line = one_line_error(r)
     assert r.returncode == 2 and says in line, line
     assert not (tmp_path / "c" / "coupled").exists()
 
 
-def test_a_surface_is_refused_on_a_2d_case(tmp_path):
+def test_a_surface_is_refused_on_a_2d_case(tmp_path, capsys):
     from wf_helpers import one_line_error
 
-    r = pulseform("compare", str(REPO / "cases/emf_sheet_bulge"), "--out", str(tmp_path / "c"), "--surface", SURFACE)
+    r = _in_process(capsys, "compare", str(REPO / "cases/emf_sheet_bulge"), "--out", str(tmp_path / "c"), "--surface", SURFACE)
     line = one_line_error(r)
     assert r.returncode == 2 and "--surface is for 3D models" in line, line
