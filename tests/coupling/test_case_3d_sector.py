@@ -37,17 +37,15 @@ COARSE = sets(COARSE_SETS)
 TIMERS = ("load_time_s", "mech_time_s", "setup_time_s", "wall_time_s", "em_time_s")
 
 
-def _run(out: Path, *extra: str) -> subprocess.CompletedProcess:
-    return subprocess.run([EXE, "run", CASE, "--out", str(out), "--quiet", *COARSE, *extra],
-                          capture_output=True, text=True)
-
-
 @pytest.fixture(scope="module")
-def coarse_run(tmp_path_factory) -> Path:
-    out = tmp_path_factory.mktemp("sector3d") / "run"
-    r = _run(out)
-    assert r.returncode == 0, r.stderr[-3000:]
-    return out
+def coarse_run(sector_compare) -> Path:
+    """The coarse sector's ``pulseform run CASE --quiet *COARSE``: the coupled run of the session's
+    ``pulseform compare`` (tests/conftest.py; the same command plus --force), complete (the compare exits 1
+    only for its --fail-if condition that holds, after both runs)."""
+    out, _, r = sector_compare
+    assert r.returncode == 1 and "--fail-if wall_time_coupled_s>0.001 holds" in r.stderr, r.stderr[-3000:]
+    assert "Traceback" not in r.stderr
+    return out / "coupled"
 
 
 @pytest.mark.getdp

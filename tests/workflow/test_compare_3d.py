@@ -16,7 +16,6 @@ face's inward area vector is its area times its normal: exactly +z for the lower
 
 from __future__ import annotations
 
-import json
 import subprocess
 
 import numpy as np
@@ -25,7 +24,7 @@ import pytest
 from pulseform.orchestrator.case.model import Box, PulseSin2
 from pulseform.orchestrator.mech.pulses import pulse_impulse_per_area, sin2_pulse
 
-from wf_helpers import REPO, pulseform
+from wf_helpers import REPO
 
 import math
 
@@ -36,18 +35,17 @@ COARSE = ["--set", "geometry.parameters.angle_deg=5",
           "--set", "geometry.parameters.h_coil=3e-3", "--set", "geometry.parameters.h_air=0.02",
           "--set", "time.end=3e-6", "--set", "output.field_interval=1e-6"]
 #: the 2D demo's loaded surface (the sheet's lower face over the coil, r in [10, 34] mm at z = 1.5 mm) as a 3D box
-SURFACE = "{rmin = 0.01, rmax = 0.034, zmin = 1.4999e-3, zmax = 1.5001e-3}"
+from coupling.sector_case import COARSE as _SECTOR, SURFACE, sets  # noqa: E402
+
+assert COARSE == sets(_SECTOR)   # the coarse sector of tests/coupling (the session's shared compare runs it)
 CASE = str(REPO / "cases/emf_sheet_bulge_3d")
 
 
 @pytest.fixture(scope="module")
-def compared(tmp_path_factory):
-    """One compare run with a condition that cannot hold and one that must: exit 1 naming the second."""
-    out = tmp_path_factory.mktemp("cmp3d") / "c"
-    r = pulseform("compare", CASE, "--out", str(out), *COARSE, "--surface", SURFACE, "--body", "sheet",
-                  "--fail-if", "impulse_rel_diff>1e9", "--fail-if", "wall_time_coupled_s>0.001")
-    print(r.stdout, r.stderr[-2000:])
-    return out, json.loads((out / "compare.json").read_text()), r
+def compared(sector_compare):
+    """One compare run with a condition that cannot hold and one that must: exit 1 naming the second (the
+    session's, tests/conftest.py: its coupled run is tests/coupling/test_case_3d_sector.py's too)."""
+    return sector_compare
 
 
 def _pulse(p, t_end: float) -> PulseSin2:
