@@ -11,3 +11,25 @@ REPO = Path(__file__).resolve().parents[1]
 def repo() -> Path:
     """The repository root."""
     return REPO
+
+
+@pytest.fixture(scope="session")
+def sector_compare(tmp_path_factory):
+    """``pulseform compare`` of the coarse 3D sector (tests/coupling/sector_case.py: 5 degrees, 3 us) with the
+    loaded surface ``SURFACE`` and two --fail-if conditions, one that cannot hold and one that must (exit 1
+    naming the second), run once per session (once per xdist worker): (out folder, compare.json, the finished
+    process). Its coupled run ``out / "coupled"`` is the coarse sector's ``pulseform run`` (the same command
+    and overrides, plus --force), shared by tests/workflow/test_compare_3d.py and
+    tests/coupling/test_case_3d_sector.py."""
+    import json
+    import subprocess
+    import sys
+
+    from coupling.sector_case import CASE, COARSE, SURFACE, sets
+
+    out = tmp_path_factory.mktemp("cmp3d") / "c"
+    r = subprocess.run([str(Path(sys.executable).with_name("pulseform")), "compare", str(CASE), "--out", str(out),
+                        *sets(COARSE), "--surface", SURFACE, "--body", "sheet", "--fail-if", "impulse_rel_diff>1e9",
+                        "--fail-if", "wall_time_coupled_s>0.001"], capture_output=True, text=True, timeout=600)
+    print(r.stdout, r.stderr[-2000:])
+    return out, json.loads((out / "compare.json").read_text()), r

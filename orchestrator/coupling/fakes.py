@@ -1,5 +1,7 @@
 """Fake participants that test the coupling loop in seconds: a rigid body translating along the axis
-(a :class:`~.interfaces.Mechanics`) and an analytic force (a :class:`~.interfaces.LoadProvider`)."""
+(a :class:`~.interfaces.Mechanics`), an analytic force (a :class:`~.interfaces.LoadProvider`) and, for the 3D
+loop, an analytic Lorentz force density on the conductor bodies of a 3D EM mesh that follows them
+(:class:`AnalyticLorentz3D`: the GetDP load's mesh motion and force transfer without getdp)."""
 
 from __future__ import annotations
 
@@ -8,6 +10,7 @@ from typing import Callable
 import numpy as np
 
 from .interfaces import LoadCapabilities, LoadStep, Mechanics, plain_total
+from .transfer3d import tet_force_integral, tet_nodal_forces
 
 
 class RigidAxialBody:
@@ -103,6 +106,72 @@ class AnalyticForce(LoadCapabilities):
 
     def state_dict(self) -> dict[str, np.ndarray]:
         """Stateless."""
+        return {}
+
+    def load_state_dict(self, state: dict[str, np.ndarray]) -> None:
+        """Stateless."""
+
+
+class AnalyticLorentz3D(LoadCapabilities):
+    """A 3D load provider without getdp: an analytic force density f(x, t) (N/m^3) on the tetrahedra of the
+    conductor bodies of a 3D EM mesh, the mesh following the bodies as the GetDP load's does.
+
+    :meth:`follow` moves the EM mesh (the bodies' nodes where the mechanics has them, the air by ``mover``:
+    :class:`~pulseform.orchestrator.mesh.motion3d.MeshMover3D`); :meth:`load` evaluates ``density`` at the
+    centroids of the bodies' moved tetrahedra at ``t_mid`` (the loop's hold point) and spreads it on their
+    nodes as the GetDP load does (``tet_nodal_forces``: f V / 4 per node), the reference integral Σ f V for the
+    loop's ledger. Keeps ``last_forces`` (per body, N) and ``x_em`` (the moved EM nodes, m).
+
+    Parameters
+    ----------
+    mesh : Mesh3D
+        The EM mesh in its reference configuration (``points``, ``tets``).
+    bodies : list of ConductorBody3D
+        The bodies (``name``, ``sub.rows``: their rows of ``mesh.tets``, ``body_to_em``: their nodes in it).
+    mover : MeshMover3D
+        The air motion on ``mesh``.
+    density : callable (centroids (m, 3) m, t s) -> (m, 3) N/m^3
+        The force density.
+    """
+
+    columns = ("force_density_max_N_m3", "em_mesh_min_quality")
+
+    def __init__(self, mesh, bodies, mover, density: Callable[[np.ndarray, float], np.ndarray]) -> None:
+        self.mesh, self.bodies, self.mover, self.density = mesh, list(bodies), mover, density
+        self.x_em = np.array(mesh.points, dtype=float)
+        self.last_forces: dict[str, np.ndarray] = {}
+        self._moved_at: float | None = None
+
+    def follow(self, t0: float, mechanics) -> None:
+        """The EM mesh follows the bodies for the step starting at ``t0`` (s)."""
+        positions = mechanics.positions()
+        u = np.zeros_like(self.mesh.points)
+        for b in self.bodies:
+            u[b.body_to_em] = positions[b.name][:, :3] - self.mesh.points[b.body_to_em]
+        self.x_em = self.mover.moved(u)
+        self._moved_at = t0
+
+    def load(self, t0: float, t1: float, t_mid: float, mechanics) -> LoadStep:
+        """Nodal forces (N) on the bodies of the density at ``t_mid`` on the moved mesh."""
+        if self._moved_at != t0:
+            self.follow(t0, mechanics)
+        x = self.x_em
+        rows = np.concatenate([b.sub.rows for b in self.bodies])
+        tets = self.mesh.tets[rows]
+        f = np.asarray(self.density(x[tets].mean(axis=1), t_mid), dtype=float)
+        nodal = tet_nodal_forces(x, tets, f)
+        forces = {b.name: nodal[b.body_to_em] for b in self.bodies}
+        self.last_forces = forces
+        values = {"force_density_max_N_m3": float(np.abs(f).max()),
+                  "em_mesh_min_quality": float(self.mover.last_min_quality)}
+        return LoadStep(forces, tet_force_integral(x, tets, f), values)
+
+    def initial(self, mechanics) -> LoadStep:
+        """No force at t = 0."""
+        return LoadStep({}, None, {})
+
+    def state_dict(self) -> dict[str, np.ndarray]:
+        """Stateless: the mesh follows the mechanics' positions, the density is a function of time."""
         return {}
 
     def load_state_dict(self, state: dict[str, np.ndarray]) -> None:

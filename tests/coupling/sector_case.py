@@ -22,6 +22,9 @@ MESH = ["geometry.parameters.angle_deg=5", planes(5.0), "geometry.parameters.h_s
         "geometry.parameters.sheet_layers=2", "geometry.parameters.h_coil=3e-3", "geometry.parameters.h_air=0.02"]
 #: the coarse sector over 3 us
 COARSE = MESH + ["time.end=3e-6", "output.field_interval=1e-6"]
+#: the 2D demo's loaded surface (the sheet's lower face over the coil, r in [10, 34] mm at z = 1.5 mm) as a 3D box
+#: (``pulseform compare --surface``)
+SURFACE = "{rmin = 0.01, rmax = 0.034, zmin = 1.4999e-3, zmax = 1.5001e-3}"
 
 
 def sets(overrides: list[str]) -> list[str]:

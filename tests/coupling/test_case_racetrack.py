@@ -172,6 +172,11 @@ def test_racetrack_case_runs_through_the_driver(coarse_run, tmp_path):
         assert (out / "plots" / name).stat().st_size > 10_000, name
 
 
+# slow (a repeated end-to-end run; covered in the default tier by the same SIGINT/--resume bitwise check of a 3D
+# coupled run through the CLI:
+# test_case_racetrack_remesh.py::test_sigint_after_the_remesh_then_resume_equals_the_uninterrupted_run; the 3D
+# loop's checkpoint/resume: test_loop_fake3d.py)
+@pytest.mark.slow
 @pytest.mark.getdp
 def test_sigint_then_resume_equals_the_uninterrupted_run(coarse_run, tmp_path):
     ref = json.loads((coarse_run / "metrics.json").read_text())
@@ -303,6 +308,11 @@ def test_the_case_reproduces_the_study_reference(tmp_path):
     assert max(m["conservation_error_rel"], m["sheet_ledger_rel"], m["die_ledger_rel"]) < 1e-12
 
 
+# slow (a repeated end-to-end run; covered in the default tier by order-2 edge elements in the coupled loop vs a
+# fixed-mesh order-2 solve:
+# test_coupled_racetrack.py::test_order2_em_in_the_coupled_loop_freezes_instead_of_remeshing; order 2 vs order 1:
+# tests/getdp/test_em3d_order2.py)
+@pytest.mark.slow
 @pytest.mark.getdp
 def test_the_case_with_second_order_edge_elements(coarse_run, tmp_path):
     """``geometry.em_order = 2`` through the CLI (coarse mesh, 2 us, the air first order): GetDP's sheet and die

@@ -105,6 +105,10 @@ def test_sigint_after_the_remesh_then_resume_equals_the_uninterrupted_run(remesh
           f"coil current at 4 us {h['coil_current_A'][-1]!r} A (bitwise the uninterrupted run's)")
 
 
+# slow (a repeated end-to-end run; covered in the default tier by a resume of a remeshing run through the CLI,
+# bitwise: test_sigint_after_the_remesh_then_resume_equals_the_uninterrupted_run; the forced remeshes at steps 3, 4:
+# test_a_run_with_a_remesh_writes_its_checkpoints_and_completes)
+@pytest.mark.slow
 def test_resume_from_before_the_remesh_remeshes_at_the_same_step(remeshed_run, tmp_path):
     out = tmp_path / "cut"
     _stop_after(out, REMESH_STEP - 2)   # stops after step 2: before the remesh

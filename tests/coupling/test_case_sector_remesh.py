@@ -64,6 +64,10 @@ def runs(tmp_path_factory) -> dict[str, Path]:
     return out
 
 
+# slow (a repeated end-to-end run; covered in the default tier by the same reference (forced remesh vs none vs from
+# scratch) on the racetrack: test_racetrack_remesh3d.py::test_forced_remesh_of_an_undeformed_mesh; the sector's
+# remesh: test_sector_remesh3d.py; a forced remesh through the CLI: test_case_racetrack_remesh.py)
+@pytest.mark.slow
 def test_a_remesh_mid_run_changes_the_force_by_a_mesh_to_mesh_amount(runs):
     h = {k: _history(p) for k, p in runs.items()}
     m = {k: json.loads((p / "metrics.json").read_text()) for k, p in runs.items()}
@@ -89,6 +93,10 @@ def _stop_after(out: Path, steps: int) -> None:
     sigint_after_em_step(_argv(out, str(K)), out, steps)
 
 
+# slow (a repeated end-to-end run; covered in the default tier by the same SIGINT after a remesh then --resume,
+# bitwise, on the racetrack:
+# test_case_racetrack_remesh.py::test_sigint_after_the_remesh_then_resume_equals_the_uninterrupted_run)
+@pytest.mark.slow
 def test_sigint_after_the_remesh_then_resume_equals_the_uninterrupted_run(runs, tmp_path):
     out = tmp_path / "cut"
     _stop_after(out, K)   # the checkpoint at 1 us (step 3, which started with the remesh), then SIGINT

@@ -42,6 +42,9 @@ def _run(tmp_path: Path, name: str, getdp_process: str):
     return load, np.array([[r[c] for c in COLUMNS] for r in rows]), uz
 
 
+# slow (a second coupled sector run; the same comparison, persistent vs per-step getdp on the same moved meshes
+# to 1e-12, runs in the default tier in tests/getdp/test_persistent3d.py::test_moving_mesh_same_as_per_step)
+@pytest.mark.slow
 @pytest.mark.getdp
 def test_persistent_and_per_step_coupled_runs_agree(tmp_path):
     pers_load, pers, uz_p = _run(tmp_path, "persistent", "auto")

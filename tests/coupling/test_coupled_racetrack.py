@@ -43,6 +43,10 @@ def test_two_bodies_must_not_share_a_region_or_a_name(tmp_path):
         GetDPLoad3D(None, None, tmp_path, [a, c], rm_like)
 
 
+# slow (the same coarse racetrack run, 3 us, and the same references (1)-(3) through the CLI in the default tier:
+# tests/coupling/test_case_racetrack.py::test_racetrack_case_runs_through_the_driver; the loop's 3D transfer,
+# ledgers and Newton without getdp: tests/coupling/test_loop_fake3d.py)
+@pytest.mark.slow
 @pytest.mark.getdp
 def test_a_few_coupled_em_steps_with_sheet_and_die(tmp_path):
     case, solver, load, options, geo = coarse_participants(tmp_path)

@@ -452,6 +452,10 @@ electrical_conductivity = 1e-3
     assert max(abs(f[:, 0].sum()), abs(f[:, 1].sum())) < 0.02 * abs(radial)
 
 
+# slow (two more runs of the user's geometry; in the default tier: the loop's iterate and adaptive options,
+# tests/coupling/test_loop_options.py and test_loop_fake.py; the 3D load's state put back into a new getdp process,
+# tests/coupling/test_case_racetrack_remesh.py::test_sigint_after_the_remesh_then_resume_equals_the_uninterrupted_run)
+@pytest.mark.slow
 @pytest.mark.getdp
 def test_iterated_and_adaptive_coupling_on_a_users_geometry(case_dir, run, tmp_path):
     """[coupling] iterate and adaptive on the 3D path. Iterated: each EM step is redone on its end geometry from

@@ -106,32 +106,42 @@ def test_momentum_equals_the_impulse_of_the_held_pressure_forces(free_sheet):
     assert not (free_sheet / "em" / "getdp").exists()   # no getdp run
 
 
-def _check(*sets: str) -> subprocess.CompletedProcess:
-    args = [EXE, "check", str(CASE)]
+def _main(capsys, *args: str) -> subprocess.CompletedProcess:
+    """``pulseform *args`` through the CLI's ``main`` in this process (no interpreter start), as a finished
+    process: exit code, stdout, stderr."""
+    from pulseform.orchestrator.cli import main
+
+    capsys.readouterr()
+    rc = main(list(args))
+    out, err = capsys.readouterr()
+    return subprocess.CompletedProcess(["pulseform", *args], rc, out, err)
+
+
+def _check(capsys, *sets: str) -> subprocess.CompletedProcess:
+    args = ["check", str(CASE)]
     for s in (*COARSE, *sets):
         args += ["--set", s]
-    return subprocess.run(args, capture_output=True, text=True)
+    return _main(capsys, *args)
 
 
-def test_loads_and_coupling_keys_of_a_3d_geometry_file():
+def test_loads_and_coupling_keys_of_a_3d_geometry_file(capsys):
     """[[loads]] need coupling.load = 'pressure' and the reverse; damping acts only with the pulses."""
-    r = _check(PULSE)
+    r = _check(capsys, PULSE)
     assert r.returncode == 2 and "coupling.load = 'pressure'" in r.stderr, r.stderr
-    r = _check('coupling.load="pressure"')
+    r = _check(capsys, 'coupling.load="pressure"')
     assert r.returncode == 2 and "loads" in r.stderr, r.stderr
-    r = _check("mechanics.mass_damping=1e3")
+    r = _check(capsys, "mechanics.mass_damping=1e3")
     assert r.returncode == 2 and "mechanics.mass_damping" in r.stderr, r.stderr
-    assert _check('coupling.load="pressure"', PULSE).returncode == 0
-    assert _check('coupling.load="pressure"', PULSE, "mechanics.mass_damping=1e3").returncode == 0
+    assert _check(capsys, 'coupling.load="pressure"', PULSE).returncode == 0
+    assert _check(capsys, 'coupling.load="pressure"', PULSE, "mechanics.mass_damping=1e3").returncode == 0
 
 
-def test_a_box_that_loads_nothing_is_named(tmp_path):
+def test_a_box_that_loads_nothing_is_named(tmp_path, capsys):
     """A 2D-style box (x, y bounds read as the axisymmetric case's r, z: here y in a 0.2 um slab) loads no
     triangle of the 3D sheet: the run stops before its first step with one line naming the load, exit 2."""
     bad = PULSE.replace("rmin=0.01, rmax=0.034, zmin=1.4999e-3, zmax=1.5001e-3", "xmin=0.01, xmax=0.034, "
                         "ymin=1.4999e-3, ymax=1.5001e-3")
-    r = subprocess.run([EXE, "run", str(CASE), "--out", str(tmp_path / "x"), "--quiet", *_sets(bad)],
-                       capture_output=True, text=True)
+    r = _main(capsys, "run", str(CASE), "--out", str(tmp_path / "x"), "--quiet", *_sets(bad))
     lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
     assert r.returncode == 2 and len(lines) == 1 and "loads[0].surface" in lines[0] and "rmin/rmax" in lines[0], r.stderr
     print(lines[-1])

@@ -94,7 +94,9 @@ def test_remesh_of_the_undeformed_sector_changes_only_the_air(tmp_path):
     assert all(abs(b / a - 1) < 1e-12 for a, b in areas)
 
 
-@pytest.mark.parametrize("which", ["sector", "racetrack"])
+# the sector slow: the racetrack's repeated remeshes run in the default tier, the sector's remesh (its oblique
+# plane) in test_remesh_of_the_undeformed_sector_changes_only_the_air
+@pytest.mark.parametrize("which", [pytest.param("sector", marks=pytest.mark.slow), "racetrack"])
 def test_repeated_remeshes_keep_the_fresh_mesh_sizes(tmp_path, which):
     m, planes = (_sector if which == "sector" else _racetrack)(tmp_path)
     fresh = int((m.tet_tags == 1).sum())

@@ -53,6 +53,10 @@ def test_case_matches_the_paper(run3d):
     assert m["status_ok"] == 1.0
 
 
+# slow (a second end-to-end run of the 3D bar; its code is covered in the default tier: the two bars across the
+# soft layer vs the paper and the wall run, tests/mechanics/test_3d_contact.py::test_two_bar_impact_3d_coarse; the
+# 3D bar case through the CLI, test_case_matches_the_paper)
+@pytest.mark.slow
 def test_two_bodies_match_the_paper_and_the_wall(run3d, tmp_path):
     """The paper's own set-up, two bars across the soft layer of eq. (5) (node to triangle face):
     70 MPa +-3 %, 1.6 ms +-4 %, and the wall run's plateau within 2 % (the 2D cases' check,
@@ -114,6 +118,10 @@ def test_two_ranks_match_serial(run3d, tmp_path):
             assert got[k] == pytest.approx(v, rel=1e-10, abs=1e-300), k
 
 
+# slow (a repeated end-to-end run; covered in the default tier by the 3D mechanics' restart, bitwise:
+# tests/mechanics/test_3d_restart_output.py::test_restart_is_bitwise; SIGINT/--resume of a 3D case through the CLI:
+# tests/coupling/test_case_racetrack_remesh.py::test_sigint_after_the_remesh_then_resume_equals_the_uninterrupted_run)
+@pytest.mark.slow
 def test_sigint_then_resume_equals_uninterrupted(tmp_path):
     """The 2D checkpoint machinery carries over: SIGINT after the first checkpoint, --resume, and
     every physics metric equals the uninterrupted run's (coarse 0.25 m mesh)."""

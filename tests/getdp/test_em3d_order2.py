@@ -35,6 +35,11 @@ def test_order_is_validated():
         EM3DModel(conductors=[Conductor(SIGMA)], order=2, order2_conductors=(2,))
 
 
+# slow (order-2 edge elements run in the default tier: closer to Biot-Savart than order 1 on a static field,
+# tests/getdp/test_em3d_static.py::test_centre_field_order2_vs_biot_savart[electrokinetic]; with eddy currents and
+# the bank in the coupled loop vs a fixed-mesh order-2 solve,
+# tests/coupling/test_coupled_racetrack.py::test_order2_em_in_the_coupled_loop_freezes_instead_of_remeshing)
+@pytest.mark.slow
 @pytest.mark.getdp
 @needs_getdp
 def test_order2_disk_closer_to_axisymmetric_than_order1(work):

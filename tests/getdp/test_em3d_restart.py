@@ -24,6 +24,9 @@ def continuous_and_split(model, mesh, work, t_end, n):
     return full, first, second
 
 
+# slow (a split run with eddy currents: the same restart, at every step, with the disk's eddy currents and the
+# bank, runs in the default tier in tests/getdp/test_em3d_stepper.py::test_per_step_processes_equal_one_process[euler])
+@pytest.mark.slow
 @pytest.mark.getdp
 @needs_getdp
 def test_restart_with_eddy_currents(work):
@@ -41,6 +44,9 @@ def test_restart_with_eddy_currents(work):
     assert err < 1e-9 and ferr < 1e-9
 
 
+# slow (a split run with the bank: the same restart, at every step, with the bank's circuit state handed over,
+# runs in the default tier in tests/getdp/test_em3d_stepper.py::test_per_step_processes_equal_one_process[euler])
+@pytest.mark.slow
 @pytest.mark.getdp
 @needs_getdp
 def test_restart_with_the_bank(work):

@@ -21,7 +21,9 @@ from test_em3d_static import demo_coil_turns
 
 @pytest.mark.getdp
 @needs_getdp
-@pytest.mark.parametrize("scheme", ["euler", "bdf2"])
+# BDF2 slow: its per-step processes vs one process (bank, disk) run in the default tier in
+# tests/getdp/test_persistent3d.py::test_fixed_mesh_same_as_per_step_and_one_process (1e-12 there)
+@pytest.mark.parametrize("scheme", ["euler", pytest.param("bdf2", marks=pytest.mark.slow)])
 def test_per_step_processes_equal_one_process(work, scheme):
     mesh = ring_sector_mesh(work / "disk.msh", demo_coil_turns(), [Rect(0.0, 0.0, 0.06, 0.001)], sector_deg=10.0,
                             h_coil=3e-3, h_conductor=2e-3, h_air=0.02, conductor_layers=2)

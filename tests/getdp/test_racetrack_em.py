@@ -57,6 +57,9 @@ def test_reference_matches_ring_formula_and_filaments():
         np.testing.assert_allclose(bb, ref, rtol=0, atol=2e-6 * np.linalg.norm(ref))
 
 
+# slow (a 44k-tetrahedra validation; its code is covered in the default tier by a racetrack coil's field
+# (electrokinetic direction) vs Biot-Savart: tests/getdp/test_em3d_racetrack.py::test_racetrack_centre_field_vs_biot_savart)
+@pytest.mark.slow
 @pytest.mark.getdp
 @needs_getdp
 def test_coil_field_vs_biot_savart(work):

@@ -16,7 +16,7 @@ face's inward area vector is its area times its normal: exactly +z for the lower
 
 from __future__ import annotations
 
-import json
+import subprocess
 
 import numpy as np
 import pytest
@@ -24,7 +24,7 @@ import pytest
 from pulseform.orchestrator.case.model import Box, PulseSin2
 from pulseform.orchestrator.mech.pulses import pulse_impulse_per_area, sin2_pulse
 
-from wf_helpers import REPO, pulseform
+from wf_helpers import REPO
 
 import math
 
@@ -35,18 +35,17 @@ COARSE = ["--set", "geometry.parameters.angle_deg=5",
           "--set", "geometry.parameters.h_coil=3e-3", "--set", "geometry.parameters.h_air=0.02",
           "--set", "time.end=3e-6", "--set", "output.field_interval=1e-6"]
 #: the 2D demo's loaded surface (the sheet's lower face over the coil, r in [10, 34] mm at z = 1.5 mm) as a 3D box
-SURFACE = "{rmin = 0.01, rmax = 0.034, zmin = 1.4999e-3, zmax = 1.5001e-3}"
+from coupling.sector_case import COARSE as _SECTOR, SURFACE, sets  # noqa: E402
+
+assert COARSE == sets(_SECTOR)   # the coarse sector of tests/coupling (the session's shared compare runs it)
 CASE = str(REPO / "cases/emf_sheet_bulge_3d")
 
 
 @pytest.fixture(scope="module")
-def compared(tmp_path_factory):
-    """One compare run with a condition that cannot hold and one that must: exit 1 naming the second."""
-    out = tmp_path_factory.mktemp("cmp3d") / "c"
-    r = pulseform("compare", CASE, "--out", str(out), *COARSE, "--surface", SURFACE, "--body", "sheet",
-                  "--fail-if", "impulse_rel_diff>1e9", "--fail-if", "wall_time_coupled_s>0.001")
-    print(r.stdout, r.stderr[-2000:])
-    return out, json.loads((out / "compare.json").read_text()), r
+def compared(sector_compare):
+    """One compare run with a condition that cannot hold and one that must: exit 1 naming the second (the
+    session's, tests/conftest.py: its coupled run is tests/coupling/test_case_3d_sector.py's too)."""
+    return sector_compare
 
 
 def _pulse(p, t_end: float) -> PulseSin2:
@@ -139,6 +138,17 @@ def test_shapes_compared_on_the_same_nodes_in_3d(compared):
     assert (out / "pressure" / "case.toml").read_text().count('load = "pressure"') == 1
 
 
+def _in_process(capsys, *args: str) -> subprocess.CompletedProcess:
+    """``pulseform *args`` through the CLI's ``main`` in this process, as a finished process (exit code, stdout,
+    stderr) for ``one_line_error``."""
+    from pulseform.orchestrator.cli import main
+
+    capsys.readouterr()
+    rc = main(list(args))
+    out, err = capsys.readouterr()
+    return subprocess.CompletedProcess(["pulseform", *args], rc, out, err)
+
+
 @pytest.mark.parametrize("args,says", [
     ((), "--surface"),   # a geometry file does not know its loaded surface
     (("--surface", "{rmin = 0.01"), "not a TOML inline table"),
@@ -146,19 +156,19 @@ def test_shapes_compared_on_the_same_nodes_in_3d(compared):
     (("--surface", "{zmin = 2e-3, zmax = 1e-3}"), "--surface.zmax"),
     (("--surface", SURFACE, "--body", "coil"), "--body 'coil'"),
 ])
-def test_bad_compare_inputs_of_a_3d_geometry_file(tmp_path, args, says):
-    """One line, exit 2, before any run."""
+def test_bad_compare_inputs_of_a_3d_geometry_file(tmp_path, capsys, args, says):
+    """One line, exit 2, before any run (the CLI's ``main`` in this process: no interpreter start per input)."""
     from wf_helpers import one_line_error
 
-    r = pulseform("compare", CASE, "--out", str(tmp_path / "c"), *COARSE, *args)
+    r = _in_process(capsys, "compare", CASE, "--out", str(tmp_path / "c"), *COARSE, *args)
     line = one_line_error(r)
     assert r.returncode == 2 and says in line, line
     assert not (tmp_path / "c" / "coupled").exists()
 
 
-def test_a_surface_is_refused_on_a_2d_case(tmp_path):
+def test_a_surface_is_refused_on_a_2d_case(tmp_path, capsys):
     from wf_helpers import one_line_error
 
-    r = pulseform("compare", str(REPO / "cases/emf_sheet_bulge"), "--out", str(tmp_path / "c"), "--surface", SURFACE)
+    r = _in_process(capsys, "compare", str(REPO / "cases/emf_sheet_bulge"), "--out", str(tmp_path / "c"), "--surface", SURFACE)
     line = one_line_error(r)
     assert r.returncode == 2 and "--surface is for 3D models" in line, line
