@@ -95,9 +95,13 @@ def test_kill9_at_an_em_step_then_resume(tmp_path):
         assert got[k] == pytest.approx(v, rel=1e-12, abs=1e-300), k
 
 
-@pytest.mark.parametrize("process", ["persistent", "per_step"])
+@pytest.mark.parametrize("process", [pytest.param("persistent", marks=pytest.mark.slow), "per_step"])
 def test_sigint_between_outputs_then_resume_is_bitwise(tmp_path, process):
-    """SIGINT after the first checkpoint: the run stops at the next EM step (a checkpoint between
+    """(The persistent path is slow, ~10 s: a second SIGINT/resume equality; the default tier's are the
+    per-step path here, test_kill9_at_an_em_step_then_resume (em.getdp_process 'auto' with BDF2: the
+    persistent getdp) and the persistent getdp's own resume in
+    tests/getdp/test_persistent.py::test_segments_end_and_a_resume_replays_the_last.)
+    SIGINT after the first checkpoint: the run stops at the next EM step (a checkpoint between
     output times: on the persistent path the getdp process is asked for its exact state there),
     exit 130; --resume then gives every physics metric of an uninterrupted run bit for bit, on
     both getdp paths (issue 13; the persistent path of issue 15)."""

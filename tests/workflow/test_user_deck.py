@@ -18,8 +18,10 @@ from pulseform.orchestrator.case.io import load_case
 from wf_helpers import REPO, one_line_error, pulseform
 
 CASE = REPO / "cases/user_deck_sheet_bulge"
-SHORT = ["--quiet", "--set", "time.end=4e-6", "--set", "output.field_interval=2e-6"]
-MATCH = ["--quiet", "--set", "time.end=6e-6", "--set", "output.field_interval=3e-6"]
+#: no pictures: these tests read metrics, logs and tables, never a picture (a picture group that fails is only
+#: logged, so drawing them here tested nothing; tests/workflow/test_results_pictures.py tests them)
+SHORT = ["--quiet", "--set", "time.end=4e-6", "--set", "output.field_interval=2e-6", "--set", "output.plots=false"]
+MATCH = ["--quiet", "--set", "time.end=6e-6", "--set", "output.field_interval=3e-6", "--set", "output.plots=false"]
 
 
 def _match_builtin(tmp_path, deck_case, builtin_case) -> dict:
@@ -50,9 +52,13 @@ def test_user_deck_matches_the_builtin_case(tmp_path):
     assert (tmp_path / "user/em/contract_check/out/elem_f.txt").is_file()
 
 
+@pytest.mark.slow
 @pytest.mark.getdp
 def test_user_deck_with_a_die_matches_the_builtin_case(tmp_path):
-    """The deck's optional die mapped to the role die (massive conductor 2, a mechanical body)
+    """(Slow, ~11 s: the second run pair of _match_builtin, whose default-tier run is
+    test_user_deck_matches_the_builtin_case; the die case on a user deck runs coupled in
+    tests/workflow/test_user_remesh.py::test_template_and_library_decks_carry_a_remesh_alike)
+    The deck's optional die mapped to the role die (massive conductor 2, a mechanical body)
     against cases/emf_sheet_die; the contract check saw the die's tables."""
     _match_builtin(tmp_path, CASE / "with_die.toml", REPO / "cases/emf_sheet_die")
     assert (tmp_path / "user/em/contract_check/out/cond_F_2.txt").is_file()
