@@ -129,9 +129,14 @@ def test_paths_resolve_from_the_case_folder_not_the_cwd(tmp_path):
     assert f'pro = "{CASE / "sheet_bulge.pro"}"' in r.stdout
 
 
+@pytest.mark.slow
 @pytest.mark.getdp
 def test_user_deck_on_both_getdp_paths_gives_the_same_results(tmp_path):
-    """Issue 15: a user deck on PulseformLib runs on the persistent getdp (em.getdp_process = 'auto'
+    """(Slow, ~11 s: two more runs of the example. The default tier's companions: the two getdp paths equal on
+    the same steps, tests/getdp/test_persistent.py::test_same_results_as_one_process_per_step; the user deck
+    on 'auto' (BDF2: the persistent getdp) end to end, test_user_deck_matches_the_builtin_case; the per-step
+    path chosen and logged, test_user_deck_without_the_persistent_resolution_runs_per_step.)
+    Issue 15: a user deck on PulseformLib runs on the persistent getdp (em.getdp_process = 'auto'
     with BDF2 selects it after a probe) and on a getdp process per EM step with the same results
     (round-off: the two paths solve the same systems; tests/getdp/test_persistent.py gives 8e-14 on
     one step)."""
