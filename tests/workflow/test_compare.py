@@ -67,7 +67,10 @@ def compared(tmp_path_factory):
     """One compare run with two conditions: one that cannot hold (impulse difference > 1e9) and one
     that must (the coupled run took more than 1 ms of wall time): exit 1 naming only the second."""
     out = tmp_path_factory.mktemp("cmp") / "c"
+    # output.plots = false: the two runs draw no pictures of their own (no test reads them; compare's
+    # own compare_*.png are drawn regardless and checked below)
     r = pulseform("compare", str(REPO / "cases/emf_sheet_bulge"), "--out", str(out), *SHORT,
+                  "--set", "output.plots=false",
                   "--fail-if", "impulse_rel_diff>1e9", "--fail-if", "wall_time_coupled_s>0.001")
     print(r.stdout, r.stderr[-2000:])
     return out, json.loads((out / "compare.json").read_text()), r
