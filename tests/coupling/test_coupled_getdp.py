@@ -19,6 +19,9 @@ pytestmark = pytest.mark.getdp
 REPO = Path(__file__).resolve().parents[2]
 EXE = str(Path(sys.executable).with_name("pulseform"))
 SHORT = ["--quiet", "--set", "time.end=4e-6", "--set", "output.field_interval=2e-6"]
+#: for the uninterrupted reference runs, whose metrics alone are read (the interrupted runs keep their pictures:
+#: the signal's timing is set against a run that draws them)
+NO_PICTURES = ["--set", "output.plots=false"]
 
 
 def _run(out: Path, *extra: str) -> subprocess.CompletedProcess:
@@ -73,7 +76,7 @@ def test_kill9_at_an_em_step_then_resume(tmp_path):
     """Kill -9 right after the first checkpoint (EM steps still running), resume, and compare every
     physics metric with an uninterrupted run (issue: <= 1e-12 relative)."""
     ref = tmp_path / "ref"
-    assert _run(ref).returncode == 0
+    assert _run(ref, *NO_PICTURES).returncode == 0
     out = tmp_path / "killed"
     args = [EXE, "run", str(REPO / "cases/emf_sheet_bulge"), "--out", str(out), *SHORT]
     proc = subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
@@ -95,14 +98,18 @@ def test_kill9_at_an_em_step_then_resume(tmp_path):
         assert got[k] == pytest.approx(v, rel=1e-12, abs=1e-300), k
 
 
-@pytest.mark.parametrize("process", ["persistent", "per_step"])
+@pytest.mark.parametrize("process", [pytest.param("persistent", marks=pytest.mark.slow), "per_step"])
 def test_sigint_between_outputs_then_resume_is_bitwise(tmp_path, process):
-    """SIGINT after the first checkpoint: the run stops at the next EM step (a checkpoint between
+    """(The persistent path is slow, ~10 s: a second SIGINT/resume equality; the default tier's are the
+    per-step path here, test_kill9_at_an_em_step_then_resume (em.getdp_process 'auto' with BDF2: the
+    persistent getdp) and the persistent getdp's own resume in
+    tests/getdp/test_persistent.py::test_segments_end_and_a_resume_replays_the_last.)
+    SIGINT after the first checkpoint: the run stops at the next EM step (a checkpoint between
     output times: on the persistent path the getdp process is asked for its exact state there),
     exit 130; --resume then gives every physics metric of an uninterrupted run bit for bit, on
     both getdp paths (issue 13; the persistent path of issue 15)."""
     ref = tmp_path / "ref"
-    assert _run(ref, "--set", f"em.getdp_process={process}").returncode == 0
+    assert _run(ref, "--set", f"em.getdp_process={process}", *NO_PICTURES).returncode == 0
     out = tmp_path / "stopped"
     args = [EXE, "run", str(REPO / "cases/emf_sheet_bulge"), "--out", str(out), *SHORT,
             "--set", f"em.getdp_process={process}"]

@@ -137,8 +137,11 @@ def test_two_remeshes_keep_every_body_on_its_own_nodes(tmp_path, sheet_die, plan
 
 
 def _run(case: str, out: Path, *extra: str) -> dict:
+    """A short run of ``cases/<case>``; its metrics. Without pictures: the tests read metrics and history.csv (a
+    picture group that fails is only logged, so drawing them tested nothing here)."""
     r = subprocess.run([EXE, "run", str(REPO / "cases" / case), "--out", str(out), "--quiet",
-                        "--set", "time.end=2e-6", "--set", "output.field_interval=1e-6", *extra],
+                        "--set", "time.end=2e-6", "--set", "output.field_interval=1e-6", "--set", "output.plots=false",
+                        *extra],
                        capture_output=True, text=True)
     assert r.returncode == 0, r.stderr[-3000:]
     return json.loads((out / "metrics.json").read_text())
@@ -194,9 +197,13 @@ def test_physical_groups_are_named(tmp_path, sheet_die):
     assert set(meshio.read(tmp_path / "m.msh").field_data) == set(sheet_die.mesh.names.values())
 
 
+@pytest.mark.slow
 @pytest.mark.getdp
 def test_kill9_then_resume_with_two_bodies(tmp_path):
-    """emf_sheet_die with both bodies free: kill -9 after the first checkpoint, resume, and every
+    """(Slow, ~15 s: a second kill -9 resume; the default tier's is
+    tests/coupling/test_coupled_getdp.py::test_kill9_at_an_em_step_then_resume, and the free two-body run's
+    physics is test_die_and_sheet_free_momentum_equals_impulse.)
+    emf_sheet_die with both bodies free: kill -9 after the first checkpoint, resume, and every
     physics metric equals an uninterrupted run's (issue 5: <= 1e-12 relative). (Remeshing is not
     forced here: the worst element of this mesh does not move, so the quality threshold cannot
     trigger it; the two-body remesh itself is checked by the test above.)"""

@@ -173,9 +173,13 @@ def test_all_rigid_case_too_long_for_its_source_is_refused(capsys):
     assert "coupling.steps_per_period" in err and "limits.max" in err, err
 
 
+@pytest.mark.slow
 @pytest.mark.getdp
 def test_planar_rigid_blank_moves_in_x_and_y_whatever_the_depth(tmp_path, capsys):
-    """cases/emf_corner_fill (plane strain, per metre of depth) with its blank rigid and free in x and y,
+    """(Slow, ~6 s: two more runs of the planar corner fill at two depths. The default tier's companions: the
+    same depth scaling with a deformable blank, tests/coupling/test_multibody.py::test_planar_forces_scale_with_the_depth,
+    and a rigid body's momentum against the delivered impulse,
+    test_disk_momentum_equals_the_impulse_and_its_mass_the_volume.) cases/emf_corner_fill (plane strain, per metre of depth) with its blank rigid and free in x and y,
     no contact, 6 µs: the forces and the mass both scale with mechanics.thickness, so the motion does not
     depend on it (1e-9); the blank's momentum in x and y equals the impulse delivered of its own resultant."""
     runs = {}

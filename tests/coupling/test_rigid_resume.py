@@ -14,9 +14,15 @@ REPO = Path(__file__).resolve().parents[2]
 CASE = REPO / "cases/jumping_ring"
 
 
+@pytest.mark.slow
 @pytest.mark.getdp
 def test_jumping_ring_sigint_then_resume_is_bitwise(tmp_path):
-    """A rigid-body run stopped by SIGINT after its first checkpoint and resumed gives every physics metric
+    """(Slow, ~8 s: a second SIGINT/resume equality on another case. The default tier's companions: the SIGINT
+    resume end to end, tests/coupling/test_coupled_getdp.py::test_sigint_between_outputs_then_resume_is_bitwise,
+    and the rigid bodies' restart from their checkpoint state,
+    tests/coupling/test_jumping_ring.py::test_rigid_participant_restarts_exactly and
+    tests/coupling/test_rigid_case.py::test_mixed_mechanics_restarts_bit_for_bit.)
+    A rigid-body run stopped by SIGINT after its first checkpoint and resumed gives every physics metric
     of an uninterrupted run bit for bit (the rigid bodies' state is in the checkpoint under rigid/)."""
     exe = str(Path(sys.executable).with_name("pulseform"))
     sets = ["--quiet", "--set", "time.end=0.03", "--set", "output.field_interval=0.005", "--set", "output.plots=false"]

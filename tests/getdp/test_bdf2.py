@@ -127,10 +127,13 @@ def _disk_setup(work, h_conductor=5e-4):
     return mesh, model
 
 
+@pytest.mark.slow
 @pytest.mark.getdp
 @needs_getdp
 def test_disk_force_and_impulse_second_order(work):
-    """Eddy currents in a disk over the coil: the force at 12 us and the impulse of the held mean force.
+    """(Slow, ~16 s: four BDF2 marches of 6 to 48 steps. The default tier's BDF2 order: test_rlc_bdf2_convergence_order
+    and test_rlc_bdf2_is_the_discrete_recurrence; the disk setup: test_bdf2_history_survives_a_remesh.)
+    Eddy currents in a disk over the coil: the force at 12 us and the impulse of the held mean force.
 
     Self-convergence over dt = 2, 1, 0.5 us against dt = 0.25 us.  The impulse the coupling
     delivers is sum dt * sum_e V_e mean_e: with the trapezoid mean it converges at second order,

@@ -50,9 +50,12 @@ def test_rlc_discharge_vs_analytic(work):
     assert m["coil_joule_heat_J"] == pytest.approx((res.coil_power[:, 0] * res.dt).sum())
 
 
+@pytest.mark.slow
 @pytest.mark.getdp
 @needs_getdp
 def test_energy_balance_with_disk(work):
+    """(Slow, ~20 s: one getdp run of 2000 steps. The default tier's circuit checks: test_rlc_discharge_vs_analytic,
+    test_two_coils_in_series_and_coil_heating; the coupled energy ledger in tests/coupling.)"""
     disk = Rect(0.0, 0.0035, 0.06, 0.0045)   # 1 mm Al disk, 1 mm above the coil
     # coarse mesh: the balance is a property of the discrete system; only dt sets its error
     mesh = coil_conductor_mesh([ten_turn_coil()], [disk], r_domain=0.1, r_shell=0.125, h_fine=2e-3,

@@ -38,9 +38,12 @@ def fitted_rate(steps, errors):
     return np.polyfit(np.log(steps), np.log(errors), 1)[0]
 
 
+@pytest.mark.slow
 @pytest.mark.getdp
 @needs_getdp
 def test_first_order_in_h_and_magnetic_pressure(work):
+    """(Slow, ~8 s: three meshes of 400 steps. The default tier's check of the same diffusion run against the same
+    erfc solution: test_first_order_in_dt.)"""
     hs = [0.1e-3, 0.05e-3, 0.025e-3]
     out = [diffusion_run(work, h, 400) for h in hs]     # dt = 0.05 us: time error << space error
     errs = [e for e, _ in out]

@@ -94,6 +94,17 @@ def _rel(a, b):
     return max(np.abs(x - y).max() / np.abs(x).max() for x, y in zip(a, b))
 
 
+@pytest.fixture(scope="module")
+def one_segment(tmp_path_factory):
+    """The uninterrupted run two tests compare with, marched once for the module: the persistent getdp through
+    TIMES on the bulging disk of ``_mesh()``, in one segment. Returns (the mesh, its Bulge, the rows of _march)."""
+    mesh = _mesh()
+    bulge = Bulge(mesh)
+    rows, _ = _march(PersistentGetDPSolver(MODEL, tmp_path_factory.mktemp("persistent") / "one_segment"),
+                     lambda k, t: (bulge(t), mesh.points), TIMES)
+    return mesh, bulge, rows
+
+
 def test_same_results_as_one_process_per_step(work):
     """Moving mesh, variable steps, circuit: every output equal to the per-step path to 1e-12
     (measured 8e-14), the whole-domain fields of a step too; the magnetic energy ½ (j, a) over the
@@ -112,21 +123,21 @@ def test_same_results_as_one_process_per_step(work):
         assert np.nanmax(np.abs(a - b)) <= 1e-12 * np.nanmax(np.abs(a))
 
 
-def test_restart_remesh_and_redo(work):
+def test_restart_remesh_and_redo(work, one_segment):
     """A restart from a checkpointed state continues the run (1e-12, measured 1.8e-14: the seed is exact,
     a continuing process differs at round-off, docs/getdp.md); a resume that replays the checkpoint's
     log (the segment's seed and messages, solvers/getdp/replay.py) repeats the uninterrupted run bit
     for bit, and writing a checkpoint does not perturb the run; a remesh mid-run (another connectivity: a new
     process seeded with both BDF2 states interpolated in material coordinates) agrees with the
     per-step path doing the same; a redone step (coupling.iterate) equals stepping directly."""
-    mesh, other = _mesh(), _mesh(0.9)
+    mesh, b1, base = one_segment  # the uninterrupted run: _march(PersistentGetDPSolver(...), moving, TIMES)
+    other = _mesh(0.9)
     assert not mesh.same_connectivity(other)
-    b1, b2 = Bulge(mesh), Bulge(other)
+    b2 = Bulge(other)
 
     def moving(k, t):
         return b1(t), mesh.points
 
-    base, _ = _march(PersistentGetDPSolver(MODEL, work / "base"), moving, TIMES)
     restarted, _ = _march(PersistentGetDPSolver(MODEL, work / "restart"), moving, TIMES, restart_at=6)
     redone, _ = _march(PersistentGetDPSolver(MODEL, work / "redo"), moving, TIMES, redo_at=5)
     print(f"\nrestart {_rel(base, restarted):.2g}, redo {_rel(base, redone):.2g}")
@@ -152,20 +163,18 @@ def test_restart_remesh_and_redo(work):
     assert _rel(scalars(ref), scalars(got)) < 1e-12
 
 
-def test_segments_end_and_a_resume_replays_the_last(work, monkeypatch):
+def test_segments_end_and_a_resume_replays_the_last(work, monkeypatch, one_segment):
     """A persistent segment ends after a number of steps set by the node count (here 4, to see it): the
     next step seeds a new process with the exact state, the run stays within round-off of one long
     segment (1e-12), and a resume between segment ends replays only the last segment's log and
     repeats the run bit for bit (the segment ends fall on the same steps in both)."""
     from pulseform.solvers.getdp import persistent
 
-    mesh = _mesh()
-    b1 = Bulge(mesh)
+    mesh, b1, one = one_segment  # one segment: _march(PersistentGetDPSolver(...), moving, TIMES)
 
     def moving(k, t):
         return b1(t), mesh.points
 
-    one, _ = _march(PersistentGetDPSolver(MODEL, work / "one_segment"), moving, TIMES)
     monkeypatch.setattr(persistent, "segment_length", lambda n_nodes: 4)
     solver = PersistentGetDPSolver(MODEL, work / "segments")
     segmented, _ = _march(solver, moving, TIMES)

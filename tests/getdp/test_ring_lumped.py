@@ -29,9 +29,12 @@ COIL = (0.040, -0.002, 0.044, 0.002)  # (r0, z0, r1, z1), m
 RING = (0.040, 0.0085, 0.043, 0.0115)
 
 
+@pytest.mark.slow
 @pytest.mark.getdp
 @needs_getdp
 def test_fixed_ring_follows_the_lumped_rl_model(work):
+    """(Slow, ~18 s: 1000 steps on a 0.25 m domain. The default tier's comparison with the same lumped model
+    (orchestrator/em/lumped.py) on GetDP: tests/coupling/test_jumping_ring.py::test_released_ring_follows_the_lumped_ode.)"""
     w = 2 * math.pi * F
     mesh = coil_conductor_mesh([[Rect(*COIL)]], [Rect(*RING)], r_domain=0.25, r_shell=0.3125, h_fine=1e-3,
                                h_coarse=2.5e-2, h_conductor=5e-4)

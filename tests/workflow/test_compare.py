@@ -67,7 +67,10 @@ def compared(tmp_path_factory):
     """One compare run with two conditions: one that cannot hold (impulse difference > 1e9) and one
     that must (the coupled run took more than 1 ms of wall time): exit 1 naming only the second."""
     out = tmp_path_factory.mktemp("cmp") / "c"
+    # output.plots = false: the two runs draw no pictures of their own (no test reads them; compare's
+    # own compare_*.png are drawn regardless and checked below)
     r = pulseform("compare", str(REPO / "cases/emf_sheet_bulge"), "--out", str(out), *SHORT,
+                  "--set", "output.plots=false",
                   "--fail-if", "impulse_rel_diff>1e9", "--fail-if", "wall_time_coupled_s>0.001")
     print(r.stdout, r.stderr[-2000:])
     return out, json.loads((out / "compare.json").read_text()), r
@@ -175,9 +178,13 @@ def test_user_deck_with_given_pulses(tmp_path):
     assert "amplitude = 8700000.0" in (tmp_path / "c" / "pressure" / "case.toml").read_text()
 
 
+@pytest.mark.slow
 @pytest.mark.getdp
 def test_compare_on_the_planar_corner_fill(tmp_path):
-    """cases/emf_corner_fill (plane strain, coil above the blank, conducting die as an EM body):
+    """(Slow, ~20 s: a second compare run. The default tier's companions: the compare run of the module fixture
+    `compared`, the planar corner-fill case coupled in
+    tests/coupling/test_multibody.py::test_planar_forces_scale_with_the_depth)
+    cases/emf_corner_fill (plane strain, coil above the blank, conducting die as an EM body):
     the blank's upper face under the coil is the loaded surface, pushed down (−y); the fitted eq. (7)
     pulse carries the coupled impulse to a few per cent over the same window, and the die (an EM
     conductor region, not its own shape) is among the compared dies."""

@@ -30,9 +30,15 @@ def _refused(case, *sets) -> str:
     return one_line_error(r)
 
 
+@pytest.mark.slow
 @pytest.mark.getdp
 def test_template_deck_equals_the_library_deck_on_the_same_mesh(tmp_path):
-    """Reference: cases/user_deck_sheet_bulge (the same demo on pulseform's library
+    """(Slow, ~30 s: two coupled runs. The default tier's companions: the template deck's EM steps against the library
+    deck's on the same mesh in
+    tests/workflow/test_template_deck_variants.py::test_bdf2_by_restart_equals_the_library_decks_bdf2, the deck's
+    physical ids and contract in test_template_deck_passes_the_deck_check, a coupled template-deck run against a
+    library-deck run in tests/workflow/test_user_remesh.py::test_template_and_library_decks_carry_a_remesh_alike.)
+    Reference: cases/user_deck_sheet_bulge (the same demo on pulseform's library
     Lib_PulsedForming.pro) on the identical mesh (the same .geo and parameters) with the same loop.
     Both decks discretise the same equations (the template's massive conductor with U = 0 is
     j = -sigma dA/dt), so the runs agree to the round-off of two linear systems: measured 2.4e-15

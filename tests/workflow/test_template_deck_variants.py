@@ -118,26 +118,38 @@ def _same_run(tmp_path: Path, lib: Path, tpl: Path, n_coils: int, n_conductors: 
     return rt
 
 
+@pytest.mark.slow
 @pytest.mark.getdp
 def test_two_coils_in_series_on_the_bank_equal_the_library_deck(tmp_path):
-    """two_coils_template.pro (the circuit C -> R -> L -> inner coil -> outer coil -> C, 2 + 3 turns)
+    """(Slow: a variant of the comparison _same_run, whose default-tier run is
+    test_bdf2_by_restart_equals_the_library_decks_bdf2; two coils in series on a user deck's bank:
+    tests/workflow/test_user_deck_coils.py)
+    two_coils_template.pro (the circuit C -> R -> L -> inner coil -> outer coil -> C, 2 + 3 turns)
     against cases/user_deck_sheet_bulge/two_coils.toml."""
     lib, tpl = _pair(_folder(tmp_path), "two_coils.toml", "two_coils_template.pro")
     _same_run(tmp_path, lib, tpl, 2, 1)
 
 
+@pytest.mark.slow
 @pytest.mark.getdp
 def test_the_die_example_equals_the_library_deck(tmp_path):
-    """The worked example cases/template_sheet_bulge/with_die.toml as shipped (the sheet and the steel
+    """(Slow: a variant of the comparison _same_run, whose default-tier run is
+    test_bdf2_by_restart_equals_the_library_decks_bdf2; the die example's template deck against the library's, coupled:
+    tests/workflow/test_user_remesh.py::test_template_and_library_decks_carry_a_remesh_alike)
+    The worked example cases/template_sheet_bulge/with_die.toml as shipped (the sheet and the steel
     die two massive conductors) against cases/user_deck_sheet_bulge/with_die.toml stepped implicit Euler."""
     folder = _folder(tmp_path)
     lib, _ = _pair(folder, "with_die.toml", "sheet_bulge_die_template.pro")
     _same_run(tmp_path, lib, folder / "with_die_template.toml", 1, 2)
 
 
+@pytest.mark.slow
 @pytest.mark.getdp
 def test_a_prescribed_current_equals_the_library_deck(tmp_path):
-    """current_template.pro (the template's Current_2D on the coil, no circuit) against case.toml with
+    """(Slow: a variant of the comparison _same_run, whose default-tier run is
+    test_bdf2_by_restart_equals_the_library_decks_bdf2; the deck's Current_2D stepped by the run's guard:
+    test_a_current_that_drifts_after_the_check_stops_the_run)
+    current_template.pro (the template's Current_2D on the coil, no circuit) against case.toml with
     em.current = the same pulse; the coil current is the pulse's formula (to 1e-12 of its amplitude)."""
     lib, tpl = _pair(_folder(tmp_path), "case.toml", "current_template.pro", _prescribed)
     _same_run(tmp_path, lib, tpl, 1, 1)
@@ -148,9 +160,13 @@ def test_a_prescribed_current_equals_the_library_deck(tmp_path):
     assert np.abs(i - want).max() <= 1e-12 * PULSE["amplitude"]
 
 
+@pytest.mark.slow
 @pytest.mark.getdp
 def test_a_planar_deck_equals_the_library_deck_in_plane_mode(tmp_path):
-    """current_template.pro with Flag_Axi = 0 (the runner's -setnumber reaches its DefineConstant;
+    """(Slow: a variant of the comparison _same_run, whose default-tier run is
+    test_bdf2_by_restart_equals_the_library_decks_bdf2; the planar deck's check:
+    test_a_deck_that_contradicts_the_case_is_refused)
+    current_template.pro with Flag_Axi = 0 (the runner's -setnumber reaches its DefineConstant;
     CoefGeos = 1) against case.toml with geometry.planar = true: the half model x >= 0 per metre of
     depth, a = 0 on the symmetry plane x = 0 (the mesh's AXIS)."""
     lib, tpl = _pair(_folder(tmp_path), "case.toml", "current_template.pro", _planar)

@@ -18,8 +18,10 @@ from pulseform.orchestrator.case.io import load_case
 from wf_helpers import REPO, one_line_error, pulseform
 
 CASE = REPO / "cases/user_deck_sheet_bulge"
-SHORT = ["--quiet", "--set", "time.end=4e-6", "--set", "output.field_interval=2e-6"]
-MATCH = ["--quiet", "--set", "time.end=6e-6", "--set", "output.field_interval=3e-6"]
+#: no pictures: these tests read metrics, logs and tables, never a picture (a picture group that fails is only
+#: logged, so drawing them here tested nothing; tests/workflow/test_results_pictures.py tests them)
+SHORT = ["--quiet", "--set", "time.end=4e-6", "--set", "output.field_interval=2e-6", "--set", "output.plots=false"]
+MATCH = ["--quiet", "--set", "time.end=6e-6", "--set", "output.field_interval=3e-6", "--set", "output.plots=false"]
 
 
 def _match_builtin(tmp_path, deck_case, builtin_case) -> dict:
@@ -50,9 +52,13 @@ def test_user_deck_matches_the_builtin_case(tmp_path):
     assert (tmp_path / "user/em/contract_check/out/elem_f.txt").is_file()
 
 
+@pytest.mark.slow
 @pytest.mark.getdp
 def test_user_deck_with_a_die_matches_the_builtin_case(tmp_path):
-    """The deck's optional die mapped to the role die (massive conductor 2, a mechanical body)
+    """(Slow, ~11 s: the second run pair of _match_builtin, whose default-tier run is
+    test_user_deck_matches_the_builtin_case; the die case on a user deck runs coupled in
+    tests/workflow/test_user_remesh.py::test_template_and_library_decks_carry_a_remesh_alike)
+    The deck's optional die mapped to the role die (massive conductor 2, a mechanical body)
     against cases/emf_sheet_die; the contract check saw the die's tables."""
     _match_builtin(tmp_path, CASE / "with_die.toml", REPO / "cases/emf_sheet_die")
     assert (tmp_path / "user/em/contract_check/out/cond_F_2.txt").is_file()
@@ -123,9 +129,14 @@ def test_paths_resolve_from_the_case_folder_not_the_cwd(tmp_path):
     assert f'pro = "{CASE / "sheet_bulge.pro"}"' in r.stdout
 
 
+@pytest.mark.slow
 @pytest.mark.getdp
 def test_user_deck_on_both_getdp_paths_gives_the_same_results(tmp_path):
-    """Issue 15: a user deck on PulseformLib runs on the persistent getdp (em.getdp_process = 'auto'
+    """(Slow, ~11 s: two more runs of the example. The default tier's companions: the two getdp paths equal on
+    the same steps, tests/getdp/test_persistent.py::test_same_results_as_one_process_per_step; the user deck
+    on 'auto' (BDF2: the persistent getdp) end to end, test_user_deck_matches_the_builtin_case; the per-step
+    path chosen and logged, test_user_deck_without_the_persistent_resolution_runs_per_step.)
+    Issue 15: a user deck on PulseformLib runs on the persistent getdp (em.getdp_process = 'auto'
     with BDF2 selects it after a probe) and on a getdp process per EM step with the same results
     (round-off: the two paths solve the same systems; tests/getdp/test_persistent.py gives 8e-14 on
     one step)."""
