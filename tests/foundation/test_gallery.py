@@ -65,6 +65,13 @@ def test_index_links_every_case_page():
         assert (GALLERY / rel).is_file(), f"index thumbnail {rel} missing"
 
 
+def test_the_site_navigation_lists_every_case_page():
+    """mkdocs.yml's nav names each gallery page (a page outside the nav has no place in the site's menus)."""
+    nav = (REPO / "mkdocs.yml").read_text()
+    missing = [c for c in CASES if f"gallery/{c}.md" not in nav]
+    assert not missing, f"mkdocs.yml nav (Gallery) lacks {missing}"
+
+
 def test_links_resolve_inside_docs():
     """MkDocs strict mode: every relative link of a gallery page names a file under docs/."""
     docs = (REPO / "docs").resolve()
