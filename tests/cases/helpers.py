@@ -19,17 +19,18 @@ TUBE_COARSE = ["--set", "bodies.inner.mesh_size=5e-4", "--set", "bodies.outer.me
 
 
 def run_many(jobs: dict[str, tuple[str, list[str]]], root: Path) -> dict[str, dict]:
-    """Run ``{label: (case folder, extra args)}`` concurrently (label: a folder name under ``root``);
-    metrics.json per label (asserts exit 0)."""
-    procs = {}
+    """Run ``{label: (case folder, extra args)}`` one after the other (label: a folder name under ``root``);
+    metrics.json per label (asserts exit 0).
+
+    Not concurrently: the tests already run on every core (pytest-xdist), and on a cold numba cache (a fresh
+    clone, CI) concurrent runs would each compile the same kernels; one after the other, the first compiles and
+    the rest load its cache."""
+    results = {}
     for label, (case, extra) in jobs.items():
         out = root / label
-        procs[label] = (out, subprocess.Popen([EXE, "run", str(REPO / case), "--out", str(out), "--quiet", "--force",
-                                               *extra], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True))
-    results = {}
-    for label, (out, p) in procs.items():
-        _, err = p.communicate()
-        assert p.returncode == 0, f"{label}: exit {p.returncode}\n{err[-3000:]}"
+        p = subprocess.run([EXE, "run", str(REPO / case), "--out", str(out), "--quiet", "--force", *extra],
+                           capture_output=True, text=True)
+        assert p.returncode == 0, f"{label}: exit {p.returncode}\n{p.stderr[-3000:]}"
         results[label] = json.loads((out / "metrics.json").read_text())
         results[label]["_out"] = str(out)
     return results
