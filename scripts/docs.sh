@@ -10,22 +10,9 @@ cd "$here"
 
 DOCS_APT_PACKAGES=(mkdocs mkdocs-material mkdocstrings mkdocstrings-python-handlers)
 
-missing=()
-for p in "${DOCS_APT_PACKAGES[@]}"; do
-  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
-done
-if [ "${#missing[@]}" -gt 0 ]; then
-  if [ "$(id -u)" -ne 0 ] || ! command -v apt-get >/dev/null 2>&1; then
-    echo "pulseform docs: missing Debian packages: ${missing[*]}" >&2
-    echo "Install them as root, then run this command again:" >&2
-    echo "  apt-get update && apt-get install -y --no-install-recommends ${missing[*]}" >&2
-    exit 1
-  fi
-  echo "pulseform docs: installing Debian packages: ${missing[*]}"
-  export DEBIAN_FRONTEND=noninteractive
-  apt-get update -qq
-  apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
-fi
+# shellcheck source=scripts/apt_install.sh
+source "$here/scripts/apt_install.sh"
+apt_install_missing "pulseform docs" "${DOCS_APT_PACKAGES[@]}"
 
 bash scripts/setup.sh
 

@@ -10,23 +10,9 @@ APT_PACKAGES=(getdp gmsh python3-gmsh python3-dolfinx python3-meshio python3-h5p
   python3-tomli-w python3-jsonschema python3-venv python3-pip python3-setuptools python3-dev gcc
   openmpi-bin libegl1 libegl-mesa0 libgl1-mesa-dri)  # the last three: VTK's off-screen rendering through Mesa (EGL)
 
-missing=()
-for p in "${APT_PACKAGES[@]}"; do
-  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
-done
-
-if [ "${#missing[@]}" -gt 0 ]; then
-  if [ "$(id -u)" -ne 0 ] || ! command -v apt-get >/dev/null 2>&1; then
-    echo "pulseform setup: missing Debian packages: ${missing[*]}" >&2
-    echo "Install them as root, then run this command again:" >&2
-    echo "  apt-get update && apt-get install -y --no-install-recommends ${missing[*]}" >&2
-    exit 1
-  fi
-  echo "pulseform setup: installing Debian packages: ${missing[*]}"
-  export DEBIAN_FRONTEND=noninteractive
-  apt-get update -qq
-  apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
-fi
+# shellcheck source=scripts/apt_install.sh
+source "$here/scripts/apt_install.sh"
+apt_install_missing "pulseform setup" "${APT_PACKAGES[@]}"
 
 if [ ! -x .venv/bin/python ]; then
   echo "pulseform setup: creating .venv from /usr/bin/python3 (--system-site-packages)"

@@ -130,17 +130,14 @@ def test_settings_table_names_existing_cases_and_keys():
                 assert e.reason, f"{e.label}: a coarse run without its reason"
 
 
-def test_settings_table_refuses_unknown_names(tmp_path):
+@pytest.mark.parametrize("text,named", [
+    ('[cases.no_such_case]\nkind = "x"\n', "no_such_case"),
+    ('[cases.bar_impact]\npicturs = ["a.png"]\n', "picturs"),
+    ('[cases.bar_impact.variants.nope]\n', "nope"),
+    ('[cases.bar_impact]\nset = ["time.end=1e-3"]\n', "reason"),
+])
+def test_settings_table_refuses_unknown_names(tmp_path, text, named):
     bad = tmp_path / "gallery.toml"
-    bad.write_text('[cases.no_such_case]\nkind = "x"\n')
-    with pytest.raises(gallery.SettingsError, match="no_such_case"):
-        gallery.load_settings(bad)
-    bad.write_text('[cases.bar_impact]\npicturs = ["a.png"]\n')
-    with pytest.raises(gallery.SettingsError, match="picturs"):
-        gallery.load_settings(bad)
-    bad.write_text('[cases.bar_impact.variants.nope]\n')
-    with pytest.raises(gallery.SettingsError, match="nope"):
-        gallery.load_settings(bad)
-    bad.write_text('[cases.bar_impact]\nset = ["time.end=1e-3"]\n')
-    with pytest.raises(gallery.SettingsError, match="reason"):
+    bad.write_text(text)
+    with pytest.raises(gallery.SettingsError, match=named):
         gallery.load_settings(bad)

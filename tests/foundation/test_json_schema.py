@@ -79,21 +79,11 @@ def test_every_shipped_case_validates(path):
     assert not _errors(TAPLO_LIKE, data)  # an editor flags nothing in a shipped case either
 
 
-def _set(data, path: tuple, value) -> None:
-    *head, last = path
-    for k in head:
-        data = data[k]
-    if value is _DELETE:
-        del data[last]
-    else:
-        data[last] = value
-
-
 def _rename(data, old: str, new: str) -> None:
     data[new] = data.pop(old)
 
 
-_DELETE = object()
+from test_bad_input import _DELETE, _set  # noqa: E402  (the same mutation of a case mapping)
 
 # (id, base case, mutation (path, value) or a function, the key path the Python validator names)
 BAD = [
