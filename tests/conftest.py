@@ -17,7 +17,7 @@ def repo() -> Path:
 def sector_compare(tmp_path_factory):
     """``pulseform compare`` of the coarse 3D sector (tests/coupling/sector_case.py: 5 degrees, 3 us) with the
     loaded surface ``SURFACE`` and two --fail-if conditions, one that cannot hold and one that must (exit 1
-    naming the second), run once per session (once per xdist worker): (out folder, compare.json, the finished
+    naming the second), run once per session (by the first xdist worker that asks: tests/worker_share.py): (out folder, compare.json, the finished
     process). Its coupled run ``out / "coupled"`` is the coarse sector's ``pulseform run`` (the same command
     and overrides, plus --force), shared by tests/workflow/test_compare_3d.py and
     tests/coupling/test_case_3d_sector.py."""
@@ -26,10 +26,18 @@ def sector_compare(tmp_path_factory):
     import sys
 
     from coupling.sector_case import CASE, COARSE, SURFACE, sets
+    from worker_share import once
 
-    out = tmp_path_factory.mktemp("cmp3d") / "c"
-    r = subprocess.run([str(Path(sys.executable).with_name("pulseform")), "compare", str(CASE), "--out", str(out),
-                        *sets(COARSE), "--surface", SURFACE, "--body", "sheet", "--fail-if", "impulse_rel_diff>1e9",
-                        "--fail-if", "wall_time_coupled_s>0.001"], capture_output=True, text=True, timeout=600)
+    argv = [str(Path(sys.executable).with_name("pulseform")), "compare", str(CASE), "--out", "c",
+            *sets(COARSE), "--surface", SURFACE, "--body", "sheet", "--fail-if", "impulse_rel_diff>1e9",
+            "--fail-if", "wall_time_coupled_s>0.001"]
+
+    def make(folder: Path) -> dict:
+        r = subprocess.run(argv, cwd=folder, capture_output=True, text=True, timeout=600)
+        return {"returncode": r.returncode, "stdout": r.stdout, "stderr": r.stderr}
+
+    folder, info = once(tmp_path_factory, "sector_compare " + " ".join(argv[1:]), make)
+    r = subprocess.CompletedProcess(argv, info["returncode"], info["stdout"], info["stderr"])
     print(r.stdout, r.stderr[-2000:])
+    out = folder / "c"
     return out, json.loads((out / "compare.json").read_text()), r

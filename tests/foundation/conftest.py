@@ -27,18 +27,18 @@ def env_without_display() -> dict:
 def shared_run(tmp_path_factory):
     """``shared_run(case, extra, umask=None)``: the results folder of ``pulseform run cases/<case> --out DIR
     --quiet *extra`` (no DISPLAY; under ``umask`` if given), asserted to exit 0. The same arguments give the
-    same folder, run once per session."""
-    done: dict[tuple, Path] = {}
+    same folder, run once per session (by the first xdist worker that asks: tests/worker_share.py)."""
+    from worker_share import once
 
     def run(case: str, extra: list[str] | tuple[str, ...], umask: int | None = None) -> Path:
-        key = (case, tuple(extra), umask)
-        if key not in done:
-            out = tmp_path_factory.mktemp(f"shared_{case}") / case
-            r = subprocess.run([EXE, "run", str(REPO / "cases" / case), "--out", str(out), "--quiet", *extra],
-                               capture_output=True, text=True, env=env_without_display(), timeout=900,
+        def make(folder: Path) -> dict:
+            r = subprocess.run([EXE, "run", str(REPO / "cases" / case), "--out", str(folder / case), "--quiet",
+                                *extra], capture_output=True, text=True, env=env_without_display(), timeout=900,
                                preexec_fn=None if umask is None else (lambda: os.umask(umask)))
             assert r.returncode == 0, r.stderr[-3000:]
-            done[key] = out
-        return done[key]
+            return {}
+
+        folder, _ = once(tmp_path_factory, repr(("shared_run", case, tuple(extra), umask)), make)
+        return folder / case
 
     return run
