@@ -7,12 +7,11 @@ import pytest
 REPO = Path(__file__).resolve().parents[1]
 
 
-#: Modules scheduled after the rest: on a fresh clone numba's cache is empty, and the pressure-pulse kernels of the
-#: explicit solver (``_pulse_steps`` 16 s, ``element_step`` 6 s to compile) were compiled twice at the start, by the
-#: corner-fill runs of tests/cases/test_corner_fill.py on one worker and by these modules on the other (in the test
-#: process: test_compiled_blocks[bar_impact] 25 s cold, 1 s from the cache; the press-fit runs: 35 s cold vs 12 s).
-#: After the rest, they load what the corner-fill runs cached.
-RUN_LAST = ("tests/cases/test_compiled_blocks.py", "tests/cases/test_tube_press_fit.py")
+#: Modules that compile the explicit solver's kernels in the test process, scheduled after the rest: on a fresh clone
+#: numba's cache is empty, and a test here that starts while a `pulseform run` of another worker compiles the same
+#: kernels compiles them a second time (test_compiled_blocks[bar_impact]: 25 s cold, 1 s from the cache that the
+#: corner-fill runs of tests/cases/test_corner_fill.py leave).
+RUN_LAST = ("tests/cases/test_compiled_blocks.py",)
 
 
 def pytest_collection_modifyitems(session, config, items):
