@@ -134,7 +134,7 @@ def _layout(boxes: list, title: str, max_side: float = 7.5, footnote: bool = Fal
     cax = fig.add_axes([(left + width + 0.25) / fig_w, bottom / fig_h, 0.18 / fig_w, height / fig_h])
     # centred over the panels where it fits, else over the figure, wrapped to its width (a tall narrow
     # panel: the title is wider than the panel and was cut at the figure's left edge)
-    chars = max(int(fig_w * 72 / (10 * 0.6)), 20)  # 10 pt text: ~0.6 em per character
+    chars = max(int((fig_w - 0.4) * 72 / (10 * 0.6)), 20)  # 10 pt text: ~0.6 em per character; 0.2 in margins
     lines = textwrap.wrap(title, chars) or [""]
     half = 0.5 * max(len(t) for t in lines) * 10 * 0.6 / 72  # inches
     x = min(max(0.5 * (left + width), half + 0.1), fig_w - half - 0.1)
