@@ -7,21 +7,6 @@ import pytest
 REPO = Path(__file__).resolve().parents[1]
 
 
-#: Modules that compile the explicit solver's kernels in the test process, scheduled after the rest: on a fresh clone
-#: numba's cache is empty, and a test here that starts while a `pulseform run` of another worker compiles the same
-#: kernels compiles them a second time (test_compiled_blocks[bar_impact]: 25 s cold, 1 s from the cache that the
-#: corner-fill runs of tests/cases/test_corner_fill.py leave).
-RUN_LAST = ("tests/cases/test_compiled_blocks.py",)
-
-
-def pytest_collection_modifyitems(session, config, items):
-    """Move the :data:`RUN_LAST` modules' tests to the end (same order within them; pytest-xdist schedules in this
-    order, a module at a time)."""
-    last = [i for i in items if i.nodeid.split("::", 1)[0] in RUN_LAST]
-    if last:
-        items[:] = [i for i in items if i.nodeid.split("::", 1)[0] not in RUN_LAST] + last
-
-
 @pytest.fixture(scope="session")
 def repo() -> Path:
     """The repository root."""
