@@ -69,20 +69,11 @@ def checkpoint_arrays(out: Path) -> dict:
         return {k[2:]: z[k] for k in z.files if k.startswith("a/")}
 
 
-def sigint_after_em_step(argv: list[str], out: Path, steps: int) -> dict:
-    """Start ``argv`` (a ``pulseform run`` into ``out``), SIGINT once its checkpoint holds EM step ``steps``
-    (``load/steps``; the signal lands in a later step, which is completed and checkpointed); asserts the run
-    stopped as interrupted (exit 130) and returns its metrics."""
-    proc = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-    deadline = time.time() + 300
-    while True:
-        assert proc.poll() is None and time.time() < deadline, proc.stderr.read() if proc.poll() is not None else ""
-        if (out / "checkpoint.npz").exists() and int(checkpoint_arrays(out)["load/steps"]) >= steps:
-            break
-        time.sleep(0.02)
-    proc.send_signal(signal.SIGINT)
-    _, err = proc.communicate(timeout=300)
-    assert proc.returncode == 130, err[-3000:]
+def interrupted_run(argv: list[str], out: Path) -> dict:
+    """Run ``argv`` (a ``pulseform run`` into ``out`` that signals itself, e.g. tests/coupling/forced_remesh_run.py
+    with ``--sigint-in-step``); asserts it stopped as interrupted (exit 130) and returns its metrics."""
+    r = subprocess.run(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, timeout=600)
+    assert r.returncode == 130, r.stderr[-3000:]
     cut = json.loads((out / "metrics.json").read_text())
     assert cut["status"] == "interrupted"
     return cut

@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from .resume_check import assert_coupled3d_outputs_bitwise, checkpoint_arrays, sigint_after_em_step
+from .resume_check import assert_coupled3d_outputs_bitwise, checkpoint_arrays, interrupted_run
 
 pytestmark = pytest.mark.getdp
 
@@ -41,8 +41,10 @@ ARGS = ["--set", "geometry.parameters.h_sheet=4e-3", "--set", "geometry.paramete
         "--set", 'geometry.on_mesh_break="remesh"']
 
 
-def _argv(out: Path, *extra: str) -> list[str]:
-    return [sys.executable, HELPER, REMESH_STEPS, "run", CASE, "--out", str(out), "--quiet", *ARGS, *extra]
+def _argv(out: Path, *extra: str, sigint_in_step: int = 0) -> list[str]:
+    signal_at = [f"--sigint-in-step={sigint_in_step}"] if sigint_in_step else []
+    return [sys.executable, HELPER, REMESH_STEPS, *signal_at, "run", CASE, "--out", str(out), "--quiet", *ARGS,
+            *extra]
 
 
 @pytest.fixture(scope="module")
@@ -80,10 +82,11 @@ def test_a_run_with_a_remesh_writes_its_checkpoints_and_completes(remeshed_run):
           f"{m['conservation_error_rel']:.1e}; checkpoint {(out / 'checkpoint.npz').stat().st_size / 1e6:.2f} MB")
 
 
-def _stop_after(out: Path, steps: int) -> dict:
-    """SIGINT once the checkpoint after EM step ``steps`` exists; returns the stopped run's metrics."""
-    cut = sigint_after_em_step(_argv(out), out, steps)
-    assert cut["end_time_s"] == pytest.approx(1e-6 * (steps + 1), rel=1e-9)
+def _stop_in(out: Path, step: int) -> dict:
+    """The run SIGINTs itself as EM step ``step`` starts: it completes that step, checkpoints and stops (exit 130);
+    returns the stopped run's metrics."""
+    cut = interrupted_run(_argv(out, sigint_in_step=step), out)
+    assert cut["end_time_s"] == pytest.approx(1e-6 * step, rel=1e-9)
     return cut
 
 
@@ -96,7 +99,7 @@ def _resume_equals(out: Path, ref: Path) -> dict:
 
 def test_sigint_after_the_remesh_then_resume_equals_the_uninterrupted_run(remeshed_run, tmp_path):
     out = tmp_path / "cut"
-    _stop_after(out, REMESH_STEP - 1)   # stops after step 3, whose start meshed the air again; the resume remeshes
+    _stop_in(out, REMESH_STEP)   # stops after step 3, whose start meshed the air again; the resume remeshes
     cp = checkpoint_arrays(out)                # before step 4 from the checkpoint's mesh
     assert int(cp["load/steps"]) == REMESH_STEP and int(cp["load/remesh/count"]) == 1
     got = _resume_equals(out, remeshed_run)
@@ -111,7 +114,7 @@ def test_sigint_after_the_remesh_then_resume_equals_the_uninterrupted_run(remesh
 @pytest.mark.slow
 def test_resume_from_before_the_remesh_remeshes_at_the_same_step(remeshed_run, tmp_path):
     out = tmp_path / "cut"
-    _stop_after(out, REMESH_STEP - 2)   # stops after step 2: before the remesh
+    _stop_in(out, REMESH_STEP - 1)   # stops after step 2: before the remesh
     cp = checkpoint_arrays(out)
     assert int(cp["load/steps"]) == REMESH_STEP - 1 and "load/remesh/count" not in cp
     _resume_equals(out, remeshed_run)

@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from .resume_check import checkpoint_arrays, sigint_after_em_step
+from .resume_check import checkpoint_arrays, interrupted_run
 from .sector_case import CASE as CASE_DIR, MESH, sets
 
 pytestmark = pytest.mark.getdp
@@ -43,8 +43,9 @@ TIMERS = ("load_time_s", "mech_time_s", "setup_time_s", "wall_time_s", "em_time_
 FORCES = ("force_z_N", "getdp_force_z_N")
 
 
-def _argv(out: Path, steps: str, *extra: str) -> list[str]:
-    return [sys.executable, HELPER, steps, "run", CASE, "--out", str(out), "--quiet", *ARGS, *extra]
+def _argv(out: Path, steps: str, *extra: str, sigint_in_step: int = 0) -> list[str]:
+    signal_at = [f"--sigint-in-step={sigint_in_step}"] if sigint_in_step else []
+    return [sys.executable, HELPER, steps, *signal_at, "run", CASE, "--out", str(out), "--quiet", *ARGS, *extra]
 
 
 def _history(out: Path) -> dict[str, np.ndarray]:
@@ -88,9 +89,9 @@ def test_a_remesh_mid_run_changes_the_force_by_a_mesh_to_mesh_amount(runs):
     assert ledger < 1e-12
 
 
-def _stop_after(out: Path, steps: int) -> None:
-    """SIGINT the forced run once its checkpoint after EM step ``steps`` exists (stopped as interrupted)."""
-    sigint_after_em_step(_argv(out, str(K)), out, steps)
+def _stop_in(out: Path, step: int) -> None:
+    """The forced run SIGINTs itself as EM step ``step`` starts; it stops (interrupted) at the next output."""
+    interrupted_run(_argv(out, str(K), sigint_in_step=step), out)
 
 
 # slow (a repeated end-to-end run; covered in the default tier by the same SIGINT after a remesh then --resume,
@@ -99,7 +100,7 @@ def _stop_after(out: Path, steps: int) -> None:
 @pytest.mark.slow
 def test_sigint_after_the_remesh_then_resume_equals_the_uninterrupted_run(runs, tmp_path):
     out = tmp_path / "cut"
-    _stop_after(out, K)   # the checkpoint at 1 us (step 3, which started with the remesh), then SIGINT
+    _stop_in(out, K)   # SIGINT in step 3 (which starts with the remesh): stops at the checkpoint at 1 us
     cp = checkpoint_arrays(out)
     steps = int(cp["load/steps"])
     assert K <= steps < 6 and int(cp["load/remesh/count"]) == 1
