@@ -56,6 +56,15 @@ class EM:
         "auto", doc="how getdp runs: 'persistent' (one process advances every EM step, moving its mesh: "
                     "bdf2 only, ~8x less EM time on the demo), 'per_step' (a getdp process per EM step), "
                     "'auto' (persistent with bdf2 where the deck has Resolution EM_Persistent, else per_step)")
+    factor_reuse_tol: float = spec(
+        1e-10, unit="-", ge=0.0, lt=1e-3,
+        doc="persistent getdp: each EM step assembles its own system and solves it by GCR preconditioned with "
+            "the LU factors of an earlier step until |b − A x| ≤ tol |b| (the same system's answer to that "
+            "residual; docs/getdp.md, Kept factors); 0 factorises every step. History: em_factorisations, "
+            "em_corrections")
+    factor_reuse_max_corrections: int = spec(
+        12, ge=1, le=50, doc="GCR iterations before an EM step factorises its own matrix (and the next one does "
+                             "when a step needed more than 3/4 of them); each keeps two vectors in getdp")
     remesh_quality: float = spec(0.3, unit="-", gt=0.0, lt=1.0,
                                  doc="remesh the air when the worst element quality 4√3A/Σl² falls below this "
                                      "fraction of the fresh mesh's worst")

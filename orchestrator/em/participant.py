@@ -37,6 +37,7 @@ from pulseform.solvers.getdp.mesh import AXIS as AXIS_TAG
 from pulseform.solvers.getdp.mesh import OUTER as OUTER_TAG
 from pulseform.solvers.getdp.mesh import SHELL as SHELL_TAG
 from pulseform.solvers.getdp.files import discard_folder
+from pulseform.solvers.getdp.persistent_process import FactorReuse
 
 from ..coupling.interfaces import LoadCapabilities, LoadStep
 from ..coupling.transfer import cell_force_integral, cell_to_nodal_forces
@@ -55,12 +56,12 @@ LOAD_COLUMNS_COUPLED = ("force_x_N", "force_y_N", "conservation_error_rel", "coi
                         "coil_current_abs_max_A", "coil_voltage_V",
                         "capacitor_voltage_V", "coil_joule_heat_J", "coil_temperature_rise_K",
                         "magnetic_energy_J", "workpiece_joule_power_W", "getdp_force_z_N",
-                        "em_mesh_min_quality", "em_remeshes")
+                        "em_mesh_min_quality", "em_remeshes", "em_factorisations", "em_corrections")
 #: with several coils: the columns shared by all coils (coil_current_abs_max_A: the largest |current| of
 #: any coil over the EM step), then :data:`COIL_COLUMNS` per coil, prefixed by its name
 LOAD_COLUMNS_SHARED = ("force_x_N", "force_y_N", "conservation_error_rel", "coil_current_abs_max_A",
                        "capacitor_voltage_V", "magnetic_energy_J", "workpiece_joule_power_W", "getdp_force_z_N",
-                       "em_mesh_min_quality", "em_remeshes")
+                       "em_mesh_min_quality", "em_remeshes", "em_factorisations", "em_corrections")
 COIL_COLUMNS = ("current_A", "voltage_V", "joule_heat_J", "temperature_rise_K")
 
 
@@ -103,18 +104,21 @@ class GetDPLoad(EMSnapshots, LoadCapabilities):
         One getdp process per EM step (:class:`~pulseform.solvers.getdp.GetDPSolver`), or one for the
         whole run (:class:`~pulseform.solvers.getdp.persistent.PersistentGetDPSolver`, BDF2 only;
         "auto" takes it with BDF2).
+    factor_reuse : FactorReuse
+        Kept LU factors across the persistent getdp's EM steps; history columns ``em_factorisations``,
+        ``em_corrections`` (the counts so far).
     """
 
     def __init__(self, geometry: EMGeometry, model: EMModel, work_dir: Path, bodies: list[ConductorBody],
                  keep_runs: bool = False, remesh_quality: float = 0.3, sizes: tuple[float, float] = (1e-3, 0.02),
                  em_substeps: int = 1, depth: float = 1.0, time_scheme: str = "euler",
-                 getdp_process: str = "per_step") -> None:
+                 getdp_process: str = "per_step", factor_reuse: FactorReuse = FactorReuse()) -> None:
         self.geometry, self.bodies = geometry, list(bodies)
         self.keep_runs, self.remesh_quality, self.sizes = keep_runs, remesh_quality, sizes
         self.em_substeps = em_substeps
         self.axisymmetric = not geometry.planar
         self.scale = 1.0 if self.axisymmetric else float(depth)
-        self.solver = make_em_solver(model, work_dir, time_scheme, getdp_process)
+        self.solver = make_em_solver(model, work_dir, time_scheme, getdp_process, factor_reuse=factor_reuse)
         #: coil names of the history columns (several coils: one column set per coil)
         self.coil_names = [c.name or f"coil{k}" for k, c in enumerate(model.coils, start=1)]
         self.columns = coupled_columns(self.coil_names)
@@ -256,8 +260,17 @@ class GetDPLoad(EMSnapshots, LoadCapabilities):
             "workpiece_joule_power_W": float(result.conductor_power[-1, 0]),
             "getdp_force_z_N": float(self.scale * getdp_total[1]),
             "em_mesh_min_quality": float(self.mover.last_min_quality),
-            "em_remeshes": float(self.remeshes),
+            "em_remeshes": float(self.remeshes), **self._solve_counts(),
         }
+
+    def _solve_counts(self) -> dict[str, float]:
+        """The run's factorisations and kept-factor corrections so far (history columns): the persistent
+        getdp's counts (:class:`~pulseform.solvers.getdp.persistent_process.FactorReuse`); a getdp
+        process per EM step factorises every one of its ``em_substeps`` sub-steps."""
+        s = self.state
+        if hasattr(self.solver, "factor_reuse"):
+            return {"em_factorisations": float(s.factorisations), "em_corrections": float(s.corrections)}
+        return {"em_factorisations": float(s.step_index * self.em_substeps), "em_corrections": 0.0}
 
     def _coil_values(self, result, getdp_total: np.ndarray) -> dict[str, float]:
         """:meth:`_values` with several coils: the shared columns, then each coil's."""
@@ -268,7 +281,7 @@ class GetDPLoad(EMSnapshots, LoadCapabilities):
             "workpiece_joule_power_W": float(result.conductor_power[-1, 0]),
             "getdp_force_z_N": float(self.scale * getdp_total[1]),
             "em_mesh_min_quality": float(self.mover.last_min_quality),
-            "em_remeshes": float(self.remeshes),
+            "em_remeshes": float(self.remeshes), **self._solve_counts(),
         }
         for k, name in enumerate(self.coil_names):
             out.update({f"{name}_current_A": float(result.coil_current[-1, k]),
@@ -287,7 +300,8 @@ class GetDPLoad(EMSnapshots, LoadCapabilities):
             signs = [c.sign for c in self.solver.model.coils]
             values = {"coil_current_abs_max_A": abs(float(s.current)), "capacitor_voltage_V": float(s.capacitor_voltage),
                       "magnetic_energy_J": 0.0, "workpiece_joule_power_W": 0.0, "getdp_force_z_N": 0.0,
-                      "em_mesh_min_quality": float(self.mover.q_ref.min()), "em_remeshes": float(self.remeshes)}
+                      "em_mesh_min_quality": float(self.mover.q_ref.min()), "em_remeshes": float(self.remeshes),
+                      **self._solve_counts()}
             for k, name in enumerate(self.coil_names):
                 values.update({f"{name}_current_A": signs[k] * float(s.current), f"{name}_voltage_V": 0.0,
                                f"{name}_joule_heat_J": float(s.coil_heat[k]) if s.coil_heat else 0.0,
@@ -304,7 +318,7 @@ class GetDPLoad(EMSnapshots, LoadCapabilities):
             "workpiece_joule_power_W": 0.0,
             "getdp_force_z_N": 0.0,
             "em_mesh_min_quality": float(self.mover.q_ref.min()),
-            "em_remeshes": float(self.remeshes),
+            "em_remeshes": float(self.remeshes), **self._solve_counts(),
         })
 
     #: after a remesh, every step carries the state through the Init path (False: the remesh carried a

@@ -47,6 +47,7 @@ from pulseform.solvers.getdp.files import discard_folder
 from pulseform.solvers.getdp.mesh import CONDUCTOR_BASE
 from pulseform.solvers.getdp.mesh3d import Mesh3D
 from pulseform.solvers.getdp.persistent3d import PersistentEM3DStepper
+from pulseform.solvers.getdp.persistent_process import FactorReuse
 from pulseform.solvers.getdp.solver3d import EM3DModel
 from pulseform.solvers.getdp.stepper3d import EM3DState, EM3DStepper, read_res_vector, write_res_vector
 
@@ -61,7 +62,7 @@ log = logging.getLogger(__name__)
 LOAD_COLUMNS_3D = ("force_x_N", "force_y_N", "force_z_N", "conservation_error_rel", "coil_current_A",
                    "coil_current_abs_max_A", "capacitor_voltage_V", "coil_joule_heat_J", "magnetic_energy_J",
                    "workpiece_joule_power_W", "getdp_force_z_N", "device_force_z_N", "device_impulse_z_Ns",
-                   "em_mesh_min_quality")
+                   "em_mesh_min_quality", "em_factorisations", "em_corrections")
 #: per-body history columns (prefixed ``<name>_``) of a load with several bodies
 BODY_COLUMNS_3D = ("force_x_N", "force_y_N", "force_z_N", "ledger_rel", "getdp_force_z_N", "joule_power_W")
 
@@ -110,13 +111,16 @@ class GetDPLoad3D(LoadCapabilities):
         persistent with BDF2, per step with implicit Euler.
     getdp_timeout : float or None
         Wall-time limit of each getdp answer (persistent) or run (per step), s; None: the runner's default.
+    factor_reuse : FactorReuse
+        Kept LU factors across the persistent getdp's EM steps (a process per step factorises every
+        step). History columns ``em_factorisations`` and ``em_corrections``: the run's counts so far.
     """
 
     columns = LOAD_COLUMNS_3D
 
     def __init__(self, mesh: Mesh3D, model: EM3DModel, work_dir: Path, bodies: list[ConductorBody3D],
                  mover: MeshMover3D, time_scheme: str = "bdf2", getdp_process: str = "auto",
-                 getdp_timeout: float | None = None) -> None:
+                 getdp_timeout: float | None = None, factor_reuse: FactorReuse = FactorReuse()) -> None:
         _check_bodies(bodies)
         self.mesh, self.model, self.bodies, self.mover = mesh, model, list(bodies), mover
         self.work_dir = Path(work_dir).resolve()
@@ -126,7 +130,8 @@ class GetDPLoad3D(LoadCapabilities):
             raise ValueError("the persistent getdp implements time_scheme='bdf2' only")
         self.persistent = getdp_process == "persistent" or (getdp_process == "auto" and time_scheme == "bdf2")
         stepper = PersistentEM3DStepper if self.persistent else EM3DStepper
-        self.stepper = stepper(model, self.work_dir, time_scheme=time_scheme, timeout=getdp_timeout)
+        self.stepper = stepper(model, self.work_dir, time_scheme=time_scheme, timeout=getdp_timeout,
+                               **({"factor_reuse": factor_reuse} if self.persistent else {}))
         self.state = self.stepper.initial_state()
         self.tags = np.array([b.tag for b in self.bodies])
         if len(self.bodies) > 1:
@@ -217,7 +222,10 @@ class GetDPLoad3D(LoadCapabilities):
                   "magnetic_energy_J": float(result.magnetic_energy[-1]),
                   "workpiece_joule_power_W": float(result.conductor_power[-1, i0]),
                   "getdp_force_z_N": fz, "device_force_z_N": s * self.device_axes[2] * fz, "device_impulse_z_Ns": self.impulse_device,
-                  "em_mesh_min_quality": float(self.mover.last_min_quality), **per_body}
+                  "em_mesh_min_quality": float(self.mover.last_min_quality),
+                  # a process per step factorises every step
+                  "em_factorisations": self.state.timers.get("getdp_factorisations", float(self.state.steps)),
+                  "em_corrections": self.state.timers.get("getdp_corrections", 0.0), **per_body}
         for k, name in enumerate(self.coil_names):   # several coils: each one's current and power (whole device)
             values[f"{name}_current_A"] = float(result.coil_current[-1, k])
             values[f"{name}_joule_power_W"] = s * float(result.coil_power[-1, k])

@@ -7,6 +7,7 @@ from pathlib import Path
 
 from pulseform.solvers.getdp import (AppliedField, Circuit, Coil, Conductor, CurrentTable, DampedSine, EMModel,
                                      GetDPSolver)
+from pulseform.solvers.getdp.persistent_process import FactorReuse
 
 from ..case.em_applied import AppliedDC, AppliedSine, AppliedTable
 from ..case.em_sources import BankSource, DCSource, SineSource, TableSource, read_current_table
@@ -109,9 +110,17 @@ def em_model(case: Case, shell: tuple[float, float] | None) -> EMModel:
                    applied_field=applied_field(case.em.applied_field))
 
 
-def make_em_solver(model: EMModel, work_dir: Path, time_scheme: str, getdp_process: str, **kw) -> GetDPSolver:
-    """The EM participant: a persistent getdp for BDF2 (``getdp_process`` "persistent" or "auto"),
-    else one getdp process per EM step. ``kw`` go to the solver (deck, numbers, preamble)."""
+def factor_reuse(case: Case) -> FactorReuse:
+    """The kept LU factors of the case's persistent getdp (``em.factor_reuse_tol``,
+    ``em.factor_reuse_max_corrections``)."""
+    return FactorReuse(tol=case.em.factor_reuse_tol, max_corrections=case.em.factor_reuse_max_corrections)
+
+
+def make_em_solver(model: EMModel, work_dir: Path, time_scheme: str, getdp_process: str,
+                   factor_reuse: FactorReuse = FactorReuse(), **kw) -> GetDPSolver:
+    """The EM participant: a persistent getdp for BDF2 (``getdp_process`` "persistent" or "auto";
+    with ``factor_reuse``), else one getdp process per EM step. ``kw`` go to the solver (deck,
+    numbers, preamble)."""
     if getdp_process not in ("auto", "persistent", "per_step"):
         raise ValueError(f"getdp_process must be 'auto', 'persistent' or 'per_step', got {getdp_process!r}")
     if getdp_process == "persistent" and time_scheme != "bdf2":
@@ -119,5 +128,5 @@ def make_em_solver(model: EMModel, work_dir: Path, time_scheme: str, getdp_proce
     if getdp_process != "per_step" and time_scheme == "bdf2":
         from pulseform.solvers.getdp.persistent import PersistentGetDPSolver
 
-        return PersistentGetDPSolver(model, work_dir, **kw)
+        return PersistentGetDPSolver(model, work_dir, factor_reuse=factor_reuse, **kw)
     return GetDPSolver(model, work_dir, time_scheme=time_scheme, **kw)

@@ -48,7 +48,7 @@ from ..case.deck_files import (MAX_PARAMETER_NAME, check_parameters, deck_tokens
 from ..mesh.em_geometry import EMGeometry
 from .deck_check import DeckCheckReport, DeckContractError, check_deck  # noqa: F401  (DeckContractError: the API)
 from .template_deck import DeckGeometry, check_deck_values, deck_physical_ids, template_solver
-from .solver import em_model, make_em_solver
+from .solver import em_model, factor_reuse, make_em_solver
 from .user_remesh import UserDeckLoad, remesh_air_ids
 
 log = logging.getLogger(__name__)
@@ -251,7 +251,7 @@ def make_solver(case, model, work_dir: Path, getdp_process: str = "per_step", de
         return template_solver(case, model, work_dir, deck_ids, numbers)
     lib = (DECK_DIR / "Lib_PulsedForming.pro").resolve()
     return make_em_solver(model, work_dir, case.em.time_scheme, getdp_process, deck=g.pro, extra_numbers=numbers,
-                          preamble=[f'PulseformLib = "{lib}";'])
+                          preamble=[f'PulseformLib = "{lib}";'], factor_reuse=factor_reuse(case))
 
 
 def check_contract(solver, mesh, work: Path, time_limit: float = GETDP_TIME_LIMIT_S) -> DeckCheckReport:

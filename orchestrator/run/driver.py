@@ -24,7 +24,7 @@ from ..case.model import Case
 from ..coupling.interfaces import LoadProvider
 from ..coupling.loop import LoopOptions, StaggeredLoop
 from ..em.participant import GetDPLoad
-from ..em.solver import em_model
+from ..em.solver import em_model, factor_reuse
 from ..em.skin_depth import mesh_advice
 from ..em.time_scale import source_period
 from ..em.user_deck import build_user_geometry, user_deck_load
@@ -382,7 +382,7 @@ def _coupled_participants(case: Case, results: ResultsFolder, comm: MPI.Comm,
                          keep_runs=case.em.keep_runs, remesh_quality=case.em.remesh_quality,
                          sizes=(g.mesh_size_coil, g.mesh_size_air), em_substeps=case.coupling.em_substeps,
                          depth=case.mechanics.thickness, time_scheme=case.em.time_scheme,
-                         getdp_process=case.em.getdp_process)
+                         getdp_process=case.em.getdp_process, factor_reuse=factor_reuse(case))
     load.solver.timeout = case.limits.getdp_time_limit_s
     load.gmsh_time_limit = case.limits.gmsh_time_limit_s
     return solver, load, rigid

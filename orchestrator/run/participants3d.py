@@ -34,6 +34,7 @@ from ..coupling.loop import LoopOptions
 from ..em.frozen3d import FreezingGetDPLoad3D
 from ..em.model3d import em_model3d
 from ..em.participant3d import ConductorBody3D
+from ..em.solver import factor_reuse
 from ..em.remesh3d import RemeshingGetDPLoad3D
 from ..mech.mixed import rigid_bodies
 from ..mech.model import solver_material
@@ -127,7 +128,7 @@ def participants_3d(case: Case, work: Path):
     mover.min_quality = g.break_quality * float(mover.q_ref.min())
     args = (mesh, model, work / "getdp", bodies, mover)
     kw = {"time_scheme": case.em.time_scheme, "getdp_process": case.em.getdp_process,
-          "getdp_timeout": case.limits.getdp_time_limit_s}
+          "getdp_timeout": case.limits.getdp_time_limit_s, "factor_reuse": factor_reuse(case)}
     if g.on_mesh_break == "remesh":   # a failed remesh freezes (orchestrator/em/remesh3d.py)
         load = RemeshingGetDPLoad3D(*args, make_mover=lambda m: air_mover3d(m, planes, tol),
                                     planes=[(p.point, p.normal) for p in planes], **kw)

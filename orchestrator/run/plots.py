@@ -64,7 +64,8 @@ def plot_energies(history: History, folder: Path, axis: TimeAxis | None = None) 
 
 
 #: history columns without a plot of their own (counters, the time axis, the energies' own plot)
-NOT_PLOTTED = ("time_s", "step", "dt_s", "substeps", "iterations", "em_remeshes", "coil_current_abs_max_A")
+NOT_PLOTTED = ("time_s", "step", "dt_s", "substeps", "iterations", "em_remeshes", "em_factorisations", "em_corrections",
+               "coil_current_abs_max_A")
 
 
 def plot_probes(history: History, folder: Path, references: dict[str, float] | None = None,

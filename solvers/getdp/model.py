@@ -172,7 +172,8 @@ class EMState:
     next step's trapezoid means: ``coil_power`` (W per coil), ``force_density`` (N/m^3 per
     conductor element) at element centroids ``force_points`` (material coordinates).
     ``applied_f``, ``applied_f_prev``: with an applied field, its unit time function of the states at
-    ``t`` and at ``t - dt_prev`` (0 for the state at rest).
+    ``t`` and at ``t - dt_prev`` (0 for the state at rest). ``factorisations``, ``corrections``: the
+    persistent getdp's solves so far.
     """
 
     t: float = 0.0
@@ -200,6 +201,10 @@ class EMState:
     # (0 at rest: a run starts with no field, so f(t0) != 0 switches the field on in the first step)
     applied_f: float = 0.0
     applied_f_prev: float = 0.0
+    # the persistent getdp's solves so far (:class:`~.persistent_process.FactorReuse`): factorisations and
+    # kept-factor corrections
+    factorisations: int = 0
+    corrections: int = 0
 
     def to_dict(self) -> dict:
         """The fields as a dict for JSON: lists are shared, not copied (``dataclasses.asdict``'s

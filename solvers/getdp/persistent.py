@@ -30,7 +30,7 @@ from .files import element_volumes, init_list_line, read_element_table
 from .mesh import EMMesh, coil_tag, conductor_tag
 from .model import EMModel, EMState, EMStepResult
 from .persistent_process import (FLAG_COND_FIELDS, FLAG_ELEM, FLAG_FIELDS, FLAG_STATE, LEAN_GLOBALS, PERSISTENT_LIB,
-                                 PersistentProcess, StepAnswer, nodal_dof_map, read_binary_res)
+                                 FactorReuse, PersistentProcess, StepAnswer, nodal_dof_map, read_binary_res)
 from .replay import ReplayLog, connectivity_signature, segment_length
 from .runner import GetDPError, RunInfo, log_tail
 from .solver import CASE_DECK, DEFAULT_PETSC_ARGS, GetDPSolver
@@ -75,12 +75,14 @@ class PersistentGetDPSolver(GetDPSolver):
     def __init__(self, model: EMModel, work_dir: str | Path, *, executable: str = "getdp",
                  petsc_args: Sequence[str] = DEFAULT_PETSC_ARGS, timeout: float | None = None,
                  deck: str | Path = CASE_DECK, extra_numbers: dict[str, float] | None = None,
-                 preamble: Sequence[str] = (), time_scheme: str = "bdf2", verbosity: int = 2, **_unused) -> None:
+                 preamble: Sequence[str] = (), time_scheme: str = "bdf2", verbosity: int = 2,
+                 factor_reuse: FactorReuse = FactorReuse(), **_unused) -> None:
         if time_scheme != "bdf2":
             raise ValueError("the persistent getdp implements time_scheme='bdf2' only")
         super().__init__(model, work_dir, executable=executable, petsc_args=petsc_args, timeout=timeout, deck=deck,
                          extra_numbers=extra_numbers, preamble=preamble, time_scheme="bdf2")
         self.verbosity = verbosity
+        self.factor_reuse = factor_reuse  # kept LU factors across steps (Lib_PersistentStep.pro)
         self.proc: PersistentProcess | None = None
         self.segment = 0
         self.startup_s = 0.0  # wall time of the process starts (s)
@@ -100,7 +102,7 @@ class PersistentGetDPSolver(GetDPSolver):
         m = self.model
         numbers = self.run_numbers(mesh)
         numbers.update(Flag_ElemOut=0, PF_GlobalsSet=LEAN_GLOBALS, PF_T1=state.t, PF_Step0=state.step_index,
-                       PF_DtPrev=0.0, PF_Seed=1)
+                       PF_DtPrev=0.0, PF_Seed=1, **self.factor_reuse.numbers())
         lines = [f'PulseformPersistentLib = "{PERSISTENT_LIB}";'] + self.preamble + self._table_lines()
         if m.circuit is not None:
             numbers["Init_Vc"], numbers["Init_I"] = state.capacitor_voltage, state.current
@@ -224,7 +226,9 @@ class PersistentGetDPSolver(GetDPSolver):
                             current=float(ans.glob[3]) if self.model.circuit is not None else 0.0,
                             coil_heat=result.coil_heat.tolist(), dt_prev=result.dt,
                             capacitor_voltage_prev=state.capacitor_voltage, current_prev=state.current,
-                            coil_power=result.coil_power[-1].tolist())
+                            coil_power=result.coil_power[-1].tolist(),
+                            factorisations=state.factorisations + int(ans.factorised),
+                            corrections=state.corrections + ans.corrections)
         if self.model.applied_field is not None:
             new_state.applied_f = float(self.model.applied_field.unit_f(float(t_end)))
             new_state.applied_f_prev = float(state.applied_f)

@@ -18,6 +18,13 @@ ASCII ``.res``, x_{n-1} as an array): a complete state continues on the per-step
 :class:`~.stepper3d.EM3DStepper`, or seeds a new process (a checkpoint's resume, a state from
 elsewhere: the two vectors sent through the FIFO, ``ReadSolution[A]``), exact to round-off.
 
+Kept factors (``factor_reuse``, :class:`~.persistent_process.FactorReuse`): a step solves its own
+system by GCR preconditioned with the LU factors of an earlier step to a relative residual; the step
+after :meth:`PersistentEM3DStepper.complete_state` (a checkpoint) factorises its own matrix, as a new
+process seeded from that state does, so that a resumed run repeats the uninterrupted one bit for bit.
+Each step's state counts the factorisations and corrections (``timers["getdp_factorisations"]``,
+``timers["getdp_corrections"]``).
+
 The outputs are the library's own PostOperations (``EM_Step3D``, ``EM_Elem3D``, ``EM_Field3D``),
 read with :func:`~.solver3d.read_results3d` like the per-step path's, their files deleted after each
 step.
@@ -35,7 +42,8 @@ import numpy as np
 from .files import read_element_table
 from .mesh import coil_tag
 from .mesh3d import Mesh3D
-from .persistent_process import FLAG_ELEM, FLAG_FIELDS, FLAG_STATE, PersistentProcess, read_binary_res
+from .persistent_process import (FLAG_ELEM, FLAG_FACTORISE, FLAG_FIELDS, FLAG_STATE, FactorReuse, PersistentProcess,
+                                 read_binary_res)
 from .runner import GetDPError, RunInfo, log_tail
 from .solver import DECK_DIR
 from .solver3d import (DECK3D, DEFAULT_PETSC_ARGS_3D, EM3DModel, EM3DResult, applied_state_values, model_numbers,
@@ -76,15 +84,19 @@ class PersistentEM3DStepper:
     executable, petsc_args, timeout, verbosity
         getdp, its PETSc options, the wall-time limit (s) of the start-up and of each step (None:
         600 s), getdp's ``-v``.
+    factor_reuse : FactorReuse
+        Kept LU factors across steps (default: every step factorises).
 
     Call :meth:`close` at the end (a finalizer kills a forgotten process).
     """
 
     def __init__(self, model: EM3DModel, work_dir: str | Path, time_scheme: str = "bdf2", *,
                  executable: str = "getdp", petsc_args: Sequence[str] = DEFAULT_PETSC_ARGS_3D,
-                 timeout: float | None = None, verbosity: int = 2) -> None:
+                 timeout: float | None = None, verbosity: int = 2, factor_reuse: FactorReuse = FactorReuse()) -> None:
         if time_scheme != "bdf2":
             raise ValueError("the persistent 3D getdp implements time_scheme='bdf2' only")
+        self.factor_reuse = factor_reuse
+        self._factorise_next = False   # the step after a checkpoint factorises (module docstring)
         self.model, self.time_scheme = model, time_scheme
         self.work_dir = Path(work_dir).resolve()
         self.executable, self.petsc_args = executable, tuple(petsc_args)
@@ -109,6 +121,7 @@ class PersistentEM3DStepper:
         self.segment += 1
         numbers, lines = model_numbers(self.model, mesh)
         numbers.update(PF_T1=float(state.t), PF_Step0=int(state.steps), PF_DtPrev=0.0, PF_Seed=1)
+        numbers.update(self.factor_reuse.numbers())
         if self.model.applied_field is not None:   # the unit time function of the seed states (0 at rest)
             numbers["Field_F1"], numbers["Field_F2"] = applied_state_values(self.model, state.t, state.steps, state.dt_prev)
         seed = None
@@ -181,7 +194,10 @@ class PersistentEM3DStepper:
         for old in p.out_dir.glob("*.txt"):  # getdp appends (File >)
             old.unlink()
         nk = len(self.model.conductors)
-        ans = p.step(mesh.points, float(t1), (FLAG_ELEM if nk else 0) | (FLAG_FIELDS if field_output else 0))
+        flags = (FLAG_ELEM if nk else 0) | (FLAG_FIELDS if field_output else 0) | \
+            (FLAG_FACTORISE if self._factorise_next else 0)
+        ans = p.step(mesh.points, float(t1), flags)
+        self._factorise_next = False
         c1 = time.perf_counter()
         res = read_results3d(self.model, mesh, p.out_dir, 1, 2 if nk else 0)
         if field_output:
@@ -206,6 +222,8 @@ class PersistentEM3DStepper:
         tm["getdp_pre_s"] += startup
         tm["getdp_loop_s"] += ans.wall
         tm["res_io_s"] += time.perf_counter() - c1
+        tm["getdp_factorisations"] = tm.get("getdp_factorisations", 0.0) + float(ans.factorised)
+        tm["getdp_corrections"] = tm.get("getdp_corrections", 0.0) + float(ans.corrections)
         return res, new
 
     # ------------------------------------------------------------------ state
@@ -224,6 +242,7 @@ class PersistentEM3DStepper:
         res.unlink(missing_ok=True)
         p.query(FLAG_STATE)  # x_n and x_{n-1} of system A, binary: the exact unknowns
         x_n, x_prev = read_binary_res(res, self.n_dofs)[-2:]
+        self._factorise_next = True   # as the process a resume from this state starts
         path = write_res_vector(self.work_dir / f"state_{state.steps:05d}.res", str(self.a_system), state.t, x_n)
         return replace(state, res_path=path, x_prev=x_prev, timers=dict(state.timers))
 
@@ -231,4 +250,4 @@ class PersistentEM3DStepper:
         """A stepper of the same kind on a changed model (its own process)."""
         return PersistentEM3DStepper(replace(self.model, **changes), self.work_dir, self.time_scheme,
                                      executable=self.executable, petsc_args=self.petsc_args, timeout=self.timeout,
-                                     verbosity=self.verbosity)
+                                     verbosity=self.verbosity, factor_reuse=self.factor_reuse)

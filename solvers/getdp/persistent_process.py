@@ -11,7 +11,8 @@ Protocol of one EM step (the Resolution ``EM_Persistent`` of ``decks/Lib_Persist
   read once per process from getdp's ``.pre`` (DofData #1).  ``DeformMesh`` moves the nodes.
 * getdp -> Python: text lines on the FIFO ``out.fifo`` (held open read-write here, so getdp's
   appending opens never block and a read never sees end-of-file): ``C k I U P Fx Fy`` per coil,
-  ``K k P Fx Fy`` per conductor, ``G W Vc Ic``, then ``D k t dt`` when the step is done; the
+  ``K k P Fx Fy`` per conductor, ``G W Vc Ic``, ``S factorised corrections residual`` (the step's
+  solve: :class:`FactorReuse`), then ``D k t dt`` when the step is done; the
   per-element force table ``elem_F.txt`` (and ``elem_P.txt``, ``elem_b.txt``, ``field_b.txt``,
   ``field_a.txt``, ``nodes_a.txt``, ``nodes_a_prev.txt`` on request) in the process's ``out/``.
 * Failure: the wait selects on the FIFO and on a pidfd of getdp: a getdp that dies is reported at
@@ -44,15 +45,53 @@ RESOLUTION = "EM_Persistent"
 PERSISTENT_LIB = (DECK_DIR / "Lib_Persistent.pro").resolve()
 #: message flags (the ``TimeImag`` of a message; Lib_Persistent.pro): per-element force, Joule
 #: power and B on the conductors, nodal state of x_n and x_{n-1}, stop, no globals (profiling),
-#: query (no step), redo (the last step again on a new geometry), whole-domain fields
+#: query (no step), redo (the last step again on a new geometry), whole-domain fields, factorise
+#: (this step factorises its own matrix: :class:`FactorReuse`)
 FLAG_ELEM, FLAG_COND_FIELDS, FLAG_STATE, FLAG_STOP = 1, 2, 4, 8
 FLAG_NO_GLOBALS, FLAG_QUERY, FLAG_REDO, FLAG_FIELDS = 16, 32, 64, 128
+FLAG_FACTORISE = 512
 #: ``PF_GlobalsSet``: coil I, U and circuit (1) + conductor Joule power (4) + energy from the sources (32)
 LEAN_GLOBALS = 37
 _ENXIO = 6
 #: dof types of getdp's ``.pre`` that are unknowns of the system (a number in the solution vector):
 #: unknown, unknown with an Init value
 _UNKNOWN_TYPES = (1, 5)
+
+
+@dataclass(frozen=True)
+class FactorReuse:
+    """Kept LU factors across the EM steps of a persistent process (``decks/Lib_PersistentStep.pro``).
+
+    Each step assembles its own system A x = b and solves it by GCR (a Krylov method: the iterates of
+    GMRES) right-preconditioned with the LU factors of an earlier step's matrix, from the linear
+    extrapolation of the last two states, until ``|b - A x| <= tol |b|`` (2-norms, the true residual
+    checked at the end): the converged x solves this step's system to that relative residual, not an
+    approximation of the physics. A step factorises its own matrix when there are no factors yet,
+    when the previous step needed more than 3/4 of ``max_corrections`` iterations, when
+    ``max_corrections`` did not converge, or when asked (:data:`FLAG_FACTORISE`).
+
+    Parameters
+    ----------
+    tol : float
+        Relative residual of a step solved with kept factors (-); 0: every step factorises (GetDP's
+        own Generate + Solve).
+    max_corrections : int
+        GCR iterations before a step factorises its own matrix (each keeps two vectors of the system's
+        size in getdp).
+    """
+
+    tol: float = 0.0
+    max_corrections: int = 12
+
+    def __post_init__(self) -> None:
+        if not 0.0 <= self.tol < 1.0:
+            raise ValueError(f"factor reuse tolerance must be in [0, 1), got {self.tol!r}")
+        if self.max_corrections < 1:
+            raise ValueError(f"factor reuse max_corrections must be >= 1, got {self.max_corrections!r}")
+
+    def numbers(self) -> dict[str, float]:
+        """The deck's ``-setnumber`` values."""
+        return {"PF_ReuseTol": float(self.tol), "PF_ReuseMaxIt": float(self.max_corrections)}
 
 
 def read_pre_dofs(path: Path, system: int) -> np.ndarray:
@@ -103,6 +142,9 @@ class StepAnswer:
     inductor current (A: the circuit state; equal to the capacitor's to round-off)
     (totals per radian in axisymmetry, per metre in planar, as getdp prints them, except where
     :class:`PersistentGetDPSolver` fills them in).  ``wall`` (s): Python's wait for the answer.
+    The solve of a step (``Lib_PersistentStep.pro``, kept factors): ``factorised`` (the step factorised
+    its own matrix), ``corrections`` (GCR iterations with kept factors), ``residual`` (their final
+    relative residual |b - A x| / |b|; 0 after a factorisation); a query answers 0, 0, 0.
     """
 
     k: int
@@ -112,6 +154,9 @@ class StepAnswer:
     glob: np.ndarray
     has_globals: bool
     wall: float
+    factorised: bool = False
+    corrections: int = 0
+    residual: float = 0.0
 
 
 class PersistentProcess:
@@ -393,6 +438,7 @@ class PersistentProcess:
         coil, cond, glob = [], [], np.zeros(4)
         k = t = None
         has_globals = False
+        solve = (False, 0, 0.0)
         for ln in lines:
             f = ln.split()
             if not f:
@@ -404,6 +450,8 @@ class PersistentProcess:
             elif f[0] == "G":
                 glob[:] = [float(x) for x in f[1:5]]
                 has_globals = True
+            elif f[0] == "S":
+                solve = (float(f[1]) != 0.0, int(float(f[2])), float(f[3]))
             elif f[0] == "D":
                 k, t = int(f[1]), float(f[2])
         if k != k_expected:
@@ -411,7 +459,7 @@ class PersistentProcess:
                              run_dir=self.run_dir, log_tail=log_tail(self.log_path))
         c = np.array([v for _, v in sorted(coil)]).reshape(-1, 5)
         kk = np.array([v for _, v in sorted(cond)]).reshape(-1, 3)
-        return StepAnswer(k, t, c, kk, glob, has_globals, wall)
+        return StepAnswer(k, t, c, kk, glob, has_globals, wall, *solve)
 
 
 def _kill(proc: subprocess.Popen) -> None:
