@@ -223,9 +223,7 @@ class GetDPLoad3D(LoadCapabilities):
                   "workpiece_joule_power_W": float(result.conductor_power[-1, i0]),
                   "getdp_force_z_N": fz, "device_force_z_N": s * self.device_axes[2] * fz, "device_impulse_z_Ns": self.impulse_device,
                   "em_mesh_min_quality": float(self.mover.last_min_quality),
-                  # a process per step factorises every step
-                  "em_factorisations": self.state.timers.get("getdp_factorisations", float(self.state.steps)),
-                  "em_corrections": self.state.timers.get("getdp_corrections", 0.0), **per_body}
+                  **self._solve_counts(), **per_body}
         for k, name in enumerate(self.coil_names):   # several coils: each one's current and power (whole device)
             values[f"{name}_current_A"] = float(result.coil_current[-1, k])
             values[f"{name}_joule_power_W"] = s * float(result.coil_power[-1, k])
@@ -235,6 +233,14 @@ class GetDPLoad3D(LoadCapabilities):
             self.peak_current, self._peak = abs(current), self.last_snapshot
             self._peak_conductors = self._conductor_snapshot(t1, current, x_em, result)
         return LoadStep(forces, integral, values)
+
+    def _solve_counts(self) -> dict[str, float]:
+        """The run's factorisations and kept-factor GCR iterations so far (history columns; the steppers count
+        them: :class:`~pulseform.solvers.getdp.persistent_process.FactorReuse`, a getdp process per EM step
+        factorises once)."""
+        tm = self.state.timers
+        return {"em_factorisations": tm.get("getdp_factorisations", 0.0),
+                "em_corrections": tm.get("getdp_corrections", 0.0)}
 
     @staticmethod
     def _index(body: ConductorBody3D) -> int:

@@ -222,8 +222,8 @@ class PersistentEM3DStepper:
         tm["getdp_pre_s"] += startup
         tm["getdp_loop_s"] += ans.wall
         tm["res_io_s"] += time.perf_counter() - c1
-        tm["getdp_factorisations"] = tm.get("getdp_factorisations", 0.0) + float(ans.factorised)
-        tm["getdp_corrections"] = tm.get("getdp_corrections", 0.0) + float(ans.corrections)
+        tm["getdp_factorisations"] = tm.get("getdp_factorisations", 0.0) + float(ans.factorised)   # (a state of
+        tm["getdp_corrections"] = tm.get("getdp_corrections", 0.0) + float(ans.corrections)   # an older checkpoint)
         return res, new
 
     # ------------------------------------------------------------------ state

@@ -77,7 +77,9 @@ class EM3DState:
     force_density: np.ndarray | None = None
     steps: int = 0
     timers: dict[str, float] = field(default_factory=lambda: {"getdp_process_s": 0.0, "getdp_pre_s": 0.0,
-                                                              "getdp_loop_s": 0.0, "res_io_s": 0.0})
+                                                              "getdp_loop_s": 0.0, "res_io_s": 0.0,
+                                                              "getdp_factorisations": 0.0,
+                                                              "getdp_corrections": 0.0})
 
 
 class EM3DStepper:
@@ -156,6 +158,7 @@ class EM3DStepper:
         tm["getdp_pre_s"] += res.wall_pre if np.isfinite(res.wall_pre) else 0.0
         tm["getdp_loop_s"] += res.wall_loop if np.isfinite(res.wall_loop) else 0.0
         tm["res_io_s"] += (c1_ - c0) + (time.perf_counter() - c2_)
+        tm["getdp_factorisations"] = tm.get("getdp_factorisations", 0.0) + 1.0   # system A, once per run
         return res, new
 
     def complete_state(self, state: EM3DState) -> EM3DState:
