@@ -63,7 +63,7 @@ class EM:
             "residual; docs/getdp.md, Kept factors); 0 factorises every step. History: em_factorisations, "
             "em_corrections")
     factor_reuse_max_corrections: int = spec(
-        12, ge=1, le=50, doc="GCR iterations before an EM step factorises its own matrix (and the next one does "
+        20, ge=1, le=50, doc="GCR iterations before an EM step factorises its own matrix (and the next one does "
                              "when a step needed more than 3/4 of them); each keeps two vectors in getdp")
     remesh_quality: float = spec(0.3, unit="-", gt=0.0, lt=1.0,
                                  doc="remesh the air when the worst element quality 4√3A/Σl² falls below this "

@@ -81,7 +81,7 @@ class FactorReuse:
     """
 
     tol: float = 0.0
-    max_corrections: int = 12
+    max_corrections: int = 20
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.tol < 1.0:

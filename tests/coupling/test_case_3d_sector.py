@@ -92,13 +92,11 @@ def test_coupled_3d_case_runs_through_the_driver(coarse_run):
 # coupled case through the CLI:
 # test_case_racetrack_remesh.py::test_sigint_after_the_remesh_then_resume_equals_the_uninterrupted_run; the 3D
 # loop's checkpoint/resume: test_loop_fake3d.py)
-@pytest.mark.slow
-@pytest.mark.getdp
-def test_sigint_then_resume_equals_the_uninterrupted_run(coarse_run, tmp_path):
-    ref = json.loads((coarse_run / "metrics.json").read_text())
-    out = tmp_path / "cut"
-    proc = subprocess.Popen([EXE, "run", CASE, "--out", str(out), "--quiet", *COARSE, "--set", "output.plots=false"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+def _interrupt_then_resume(out: Path, extra: list[str]) -> tuple[dict, dict]:
+    """SIGINT the coarse run once its first checkpoint exists (the signal lands in some EM step, most often
+    between output times), then ``--resume``; returns (the stopped run's, the resumed run's) metrics."""
+    argv = [EXE, "run", CASE, "--out", str(out), "--quiet", *COARSE, "--set", "output.plots=false", *extra]
+    proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     deadline = time.time() + 300
     while not (out / "checkpoint.npz").exists():   # past the first output time (3 steps)
         assert proc.poll() is None and time.time() < deadline, proc.stderr.read() if proc.poll() is not None else ""
@@ -110,18 +108,53 @@ def test_sigint_then_resume_equals_the_uninterrupted_run(coarse_run, tmp_path):
     assert len(lines) == 1 and "continue with --resume" in lines[0], err
     cut = json.loads((out / "metrics.json").read_text())
     assert cut["status"] == "interrupted" and 0 < cut["end_time_s"] < 3e-6
-    r = subprocess.run([EXE, "run", CASE, "--out", str(out), "--quiet", *COARSE, "--set", "output.plots=false",
-                        "--resume"], capture_output=True, text=True)
+    r = subprocess.run(argv + ["--resume"], capture_output=True, text=True)
     assert r.returncode == 0, r.stderr[-3000:]
-    got = json.loads((out / "metrics.json").read_text())
+    return cut, json.loads((out / "metrics.json").read_text())
+
+
+def _compared(ref: dict) -> list[str]:
+    return [k for k in ref if k not in TIMERS and not k.startswith(("em_getdp", "em_mesh", "em_transfer", "em_res"))
+            and k != "status"]
+
+
+@pytest.mark.slow
+@pytest.mark.getdp
+def test_sigint_then_resume_equals_the_uninterrupted_run(tmp_path):
+    """With a factorisation per EM step (em.factor_reuse_tol = 0) the resumed run is the uninterrupted one bit
+    for bit (reference (1)): every metric and the whole history."""
+    fresh = ["--set", "em.factor_reuse_tol=0"]
+    ref_dir = tmp_path / "ref"
+    assert main(["run", CASE, "--out", str(ref_dir), "--quiet", *COARSE, "--set", "output.plots=false", *fresh]) == 0
+    ref = json.loads((ref_dir / "metrics.json").read_text())
+    cut, got = _interrupt_then_resume(tmp_path / "cut", fresh)
     print(f"\ninterrupted at {cut['end_time_s']:.3g} s; resumed: deflection {got['sheet_max_uz_mm']!r} vs "
           f"{ref['sheet_max_uz_mm']!r} mm, impulse {got['force_impulse_z_Ns']!r} vs {ref['force_impulse_z_Ns']!r}")
-    for k, v in ref.items():
-        if k not in TIMERS and not k.startswith(("em_getdp", "em_mesh", "em_transfer", "em_res")) and k != "status":
-            assert got[k] == v, k   # bitwise
-    h_ref = np.loadtxt(coarse_run / "history.csv", delimiter=",", skiprows=1)
-    h_got = np.loadtxt(out / "history.csv", delimiter=",", skiprows=1)
+    for k in _compared(ref):
+        assert got[k] == ref[k], k   # bitwise
+    h_ref = np.loadtxt(ref_dir / "history.csv", delimiter=",", skiprows=1)
+    h_got = np.loadtxt(tmp_path / "cut" / "history.csv", delimiter=",", skiprows=1)
     assert h_got.shape == h_ref.shape and np.array_equal(h_got, h_ref)
+
+
+@pytest.mark.slow
+@pytest.mark.getdp
+def test_sigint_then_resume_with_kept_factors_equals_the_run_to_the_solve_tolerance(coarse_run, tmp_path):
+    """With kept LU factors (the default) a resume from a stop between output times starts a process that
+    factorises where the uninterrupted run kept older factors: both solve every EM step's system to a relative
+    residual of 1e-10 (docs/getdp.md, Kept factors), so the metrics agree to that residual amplified by the coupled
+    dynamics (measured 6.3e-9 relative, the largest von Mises stress; bound 1e-7, a tenth of the issue's 1e-6 for
+    the racetrack's metrics), not bitwise (a stop at
+    an output time resumes bitwise: test_case_racetrack_remesh.py). Not compared: the ledgers and the energy
+    balance's relative error (round-off and discretisation measures near 0, whose relative change says nothing)."""
+    ref = json.loads((coarse_run / "metrics.json").read_text())
+    cut, got = _interrupt_then_resume(tmp_path / "cut", [])
+    worst = max((abs(got[k] - ref[k]) / abs(ref[k]), k) for k in _compared(ref)
+                if isinstance(ref[k], float) and ref[k] != 0 and not any(w in k for w in ("ledger", "conservation", "error")))
+    print(f"\ninterrupted at {cut['end_time_s']:.3g} s; resumed vs uninterrupted: worst metric {worst[1]} "
+          f"{worst[0]:.1e} relative")
+    assert worst[0] < 1e-7, worst
+    assert got["em_steps"] == ref["em_steps"] and got["status"] == "ok"
 
 
 # slow (a repeated end-to-end run; covered in the default tier by `pulseform sweep` of a 3D case file:

@@ -281,9 +281,11 @@ def test_the_case_reproduces_the_study_reference(tmp_path):
     """``pulseform run cases/emf_racetrack_groove`` (60 µs, the design mesh: ~4-7 min) against
     studies/emf_racetrack_groove/reference/racetrack_metrics.json, the same model and mesh run by the study's own
     runner (studies/emf_racetrack_groove/racetrack_run.py): the case's builder meshes that design and the driver
-    lands its EM steps on the same output times (every 10 µs), so the runs are the same to round-off (observed:
-    <= 2e-14 relative, same EM and mechanical step counts). Figures the general path does not write are computed
-    from its history (10 digits: the tolerance 1e-9 holds them)."""
+    lands its EM steps on the same output times (every 10 µs), so with a factorisation per EM step the runs are the
+    same to round-off (observed: <= 2e-14 relative, same EM and mechanical step counts). The case runs with kept LU
+    factors (the default em.factor_reuse_tol = 1e-10: each EM step's system solved to that relative residual,
+    docs/getdp.md) and is held to the issue's bound, 1e-6 relative (measured: <= 5.6e-9 against a factorisation per
+    step). Figures the general path does not write are computed from its history (10 digits)."""
     ref = json.loads((REPO / "studies/emf_racetrack_groove/reference/racetrack_metrics.json").read_text())
     out = tmp_path / "run"
     r = subprocess.run([EXE, "run", CASE, "--out", str(out), "--quiet", "--set", "output.plots=false"],
@@ -301,7 +303,7 @@ def test_the_case_reproduces_the_study_reference(tmp_path):
             continue
         # the time of a freeze is NaN in both when neither froze (the study's json writes NaN, the case's null)
         value = float("nan") if got[k] is None else got[k]
-        assert value == pytest.approx(ref[k], rel=1e-9, nan_ok=True), k
+        assert value == pytest.approx(ref[k], rel=1e-6, nan_ok=True), k
     # the die's largest displacement: the study's is |u| of a node, the run's the largest component of each
     assert max(m[f"die_max_u{c}_mm"] for c in "xyz") <= ref["die_max_displacement_mm"] * (1 + 1e-9)
     assert max(m[f"die_max_u{c}_mm"] for c in "xyz") >= ref["die_max_displacement_mm"] / math.sqrt(3)

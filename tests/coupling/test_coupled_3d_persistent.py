@@ -6,7 +6,8 @@ step (``getdp_process="per_step"``, :class:`~pulseform.solvers.getdp.stepper3d.E
 Reference: the per-step path (an independent carry of the BDF2 state through files). Both run the same
 scheme on the same moved meshes and the mechanics receives their forces, so every history column must
 agree to round-off (issue 15: "both paths give the same results"; bound 1e-12 relative to each
-column's largest magnitude).
+column's largest magnitude). The persistent path factorises every step here (em.factor_reuse_tol = 0): kept
+factors solve each step to a 1e-10 residual, not to round-off (their test: tests/getdp/test_persistent3d.py).
 """
 from pathlib import Path
 
@@ -28,7 +29,7 @@ COLUMNS = ("force_z_N", "getdp_force_z_N", "coil_current_A", "capacitor_voltage_
 
 
 def _run(tmp_path: Path, name: str, getdp_process: str):
-    case, _ = load_case(CASE, MESH)
+    case, _ = load_case(CASE, MESH + ["em.factor_reuse_tol=0"])
     solver, _, load, options, _ = participants_3d(case, tmp_path / name)
     if getdp_process != "auto":
         load.close()
