@@ -14,6 +14,7 @@ import sys
 from pathlib import Path
 
 from . import __version__
+from .run.interrupt import StudyInterrupted
 
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
 
@@ -45,8 +46,9 @@ def _parser() -> argparse.ArgumentParser:
 
     sweep = sub.add_parser("sweep", help="run a case over a grid of parameter values",
                            description="Run CASE for every combination of the --param values (full grid); "
-                                       "each member is its own `pulseform run` process in OUT/<member>/. "
-                                       "Writes OUT/sweep.csv and OUT/plots/sweep_*.png.")
+                                       "each member a `pulseform run` in OUT/<member>/, forked from a process that holds the "
+                                       "libraries, without pictures unless --set output.plots=true (`pulseform plot "
+                                       "OUT/<member>` draws them). Writes OUT/sweep.csv and OUT/plots/sweep_*.png.")
     sweep.add_argument("case", metavar="CASE")
     sweep.add_argument("--param", metavar="KEY.PATH=V1,V2,...", action="append", required=True,
                        help="a swept key and its values (repeatable: full grid)")
@@ -61,7 +63,7 @@ def _parser() -> argparse.ArgumentParser:
 
     conv = sub.add_parser("converge", help="run a case on refined meshes and report the grid convergence index",
                           description="Run CASE on LEVELS meshes (every element size divided by RATIO per level; or "
-                                      "the EM step with --refine em_step), each its own `pulseform run` process in "
+                                      "the EM step with --refine em_step), each a `pulseform run` (as sweep's members) in "
                                       "OUT/level_<k>/, and compute per metric the observed order, the extrapolated "
                                       "value and the GCI of the three finest (Celik et al. 2008). Writes "
                                       "OUT/converge.json, OUT/report.md and OUT/plots/converge_*.png.")
@@ -219,11 +221,9 @@ def _check_geometry_3d(case, file: Path) -> list[str] | int:
     groups, tetrahedra, coils and conductors), or the exit code of a one-line refusal."""
     import tempfile
 
-    from .mesh.geometry3d import GeometryError, build_geometry3d
-
     from .case.guards import LimitExceeded, check_steps_of_meshes
     from .em.model3d import em_model3d
-    from .mesh.geometry3d import stable_step_estimate
+    from .mesh.geometry3d import GeometryError, build_geometry3d, stable_step_estimate
     from pulseform.solvers.getdp.solver3d import model_numbers
 
     with tempfile.TemporaryDirectory(prefix="pulseform_check3d_") as tmp:
@@ -483,9 +483,9 @@ def main(argv: list[str] | None = None) -> int:
                 "validate": _cmd_validate, "compare": _cmd_compare, "plot": _cmd_plot, "schema": _cmd_schema}
     try:
         return handlers[args.command](args)
-    except KeyboardInterrupt:
-        print("pulseform: interrupted", file=sys.stderr)
-        return 128 + signal.SIGINT
+    except (KeyboardInterrupt, StudyInterrupted) as exc:  # StudyInterrupted: a sweep / converge stopped by a signal
+        print(f"pulseform: {exc if isinstance(exc, StudyInterrupted) else 'interrupted'}", file=sys.stderr)
+        return 128 + getattr(exc, "signum", signal.SIGINT)
     except MemoryError:
         return _error("out of memory (coarsen the mesh, shorten the run or use a larger machine)", EXIT_FAILED)
     except Exception as exc:  # never a traceback on the terminal; PULSEFORM_TRACEBACK=1 shows it

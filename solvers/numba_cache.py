@@ -24,7 +24,7 @@ import sys
 import time
 from pathlib import Path
 
-__all__ = ["configure", "source_hash", "KEEP", "STALE_S"]
+__all__ = ["configure", "source_hash", "warm_up", "KEEP", "STALE_S"]
 
 log = logging.getLogger(__name__)
 
@@ -83,3 +83,15 @@ def configure(root: Path | None = None) -> Path | None:
     if numba is not None:
         numba.config.CACHE_DIR = str(folder)
     return folder
+
+
+def warm_up() -> float:
+    """numba's one-time set-up of its compiler targets (the typing and code-generation registries,
+    ~0.2-0.4 s, otherwise paid by the first compiled function a process loads from the cache), done by
+    compiling a trivial function; a process that forks workers (``orchestrator/run/warm.py``) calls it
+    once so that its children do not. Returns the seconds it took."""
+    t0 = time.perf_counter()
+    import numba
+
+    numba.njit(lambda x: x + 1.0)(1.0)
+    return time.perf_counter() - t0

@@ -260,6 +260,7 @@ class CaseDriver:
             if self.comm.size == 1 and interrupt.pending() is not None and s.time < stop * (1.0 - 1e-12):
                 interrupt.check()  # a step that reaches a milestone first writes its outputs
 
+        log.debug("loop from t = %.6g s", s.time)  # bench/sweep_split.py: set-up ends, the loop starts
         try:
             self._check_interrupt()  # a signal during set-up (meshing, deck check)
             with Progress(case.time.end, quiet=quiet or self.comm.rank != 0, desc=case.case.name) as bar:

@@ -35,6 +35,15 @@ class StopRequested(Exception):
         super().__init__(f"interrupted by {signal.Signals(signum).name}")
 
 
+class StudyInterrupted(Exception):
+    """A stop signal ended a study (sweep, converge) early: no member started after it, the running ones
+    stopped at their next safe point. ``signum``: the signal's number; the message one line for the user."""
+
+    def __init__(self, signum: int, message: str | None = None) -> None:
+        self.signum = signum
+        super().__init__(message or f"interrupted by {signal.Signals(signum).name}")
+
+
 def _handler(signum: int, frame) -> None:  # noqa: ARG001 - signal handler signature
     if signum == signal.SIGINT and _pending:
         raise KeyboardInterrupt  # a second Ctrl-C: stop at once

@@ -278,6 +278,8 @@ def _dispatch(case: Case, results: ResultsFolder, *, quiet: bool, resume: bool, 
     em_geometry = _early_em_geometry(case, comm)
     from .driver import run_case_loop
 
+    log.debug("driver imported")  # bench/sweep_split.py: DOLFINx's import (none in a warm member) ends here
+
     # the 3D renderer starts now: its imports and graphics start-up (~1 s) overlap the run
     fields = any(not b.rigid for b in case.bodies)  # rigid bodies write no field files to render
     renderer = _early_renderer() if case.output.plots and comm.rank == 0 and fields else None

@@ -34,8 +34,8 @@ import numpy as np
 from ..case.io import CaseError, load_case, read_toml, resolve_case_file
 from ..case.model import Case, FlatCoilSheet, PlanarCoilBlankDie, SolenoidTube
 from ..mech.pulses import exp_pulse, sin2_pulse
-from ..run.children import run_pulseform
 from ..run.results import ResultsFolder, read_metrics
+from ..run.warm import failure_report, member_run_argv, run_member_process, warm_pool
 from .compare3d import loading_3d, nominal_area, plot_profile
 from .compare_area import mesh_area
 from .validate import write_json
@@ -188,14 +188,14 @@ def _inline(v) -> str:
 
 # --------------------------------------------------------------------------- runs
 def _run(case: str, out: Path, sets: list[str]) -> dict[str, float]:
-    argv = ["run", case, "--out", str(out), "--force", "--quiet"]
-    for s in sets:
-        argv += ["--set", s]
+    """``pulseform run`` of one side (a study's member: :func:`..run.warm.member_run_argv`, no pictures of its
+    own unless ``sets`` say so); its metrics and its wall time as this process saw it."""
     t0 = time.perf_counter()
-    r = run_pulseform(argv)
+    r = run_member_process(member_run_argv(case, out, sets))
     if r.returncode != 0:
-        lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
-        raise CompareError(f"compare: run {out.name} failed (exit {r.returncode}): {lines[-1] if lines else ''}",
+        error, tail = failure_report(r, out)
+        log.warning("compare: run %s failed: %s%s", out.name, error, "".join(f"\n  {ln}" for ln in tail.splitlines()))
+        raise CompareError(f"compare: run {out.name} failed (exit {r.returncode}): {error}",
                            run_failed=r.returncode == 1)
     m = read_metrics(out / "metrics.json")
     m["process_wall_s"] = time.perf_counter() - t0
@@ -296,105 +296,106 @@ def run_compare(case_path: str, out: Path, *, overrides: list[str] | None = None
     results = ResultsFolder(out, force=force)
     root = results.root
 
-    log.info("compare: coupled run")
-    mc = _run(str(case_path), root / "coupled", overrides)
-    hc = _history(root / "coupled")
-    t = hc["time_s"]
-    sym = float(mc.get("symmetry_factor", 1.0)) if three_d else 1.0
-    if three_d and box is not None:  # the area the pressure run loads on the coupled run's mesh (compare3d.py)
-        area, s_vec = loading_3d(root / "coupled", work.name, box)
-        effective = float(np.linalg.norm(s_vec))
-        direction = s_vec / effective
-        comp = int(np.argmax(np.abs(direction)))
-        log.info("compare: loaded area %.6g cm^2 of the model (x %g: the device's %.6g cm^2), direction %s",
-                 area * 1e4, sym, area * sym * 1e4, np.array2string(direction, precision=4))
-    nominal = area
-    if not three_d and box is not None:  # the area the pressure run loads on this mesh (compare_area.py)
-        area = mesh_area(case, root / "coupled", work.name, box, area)
-    if direction is not None:   # p = F.S / |S|^2: the pressure that pushes the model's force along S
-        force_col = sum(direction[c] * hc[FORCE_COLUMNS[c]] for c in range(3)) * (area / effective)
-    else:
-        force_col = hc[FORCE_COLUMNS[comp]]
-    p_hist = sign * force_col / area
-    if given is None:
-        # each history row holds the force held over the EM step that ends there (the mean of GetDP's
-        # sub-steps): it belongs at the step's mid-time; the first row is t = 0 before any step
-        t_mid = 0.5 * (t[1:] + t[:-1])
-        par = _fit(case, hc, t, t_mid, p_hist[1:], pulse)
-        load = {"type": "pulse_sin2" if pulse == "sin2" else "pulse_exp", "body": work.name, "surface": box,
-                "amplitude": par["amplitude"], "t_end": case.time.end}
-        if pulse == "sin2":
-            load.update(beta=par["beta"], omega=par["omega"])
-            desc = (f"eq. (7) fitted: P0 = {par['amplitude'] / 1e6:.4g} MPa, beta = {par['beta']:.4g} 1/s, "
-                    f"omega = {par['omega']:.4g} rad/s on {area * 1e4:.4g} cm^2 (fit residual "
-                    f"{100 * par['fit_residual_rel']:.2g} % of the peak; {par['fit_method']})")
+    with warm_pool(root):  # both runs forked from one warm process: the second pays no imports
+        log.info("compare: coupled run")
+        mc = _run(str(case_path), root / "coupled", overrides)
+        hc = _history(root / "coupled")
+        t = hc["time_s"]
+        sym = float(mc.get("symmetry_factor", 1.0)) if three_d else 1.0
+        if three_d and box is not None:  # the area the pressure run loads on the coupled run's mesh (compare3d.py)
+            area, s_vec = loading_3d(root / "coupled", work.name, box)
+            effective = float(np.linalg.norm(s_vec))
+            direction = s_vec / effective
+            comp = int(np.argmax(np.abs(direction)))
+            log.info("compare: loaded area %.6g cm^2 of the model (x %g: the device's %.6g cm^2), direction %s",
+                     area * 1e4, sym, area * sym * 1e4, np.array2string(direction, precision=4))
+        nominal = area
+        if not three_d and box is not None:  # the area the pressure run loads on this mesh (compare_area.py)
+            area = mesh_area(case, root / "coupled", work.name, box, area)
+        if direction is not None:   # p = F.S / |S|^2: the pressure that pushes the model's force along S
+            force_col = sum(direction[c] * hc[FORCE_COLUMNS[c]] for c in range(3)) * (area / effective)
         else:
-            load.update(decay_time=par["decay_time"])
-            desc = (f"eq. (8) fitted: p0 = {par['amplitude'] / 1e6:.4g} MPa, T = {par['decay_time']:.4g} s on "
-                    f"{area * 1e4:.4g} cm^2 (fit residual {100 * par['fit_residual_rel']:.2g} % of the peak)")
-        loads = [load]
-        pulse_info = {"source": "fitted to the coupled run", "kind": pulse, **par, "area_m2": area * sym,
-                      "surface": box, "description": desc}
-        if not three_d and box is not None:
-            pulse_info["nominal_area_m2"] = nominal
-        if three_d:  # the device's area: the model's loaded triangles x the symmetry factor (compare3d.py)
-            pulse_info.update(model_area_m2=area, effective_area_m2=effective, direction=direction.tolist(),
-                              symmetry_factor=sym, body=work.name)
-            annulus = nominal_area(box, direction)
-            if annulus is not None:
-                pulse_info["nominal_area_m2"] = annulus
-            pulse_info["description"] = desc.replace(
-                f"on {area * 1e4:.4g} cm^2", f"on {area * sym * 1e4:.4g} cm^2 (the model's loaded triangles x {sym:.6g}"
-                + (f"; nominal {annulus * 1e4:.4g} cm^2)" if annulus is not None else ")"))
-    else:
-        loads = given
-        pulse_info = {"source": f"given: {pressure_case}", "loads": given, "area_m2": area,
-                      "description": f"[[loads]] of {pressure_case}"}
-    sets = overrides + ["coupling.load=pressure", f"loads={_inline(loads)}"]
-    try:
-        load_case(case_path, sets)
-    except CaseError as exc:
-        raise CompareError(f"compare: the pressure case is invalid: {exc}") from None
-    log.info("compare: pressure run")
-    mp = _run(str(case_path), root / "pressure", sets)
-    hp = _history(root / "pressure")
+            force_col = hc[FORCE_COLUMNS[comp]]
+        p_hist = sign * force_col / area
+        if given is None:
+            # each history row holds the force held over the EM step that ends there (the mean of GetDP's
+            # sub-steps): it belongs at the step's mid-time; the first row is t = 0 before any step
+            t_mid = 0.5 * (t[1:] + t[:-1])
+            par = _fit(case, hc, t, t_mid, p_hist[1:], pulse)
+            load = {"type": "pulse_sin2" if pulse == "sin2" else "pulse_exp", "body": work.name, "surface": box,
+                    "amplitude": par["amplitude"], "t_end": case.time.end}
+            if pulse == "sin2":
+                load.update(beta=par["beta"], omega=par["omega"])
+                desc = (f"eq. (7) fitted: P0 = {par['amplitude'] / 1e6:.4g} MPa, beta = {par['beta']:.4g} 1/s, "
+                        f"omega = {par['omega']:.4g} rad/s on {area * 1e4:.4g} cm^2 (fit residual "
+                        f"{100 * par['fit_residual_rel']:.2g} % of the peak; {par['fit_method']})")
+            else:
+                load.update(decay_time=par["decay_time"])
+                desc = (f"eq. (8) fitted: p0 = {par['amplitude'] / 1e6:.4g} MPa, T = {par['decay_time']:.4g} s on "
+                        f"{area * 1e4:.4g} cm^2 (fit residual {100 * par['fit_residual_rel']:.2g} % of the peak)")
+            loads = [load]
+            pulse_info = {"source": "fitted to the coupled run", "kind": pulse, **par, "area_m2": area * sym,
+                          "surface": box, "description": desc}
+            if not three_d and box is not None:
+                pulse_info["nominal_area_m2"] = nominal
+            if three_d:  # the device's area: the model's loaded triangles x the symmetry factor (compare3d.py)
+                pulse_info.update(model_area_m2=area, effective_area_m2=effective, direction=direction.tolist(),
+                                  symmetry_factor=sym, body=work.name)
+                annulus = nominal_area(box, direction)
+                if annulus is not None:
+                    pulse_info["nominal_area_m2"] = annulus
+                pulse_info["description"] = desc.replace(
+                    f"on {area * 1e4:.4g} cm^2", f"on {area * sym * 1e4:.4g} cm^2 (the model's loaded triangles x {sym:.6g}"
+                    + (f"; nominal {annulus * 1e4:.4g} cm^2)" if annulus is not None else ")"))
+        else:
+            loads = given
+            pulse_info = {"source": f"given: {pressure_case}", "loads": given, "area_m2": area,
+                          "description": f"[[loads]] of {pressure_case}"}
+        sets = overrides + ["coupling.load=pressure", f"loads={_inline(loads)}"]
+        try:
+            load_case(case_path, sets)
+        except CaseError as exc:
+            raise CompareError(f"compare: the pressure case is invalid: {exc}") from None
+        log.info("compare: pressure run")
+        mp = _run(str(case_path), root / "pressure", sets)
+        hp = _history(root / "pressure")
 
-    xc, uc, vmc = final_shape(root / "coupled", case.case.name, work.name)
-    xp, up, vmp = final_shape(root / "pressure", case.case.name, work.name)
-    metrics = {
-        "shape_distance_max_mm": 1e3 * shape_distance(xc, uc, xp, up),
-        "max_speed_coupled_m_s": mc[f"{work.name}_max_speed_m_s"],
-        "max_speed_pressure_m_s": mp[f"{work.name}_max_speed_m_s"],
-        "impulse_coupled_Ns": mc["force_impulse_Ns"],
-        "impulse_pressure_Ns": mp["force_impulse_Ns"],
-        "wall_time_coupled_s": mc["process_wall_s"],
-        "wall_time_pressure_s": mp["process_wall_s"],
-    }
-    metrics["max_speed_rel_diff"] = abs(metrics["max_speed_pressure_m_s"] / metrics["max_speed_coupled_m_s"] - 1)
-    metrics["impulse_rel_diff"] = abs(metrics["impulse_pressure_Ns"] / metrics["impulse_coupled_Ns"] - 1)
-    metrics["wall_time_ratio"] = metrics["wall_time_coupled_s"] / metrics["wall_time_pressure_s"]
-    for key in ("max_deflection_mm", "max_radial_displacement_mm") + tuple(f"{work.name}_max_u{c}_mm" for c in "xyz"):
-        if key in mc and key in mp:
-            metrics[f"{key}_coupled"], metrics[f"{key}_pressure"] = mc[key], mp[key]
-            metrics[f"{key}_rel_diff"] = abs(mp[key] / mc[key] - 1) if mc[key] else float("nan")
-    for die in dies:
-        vc = max(float(v.max()) for v in final_shape(root / "coupled", case.case.name, die)[2].values())
-        vp = max(float(v.max()) for v in final_shape(root / "pressure", case.case.name, die)[2].values())
-        metrics[f"die_von_mises_max_coupled_MPa"] = max(metrics.get("die_von_mises_max_coupled_MPa", 0), vc / 1e6)
-        metrics[f"die_von_mises_max_pressure_MPa"] = max(metrics.get("die_von_mises_max_pressure_MPa", 0), vp / 1e6)
-    if dies:
-        metrics["die_von_mises_rel_diff"] = abs(metrics["die_von_mises_max_pressure_MPa"]
-                                                / metrics["die_von_mises_max_coupled_MPa"] - 1)
-    report = {"case": str(case_path), "overrides": overrides, "workpiece": work.name, "dies": dies,
-              "pulse": pulse_info, "metrics": metrics,
-              "runs": {"coupled": str(root / "coupled"), "pressure": str(root / "pressure")},
-              "coupled_metrics": mc, "pressure_metrics": mp}
-    write_json(root / "compare.json", report)
-    try:
-        _plots(root, hc, hp, comp, sign * area, loads, (xc, uc), (xp, up), work.name, box, direction)
-    except Exception as exc:  # plots never decide the result
-        log.warning("compare plots failed: %s", exc)
-    return report
+        xc, uc, vmc = final_shape(root / "coupled", case.case.name, work.name)
+        xp, up, vmp = final_shape(root / "pressure", case.case.name, work.name)
+        metrics = {
+            "shape_distance_max_mm": 1e3 * shape_distance(xc, uc, xp, up),
+            "max_speed_coupled_m_s": mc[f"{work.name}_max_speed_m_s"],
+            "max_speed_pressure_m_s": mp[f"{work.name}_max_speed_m_s"],
+            "impulse_coupled_Ns": mc["force_impulse_Ns"],
+            "impulse_pressure_Ns": mp["force_impulse_Ns"],
+            "wall_time_coupled_s": mc["process_wall_s"],
+            "wall_time_pressure_s": mp["process_wall_s"],
+        }
+        metrics["max_speed_rel_diff"] = abs(metrics["max_speed_pressure_m_s"] / metrics["max_speed_coupled_m_s"] - 1)
+        metrics["impulse_rel_diff"] = abs(metrics["impulse_pressure_Ns"] / metrics["impulse_coupled_Ns"] - 1)
+        metrics["wall_time_ratio"] = metrics["wall_time_coupled_s"] / metrics["wall_time_pressure_s"]
+        for key in ("max_deflection_mm", "max_radial_displacement_mm") + tuple(f"{work.name}_max_u{c}_mm" for c in "xyz"):
+            if key in mc and key in mp:
+                metrics[f"{key}_coupled"], metrics[f"{key}_pressure"] = mc[key], mp[key]
+                metrics[f"{key}_rel_diff"] = abs(mp[key] / mc[key] - 1) if mc[key] else float("nan")
+        for die in dies:
+            vc = max(float(v.max()) for v in final_shape(root / "coupled", case.case.name, die)[2].values())
+            vp = max(float(v.max()) for v in final_shape(root / "pressure", case.case.name, die)[2].values())
+            metrics[f"die_von_mises_max_coupled_MPa"] = max(metrics.get("die_von_mises_max_coupled_MPa", 0), vc / 1e6)
+            metrics[f"die_von_mises_max_pressure_MPa"] = max(metrics.get("die_von_mises_max_pressure_MPa", 0), vp / 1e6)
+        if dies:
+            metrics["die_von_mises_rel_diff"] = abs(metrics["die_von_mises_max_pressure_MPa"]
+                                                    / metrics["die_von_mises_max_coupled_MPa"] - 1)
+        report = {"case": str(case_path), "overrides": overrides, "workpiece": work.name, "dies": dies,
+                  "pulse": pulse_info, "metrics": metrics,
+                  "runs": {"coupled": str(root / "coupled"), "pressure": str(root / "pressure")},
+                  "coupled_metrics": mc, "pressure_metrics": mp}
+        write_json(root / "compare.json", report)
+        try:
+            _plots(root, hc, hp, comp, sign * area, loads, (xc, uc), (xp, up), work.name, box, direction)
+        except Exception as exc:  # plots never decide the result
+            log.warning("compare plots failed: %s", exc)
+        return report
 
 
 def _fit(case: Case, hc, t, t_mid, p, pulse: str) -> dict[str, float]:

@@ -8,7 +8,8 @@ file ``geometry.mesh_size_factor`` alone, which multiplies all its sizes), so th
 meshes are refined alike everywhere, as the GCI procedure asks. With ``refine = "em_step"`` it
 divides ``coupling.n`` instead (the EM step, the mechanical step fixed) -- or, for a 3D geometry file
 with ``geometry.em_step`` (which sets n), that EM step (n = round(em_step / mechanical step) per level).
-Each level is its own ``pulseform run`` process (``jobs`` at a time, as the members of a sweep). For each metric it computes,
+Each level is a ``pulseform run`` of its own (``jobs`` at a time, forked from the study's warm process, without
+pictures of its own: as the members of a sweep, :mod:`..run.warm`). For each metric it computes,
 on the three finest levels, the observed order, the Richardson-extrapolated value and the GCI
 (Celik et al. 2008), and writes:
 
@@ -26,13 +27,13 @@ import json
 import logging
 import math
 import tomllib
-from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 from ..case.io import CaseError, case_to_toml, load_case
 from ..em.skin_depth import resolve_defaults
-from ..run.results import ResultsFolder
+from ..run.results import ResultsFolder, atomic_write_text
 from ..run.units import label
+from ..run.warm import StudyInterrupted, import_in_background, run_all, warm_pool
 from .gci import grid_convergence
 from .sweep import Member, run_member
 
@@ -126,14 +127,30 @@ def run_converge(case: str, out: Path, *, ratio: float = 2.0, levels: int = 3, r
             load_case(case, list(overrides or []) + m.overrides)
         except CaseError as exc:
             raise ConvergeError(f"level {m.index} (sizes / {ratio:g}^{m.index}): {exc}") from None
-    extra = [a for s in (overrides or []) for a in ("--set", s)]
-    with ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
-        list(pool.map(lambda m: run_member(case, m, extra), members))
+    sets = list(overrides or [])
+    try:
+        with warm_pool(results.root) as pool:
+            figures = import_in_background("matplotlib.pyplot", after=pool)  # for the study's figures at the end
+            run_all(lambda m: run_member(case, m, sets, pool=pool), members, jobs, pool)
+    except StudyInterrupted as exc:
+        write_report(results.root, summarise(members, ratio, metrics, refine), case)  # what the levels reached
+        raise StudyInterrupted(exc.signum, f"converge {exc}; levels: {results.root / 'converge.json'}") from None
+    except KeyboardInterrupt:
+        write_report(results.root, summarise(members, ratio, metrics, refine), case)
+        raise
+    finally:
+        results.release()
     report = summarise(members, ratio, metrics, refine)
-    (results.root / "converge.json").write_text(json.dumps(report, indent=1) + "\n")
-    (results.root / "report.md").write_text(report_markdown(report, case))
+    write_report(results.root, report, case)
+    figures.join()
     plot_study(report, results.plots)
     return report
+
+
+def write_report(root: Path, report: dict, case: str) -> None:
+    """``converge.json`` and ``report.md`` (atomically)."""
+    atomic_write_text(root / "converge.json", json.dumps(report, indent=1) + "\n")
+    atomic_write_text(root / "report.md", report_markdown(report, case))
 
 
 def summarise(members: list[Member], ratio: float, metrics: list[str] | None, refine: str) -> dict:
@@ -143,7 +160,7 @@ def summarise(members: list[Member], ratio: float, metrics: list[str] | None, re
     names = list(metrics) if metrics else [k for k in DEFAULT_METRICS if all(k in m.metrics for m in ok)]
     out = {"refine": refine, "ratio": ratio,
            "levels": [{"level": m.index, "h_rel": ratio ** -m.index, "overrides": m.values, "returncode": m.returncode,
-                       "error": m.error, "metrics": m.metrics} for m in members],
+                       "error": m.error, "log_tail": m.log_tail, "metrics": m.metrics} for m in members],
            "metrics": {}}
     fine = sorted(ok, key=lambda m: m.index)[-3:][::-1]  # finest first
     for name in names:

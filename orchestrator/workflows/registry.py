@@ -14,6 +14,7 @@ a minute or so here) and/or ``full``.
 from __future__ import annotations
 
 import csv
+import logging
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -21,8 +22,10 @@ from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
-from ..run.children import run_pulseform
 from ..run.results import read_metrics
+from ..run.warm import failure_report, member_run_argv, run_member_process
+
+log = logging.getLogger(__name__)
 
 if TYPE_CHECKING:
     from .gci_band import GciBand
@@ -192,14 +195,11 @@ def run_case_cli(case: str, work: Path, sets: list[str], folder: str = "run") ->
     """``pulseform run cases/<case>`` into ``work/<folder>`` (the user's path: case file, CLI, results
     folder); returns (metrics, history)."""
     out_dir = work / folder
-    argv = ["run", str(REPO / "cases" / case), "--out", str(out_dir), "--force", "--quiet",
-            "--set", "output.plots=false"]
-    for s in sets:
-        argv += ["--set", s]
-    r = run_pulseform(argv)
+    r = run_member_process(member_run_argv(REPO / "cases" / case, out_dir, sets))  # validate's warm process
     if r.returncode != 0:
-        lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
-        raise RuntimeError(f"pulseform run failed ({r.returncode}): {lines[-1] if lines else ''}")
+        error, tail = failure_report(r, out_dir)
+        log.warning("pulseform run %s failed: %s%s", out_dir, error, "".join(f"\n  {ln}" for ln in tail.splitlines()))
+        raise RuntimeError(f"pulseform run failed ({r.returncode}): {error}")
     return read_metrics(out_dir / "metrics.json"), np.genfromtxt(out_dir / "history.csv", delimiter=",", names=True)
 
 

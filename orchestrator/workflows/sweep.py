@@ -1,9 +1,10 @@
-"""Parameter sweeps: a full grid of ``--set`` overrides, each member a ``pulseform run`` process.
+"""Parameter sweeps: a full grid of ``--set`` overrides, each member a ``pulseform run`` of its own.
 
-Members run as separate processes (:func:`pulseform.orchestrator.run.children.run_pulseform`: the console script, no shell, ended when the sweep dies), ``jobs`` at
-a time, so a crash or a bad value fails that member alone. The table ``sweep.csv`` holds the
-parameters, the status and every metric; ``plots/`` shows the main metrics against each numeric
-parameter.
+Members run in processes forked from the study's warm process (:mod:`..run.warm`: the libraries
+imported once; each member its own process, ended when the sweep dies), ``jobs`` at a time, so a crash
+or a bad value fails that member alone; without their own pictures (``output.plots = false`` unless
+the sweep's ``--set`` says otherwise). The table ``sweep.csv`` holds the parameters, the status and
+every metric; ``plots/`` shows the main metrics against each numeric parameter.
 """
 
 from __future__ import annotations
@@ -11,14 +12,15 @@ from __future__ import annotations
 import itertools
 import logging
 import re
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..case.io import CaseError, load_case, parse_override
-from ..run.children import run_pulseform
+from ..run.children import member_env, run_pulseform
 from ..run.results import ResultsFolder, read_metrics, write_csv
 from ..run.units import label
+from ..run.warm import (StudyInterrupted, WarmPool, failure_report, import_in_background, member_run_argv, run_all,
+                        warm_pool)
 
 log = logging.getLogger(__name__)
 
@@ -41,6 +43,7 @@ class Member:
     error: str = ""
     metrics: dict[str, float] = field(default_factory=dict)
     worker: str = ""
+    log_tail: str = ""  # a failed member's last lines (its standard error, else its run.log)
 
     @property
     def overrides(self) -> list[str]:
@@ -96,19 +99,6 @@ def _slug(v: str) -> str:
     return re.sub(r"[^A-Za-z0-9.+-]+", "", v) or "x"
 
 
-def _child_env() -> dict[str, str]:
-    """The member's environment without the parent's Open MPI job variables: under mpirun, a
-    child ``pulseform run`` would otherwise try to join the sweep's MPI job instead of running as
-    its own singleton."""
-    import os
-
-    return {k: v for k, v in os.environ.items()
-            if not (k.startswith(("OMPI_", "PMIX_", "PMI_")) and k not in _KEEP_OMPI)}
-
-
-_KEEP_OMPI = ("OMPI_ALLOW_RUN_AS_ROOT", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM")
-
-
 def _worker_id() -> str:
     import os
     import socket
@@ -116,18 +106,17 @@ def _worker_id() -> str:
     return f"{socket.gethostname()}:{os.getpid()}"
 
 
-def run_member(case: str, member: Member, extra: list[str]) -> Member:
-    """Run one member as its own ``pulseform run`` process; fill in status and metrics."""
-    argv = ["run", case, "--out", str(member.out), "--quiet", "--force", *extra]
-    for s in member.overrides:
-        argv += ["--set", s]
-    r = run_pulseform(argv, env=_child_env())
+def run_member(case: str, member: Member, sets: list[str], pool: WarmPool | None = None) -> Member:
+    """Run one member (``pulseform run``, :func:`..run.warm.member_run_argv`: the study's ``sets``, then the
+    member's own) in a child of the warm process ``pool``, or as a process of its own; fill in status and metrics."""
+    argv = member_run_argv(case, member.out, [*sets, *member.overrides])
+    r = pool.run(argv) if pool is not None else run_pulseform(argv, env=member_env())
     member.returncode = r.returncode
     member.worker = _worker_id()
     if r.returncode != 0:
-        lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
-        member.error = lines[-1] if lines else f"exit code {r.returncode}"
-        log.warning("sweep member %d (%s) failed: %s", member.index, " ".join(member.overrides), member.error)
+        member.error, member.log_tail = failure_report(r, member.out)
+        log.warning("member %d (%s) failed: %s%s", member.index, " ".join(member.overrides), member.error,
+                    "".join(f"\n  {ln}" for ln in member.log_tail.splitlines()))
     metrics_file = member.out / "metrics.json"
     if metrics_file.is_file():
         member.metrics = read_metrics(metrics_file)
@@ -148,26 +137,42 @@ def run_sweep(case: str, params: list[str], out: Path, *, jobs: int = 1, force: 
         parse_override(f"{key}={values[0]}")
     results = ResultsFolder(out, force=force)
     todo = members(grid, results.root)
+    sets = list(overrides or [])
+    try:
+        if mpi:
+            _run_mpi(case, _runnable(case, todo, sets), sets)
+        else:
+            with warm_pool(results.root) as pool:  # its imports overlap the members' checks
+                figures = import_in_background("matplotlib.pyplot", after=pool)  # for the study's figures at the end
+                run_all(lambda m: run_member(case, m, sets, pool), _runnable(case, todo, sets), jobs, pool)
+            figures.join()
+        write_table(todo, grid, results.root / "sweep.csv")
+        plot_sweep(todo, grid, results.plots)
+    except StudyInterrupted as exc:
+        write_table(todo, grid, results.root / "sweep.csv")  # a stopped sweep: what its members reached
+        raise StudyInterrupted(exc.signum, f"sweep {exc}; table: {results.root / 'sweep.csv'}") from None
+    except KeyboardInterrupt:
+        write_table(todo, grid, results.root / "sweep.csv")
+        raise
+    finally:
+        results.release()
+    return todo
+
+
+def _runnable(case: str, todo: list[Member], sets: list[str]) -> list[Member]:
+    """The members whose case loads; the others fail here with the validation's message (exit code 2)."""
     runnable = []
     for m in todo:
         try:
-            load_case(case, list(overrides or []) + m.overrides)
+            load_case(case, sets + m.overrides)
             runnable.append(m)
         except CaseError as exc:
             m.returncode, m.error = 2, str(exc)
             log.warning("sweep member %d rejected: %s", m.index, exc)
-    extra = [a for s in (overrides or []) for a in ("--set", s)]
-    if mpi:
-        _run_mpi(case, runnable, extra)
-    else:
-        with ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
-            list(pool.map(lambda m: run_member(case, m, extra), runnable))
-    write_table(todo, grid, results.root / "sweep.csv")
-    plot_sweep(todo, grid, results.plots)
-    return todo
+    return runnable
 
 
-def _run_mpi(case: str, runnable: list[Member], extra: list[str]) -> None:
+def _run_mpi(case: str, runnable: list[Member], sets: list[str]) -> None:
     """Members through ``mpi4py.futures``: rank 0's side of an ``MPICommExecutor`` whose other ranks
     run :func:`serve_mpi_workers` (``mpirun -n N pulseform sweep ... --mpi``, N >= 2). Each worker
     returns its filled-in member. (``MPIPoolExecutor``'s dynamic spawning is not used: Open MPI 4.1
@@ -180,9 +185,9 @@ def _run_mpi(case: str, runnable: list[Member], extra: list[str]) -> None:
         raise ValueError("sweep --mpi needs mpirun with at least 2 ranks")
     log.info("sweep through mpi4py.futures: %d worker ranks", world - 1)
     with MPICommExecutor(MPI.COMM_WORLD, root=0) as pool:
-        done = list(pool.map(run_member, [case] * len(runnable), runnable, [extra] * len(runnable)))
+        done = list(pool.map(run_member, [case] * len(runnable), runnable, [sets] * len(runnable)))
     for m, d in zip(runnable, done):
-        m.returncode, m.error, m.metrics, m.worker = d.returncode, d.error, d.metrics, d.worker
+        m.returncode, m.error, m.metrics, m.worker, m.log_tail = d.returncode, d.error, d.metrics, d.worker, d.log_tail
 
 
 def serve_mpi_workers() -> None:

@@ -19,6 +19,7 @@ import numpy as np
 
 from .. import __version__
 from ..run.results import ResultsFolder, atomic_write_text
+from ..run.warm import warm_pool
 from .gci_band import judge
 from .info import collect
 from .registry import REGISTRY, REPO, RUNS, Analytic, CsvCurve, Entry, ReferenceError_, RunOutput
@@ -93,19 +94,20 @@ def run_validation(entries: list[Entry], out: Path, *, force: bool = False,
     """Run every run the entries need (once each), compare, write the report. Returns the outcomes."""
     results = ResultsFolder(out, force=force)
     runs: dict[str, RunOutput | Exception] = {}
-    for key in dict.fromkeys(k for e in entries for k in (e.run, e.reference_run) if k is not None):
-        work = results.root / "runs" / key
-        work.mkdir(parents=True, exist_ok=True)
-        t0 = time.perf_counter()
-        log.info("validation run %s ...", key)
-        try:
-            runs[key] = RUNS[key](work)
-            runs[key].wall_time_s = time.perf_counter() - t0
-            log.info("validation run %s done in %.1f s", key, runs[key].wall_time_s)
-        except Exception as exc:  # a failed run fails its entries, not the suite
-            log.warning("validation run %s failed: %s", key, exc)
-            (work / "error.txt").write_text(traceback.format_exc())
-            runs[key] = exc
+    with warm_pool(results.root):  # the runs through the CLI fork from one warm process (run/warm.py)
+        for key in dict.fromkeys(k for e in entries for k in (e.run, e.reference_run) if k is not None):
+            work = results.root / "runs" / key
+            work.mkdir(parents=True, exist_ok=True)
+            t0 = time.perf_counter()
+            log.info("validation run %s ...", key)
+            try:
+                runs[key] = RUNS[key](work)
+                runs[key].wall_time_s = time.perf_counter() - t0
+                log.info("validation run %s done in %.1f s", key, runs[key].wall_time_s)
+            except Exception as exc:  # a failed run fails its entries, not the suite
+                log.warning("validation run %s failed: %s", key, exc)
+                (work / "error.txt").write_text(traceback.format_exc())
+                runs[key] = exc
     outcomes = [_evaluate(e, runs[e.run], reference_root, results.plots,
                           runs[e.reference_run] if e.reference_run else None) for e in entries]
     _write_report(outcomes, runs, results.root)

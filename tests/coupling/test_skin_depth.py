@@ -154,7 +154,7 @@ def test_converge_starts_from_the_default(tmp_path, monkeypatch):
     δ/3 / 2^k (the levels' runs replaced by a stub: only the plan is checked here)."""
     from pulseform.orchestrator.workflows import converge
 
-    def stub(case, member, extra):
+    def stub(case, member, sets, pool=None):
         member.returncode, member.metrics = 0, {"force_peak_N": 1.0 + 0.1 * 0.5 ** member.index}
         return member
 

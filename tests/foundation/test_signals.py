@@ -104,19 +104,22 @@ def test_force_never_deletes_a_foreign_folder(tmp_path, capsys):
 
 
 def test_sweep_killed_its_members_stop_with_a_checkpoint(tmp_path):
-    """SIGKILL of `pulseform sweep`: the running member gets SIGTERM (parent-death signal), stops at
-    its next step with a checkpoint and status "interrupted", and does not live on as an orphan."""
+    """SIGKILL of `pulseform sweep`: its warm process dies with it (parent-death signal), the running member,
+    forked from that one, gets SIGTERM (parent-death signal), stops at its next step with a checkpoint and status
+    "interrupted", and does not live on as an orphan."""
     out = tmp_path / "sweep"
     sweep = subprocess.Popen([EXE, "sweep", *CORNER[2:3], *CORNER[4:], "--param", "time.end=1.6e-4,1.7e-4",
                               "--out", str(out)], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     first = lambda: sorted(out.glob("000_*"))  # noqa: E731
     _wait_for(lambda: first() and _stepping(first()[0]), sweep, what="the first member's first step")
     member_out = first()[0]
-    members = _children(sweep.pid, "pulseform")
-    assert len(members) == 1, members
+    warm = _children(sweep.pid, "pulseform-warm")
+    members = [p for w in warm for p in _children(w, "pulseform")]
+    assert len(warm) == 1 and len(members) == 1, (warm, members)
     sweep.kill()
     sweep.wait()
     _wait_for(lambda: not _alive(members[0]), timeout=60, what="the member to stop")
+    assert not _alive(warm[0])
     m = json.loads((member_out / "metrics.json").read_text())
     assert m["status"] == "interrupted" and (member_out / "checkpoint.npz").is_file(), m
 

@@ -1,0 +1,491 @@
+"""The runs of a study (``sweep``, ``converge``, ``validate``, ``compare``) in processes forked from one warm process.
+
+A cold ``pulseform run`` spends ~1.5 s on Python's start-up and the libraries' imports (DOLFINx ~0.9 s,
+PETSc's initialisation) before its physics. A study instead starts one **warm process** (:func:`serve`, as ``python -m
+pulseform.orchestrator.warm_server``: the CLI, the runner, DOLFINx, the compiled kernels and gmsh imported, MPI
+initialised as a singleton) and runs each member as ``pulseform.orchestrator.cli.main(argv)`` in a child
+**forked** from it:
+
+- each member has its own process state (a copy of the warm one: no state leaks from member to member)
+  and its own exit code; a crash (a signal, ``os._exit``) ends that child alone;
+- the warm process is single-threaded when it forks, and a serial run's MPI is a singleton without
+  transports (``FAST_MPI_ENV``: self only, isolated), so the fork after ``MPI_Init`` is safe here; a
+  member's results are bitwise those of ``pulseform run`` with the same ``--set`` values
+  (``tests/foundation/test_warm.py``);
+- a member's standard output and error come back with its exit code (:class:`subprocess.CompletedProcess`);
+- the members' own pictures are skipped (``output.plots = false`` before the study's own ``--set``
+  values, which may turn them on again); the study draws its own figures at the end, and ``pulseform
+  plot MEMBER_DIR`` draws a member's.
+
+The protocol: JSON lines. The study writes ``{"id": k, "argv": [...], "cwd": "..."}`` (a member) or
+``{"op": "term"}`` (SIGTERM to every running member); the warm process answers ``{"ready": s}`` once
+its imports are done, ``{"id": k, "started": pid}`` when it forked the member and ``{"id": k,
+"returncode": ..., "stdout": ..., "stderr": ...}`` when the member ended. Its own log (imports,
+members started and ended) is ``warm.log`` in the study's folder.
+
+Lifetime: the warm process dies with the study (parent-death signal SIGTERM), its members with it (SIGTERM:
+they stop at their next safe point with a checkpoint, as a cold member whose sweep died). It ignores SIGINT:
+a Ctrl-C reaches the members themselves (same process group). Its standard input closed with members still
+running, it sends them SIGTERM and waits for them. Not ready within ``READY_TIMEOUT_S``, it is killed; the
+members it had not started run cold (``children.run_pulseform``), those it had are reported failed.
+
+:func:`run_all` runs a study's members ``jobs`` at a time; a stop signal to the study (SIGINT, SIGTERM)
+starts no further member, asks the running ones to stop (SIGTERM through the warm process) and waits
+for their answers, so the study's table holds what they reached.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from concurrent.futures import FIRST_COMPLETED, Future, ThreadPoolExecutor, wait
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any, Callable, Iterable, Iterator, Mapping, Sequence
+
+from .children import failure_report, member_env, run_pulseform
+from .interrupt import StudyInterrupted
+
+log = logging.getLogger(__name__)
+
+__all__ = ["WarmPool", "warm_pool", "run_member_process", "run_all", "member_run_argv", "MEMBER_DEFAULTS",
+           "StudyInterrupted", "READY_TIMEOUT_S", "failure_report", "import_in_background", "serve"]
+
+#: ``--set`` values every member of a study gets before the study's own: no pictures per member (the
+#: study draws its figures; ``pulseform plot MEMBER_DIR`` draws a member's)
+MEMBER_DEFAULTS = ("output.plots=false",)
+#: seconds the warm process may take for its imports before it is killed (members then run cold)
+READY_TIMEOUT_S = 180.0
+#: what the warm process imports before it forks members (what a run without pictures imports; a member that
+#: draws, ``--set output.plots=true``, imports matplotlib itself)
+PRELOAD = ("pulseform.orchestrator.case.io", "pulseform.orchestrator.em.skin_depth",
+           "pulseform.orchestrator.run.runner", "pulseform.orchestrator.run.driver",
+           "pulseform.solvers.getdp.persistent", "pulseform.solvers.getdp.replay", "h5py", "cffi", "meshio._cxml", "gmsh")
+#: the module the warm process runs (:func:`serve` with the CLI's main)
+SERVER_MODULE = "pulseform.orchestrator.warm_server"
+#: the most of a member's standard output / error that comes back (its end)
+MAX_OUTPUT = 1 << 20
+_NAME, _SERVER_NAME, _PR_SET_NAME = b"pulseform", b"pulseform-warm", 15  # process names (ps, /proc/PID/comm)
+
+
+def member_run_argv(case: str, out: Path | str, sets: Iterable[str] = ()) -> list[str]:
+    """The ``pulseform`` arguments of a study's member: ``run CASE --out OUT --force --quiet`` with
+    :data:`MEMBER_DEFAULTS` and then ``sets`` as ``--set`` values (a later value of a key wins)."""
+    argv = ["run", str(case), "--out", str(out), "--force", "--quiet"]
+    for s in (*MEMBER_DEFAULTS, *sets):
+        argv += ["--set", s]
+    return argv
+
+
+# =============================================================================== the study's side
+class WarmPool:
+    """The study's handle on its warm process; :meth:`run` is thread-safe and runs members concurrently (the
+    callers decide how many: ``jobs`` threads). ``log_path``: the warm process's log (``warm.log``)."""
+
+    def __init__(self, log_path: Path | None = None, env: Mapping[str, str] | None = None) -> None:
+        self.env = dict(member_env() if env is None else env)
+        self.log_path = log_path
+        self._lock = threading.Lock()
+        self._futures: dict[int, Future] = {}
+        self._started: dict[int, int] = {}   # id -> the member's pid, once the warm process forked it
+        self._next = 0
+        self._gone: str | None = None        # why the warm process is no longer usable
+        self._stopping = False               # the study was stopped: no member starts any more
+        self.ready_s: float | None = None    # its imports' duration, once it said so
+        self.ready = threading.Event()       # set when its imports are done (or it is gone)
+        self.proc: subprocess.Popen | None = None
+        self._t0 = time.perf_counter()
+        try:
+            errors = open(log_path, "ab") if log_path is not None else subprocess.DEVNULL
+            try:  # from the calling (main) thread: the parent-death signal follows this thread
+                self.proc = subprocess.Popen([sys.executable, "-m", SERVER_MODULE], stdin=subprocess.PIPE,
+                                             stdout=subprocess.PIPE, stderr=errors, env=self.env,
+                                             preexec_fn=_server_preexec)
+            finally:
+                if errors is not subprocess.DEVNULL:
+                    errors.close()
+        except OSError as exc:
+            self._gone = f"could not start the warm process: {exc}"
+            self.ready.set()
+            log.warning("%s; members run as processes of their own", self._gone)
+            return
+        self._reader = threading.Thread(target=self._read, name="warm-reader", daemon=True)
+        self._reader.start()
+        self._watchdog = threading.Timer(READY_TIMEOUT_S, self._not_ready)
+        self._watchdog.daemon = True
+        self._watchdog.start()
+
+    # ------------------------------------------------------------------ members
+    def run(self, argv: Sequence[str]) -> subprocess.CompletedProcess:
+        """``pulseform ARGV`` in a child of the warm process (the current working folder); its exit code and
+        output. Falls back to a process of its own (:func:`.children.run_pulseform`) when the warm process is
+        gone before it started the member."""
+        fut: Future = Future()
+        with self._lock:  # the reader answers every future registered before it marks the process gone
+            if self._stopping:
+                return subprocess.CompletedProcess(list(argv), 128 + signal.SIGTERM, "",
+                                                   "pulseform: error: not started: the study was stopped\n")
+            if self._gone is None:
+                k = self._next
+                self._next += 1
+                self._futures[k] = fut
+                try:
+                    self._send({"id": k, "argv": list(argv), "cwd": os.getcwd()})
+                except OSError as exc:
+                    self._futures.pop(k, None)
+                    self._gone = f"the warm process does not read its requests ({exc})"
+                    fut.set_result(None)
+            else:
+                fut.set_result(None)
+        result = fut.result()
+        if result is not None:
+            return result
+        log.info("%s: pulseform %s as a process of its own", self._gone, " ".join(argv[:2]))
+        return run_pulseform(argv, env=self.env)
+
+    def stop_members(self) -> None:
+        """SIGTERM to every running member: each stops at its next safe point (a checkpoint) and answers; no
+        member starts after it."""
+        with self._lock:
+            self._stopping = True
+            if self._gone is None:
+                try:
+                    self._send({"op": "term"})
+                except OSError:
+                    pass
+
+    def close(self, timeout: float = 60.0) -> None:
+        """End the warm process (its standard input closes: it stops running members and exits)."""
+        if self.proc is None:
+            return
+        with self._lock:
+            self._gone = self._gone or "the warm process was closed"
+            if self._next == 0:  # it never had a member: no need to wait for its imports
+                self.proc.kill()
+            try:
+                self.proc.stdin.close()
+            except OSError:
+                pass
+        try:
+            self.proc.wait(timeout)
+        except subprocess.TimeoutExpired:
+            log.warning("the warm process did not end within %g s; killed", timeout)
+            self.proc.kill()
+            self.proc.wait()
+        self._watchdog.cancel()
+        self._reader.join(timeout=10)
+
+    # ------------------------------------------------------------------ internals
+    def _send(self, msg: dict) -> None:
+        self.proc.stdin.write((json.dumps(msg) + "\n").encode())
+        self.proc.stdin.flush()
+
+    def _not_ready(self) -> None:
+        if not self.ready.is_set() and self.proc is not None and self.proc.poll() is None:
+            log.warning("the warm process was not ready within %g s; killed (see %s)", READY_TIMEOUT_S, self.log_path)
+            self.proc.kill()
+
+    def _read(self) -> None:
+        """Dispatch the warm process's answers; at its end, answer what is left (:meth:`run` falls back for
+        members it never started, reports those it did as failed)."""
+        for line in self.proc.stdout:
+            try:
+                msg = json.loads(line)
+            except ValueError:
+                continue
+            if "ready" in msg:
+                self.ready_s = float(msg["ready"])
+                self.ready.set()
+                log.debug("warm process %d ready: imports %.2f s (%.2f s after the study started it)",
+                          self.proc.pid, self.ready_s, time.perf_counter() - self._t0)
+                continue
+            k = msg.get("id")
+            if "started" in msg:
+                with self._lock:
+                    self._started[k] = int(msg["started"])
+                continue
+            with self._lock:
+                fut = self._futures.pop(k, None)
+                self._started.pop(k, None)
+            if fut is not None:
+                fut.set_result(subprocess.CompletedProcess(msg.get("argv", []), int(msg["returncode"]),
+                                                           msg.get("stdout", ""), msg.get("stderr", "")))
+        code = self.proc.wait()
+        self.ready.set()
+        with self._lock:
+            why = f"the warm process ended (exit {code}{'' if self.log_path is None else f'; {self.log_path}'})"
+            self._gone = self._gone or why
+            left, started = dict(self._futures), dict(self._started)
+            self._futures.clear()
+            self._started.clear()
+        for k, fut in left.items():
+            if k in started:  # it ran there and got SIGTERM with the warm process: failed, with the reason
+                fut.set_result(subprocess.CompletedProcess([], 128 + signal.SIGTERM, "",
+                                                           f"pulseform: error: {why} while the member ran "
+                                                           f"(process {started[k]})\n"))
+            else:
+                fut.set_result(None)  # never started: run() starts it cold
+
+
+def _server_preexec() -> None:
+    from pulseform.solvers.getdp.runner import die_with_parent
+
+    die_with_parent(signal.SIGTERM)
+
+
+@contextmanager
+def warm_pool(folder: Path | None = None) -> Iterator[WarmPool]:
+    """A :class:`WarmPool` for the block (its log ``folder/warm.log``), the one :func:`run_member_process`
+    uses meanwhile; closed at the end. Call it from the main thread."""
+    global _current
+    pool = WarmPool(None if folder is None else Path(folder) / "warm.log")
+    previous, _current = _current, pool
+    try:
+        yield pool
+    finally:
+        _current = previous
+        pool.close()
+
+
+_current: WarmPool | None = None
+
+
+def run_member_process(argv: Sequence[str]) -> subprocess.CompletedProcess:
+    """``pulseform ARGV`` through the study's warm process (:func:`warm_pool`), or as a process of its own
+    outside one."""
+    pool = _current
+    return pool.run(argv) if pool is not None else run_pulseform(argv, env=member_env())
+
+
+def import_in_background(*modules: str, after: WarmPool | None = None) -> threading.Thread:
+    """Import ``modules`` in a thread of this process while it waits for its members (e.g. matplotlib for
+    the study's figures at the end, ~0.3 s), once the warm process ``after`` is ready (not competing with its
+    imports); join the thread before using them (``matplotlib.use`` on a half-imported pyplot fails)."""
+    def target() -> None:
+        import importlib
+
+        if after is not None:
+            after.ready.wait(READY_TIMEOUT_S)
+        for name in modules:
+            try:
+                importlib.import_module(name)
+            except Exception as exc:  # noqa: BLE001 - the figures' own import reports it later
+                log.debug("background import of %s: %s", name, exc)
+
+    thread = threading.Thread(target=target, name="study-imports", daemon=True)
+    thread.start()
+    return thread
+
+
+def run_all(fn: Callable[[Any], Any], items: Sequence[Any], jobs: int = 1, pool: WarmPool | None = None) -> None:
+    """``fn(item)`` for every item, ``jobs`` at a time (threads; ``fn`` runs a member and records its outcome).
+
+    A stop signal (SIGINT, SIGTERM; main thread) starts no further item, sends the running members SIGTERM
+    through ``pool`` (those that already had the terminal's SIGINT ignore it) and waits for them; then raises
+    :class:`StudyInterrupted`. A second SIGINT stops the waiting at once (KeyboardInterrupt)."""
+    from . import interrupt
+
+    if not items:
+        return
+    with interrupt.signals_stop_run():
+        ex = ThreadPoolExecutor(max_workers=max(1, jobs), thread_name_prefix="member")
+        try:  # an item whose turn comes after a stop signal is left alone
+            futures = [ex.submit(lambda item: None if interrupt.pending() else fn(item), item) for item in items]
+            todo = set(futures)
+            asked = False
+            while todo:
+                _, todo = wait(todo, timeout=0.1, return_when=FIRST_COMPLETED)
+                if interrupt.pending() is not None and not asked:
+                    asked = True
+                    log.warning("stop requested (%s): no further member starts; the running ones stop at their "
+                                "next safe point", signal.Signals(interrupt.pending()).name)
+                    for f in futures:
+                        f.cancel()
+                    if pool is not None:
+                        pool.stop_members()
+                    todo = {f for f in todo if not f.cancelled()}
+        finally:
+            ex.shutdown(wait=True, cancel_futures=True)
+        for f in futures:
+            if not f.cancelled():
+                f.result()  # an error of fn itself (not of a member) is the study's
+        signum = interrupt.pending()
+    if signum is not None:
+        raise StudyInterrupted(signum, f"interrupted by {signal.Signals(signum).name}: no further member started, the "
+                               "running ones stopped at their next safe point with a checkpoint (`pulseform run ... "
+                               "--resume` continues one)")
+
+
+# =============================================================================== the warm process
+def _set_name(name: bytes) -> None:
+    try:
+        import ctypes
+
+        ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_NAME, ctypes.c_char_p(name), 0, 0, 0)
+    except (OSError, AttributeError):
+        pass
+
+
+def _tail(path: str) -> str:
+    with open(path, "rb") as fh:
+        size = fh.seek(0, os.SEEK_END)
+        fh.seek(max(0, size - MAX_OUTPUT))
+        return fh.read().decode("utf-8", errors="replace")
+
+
+def _member(main: Callable[[list[str]], int], req: dict, out_path: str, err_path: str, close_fds: Sequence[int]) -> None:
+    """In the forked child: become a member (``main(argv)``: the CLI's) and leave with its exit code, without the
+    warm process's exit handlers (MPI_Finalize belongs to the warm process)."""
+    code = 1
+    try:
+        for fd in close_fds:
+            os.close(fd)
+        from pulseform.solvers.getdp.runner import die_with_parent
+
+        die_with_parent(signal.SIGTERM)   # the warm process ends: the member stops at its next safe point
+        _set_name(_NAME)
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+        os.chdir(req.get("cwd") or ".")
+        for fd, path, flags in ((0, os.devnull, os.O_RDONLY), (1, out_path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC),
+                                (2, err_path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC)):
+            new = os.open(path, flags, 0o600)
+            os.dup2(new, fd)
+            os.close(new)
+        code = main(list(req["argv"]))
+    except SystemExit as exc:  # argparse: usage errors
+        code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
+    except BaseException:  # noqa: BLE001 - whatever happens, the child leaves here
+        import traceback
+
+        traceback.print_exc()
+        code = 1
+    finally:
+        for stream in (sys.stdout, sys.stderr):
+            try:
+                stream.flush()
+            except Exception:  # noqa: BLE001
+                pass
+        os._exit(code & 0xFF if code >= 0 else 1)
+
+
+def serve(main: Callable[[list[str]], int], setup: Callable[[], None]) -> int:
+    """The warm process: imports, then members forked on request (each runs ``main(argv)``, the CLI's) until
+    its standard input ends. ``setup()`` (the CLI's console log) runs before the imports."""
+    import selectors
+    import tempfile
+
+    t0 = time.perf_counter()
+    proto_in, proto_out = os.dup(0), os.dup(1)   # the protocol's pipes, away from 0 / 1 (libraries print)
+    devnull = os.open(os.devnull, os.O_RDONLY)
+    os.dup2(devnull, 0)
+    os.close(devnull)
+    os.dup2(2, 1)
+    _set_name(_SERVER_NAME)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    from pulseform.solvers.getdp.runner import FAST_MPI_ENV
+
+    launched = any(k in os.environ for k in ("OMPI_COMM_WORLD_SIZE", "PMI_RANK", "PMIX_RANK", "PMI_SIZE"))
+    if not launched:  # as the console script's entry: a singleton's fast start
+        for key, value in FAST_MPI_ENV.items():
+            os.environ.setdefault(key, value)
+    import importlib
+
+    setup()  # before DOLFINx: FFCx's basicConfig() is then a no-op, as in the CLI
+    for h in logging.getLogger().handlers:  # warm.log: with the time
+        h.setFormatter(logging.Formatter("%(asctime)s %(levelname)s: %(message)s"))
+    logging.getLogger("pulseform").setLevel(logging.INFO)
+    for name in PRELOAD:
+        importlib.import_module(name)
+    from pulseform.solvers import warm_up_compiler
+
+    compiler = warm_up_compiler()  # the compiled kernels' one-time target set-up: not once per member
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # gmsh resets SIGINT at import
+    ready = time.perf_counter() - t0
+    log.info("warm process %d: imports %.2f s (of which the compiler's set-up %.2f s)", os.getpid(), ready, compiler)
+    out = os.fdopen(proto_out, "w", buffering=1)
+
+    def answer(msg: dict) -> None:
+        try:
+            out.write(json.dumps(msg) + "\n")
+        except (BrokenPipeError, OSError):  # the study is gone: the members stop with it (SIGTERM)
+            pass
+
+    answer({"ready": ready})
+    work = tempfile.mkdtemp(prefix="pulseform_warm_")
+    sel = selectors.DefaultSelector()
+    sel.register(proto_in, selectors.EVENT_READ, None)
+    running: dict[int, tuple] = {}   # pidfd -> (id, pid, out, err, start, argv)
+    buffer = b""
+    open_input = True
+    try:
+        while open_input or running:
+            for key, _ in sel.select():
+                if key.data is None:  # a request
+                    chunk = os.read(proto_in, 1 << 16)
+                    if not chunk:
+                        open_input = False
+                        sel.unregister(proto_in)
+                        for _, pid, *_ in running.values():
+                            _signal(pid, signal.SIGTERM)
+                        if running:
+                            log.info("the study closed the warm process: SIGTERM to %d running member(s)", len(running))
+                        continue
+                    buffer += chunk
+                    *lines, buffer = buffer.split(b"\n")
+                    for line in lines:
+                        if not line.strip():
+                            continue
+                        req = json.loads(line)
+                        if req.get("op") == "term":
+                            log.info("SIGTERM to %d running member(s)", len(running))
+                            for _, pid, *_ in running.values():
+                                _signal(pid, signal.SIGTERM)
+                            continue
+                        k = req["id"]
+                        paths = (os.path.join(work, f"{k}.out"), os.path.join(work, f"{k}.err"))
+                        sys.stdout.flush()
+                        sys.stderr.flush()
+                        pid = os.fork()
+                        if pid == 0:
+                            _member(main, req, *paths, close_fds=[proto_in, proto_out, sel.fileno()]
+                                    + [fd for fd in running])
+                        pidfd = os.pidfd_open(pid)
+                        running[pidfd] = (k, pid, *paths, time.perf_counter(), req["argv"])
+                        sel.register(pidfd, selectors.EVENT_READ, "member")
+                        log.info("member %d: process %d: pulseform %s", k, pid, " ".join(req["argv"]))
+                        answer({"id": k, "started": pid})
+                else:  # a member ended
+                    pidfd = key.fd
+                    sel.unregister(pidfd)
+                    k, pid, out_path, err_path, start, argv = running.pop(pidfd)
+                    os.close(pidfd)
+                    _, status = os.waitpid(pid, 0)
+                    code = os.waitstatus_to_exitcode(status)
+                    log.info("member %d: process %d ended: exit %d after %.2f s", k, pid, code,
+                             time.perf_counter() - start)
+                    msg = {"id": k, "returncode": code, "argv": argv,
+                           "stdout": _tail(out_path), "stderr": _tail(err_path)}
+                    for p in (out_path, err_path):
+                        os.unlink(p)
+                    answer(msg)
+    finally:
+        import shutil
+
+        shutil.rmtree(work, ignore_errors=True)
+    log.info("warm process %d: done", os.getpid())
+    logging.shutdown()
+    os._exit(0)  # without the libraries' exit handlers (~0.5 s: nothing here needs them, no member is left)
+
+
+def _signal(pid: int, sig: int) -> None:
+    try:
+        os.kill(pid, sig)
+    except ProcessLookupError:
+        pass
