@@ -20,7 +20,8 @@ def sector_compare(tmp_path_factory):
     naming the second), run once per session (by the first xdist worker that asks: tests/worker_share.py): (out folder, compare.json, the finished
     process). Its coupled run ``out / "coupled"`` is the coarse sector's ``pulseform run`` (the same command
     and overrides, plus --force), shared by tests/workflow/test_compare_3d.py and
-    tests/coupling/test_case_3d_sector.py."""
+    tests/coupling/test_case_3d_sector.py. A study's members skip their pictures unless asked
+    (orchestrator/run/warm.py): ``output.plots=true`` here, the driver's pictures are tested on this run."""
     import json
     import subprocess
     import sys
@@ -29,7 +30,7 @@ def sector_compare(tmp_path_factory):
     from worker_share import once
 
     argv = [str(Path(sys.executable).with_name("pulseform")), "compare", str(CASE), "--out", "c",
-            *sets(COARSE), "--surface", SURFACE, "--body", "sheet", "--fail-if", "impulse_rel_diff>1e9",
+            *sets(COARSE + ["output.plots=true"]), "--surface", SURFACE, "--body", "sheet", "--fail-if", "impulse_rel_diff>1e9",
             "--fail-if", "wall_time_coupled_s>0.001"]
 
     def make(folder: Path) -> dict:
