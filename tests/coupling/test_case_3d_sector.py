@@ -150,7 +150,8 @@ def test_sigint_then_resume_with_kept_factors_equals_the_run_to_the_solve_tolera
     ref = json.loads((coarse_run / "metrics.json").read_text())
     cut, got = _interrupt_then_resume(tmp_path / "cut", [])
     worst = max((abs(got[k] - ref[k]) / abs(ref[k]), k) for k in _compared(ref)
-                if isinstance(ref[k], float) and ref[k] != 0 and not any(w in k for w in ("ledger", "conservation", "error")))
+                if isinstance(ref[k], float) and ref[k] != 0
+                and not any(w in k for w in ("ledger", "conservation", "error")))
     print(f"\ninterrupted at {cut['end_time_s']:.3g} s; resumed vs uninterrupted: worst metric {worst[1]} "
           f"{worst[0]:.1e} relative")
     assert worst[0] < 1e-7, worst
