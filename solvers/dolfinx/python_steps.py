@@ -87,7 +87,8 @@ class PythonSteps:
 
     def _wall_reactions(self, n: str, b: Body, f: np.ndarray) -> None:
         """Cancel the force of wall nodes pushed into the wall (all of it for a sticking wall, the
-        normal part for a sliding one) and record the reaction per unit area (Pa)."""
+        normal part for a sliding one) and record their normal forces (N) for
+        :meth:`_wall_pressures`."""
         for iw, w in enumerate(self.rigid_walls):
             on = self._wall_out[iw].get("on", {}).get(n)
             if on is None:
@@ -100,9 +101,21 @@ class PythonSteps:
                 f[rows] -= fn[push, None] * nrm
             else:
                 f[rows] = 0.0
-            area = b.wall_tributary_areas(b.x, nrm)
-            area = b.complete_nodal(np.repeat(area[:, None], b.gdim, axis=1))[:, 0]
-            self._wall_out[iw].setdefault("p", {})[n] = (rows, -fn[push] / area[rows])
+            self._wall_out[iw].setdefault("fn", {})[n] = (rows, fn[push])
+
+    def _wall_pressures(self) -> None:
+        """The wall reactions per unit area (Pa) of the nodes the last step found pushed into the
+        walls, on the current positions (those of that step's forces). The steps do not need them:
+        they are computed once, at the end of :meth:`advance` (the boundary areas cost as much as
+        the rest of a 3D step's Python part); the same bits as at every step."""
+        for iw, w in enumerate(self.rigid_walls):
+            out = self._wall_out[iw]
+            nrm = w.unit_normal()
+            for n, (rows, fn) in out.pop("fn", {}).items():
+                b = self.bodies[n]
+                area = b.wall_tributary_areas(b.x, nrm)
+                area = b.complete_nodal(np.repeat(area[:, None], b.gdim, axis=1))[:, 0]
+                out.setdefault("p", {})[n] = (rows, -fn / area[rows])
 
     def _compute_forces(self, dt: float, update_state: bool) -> None:
         dtc = np.inf
