@@ -117,18 +117,24 @@ class PythonSteps:
                 area = b.complete_nodal(np.repeat(area[:, None], b.gdim, axis=1))[:, 0]
                 out.setdefault("p", {})[n] = (rows, -fn / area[rows])
 
+    def _body_kernel(self, name: str):
+        """The element kernel of body ``name`` (the solver's ``_kernel``; the 3D solver's
+        threaded kernel is one per body)."""
+        return self._kernel
+
     def _compute_forces(self, dt: float, update_state: bool) -> None:
         dtc = np.inf
         ftot = {}
         for n, b in self.bodies.items():
             f = np.zeros_like(b.x)
             acc = np.zeros(3)
+            kernel = self._body_kernel(n)
             if update_state:
-                d = self._kernel(b.cells, b.x, b.v, dt, self._prm[n], b.cell_stress, b.eps_p,
-                                 f, acc, self._work)
+                d = kernel(b.cells, b.x, b.v, dt, self._prm[n], b.cell_stress, b.eps_p, f, acc,
+                           self._work)
             else:
-                d = self._kernel(b.cells, b.x, np.zeros_like(b.v), 0.0, self._prm[n],
-                                 b.cell_stress.copy(), b.eps_p.copy(), f, acc, self._work)
+                d = kernel(b.cells, b.x, np.zeros_like(b.v), 0.0, self._prm[n],
+                           b.cell_stress.copy(), b.eps_p.copy(), f, acc, self._work)
             if acc[2] >= 0:
                 e = int(acc[2])
                 raise RuntimeError(f"t={self.time:.6e} s: cell {e} of body {n!r} inverted "
