@@ -17,7 +17,8 @@ import numpy as np
 
 from .element_math import (BATCH, FM, P_B1, P_B2, P_BULK, P_G, P_H, P_K, P_RATE, P_RHO, P_SY0,
                            ROW)
-from .tet_kernel import _NO_SHARED, add_tet_forces, tet_chunk_scalar, tet_chunk_size
+from .tet_kernel import (_NO_SHARED, add_tet_forces, clear_tet_forces, store_tet_forces,
+                         tet_chunk_scalar, tet_chunk_size)
 
 __all__ = ["tet_step_batched", "tet_chunk_batched", "tet_chunk", "TET_WORK_SIZE"]
 
@@ -279,9 +280,6 @@ def tet_chunk_batched(cells, x, v, dt, prm, stress, eps_p, f_int, fe, shared, e0
             if out[19 * ROW + j] == 0.0:
                 if bad < 0.0:
                     bad = e
-                if store:
-                    for r in range(12):
-                        fe[e, r] = 0.0
                 continue
             for r in range(6):
                 stress[e, r] = out[r * ROW + j]
@@ -291,14 +289,36 @@ def tet_chunk_batched(cells, x, v, dt, prm, stress, eps_p, f_int, fe, shared, e0
                 dtmin = dte
             wp += out[17 * ROW + j]
             wv += out[18 * ROW + j]
-            add_tet_forces(f_int, fe, shared, e, cells[e, 0], cells[e, 1], cells[e, 2], cells[e, 3],
-                           out[7 * ROW + j], out[8 * ROW + j], out[9 * ROW + j],
-                           out[10 * ROW + j], out[11 * ROW + j], out[12 * ROW + j],
-                           out[13 * ROW + j], out[14 * ROW + j], out[15 * ROW + j])
+        # the forces in a loop of their own per case (one loop with both cases ran 1.5x slower)
+        if store:
+            _store_batch(cells, out, s, n, f_int, fe, shared)
+        else:
+            for j in range(n):
+                if out[19 * ROW + j] != 0.0:
+                    e = s + j
+                    add_tet_forces(f_int, cells[e, 0], cells[e, 1], cells[e, 2], cells[e, 3],
+                                   out[7 * ROW + j], out[8 * ROW + j], out[9 * ROW + j],
+                                   out[10 * ROW + j], out[11 * ROW + j], out[12 * ROW + j],
+                                   out[13 * ROW + j], out[14 * ROW + j], out[15 * ROW + j])
     part[0] = dtmin
     part[1] = wp
     part[2] = wv
     part[3] = bad
+
+
+@numba.njit(cache=True, error_model="numpy", fastmath=FM)
+def _store_batch(cells, out, s, n, f_int, fe, shared):
+    """The forces of the batch's cells ``s:s+n`` for the threaded kernel
+    (:func:`.tet_kernel.store_tet_forces`; an inverted cell stores none)."""
+    for j in range(n):
+        e = s + j
+        if out[19 * ROW + j] == 0.0:
+            clear_tet_forces(fe, shared, e, cells[e, 0], cells[e, 1], cells[e, 2], cells[e, 3])
+            continue
+        store_tet_forces(f_int, fe, shared, e, cells[e, 0], cells[e, 1], cells[e, 2], cells[e, 3],
+                         out[7 * ROW + j], out[8 * ROW + j], out[9 * ROW + j],
+                         out[10 * ROW + j], out[11 * ROW + j], out[12 * ROW + j],
+                         out[13 * ROW + j], out[14 * ROW + j], out[15 * ROW + j])
 
 
 @numba.njit(cache=True, error_model="numpy", fastmath=FM)
