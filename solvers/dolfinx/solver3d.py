@@ -25,7 +25,7 @@ from .soft_plane import SoftPlaneSpec, soft_plane_forces
 from .solver import ExplicitSolver
 from .element_math import P_RATE
 from .tet_batch import TET_WORK_SIZE, tet_step_batched
-from .tet_kernel import MODE_SOLID, tet_critical_dt, tet_step
+from .tet_kernel import MODE_SOLID, tet_chunk_size, tet_critical_dt, tet_step
 from .tet_threads import TetThreadArrays, tet_step_threaded, tet_thread_arrays
 
 __all__ = ["ExplicitSolver3D"]
@@ -87,8 +87,9 @@ class ExplicitSolver3D(ExplicitSolver):
         The communicator of every body's mesh.
     threads : int
         Threads of the element kernel (default 1; at most the cores numba sees): each body's cells
-        in fixed chunks, a chunk per task (:mod:`.tet_threads`). The results do not depend on it:
-        they are the one-thread results bit for bit. Under MPI each rank uses that many.
+        in fixed chunks, a chunk per task (:mod:`.tet_threads`; a body of one chunk, at most
+        :data:`.tet_kernel.TET_CHUNK` cells, runs on one). The results do not depend on it: they
+        are the one-thread results bit for bit. Under MPI each rank uses that many.
     """
 
     def __init__(self, bodies: Sequence[BodySpec], rigid_walls: Sequence[RigidWallSpec] = (),
@@ -122,9 +123,11 @@ class ExplicitSolver3D(ExplicitSolver):
         self._prm = {n: pack_parameters(b.material, MODE_SOLID, 1.0, bulk_linear, bulk_quadratic,
                                         bulk_viscosity)
                      for n, b in self.bodies.items()}
+        # a body of one chunk (tet_chunk_size) keeps the serial kernel: the same bits, no threads
         self._kernels: dict[str, Callable] = {
             n: _ThreadedKernel(tet_thread_arrays(b.cells, len(b.x)), self.threads)
-            if self.threads > 1 else _tet_kernel for n, b in self.bodies.items()}
+            if self.threads > 1 and tet_chunk_size(len(b.cells)) < len(b.cells) else _tet_kernel
+            for n, b in self.bodies.items()}
         self._cidx = {n: np.flatnonzero(b.constrained_mask().ravel())
                       for n, b in self.bodies.items()}
         self.contact_pairs = tuple(contact_pairs)
