@@ -156,9 +156,9 @@ class MechanicsTable:
     gravity: Vec2 = spec((0.0, 0.0), unit="m/s^2", doc="acceleration of gravity on the rigid bodies, e.g. "
                          "[0, -9.81] (deformable bodies: not applied)")
     threads: int = spec(1, unit="-", ge=1,
-                        doc="threads of the element kernel in serial GetDP-coupled runs (results do not depend on it; "
-                            "worth it from ~10^4 cells, on cores no other process uses; mechanics-only pulse runs "
-                            "keep one thread)")
+                        doc="threads of the element kernel in serial GetDP-coupled runs and in 3D runs (results do not "
+                            "depend on it; worth it from ~10^4 cells in 2D, from 65 536 tetrahedra in a 3D body, on cores "
+                            "no other process uses; 2D mechanics-only pulse runs keep one thread)")
 
     def validate(self, path: str) -> None:
         cores = os.cpu_count() or 1

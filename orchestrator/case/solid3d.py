@@ -132,8 +132,6 @@ def _validate_3d(case) -> None:
         raise SchemaError("geometry.type", f"got {got!r}; a coupled 3D case is a 3D geometry file: geometry.type = "
                           "'geometry_3d' with its file and role map (docs/geometry3d.md)")
     mo = case.mechanics
-    if mo.threads != 1:
-        raise SchemaError("mechanics.threads", f"got {mo.threads}; the 3D element kernel runs on one thread: 1")
     if tuple(mo.gravity) != (0.0, 0.0):
         raise SchemaError("mechanics.gravity", "a 2D-only key (rigid bodies of coupled cases); remove it")
     if case.loads and case.case.kind != "coupled":  # a coupled 3D geometry file's: .geometry3d

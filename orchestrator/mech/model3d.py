@@ -55,4 +55,4 @@ def build_solver_3d(case: Case, comm: MPI.Comm = MPI.COMM_WORLD,
     mo = case.mechanics
     return ExplicitSolver3D(bodies, rigid_walls=walls, contact_pairs=pairs, cfl=case.time.cfl, bulk_viscosity=mo.bulk_viscosity,
                             bulk_linear=mo.bulk_viscosity_linear, bulk_quadratic=mo.bulk_viscosity_quadratic,
-                            comm=comm)
+                            comm=comm, threads=mo.threads)

@@ -109,7 +109,7 @@ def participants_3d(case: Case, work: Path):
     mo = case.mechanics
     solver = ExplicitSolver3D(specs, contact_pairs=pairs, cfl=case.time.cfl, bulk_viscosity=mo.bulk_viscosity,
                               bulk_linear=mo.bulk_viscosity_linear, bulk_quadratic=mo.bulk_viscosity_quadratic,
-                              comm=MPI.COMM_SELF) if specs else None
+                              comm=MPI.COMM_SELF, threads=mo.threads) if specs else None
     dt_mech = solver.stable_time_step() if solver is not None else rigid_step_3d(case)
     if case.coupling.load == "pressure":   # the same meshes and loop, the [[loads]] pulses instead of getdp
         load = pressure_pulses_3d(case, solver, float(model.symmetry_factor), Path(g.file).name)

@@ -87,7 +87,8 @@ class PythonSteps:
 
     def _wall_reactions(self, n: str, b: Body, f: np.ndarray) -> None:
         """Cancel the force of wall nodes pushed into the wall (all of it for a sticking wall, the
-        normal part for a sliding one) and record the reaction per unit area (Pa)."""
+        normal part for a sliding one) and record their normal forces (N) for
+        :meth:`_wall_pressures`."""
         for iw, w in enumerate(self.rigid_walls):
             on = self._wall_out[iw].get("on", {}).get(n)
             if on is None:
@@ -100,9 +101,26 @@ class PythonSteps:
                 f[rows] -= fn[push, None] * nrm
             else:
                 f[rows] = 0.0
-            area = b.wall_tributary_areas(b.x, nrm)
-            area = b.complete_nodal(np.repeat(area[:, None], b.gdim, axis=1))[:, 0]
-            self._wall_out[iw].setdefault("p", {})[n] = (rows, -fn[push] / area[rows])
+            self._wall_out[iw].setdefault("fn", {})[n] = (rows, fn[push])
+
+    def _wall_pressures(self) -> None:
+        """The wall reactions per unit area (Pa) of the nodes the last step found pushed into the
+        walls, on the current positions (those of that step's forces). The steps do not need them:
+        they are computed once, at the end of :meth:`advance` (the boundary areas cost as much as
+        the rest of a 3D step's Python part); the same bits as at every step."""
+        for iw, w in enumerate(self.rigid_walls):
+            out = self._wall_out[iw]
+            nrm = w.unit_normal()
+            for n, (rows, fn) in out.pop("fn", {}).items():
+                b = self.bodies[n]
+                area = b.wall_tributary_areas(b.x, nrm)
+                area = b.complete_nodal(np.repeat(area[:, None], b.gdim, axis=1))[:, 0]
+                out.setdefault("p", {})[n] = (rows, -fn / area[rows])
+
+    def _body_kernel(self, name: str):
+        """The element kernel of body ``name`` (the solver's ``_kernel``; the 3D solver's
+        threaded kernel is one per body)."""
+        return self._kernel
 
     def _compute_forces(self, dt: float, update_state: bool) -> None:
         dtc = np.inf
@@ -110,12 +128,13 @@ class PythonSteps:
         for n, b in self.bodies.items():
             f = np.zeros_like(b.x)
             acc = np.zeros(3)
+            kernel = self._body_kernel(n)
             if update_state:
-                d = self._kernel(b.cells, b.x, b.v, dt, self._prm[n], b.cell_stress, b.eps_p,
-                                 f, acc, self._work)
+                d = kernel(b.cells, b.x, b.v, dt, self._prm[n], b.cell_stress, b.eps_p, f, acc,
+                           self._work)
             else:
-                d = self._kernel(b.cells, b.x, np.zeros_like(b.v), 0.0, self._prm[n],
-                                 b.cell_stress.copy(), b.eps_p.copy(), f, acc, self._work)
+                d = kernel(b.cells, b.x, np.zeros_like(b.v), 0.0, self._prm[n],
+                           b.cell_stress.copy(), b.eps_p.copy(), f, acc, self._work)
             if acc[2] >= 0:
                 e = int(acc[2])
                 raise RuntimeError(f"t={self.time:.6e} s: cell {e} of body {n!r} inverted "

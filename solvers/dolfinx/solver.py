@@ -169,6 +169,7 @@ class ExplicitSolver(PythonSteps):
         self._wall_out = [dict() for _ in self.rigid_walls]
         self._dt_crit = self._initial_dt_crit()
         self._compute_forces(0.0, update_state=False)
+        self._wall_pressures()
         self._E0 = self._stored_energy()
         self._contact_stored0 = self._contact_stored
 
@@ -252,8 +253,14 @@ class ExplicitSolver(PythonSteps):
         if self._block is not None:
             self._run_block(dt, int(n_steps))
             return
-        for _ in range(int(n_steps)):
-            self._step(dt, self._fext)
+        done = False
+        try:
+            for _ in range(int(n_steps)):
+                self._step(dt, self._fext)
+            done = True
+        finally:
+            if done or self.comm.size == 1:  # a collective under MPI (ghost exchange of areas)
+                self._wall_pressures()
 
     @property
     def compiled(self):

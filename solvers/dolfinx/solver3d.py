@@ -10,8 +10,9 @@ contact passes: node to triangle face between bodies (:mod:`.contact3d`) and sof
 from __future__ import annotations
 
 import logging
-from typing import Sequence
+from typing import Callable, Sequence
 
+import numba
 import numpy as np
 from mpi4py import MPI
 
@@ -24,7 +25,8 @@ from .soft_plane import SoftPlaneSpec, soft_plane_forces
 from .solver import ExplicitSolver
 from .element_math import P_RATE
 from .tet_batch import TET_WORK_SIZE, tet_step_batched
-from .tet_kernel import MODE_SOLID, tet_critical_dt, tet_step
+from .tet_kernel import MODE_SOLID, tet_chunk_size, tet_critical_dt, tet_step
+from .tet_threads import TetThreadArrays, tet_step_threaded, tet_thread_arrays
 
 __all__ = ["ExplicitSolver3D"]
 
@@ -39,6 +41,19 @@ def _tet_kernel(cells, x, v, dt, prm, stress, eps_p, f_int, acc, work):
     return tet_step(cells, x, v, dt, prm, stress, eps_p, f_int, acc, work)
 
 
+class _ThreadedKernel:
+    """The 3D element kernel of one body on ``threads`` threads (:mod:`.tet_threads`): the
+    serial kernel's signature, the serial bits."""
+
+    def __init__(self, arrays: TetThreadArrays, threads: int):
+        self.arrays = arrays
+        self.threads = threads
+
+    def __call__(self, cells, x, v, dt, prm, stress, eps_p, f_int, acc, work=None) -> float:
+        numba.set_num_threads(self.threads)
+        return tet_step_threaded(cells, x, v, dt, prm, stress, eps_p, f_int, acc, self.arrays)
+
+
 class ExplicitSolver3D(ExplicitSolver):
     """Explicit elastic-plastic dynamics of 3D bodies (P1 tetrahedra) with rigid walls.
 
@@ -50,7 +65,7 @@ class ExplicitSolver3D(ExplicitSolver):
     ``load_state_dict`` and ``kinetic_damping`` are those of :class:`~.solver.ExplicitSolver`, with
     (N, 3) nodal arrays (forces in N, positions in m, velocities in m/s) and stresses
     [xx, yy, zz, xy, yz, xz] in Pa. The steps run in the Python step loop around the compiled
-    element kernel (serial and MPI alike).
+    element kernel (serial and MPI alike); the kernel may run on several threads (``threads``).
 
     Parameters
     ----------
@@ -70,20 +85,28 @@ class ExplicitSolver3D(ExplicitSolver):
         Its coefficients (defaults 0.06 and 1.2).
     comm : MPI communicator
         The communicator of every body's mesh.
+    threads : int
+        Threads of the element kernel (default 1; at most the cores numba sees): each body's cells
+        in fixed chunks, a chunk per task (:mod:`.tet_threads`; a body of one chunk, at most
+        :data:`.tet_kernel.TET_CHUNK` cells, runs on one). The results do not depend on it: they
+        are the one-thread results bit for bit. Under MPI each rank uses that many.
     """
 
     def __init__(self, bodies: Sequence[BodySpec], rigid_walls: Sequence[RigidWallSpec] = (),
                  soft_planes: Sequence[SoftPlaneSpec] = (),
                  contact_pairs: Sequence[ContactPairSpec] = (), cfl: float = 0.5,
                  bulk_viscosity: bool = True, bulk_linear: float = 0.06,
-                 bulk_quadratic: float = 1.2, comm=MPI.COMM_WORLD):
+                 bulk_quadratic: float = 1.2, comm=MPI.COMM_WORLD, threads: int = 1):
         if not 0 < cfl <= 1:
             raise ValueError(f"cfl must be in (0, 1], got {cfl}")
         if bulk_linear < 0 or bulk_quadratic < 0:
             raise ValueError("bulk viscosity coefficients must be >= 0")
         if not bodies:
             raise ValueError("need at least one body")
-        self.threads = 1
+        if int(threads) != threads or not 1 <= threads <= numba.config.NUMBA_NUM_THREADS:
+            raise ValueError(f"threads must be an integer from 1 to {numba.config.NUMBA_NUM_THREADS} "
+                             f"(the cores numba sees), got {threads}")
+        self.threads = int(threads)
         self.formulation = "3d"
         self.mode = MODE_SOLID
         self.cfl = float(cfl)
@@ -100,6 +123,11 @@ class ExplicitSolver3D(ExplicitSolver):
         self._prm = {n: pack_parameters(b.material, MODE_SOLID, 1.0, bulk_linear, bulk_quadratic,
                                         bulk_viscosity)
                      for n, b in self.bodies.items()}
+        # a body of one chunk (tet_chunk_size) keeps the serial kernel: the same bits, no threads
+        self._kernels: dict[str, Callable] = {
+            n: _ThreadedKernel(tet_thread_arrays(b.cells, len(b.x)), self.threads)
+            if self.threads > 1 and tet_chunk_size(len(b.cells)) < len(b.cells) else _tet_kernel
+            for n, b in self.bodies.items()}
         self._cidx = {n: np.flatnonzero(b.constrained_mask().ravel())
                       for n, b in self.bodies.items()}
         self.contact_pairs = tuple(contact_pairs)
@@ -130,12 +158,16 @@ class ExplicitSolver3D(ExplicitSolver):
         self._init_start()
         self._block = None
         log.info("ExplicitSolver3D: %d bodies, %d cells, %d walls, %d soft planes, %d contact "
-                 "pairs, stable dt %.4g s",
+                 "pairs, %d thread(s), stable dt %.4g s",
                  len(self.bodies), self.comm.allreduce(sum(len(b.cells) for b in self.bodies.values())),
                  len(self.rigid_walls), len(self.soft_planes), len(self.contact_pairs),
-                 self.stable_time_step())
+                 self.threads, self.stable_time_step())
 
     _element_dt = staticmethod(tet_critical_dt)
+
+    def _body_kernel(self, name: str) -> Callable:
+        """The element kernel of body ``name``: the serial one, or on ``threads`` threads."""
+        return self._kernels[name]
 
     def stable_time_step(self) -> float:
         """Stable step of the current configuration: cfl x smallest element critical step, s.

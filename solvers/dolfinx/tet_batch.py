@@ -15,9 +15,12 @@ import math
 import numba
 import numpy as np
 
-from .element_math import BATCH, FM, P_B1, P_B2, P_BULK, P_G, P_H, P_K, P_RHO, P_SY0, ROW
+from .element_math import (BATCH, FM, P_B1, P_B2, P_BULK, P_G, P_H, P_K, P_RATE, P_RHO, P_SY0,
+                           ROW)
+from .tet_kernel import (_NO_SHARED, add_tet_forces, clear_tet_forces, store_tet_forces,
+                         tet_chunk_scalar, tet_chunk_size)
 
-__all__ = ["tet_step_batched", "TET_WORK_SIZE"]
+__all__ = ["tet_step_batched", "tet_chunk_batched", "tet_chunk", "TET_WORK_SIZE"]
 
 #: scratch rows in: positions of the 4 nodes (0-11: x0 y0 z0 x1 ...), velocities (12-23),
 #: stress (24-29), plastic strain (30)
@@ -25,8 +28,9 @@ _IN = 31
 #: scratch rows out: stress (0-5), plastic strain (6), forces of nodes 1-3 (7-15), critical step
 #: (16), plastic and bulk-viscous dissipation (17, 18), status (19: 1 done, 0 inverted)
 _OUT = 20
-#: float64 length of the scratch of :func:`tet_step_batched`
-TET_WORK_SIZE = (_IN + _OUT) * ROW
+#: float64 length of the scratch of :func:`tet_step_batched` (the batches', then 4 for a chunk's
+#: results)
+TET_WORK_SIZE = (_IN + _OUT) * ROW + 4
 
 
 @numba.njit(cache=True, error_model="numpy", fastmath=FM)
@@ -218,19 +222,45 @@ def _batch(inp, out, n, dt, prm):
 @numba.njit(cache=True, error_model="numpy", fastmath=FM)
 def tet_step_batched(cells, x, v, dt, prm, stress, eps_p, f_int, acc, work=None):
     """:func:`.tet_kernel.tet_step` in vectorised batches (same arguments, same results to the
-    bit; rate-independent materials only). ``work``: float64 scratch of :data:`TET_WORK_SIZE`
-    (allocated per call if not given)."""
+    bit; rate-independent materials only), in the same chunks (:func:`tet_chunk_batched`).
+    ``work``: float64 scratch of :data:`TET_WORK_SIZE` (allocated per call if not given)."""
     if work is None or work.shape[0] < TET_WORK_SIZE:
         work = np.empty(TET_WORK_SIZE)
-    inp = work[:_IN * ROW]
-    out = work[_IN * ROW:(_IN + _OUT) * ROW]
+    part = work[TET_WORK_SIZE - 4:TET_WORK_SIZE]
+    no_fe = work[:0].reshape(0, 12)
     nc = cells.shape[0]
     dtmin = 1e300
     wp = 0.0
     wv = 0.0
     acc[2] = -1.0
-    for s in range(0, nc, BATCH):
-        n = min(BATCH, nc - s)
+    cs = tet_chunk_size(nc)
+    for e0 in range(0, nc, cs):
+        tet_chunk_batched(cells, x, v, dt, prm, stress, eps_p, f_int, no_fe, _NO_SHARED, e0,
+                          min(nc, e0 + cs), work, part)
+        dtmin = min(dtmin, part[0])
+        wp += part[1]
+        wv += part[2]
+        if part[3] >= 0.0 and acc[2] < 0.0:
+            acc[2] = part[3]
+    acc[0] += wp
+    acc[1] += wv
+    return dtmin
+
+
+@numba.njit(cache=True, error_model="numpy", fastmath=FM)
+def tet_chunk_batched(cells, x, v, dt, prm, stress, eps_p, f_int, fe, shared, e0, e1, work, part):
+    """Cells ``e0:e1`` of :func:`tet_step_batched`: the arguments of
+    :func:`.tet_kernel.tet_chunk_scalar` and ``work`` (its scratch, at least
+    ``TET_WORK_SIZE - 4`` float64); the same results to the bit (rate-independent materials)."""
+    inp = work[:_IN * ROW]
+    out = work[_IN * ROW:(_IN + _OUT) * ROW]
+    store = fe.shape[0] > 0
+    dtmin = 1e300
+    wp = 0.0
+    wv = 0.0
+    bad = -1.0
+    for s in range(e0, e1, BATCH):
+        n = min(BATCH, e1 - s)
         for j in range(n):
             e = s + j
             for k in range(4):
@@ -248,8 +278,8 @@ def tet_step_batched(cells, x, v, dt, prm, stress, eps_p, f_int, acc, work=None)
         for j in range(n):
             e = s + j
             if out[19 * ROW + j] == 0.0:
-                if acc[2] < 0.0:
-                    acc[2] = e
+                if bad < 0.0:
+                    bad = e
                 continue
             for r in range(6):
                 stress[e, r] = out[r * ROW + j]
@@ -259,31 +289,44 @@ def tet_step_batched(cells, x, v, dt, prm, stress, eps_p, f_int, acc, work=None)
                 dtmin = dte
             wp += out[17 * ROW + j]
             wv += out[18 * ROW + j]
-            f1x = out[7 * ROW + j]
-            f1y = out[8 * ROW + j]
-            f1z = out[9 * ROW + j]
-            f2x = out[10 * ROW + j]
-            f2y = out[11 * ROW + j]
-            f2z = out[12 * ROW + j]
-            f3x = out[13 * ROW + j]
-            f3y = out[14 * ROW + j]
-            f3z = out[15 * ROW + j]
-            i0 = cells[e, 0]
-            i1 = cells[e, 1]
-            i2 = cells[e, 2]
-            i3 = cells[e, 3]
-            f_int[i0, 0] -= f1x + f2x + f3x
-            f_int[i0, 1] -= f1y + f2y + f3y
-            f_int[i0, 2] -= f1z + f2z + f3z
-            f_int[i1, 0] += f1x
-            f_int[i1, 1] += f1y
-            f_int[i1, 2] += f1z
-            f_int[i2, 0] += f2x
-            f_int[i2, 1] += f2y
-            f_int[i2, 2] += f2z
-            f_int[i3, 0] += f3x
-            f_int[i3, 1] += f3y
-            f_int[i3, 2] += f3z
-    acc[0] += wp
-    acc[1] += wv
-    return dtmin
+        # the forces in a loop of their own per case (one loop with both cases ran 1.5x slower)
+        if store:
+            _store_batch(cells, out, s, n, f_int, fe, shared)
+        else:
+            for j in range(n):
+                if out[19 * ROW + j] != 0.0:
+                    e = s + j
+                    add_tet_forces(f_int, cells[e, 0], cells[e, 1], cells[e, 2], cells[e, 3],
+                                   out[7 * ROW + j], out[8 * ROW + j], out[9 * ROW + j],
+                                   out[10 * ROW + j], out[11 * ROW + j], out[12 * ROW + j],
+                                   out[13 * ROW + j], out[14 * ROW + j], out[15 * ROW + j])
+    part[0] = dtmin
+    part[1] = wp
+    part[2] = wv
+    part[3] = bad
+
+
+@numba.njit(cache=True, error_model="numpy", fastmath=FM)
+def _store_batch(cells, out, s, n, f_int, fe, shared):
+    """The forces of the batch's cells ``s:s+n`` for the threaded kernel
+    (:func:`.tet_kernel.store_tet_forces`; an inverted cell stores none)."""
+    for j in range(n):
+        e = s + j
+        if out[19 * ROW + j] == 0.0:
+            clear_tet_forces(fe, shared, e, cells[e, 0], cells[e, 1], cells[e, 2], cells[e, 3])
+            continue
+        store_tet_forces(f_int, fe, shared, e, cells[e, 0], cells[e, 1], cells[e, 2], cells[e, 3],
+                         out[7 * ROW + j], out[8 * ROW + j], out[9 * ROW + j],
+                         out[10 * ROW + j], out[11 * ROW + j], out[12 * ROW + j],
+                         out[13 * ROW + j], out[14 * ROW + j], out[15 * ROW + j])
+
+
+@numba.njit(cache=True, error_model="numpy", fastmath=FM)
+def tet_chunk(cells, x, v, dt, prm, stress, eps_p, f_int, fe, shared, e0, e1, work, part):
+    """Cells ``e0:e1`` by the solver's kernel for the material: :func:`tet_chunk_batched`
+    (rate-independent), else :func:`.tet_kernel.tet_chunk_scalar` (a rate law); same arguments."""
+    if prm[P_RATE] == 0:
+        tet_chunk_batched(cells, x, v, dt, prm, stress, eps_p, f_int, fe, shared, e0, e1, work,
+                          part)
+    else:
+        tet_chunk_scalar(cells, x, v, dt, prm, stress, eps_p, f_int, fe, shared, e0, e1, part)

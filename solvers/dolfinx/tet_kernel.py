@@ -29,11 +29,27 @@ import numpy as np
 from .element_math import (FM, P_B1, P_B2, P_BULK, P_G, P_H, P_K, P_R1, P_R2, P_RATE, P_RHO,
                            P_SY0, rate_factor_at)
 
-__all__ = ["tet_step", "tet_critical_dt", "tet_volumes", "tet_elastic_energy_density",
-           "tet_von_mises", "MODE_SOLID"]
+__all__ = ["tet_step", "tet_chunk_scalar", "tet_chunk_size", "TET_CHUNK", "add_tet_forces",
+           "store_tet_forces", "clear_tet_forces",
+           "tet_critical_dt", "tet_volumes", "tet_elastic_energy_density", "tet_von_mises",
+           "MODE_SOLID"]
 
 #: the kernel's mode value (``prm[P_MODE]``) for 3D solids (2D modes are 0-2)
 MODE_SOLID = 3
+_NO_SHARED = np.zeros(0, np.uint8)  # the serial kernels flag no node (a constant in compiled code)
+#: most cells per chunk of the 3D kernels (:func:`tet_chunk_size`)
+TET_CHUNK = 65536
+
+
+@numba.njit(cache=True)
+def tet_chunk_size(nc):
+    """Cells per chunk of a 3D body of ``nc`` cells: at most :data:`TET_CHUNK`, the chunks (all of
+    one size but the last) a power of two in number. A function of ``nc`` alone, so that the serial
+    and the threaded kernels (:mod:`.tet_threads`) cut the same chunks whatever the thread count."""
+    k = 1
+    while k * TET_CHUNK < nc:
+        k *= 2
+    return max(1, -(-nc // k))
 
 
 @numba.njit(cache=True, inline="always", error_model="numpy", fastmath=FM)
@@ -46,10 +62,86 @@ def _norm2(ax, ay, az):
     return ax * ax + ay * ay + az * az
 
 
+@numba.njit(cache=True, inline="always", error_model="numpy", fastmath=FM)
+def add_tet_forces(f_int, i0, i1, i2, i3, f1x, f1y, f1z, f2x, f2y, f2z, f3x, f3y, f3z):
+    """Add a cell's nodal forces (f_1, f_2, f_3; f_0 = -(f_1 + f_2 + f_3)), N, to the rows
+    ``i0..i3`` of ``f_int``."""
+    f_int[i0, 0] -= f1x + f2x + f3x
+    f_int[i0, 1] -= f1y + f2y + f3y
+    f_int[i0, 2] -= f1z + f2z + f3z
+    f_int[i1, 0] += f1x
+    f_int[i1, 1] += f1y
+    f_int[i1, 2] += f1z
+    f_int[i2, 0] += f2x
+    f_int[i2, 1] += f2y
+    f_int[i2, 2] += f2z
+    f_int[i3, 0] += f3x
+    f_int[i3, 1] += f3y
+    f_int[i3, 2] += f3z
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy", fastmath=FM)
+def store_tet_forces(f_int, fe, shared, e, i0, i1, i2, i3, f1x, f1y, f1z, f2x, f2y, f2z, f3x,
+                     f3y, f3z):
+    """:func:`add_tet_forces` for the threaded kernel (:mod:`.tet_threads`): the rows flagged in
+    ``shared`` (nodes whose cells lie in more than one chunk) are not touched; if the cell has one,
+    its forces are stored in ``fe[e]`` (12: f_1 + f_2 + f_3, subtracted at node 0, then f_1, f_2,
+    f_3; N) for the gather, which repeats these operations in cell order."""
+    h0 = shared[i0] != 0
+    h1 = shared[i1] != 0
+    h2 = shared[i2] != 0
+    h3 = shared[i3] != 0
+    if not (h0 or h1 or h2 or h3):
+        add_tet_forces(f_int, i0, i1, i2, i3, f1x, f1y, f1z, f2x, f2y, f2z, f3x, f3y, f3z)
+        return
+    s0x = f1x + f2x + f3x
+    s0y = f1y + f2y + f3y
+    s0z = f1z + f2z + f3z
+    fe[e, 0] = s0x
+    fe[e, 1] = s0y
+    fe[e, 2] = s0z
+    fe[e, 3] = f1x
+    fe[e, 4] = f1y
+    fe[e, 5] = f1z
+    fe[e, 6] = f2x
+    fe[e, 7] = f2y
+    fe[e, 8] = f2z
+    fe[e, 9] = f3x
+    fe[e, 10] = f3y
+    fe[e, 11] = f3z
+    if not h0:
+        f_int[i0, 0] -= s0x
+        f_int[i0, 1] -= s0y
+        f_int[i0, 2] -= s0z
+    if not h1:
+        f_int[i1, 0] += f1x
+        f_int[i1, 1] += f1y
+        f_int[i1, 2] += f1z
+    if not h2:
+        f_int[i2, 0] += f2x
+        f_int[i2, 1] += f2y
+        f_int[i2, 2] += f2z
+    if not h3:
+        f_int[i3, 0] += f3x
+        f_int[i3, 1] += f3y
+        f_int[i3, 2] += f3z
+
+
+@numba.njit(cache=True, error_model="numpy", fastmath=FM)
+def clear_tet_forces(fe, shared, e, i0, i1, i2, i3):
+    """The stored forces of an inverted cell ``e`` (none) for the threaded kernel's gather."""
+    if shared[i0] != 0 or shared[i1] != 0 or shared[i2] != 0 or shared[i3] != 0:
+        for r in range(12):
+            fe[e, r] = 0.0
+
+
 @numba.njit(cache=True, error_model="numpy", fastmath=FM)
 def tet_step(cells, x, v, dt, prm, stress, eps_p, f_int, acc, work=None):
     """Explicit update of all tetrahedra ``cells`` (same signature as
-    :func:`.kernels.element_step`; ``work`` is not used).
+    :func:`.kernels.element_step`; ``work`` is not used), in chunks of
+    :func:`tet_chunk_size` cells (:func:`tet_chunk_scalar`): the dissipation is summed per
+    chunk in cell order, then over the chunks in order, as the threaded kernel
+    (:mod:`.tet_threads`) does.
 
     Parameters
     ----------
@@ -78,6 +170,35 @@ def tet_step(cells, x, v, dt, prm, stress, eps_p, f_int, acc, work=None):
     float
         Smallest element critical time step (CFL 1, with the bulk-viscosity reduction), s.
     """
+    part = np.empty(4)
+    no_fe = np.empty((0, 12))
+    nc = cells.shape[0]
+    dtmin = 1e300
+    wp = 0.0
+    wv = 0.0
+    acc[2] = -1.0
+    cs = tet_chunk_size(nc)
+    for e0 in range(0, nc, cs):
+        tet_chunk_scalar(cells, x, v, dt, prm, stress, eps_p, f_int, no_fe, _NO_SHARED, e0,
+                         min(nc, e0 + cs), part)
+        dtmin = min(dtmin, part[0])
+        wp += part[1]
+        wv += part[2]
+        if part[3] >= 0.0 and acc[2] < 0.0:
+            acc[2] = part[3]
+    acc[0] += wp
+    acc[1] += wv
+    return dtmin
+
+
+@numba.njit(cache=True, error_model="numpy", fastmath=FM)
+def tet_chunk_scalar(cells, x, v, dt, prm, stress, eps_p, f_int, fe, shared, e0, e1, part):
+    """Cells ``e0:e1`` of :func:`tet_step` (the scalar kernel, any rate law): the arguments of
+    :func:`tet_step`; the nodal forces are added to ``f_int`` (:func:`add_tet_forces`), or, if
+    ``fe`` has rows (the threaded kernel), by :func:`store_tet_forces` with ``shared``; ``part`` (4,)
+    receives (smallest critical step s, plastic and bulk-viscous dissipation J summed in cell
+    order, first inverted cell or -1). An inverted cell keeps its stress and plastic strain and
+    gives no force."""
     rho = prm[P_RHO]
     G = prm[P_G]
     K = prm[P_K]
@@ -95,8 +216,9 @@ def tet_step(cells, x, v, dt, prm, stress, eps_p, f_int, acc, work=None):
     dtmin = 1e300
     wp = 0.0
     wv = 0.0
-    acc[2] = -1.0
-    for e in range(cells.shape[0]):
+    bad = -1.0
+    store = fe.shape[0] > 0
+    for e in range(e0, e1):
         i0 = cells[e, 0]
         i1 = cells[e, 1]
         i2 = cells[e, 2]
@@ -140,8 +262,10 @@ def tet_step(cells, x, v, dt, prm, stress, eps_p, f_int, acc, work=None):
         n3x, n3y, n3z = _cross(ax, ay, az, bx, by, bz)
         detn = ax * n1x + ay * n1y + az * n1z
         if not (detm > 0.0 and detn > 0.0):
-            if acc[2] < 0.0:
-                acc[2] = e
+            if bad < 0.0:
+                bad = e
+            if store:
+                clear_tet_forces(fe, shared, e, i0, i1, i2, i3)
             continue
         inv = 1.0 / detm
         # L_ij = sum_k u_k,i g_k,j / det
@@ -274,21 +398,15 @@ def tet_step(cells, x, v, dt, prm, stress, eps_p, f_int, acc, work=None):
         f3x = sx * n3x + sxy6 * n3y + sxz6 * n3z
         f3y = sxy6 * n3x + sy_ * n3y + syz6 * n3z
         f3z = sxz6 * n3x + syz6 * n3y + sz * n3z
-        f_int[i0, 0] -= f1x + f2x + f3x
-        f_int[i0, 1] -= f1y + f2y + f3y
-        f_int[i0, 2] -= f1z + f2z + f3z
-        f_int[i1, 0] += f1x
-        f_int[i1, 1] += f1y
-        f_int[i1, 2] += f1z
-        f_int[i2, 0] += f2x
-        f_int[i2, 1] += f2y
-        f_int[i2, 2] += f2z
-        f_int[i3, 0] += f3x
-        f_int[i3, 1] += f3y
-        f_int[i3, 2] += f3z
-    acc[0] += wp
-    acc[1] += wv
-    return dtmin
+        if store:
+            store_tet_forces(f_int, fe, shared, e, i0, i1, i2, i3, f1x, f1y, f1z, f2x, f2y, f2z,
+                             f3x, f3y, f3z)
+        else:
+            add_tet_forces(f_int, i0, i1, i2, i3, f1x, f1y, f1z, f2x, f2y, f2z, f3x, f3y, f3z)
+    part[0] = dtmin
+    part[1] = wp
+    part[2] = wv
+    part[3] = bad
 
 
 @numba.njit(cache=True, error_model="numpy", fastmath=FM)

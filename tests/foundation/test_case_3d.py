@@ -17,8 +17,10 @@ import sys
 import time
 from pathlib import Path
 
+import numba
 import numpy as np
 import pytest
+from mpi4py import MPI
 
 from pulseform.orchestrator.case.io import load_case
 from pulseform.orchestrator.cli import main
@@ -150,6 +152,16 @@ def test_sigint_then_resume_equals_uninterrupted(tmp_path):
 def test_shipped_3d_case_checks():
     case, _ = load_case(CASE)
     assert case.mechanics.formulation == "3d"
+
+
+@pytest.mark.skipif(min(os.cpu_count() or 1, numba.config.NUMBA_NUM_THREADS) < 2, reason="one core")
+def test_threads_reach_the_3d_solver():
+    """``mechanics.threads`` of a 3D case is the 3D solver's (issue 31), as in 2D."""
+    from pulseform.orchestrator.mech.model import build_solver
+
+    case, _ = load_case(CASE, ["mechanics.threads=2", "bodies.bar.mesh_size=0.5"])
+    solver = build_solver(case, MPI.COMM_SELF)
+    assert solver.formulation == "3d" and solver.threads == 2
 
 
 BAD = [  # (case, --set overrides, text the one line must hold)
