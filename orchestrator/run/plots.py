@@ -279,7 +279,19 @@ def draw_all(results_dir: Path, *, case=None, history: History | None = None, sh
 
 
 def _stamps(folder: Path) -> dict[Path, int]:
-    return {p: p.stat().st_mtime_ns for p in folder.glob("*.png")}
+    """Modification times (ns) of the pictures in ``folder``. Another process may be writing pictures there
+    meanwhile (the renderer child draws the 3D and mechanics pictures while the run ends): its hidden
+    temporary files (``.NAME.tmp.png``, renamed when written) are not pictures, and a file that vanishes
+    between the listing and its stat is skipped."""
+    out = {}
+    for p in folder.glob("*.png"):
+        if p.name.startswith("."):
+            continue
+        try:
+            out[p] = p.stat().st_mtime_ns
+        except FileNotFoundError:
+            continue
+    return out
 
 
 def _read_case(root: Path, skip):
