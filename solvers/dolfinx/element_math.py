@@ -408,3 +408,14 @@ def batch_update(inp, out, n, dt, prm):
         else:
             out[11 * ROW + j] = 0.0
         out[15 * ROW + j] = status
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy", fastmath=FM)
+def add_chunk_part(part, dtmin, wp, wv, bad):
+    """A chunk's partial results (``part``: its smallest critical step (s), plastic and viscous dissipation
+    (J), its first inverted cell or -1) added to the running ones (``dtmin``, ``wp``, ``wv``, ``bad``), chunk
+    after chunk in chunk order: the serial kernels and the threaded ones (any thread count) sum the same
+    partials in the same order, so they give the same bits. Returns the new (dtmin, wp, wv, bad)."""
+    if part[3] >= 0.0 and bad < 0.0:
+        bad = part[3]
+    return min(dtmin, part[0]), wp + part[1], wv + part[2], bad

@@ -24,7 +24,7 @@ import numpy as np
 
 from .block import (EV_DT, EV_INVERTED, EV_NONE, SC, _apply_walls, _constrain, _contact,
                     _kinetic_peak)
-from .element_math import MODE_AXISYMMETRIC, P_MODE
+from .element_math import MODE_AXISYMMETRIC, P_MODE, add_chunk_part
 from .kernels import WORK_SIZE, chunk_size, element_chunk
 from .reductions import np_sum
 
@@ -171,11 +171,7 @@ def run_steps_threaded(B, W, C, sc, dt, n_steps, ev, evf, T):
             wv = 0.0
             bad = -1.0
             for q in range(k0, T.chunk_off[ib + 1]):
-                d = min(d, parts[q, 0])
-                wp += parts[q, 1]
-                wv += parts[q, 2]
-                if parts[q, 3] >= 0.0 and bad < 0.0:
-                    bad = parts[q, 3]
+                d, wp, wv, bad = add_chunk_part(parts[q], d, wp, wv, bad)
             if bad >= 0.0:
                 ev[0] = EV_INVERTED
                 ev[1] = ib

@@ -21,7 +21,7 @@ import math
 import numba
 import numpy as np
 
-from .element_math import (BATCH, FM, IN_ROWS, MODE_AXISYMMETRIC, MODE_PLANE_STRAIN,
+from .element_math import (BATCH, FM, add_chunk_part, IN_ROWS, MODE_AXISYMMETRIC, MODE_PLANE_STRAIN,
                            MODE_PLANE_STRESS, N_PRM, OUT_ROWS, P_B1, P_B2, P_BULK, P_G, P_H, P_K,
                            P_MODE, P_R1, P_R2, P_RATE, P_RHO, P_SY0, P_THICK, ROW, ST_INVERTED,
                            ST_REDO, batch_update, cell_update)
@@ -133,11 +133,7 @@ def element_step(cells, x, v, dt, prm, stress, eps_p, f_int, acc, work=None):
     for e0 in range(0, nc, cs):
         element_chunk(cells, x, v, dt, prm, stress, eps_p, f_int, no_fe, _NO_SHARED, e0,
                       min(nc, e0 + cs), work, part)
-        dtmin = min(dtmin, part[0])
-        wp += part[1]
-        wv += part[2]
-        if part[3] >= 0.0 and acc[2] < 0.0:
-            acc[2] = part[3]
+        dtmin, wp, wv, acc[2] = add_chunk_part(part, dtmin, wp, wv, acc[2])
     acc[0] += wp
     acc[1] += wv
     return dtmin

@@ -27,7 +27,7 @@ import numba
 import numpy as np
 
 from .element_math import (FM, P_B1, P_B2, P_BULK, P_G, P_H, P_K, P_R1, P_R2, P_RATE, P_RHO,
-                           P_SY0, rate_factor_at)
+                           P_SY0, add_chunk_part, rate_factor_at)
 
 __all__ = ["tet_step", "tet_chunk_scalar", "tet_chunk_size", "TET_CHUNK", "add_tet_forces",
            "store_tet_forces", "clear_tet_forces",
@@ -181,11 +181,7 @@ def tet_step(cells, x, v, dt, prm, stress, eps_p, f_int, acc, work=None):
     for e0 in range(0, nc, cs):
         tet_chunk_scalar(cells, x, v, dt, prm, stress, eps_p, f_int, no_fe, _NO_SHARED, e0,
                          min(nc, e0 + cs), part)
-        dtmin = min(dtmin, part[0])
-        wp += part[1]
-        wv += part[2]
-        if part[3] >= 0.0 and acc[2] < 0.0:
-            acc[2] = part[3]
+        dtmin, wp, wv, acc[2] = add_chunk_part(part, dtmin, wp, wv, acc[2])
     acc[0] += wp
     acc[1] += wv
     return dtmin

@@ -28,7 +28,7 @@ from collections import namedtuple
 import numba
 import numpy as np
 
-from .element_math import FM
+from .element_math import FM, add_chunk_part
 from .tet_batch import TET_WORK_SIZE, tet_chunk
 from .tet_kernel import tet_chunk_size
 
@@ -169,11 +169,7 @@ def tet_step_threaded(cells, x, v, dt, prm, stress, eps_p, f_int, acc, T):
     wv = 0.0
     acc[2] = -1.0
     for q in range(nq):
-        dtmin = min(dtmin, parts[q, 0])
-        wp += parts[q, 1]
-        wv += parts[q, 2]
-        if parts[q, 3] >= 0.0 and acc[2] < 0.0:
-            acc[2] = parts[q, 3]
+        dtmin, wp, wv, acc[2] = add_chunk_part(parts[q], dtmin, wp, wv, acc[2])
     acc[0] += wp
     acc[1] += wv
     return dtmin
