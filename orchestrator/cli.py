@@ -208,7 +208,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     if not args.quiet:
         from .run.summary import summary_lines
 
-        for line in summary_lines(case, metrics, out):
+        for line in summary_lines(case, metrics, out, args.case):
             print(line)
         print(f"results: {out}")
         for k in sorted(metrics):

@@ -14,27 +14,19 @@ from __future__ import annotations
 
 import csv
 import math
-import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
 from .errors import CaseError
+from .names import check_file_name
 from .schema import PLAUSIBLE, SchemaError, shorten, spec
 
 __all__ = ["SineSource", "DCSource", "TableSource", "BankSource", "Source", "CoilConnection",
            "read_current_table", "resolve_source_files", "check_sources", "check_coils", "MAX_TABLE_ROWS"]
 
-_NAME = re.compile(r"[A-Za-z0-9._-]{1,100}")
 #: most rows of a ``table`` source's CSV file
 MAX_TABLE_ROWS = 100_000
-
-
-def _check_name(name: str, path: str, names: str) -> None:
-    """A name that becomes part of history columns and file names: never a path."""
-    if not _NAME.fullmatch(name) or name in (".", ".."):
-        raise SchemaError(path, f"got {shorten(repr(name))}; must be a name: 1 to 100 letters, digits, '.', '_' "
-                          f"or '-', not '.' or '..' (it names {names})")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -42,7 +34,7 @@ class _Named:
     name: str = spec(doc="unique source name (what [[em.coils]] source refers to)")
 
     def validate(self, path: str) -> None:
-        _check_name(self.name, f"{path}.name", "the source in [[em.coils]] source")
+        check_file_name(self.name, f"{path}.name", "the source in [[em.coils]] source")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -61,7 +53,8 @@ class TableTime:
     """A time function linearly interpolated in a CSV file's rows (time s, value), held at its last value after
     them: a ``table`` source's current (A) and a ``table`` applied field's factor of its magnitude (-)."""
 
-    file: str = spec(doc="CSV file, relative to the case folder: rows time (s), value (a source's current in A, an "
+    file: str = spec(doc="CSV file, relative to the case folder: rows time (s), value (a source's current of one turn "
+                         "in A, an "
                          "applied field's factor of its magnitude); '#' comments and one header line allowed; times "
                          "strictly increasing from <= 0; at most 100000 rows")
     allow_outside: bool = spec(False, doc="allow a file outside the case folder")
@@ -76,7 +69,8 @@ class SineSource(_Named, SineTime):
     """I(t) = amplitude e^(−decay (t − t_on)) sin(2π frequency (t − t_on) + phase) for t >= t_on, 0 before."""
 
     type: Literal["sine"] = spec(doc="source kind")
-    amplitude: float = spec(unit="A", gt=0.0, doc="I0")
+    amplitude: float = spec(unit="A", gt=0.0, doc="I0: the peak current of one turn, not rms (an rms current I_rms "
+                                                   "is I0 = √2 I_rms); a coil of N turns carries N·I0 ampere-turns")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -84,7 +78,7 @@ class DCSource(_Named):
     """A direct current I(t) = current for t >= t_on, 0 before."""
 
     type: Literal["dc"] = spec(doc="source kind")
-    current: float = spec(unit="A", gt=0.0, doc="the current I")
+    current: float = spec(unit="A", gt=0.0, doc="the current I of one turn (a coil of N turns: N·I ampere-turns)")
     t_on: float = spec(0.0, unit="s", ge=0.0, doc="switch-on time: no current before")
 
 
@@ -125,7 +119,7 @@ class CoilConnection:
                                                    "current is minus the source's, or minus the bank's in series)")
 
     def validate(self, path: str) -> None:
-        _check_name(self.name, f"{path}.name", "history columns <name>_current_A, ...")
+        check_file_name(self.name, f"{path}.name", "history columns <name>_current_A, ...")
         if self.sign not in (1, -1):
             raise SchemaError(f"{path}.sign", f"got {self.sign}; allowed: 1, -1")
 

@@ -26,7 +26,8 @@ class CapacitorBank:
 class DampedSineCurrent:
     """Prescribed coil current I(t) = I0 e^(−βt) sin(ωt)."""
 
-    amplitude: float = spec(unit="A", gt=0.0, doc="I0")
+    amplitude: float = spec(unit="A", gt=0.0, doc="I0: the peak current of one turn, not rms (a coil of N turns "
+                                                   "carries N·I0 ampere-turns at the peak)")
     beta: float = spec(unit="1/s", ge=0.0, doc="decay rate β")
     omega: float = spec(unit="rad/s", gt=0.0, doc="angular frequency ω")
 
@@ -68,6 +69,12 @@ class EM:
     remesh_quality: float = spec(0.3, unit="-", gt=0.0, lt=1.0,
                                  doc="remesh the air when the worst element quality 4√3A/Σl² falls below this "
                                      "fraction of the fresh mesh's worst")
+
+    @property
+    def has_bank(self) -> bool:
+        """A capacitor bank drives coils (``circuit``, or a ``bank`` source): the history's
+        ``capacitor_voltage_V`` is its voltage (without one, the column is 0)."""
+        return self.circuit is not None or any(s.type == "bank" for s in self.sources)
 
     def validate(self, path: str) -> None:
         given = [k for k in ("circuit", "current", "sources") if getattr(self, k)]

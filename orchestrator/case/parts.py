@@ -4,17 +4,16 @@ contact pairs and rigid walls (SI units, validated; see :mod:`.model` for the wh
 from __future__ import annotations
 
 import math
-import re
 from dataclasses import dataclass
 from typing import Literal
 
-from .schema import SchemaError, shorten, spec
+from .names import check_file_name
+from .schema import SchemaError, spec
 from .solid3d import SolidBox, SolidCylinder
 
 Vec2 = tuple[float, float]
 #: a vector of a 2D case (x, y) or of a 3D case (x, y, z); :mod:`.solid3d` checks which
 Vec = tuple[float, float] | tuple[float, float, float]
-_NAME = re.compile(r"[A-Za-z0-9._-]{1,100}")
 
 
 # --------------------------------------------------------------------------- geometry primitives
@@ -197,13 +196,6 @@ class RigidWall:
     def validate(self, path: str) -> None:
         if math.hypot(*self.normal) == 0.0:
             raise SchemaError(f"{path}.normal", f"got {list(self.normal)}; must be a non-zero vector")
-
-
-def check_file_name(name: str, path: str, names: str) -> None:
-    """A name that becomes part of a file or folder name: never a path."""
-    if not _NAME.fullmatch(name) or name in (".", ".."):
-        raise SchemaError(path, f"got {shorten(repr(name))}; must be a name, not a path: 1 to 100 letters, digits, "
-                          f"'.', '_' or '-', not '.' or '..' (it names {names})")
 
 
 def rigid_moves(b: BodyTable, formulation: str, symmetry=()) -> tuple[int, ...]:

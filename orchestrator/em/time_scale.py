@@ -20,7 +20,7 @@ from ..case.model import Case
 from ..mesh.em_geometry import coaxial_coil_turns, flat_coil_turns, planar_turns, solenoid_turns
 from .lumped import coil_inductance
 
-__all__ = ["coil_windings", "source_period"]
+__all__ = ["coil_windings", "source_period", "steps_per_period"]
 
 
 def coil_windings(case: Case) -> list[list[tuple[float, float, float, float]]] | None:
@@ -82,3 +82,21 @@ def source_period(case: Case) -> float:
         raise ValueError("time.dt_max: every body is rigid and no source has a period to resolve (a direct current, "
                          "a table, or a user deck's coil on a bank): give time.dt_max, the mechanical step (s)")
     return min(periods)
+
+
+def steps_per_period(case: Case) -> float | None:
+    """The EM steps per period of the shortest-period source that a run whose bodies are all rigid makes: the
+    period over its EM step min(period / ``coupling.steps_per_period``, ``coupling.n`` · ``time.dt_max``)
+    (the driver's rigid step); None when the case has deformable bodies (their stability limit sets the step), is
+    3D (``geometry.em_step`` sets it) or has no source with a period."""
+    if case.case.kind != "coupled" or not case.bodies or not all(b.rigid for b in case.bodies) \
+            or case.mechanics.formulation == "3d":
+        return None
+    try:
+        period = source_period(case)
+    except ValueError:  # no source with a period: time.dt_max sets the step
+        return None
+    step = period / case.coupling.steps_per_period
+    if case.time.dt_max is not None:
+        step = min(step, case.coupling.n * case.time.dt_max)
+    return period / step

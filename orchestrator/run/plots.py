@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import logging
+from collections.abc import Collection
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -63,16 +64,24 @@ def plot_energies(history: History, folder: Path, axis: TimeAxis | None = None) 
     return _save(fig, folder / "energies.png")
 
 
+def columns_without_meaning(case) -> set[str]:
+    """History columns a coupled load writes for every case that mean nothing in ``case`` (None: the case is
+    unknown, none): ``capacitor_voltage_V`` without a capacitor bank (a prescribed current, sine, dc or table
+    sources; the column is 0 there), whose picture would be a flat zero."""
+    em = getattr(case, "em", None) if case is not None else None
+    return {"capacitor_voltage_V"} if em is not None and not em.has_bank else set()
+
+
 #: history columns without a plot of their own (counters, the time axis, the energies' own plot)
 NOT_PLOTTED = ("time_s", "step", "dt_s", "substeps", "iterations", "em_remeshes", "em_factorisations", "em_corrections",
                "coil_current_abs_max_A")
 
 
 def plot_probes(history: History, folder: Path, references: dict[str, float] | None = None,
-                axis: TimeAxis | None = None) -> list[Path]:
-    """One figure per history column (probes, body extremes, load values), labelled with the unit
-    of :mod:`.units` (``[?]`` for a column it does not know); ``references`` maps a column to a
-    horizontal reference line (stored unit)."""
+                axis: TimeAxis | None = None, leave_out: Collection[str] = ()) -> list[Path]:
+    """One figure per history column (probes, body extremes, load values) but those in ``leave_out``
+    (:func:`columns_without_meaning`), labelled with the unit of :mod:`.units` (``[?]`` for a column it does
+    not know); ``references`` maps a column to a horizontal reference line (stored unit)."""
     references = references or {}
     axis = _time_axis(history, axis)
     t = history.column("time_s") * axis.scale
@@ -83,7 +92,7 @@ def plot_probes(history: History, folder: Path, references: dict[str, float] | N
     ax.grid(alpha=0.3)
     try:
         for c in history.columns:
-            if c in NOT_PLOTTED or c.startswith("energy_"):
+            if c in NOT_PLOTTED or c.startswith("energy_") or c in leave_out:
                 continue
             scale = unit_of(c).scale
             line.set_ydata(history.column(c) * scale)
@@ -194,7 +203,7 @@ def draw_all(results_dir: Path, *, case=None, history: History | None = None, sh
     Reads what is not given: the resolved ``case.toml``, ``history.csv``, the fields. The end of a
     run passes what it holds in memory (case, history, node positions at the output times
     ``shapes``, its analyses) and draws the same pictures as ``pulseform plot`` does later from the files. Pictures: energies, time
-    step, one per history column (units from :mod:`.units`, one time unit per run), the case's
+    step, one per history column but those without meaning in the case (:func:`columns_without_meaning`; units from :mod:`.units`, one time unit per run), the case's
     analyses, then ``pictures_mech.draw_mechanics`` and ``pictures_em.draw_em`` when those modules
     exist (until then the older shapes picture; the EM pictures are ``pictures_em``'s, from
     ``fields/em/``). A picture group that fails
@@ -254,7 +263,7 @@ def draw_all(results_dir: Path, *, case=None, history: History | None = None, sh
     finish_mech = attempt("mechanics pictures", mech, root, wait=False, **kw) if mech is not None else None
     attempt("energies", plot_energies, history, folder, axis)
     attempt("time step", plot_time_step, history, folder, axis)
-    attempt("history columns", plot_probes, history, folder, None, axis)
+    attempt("history columns", plot_probes, history, folder, None, axis, columns_without_meaning(case))
     for b in case.bodies if case is not None else ():
         if b.rigid:
             attempt(f"motion of {b.name}", plot_rigid_motion, history, folder, b.name, axis)

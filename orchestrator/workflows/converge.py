@@ -7,7 +7,9 @@ named ``mesh_size*`` of ``[geometry]`` and its nested tables, and each body's ``
 file ``geometry.mesh_size_factor`` alone, which multiplies all its sizes), so the
 meshes are refined alike everywhere, as the GCI procedure asks. With ``refine = "em_step"`` it
 divides ``coupling.n`` instead (the EM step, the mechanical step fixed) -- or, for a 3D geometry file
-with ``geometry.em_step`` (which sets n), that EM step (n = round(em_step / mechanical step) per level).
+with ``geometry.em_step`` (which sets n), that EM step (n = round(em_step / mechanical step) per level); when
+every body is rigid (the EM step is a period of the source over ``coupling.steps_per_period``) it multiplies
+``coupling.steps_per_period`` (and divides ``time.dt_max`` when given).
 Each level is a ``pulseform run`` of its own (``jobs`` at a time, forked from the study's warm process, without
 pictures of its own: as the members of a sweep, :mod:`..run.warm`). For each metric it computes,
 on the three finest levels, the observed order, the Richardson-extrapolated value and the GCI
@@ -26,10 +28,12 @@ from __future__ import annotations
 import json
 import logging
 import math
+import re
 import tomllib
 from pathlib import Path
 
 from ..case.io import CaseError, case_to_toml, load_case
+from ..case.model import STEPS_PER_PERIOD
 from ..em.skin_depth import resolve_defaults
 from ..run.results import ResultsFolder, atomic_write_text
 from ..run.units import label
@@ -39,11 +43,22 @@ from .sweep import Member, run_member
 
 log = logging.getLogger(__name__)
 
-__all__ = ["refinement_keys", "study_levels", "run_converge", "DEFAULT_METRICS"]
+__all__ = ["refinement_keys", "study_levels", "run_converge", "DEFAULT_METRICS", "default_metrics"]
 
 #: the headline metrics a study reports when the caller names none (those the runs have)
 DEFAULT_METRICS = ("force_peak_N", "force_impulse_Ns", "coil_current_peak_kA", "max_deflection_mm",
                    "max_radial_displacement_mm")
+
+
+def default_metrics(metrics: dict[str, float]) -> list[str]:
+    """The metrics a study reports when the caller names none: :data:`DEFAULT_METRICS` and each rigid body's
+    largest translation ``<body>_max_position_<c>_mm`` (its first peak: what a coarse EM step moves most) among
+    ``metrics``, one run's."""
+    return list(DEFAULT_METRICS) + sorted(k for k in metrics if _RIGID_PEAK.fullmatch(k))
+
+
+#: a rigid body's largest translation along a free component (orchestrator/mech/mixed.py, rigid_metrics)
+_RIGID_PEAK = re.compile(r".+_max_position_[xyz]_mm")
 
 
 class ConvergeError(ValueError):
@@ -93,6 +108,8 @@ def study_levels(resolved: dict, ratio: float, levels: int, refine: str) -> list
     if geometry.get("type") == "geometry_3d" and isinstance(geometry.get("em_step"), (int, float)):
         # n = round(geometry.em_step / mechanical step) there: coupling.n is not used
         return [{"geometry.em_step": repr(float(geometry["em_step"]) / ratio ** i)} for i in range(levels)]
+    if _all_rigid(resolved):
+        return _rigid_step_levels(resolved, ratio, levels)
     n = int(resolved.get("coupling", {}).get("n", 10))
     out = []
     for i in range(levels):
@@ -101,6 +118,33 @@ def study_levels(resolved: dict, ratio: float, levels: int, refine: str) -> list
             raise ConvergeError(f"--refine em_step: coupling.n = {n} divided by {ratio:g}^{i} is {value:g}, not a whole "
                                 "number >= 1; choose coupling.n and --ratio so that every level's n is whole")
         out.append({"coupling.n": str(int(round(value)))})
+    return out
+
+
+def _all_rigid(resolved: dict) -> bool:
+    """A coupled case whose bodies are all rigid: its EM step is a period of the source over
+    ``coupling.steps_per_period`` (capped by ``n`` times ``time.dt_max``), whatever ``coupling.n`` is."""
+    bodies = resolved.get("bodies", [])
+    return resolved.get("case", {}).get("kind") == "coupled" and bool(bodies) and all(b.get("rigid") for b in bodies)
+
+
+def _rigid_step_levels(resolved: dict, ratio: float, levels: int) -> list[dict[str, str]]:
+    """``--refine em_step`` of an all-rigid case: the EM step min(period / steps_per_period, n · dt_max) divided by
+    ratio^k, i.e. ``coupling.steps_per_period`` times ratio^k (a whole number) and ``time.dt_max`` (if given)
+    divided by it (dividing ``coupling.n`` would leave that step as it is)."""
+    steps = int(resolved.get("coupling", {}).get("steps_per_period", STEPS_PER_PERIOD))
+    dt_max = resolved.get("time", {}).get("dt_max")
+    out = []
+    for i in range(levels):
+        value = steps * ratio ** i
+        if abs(value - round(value)) > 1e-9:
+            raise ConvergeError(f"--refine em_step: every body is rigid, so the EM step is the period over "
+                                f"coupling.steps_per_period = {steps}, times {ratio:g}^{i} is {value:g}, not a whole "
+                                "number; choose coupling.steps_per_period and --ratio so that every level's is whole")
+        level = {"coupling.steps_per_period": str(int(round(value)))}
+        if isinstance(dt_max, (int, float)):
+            level["time.dt_max"] = repr(float(dt_max) / ratio ** i)
+        out.append(level)
     return out
 
 
@@ -157,7 +201,8 @@ def summarise(members: list[Member], ratio: float, metrics: list[str] | None, re
     """The study's record: the levels and, per metric present in every level's run, the GCI of the
     three finest levels."""
     ok = [m for m in members if m.returncode == 0 and m.metrics]
-    names = list(metrics) if metrics else [k for k in DEFAULT_METRICS if all(k in m.metrics for m in ok)]
+    names = list(metrics) if metrics else [k for k in default_metrics(ok[0].metrics if ok else {})
+                                           if all(k in m.metrics for m in ok)]
     out = {"refine": refine, "ratio": ratio,
            "levels": [{"level": m.index, "h_rel": ratio ** -m.index, "overrides": m.values, "returncode": m.returncode,
                        "error": m.error, "log_tail": m.log_tail, "metrics": m.metrics} for m in members],
@@ -175,8 +220,10 @@ def summarise(members: list[Member], ratio: float, metrics: list[str] | None, re
 
 def report_markdown(report: dict, case: str) -> str:
     """``report.md``: one row per metric."""
+    keys = {k for lv in report["levels"] for k in lv["overrides"]}
     what = "element sizes" if report["refine"] == "mesh" else \
-        "EM step (geometry.em_step)" if any("geometry.em_step" in lv["overrides"] for lv in report["levels"]) else \
+        "EM step (geometry.em_step)" if "geometry.em_step" in keys else \
+        "EM step (the period over coupling.steps_per_period)" if "coupling.steps_per_period" in keys else \
         "EM step (coupling.n)"
     lines = [f"# Convergence study of {case}", "",
              f"{len(report['levels'])} levels, {what} divided by {report['ratio']:g} per level; the GCI of the "

@@ -68,6 +68,9 @@ NAME_TRICKS = ["/tmp/x", "../../x", "/some/path/VICTIM", "..", ".", "a/b", "x" *
 PATH_TRICKS = ["/tmp/x.geo", "../../x.pro", "/etc/passwd", "../" * 40 + "x.geo", "x" * 5000 + ".geo",
                "a/" * 3000 + "b.pro", "sub/../../../x.pro", "~/x.geo", "ünï.pro", ""]
 UNICODE = ["ünïcødé ✓", "日本語", "\u202eevil", "e\u0301", "😀" * 10, "\ufeffbom", "ℌ", "\u2028sep"]
+#: the NAME_TRICKS and UNICODE values that are valid case names (issue 32: letters of any script, digits, spaces,
+#: ". _ -"; orchestrator/case/names.py): `check` accepts them as case.name; body and probe names stay ASCII
+CASE_NAMES_OK = {"name with space", "ünïcødé", "日本語", "e\u0301", "ℌ"}
 BAD_SETS = [
     "time[0]=1", "time.end=1e-3\n[extra]", "time.end=1e-3\r\ncase.name='x'", "time.end=1\x00", "tim\x00e.end=1",
     "time.end", "=1", "time.end=", "time..end=1", ".time.end=1", "time.end.x=1", "time.end=nan", "time.end=inf",
@@ -213,10 +216,13 @@ def mutations(data: dict, text: str, rng: random.Random, n: int) -> list[Mutatio
             return Mutation(kind, _key(path), _dump(d))
         if kind == "unicode":
             path, v = rng.choice(strings)
-            return edit("name_path" if _names_a_file(path) else kind, path, rng.choice(UNICODE))
+            value = rng.choice(UNICODE)
+            ok = path == ("case", "name") and value in CASE_NAMES_OK
+            return edit("case_name_ok" if ok else "name_path" if _names_a_file(path) else kind, path, value)
         if kind == "name_path":
             if rng.random() < 0.6 or not names:
-                return edit(kind, ("case", "name"), rng.choice(NAME_TRICKS))
+                value = rng.choice(NAME_TRICKS)
+                return edit("case_name_ok" if value in CASE_NAMES_OK else kind, ("case", "name"), value)
             path, _ = rng.choice(names)  # body and probe names name files
             return edit("name_path" if _names_a_file(path) else "other_name_path", path, rng.choice(NAME_TRICKS))
         if kind == "file_path":
@@ -313,6 +319,8 @@ def _problem(m: Mutation, rc: int | str, out: str, err: str, dt: float) -> str |
         return "traceback printed"
     if dt > CALL_LIMIT_S:
         return f"took {dt:.1f} s"
+    if rc == 2 and m.kind == "case_name_ok":
+        return f"a valid case name refused: {err[:300]!r}"
     if rc == 2:
         lines = [ln for ln in err.splitlines() if ln.strip()]
         if len(lines) != 1 or not lines[0].startswith("pulseform: error: ") or len(lines[0]) > MAX_LINE:
@@ -369,4 +377,5 @@ def test_must_refuse_rules():
     assert must_refuse(Mutation("long_time", "time.end", ""))
     assert not must_refuse(Mutation("tiny_length", "geometry.parameters.Lc_Sheet", ""))
     assert not must_refuse(Mutation("valid_inf", "mechanics.mass_damping_until", ""))
+    assert not must_refuse(Mutation("case_name_ok", "case.name", ""))
     assert not set(kind for _, kind in AWAITING_GUARDS) & REFUSED_KINDS
