@@ -224,7 +224,10 @@ def mutations(data: dict, text: str, rng: random.Random, n: int) -> list[Mutatio
                 value = rng.choice(NAME_TRICKS)
                 return edit("case_name_ok" if value in CASE_NAMES_OK else kind, ("case", "name"), value)
             path, _ = rng.choice(names)  # body and probe names name files
-            return edit("name_path" if _names_a_file(path) else "other_name_path", path, rng.choice(NAME_TRICKS))
+            value = rng.choice(NAME_TRICKS)
+            ok = path == ("case", "name") and value in CASE_NAMES_OK
+            return edit("case_name_ok" if ok else "name_path" if _names_a_file(path) else "other_name_path", path,
+                        value)
         if kind == "file_path":
             if not files:
                 return generate("name_path")

@@ -49,13 +49,54 @@ def test_converge_writes_the_study(tmp_path, capsys):
     assert "force_peak_N" in printed.out
 
 
-@pytest.mark.parametrize("args,key", [(["--levels", "2"], "--levels"), (["--ratio", "1.0"], "--ratio"),
-                                      (["--refine", "em_step", "--ratio", "3"], "coupling.n")])
-def test_bad_study_arguments(tmp_path, capsys, args, key):
-    rc = main(["converge", CASE, "--out", str(tmp_path / "s"), *args])
+#: (arguments, the key the one-line error names, case): the fixed disk is all rigid, so its EM step is refined through
+#: coupling.steps_per_period (120 x 1.3 is whole, x 1.3^2 is not); the sheet bulge's n = 20 / 3 is not whole
+BAD_STUDIES = [(["--levels", "2"], "--levels", CASE), (["--ratio", "1.0"], "--ratio", CASE),
+               (["--refine", "em_step", "--ratio", "1.3"], "coupling.steps_per_period", CASE),
+               (["--refine", "em_step", "--ratio", "3"], "coupling.n", str(REPO / "cases/emf_sheet_bulge"))]
+
+
+@pytest.mark.parametrize("args,key,case", BAD_STUDIES)
+def test_bad_study_arguments(tmp_path, capsys, args, key, case):
+    rc = main(["converge", case, "--out", str(tmp_path / "s"), *args])
     err = capsys.readouterr().err
     assert rc == 2 and key in err and len(err.strip().splitlines()) == 1, err
     assert not (tmp_path / "s").exists()  # nothing started
+
+
+@pytest.mark.parametrize("sets", [[], ["time.dt_max=1e-8"]], ids=["period", "dt_max"])
+def test_all_rigid_em_step_is_refined_through_the_period(sets):
+    """Issue 32, item 7: when every body is rigid the EM step is min(period / steps_per_period, n · dt_max), so
+    --refine em_step multiplies coupling.steps_per_period (and divides time.dt_max when given) by ratio^k; dividing
+    coupling.n, as for deformable bodies, would run the same step three times. Each level's EM step, as the
+    driver computes it (orchestrator/em/time_scale.py), is the case's divided by ratio^k."""
+    import tomllib
+
+    from pulseform.orchestrator.case.io import case_to_toml, load_case
+    from pulseform.orchestrator.em.time_scale import source_period, steps_per_period
+    from pulseform.orchestrator.workflows.converge import study_levels
+
+    base, _ = load_case(CASE, sets)
+    resolved = tomllib.loads(case_to_toml(base))
+    levels = study_levels(resolved, 2.0, 3, "em_step")
+    assert [int(lv["coupling.steps_per_period"]) for lv in levels] == [120, 240, 480]
+    assert all(("time.dt_max" in lv) == bool(sets) for lv in levels)
+    period = source_period(base)
+    em_step = [period / steps_per_period(load_case(CASE, sets + [f"{k}={v}" for k, v in lv.items()])[0])
+               for lv in levels]
+    assert em_step == pytest.approx([em_step[0], em_step[0] / 2, em_step[0] / 4], rel=1e-12)
+    if sets:  # n · dt_max = 1e-8 s binds (the period over 120 is 0.52 us)
+        assert em_step[0] == pytest.approx(1e-8, rel=1e-12)
+
+
+def test_default_metrics_add_the_rigid_bodies_peaks():
+    """A study of an all-rigid case reports each rigid body's largest translation (the first peak: what a coarse EM
+    step moves most) beside the headline metrics."""
+    from pulseform.orchestrator.workflows.converge import DEFAULT_METRICS, default_metrics
+
+    run = {"force_peak_N": 1.0, "ring_max_position_y_mm": 14.7, "ring_max_position_y_time_s": 0.067,
+           "ring_min_position_y_mm": 0.0, "sheet_max_uy_mm": 1.0}
+    assert default_metrics(run) == [*DEFAULT_METRICS, "ring_max_position_y_mm"]
 
 
 @pytest.mark.slow
