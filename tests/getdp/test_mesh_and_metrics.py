@@ -72,6 +72,19 @@ def test_em_metrics():
         em_metrics([])
 
 
+def test_em_metrics_axisymmetric_impulse_is_axial():
+    """Issue 32, item 5: in axisymmetry the (r, z) force sums' r part is a load round the ring with no net force:
+    the impulse is the axial one, the radial load's is its own figure (the planar impulse stays |(x, y)|)."""
+    r1 = _fake_result(1e-6, [1e3], [[30.0, 40.0]], 1.0, 0.1)
+    r2 = _fake_result(1e-6, [1e3], [[30.0, -20.0]], 1.0, 0.1)
+    planar = em_metrics([r1, r2])
+    assert planar["force_impulse_Ns"] == pytest.approx(np.hypot(60e-6, 20e-6), rel=1e-15)
+    assert "radial_load_impulse_Ns" not in planar
+    axi = em_metrics([r1, r2], axisymmetric=True)
+    assert axi["force_impulse_Ns"] == pytest.approx(20e-6, rel=1e-15)
+    assert axi["radial_load_impulse_Ns"] == pytest.approx(60e-6, rel=1e-15)
+
+
 def test_package_imports_neither_orchestrator_nor_dolfinx():
     import subprocess
     import sys

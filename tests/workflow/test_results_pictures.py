@@ -201,3 +201,34 @@ def test_summary_displacement_of_a_3d_body_counts_z():
     lines = {h_.label: h_ for h_ in headline(case, metrics, None)}
     assert lines["max displacement"].value == pytest.approx(2.389)
 
+
+
+# ------------------------------------------------------------------ issue 32: pictures and summary lines that apply
+@pytest.mark.parametrize("case,left_out", [("jumping_ring", {"capacitor_voltage_V"}),      # a 50 Hz sine source
+                                           ("emf_fixed_disk", {"capacitor_voltage_V"}),    # a prescribed current
+                                           ("emf_sheet_bulge", set()),                     # a capacitor bank
+                                           ("two_coils_plate", {"capacitor_voltage_V"}),   # two sine sources
+                                           ("bar_impact", set())])                         # no EM at all
+def test_no_capacitor_picture_without_a_capacitor(tmp_path, case, left_out):
+    """Item 10: the capacitor_voltage_V column (0 without a bank) is not drawn for a case without a capacitor bank;
+    the other columns are."""
+    from pulseform.orchestrator.run.plots import columns_without_meaning, plot_probes
+
+    c, _ = load_case(REPO / "cases" / case)
+    assert columns_without_meaning(c) == left_out
+    h = History(Path("unused"))
+    for t in (0.0, 1e-3, 2e-3):
+        h.record({"time_s": t, "capacitor_voltage_V": 0.0, "coil_current_A": 1e3 * t})
+    drawn = {p.name for p in plot_probes(h, tmp_path, leave_out=columns_without_meaning(c))}
+    assert drawn == {"coil_current_A.png"} | ({"capacitor_voltage_V.png"} - {f"{k}.png" for k in left_out})
+
+
+def test_axisymmetric_radial_load_impulse_line_where_it_dominates():
+    """Item 5: an axisymmetric run's force impulse is the axial one; the radial load's impulse (no net force) is a
+    summary line only where it is the larger (a tube), so a sheet's summary stays as it was."""
+    case, _ = load_case(REPO / "cases" / "emf_tube_expansion")
+    tube = {h_.label: h_ for h_ in headline(case, {"force_impulse_Ns": 0.01, "radial_load_impulse_Ns": 1.7}, None)}
+    assert tube["force impulse"].value == 0.01 and tube["radial load impulse"].value == 1.7
+    assert "outward (not a net force)" in tube["radial load impulse"].note
+    sheet = {h_.label for h_ in headline(case, {"force_impulse_Ns": 0.78, "radial_load_impulse_Ns": -0.01}, None)}
+    assert "force impulse" in sheet and "radial load impulse" not in sheet
