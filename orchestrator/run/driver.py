@@ -44,6 +44,7 @@ from .em_fields3d import FOLDER as EM3D_FOLDER
 from .em_fields3d import STEM as EM3D_STEM
 from .extremes3d import body_extremes_3d, contact_columns_3d, contact_metrics_3d
 from .history import History
+from .impulse import impulse_metrics
 from .progress import Progress
 from .participants3d import participants_3d
 from .results import ResultsFolder
@@ -386,22 +387,6 @@ def _coupled_participants(case: Case, results: ResultsFolder, comm: MPI.Comm,
     load.solver.timeout = case.limits.getdp_time_limit_s
     load.gmsh_time_limit = case.limits.gmsh_time_limit_s
     return solver, load, rigid
-
-
-def impulse_metrics(impulse: np.ndarray, formulation: str) -> dict[str, float]:
-    """The loop's impulse Σ F·Δt of the held load resultants (N·s; the components of the summed nodal forces) as
-    metrics: ``force_impulse_Ns`` the magnitude of the net force's impulse, ``force_impulse_z_Ns`` its y (axial)
-    component. In axisymmetry the net force on a body of revolution is axial: the summed radial nodal forces
-    (the x component) are a load spread round the ring, whose net force is zero by symmetry, so
-    ``force_impulse_Ns`` is |axial impulse| there and the radial part is reported on its own as
-    ``radial_load_impulse_Ns`` (∫ Σ F_r dt over the full ring, positive outward: a tube that expands). In 3D the
-    load's own figures replace these (the device's, times its symmetry factor)."""
-    out = {"force_impulse_z_Ns": float(impulse[1])}
-    if formulation == "axisymmetric":
-        out.update(force_impulse_Ns=abs(float(impulse[1])), radial_load_impulse_Ns=float(impulse[0]))
-    else:
-        out["force_impulse_Ns"] = float(np.linalg.norm(impulse))
-    return out
 
 
 def _rigid_step(case: Case, solver) -> float:

@@ -232,3 +232,15 @@ def test_axisymmetric_radial_load_impulse_line_where_it_dominates():
     assert "outward (not a net force)" in tube["radial load impulse"].note
     sheet = {h_.label for h_ in headline(case, {"force_impulse_Ns": 0.78, "radial_load_impulse_Ns": -0.01}, None)}
     assert "force impulse" in sheet and "radial load impulse" not in sheet
+
+
+def test_impulse_metrics_per_formulation():
+    """Item 5: the loop's impulse (Σ F Δt of the summed nodal forces) as metrics: planar and 3D the net force's
+    magnitude; axisymmetric the axial one, the summed radial load (no net force) apart, signed."""
+    from pulseform.orchestrator.run.impulse import impulse_metrics
+
+    planar = impulse_metrics(np.array([0.3, -0.4]), "plane_strain")
+    assert planar == {"force_impulse_Ns": pytest.approx(0.5, rel=1e-15), "force_impulse_z_Ns": -0.4}
+    axi = impulse_metrics(np.array([1.7, -0.01]), "axisymmetric")
+    assert axi == {"force_impulse_Ns": 0.01, "force_impulse_z_Ns": -0.01, "radial_load_impulse_Ns": 1.7}
+    assert impulse_metrics(np.array([1.0, 2.0, 2.0]), "3d")["force_impulse_Ns"] == pytest.approx(3.0, rel=1e-15)
