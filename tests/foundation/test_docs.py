@@ -71,3 +71,17 @@ def test_site_builds_strict(tmp_path):
     assert "WARNING" not in log, log[-3000:]
     assert (tmp_path / "site/index.html").is_file() and (tmp_path / "site/reference/api/case.html").is_file()
     print(f"site built in {time.monotonic() - start:.1f} s")
+
+
+def test_current_keys_say_peak_per_turn():
+    """Issue 32, item 10: what a prescribed current means (the peak current of one turn, not rms) is said at each
+    key that sets one, so the generated reference carries it (it was in one case file's comment only)."""
+    from pulseform.orchestrator.case.model import Case
+    from pulseform.orchestrator.case.schema import reference_rows
+
+    rows = {}
+    for key, *_, doc in reference_rows(Case):
+        rows.setdefault(key, []).append(doc)
+    for key in ("em.current.amplitude", "em.sources[].amplitude"):
+        assert any("peak current of one turn, not rms" in d for d in rows[key]), (key, rows[key])
+    assert any("of one turn" in d for d in rows["em.sources[].current"])
