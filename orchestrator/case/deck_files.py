@@ -294,6 +294,31 @@ def deck_files_tokens(path: Path) -> list[tuple[Path, list]]:
     return out
 
 
+def assignment_sites(path: Path, names: tuple[str, ...] | list[str]) -> list[tuple[str, Path, int, str]]:
+    """Where the deck ``path`` (or a file it ``Include``s, :func:`deck_files_tokens`) assigns one of
+    ``names`` with a plain assignment (``TimeFinal = 10e-6;``, not a ``DefineConstant`` default: such an
+    assignment beats getdp's ``-setnumber``).
+
+    Returns
+    -------
+    list of tuple
+        ``(name, file, line, right-hand side)`` in reading order; the right-hand side is the text up to
+        the ``;`` on that line ("" when it does not end there).
+    """
+    wanted = set(names)
+    out = []
+    for file, tokens in deck_files_tokens(Path(path)):
+        lines = None
+        for i, (kind, tok, line) in enumerate(tokens):
+            if kind != "id" or tok not in wanted or not _assigned(tokens, i):
+                continue
+            if lines is None:
+                lines = file.read_text(errors="replace").splitlines()
+            m = re.search(rf"\b{re.escape(tok)}\s*=\s*([^;]*);", lines[line - 1] if line <= len(lines) else "")
+            out.append((tok, file, line, m.group(1).strip() if m else ""))
+    return out
+
+
 def _named(tokens: list, i: int, next_word: str) -> str | None:
     """``X`` if ``tokens[i:]`` reads ``Name X ; <next_word>``, else None."""
     if tokens[i][1] != "Name" or i + 3 >= len(tokens):

@@ -36,7 +36,7 @@ import numpy as np
 
 from pulseform.solvers.getdp.contract import CIRCUIT_TABLES, REQUIRED_TABLES, coil_tables
 
-from ..case.deck_files import short
+from ..case.deck_files import assignment_sites, short
 
 if TYPE_CHECKING:
     from pulseform.solvers.getdp import EMMesh, EMState, EMStepResult, GetDPSolver
@@ -45,6 +45,9 @@ log = logging.getLogger(__name__)
 
 #: the check's time step (s): of the order of a run's EM step
 CHECK_STEP_S = 1e-7
+#: the runner's time window: a deck's own plain assignment of one beats -setnumber (a template deck's are
+#: assigned again after the deck, :func:`pulseform.solvers.getdp.template.runner_guard_lines`)
+WINDOW_NAMES = ("TimeInit", "TimeFinal", "NbSteps")
 #: largest relative difference between two chained one-step runs and one two-step run (measured on
 #: the example: 9e-13 through the Init path, whose nodal values travel as printed tables)
 CARRY_RTOL = 1e-9
@@ -131,7 +134,7 @@ def check_deck(solver: GetDPSolver, mesh: EMMesh, work: Path, time_limit: float,
         from pulseform.solvers.getdp.template import TemplateDeckSolver
 
         check = TemplateDeckSolver(solver.model, work.parent, spec=solver.spec, deck_ids=solver.deck_ids,
-                                   check_currents=False, **kwargs)  # the values: template_deck.check_deck_values
+                                   check_currents=False, number_sources=solver.number_sources, **kwargs)  # the values: template_deck.check_deck_values
     else:
         check = GetDPSolver(solver.model, work.parent, **kwargs)
     dt = CHECK_STEP_S
@@ -172,7 +175,7 @@ def _run(solver: GetDPSolver, mesh: EMMesh, state: EMState, t_end: float, n_sub:
         result = solver.step(mesh, state, t_end, n_sub, run_name=run_name, force_init_path=force_init_path)
         error = None
     except GetDPError as exc:
-        raise _getdp_failure(deck, run_dir, exc) from None
+        raise _getdp_failure(deck, run_dir, exc, getattr(solver, "number_sources", None)) from None
     except (RuntimeError, ValueError, OSError, IndexError) as exc:  # the solver could not read the output
         result, error = None, exc
     text = short((str(error) or type(error).__name__).splitlines()[0], 200) if error is not None else ""
@@ -186,14 +189,52 @@ def _run(solver: GetDPSolver, mesh: EMMesh, state: EMState, t_end: float, n_sub:
     return result
 
 
-def _getdp_failure(deck: Path, run_dir: Path, exc: Exception) -> DeckContractError:
-    """A getdp error of a check run as one line quoting the log's first ``Error`` line."""
+def where_assigned(deck: Path, names: list[str] | tuple[str, ...]) -> tuple[str, str, str] | None:
+    """(name, ``file:line``, right-hand side) of the first plain assignment of one of ``names`` in ``deck``
+    or its Includes (:func:`~pulseform.orchestrator.case.deck_files.assignment_sites`), or None; the
+    file is named relative to the deck's folder when it lies inside it."""
+    sites = assignment_sites(deck, names)
+    if not sites:
+        return None
+    name, file, line, rhs = sites[0]
+    return name, f"{_shown(deck, file)}:{line}", rhs
+
+
+def _shown(deck: Path, file: Path) -> str:
+    """``file`` named relative to the deck's folder when it lies inside it."""
+    return str(file.relative_to(deck.parent) if file.is_relative_to(deck.parent) else file)
+
+
+def _override_line(deck: Path, name: str, deck_value: float, runner_value: float, source: str | None) -> str:
+    """The line of a deck whose own plain assignment of a runner's number (``source``: the case-file key
+    that gives it) differs from the runner's value: where, and the one-line fix."""
+    site = where_assigned(deck, [name])
+    rhs = site[2] if site and site[2] else f"{deck_value:.6g}"
+    where = (f"deck {site[1]}" if site and site[1].startswith(deck.name + ":") else
+             f"deck {deck.name}: {site[1]}" if site else f"deck {deck.name} (or a file it includes)")
+    given = f" ({source})" if source else ""
+    return (f"{where} assigns {name} = {rhs}; the runner's -setnumber {name} = {runner_value:.6g}{given} loses "
+            f"to a plain assignment: write DefineConstant[ {name} = {rhs} ]; instead (the case's value then reaches "
+            "the deck)")
+
+
+def _getdp_failure(deck: Path, run_dir: Path, exc: Exception, sources: dict[str, str] | None = None
+                   ) -> DeckContractError:
+    """A getdp error of a check run as one line quoting the log's first ``Error`` line (``sources``: the
+    case-file key of each runner number, for a deck that overrides one)."""
     from pulseform.solvers.getdp.solver import RESOLUTION
+    from pulseform.solvers.getdp.template import OVERRIDE_ERROR
+
+    sources = sources or {}
 
     log_file = run_dir / "getdp.log"
     text = log_file.read_text(errors="replace") if log_file.is_file() else str(exc)
     errs = [ln.strip() for ln in text.splitlines() if ln.lstrip().startswith("Error")] or \
         [ln.strip() for ln in str(exc).splitlines() if "rror" in ln] or [str(exc).splitlines()[0]]
+    over = re.search(re.escape(OVERRIDE_ERROR) + r" (\w+) = (\S+), runner (\S+)", errs[0])
+    if over:
+        return DeckContractError(_override_line(deck, over.group(1), float(over.group(2)), float(over.group(3)),
+                                                sources.get(over.group(1))))  # complete: no log needed
     hint = ""
     if any("Resolution" in e and RESOLUTION in e for e in errs) or any("Unknown Resolution" in e for e in errs):
         hint = f"; the contract needs Resolution {RESOLUTION}"
@@ -248,8 +289,14 @@ def _time_rows(out: Path, deck: Path, t0: float, t_end: float, n_sub: int) -> No
         t = _read_rows(out / name)[:, 0]
         if len(t) != n_sub or not np.all(np.abs(t - want) <= 1e-6 * (t_end - t0) / n_sub):
             got = f"{len(t)} row(s) ending at t = {t[-1]:.3g} s" if len(t) else "no rows"
+            fix = "(TimeInit, TimeFinal, NbSteps are the runner's)"
+            sites = assignment_sites(deck, WINDOW_NAMES)
+            if sites:
+                where = ", ".join(dict.fromkeys(_shown(deck, file) + f":{line}" for _, file, line, _ in sites))
+                own = ", ".join(f"{n} = {rhs}" for n, _, _, rhs in sites if rhs)
+                fix = f"({where} assigns it: write DefineConstant[ {own} ]; instead)"
             raise DeckContractError(f"deck {deck.name} overrides the time window: {name} has {got}, the runner asked for "
-                                    f"{n_sub} ending at {t_end:.3g} s (TimeInit, TimeFinal, NbSteps are the runner's)")
+                                    f"{n_sub} ending at {t_end:.3g} s {fix}")
 
 
 def _solves_the_model(solver: GetDPSolver, mesh: EMMesh, out: Path, deck: Path) -> DeckCheckReport:

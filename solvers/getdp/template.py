@@ -50,7 +50,7 @@ from .model import Coil, DampedSine, EMModel, EMState, EMStepResult, mesh_signat
 from .solver import GetDPSolver
 
 __all__ = ["TemplateSpec", "TemplateDeckSolver", "TemplateDeckError", "wrapper_text", "current_mismatch",
-           "VALUE_TABLES", "WRAPPER_NAMES", "CURRENT_RTOL"]
+           "runner_guard_lines", "VALUE_TABLES", "WRAPPER_NAMES", "CURRENT_RTOL", "RESTORED_NUMBERS", "OVERRIDE_ERROR"]
 
 #: objects the wrapper defines after the user's deck (a deck must not define them itself)
 WRAPPER_NAMES = ("PF_Template", "PF_Plane", "EM_Transient", "EM_Step", "EM_Elem", "EM_State", "EM_Field",
@@ -64,6 +64,49 @@ VALUE_TABLES = {"cond_sigma_<k>.txt": "integral of sigma[] over conductor k, the
                                     "integral of x, integral of CoefGeos[] (m^2 or m^3)"}
 #: largest relative difference between a coil current the deck prescribes and the case's source
 CURRENT_RTOL = 1e-6
+#: the runner's numbers pulseform's wrapper reads after the deck: a deck's own plain assignment of one
+#: (``TimeFinal = 10e-6;``, as GetDP's examples set their time window) beats ``-setnumber``, so ``run.pro``
+#: saves them before the deck and assigns them again after it (:func:`runner_guard_lines`)
+RESTORED_NUMBERS = ("TimeInit", "TimeFinal", "NbSteps", "Flag_ElemOut", "Flag_FieldOut")
+#: the runner's strings restored the same way
+RESTORED_STRINGS = ("OutDir",)
+#: prefix of the saved copies in ``run.pro``
+SAVED_PREFIX = "PF_Runner_"
+#: the first words of the getdp error of a deck that assigned a number the runner sets and the deck
+#: itself reads (:func:`runner_guard_lines`): ``<OVERRIDE_ERROR> NAME = deck value, runner value``
+OVERRIDE_ERROR = "pulseform: the deck overrides"
+#: relative difference above which a deck's value of a runner number counts as its own
+OVERRIDE_RTOL = 1e-12
+
+
+def runner_guard_lines(checked: Sequence[str]) -> tuple[list[str], list[str]]:
+    """The lines of ``run.pro`` around ``Include "<deck>";`` that keep the runner's numbers the runner's.
+
+    A plain assignment in a deck (``TimeFinal = 10e-6;``) beats getdp's ``-setnumber``. The lines
+    before the deck save every runner number and string of :data:`RESTORED_NUMBERS`,
+    :data:`RESTORED_STRINGS` and ``checked`` (all given with ``-setnumber`` / ``-setstring`` in every
+    run) as ``PF_Runner_<name>``; the lines after it assign the restored ones again (the wrapper reads
+    them only after the deck: the deck runs unchanged) and stop getdp with an ``Error`` starting with
+    :data:`OVERRIDE_ERROR` when a ``checked`` number (one the deck or GetDP's template reads while the
+    deck is parsed: the shell radii, ``Flag_FrequencyDomain``, ``[geometry.parameters]``) differs from
+    the runner's by more than :data:`OVERRIDE_RTOL` relative: the runner cannot undo that.
+
+    Returns
+    -------
+    tuple of list of str
+        (lines before the deck, lines after it).
+    """
+    checked = [n for n in dict.fromkeys(checked) if n not in RESTORED_NUMBERS]
+    before = [f"{SAVED_PREFIX}{n} = {n};" for n in (*RESTORED_NUMBERS, *checked)]
+    before += [f"{SAVED_PREFIX}{n} = Str[{n}];" for n in RESTORED_STRINGS]
+    after = ["// the runner's numbers win over the deck's own assignments (pulseform.solvers.getdp.template)"]
+    after += [f"{n} = {SAVED_PREFIX}{n};" for n in RESTORED_NUMBERS]
+    after += [f"{n} = Str[{SAVED_PREFIX}{n}];" for n in RESTORED_STRINGS]
+    for n in checked:
+        s = SAVED_PREFIX + n
+        after.append(f"If(Fabs[{n} - {s}] > {OVERRIDE_RTOL:g} * (Fabs[{n}] + Fabs[{s}])) "
+                     f'Error[Sprintf["{OVERRIDE_ERROR} {n} = %.17g, runner %.17g", {n}, {s}]]; EndIf')
+    return before, after
 
 
 def read_solutions(path: str | Path) -> list[tuple[float, np.ndarray]]:
@@ -300,6 +343,9 @@ class TemplateDeckSolver(GetDPSolver):
     deck_ids : dict of int to int
         The runner's physical id (1 air, 101 coil 1, 201 workpiece, 11 axis, ...) -> the deck's own id
         of that group; every run writes its mesh with the deck's ids.
+    number_sources : dict of str to str, optional
+        The case-file key that gives each runner number (``Val_Rint`` -> ``geometry.shell_inner_radius``,
+        ...), named when a deck overrides one (:func:`runner_guard_lines`).
     check_currents : bool
         After every step, compare each prescribed coil current the deck computed (its own
         ``Current_2D``) with the model's source (:func:`current_mismatch`) and raise
@@ -310,11 +356,13 @@ class TemplateDeckSolver(GetDPSolver):
     """
 
     def __init__(self, model: EMModel, work_dir: str | Path, *, deck: str | Path, spec: TemplateSpec,
-                 deck_ids: dict[int, int], check_currents: bool = True, **kwargs):
+                 deck_ids: dict[int, int], check_currents: bool = True,
+                 number_sources: dict[str, str] | None = None, **kwargs):
         extra = dict(kwargs.pop("extra_numbers", None) or {})
         extra.setdefault("Flag_FrequencyDomain", 0.0)
         super().__init__(model, work_dir, deck=deck, extra_numbers=extra, **kwargs)
         self.spec = spec
+        self.number_sources = dict(number_sources or {})
         self.deck_ids = {int(k): int(v) for k, v in deck_ids.items()}
         missing = [coil_tag(k) for k in range(1, len(model.coils) + 1) if coil_tag(k) not in self.deck_ids]
         missing += [conductor_tag(k) for k in range(1, len(model.conductors) + 1)
@@ -335,13 +383,27 @@ class TemplateDeckSolver(GetDPSolver):
         return write_msh22(EMMesh(mesh.points, mesh.triangles, lut[mesh.tri_tags], mesh.lines, lut[mesh.line_tags]),
                            path)
 
+    def checked_numbers(self) -> list[str]:
+        """The runner's numbers a template deck reads while it is parsed (the extra numbers:
+        ``Flag_FrequencyDomain``, ``[geometry.parameters]``, the role ids; with a shell ``Val_Rint``,
+        ``Val_Rext``, ``Val_Cx``, ``Val_Cy``): a deck's own plain assignment of one that differs from
+        the runner's value stops getdp (:func:`runner_guard_lines`). ``Flag_Axi`` is left to the
+        deck's geometry check (``template_deck.check_deck_values``)."""
+        names = list(self.extra_numbers)
+        if self.model.shell is not None:
+            names += ["Val_Rint", "Val_Rext", "Val_Cx", "Val_Cy"]
+        return names
+
     def _run_pro_text(self, data_lines: list[str]) -> str:
+        """``run.pro``: the data lines, the runner's numbers saved, the deck, the runner's numbers again
+        (:func:`runner_guard_lines`), then pulseform's wrapper (:func:`wrapper_text`)."""
         model = self.model
-        text = super()._run_pro_text(data_lines)
-        if self._first_run:
-            text += "Flag_Values = 1; // the first run from rest prints the deck's own values (EM_Values)\n"
-            if self.time_scheme == "bdf2":
-                text += "PF_SaveInit = 1; // and saves its initial state (x_0 of the BDF2 history)\n"
+        before, after = runner_guard_lines(self.checked_numbers())
+        text = ("// generated by pulseform.solvers.getdp.template for one run\n" + "\n".join(data_lines + before)
+                + f'\nInclude "{self.deck}";\n' + "\n".join(after) + "\n")
+        first = int(self._first_run)
+        text += f"Flag_Values = {first}; // the first run from rest prints the deck's own values (EM_Values)\n"
+        text += f"PF_SaveInit = {int(bool(first) and self.time_scheme == 'bdf2')}; // and saves x_0 of a BDF2 history\n"
         return text + wrapper_text(self.spec, [self.deck_ids[coil_tag(k)] for k in range(1, len(model.coils) + 1)],
                                    [self.deck_ids[conductor_tag(k)] for k in range(1, len(model.conductors) + 1)],
                                    model.circuit is not None, model.axisymmetric)
