@@ -418,7 +418,12 @@ class UserDeck(_ConductorRoles):
         elif self.turns is None:
             raise SchemaError(f"{path}.turns", "missing: the number of turns of the coil regions.coil (an integer "
                               ">= 1)")
-        seen = {group: f"{path}.regions.{role}" for role, group in self.regions.groups().items()}
+        seen: dict[str, str] = {}
+        for role, group in self.regions.groups().items():
+            if group in seen:
+                raise SchemaError(f"{path}.regions.{role}", f"got {group!r}, which is already {seen[group]}; a "
+                                  "physical group has one role")
+            seen[group] = f"{path}.regions.{role}"
         names: list[str] = []
         for i, c in enumerate(self.coils):
             if c.name in names:

@@ -72,13 +72,8 @@ def template_solver(case, model, work_dir: Path, deck_ids: dict[int, int], numbe
     ``numbers``: the ``-setnumber`` extras of a user deck (role ids, ``[geometry.parameters]``)."""
     g = case.geometry
     t = g.template_spec()
-    sources = {k: f"geometry.parameters.{k}" for k in (g.parameters or {})}
-    sources.update(Val_Rint="geometry.shell_inner_radius", Val_Rext="geometry.shell_outer_radius",
-                   Val_Cx="the shell's centre (0)", Val_Cy="the shell's centre (0)",
-                   Flag_FrequencyDomain="pulseform's transient solve")
     return TemplateDeckSolver(model, work_dir, deck=g.pro, spec=TemplateSpec(t.formulation, t.system),
-                              deck_ids=deck_ids, extra_numbers=numbers, time_scheme=case.em.time_scheme,
-                              number_sources=sources)
+                              deck_ids=deck_ids, extra_numbers=numbers, time_scheme=case.em.time_scheme)
 
 
 def _last(path: Path) -> np.ndarray:

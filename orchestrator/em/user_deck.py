@@ -46,7 +46,7 @@ from ..case.deck_files import (MAX_PARAMETER_NAME, check_parameters, deck_tokens
                                is_reserved_parameter, reserved_listing, reserved_parameter_names,
                                resolve_deck_paths, short)
 from ..mesh.em_geometry import EMGeometry
-from .deck_check import DeckCheckReport, DeckContractError, check_deck  # noqa: F401  (DeckContractError: the API)
+from .deck_check import DeckCheckReport, DeckContractError, DeckNames, check_deck  # noqa: F401  (DeckContractError: the API)
 from .template_deck import DeckGeometry, check_deck_values, deck_physical_ids, template_solver
 from .solver import em_model, factor_reuse, make_em_solver
 from .user_remesh import UserDeckLoad, remesh_air_ids
@@ -184,7 +184,7 @@ def build_user_geometry(case, work: Path, em_dir: Path):
     deck_ids = deck_physical_ids(msh, group_map(g.regions, g.coils)) if template else None
     model = user_em_model(case)
     check_contract(make_solver(case, model, Path(em_dir), deck_ids=deck_ids), mesh, Path(em_dir) / "contract_check",
-                   time_limit=getdp_limit)
+                   time_limit=getdp_limit, names=deck_names(case, deck_ids))
     # coils 2, 3, ... (physical 102, ...) have no turn rectangles either (a user mesh is remeshed only in its
     # geometry.remesh_air groups), but the mesh motion keeps every coil's nodes fixed (EMGeometry.coil_turns lists their ids)
     regions = {role: ROLE_IDS[role] for role in ("coil",) + g.conductor_roles()}
@@ -254,18 +254,31 @@ def make_solver(case, model, work_dir: Path, getdp_process: str = "per_step", de
                           preamble=[f'PulseformLib = "{lib}";'], factor_reuse=factor_reuse(case))
 
 
-def check_contract(solver, mesh, work: Path, time_limit: float = GETDP_TIME_LIMIT_S) -> DeckCheckReport:
+def deck_names(case, deck_ids: dict[int, int] | None = None) -> DeckNames:
+    """The case's names of what getdp names in a user deck's messages (:class:`~.deck_check.DeckNames`):
+    every mapped group by the physical id getdp sees (``deck_ids``: the runner's id -> a template deck's
+    own), and the runner numbers a deck may override (``[geometry.parameters]``, the shell radii)."""
+    g = case.geometry
+    regions = {(deck_ids or {}).get(rid, rid): (name, key) for key, name, _, rid in group_map(g.regions, g.coils)}
+    numbers = {k: f"geometry.parameters.{k}" for k in (g.parameters or {})}
+    numbers.update(Val_Rint="geometry.shell_inner_radius", Val_Rext="geometry.shell_outer_radius",
+                   Flag_FrequencyDomain="pulseform's transient solve")
+    return DeckNames(regions, numbers)
+
+
+def check_contract(solver, mesh, work: Path, time_limit: float = GETDP_TIME_LIMIT_S,
+                   names: DeckNames | None = None) -> DeckCheckReport:
     """The deck check (:func:`pulseform.orchestrator.em.deck_check.check_deck`): a few one-step getdp
     runs on the deck with the run's numbers (each stopped after ``time_limit`` s) prove that it
     fulfils the contract, solves the model and carries its state, the first step's tables left in
     ``work/out``. The carry is checked through the Init path (``Flag_InitA``), and through the
     restart path too when ``solver`` steps implicit Euler (BDF2 runs use only the Init path).
     Returns the :class:`~pulseform.orchestrator.em.deck_check.DeckCheckReport`; raises
-    :class:`DeckContractError` (one line) naming what failed."""
+    :class:`DeckContractError` (one line) naming what failed, in the case's ``names`` (:func:`deck_names`)."""
     paths = ("init",) if getattr(solver, "time_scheme", "euler") == "bdf2" else ("init", "restart")
     if getattr(solver, "deck_ids", None) is not None:  # a template deck: its state travels by -restart only
         paths = ("restart",)
-    return check_deck(solver, mesh, Path(work), time_limit, carry_paths=paths)
+    return check_deck(solver, mesh, Path(work), time_limit, carry_paths=paths, names=names)
 
 
 def user_deck_load(case, geometry, work_dir: Path, bodies, em_substeps: int):

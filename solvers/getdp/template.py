@@ -77,6 +77,13 @@ SAVED_PREFIX = "PF_Runner_"
 OVERRIDE_ERROR = "pulseform: the deck overrides"
 #: relative difference above which a deck's value of a runner number counts as its own
 OVERRIDE_RTOL = 1e-12
+#: the template's groups a coil or conductor belongs to: all, massive conductors, stranded conductors
+MEMBERSHIP_GROUPS = ("Vol_Mag", "Vol_C_Mag", "Vol_S_Mag")
+#: table of the first run from rest: per coil k / conductor k (``coil_<k>``, ``cond_<k>``) a row of 0
+#: (inside) or 1 (outside) for each of :data:`MEMBERSHIP_GROUPS`, written while the deck is parsed
+GROUPS_TABLE = "groups.txt"
+#: the getdp error of a case with a capacitor bank on a deck without the template's circuit coupling
+NO_CIRCUIT_ERROR = "pulseform: the case has a capacitor bank, the deck no circuit"
 
 
 def runner_guard_lines(checked: Sequence[str]) -> tuple[list[str], list[str]]:
@@ -198,8 +205,20 @@ def wrapper_text(spec: TemplateSpec, coil_ids: Sequence[int], conductor_ids: Seq
     nc, nk = len(coil_ids), len(conductor_ids)
     cs = ", ".join([f"PF_Coil_{k}" for k in range(1, nc + 1)] + [f"PF_Cond_{k}" for k in range(1, nk + 1)])
     conds = ", ".join(f"PF_Cond_{k}" for k in range(1, nk + 1))
-    lines += [f"  PF_CS = Region[{{{cs}}}];", f"  PF_C = Region[{{{conds}}}];", "}",
-              "Jacobian { { Name PF_Plane; Case { { Region All; Jacobian Vol; } } } }",
+    regs = [f"Coil_{k}" for k in range(1, nc + 1)] + [f"Cond_{k}" for k in range(1, nk + 1)]
+    lines += [f"  PF_CS = Region[{{{cs}}}];", f"  PF_C = Region[{{{conds}}}];"]
+    lines += [f"  PF_Out_{g}_{r} = Region[{{PF_{r}, -{g}}}];" for r in regs for g in MEMBERSHIP_GROUPS]
+    lines += ["}", "If(Flag_Values) // where the deck puts each coil and conductor (GROUPS_TABLE, for the deck check)"]
+    for i, r in enumerate(regs):
+        counts = ", ".join(f"NbrRegions[PF_Out_{g}_{r}]" for g in MEMBERSHIP_GROUPS)
+        lines.append(f'  Printf[Sprintf["{r.lower()}{" %g" * len(MEMBERSHIP_GROUPS)}", {counts}]] '
+                     f'{">>" if i else ">"} StrCat[OutDir, "{GROUPS_TABLE}"];')
+    lines.append("EndIf")
+    if circuit:  # the case's bank needs the deck's circuit (else getdp stops at an unknown Capacitance_Cir)
+        lines.append(f'If(!Flag_CircuitCoupling) Error["{NO_CIRCUIT_ERROR} (Flag_CircuitCoupling = 0)"]; EndIf')
+        lines.append(f'If(NbrRegions[Capacitance_Cir] == 0) Error["{NO_CIRCUIT_ERROR} (Capacitance_Cir is empty)"]; '
+                     "EndIf")
+    lines += ["Jacobian { { Name PF_Plane; Case { { Region All; Jacobian Vol; } } } }",
               f"PF_CoefGeo = {coef};",
               "PostProcessing {",
               f"  {{ Name PF_Template; NameOfFormulation {f};",
@@ -343,9 +362,6 @@ class TemplateDeckSolver(GetDPSolver):
     deck_ids : dict of int to int
         The runner's physical id (1 air, 101 coil 1, 201 workpiece, 11 axis, ...) -> the deck's own id
         of that group; every run writes its mesh with the deck's ids.
-    number_sources : dict of str to str, optional
-        The case-file key that gives each runner number (``Val_Rint`` -> ``geometry.shell_inner_radius``,
-        ...), named when a deck overrides one (:func:`runner_guard_lines`).
     check_currents : bool
         After every step, compare each prescribed coil current the deck computed (its own
         ``Current_2D``) with the model's source (:func:`current_mismatch`) and raise
@@ -356,13 +372,11 @@ class TemplateDeckSolver(GetDPSolver):
     """
 
     def __init__(self, model: EMModel, work_dir: str | Path, *, deck: str | Path, spec: TemplateSpec,
-                 deck_ids: dict[int, int], check_currents: bool = True,
-                 number_sources: dict[str, str] | None = None, **kwargs):
+                 deck_ids: dict[int, int], check_currents: bool = True, **kwargs):
         extra = dict(kwargs.pop("extra_numbers", None) or {})
         extra.setdefault("Flag_FrequencyDomain", 0.0)
         super().__init__(model, work_dir, deck=deck, extra_numbers=extra, **kwargs)
         self.spec = spec
-        self.number_sources = dict(number_sources or {})
         self.deck_ids = {int(k): int(v) for k, v in deck_ids.items()}
         missing = [coil_tag(k) for k in range(1, len(model.coils) + 1) if coil_tag(k) not in self.deck_ids]
         missing += [conductor_tag(k) for k in range(1, len(model.conductors) + 1)
