@@ -219,3 +219,76 @@ def test_a_line_of_the_generated_run_pro_is_quoted(tmp_path):
     error = f"Error   : '{run_pro}', line 3 : Unknown Group: Capacitance_Cir"
     assert _quote_run_pro(error, tmp_path) == ("Error   : pulseform's generated run.pro, line 3 (Print[ U, OnRegion "
                                                "Capacitance_Cir ];) : Unknown Group: Capacitance_Cir")
+
+
+# ----------------------------------------------------------------------------- item 2: the deck's numbers, once
+def _left_to_the_deck(data):
+    """The case states neither the sheet's conductivity nor the coil's turns: the deck's own."""
+    del data["geometry"]["turns"]
+    del data["materials"]["al_blank"]["electrical_conductivity"]
+
+
+@pytest.mark.getdp
+def test_a_deck_constant_changed_through_set_reaches_both_sides(tmp_path):
+    """The case leaves the sheet's conductivity and the coil's turns to the deck; ``pulseform check``
+    shows the deck's constants (as getdp reads them) and the values the case takes from it; ``--set
+    geometry.parameters.Sigma_Sheet=3e7`` changes the deck's Sigma_Sheet (-setnumber) and the case's
+    conductivity at once (no refusal). Four EM steps of 0.5 us then equal plain getdp on the deck with
+    ``-setnumber Sigma_Sheet 3e7 -setnumber TimeFinal 2e-6`` (its own DeltaTime 0.5 us) in every unknown
+    after every step: measured ~1e-15; asserted 1e-9. The deck's own 2.5e7 differs by far more (the
+    comparison sees the conductivity)."""
+    from pulseform.orchestrator.em import user_deck as ud
+    from pulseform.solvers.getdp.template import read_solutions
+
+    folder = _case(tmp_path, edit=_left_to_the_deck)
+    r = pulseform("check", str(folder), "--set", "geometry.parameters.Sigma_Sheet=3e7")
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert ("# current_template.pro: its constants as getdp reads them (--set geometry.parameters.<name>=... "
+            "changes one): Flag_CircuitCoupling = 0, DeltaTime = 5e-07, Sigma_Sheet = 3e+07, Sigma_Coil = 5.8e+07, "
+            "I0 = 20000, Decay = 10000, Omega_I = 100000, NbTurns = 5,") in r.stdout
+    assert ("# the case takes from current_template.pro: materials.al_blank.electrical_conductivity = 3e+07 S/m "
+            "(sigma[] on SHEET), geometry.turns = 5 (js0[] over COIL)") in r.stdout
+
+    case, _ = load_case(folder / "case.toml", ["geometry.parameters.Sigma_Sheet=3e7"])
+    work = tmp_path / "run"
+    geometry = ud.build_user_geometry(case, work / "em_mesh", work / "em")
+    model = ud.user_em_model(case, geometry.deck_values)
+    assert model.conductors[0].sigma == pytest.approx(3e7, rel=1e-12) and model.coils[0].turns == pytest.approx(5)
+    solver = ud.make_solver(case, model, work / "em", deck_ids=geometry.deck_ids)
+    state, results = solver.initial_state(0.0), []
+    for k in range(1, 5):
+        result, state = solver.step(geometry.mesh, state, k * 0.5e-6)
+        results.append(result)
+
+    def plain(name: str, *numbers: str) -> list:
+        out = tmp_path / name
+        out.mkdir()
+        argv = [shutil.which("getdp"), str(folder / "current_template.pro"), "-msh",
+                str(Path(results[0].path) / "mesh.msh"), "-name", str(out / "plain"), *numbers,
+                "-setnumber", "TimeFinal", "2e-6", "-solve", "Magnetodynamics2D_av", "-v", "2"]
+        p = subprocess.run(argv, cwd=out, capture_output=True, text=True, timeout=300, check=False)
+        assert p.returncode == 0 and "Error" not in p.stdout, p.stdout[-2000:]
+        return read_solutions(out / "plain.res")
+
+    def largest(reference: list) -> float:
+        assert len(reference) == len(results) == 4
+        worst = 0.0
+        for result, (t_ref, x_ref) in zip(results, reference):
+            t, x = read_solutions(Path(result.path) / "em.res")[-1]
+            assert t == pytest.approx(t_ref, rel=1e-12)
+            worst = max(worst, float(np.abs(x - x_ref).max() / np.abs(x_ref).max()))
+        return worst
+
+    same, other = largest(plain("set", "-setnumber", "Sigma_Sheet", "3e7")), largest(plain("own"))
+    print(f"against plain getdp -setnumber Sigma_Sheet 3e7: {same:.1e}; against the deck's own 2.5e7: {other:.1e}")
+    assert same <= 1e-9 and other > 1e-4
+
+
+@pytest.mark.getdp
+def test_a_value_the_case_repeats_is_still_compared(tmp_path):
+    """The case that states the conductivity keeps the deck check's comparison: changing the deck's
+    Sigma_Sheet alone is refused, naming both values."""
+    r = pulseform("check", str(_case(tmp_path)), "--set", "geometry.parameters.Sigma_Sheet=3e7")
+    assert r.returncode == 2
+    assert ("materials.al_blank.electrical_conductivity = 2.5e+07 S/m, the deck's sigma[] on SHEET = 3e+07 S/m"
+            in one_line_error(r))
