@@ -261,7 +261,7 @@ def _cmd_check(args: argparse.Namespace) -> int:
         except DeckContractError as exc:
             return _error(str(exc), EXIT_BAD_INPUT)
         print(f"# {case.geometry.pro}: honours the deck contract")
-        for line in deck_lines:  # a template deck's constants, the values the case takes from it
+        for line in deck_lines or ():  # a template deck's constants, the values the case takes from it
             print(line)
     geometry_lines: list[str] = []
     if case.geometry is not None and case.geometry.type == "geometry_3d":
