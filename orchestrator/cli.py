@@ -257,10 +257,12 @@ def _cmd_check(args: argparse.Namespace) -> int:
         from .em.user_deck import DeckContractError, check_user_deck
 
         try:  # mesh the deck, map its groups and run one tiny getdp step (in a temporary folder)
-            check_user_deck(case)
+            deck_lines = check_user_deck(case)
         except DeckContractError as exc:
             return _error(str(exc), EXIT_BAD_INPUT)
         print(f"# {case.geometry.pro}: honours the deck contract")
+        for line in deck_lines or ():  # a template deck's constants, the values the case takes from it
+            print(line)
     geometry_lines: list[str] = []
     if case.geometry is not None and case.geometry.type == "geometry_3d":
         lines = _check_geometry_3d(case, file)

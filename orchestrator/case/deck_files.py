@@ -294,6 +294,72 @@ def deck_files_tokens(path: Path) -> list[tuple[Path, list]]:
     return out
 
 
+def assignment_sites(path: Path, names: tuple[str, ...] | list[str]) -> list[tuple[str, Path, int, str]]:
+    """Where the deck ``path`` (or a file it ``Include``s, :func:`deck_files_tokens`) assigns one of
+    ``names`` with a plain assignment (``TimeFinal = 10e-6;``, not a ``DefineConstant`` default: such an
+    assignment beats getdp's ``-setnumber``).
+
+    Returns
+    -------
+    list of tuple
+        ``(name, file, line, right-hand side)`` in reading order; the right-hand side is the text up to
+        the ``;`` on that line ("" when it does not end there).
+    """
+    wanted = set(names)
+    out = []
+    for file, tokens in deck_files_tokens(Path(path)):
+        lines = None
+        for i, (kind, tok, line) in enumerate(tokens):
+            if kind != "id" or tok not in wanted or not _assigned(tokens, i):
+                continue
+            if lines is None:
+                lines = file.read_text(errors="replace").splitlines()
+            m = re.search(rf"\b{re.escape(tok)}\s*=\s*([^;]*);", lines[line - 1] if line <= len(lines) else "")
+            out.append((tok, file, line, m.group(1).strip() if m else ""))
+    return out
+
+
+#: functions whose value is a string: a ``DefineConstant`` entry starting with one is a string constant
+_STRING_FUNCTIONS = ("Str", "StrCat", "Sprintf", "StrSub", "StrPrefix", "StrRelative", "StrChoice", "GetString",
+                     "Date", "NameToString", "CurrentDirectory", "CurrentDir", "AbsolutePath", "DirName")
+
+
+def define_constant_names(path: Path, skip_files: tuple[str, ...] = (TEMPLATE_FILE,)) -> list[str]:
+    """The numbers a deck declares with ``DefineConstant[ NAME = value, NAME = {value, ...}, ... ]`` in
+    ``path`` and the files it ``Include``s (except files named in ``skip_files``: GetDP's template),
+    in reading order, each once; entries whose value is a string (a literal or a string function)
+    are left out."""
+    out: dict[str, None] = {}
+    for file, tokens in deck_files_tokens(Path(path)):
+        if file.name in skip_files:
+            continue
+        i = 0
+        while i < len(tokens):
+            if tokens[i][1] != "DefineConstant" or i + 1 >= len(tokens) or tokens[i + 1][1] != "[":
+                i += 1
+                continue
+            depth, j = 0, i + 1
+            while j < len(tokens):
+                tok = tokens[j][1]
+                if tok in "[{(" and tokens[j][0] == "other":
+                    depth += 1
+                elif tok in "]})" and tokens[j][0] == "other":
+                    depth -= 1
+                    if depth == 0:
+                        break
+                elif (depth == 1 and tokens[j][0] == "id" and tokens[j - 1][1] in ("[", ",")
+                      and j + 1 < len(tokens) and tokens[j + 1][1] == "="):
+                    k = j + 2
+                    if k < len(tokens) and tokens[k][1] == "{":
+                        k += 1
+                    value = tokens[k] if k < len(tokens) else ("other", "", 0)
+                    if value[0] != "str" and value[1] not in _STRING_FUNCTIONS:
+                        out.setdefault(tokens[j][1])
+                j += 1
+            i = j + 1
+    return list(out)
+
+
 def _named(tokens: list, i: int, next_word: str) -> str | None:
     """``X`` if ``tokens[i:]`` reads ``Name X ; <next_word>``, else None."""
     if tokens[i][1] != "Name" or i + 3 >= len(tokens):

@@ -361,7 +361,8 @@ class UserDeck(_ConductorRoles):
     planar: bool = spec(False, doc="a plane deck (Flag_Axi = 0): the mesh's (x, y) a plane section, the axis role a symmetry "
                                    "plane (a = 0), per metre of depth scaled by mechanics.thickness; prescribed sources only")
     turns: int | None = spec(None, unit="-", ge=1, doc="number of turns of the coil region regions.coil (one coil; "
-                                                 "[[geometry.coils]] give their own)")
+                                                 "[[geometry.coils]] give their own; a 'getdp_template' deck's own "
+                                                 "when not given)")
     coils: tuple[DeckCoil, ...] = spec((), doc="[[geometry.coils]] several coil roles instead of regions.coil: coil k "
                                           "is renumbered to physical 100 + k and is Coil_k of the deck, in this order")
     shell_inner_radius: float | None = spec(None, unit="m", gt=0.0, doc="shell transformation: inner radius")
@@ -415,10 +416,15 @@ class UserDeck(_ConductorRoles):
         elif self.regions.coil is None:
             raise SchemaError(f"{path}.regions.coil", "missing: give the coil's physical-group name (and turns), or "
                               "[[geometry.coils]] entries (name, group, turns) for several coils")
-        elif self.turns is None:
+        elif self.turns is None and self.library != "getdp_template":  # a template deck has its own
             raise SchemaError(f"{path}.turns", "missing: the number of turns of the coil regions.coil (an integer "
                               ">= 1)")
-        seen = {group: f"{path}.regions.{role}" for role, group in self.regions.groups().items()}
+        seen: dict[str, str] = {}
+        for role, group in self.regions.groups().items():
+            if group in seen:
+                raise SchemaError(f"{path}.regions.{role}", f"got {group!r}, which is already {seen[group]}; a "
+                                  "physical group has one role")
+            seen[group] = f"{path}.regions.{role}"
         names: list[str] = []
         for i, c in enumerate(self.coils):
             if c.name in names:

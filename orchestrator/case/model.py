@@ -59,7 +59,8 @@ class MaterialTable:
     bulk_modulus: float = spec(unit="Pa", gt=0.0, doc="bulk modulus K")
     yield_stress: float = spec(unit="Pa", gt=0.0, doc="initial yield stress σ0")
     hardening_modulus: float = spec(0.0, unit="Pa", ge=0.0, doc="linear hardening modulus A")
-    electrical_conductivity: float = spec(0.0, unit="S/m", ge=0.0, doc="σ for eddy currents (EM)")
+    electrical_conductivity: float = spec(0.0, unit="S/m", ge=0.0, doc="σ for eddy currents (EM); left at 0 on a "
+                                                                      "'getdp_template' deck's conductor: the deck's own")
     rate_law: CowperSymondsTable | JohnsonCookTable | None = spec(None, doc="optional strain-rate hardening")
 
 

@@ -36,7 +36,7 @@ import numpy as np
 
 from pulseform.solvers.getdp.contract import CIRCUIT_TABLES, REQUIRED_TABLES, coil_tables
 
-from ..case.deck_files import short
+from ..case.deck_files import assignment_sites, short
 
 if TYPE_CHECKING:
     from pulseform.solvers.getdp import EMMesh, EMState, EMStepResult, GetDPSolver
@@ -45,6 +45,9 @@ log = logging.getLogger(__name__)
 
 #: the check's time step (s): of the order of a run's EM step
 CHECK_STEP_S = 1e-7
+#: the runner's time window: a deck's own plain assignment of one beats -setnumber (a template deck's are
+#: assigned again after the deck, :func:`pulseform.solvers.getdp.template.runner_guard_lines`)
+WINDOW_NAMES = ("TimeInit", "TimeFinal", "NbSteps")
 #: largest relative difference between two chained one-step runs and one two-step run (measured on
 #: the example: 9e-13 through the Init path, whose nodal values travel as printed tables)
 CARRY_RTOL = 1e-9
@@ -60,6 +63,38 @@ class DeckContractError(RuntimeError):
         self.message = message
         self.log_path = None if log_path is None else Path(log_path)
         super().__init__(message if log_path is None else f"{message} (log: {log_path})")
+
+
+@dataclass(frozen=True)
+class DeckNames:
+    """What the case calls the things getdp names, for the check's messages.
+
+    Attributes
+    ----------
+    regions : dict
+        Physical id as getdp sees it (the runner's for a deck on pulseform's library, the mesh's own
+        for a deck on GetDP's template) -> ``(physical-group name, case-file key)``.
+    numbers : dict
+        A runner number's name (``Val_Rint``, a ``[geometry.parameters]`` name, ...) -> the case-file
+        key that gives it.
+    """
+
+    regions: dict[int, tuple[str, str]] = field(default_factory=dict)
+    numbers: dict[str, str] = field(default_factory=dict)
+
+    def region(self, pid: int) -> str:
+        """``SHEET (physical 1200, geometry.regions.workpiece)``, or ``physical <pid>``."""
+        if pid not in self.regions:
+            return f"physical {pid}"
+        group, key = self.regions[pid]
+        return f"{group} (physical {pid}, {key})"
+
+
+#: what the template's functions give, for a region that lacks one (getdp: ``Function 'X' undefined``)
+FUNCTION_MEANINGS = {"sigma": "its conductivity (S/m)", "nu": "its reluctivity 1/mu (m/H)",
+                     "js0": "the coil's current density per ampere, Ns[]/Sc[] * Vector[0,0,1] (1/m^2)",
+                     "Ns": "its turns", "Sc": "its cross-section (m^2)",
+                     "CoefGeos": "2*Pi (axisymmetric) or 1 (planar)"}
 
 
 @dataclass
@@ -94,7 +129,7 @@ class DeckCheckReport:
 
 
 def check_deck(solver: GetDPSolver, mesh: EMMesh, work: Path, time_limit: float,
-               carry_paths: tuple[str, ...] = ("init",)) -> DeckCheckReport:
+               carry_paths: tuple[str, ...] = ("init",), names: DeckNames | None = None) -> DeckCheckReport:
     """Check that the deck of ``solver`` solves the model on ``mesh`` and carries its state.
 
     Parameters
@@ -110,6 +145,8 @@ def check_deck(solver: GetDPSolver, mesh: EMMesh, work: Path, time_limit: float,
         Wall-time limit (s) of each getdp run.
     carry_paths : tuple of str
         ``"init"`` (``Flag_InitA``) and/or ``"restart"`` (``-restart -res``).
+    names : DeckNames, optional
+        The case's names of the physical ids and runner numbers (messages only).
 
     Returns
     -------
@@ -137,13 +174,14 @@ def check_deck(solver: GetDPSolver, mesh: EMMesh, work: Path, time_limit: float,
     dt = CHECK_STEP_S
     start = time.perf_counter()
     state0 = check.initial_state(0.0)
-    first, state1 = _run(check, mesh, state0, dt, 1, work.name, deck)
+    names = names or DeckNames()
+    first, state1 = _run(check, mesh, state0, dt, 1, work.name, deck, names=names)
     report = _solves_the_model(check, mesh, work / "out", deck)
     report.argv = list(first.run.argv)
-    two, state2 = _run(check, mesh, state0, 2 * dt, 2, f"{work.name}/two_steps", deck)
+    two, state2 = _run(check, mesh, state0, 2 * dt, 2, f"{work.name}/two_steps", deck, names=names)
     for path in carry_paths:
         chained, chained_state = _run(check, mesh, state1, 2 * dt, 1, f"{work.name}/carry_{path}", deck,
-                                      force_init_path=(path == "init"))
+                                      force_init_path=(path == "init"), names=names)
         diff, what = _largest_difference(chained, chained_state, two, state2)
         report.carry_difference[path] = diff
         if not diff <= CARRY_RTOL:
@@ -161,10 +199,12 @@ def check_deck(solver: GetDPSolver, mesh: EMMesh, work: Path, time_limit: float,
 
 
 def _run(solver: GetDPSolver, mesh: EMMesh, state: EMState, t_end: float, n_sub: int, run_name: str, deck: Path,
-         *, force_init_path: bool = False) -> tuple[EMStepResult, EMState]:
+         *, force_init_path: bool = False, names: DeckNames | None = None) -> tuple[EMStepResult, EMState]:
     """(result, state) of one :meth:`GetDPSolver.step` in ``solver.work_dir / run_name``; a getdp
-    failure, a missing table, wrong time rows or unreadable (hollow) output become one line
-    (:class:`DeckContractError`)."""
+    failure, a template deck's coil or conductor outside its group or in two of them
+    (:func:`_group_problem`), a missing table, wrong time rows or unreadable (hollow) output become
+    one line (:class:`DeckContractError`)."""
+    names = names or DeckNames()
     from pulseform.solvers.getdp import GetDPError
 
     run_dir = solver.work_dir / run_name
@@ -172,9 +212,12 @@ def _run(solver: GetDPSolver, mesh: EMMesh, state: EMState, t_end: float, n_sub:
         result = solver.step(mesh, state, t_end, n_sub, run_name=run_name, force_init_path=force_init_path)
         error = None
     except GetDPError as exc:
-        raise _getdp_failure(deck, run_dir, exc) from None
+        raise _getdp_failure(deck, run_dir, exc, names, _group_problem(solver, run_dir / "out", names)) from None
     except (RuntimeError, ValueError, OSError, IndexError) as exc:  # the solver could not read the output
         result, error = None, exc
+    problem = _group_problem(solver, run_dir / "out", names)
+    if problem is not None:
+        raise DeckContractError(f"deck {deck.name}: {problem}")
     text = short((str(error) or type(error).__name__).splitlines()[0], 200) if error is not None else ""
     if error is not None and not (run_dir / "getdp.log").is_file():  # refused before getdp ran
         raise DeckContractError(f"deck {deck.name}: the check could not start getdp: {text}")
@@ -186,14 +229,92 @@ def _run(solver: GetDPSolver, mesh: EMMesh, state: EMState, t_end: float, n_sub:
     return result
 
 
-def _getdp_failure(deck: Path, run_dir: Path, exc: Exception) -> DeckContractError:
-    """A getdp error of a check run as one line quoting the log's first ``Error`` line."""
-    from pulseform.solvers.getdp.solver import RESOLUTION
+def where_assigned(deck: Path, names: list[str] | tuple[str, ...]) -> tuple[str, str, str] | None:
+    """(name, ``file:line``, right-hand side) of the first plain assignment of one of ``names`` in ``deck``
+    or its Includes (:func:`~pulseform.orchestrator.case.deck_files.assignment_sites`), or None; the
+    file is named relative to the deck's folder when it lies inside it."""
+    sites = assignment_sites(deck, names)
+    if not sites:
+        return None
+    name, file, line, rhs = sites[0]
+    return name, f"{_shown(deck, file)}:{line}", rhs
 
+
+def _shown(deck: Path, file: Path) -> str:
+    """``file`` named relative to the deck's folder when it lies inside it."""
+    return str(file.relative_to(deck.parent) if file.is_relative_to(deck.parent) else file)
+
+
+def _override_line(deck: Path, name: str, deck_value: float, runner_value: float, source: str | None) -> str:
+    """The line of a deck whose own plain assignment of a runner's number (``source``: the case-file key
+    that gives it) differs from the runner's value: where, and the one-line fix."""
+    site = where_assigned(deck, [name])
+    rhs = site[2] if site and site[2] else f"{deck_value:.6g}"
+    where = (f"deck {site[1]}" if site and site[1].startswith(deck.name + ":") else
+             f"deck {deck.name}: {site[1]}" if site else f"deck {deck.name} (or a file it includes)")
+    given = f" ({source})" if source else ""
+    return (f"{where} assigns {name} = {rhs}; the runner's -setnumber {name} = {runner_value:.6g}{given} loses "
+            f"to a plain assignment: write DefineConstant[ {name} = {rhs} ]; instead (the case's value then reaches "
+            "the deck)")
+
+
+def _group_problem(solver: GetDPSolver, out: Path, names: DeckNames) -> str | None:
+    """Why a template deck's groups cannot hold the case's coils and conductors (the first run's
+    ``groups.txt``, :data:`pulseform.solvers.getdp.template.GROUPS_TABLE`), or None: a conductor must be
+    in ``Vol_C_Mag`` (massive) and not in ``Vol_S_Mag`` (stranded), a coil the other way round, both in
+    ``Vol_Mag``. None too for a deck on pulseform's library or a run that wrote no table."""
+    from pulseform.solvers.getdp.template import GROUPS_TABLE, MEMBERSHIP_GROUPS
+
+    deck_ids = getattr(solver, "deck_ids", None)
+    if deck_ids is None or not (out / GROUPS_TABLE).is_file():
+        return None
+    from pulseform.solvers.getdp import coil_tag, conductor_tag
+
+    for row in (out / GROUPS_TABLE).read_text().splitlines():
+        parts = row.split()
+        if len(parts) != 1 + len(MEMBERSHIP_GROUPS):
+            continue
+        kind, _, k = parts[0].partition("_")
+        outside = dict(zip(MEMBERSHIP_GROUPS, (float(v) > 0 for v in parts[1:])))
+        pid = deck_ids.get(coil_tag(int(k)) if kind == "coil" else conductor_tag(int(k)))
+        what = names.region(pid)
+        own, other = ("Vol_S_Mag", "Vol_C_Mag") if kind == "coil" else ("Vol_C_Mag", "Vol_S_Mag")
+        kinds = {"Vol_S_Mag": "stranded conductors", "Vol_C_Mag": "massive conductors"}
+        if outside["Vol_Mag"] and outside[own]:
+            return f"no group of the deck holds {what}: its Region[]s must use the mesh's own ids"
+        if outside[own]:
+            return f"{what} is not in the deck's {own} (the template's {kinds[own]}): add it to {own}"
+        if not outside[other]:
+            return f"{what} is in both {own} and {other}: a group has one role; remove it from {other}"
+    return None
+
+
+def _getdp_failure(deck: Path, run_dir: Path, exc: Exception, names: DeckNames | None = None,
+                   problem: str | None = None) -> DeckContractError:
+    """A getdp error of a check run as one line quoting the log's first ``Error`` line, with its cause
+    where known: a runner number the deck overrides (:func:`_override_line`), ``problem`` (a template
+    deck's groups, :func:`_group_problem`), the case's bank on a deck without a circuit, a function
+    undefined in a region (named by ``names``); a line of the generated ``run.pro`` is quoted (the
+    check's folder may be gone when the line is read)."""
+    from pulseform.solvers.getdp.solver import RESOLUTION
+    from pulseform.solvers.getdp.template import NO_CIRCUIT_ERROR, OVERRIDE_ERROR
+
+    names = names or DeckNames()
     log_file = run_dir / "getdp.log"
     text = log_file.read_text(errors="replace") if log_file.is_file() else str(exc)
     errs = [ln.strip() for ln in text.splitlines() if ln.lstrip().startswith("Error")] or \
         [ln.strip() for ln in str(exc).splitlines() if "rror" in ln] or [str(exc).splitlines()[0]]
+    over = re.search(re.escape(OVERRIDE_ERROR) + r" (\w+) = (\S+), runner (\S+)", errs[0])
+    if over:
+        return DeckContractError(_override_line(deck, over.group(1), float(over.group(2)), float(over.group(3)),
+                                                names.numbers.get(over.group(1))))  # complete: no log needed
+    if NO_CIRCUIT_ERROR in errs[0]:
+        why = errs[0].split(NO_CIRCUIT_ERROR, 1)[1].strip()
+        return DeckContractError(
+            f"deck {deck.name} has no circuit for the case's capacitor bank {why}: add the template's circuit "
+            "(Flag_CircuitCoupling = 1, Capacitance_Cir, Resistance_Cir, Inductance_Cir, ElectricalCircuit: "
+            "cases/template_sheet_bulge) or use em.current")
+    first = re.sub(r"^(Error|Critical)\s*:\s*", r"\1: ", _quote_run_pro(errs[0], run_dir))
     hint = ""
     if any("Resolution" in e and RESOLUTION in e for e in errs) or any("Unknown Resolution" in e for e in errs):
         hint = f"; the contract needs Resolution {RESOLUTION}"
@@ -202,8 +323,29 @@ def _getdp_failure(deck: Path, run_dir: Path, exc: Exception) -> DeckContractErr
         k = coil.group(1)
         hint = (f"; the case has coil {k} ([[geometry.coils]]): define Coil_{k} = Region[{{Phys_Coil_{k}}}] "
                 "and its Ns, Sc, sigma")
-    return DeckContractError(f"deck {deck.name}: getdp failed on the contract check: {short(errs[0], 200)}{hint}",
+    undefined = re.search(r"Function '(\w+)' undefined in Region (\d+)", errs[0])
+    if problem is not None:  # the cause: the getdp error is its symptom
+        return DeckContractError(f"deck {deck.name}: getdp failed on the contract check ({short(first, 90)}): "
+                                 f"{problem}", log_path=log_file)
+    if undefined:
+        func, pid = undefined.group(1), int(undefined.group(2))
+        meaning = FUNCTION_MEANINGS.get(func, "its value")
+        hint = f"; {names.region(pid)} has no {func}[]: define {func}[] on its group in the deck, {meaning}"
+    return DeckContractError(f"deck {deck.name}: getdp failed on the contract check: {short(first, 200)}{hint}",
                              log_path=log_file)
+
+
+def _quote_run_pro(error: str, run_dir: Path) -> str:
+    """``error`` with a location in the generated ``run.pro`` replaced by the line itself (``run.pro``,
+    line 59: ``<text>``): the check's temporary folder is removed before the message is read."""
+    m = re.search(r"'([^']*run\.pro)', line (\d+)", error)
+    if m is None:
+        return error
+    try:
+        line = Path(m.group(1)).read_text(errors="replace").splitlines()[int(m.group(2)) - 1].strip()
+    except (OSError, IndexError):
+        return error
+    return error.replace(m.group(0), f"pulseform's generated run.pro, line {m.group(2)} ({short(line, 80)})")
 
 
 def _contract_tables(solver: GetDPSolver, run_dir: Path, deck: Path) -> None:
@@ -248,8 +390,14 @@ def _time_rows(out: Path, deck: Path, t0: float, t_end: float, n_sub: int) -> No
         t = _read_rows(out / name)[:, 0]
         if len(t) != n_sub or not np.all(np.abs(t - want) <= 1e-6 * (t_end - t0) / n_sub):
             got = f"{len(t)} row(s) ending at t = {t[-1]:.3g} s" if len(t) else "no rows"
+            fix = "(TimeInit, TimeFinal, NbSteps are the runner's)"
+            sites = assignment_sites(deck, WINDOW_NAMES)
+            if sites:
+                where = ", ".join(dict.fromkeys(_shown(deck, file) + f":{line}" for _, file, line, _ in sites))
+                own = ", ".join(f"{n} = {rhs}" for n, _, _, rhs in sites if rhs)
+                fix = f"({where} assigns it: write DefineConstant[ {own} ]; instead)"
             raise DeckContractError(f"deck {deck.name} overrides the time window: {name} has {got}, the runner asked for "
-                                    f"{n_sub} ending at {t_end:.3g} s (TimeInit, TimeFinal, NbSteps are the runner's)")
+                                    f"{n_sub} ending at {t_end:.3g} s {fix}")
 
 
 def _solves_the_model(solver: GetDPSolver, mesh: EMMesh, out: Path, deck: Path) -> DeckCheckReport:
@@ -291,7 +439,9 @@ def _solves_the_model(solver: GetDPSolver, mesh: EMMesh, out: Path, deck: Path) 
         problems.append(f"field state on {int(np.isin(nodes, state_nodes).sum())} of {len(nodes)} nodes")
     if problems:
         regions_hollow = any(p.startswith(("force rows", "field state")) for p in problems)
-        hint = ("its Region[]s must use the ids Phys_* the runner passes" if regions_hollow
+        ids = ("its groups must hold the mesh's own physical ids" if getattr(solver, "deck_ids", None) is not None
+               else "its Region[]s must use the ids Phys_* the runner passes")
+        hint = (ids if regions_hollow
                 else "the coil must be driven by the case's circuit or current (Flag_Circuit, Init_Vc, Coil_I0_1)")
         raise DeckContractError(f"deck {deck.name} is hollow: after one step " + ", ".join(problems) + "; " + hint)
     return DeckCheckReport(magnetic_energy=w, coil_current=cur, force_rows=len(ids), state_nodes=len(state_nodes))

@@ -100,10 +100,11 @@ def em_model(case: Case, shell: tuple[float, float] | None) -> EMModel:
     g = case.geometry
     coils, circuit = _coils(case)
     conductors = []
+    deck_own = getattr(g, "library", "pulseform") == "getdp_template"  # 0: the deck's own (user_deck.user_em_model)
     for role in g.conductor_roles():
         body = next(b for b in case.bodies if b.region == role)
         sigma = case.materials[body.material].electrical_conductivity
-        if sigma <= 0.0:
+        if sigma <= 0.0 and not deck_own:
             raise ValueError(f"materials.{body.material}.electrical_conductivity must be > 0 for the {role}")
         conductors.append(Conductor(sigma=sigma, name=body.name))
     return EMModel(axisymmetric=not g.planar, coils=coils, conductors=conductors, circuit=circuit, shell=shell,

@@ -20,6 +20,7 @@ The deck (its own groups on its own physical ids, functions, constraints, then `
 from __future__ import annotations
 
 import logging
+import subprocess
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -34,6 +35,8 @@ log = logging.getLogger(__name__)
 
 #: largest relative difference between a deck's own value and the case's
 VALUE_RTOL = 1e-6
+#: a conductivity (S/m) or turns the case leaves to a template deck, before the deck check has read it
+UNREAD = float("nan")
 #: relative tolerance of the geometry kind (:func:`_geometry_kind`): axisymmetric and planar differ by the
 #: region's mean x in metres (0.04 for the example's die)
 KIND_RTOL = 1e-3
@@ -47,6 +50,10 @@ class DeckGeometry(EMGeometry):
     -> the id the deck's mesh gives it (the deck's ``Region[...]`` use these)."""
 
     deck_ids: dict[int, int] = field(default_factory=dict)
+    #: the deck's own values (:func:`deck_values`) read by the deck check
+    deck_values: dict[str, float | str] = field(default_factory=dict)
+    #: the deck's ``DefineConstant`` numbers as getdp reads them with the run's numbers (:func:`deck_constants`)
+    deck_constants: dict[str, float] = field(default_factory=dict)
 
 
 def deck_physical_ids(path: Path, groups: list[tuple[str, str, int, int]]) -> dict[int, int]:
@@ -83,10 +90,14 @@ def _last(path: Path) -> np.ndarray:
     return np.loadtxt(path, ndmin=2)
 
 
-def _conductivity_key(case, k: int) -> str:
+def _conductor_material(case, k: int) -> str:
+    """The material name of conductor k's body."""
     role = case.geometry.conductor_roles()[k - 1]
-    body = next(b for b in case.bodies if b.region == role)
-    return f"materials.{body.material}.electrical_conductivity"
+    return next(b for b in case.bodies if b.region == role).material
+
+
+def _conductivity_key(case, k: int) -> str:
+    return f"materials.{_conductor_material(case, k)}.electrical_conductivity"
 
 
 def _geometry_kind(rows: np.ndarray) -> tuple[str, float]:
@@ -128,6 +139,81 @@ def deck_values(out: Path, n_coils: int, n_conductors: int, circuit: bool) -> di
             vals[q] = float(_last(out / f"cir_{q}.txt")[:, -1].sum())
         vals["V0"] = float(_last(out / "cir_V0.txt")[0, -1])
     return vals
+
+
+def deck_constants(deck: Path, argv: list[str], work: Path, time_limit: float) -> dict[str, float]:
+    """The numbers the deck declares with ``DefineConstant`` (and its Includes but GetDP's template,
+    :func:`~pulseform.orchestrator.case.deck_files.define_constant_names`) as getdp evaluates them with
+    the run's ``-setnumber`` numbers (those of ``argv``, a check run's command line): a parse-only getdp
+    run of a file that includes the deck and prints them (``work/constants.pro``, log
+    ``work/constants.log``). A constant getdp cannot print is left out; a failed run gives {} (the
+    values are shown, never checked).
+
+    Returns
+    -------
+    dict
+        Name -> value, in the deck's order.
+    """
+    from pulseform.solvers.getdp.runner import find_getdp, run_logged
+
+    from ..case.deck_files import define_constant_names
+
+    names = define_constant_names(Path(deck))
+    work = Path(work).resolve()
+    work.mkdir(parents=True, exist_ok=True)
+    table = work / "constants.txt"
+    lines = [f'Include "{Path(deck).resolve()}";']
+    lines += [f'If(Exists[{n}]) Printf[Sprintf["{n} %.17g", {n}]] >> "{table}"; EndIf' for n in names]
+    (work / "constants.pro").write_text("\n".join(lines) + "\n")
+    numbers = [a for i, tok in enumerate(argv[:-2]) if tok == "-setnumber" for a in argv[i:i + 3]]
+    table.unlink(missing_ok=True)
+    try:
+        args = [find_getdp(), str(work / "constants.pro"), *numbers, "-v", "2"]
+        code, _ = run_logged(args, work, work / "constants.log", time_limit)
+    except (OSError, subprocess.TimeoutExpired, RuntimeError) as exc:
+        log.debug("the deck's constants were not read: %s", exc)
+        return {}
+    if code != 0 or not table.is_file():
+        log.debug("the deck's constants were not read: getdp exit code %s (%s)", code, work / "constants.log")
+        return {}
+    out = {}
+    for row in table.read_text().splitlines():
+        name, _, value = row.partition(" ")
+        try:
+            out[name] = float(value)
+        except ValueError:
+            continue
+    return out
+
+
+def deck_summary(case, geometry: DeckGeometry) -> list[str]:
+    """What ``pulseform check`` shows of a template deck: its constants as getdp reads them (those a
+    ``--set geometry.parameters.<name>=...`` changes, then those the runner sets), and the values the
+    case leaves to the deck (a conductivity left at 0, ``geometry.turns`` not given)."""
+    from ..case.deck_files import is_reserved_parameter
+
+    g = case.geometry
+    deck = Path(g.pro).name
+    consts = geometry.deck_constants
+    own = {n: v for n, v in consts.items() if not (is_reserved_parameter(n) or n == "Flag_FrequencyDomain")}
+    runner = {n: v for n, v in consts.items() if n not in own}
+    lines = []
+    if consts:
+        lines.append(f"# {deck}: its constants as getdp reads them (--set geometry.parameters.<name>=... changes "
+                     "one): " + (", ".join(f"{n} = {v:.6g}" for n, v in own.items()) or "none")
+                     + ("; set by the runner: " + ", ".join(f"{n} = {v:.6g}" for n, v in runner.items())
+                        if runner else ""))
+    vals, taken = geometry.deck_values, []
+    for k in range(1, len(g.conductor_roles()) + 1):
+        if case.materials[_conductor_material(case, k)].electrical_conductivity <= 0.0 and f"sigma_{k}" in vals:
+            group = getattr(g.regions, g.conductor_roles()[k - 1])
+            taken.append(f"{_conductivity_key(case, k)} = {vals[f'sigma_{k}']:.6g} S/m (sigma[] on {group})")
+    for k, (key, _, group, turns) in enumerate(g.coil_groups(), start=1):
+        if turns is None and f"turns_{k}" in vals:
+            taken.append(f"geometry.turns = {vals[f'turns_{k}']:.6g} (js0[] over {group})")
+    if taken:
+        lines.append(f"# the case takes from {deck}: " + ", ".join(taken))
+    return lines
 
 
 def _source_key(case, k: int) -> str:
@@ -183,12 +269,16 @@ def check_deck_values(case, model, out: Path) -> dict[str, float | str]:
         elif abs(vals[f"coefgeos_{reg}"] - coef) > VALUE_RTOL * coef:
             diffs.append(f"geometry.planar = {str(g.planar).lower()} (CoefGeos[] = {coef:.6g}), the deck's CoefGeos[] "
                          f"on {group} = {vals[f'coefgeos_{reg}']:.6g}")
-    want: list[tuple[str, str, float, str]] = []  # (value key, case key, case value, unit)
-    for k, c in enumerate(model.conductors, start=1):
-        want.append((f"sigma_{k}", _conductivity_key(case, k), c.sigma, "S/m"))
+    want: list[tuple[str, str, float, str]] = []  # (value key, case key, case value, unit): what the case gives
+    for k in range(1, len(model.conductors) + 1):
+        ckey = _conductivity_key(case, k)
+        sigma = case.materials[_conductor_material(case, k)].electrical_conductivity
+        if sigma > 0.0:  # 0: left to the deck
+            want.append((f"sigma_{k}", ckey, sigma, "S/m"))
     for k, (key, _, _, turns) in enumerate(g.coil_groups(), start=1):
         tkey = key[:-len(".group")] + ".turns" if key.startswith("geometry.coils") else "geometry.turns"
-        want.append((f"turns_{k}", tkey, float(turns), "turns"))
+        if turns is not None:  # None: left to the deck
+            want.append((f"turns_{k}", tkey, float(turns), "turns"))
     if model.circuit is not None:
         bank = "em.circuit" if case.em.circuit is not None else "em.sources (bank)"
         cir = model.circuit

@@ -46,8 +46,9 @@ from ..case.deck_files import (MAX_PARAMETER_NAME, check_parameters, deck_tokens
                                is_reserved_parameter, reserved_listing, reserved_parameter_names,
                                resolve_deck_paths, short)
 from ..mesh.em_geometry import EMGeometry
-from .deck_check import DeckCheckReport, DeckContractError, check_deck  # noqa: F401  (DeckContractError: the API)
-from .template_deck import DeckGeometry, check_deck_values, deck_physical_ids, template_solver
+from .deck_check import DeckCheckReport, DeckContractError, DeckNames, check_deck  # noqa: F401  (DeckContractError: the API)
+from .template_deck import (UNREAD, DeckGeometry, check_deck_values, deck_constants, deck_physical_ids, deck_summary,
+                            template_solver)
 from .solver import em_model, factor_reuse, make_em_solver
 from .user_remesh import UserDeckLoad, remesh_air_ids
 
@@ -183,15 +184,17 @@ def build_user_geometry(case, work: Path, em_dir: Path):
     template = getattr(g, "library", "pulseform") == "getdp_template"
     deck_ids = deck_physical_ids(msh, group_map(g.regions, g.coils)) if template else None
     model = user_em_model(case)
-    check_contract(make_solver(case, model, Path(em_dir), deck_ids=deck_ids), mesh, Path(em_dir) / "contract_check",
-                   time_limit=getdp_limit)
+    report = check_contract(make_solver(case, model, Path(em_dir), deck_ids=deck_ids), mesh,
+                            Path(em_dir) / "contract_check", time_limit=getdp_limit, names=deck_names(case, deck_ids))
     # coils 2, 3, ... (physical 102, ...) have no turn rectangles either (a user mesh is remeshed only in its
     # geometry.remesh_air groups), but the mesh motion keeps every coil's nodes fixed (EMGeometry.coil_turns lists their ids)
     regions = {role: ROLE_IDS[role] for role in ("coil",) + g.conductor_roles()}
     more = [[] for _ in g.coil_groups()[1:]]
     if template:
-        check_deck_values(case, model, Path(em_dir) / "contract_check" / "out")
-        return DeckGeometry(mesh, regions, [], more_coils=more, deck_ids=deck_ids, planar=g.planar)
+        values = check_deck_values(case, model, Path(em_dir) / "contract_check" / "out")
+        constants = deck_constants(Path(g.pro), report.argv, Path(em_dir) / "constants", getdp_limit)
+        return DeckGeometry(mesh, regions, [], more_coils=more, deck_ids=deck_ids, planar=g.planar,
+                            deck_values=values, deck_constants=constants)
     return EMGeometry(mesh, regions, [], more_coils=more, planar=g.planar)
 
 
@@ -205,9 +208,11 @@ def log_summary(path: Path, n: int = 2, width: int = 160) -> str:
     return short(" | ".join(lines[-n:]), width)
 
 
-def check_user_deck(case) -> None:
+def check_user_deck(case) -> list[str]:
     """``pulseform check`` of a user deck: mesh it, map its groups to roles and run the contract
-    check in a temporary folder, which is removed whether the deck passes or not. Raises
+    check in a temporary folder, which is removed whether the deck passes or not. Returns the lines
+    the check shows of a deck on GetDP's template (:func:`.template_deck.deck_summary`: its constants,
+    the values the case takes from it; none for a deck on pulseform's library). Raises
     :class:`DeckContractError` naming what is wrong; when that names a gmsh/getdp log of the
     temporary folder, the message carries the log's last lines instead (an ``Error`` line of the
     log is in the message already)."""
@@ -215,7 +220,8 @@ def check_user_deck(case) -> None:
 
     tmp = Path(tempfile.mkdtemp(prefix="pulseform_check_"))
     try:
-        build_user_geometry(case, tmp / "em_mesh", tmp / "em")
+        geometry = build_user_geometry(case, tmp / "em_mesh", tmp / "em")
+        return deck_summary(case, geometry) if isinstance(geometry, DeckGeometry) else []
     except DeckContractError as exc:
         if exc.log_path is None or not exc.log_path.is_relative_to(tmp):
             raise
@@ -226,12 +232,27 @@ def check_user_deck(case) -> None:
 
 
 # ----------------------------------------------------------------------------- getdp
-def user_em_model(case):
+def user_em_model(case, deck_values: dict | None = None):
     """EMModel of a user-deck case: its stranded coils (``regions.coil``, or ``[[geometry.coils]]`` in their
-    order), the workpiece as massive conductor 1 (a die 2)."""
+    order), the workpiece as massive conductor 1 (a die 2).
+
+    A deck on GetDP's template keeps its own numbers: a conductor whose material leaves
+    ``electrical_conductivity`` unset (0) and a coil without ``geometry.turns`` take the deck's values
+    ``deck_values`` (:func:`.template_deck.deck_values`, ``sigma_<k>``, ``turns_<k>``, read by the deck
+    check), or :data:`.template_deck.UNREAD` before the deck has been read (the runner's ``-setnumber``
+    numbers of the template path do not use them)."""
     g = case.geometry
     shell = None if g.shell_inner_radius is None else (g.shell_inner_radius, g.shell_outer_radius)
-    return em_model(case, shell)
+    model = em_model(case, shell)
+    if getattr(g, "library", "pulseform") == "getdp_template":
+        own = deck_values or {}
+        for k, c in enumerate(model.conductors, start=1):
+            if c.sigma <= 0.0:
+                c.sigma = float(own.get(f"sigma_{k}", UNREAD))
+        for k, c in enumerate(model.coils, start=1):
+            if c.turns is None:
+                c.turns = float(own.get(f"turns_{k}", UNREAD))
+    return model
 
 
 def make_solver(case, model, work_dir: Path, getdp_process: str = "per_step", deck_ids: dict[int, int] | None = None):
@@ -254,24 +275,37 @@ def make_solver(case, model, work_dir: Path, getdp_process: str = "per_step", de
                           preamble=[f'PulseformLib = "{lib}";'], factor_reuse=factor_reuse(case))
 
 
-def check_contract(solver, mesh, work: Path, time_limit: float = GETDP_TIME_LIMIT_S) -> DeckCheckReport:
+def deck_names(case, deck_ids: dict[int, int] | None = None) -> DeckNames:
+    """The case's names of what getdp names in a user deck's messages (:class:`~.deck_check.DeckNames`):
+    every mapped group by the physical id getdp sees (``deck_ids``: the runner's id -> a template deck's
+    own), and the runner numbers a deck may override (``[geometry.parameters]``, the shell radii)."""
+    g = case.geometry
+    regions = {(deck_ids or {}).get(rid, rid): (name, key) for key, name, _, rid in group_map(g.regions, g.coils)}
+    numbers = {k: f"geometry.parameters.{k}" for k in (g.parameters or {})}
+    numbers.update(Val_Rint="geometry.shell_inner_radius", Val_Rext="geometry.shell_outer_radius",
+                   Flag_FrequencyDomain="pulseform's transient solve")
+    return DeckNames(regions, numbers)
+
+
+def check_contract(solver, mesh, work: Path, time_limit: float = GETDP_TIME_LIMIT_S,
+                   names: DeckNames | None = None) -> DeckCheckReport:
     """The deck check (:func:`pulseform.orchestrator.em.deck_check.check_deck`): a few one-step getdp
     runs on the deck with the run's numbers (each stopped after ``time_limit`` s) prove that it
     fulfils the contract, solves the model and carries its state, the first step's tables left in
     ``work/out``. The carry is checked through the Init path (``Flag_InitA``), and through the
     restart path too when ``solver`` steps implicit Euler (BDF2 runs use only the Init path).
     Returns the :class:`~pulseform.orchestrator.em.deck_check.DeckCheckReport`; raises
-    :class:`DeckContractError` (one line) naming what failed."""
+    :class:`DeckContractError` (one line) naming what failed, in the case's ``names`` (:func:`deck_names`)."""
     paths = ("init",) if getattr(solver, "time_scheme", "euler") == "bdf2" else ("init", "restart")
     if getattr(solver, "deck_ids", None) is not None:  # a template deck: its state travels by -restart only
         paths = ("restart",)
-    return check_deck(solver, mesh, Path(work), time_limit, carry_paths=paths)
+    return check_deck(solver, mesh, Path(work), time_limit, carry_paths=paths, names=names)
 
 
 def user_deck_load(case, geometry, work_dir: Path, bodies, em_substeps: int):
     """The load provider of a user-deck case: :class:`~.user_remesh.UserDeckLoad` on the user's deck (checked by
     :func:`build_user_geometry`), its ``geometry.remesh_air`` groups meshed again when the mesh degrades."""
-    model = user_em_model(case)
+    model = user_em_model(case, getattr(geometry, "deck_values", None))
     mode = case.em.getdp_process
     deck_ids = getattr(geometry, "deck_ids", None)
     if deck_ids is not None:  # a template deck: per step (the case loader refused the persistent getdp)

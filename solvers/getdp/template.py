@@ -50,7 +50,7 @@ from .model import Coil, DampedSine, EMModel, EMState, EMStepResult, mesh_signat
 from .solver import GetDPSolver
 
 __all__ = ["TemplateSpec", "TemplateDeckSolver", "TemplateDeckError", "wrapper_text", "current_mismatch",
-           "VALUE_TABLES", "WRAPPER_NAMES", "CURRENT_RTOL"]
+           "runner_guard_lines", "VALUE_TABLES", "WRAPPER_NAMES", "CURRENT_RTOL", "RESTORED_NUMBERS", "OVERRIDE_ERROR"]
 
 #: objects the wrapper defines after the user's deck (a deck must not define them itself)
 WRAPPER_NAMES = ("PF_Template", "PF_Plane", "EM_Transient", "EM_Step", "EM_Elem", "EM_State", "EM_Field",
@@ -64,6 +64,56 @@ VALUE_TABLES = {"cond_sigma_<k>.txt": "integral of sigma[] over conductor k, the
                                     "integral of x, integral of CoefGeos[] (m^2 or m^3)"}
 #: largest relative difference between a coil current the deck prescribes and the case's source
 CURRENT_RTOL = 1e-6
+#: the runner's numbers pulseform's wrapper reads after the deck: a deck's own plain assignment of one
+#: (``TimeFinal = 10e-6;``, as GetDP's examples set their time window) beats ``-setnumber``, so ``run.pro``
+#: saves them before the deck and assigns them again after it (:func:`runner_guard_lines`)
+RESTORED_NUMBERS = ("TimeInit", "TimeFinal", "NbSteps", "Flag_ElemOut", "Flag_FieldOut")
+#: the runner's strings restored the same way
+RESTORED_STRINGS = ("OutDir",)
+#: prefix of the saved copies in ``run.pro``
+SAVED_PREFIX = "PF_Runner_"
+#: the first words of the getdp error of a deck that assigned a number the runner sets and the deck
+#: itself reads (:func:`runner_guard_lines`): ``<OVERRIDE_ERROR> NAME = deck value, runner value``
+OVERRIDE_ERROR = "pulseform: the deck overrides"
+#: relative difference above which a deck's value of a runner number counts as its own
+OVERRIDE_RTOL = 1e-12
+#: the template's groups a coil or conductor belongs to: all, massive conductors, stranded conductors
+MEMBERSHIP_GROUPS = ("Vol_Mag", "Vol_C_Mag", "Vol_S_Mag")
+#: table of the first run from rest: per coil k / conductor k (``coil_<k>``, ``cond_<k>``) a row of 0
+#: (inside) or 1 (outside) for each of :data:`MEMBERSHIP_GROUPS`, written while the deck is parsed
+GROUPS_TABLE = "groups.txt"
+#: the getdp error of a case with a capacitor bank on a deck without the template's circuit coupling
+NO_CIRCUIT_ERROR = "pulseform: the case has a capacitor bank, the deck no circuit"
+
+
+def runner_guard_lines(checked: Sequence[str]) -> tuple[list[str], list[str]]:
+    """The lines of ``run.pro`` around ``Include "<deck>";`` that keep the runner's numbers the runner's.
+
+    A plain assignment in a deck (``TimeFinal = 10e-6;``) beats getdp's ``-setnumber``. The lines
+    before the deck save every runner number and string of :data:`RESTORED_NUMBERS`,
+    :data:`RESTORED_STRINGS` and ``checked`` (all given with ``-setnumber`` / ``-setstring`` in every
+    run) as ``PF_Runner_<name>``; the lines after it assign the restored ones again (the wrapper reads
+    them only after the deck: the deck runs unchanged) and stop getdp with an ``Error`` starting with
+    :data:`OVERRIDE_ERROR` when a ``checked`` number (one the deck or GetDP's template reads while the
+    deck is parsed: the shell radii, ``Flag_FrequencyDomain``, ``[geometry.parameters]``) differs from
+    the runner's by more than :data:`OVERRIDE_RTOL` relative: the runner cannot undo that.
+
+    Returns
+    -------
+    tuple of list of str
+        (lines before the deck, lines after it).
+    """
+    checked = [n for n in dict.fromkeys(checked) if n not in RESTORED_NUMBERS]
+    before = [f"{SAVED_PREFIX}{n} = {n};" for n in (*RESTORED_NUMBERS, *checked)]
+    before += [f"{SAVED_PREFIX}{n} = Str[{n}];" for n in RESTORED_STRINGS]
+    after = ["// the runner's numbers win over the deck's own assignments (pulseform.solvers.getdp.template)"]
+    after += [f"{n} = {SAVED_PREFIX}{n};" for n in RESTORED_NUMBERS]
+    after += [f"{n} = Str[{SAVED_PREFIX}{n}];" for n in RESTORED_STRINGS]
+    for n in checked:
+        s = SAVED_PREFIX + n
+        after.append(f"If(Fabs[{n} - {s}] > {OVERRIDE_RTOL:g} * (Fabs[{n}] + Fabs[{s}])) "
+                     f'Error[Sprintf["{OVERRIDE_ERROR} {n} = %.17g, runner %.17g", {n}, {s}]]; EndIf')
+    return before, after
 
 
 def read_solutions(path: str | Path) -> list[tuple[float, np.ndarray]]:
@@ -155,8 +205,20 @@ def wrapper_text(spec: TemplateSpec, coil_ids: Sequence[int], conductor_ids: Seq
     nc, nk = len(coil_ids), len(conductor_ids)
     cs = ", ".join([f"PF_Coil_{k}" for k in range(1, nc + 1)] + [f"PF_Cond_{k}" for k in range(1, nk + 1)])
     conds = ", ".join(f"PF_Cond_{k}" for k in range(1, nk + 1))
-    lines += [f"  PF_CS = Region[{{{cs}}}];", f"  PF_C = Region[{{{conds}}}];", "}",
-              "Jacobian { { Name PF_Plane; Case { { Region All; Jacobian Vol; } } } }",
+    regs = [f"Coil_{k}" for k in range(1, nc + 1)] + [f"Cond_{k}" for k in range(1, nk + 1)]
+    lines += [f"  PF_CS = Region[{{{cs}}}];", f"  PF_C = Region[{{{conds}}}];"]
+    lines += [f"  PF_Out_{g}_{r} = Region[{{PF_{r}, -{g}}}];" for r in regs for g in MEMBERSHIP_GROUPS]
+    lines += ["}", "If(Flag_Values) // where the deck puts each coil and conductor (GROUPS_TABLE, for the deck check)"]
+    for i, r in enumerate(regs):
+        counts = ", ".join(f"NbrRegions[PF_Out_{g}_{r}]" for g in MEMBERSHIP_GROUPS)
+        lines.append(f'  Printf[Sprintf["{r.lower()}{" %g" * len(MEMBERSHIP_GROUPS)}", {counts}]] '
+                     f'{">>" if i else ">"} StrCat[OutDir, "{GROUPS_TABLE}"];')
+    lines.append("EndIf")
+    if circuit:  # the case's bank needs the deck's circuit (else getdp stops at an unknown Capacitance_Cir)
+        lines.append(f'If(!Flag_CircuitCoupling) Error["{NO_CIRCUIT_ERROR} (Flag_CircuitCoupling = 0)"]; EndIf')
+        lines.append(f'If(NbrRegions[Capacitance_Cir] == 0) Error["{NO_CIRCUIT_ERROR} (Capacitance_Cir is empty)"]; '
+                     "EndIf")
+    lines += ["Jacobian { { Name PF_Plane; Case { { Region All; Jacobian Vol; } } } }",
               f"PF_CoefGeo = {coef};",
               "PostProcessing {",
               f"  {{ Name PF_Template; NameOfFormulation {f};",
@@ -335,13 +397,27 @@ class TemplateDeckSolver(GetDPSolver):
         return write_msh22(EMMesh(mesh.points, mesh.triangles, lut[mesh.tri_tags], mesh.lines, lut[mesh.line_tags]),
                            path)
 
+    def checked_numbers(self) -> list[str]:
+        """The runner's numbers a template deck reads while it is parsed (the extra numbers:
+        ``Flag_FrequencyDomain``, ``[geometry.parameters]``, the role ids; with a shell ``Val_Rint``,
+        ``Val_Rext``, ``Val_Cx``, ``Val_Cy``): a deck's own plain assignment of one that differs from
+        the runner's value stops getdp (:func:`runner_guard_lines`). ``Flag_Axi`` is left to the
+        deck's geometry check (``template_deck.check_deck_values``)."""
+        names = list(self.extra_numbers)
+        if self.model.shell is not None:
+            names += ["Val_Rint", "Val_Rext", "Val_Cx", "Val_Cy"]
+        return names
+
     def _run_pro_text(self, data_lines: list[str]) -> str:
+        """``run.pro``: the data lines, the runner's numbers saved, the deck, the runner's numbers again
+        (:func:`runner_guard_lines`), then pulseform's wrapper (:func:`wrapper_text`)."""
         model = self.model
-        text = super()._run_pro_text(data_lines)
-        if self._first_run:
-            text += "Flag_Values = 1; // the first run from rest prints the deck's own values (EM_Values)\n"
-            if self.time_scheme == "bdf2":
-                text += "PF_SaveInit = 1; // and saves its initial state (x_0 of the BDF2 history)\n"
+        before, after = runner_guard_lines(self.checked_numbers())
+        text = ("// generated by pulseform.solvers.getdp.template for one run\n" + "\n".join(data_lines + before)
+                + f'\nInclude "{self.deck}";\n' + "\n".join(after) + "\n")
+        first = int(self._first_run)
+        text += f"Flag_Values = {first}; // the first run from rest prints the deck's own values (EM_Values)\n"
+        text += f"PF_SaveInit = {int(bool(first) and self.time_scheme == 'bdf2')}; // and saves x_0 of a BDF2 history\n"
         return text + wrapper_text(self.spec, [self.deck_ids[coil_tag(k)] for k in range(1, len(model.coils) + 1)],
                                    [self.deck_ids[conductor_tag(k)] for k in range(1, len(model.conductors) + 1)],
                                    model.circuit is not None, model.axisymmetric)

@@ -185,12 +185,15 @@ def _edited(tmp_path, old: str, new: str):
 
 
 @pytest.mark.getdp
-def test_template_deck_with_its_own_time_window_is_refused(tmp_path):
-    """The deck's own ``TimeFinal = 10e-6;`` wins over the runner's -setnumber (the template's
-    DefineConstant then keeps it): the check's step ends at 10 µs instead of 0.1 µs."""
+def test_template_deck_with_its_own_time_window_passes_the_check(tmp_path):
+    """The deck's own ``TimeFinal = 10e-6;`` (a plain assignment, which beats the runner's -setnumber; this
+    deck used to be refused: its check step ended at 10 µs instead of 0.1 µs) passes: run.pro assigns the
+    runner's window again after the deck. Its run against plain getdp on the deck:
+    tests/workflow/test_template_deck_own_names.py."""
     inc = 'Include "/usr/share/doc/getdp/examples/templates/'
-    line = _refused(_edited(tmp_path, inc, "TimeFinal = 10e-6;\n" + inc))
-    assert "overrides the time window" in line and "ending at t = 1e-05 s" in line
+    r = pulseform("check", str(_edited(tmp_path, inc, "TimeFinal = 10e-6;\n" + inc)))
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert "sheet_bulge_template.pro: honours the deck contract" in r.stdout
 
 
 @pytest.mark.getdp

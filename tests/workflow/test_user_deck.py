@@ -260,6 +260,8 @@ def test_deck_with_its_own_time_window_is_refused(tmp_path):
     line = _refused(case)
     assert "overrides the time window" in line and "W.txt has 1 row(s) ending at t = 1e-05 s" in line
     assert "ending at 1e-07 s" in line
+    n = next(i for i, ln in enumerate((case.parent / "sheet_bulge.pro").read_text().splitlines(), 1) if "TimeFinal = 10e-6;" in ln)
+    assert line.endswith(f"(sheet_bulge.pro:{n} assigns it: write DefineConstant[ TimeFinal = 10e-6 ]; instead)"), line
 
 
 def _shipped_user_decks() -> list:
