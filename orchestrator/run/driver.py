@@ -169,9 +169,7 @@ class CaseDriver:
         self.em_step = fixed_em_step(self.loop, all_rigid=self.solver is None)
         interval = case.output.field_interval or default_interval(case.time.end, self.em_step)
         self.stops = milestones(case.time.end, interval)
-        note = landing_note(self.stops, self.em_step)
-        if note and comm.rank == 0:
-            log.warning("%s", note)
+        self.landing_note = landing_note(self.stops, self.em_step)  # said at the start of run()
 
     # ----------------------------------------------------------------- records
     def record(self, step_row: dict[str, float] | None = None) -> None:
@@ -292,6 +290,8 @@ class CaseDriver:
         # failing run must stay one line), and the run goes on
         for line in mesh_advice(case) if case.case.kind == "coupled" and self.comm.rank == 0 else ():
             log.log(logging.INFO if quiet else logging.WARNING, "%s", line)
+        if self.landing_note and self.comm.rank == 0:  # output times that shorten the EM step the case sets
+            log.log(logging.INFO if quiet else logging.WARNING, "%s", self.landing_note)
         prefix = self.results.fields / (case.case.name + (f"_part{self.part}" if self.part else ""))
         writer = mech.FieldWriter(self.solver, str(prefix)) if self.solver is not None else _NoFieldWriter()
         em_writer = EMFieldWriter(self.results.fields / (f"em_part{self.part}" if self.part else "em")) \
