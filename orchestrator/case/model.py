@@ -220,7 +220,8 @@ class Output:
     """What is written to the results folder."""
 
     field_interval: float | None = spec(None, unit="s", gt=0.0,
-                                        doc="XDMF field output interval (default: end / 20)")
+                                        doc="XDMF field output interval (default: end / 20, made a whole number of EM steps where the "
+                                            "case sets the EM step: every body rigid, or time.dt_max below the stable step)")
     history_every: int = spec(1, unit="-", ge=1, doc="history.csv row every N EM steps (mechanics cases: mechanical steps), plus one at each output time")
     plots: bool = spec(True, doc="write plots/*.png")
 

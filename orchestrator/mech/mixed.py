@@ -29,7 +29,7 @@ from ..mesh.shared import ConductorMesh
 from .participants import DolfinxMechanics
 from .rigid import RigidMechanics
 
-__all__ = ["region_mass", "rigid_bodies", "rigid_metrics", "MixedMechanics", "RIGID_ENERGY_KEYS"]
+__all__ = ["region_mass", "region_centroid", "rigid_bodies", "rigid_metrics", "MixedMechanics", "RIGID_ENERGY_KEYS"]
 
 #: the rigid bodies' entries of the energy ledger (J)
 RIGID_ENERGY_KEYS = ("kinetic_J", "external_work_J", "stop_dissipated_J")
@@ -47,6 +47,19 @@ def region_mass(sub: ConductorMesh, density: float, axisymmetric: bool, thicknes
     if axisymmetric:
         return float(density * np.sum(area * 2.0 * math.pi * p[:, :, 0].mean(axis=1)))
     return float(density * thickness * area.sum())
+
+
+def region_centroid(sub: ConductorMesh) -> np.ndarray:
+    """The centroid (m) of a region: of its section's area for triangles (r-z in axisymmetry, x-y in plane
+    models), of its volume for tetrahedra (3D): a rigid body's reference point."""
+    cells = sub.points[sub.cells]
+    if sub.cells.shape[1] == 4:
+        w = tet_volumes(sub.points, sub.cells)
+    else:
+        p = cells[:, :, :2]
+        w = 0.5 * np.abs((p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1])
+                         - (p[:, 2, 0] - p[:, 0, 0]) * (p[:, 1, 1] - p[:, 0, 1]))
+    return (w[:, None] * cells.mean(axis=1)).sum(axis=0) / w.sum()
 
 
 def rigid_bodies(case: Case, subs: dict[str, ConductorMesh]) -> list[RigidBody]:
@@ -68,15 +81,17 @@ def rigid_bodies(case: Case, subs: dict[str, ConductorMesh]) -> list[RigidBody]:
             return None if v is None or (not any(v) and len(v) != dim) else tuple(v)
 
         out.append(RigidBody(b.name, sub.points, mass, free=tuple(i in moves for i in range(dim)),
-                             gravity=vec(gravity), offset=vec(b.offset), velocity=vec(b.initial_velocity), stops=stops))
+                             gravity=vec(gravity), offset=vec(b.offset), velocity=vec(b.initial_velocity), stops=stops,
+                             reference=tuple(region_centroid(sub)[:dim])))
     return out
 
 
 def rigid_metrics(case: Case, history, masses: dict[str, float]) -> dict[str, float]:
     """Per rigid body its mass (kg, ``masses``) and, per free component c (x or y), from ``history``
-    (the run's history.csv columns of :meth:`RigidBody.history`): the largest and smallest
-    translation and the final one (mm), the largest speed |v| (m/s) and the largest |force| of its
-    Lorentz forces (N), and when the largest translation was reached (s)."""
+    (the run's history.csv columns of :meth:`RigidBody.history`): the largest, smallest and final position
+    of its reference point (``position``, the centroid of its region: :func:`region_centroid`) and of its
+    translation from the start (``travel``) (mm) and when the largest was reached (s), the largest speed
+    |v| (m/s) and the largest |force| of its Lorentz forces (N)."""
     out: dict[str, float] = {}
     t = history.column("time_s")
     for b in case.bodies:
@@ -85,14 +100,15 @@ def rigid_metrics(case: Case, history, masses: dict[str, float]) -> dict[str, fl
         out[f"{b.name}_mass_kg"] = float(masses[b.name])
         speed2 = np.zeros(len(t))
         for c in ("xyz"[i] for i in case.rigid_moves(b)):
-            u = history.column(f"{b.name}_position_{c}_m")
             v = history.column(f"{b.name}_velocity_{c}_m_s")
             speed2 += v * v
-            k = int(np.argmax(u))
-            out[f"{b.name}_max_position_{c}_mm"] = float(u[k]) * 1e3
-            out[f"{b.name}_max_position_{c}_time_s"] = float(t[k])
-            out[f"{b.name}_min_position_{c}_mm"] = float(u.min()) * 1e3
-            out[f"{b.name}_final_position_{c}_mm"] = float(u[-1]) * 1e3
+            for q in ("position", "travel"):  # the reference point's, the translation from the start
+                u = history.column(f"{b.name}_{q}_{c}_m")
+                k = int(np.argmax(u))
+                out[f"{b.name}_max_{q}_{c}_mm"] = float(u[k]) * 1e3
+                out[f"{b.name}_max_{q}_{c}_time_s"] = float(t[k])
+                out[f"{b.name}_min_{q}_{c}_mm"] = float(u.min()) * 1e3
+                out[f"{b.name}_final_{q}_{c}_mm"] = float(u[-1]) * 1e3
             out[f"{b.name}_max_force_{c}_N"] = float(np.abs(history.column(f"{b.name}_force_{c}_N")).max())
         out[f"{b.name}_max_speed_m_s"] = float(np.sqrt(speed2.max()))
     return out

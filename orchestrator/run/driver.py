@@ -79,6 +79,55 @@ def milestones(end: float, interval: float) -> np.ndarray:
     return times
 
 
+def fixed_em_step(loop: StaggeredLoop, all_rigid: bool) -> float | None:
+    """The EM step (s) the case sets, n × the mechanical step, when no stability limit chooses it: every
+    body rigid (the step from ``coupling.steps_per_period``, ``geometry.em_step`` or ``time.dt_max``), or
+    ``time.dt_max`` below the deformable bodies' stable step; None otherwise, for the mechanics alone
+    (``landing = "last"``) and with adaptive n."""
+    o = loop.options
+    if o.landing != "even" or o.adaptive:
+        return None
+    stable = loop.mech.stable_time_step()
+    if all_rigid:
+        dt = stable if loop.dt_max is None else min(stable, loop.dt_max)
+    elif loop.dt_max is not None and loop.dt_max < stable:
+        dt = loop.dt_max
+    else:
+        return None
+    return o.n * dt
+
+
+def default_interval(end: float, em_step: float | None) -> float:
+    """The output interval (s) when the case gives none: ``end`` / 20, a whole number of EM steps when
+    the case sets the EM step (``em_step``, s; :func:`fixed_em_step`), so that output times do not
+    change it."""
+    interval = end / 20.0
+    if em_step is None:
+        return interval
+    return em_step * max(1, round(interval / em_step))
+
+
+def landing_note(stops: np.ndarray, em_step: float | None) -> str | None:
+    """One line saying what the run does where the output times ``stops`` (s) are not whole multiples
+    of the EM step the case sets (``em_step``, s; :func:`fixed_em_step`): the EM steps to each output
+    time are made equal (``StaggeredLoop.substeps``), so shorter; None where they all are whole
+    multiples, or no EM step is set."""
+    if em_step is None:
+        return None
+    lengths = np.diff(np.concatenate([[0.0], stops]))
+    steps = lengths / np.ceil(lengths / em_step * (1.0 - 1e-9))
+    short = steps < em_step * (1.0 - 1e-9)
+    if not short.any():
+        return None
+    shortest = f"down to {steps.min():.6g} s ({100.0 * (1.0 - steps.min() / em_step):.3g} % shorter)"
+    if not short[:-1].any():
+        return (f"time.end: {stops[-1]:.6g} s is not a whole multiple of the EM step {em_step:.6g} s: the run "
+                f"lands on it with equal shorter EM steps in the last output interval, {shortest}")
+    return (f"output.field_interval: output times every {lengths[0]:.6g} s are not whole multiples of the EM step "
+            f"{em_step:.6g} s: the run lands on them with equal shorter EM steps in {int(short.sum())} of "
+            f"{len(stops)} output intervals, {shortest}; an interval of whole EM steps keeps the step")
+
+
 class CaseDriver:
     """Participants, loop, history, fields and checkpoints of one case."""
 
@@ -118,8 +167,10 @@ class CaseDriver:
         self._since_record = 0
         self._last_row: dict[str, float] | None = None
         self.shapes: list[tuple[float, dict[str, np.ndarray]]] = []  # rank 0: node positions per milestone
-        interval = case.output.field_interval or case.time.end / 20.0
+        self.em_step = fixed_em_step(self.loop, all_rigid=self.solver is None)
+        interval = case.output.field_interval or default_interval(case.time.end, self.em_step)
         self.stops = milestones(case.time.end, interval)
+        self.landing_note = landing_note(self.stops, self.em_step)  # said at the start of run()
 
     # ----------------------------------------------------------------- records
     def record(self, step_row: dict[str, float] | None = None) -> None:
@@ -240,6 +291,8 @@ class CaseDriver:
         # failing run must stay one line), and the run goes on
         for line in mesh_advice(case) if case.case.kind == "coupled" and self.comm.rank == 0 else ():
             log.log(logging.INFO if quiet else logging.WARNING, "%s", line)
+        if self.landing_note and self.comm.rank == 0:  # output times that shorten the EM step the case sets
+            log.log(logging.INFO if quiet else logging.WARNING, "%s", self.landing_note)
         prefix = self.results.fields / (case.case.name + (f"_part{self.part}" if self.part else ""))
         writer = mech.FieldWriter(self.solver, str(prefix)) if self.solver is not None else _NoFieldWriter()
         em_writer = EMFieldWriter(self.results.fields / (f"em_part{self.part}" if self.part else "em")) \
@@ -449,13 +502,22 @@ def run_case_loop(case: Case, results: ResultsFolder, *, quiet: bool = False, re
     return driver.run(quiet)
 
 
+def energy_scale(history: History, e: dict[str, float]) -> float:
+    """The energy (J) ``energy_error_rel`` is relative to: the largest of the initial kinetic energy and the
+    external work over the run (``history``'s column, ``e`` the ledger at the end; the same as the work at the
+    end while the loads only put energy in). Not the external work at the end alone: under an AC force the
+    loads take back what they put in, the net work of a body in a converged periodic motion is near zero and
+    any residual divided by it read as ~100 % (issue 32)."""
+    w = history.column("energy_external_work_J") if "energy_external_work_J" in history.columns else np.zeros(0)
+    largest = float(np.abs(w).max()) if len(w) else 0.0
+    return max(history.column("energy_kinetic_J")[0], abs(e.get("external_work_J", 0.0)), largest, 1e-300)
+
+
 def mech_metrics(solver, case: Case, history: History, e: dict[str, float]) -> dict[str, float]:
     """Scalars every mechanics run reports: energy balance (``e``: the run's energy ledger, J), peak
     stresses, contact figures; the rigid bodies' travel, speed and force (:func:`rigid_metrics`)."""
-    ke0 = history.column("energy_kinetic_J")[0]
-    scale = max(ke0, abs(e.get("external_work_J", 0.0)), 1e-300)
     out = {
-        "energy_error_rel": abs(e["balance_error_J"]) / scale,
+        "energy_error_rel": abs(e["balance_error_J"]) / energy_scale(history, e),
         "kinetic_energy_final_J": e["kinetic_J"],
     }
     if "plastic_J" in e:  # deformable bodies

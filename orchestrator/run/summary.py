@@ -6,7 +6,8 @@ impulse where it is the larger: a tube), the largest deflection (or displacement
 speed of the workpiece (or of any body), the peak von Mises stress of a die (or collar), and where
 the energy went: the peak kinetic energy and the plastic work in % of the bank energy, of the
 external work of the loads (pressure pulses, a prescribed coil current), or, for an impact without
-loads, of the initial kinetic energy.
+loads, of the initial kinetic energy; under loads that take back what they put in (an AC coil
+current), the peak kinetic energy in J and how far the loads' work swung.
 """
 
 from __future__ import annotations
@@ -93,10 +94,10 @@ def headline(case, metrics: dict[str, float], history) -> list[Headline]:
             out.append(Headline("max displacement", disp[name], "mm", f"({name})"))
     for b in case.bodies:  # a rigid body: its largest translation along each free component, and when
         for c in "xy":
-            if f"{b.name}_max_position_{c}_mm" in metrics:
-                t = metrics[f"{b.name}_max_position_{c}_time_s"] * axis.scale
+            if f"{b.name}_max_travel_{c}_mm" in metrics:
+                t = metrics[f"{b.name}_max_travel_{c}_time_s"] * axis.scale
                 out.append(Headline(f"max travel in {'rz'[c == 'y'] if case.mechanics.formulation == 'axisymmetric' else c}",
-                                    metrics[f"{b.name}_max_position_{c}_mm"], "mm",
+                                    metrics[f"{b.name}_max_travel_{c}_mm"], "mm",
                                     f"at {t:.4g} {axis.unit} ({b.name}, rigid)"))
     speeds = {n: metrics[f"{n}_max_speed_m_s"] for n in movers if f"{n}_max_speed_m_s" in metrics}
     if speeds:
@@ -110,7 +111,7 @@ def headline(case, metrics: dict[str, float], history) -> list[Headline]:
         if is_die and key in metrics:
             out.append(Headline(f"peak von Mises, {b.name}", metrics[key], "MPa", at(f"{b.name}_max_von_mises_Pa")))
 
-    out.extend(_energy_lines(bank, metrics, history, cols))
+    out.extend(_energy_lines(bank, metrics, history, cols, axis))
     return out
 
 
@@ -146,9 +147,16 @@ def _whose(names: list[str]) -> str:
     return f"({names[0]})" if len(names) == 1 else ""
 
 
-def _energy_lines(bank: float | None, metrics: dict[str, float], history, cols: set[str]) -> list[Headline]:
+#: the external work falls this far (fraction of its largest value) below an earlier value: the loads take
+#: energy back (an AC force), so its value is no measure of the energy put in
+GIVEN_BACK = 0.05
+
+
+def _energy_lines(bank: float | None, metrics: dict[str, float], history, cols: set[str], axis) -> list[Headline]:
     """Peak kinetic energy and plastic work in % of the energy put in (a 3D model's energies times its symmetry
-    factor: the whole device's, as the bank's energy is)."""
+    factor: the whole device's, as the bank's energy is); under loads that take back much of what they put in
+    (AC forces: the external work falls by more than :data:`GIVEN_BACK` of its largest value), the peak kinetic
+    energy in J and how far the loads' work swung, as no fraction of that work would mean anything."""
     if "energy_kinetic_J" not in cols:
         return []
     s = float(metrics.get("symmetry_factor", 1.0))
@@ -158,7 +166,18 @@ def _energy_lines(bank: float | None, metrics: dict[str, float], history, cols: 
     external = s * float(history.column("energy_external_work_J")[-1]) if "energy_external_work_J" in cols else 0.0
     if bank is not None and bank > 0.0:
         ref, of = bank, "of the bank energy"
-    elif external > 0.0:
+    elif external > 0.0 or "energy_external_work_J" in cols and _given_back(s * history.column("energy_external_work_J")):
+        w = s * history.column("energy_external_work_J")
+        if _given_back(w):
+            k = int(np.argmax(ke))
+            swing = "{:.3g} {}".format(*_small_energy(float(np.abs(w).max())))
+            end = "{:.3g} {}".format(*_small_energy(float(w[-1])))
+            out = [Headline("peak kinetic energy", *_small_energy(float(ke[k])),
+                            f"at {history.column('time_s')[k] * axis.scale:.4g} {axis.unit}; the loads put in and "
+                            f"took back work (up to {swing}, {end} at the end)")]
+            if "energy_plastic_J" in cols:
+                out.append(Headline("plastic work", *_small_energy(plastic)))
+            return out
         ref, of = external, "of the external work"
     elif ke[0] > 0.0:  # an impact: the energy it starts with
         return [Headline("kinetic energy at the end", 100.0 * float(ke[-1]) / ke[0], "%",
@@ -171,3 +190,18 @@ def _energy_lines(bank: float | None, metrics: dict[str, float], history, cols: 
     if "energy_plastic_J" in cols or "plastic_work_J" in metrics:  # not for rigid bodies alone
         out.append(Headline("plastic work", 100.0 * plastic / ref, "%", f"{of} ({energy_text(plastic)})"))
     return out
+
+
+def _given_back(w: np.ndarray) -> bool:
+    """The external work history ``w`` (J) falls by more than :data:`GIVEN_BACK` of its largest |value| below an
+    earlier value."""
+    top = float(np.abs(w).max()) if len(w) else 0.0
+    return top > 0.0 and float((np.maximum.accumulate(w) - w).max()) > GIVEN_BACK * top
+
+
+def _small_energy(joules: float) -> tuple[float, str]:
+    """An energy (J) as (value, unit) in J, mJ, µJ or nJ."""
+    for factor, unit in ((1.0, "J"), (1e-3, "mJ"), (1e-6, "µJ")):
+        if abs(joules) >= factor:
+            return joules / factor, unit
+    return joules / 1e-9, "nJ"

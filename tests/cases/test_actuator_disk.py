@@ -34,7 +34,7 @@ def test_actuator_follows_the_filament_model(tmp_path, capsys):
     h = np.genfromtxt(out / "history.csv", delimiter=",", names=True)
     t = h["time_s"]
     err = {}
-    for col, ref_col in (("coil_current_A", "coil_current_A"), ("disk_position_y_m", "position_m"),
+    for col, ref_col in (("coil_current_A", "coil_current_A"), ("disk_travel_y_m", "position_m"),
                          ("disk_velocity_y_m_s", "velocity_m_s")):
         r = np.interp(t, ref["time_s"], ref[ref_col])
         err[col] = float(np.abs(h[col] - r).max() / np.abs(ref[ref_col]).max())
@@ -42,5 +42,5 @@ def test_actuator_follows_the_filament_model(tmp_path, capsys):
     print(f"\n{err}; end velocity {h['disk_velocity_y_m_s'][-1]:.4f} vs {ref['velocity_m_s'][-1]:.4f} m/s; "
           f"wall {m['wall_time_s']:.1f} s, {m['em_steps']:.0f} EM steps")
     assert err["coil_current_A"] < 0.02
-    assert err["disk_position_y_m"] < 0.03
+    assert err["disk_travel_y_m"] < 0.03
     assert err["disk_velocity_y_m_s"] < 0.03

@@ -22,7 +22,7 @@ import pytest
 import tomli_w
 
 from pulseform.orchestrator.cli import main
-from pulseform.orchestrator.mech.mixed import MixedMechanics, region_mass
+from pulseform.orchestrator.mech.mixed import MixedMechanics, region_centroid, region_mass
 from pulseform.orchestrator.mech.rigid import RigidMechanics
 from pulseform.orchestrator.mesh.shared import ConductorMesh
 from pulseform.solvers.dolfinx.rigid import EndStop, RigidBody
@@ -64,7 +64,7 @@ def test_disk_momentum_equals_the_impulse_and_its_mass_the_volume(tmp_path, caps
     assert v_half > 1.0  # it is launched
     assert mass * v_half == pytest.approx(delivered, rel=2e-9)  # history.csv holds 10 significant digits
     assert hist["disk_force_y_N"] == pytest.approx(hist["force_y_N"], rel=1e-12)  # the body got the resultant
-    assert np.all(hist["disk_position_y_m"] >= 0.0) and np.all(np.diff(hist["disk_position_y_m"]) >= 0.0)
+    assert np.all(hist["disk_travel_y_m"] >= 0.0) and np.all(np.diff(hist["disk_travel_y_m"]) >= 0.0)
     assert m["disk_max_speed_m_s"] == pytest.approx(hist["disk_velocity_y_m_s"][-1], rel=1e-9)  # pushed away (10 digits)
     assert m["conservation_error_rel"] < 1e-12
 
@@ -76,6 +76,24 @@ def test_region_mass_of_a_ring_and_a_plane_plate():
     assert region_mass(sub, 2700.0, True) == pytest.approx(2700.0 * math.pi * (0.03 ** 2 - 0.01 ** 2) * 0.002,
                                                            rel=1e-13)
     assert region_mass(sub, 2700.0, False, thickness=0.5) == pytest.approx(2700.0 * 0.02 * 0.002 * 0.5, rel=1e-13)
+
+
+def test_history_gives_the_reference_point_position_and_the_travel():
+    """Issue 32 (item 8): ``<body>_position_<c>_m`` is the position of the body's reference point, the centroid
+    of its region's section (here a rectangle 10..30 mm by 0..2 mm split into four triangles: (20, 1) mm), and
+    ``<body>_travel_<c>_m`` the translation from the start; before, the position column was the travel."""
+    pts = np.array([[0.01, 0.0], [0.03, 0.0], [0.03, 0.002], [0.01, 0.002], [0.025, 0.0015]])  # off-centre node
+    cells = np.array([[0, 1, 4], [1, 2, 4], [2, 3, 4], [3, 0, 4]])
+    sub = ConductorMesh(np.arange(4), np.arange(5), pts, cells)
+    assert region_centroid(sub) == pytest.approx([0.02, 0.001], rel=1e-13)
+    assert not np.allclose(pts.mean(axis=0), [0.02, 0.001])  # not the mean of the nodes
+    body = RigidBody("plate", pts, 0.01, free=(False, True), offset=(0.0, 0.5e-3), reference=tuple(region_centroid(sub)))
+    body.advance(1e-4, 10, np.array([0.0, 0.2]))
+    h = body.history()
+    travel = 0.5e-3 + 0.5 * 20.0 * (1e-3) ** 2  # offset + a t²/2 (central differences are exact for it)
+    assert h["plate_travel_y_m"] == pytest.approx(travel, rel=1e-12)
+    assert h["plate_position_y_m"] == pytest.approx(0.001 + travel, rel=1e-12)
+    assert "plate_position_x_m" not in h and "plate_travel_x_m" not in h  # axial motion only
 
 
 def test_mixed_mechanics_restarts_bit_for_bit():
@@ -195,7 +213,7 @@ def test_planar_rigid_blank_moves_in_x_and_y_whatever_the_depth(tmp_path, capsys
     (m1, h1), (m2, h2) = runs[1.0], runs[0.5]
     assert m2["blank_mass_kg"] == pytest.approx(0.5 * m1["blank_mass_kg"], rel=1e-12)
     for c in "xy":
-        u1, u2 = h1[f"blank_position_{c}_m"], h2[f"blank_position_{c}_m"]
+        u1, u2 = h1[f"blank_travel_{c}_m"], h2[f"blank_travel_{c}_m"]
         assert np.abs(u1 - u2).max() <= 1e-9 * np.abs(u1).max(), c
         delivered, v_half = _delivered(h1, f"blank_force_{c}_N"), _v_half(h1, "blank", c)
         print(f"\n{c}: m v = {m1['blank_mass_kg'] * v_half:.9g} N s, delivered {delivered:.9g} N s")

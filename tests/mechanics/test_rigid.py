@@ -35,7 +35,7 @@ def test_axisymmetric_body_moves_along_the_axis_only():
     b = RigidBody("ring", NODES, 0.01, gravity=(0.0, -9.81))
     b.advance(1e-4, 100, np.array([5.0, 0.3]))
     assert b.u[0] == 0.0 and b.u[1] == pytest.approx(0.5 * (0.3 / 0.01 - 9.81) * 0.01 ** 2, rel=1e-12)
-    assert set(b.history()) == {"ring_position_y_m", "ring_velocity_y_m_s", "ring_acceleration_y_m_s2", "ring_force_y_N"}
+    assert set(b.history()) == {"ring_position_y_m", "ring_travel_y_m", "ring_velocity_y_m_s", "ring_acceleration_y_m_s2", "ring_force_y_N"}
 
 
 @pytest.mark.parametrize("e", [0.0, 0.6])
