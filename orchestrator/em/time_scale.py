@@ -20,7 +20,7 @@ from ..case.model import Case
 from ..mesh.em_geometry import coaxial_coil_turns, flat_coil_turns, planar_turns, solenoid_turns
 from .lumped import coil_inductance
 
-__all__ = ["coil_windings", "source_period", "steps_per_period"]
+__all__ = ["coil_windings", "rigid_mechanical_step", "source_period", "steps_per_period"]
 
 
 def coil_windings(case: Case) -> list[list[tuple[float, float, float, float]]] | None:
@@ -96,7 +96,15 @@ def steps_per_period(case: Case) -> float | None:
         period = source_period(case)
     except ValueError:  # no source with a period: time.dt_max sets the step
         return None
-    step = period / case.coupling.steps_per_period
-    if case.time.dt_max is not None:
-        step = min(step, case.coupling.n * case.time.dt_max)
-    return period / step
+    return period / (case.coupling.n * rigid_mechanical_step(case))
+
+
+def rigid_mechanical_step(case: Case) -> float:
+    """The mechanical step (s) of a run whose bodies are all rigid: a period of the shortest-period source over
+    ``coupling.steps_per_period`` EM steps of ``coupling.n`` mechanical steps each, capped by ``time.dt_max``
+    (which alone sets it when no source has a period: the case model has made sure it is given)."""
+    try:
+        dt = source_period(case) / (case.coupling.steps_per_period * case.coupling.n)
+    except ValueError:
+        return case.time.dt_max
+    return dt if case.time.dt_max is None else min(dt, case.time.dt_max)

@@ -26,7 +26,7 @@ from ..coupling.loop import LoopOptions, StaggeredLoop
 from ..em.participant import GetDPLoad
 from ..em.solver import em_model, factor_reuse
 from ..em.skin_depth import mesh_advice
-from ..em.time_scale import source_period
+from ..em.time_scale import rigid_mechanical_step
 from ..em.user_deck import build_user_geometry, user_deck_load
 from ..mech import probes as probe_mod
 from ..mech.model import build_solver
@@ -449,11 +449,7 @@ def _rigid_step(case: Case, solver) -> float:
     when no source has a period)."""
     if solver is not None:
         return solver.stable_time_step()
-    try:
-        dt = source_period(case) / (case.coupling.steps_per_period * case.coupling.n)
-    except ValueError:  # no period to resolve: the case model has made sure time.dt_max is given
-        return case.time.dt_max
-    return dt if case.time.dt_max is None else min(dt, case.time.dt_max)
+    return rigid_mechanical_step(case)
 
 
 def body_extremes(solver, comm: MPI.Comm) -> dict[str, float]:
