@@ -25,15 +25,17 @@ process seeded from that state does, so that a resumed run repeats the uninterru
 Each step's state counts the factorisations and corrections (``timers["getdp_factorisations"]``,
 ``timers["getdp_corrections"]``).
 
-The outputs are the library's own PostOperations (``EM_Step3D``, ``EM_Elem3D``, ``EM_Field3D``),
-read with :func:`~.solver3d.read_results3d` like the per-step path's, their files deleted after each
-step.
+The outputs are the library's own PostOperations (``EM_Step3D`` with the magnetic energy from the
+sources, ``Flag_WSources``; ``EM_ElemF3D``, ``EM_Field3D``), read with :func:`~.solver3d.read_results3d`
+like the per-step path's, their files deleted after each step. Joule power and b on the conductor
+elements (``EM_ElemPB3D``) are asked for only when read (:class:`PersistentEM3DResult`: snapshots,
+fields): a step computes what the coupled loop needs.
 """
 from __future__ import annotations
 
 import logging
 import time
-from dataclasses import replace
+from dataclasses import fields, replace
 from pathlib import Path
 from typing import Sequence
 
@@ -42,17 +44,40 @@ import numpy as np
 from .files import read_element_table
 from .mesh import coil_tag
 from .mesh3d import Mesh3D
-from .persistent_process import (FLAG_ELEM, FLAG_FACTORISE, FLAG_FIELDS, FLAG_STATE, FactorReuse, PersistentProcess,
-                                 read_binary_res)
+from .persistent_process import (FLAG_COND_FIELDS, FLAG_ELEM, FLAG_FACTORISE, FLAG_FIELDS, FLAG_STATE, FactorReuse,
+                                 PersistentProcess, read_binary_res)
 from .runner import GetDPError, RunInfo, log_tail
 from .solver import DECK_DIR
 from .solver3d import (DECK3D, DEFAULT_PETSC_ARGS_3D, EM3DModel, EM3DResult, applied_state_values, model_numbers,
-                       read_results3d)
+                       read_conductor_fields3d, read_results3d)
 from .stepper3d import EM3DState, read_res_vector, write_res_vector
 
 log = logging.getLogger(__name__)
 
-__all__ = ["PersistentEM3DStepper", "RESOLUTION_PERSISTENT3D", "PERSISTENT_LIB3D", "pre_dof_count"]
+
+class PersistentEM3DResult(EM3DResult):
+    """An :class:`~.solver3d.EM3DResult` whose Joule power and b on the conductor elements
+    (``joule_density``, ``flux_density``) are fetched from getdp when first read (a query, PostOperation
+    ``EM_ElemPB3D``): possible until the process takes its next step. A step computes only what the
+    coupled loop needs each step (the per-element force); snapshots and fields ask for the rest."""
+
+    _fetch = None  # () -> (joule_density, flux_density), set by the stepper
+
+    def _get(self, name: str) -> np.ndarray | None:
+        lazy = self.__dict__.setdefault("_lazy", {})
+        if lazy.get(name) is None and self._fetch is not None:
+            lazy["joule_density"], lazy["flux_density"] = self._fetch()
+            self._fetch = None
+        return lazy.get(name)
+
+    def _put(self, name: str, value) -> None:
+        self.__dict__.setdefault("_lazy", {})[name] = value
+
+    joule_density = property(lambda self: self._get("joule_density"), lambda self, v: self._put("joule_density", v))
+    flux_density = property(lambda self: self._get("flux_density"), lambda self, v: self._put("flux_density", v))
+
+
+__all__ = ["PersistentEM3DStepper", "PersistentEM3DResult", "RESOLUTION_PERSISTENT3D", "PERSISTENT_LIB3D", "pre_dof_count"]
 
 RESOLUTION_PERSISTENT3D = "EM_Persistent3D"
 #: the library holding it, included by Lib_PulsedForming3D.pro when ``PulseformPersistentLib`` names it
@@ -120,7 +145,7 @@ class PersistentEM3DStepper:
         self.close()
         self.segment += 1
         numbers, lines = model_numbers(self.model, mesh)
-        numbers.update(PF_T1=float(state.t), PF_Step0=int(state.steps), PF_DtPrev=0.0, PF_Seed=1)
+        numbers.update(PF_T1=float(state.t), PF_Step0=int(state.steps), PF_DtPrev=0.0, PF_Seed=1, Flag_WSources=1)
         numbers.update(self.factor_reuse.numbers())
         if self.model.applied_field is not None:   # the unit time function of the seed states (0 at rest)
             numbers["Field_F1"], numbers["Field_F2"] = applied_state_values(self.model, state.t, state.steps, state.dt_prev)
@@ -194,12 +219,15 @@ class PersistentEM3DStepper:
         for old in p.out_dir.glob("*.txt"):  # getdp appends (File >)
             old.unlink()
         nk = len(self.model.conductors)
-        flags = (FLAG_ELEM if nk else 0) | (FLAG_FIELDS if field_output else 0) | \
+        flags = (FLAG_ELEM if nk else 0) | (FLAG_FIELDS | (FLAG_COND_FIELDS if nk else 0) if field_output else 0) | \
             (FLAG_FACTORISE if self._factorise_next else 0)
         ans = p.step(mesh.points, float(t1), flags)
         self._factorise_next = False
         c1 = time.perf_counter()
-        res = read_results3d(self.model, mesh, p.out_dir, 1, 2 if nk else 0)
+        res = read_results3d(self.model, mesh, p.out_dir, 1, 2 if nk else 0, element_fields=field_output)
+        res = PersistentEM3DResult(**{f.name: getattr(res, f.name) for f in fields(res)})
+        if nk and not field_output:
+            res._fetch = self._conductor_fields_of(p.k, mesh, res)
         if field_output:
             ids, b = read_element_table(p.out_dir / "field_b.txt", 3, 1)
             res.b_cells = np.full((mesh.n_tets, 3), np.nan)
@@ -207,7 +235,7 @@ class PersistentEM3DStepper:
         if not (np.all(np.isfinite(res.conductor_force)) and np.all(np.isfinite(res.coil_current))):
             raise GetDPError(f"non-finite EM results at t = {t1:.6g} s", log_path=p.log_path, run_dir=p.run_dir,
                              log_tail=log_tail(p.log_path))
-        res.run = RunInfo(argv=p.argv, run_dir=p.run_dir, log_path=p.log_path, wall_time=ans.wall)
+        res.run = RunInfo(argv=p.argv, run_dir=p.run_dir, log_path=p.log_path, wall_time=ans.wall, cpu_parts=ans.cpu)
         res.n_dofs, res.wall_pre, res.wall_loop, res.wall_per_step = self.n_dofs, startup, ans.wall, ans.wall
         f_end = res.force_density[-1] if res.force_density is not None else None
         if f_end is not None:
@@ -225,6 +253,20 @@ class PersistentEM3DStepper:
         tm["getdp_factorisations"] = tm.get("getdp_factorisations", 0.0) + float(ans.factorised)   # (a state of
         tm["getdp_corrections"] = tm.get("getdp_corrections", 0.0) + float(ans.corrections)   # an older checkpoint)
         return res, new
+
+    def _conductor_fields_of(self, k: int, mesh: Mesh3D, res: EM3DResult):
+        """The fetch of step ``k``'s Joule power and b on the conductor elements (a query of the running
+        process, which must still be at step ``k``)."""
+        def fetch() -> tuple[np.ndarray, np.ndarray]:
+            p = self.proc
+            if p is None or not p.alive or p.k != k:
+                raise RuntimeError(f"conductor fields of EM step {k}: the persistent 3D getdp has moved on")
+            for name in ("elem_P.txt", "elem_b.txt"):
+                (p.out_dir / name).unlink(missing_ok=True)
+            p.query(FLAG_COND_FIELDS)
+            ids = mesh.tet_ids[res.elements]
+            return read_conductor_fields3d(mesh, p.out_dir, ids, 1)
+        return fetch
 
     # ------------------------------------------------------------------ state
     def complete_state(self, state: EM3DState) -> EM3DState:

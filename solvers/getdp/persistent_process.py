@@ -144,7 +144,10 @@ class StepAnswer:
     :class:`PersistentGetDPSolver` fills them in).  ``wall`` (s): Python's wait for the answer.
     The solve of a step (``Lib_PersistentStep.pro``, kept factors): ``factorised`` (the step factorised
     its own matrix), ``corrections`` (GCR iterations with kept factors), ``residual`` (their final
-    relative residual |b - A x| / |b|; 0 after a factorisation); a query answers 0, 0, 0.
+    relative residual |b - A x| / |b|; 0 after a factorisation); a query answers 0, 0, 0. ``cpu`` (s): getdp's
+    own CPU time of the step's parts -- moving the mesh, assembling the system (Generate), solving it, the
+    outputs -- (0, 0, 0, 0) for a query: where an EM step's time goes, unaffected by other processes on
+    the machine.
     """
 
     k: int
@@ -157,6 +160,7 @@ class StepAnswer:
     factorised: bool = False
     corrections: int = 0
     residual: float = 0.0
+    cpu: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
 
 
 class PersistentProcess:
@@ -439,6 +443,7 @@ class PersistentProcess:
         k = t = None
         has_globals = False
         solve = (False, 0, 0.0)
+        cpu = (0.0, 0.0, 0.0, 0.0)
         for ln in lines:
             f = ln.split()
             if not f:
@@ -452,6 +457,8 @@ class PersistentProcess:
                 has_globals = True
             elif f[0] == "S":
                 solve = (float(f[1]) != 0.0, int(float(f[2])), float(f[3]))
+            elif f[0] == "T":
+                cpu = tuple(float(x) for x in f[1:5])
             elif f[0] == "D":
                 k, t = int(f[1]), float(f[2])
         if k != k_expected:
@@ -459,7 +466,7 @@ class PersistentProcess:
                              run_dir=self.run_dir, log_tail=log_tail(self.log_path))
         c = np.array([v for _, v in sorted(coil)]).reshape(-1, 5)
         kk = np.array([v for _, v in sorted(cond)]).reshape(-1, 3)
-        return StepAnswer(k, t, c, kk, glob, has_globals, wall, *solve)
+        return StepAnswer(k, t, c, kk, glob, has_globals, wall, *solve, cpu)
 
 
 def _kill(proc: subprocess.Popen) -> None:
