@@ -49,7 +49,7 @@ from pulseform.solvers.getdp.mesh3d import Mesh3D
 from pulseform.solvers.getdp.persistent3d import PersistentEM3DStepper
 from pulseform.solvers.getdp.persistent_process import FactorReuse
 from pulseform.solvers.getdp.solver3d import EM3DModel
-from pulseform.solvers.getdp.stepper3d import EM3DState, EM3DStepper, read_res_vector, write_res_vector
+from pulseform.solvers.getdp.stepper3d import EM3DState, EM3DStepper, FactorRecord, read_res_vector, write_res_vector
 
 from ..coupling.interfaces import LoadCapabilities, LoadStep
 from ..coupling.transfer3d import tet_force_integral, tet_nodal_forces
@@ -362,6 +362,9 @@ class GetDPLoad3D(LoadCapabilities):
             value = getattr(st, key)
             if value is not None:
                 out[key] = np.asarray(value, dtype=float)
+        if st.factors is not None:   # the kept factors a resumed process rebuilds (FactorRecord)
+            out.update({"factor_points": st.factors.points, "factor_dtime": np.float64(st.factors.dtime),
+                        "factor_current": st.factors.current})
         return out
 
     def load_state_dict(self, state: dict[str, np.ndarray]) -> None:
@@ -390,6 +393,8 @@ class GetDPLoad3D(LoadCapabilities):
                                circuit=None if circ is None else (float(circ[0]), float(circ[1])),
                                circuit_prev=None if circ_prev is None else (float(circ_prev[0]), float(circ_prev[1])),
                                dt_prev=float(state["dt_prev"]), force_density=opt("force_density"), steps=steps,
+                               factors=FactorRecord(opt("factor_points"), float(state["factor_dtime"]),
+                                                    opt("factor_current")) if "factor_points" in state else None,
                                timers=dict(zip(self.state.timers, timers[len(self.timers):])))
         self.impulse_device, self.coil_heat, self.peak_current, self.min_quality = (float(v) for v in state["sums"])
         if "body_impulse" in state:   # checkpoints before 2026-11-28 have none

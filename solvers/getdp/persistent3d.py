@@ -19,9 +19,16 @@ ASCII ``.res``, x_{n-1} as an array): a complete state continues on the per-step
 elsewhere: the two vectors sent through the FIFO, ``ReadSolution[A]``), exact to round-off.
 
 Kept factors (``factor_reuse``, :class:`~.persistent_process.FactorReuse`): a step solves its own
-system by GCR preconditioned with the LU factors of an earlier step to a relative residual; the step
-after :meth:`PersistentEM3DStepper.complete_state` (a checkpoint) factorises its own matrix, as a new
-process seeded from that state does, so that a resumed run repeats the uninterrupted one bit for bit.
+system by GCR preconditioned with the LU factors of an earlier step to a relative residual. A state
+completed by :meth:`PersistentEM3DStepper.complete_state` (a checkpoint) records which factors the next
+step uses (:class:`~.stepper3d.FactorRecord`: getdp's node coordinates and gamma dt of the step that
+factorised, and the current coordinates); a new process seeded from it starts at the factorisation's
+coordinates, factorises that matrix and moves to the current ones (``prime`` messages) before its first
+step, so that a resumed run repeats the uninterrupted one bit for bit while the uninterrupted run keeps its
+factors. Where no record can be made (no kept factors, or a move that floating point cannot make exact:
+:func:`~.persistent_process.exact_increment`) the step after the checkpoint factorises in both runs. Node
+increments are exact: getdp's coordinates are the mechanics' positions bit for bit wherever an increment
+can land there (so a new process started from a mesh file at those positions has the same).
 Each step's state counts the factorisations and corrections (``timers["getdp_factorisations"]``,
 ``timers["getdp_corrections"]``).
 
@@ -45,12 +52,12 @@ from .files import read_element_table
 from .mesh import coil_tag
 from .mesh3d import Mesh3D
 from .persistent_process import (FLAG_COND_FIELDS, FLAG_ELEM, FLAG_FACTORISE, FLAG_FIELDS, FLAG_STATE, FactorReuse,
-                                 PersistentProcess, read_binary_res)
+                                 PersistentProcess, exact_increment, read_binary_res)
 from .runner import GetDPError, RunInfo, log_tail
 from .solver import DECK_DIR
 from .solver3d import (DECK3D, DEFAULT_PETSC_ARGS_3D, EM3DModel, EM3DResult, applied_state_values, model_numbers,
                        read_conductor_fields3d, read_results3d)
-from .stepper3d import EM3DState, read_res_vector, write_res_vector
+from .stepper3d import EM3DState, FactorRecord, read_res_vector, write_res_vector
 
 log = logging.getLogger(__name__)
 
@@ -122,6 +129,8 @@ class PersistentEM3DStepper:
             raise ValueError("the persistent 3D getdp implements time_scheme='bdf2' only")
         self.factor_reuse = factor_reuse
         self._factorise_next = False   # the step after a checkpoint factorises (module docstring)
+        self._factors: tuple[np.ndarray, float] | None = None   # getdp's nodes and gamma dt of the last factorisation
+        self._refactor_next = True     # the process's next step factorises anyway
         self.model, self.time_scheme = model, time_scheme
         self.work_dir = Path(work_dir).resolve()
         self.executable, self.petsc_args = executable, tuple(petsc_args)
@@ -144,6 +153,7 @@ class PersistentEM3DStepper:
         wall time (s)."""
         self.close()
         self.segment += 1
+        self._factors, self._refactor_next = None, True   # a new process has no factors (or primes them below)
         numbers, lines = model_numbers(self.model, mesh)
         numbers.update(PF_T1=float(state.t), PF_Step0=int(state.steps), PF_DtPrev=0.0, PF_Seed=1, Flag_WSources=1)
         numbers.update(self.factor_reuse.numbers())
@@ -160,6 +170,10 @@ class PersistentEM3DStepper:
         elif self.model.circuit is not None and state.circuit is not None:
             numbers["Init_Vc"], numbers["Init_I"] = state.circuit
         lines = [f'PulseformPersistentLib = "{PERSISTENT_LIB3D}";'] + lines
+        prime = state.factors if seed is not None and state.factors is not None and \
+            state.factors.current.shape == mesh.points.shape else None
+        if prime is not None:   # the new process starts where the interrupted one factorised (FactorRecord)
+            mesh = replace(mesh, points=np.array(prime.points, float))
         proc = PersistentProcess(self.work_dir / f"persistent3d_{self.segment:03d}", mesh, numbers, lines, DECK3D,
                                  executable=self.executable, petsc_args=self.petsc_args, time_limit=self.timeout,
                                  verbosity=self.verbosity, resolution=RESOLUTION_PERSISTENT3D, u_system=self.u_system)
@@ -173,6 +187,10 @@ class PersistentEM3DStepper:
             c0 = time.perf_counter()
             proc.seed([(self.a_system, state.t - state.dt_prev, 0.0, 1, seed[0]),
                        (self.a_system, state.t, 0.0, 2, seed[1])])
+            if prime is not None:   # the interrupted process's kept factors, rebuilt bit for bit
+                proc.prime(prime.points, prime.dtime)
+                proc.prime(prime.current, 0.0)
+                self._factors, self._refactor_next = (np.array(prime.points, float), prime.dtime), False
             startup += time.perf_counter() - c0
         coils = np.isin(mesh.tet_tags, [coil_tag(k) for k in range(1, len(self.model.coils) + 1)])
         self._coil_nodes = np.unique(mesh.tets[coils])
@@ -223,6 +241,9 @@ class PersistentEM3DStepper:
             (FLAG_FACTORISE if self._factorise_next else 0)
         ans = p.step(mesh.points, float(t1), flags)
         self._factorise_next = False
+        if ans.factorised:
+            self._factors = (p.points.copy(), ans.dtime)
+        self._refactor_next = ans.refactor_next
         c1 = time.perf_counter()
         res = read_results3d(self.model, mesh, p.out_dir, 1, 2 if nk else 0, element_fields=field_output)
         res = PersistentEM3DResult(**{f.name: getattr(res, f.name) for f in fields(res)})
@@ -284,9 +305,27 @@ class PersistentEM3DStepper:
         res.unlink(missing_ok=True)
         p.query(FLAG_STATE)  # x_n and x_{n-1} of system A, binary: the exact unknowns
         x_n, x_prev = read_binary_res(res, self.n_dofs)[-2:]
-        self._factorise_next = True   # as the process a resume from this state starts
+        factors = self._factor_record(p.points)
+        # without a record the next step factorises, as a process started from this state does
+        self._factorise_next = factors is None
         path = write_res_vector(self.work_dir / f"state_{state.steps:05d}.res", str(self.a_system), state.t, x_n)
-        return replace(state, res_path=path, x_prev=x_prev, timers=dict(state.timers))
+        return replace(state, res_path=path, x_prev=x_prev, factors=factors, timers=dict(state.timers))
+
+    def _factor_record(self, current: np.ndarray) -> FactorRecord | None:
+        """The kept factors of the next step as a :class:`~.stepper3d.FactorRecord`, or None where a new process
+        could not rebuild them bit for bit: no kept factors (``factor_reuse.tol`` 0, none yet, the next step
+        factorises anyway), or nodes that no increment takes from the factorisation's coordinates to the
+        current ones exactly in floating point (getdp adds increments as numpy does here; a coordinate that
+        shrank by orders of magnitude, say, cannot land on the finer grid of the smaller value)."""
+        if self.factor_reuse.tol <= 0.0 or self._factors is None or self._refactor_next:
+            return None
+        points, dtime = self._factors
+        moved = points + exact_increment(points, current)   # what the new process's second prime message does
+        if not np.array_equal(moved, current):
+            log.info("kept factors not recorded at the checkpoint (a node cannot move back exactly from the "
+                     "factorisation's coordinates): the next EM step factorises")
+            return None
+        return FactorRecord(points=points.copy(), dtime=float(dtime), current=current.copy())
 
     def with_model(self, **changes) -> "PersistentEM3DStepper":
         """A stepper of the same kind on a changed model (its own process)."""
