@@ -125,21 +125,23 @@ def per_step(mesh, pts, times, work):
 
 def persistent(mesh, pts, times, work, factor_reuse=FactorReuse(), petsc_args=DEFAULT_PETSC_ARGS_3D):
     """(wall, getdp CPU) per step (s) without the start-up (CPU: steps 2..N), the start-up wall, the
-    factorisations and GCR iterations of the run, and the median of the steps' getdp answers (s)."""
+    factorisations and GCR iterations of the run, the median of the steps' getdp answers (s), and getdp's
+    CPU time per step in moving the mesh, Generate, the solve, the outputs (s, means over steps 2..N)."""
     s = PersistentEM3DStepper(MODEL, work, factor_reuse=factor_reuse, petsc_args=petsc_args)
     state = s.initial_state()
-    answers = []
+    answers, parts = [], []
     c0 = time.perf_counter()
     for k, (p, t) in enumerate(zip(pts, times)):
         res, state = s.step(replace(mesh, points=p), state, float(t))
         answers.append(res.wall_loop)
+        parts.append(res.run.cpu_parts)
         if k == 0:
             cpu1 = process_cpu(s.proc.proc.pid)
     wall = time.perf_counter() - c0
     cpu = (process_cpu(s.proc.proc.pid) - cpu1) / (len(times) - 1)
     s.close()
     return ((wall - s.startup_s) / len(times), cpu, s.startup_s, state.timers["getdp_factorisations"],
-            state.timers["getdp_corrections"], float(np.median(answers)))
+            state.timers["getdp_corrections"], float(np.median(answers)), *np.mean(parts[1:], axis=0))
 
 
 def kept(mesh, pts, times, work):
@@ -199,6 +201,10 @@ def main(argv=None) -> dict:
                   f"{med['kept'][3]:4.0f}/{med['kept'][4]:<4.0f} {med['kept'][5] * 1e3:8.1f} {kp / pp:10.3f} {kp / lu:8.2f} "
                   f"{pp / ps:14.3f} | "
                   f"{'':11}{cs * 1e3:9.1f} {cp * 1e3:11.1f}", flush=True)
+            split = lambda v: " ".join(f"{name} {x * 1e3:.1f}" for name, x in   # noqa: E731
+                                       zip(("move", "generate", "solve", "outputs"), med[v][6:10]))
+            print(f"{'':7} getdp CPU per step (ms, steps 2..N): persistent {split('persistent')}; kept {split('kept')}",
+                  flush=True)
     largest = max(ratios)
     r = ratios[largest]
     print(f"bench: em_step3d tets={largest} kept_median_ms={r['kept_median_s'] * 1e3:.1f} "

@@ -49,7 +49,7 @@ from pulseform.solvers.getdp.mesh3d import Mesh3D
 from pulseform.solvers.getdp.persistent3d import PersistentEM3DStepper
 from pulseform.solvers.getdp.persistent_process import FactorReuse
 from pulseform.solvers.getdp.solver3d import EM3DModel
-from pulseform.solvers.getdp.stepper3d import EM3DState, EM3DStepper, read_res_vector, write_res_vector
+from pulseform.solvers.getdp.stepper3d import EM3DState, EM3DStepper, FactorRecord, read_res_vector, write_res_vector
 
 from ..coupling.interfaces import LoadCapabilities, LoadStep
 from ..coupling.transfer3d import tet_force_integral, tet_nodal_forces
@@ -154,7 +154,8 @@ class GetDPLoad3D(LoadCapabilities):
         self.peak_current = 0.0     # largest |I| at the end of a step (A) and the snapshot there
         self._peak: tuple | None = None
         self._peak_conductors: tuple | None = None   # every conductor at the peak (:meth:`take_peak_conductors`)
-        self.last_snapshot: tuple | None = None
+        self._last_step: tuple | None = None        # (t1, current, x_em, result) of the last step
+        self._last_snapshot: tuple | None = None    # its sheet snapshot, made when first asked for
         sub = self.bodies[0].sub
         self._sheet_pos = np.full(len(mesh.tets), -1, dtype=np.int64)
         self._sheet_pos[sub.rows] = np.arange(len(sub.rows))
@@ -228,11 +229,20 @@ class GetDPLoad3D(LoadCapabilities):
             values[f"{name}_current_A"] = float(result.coil_current[-1, k])
             values[f"{name}_joule_power_W"] = s * float(result.coil_power[-1, k])
         self.last = (x_em, result)   # the moved nodes and GetDP's result of the last step
-        self.last_snapshot = self._sheet_snapshot(t1, current, x_em, result)
+        self._last_step, self._last_snapshot = (t1, current, x_em, result), None
         if abs(current) > self.peak_current:
             self.peak_current, self._peak = abs(current), self.last_snapshot
             self._peak_conductors = self._conductor_snapshot(t1, current, x_em, result)
         return LoadStep(forces, integral, values)
+
+    @property
+    def last_snapshot(self) -> tuple | None:
+        """The sheet's snapshot at the end of the last step (:meth:`_sheet_snapshot`), None before the first;
+        made when first asked for (a persistent getdp computes the Joule power per element only then), which
+        must be before the next step."""
+        if self._last_snapshot is None and self._last_step is not None:
+            self._last_snapshot = self._sheet_snapshot(*self._last_step)
+        return self._last_snapshot
 
     def _solve_counts(self) -> dict[str, float]:
         """The run's factorisations and kept-factor GCR iterations so far (history columns; the steppers count
@@ -352,6 +362,9 @@ class GetDPLoad3D(LoadCapabilities):
             value = getattr(st, key)
             if value is not None:
                 out[key] = np.asarray(value, dtype=float)
+        if st.factors is not None:   # the kept factors a resumed process rebuilds (FactorRecord)
+            out.update({"factor_points": st.factors.points, "factor_dtime": np.float64(st.factors.dtime),
+                        "factor_current": st.factors.current})
         return out
 
     def load_state_dict(self, state: dict[str, np.ndarray]) -> None:
@@ -380,6 +393,8 @@ class GetDPLoad3D(LoadCapabilities):
                                circuit=None if circ is None else (float(circ[0]), float(circ[1])),
                                circuit_prev=None if circ_prev is None else (float(circ_prev[0]), float(circ_prev[1])),
                                dt_prev=float(state["dt_prev"]), force_density=opt("force_density"), steps=steps,
+                               factors=FactorRecord(opt("factor_points"), float(state["factor_dtime"]),
+                                                    opt("factor_current")) if "factor_points" in state else None,
                                timers=dict(zip(self.state.timers, timers[len(self.timers):])))
         self.impulse_device, self.coil_heat, self.peak_current, self.min_quality = (float(v) for v in state["sums"])
         if "body_impulse" in state:   # checkpoints before 2026-11-28 have none

@@ -273,7 +273,7 @@ class PersistentGetDPSolver(GetDPSolver):
             probe_b=np.zeros((1, 0, 2)))
         r._solver, r._step = self, self.proc.k
         r.run = RunInfo(argv=self.proc.argv, run_dir=self.proc.run_dir, log_path=self.proc.log_path,
-                        wall_time=ans.wall)
+                        wall_time=ans.wall, cpu_parts=ans.cpu)
         r.path = str(self.proc.run_dir)
         self._start_value(r, mat, mesh, state)
         if field_output:

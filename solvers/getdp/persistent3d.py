@@ -19,21 +19,30 @@ ASCII ``.res``, x_{n-1} as an array): a complete state continues on the per-step
 elsewhere: the two vectors sent through the FIFO, ``ReadSolution[A]``), exact to round-off.
 
 Kept factors (``factor_reuse``, :class:`~.persistent_process.FactorReuse`): a step solves its own
-system by GCR preconditioned with the LU factors of an earlier step to a relative residual; the step
-after :meth:`PersistentEM3DStepper.complete_state` (a checkpoint) factorises its own matrix, as a new
-process seeded from that state does, so that a resumed run repeats the uninterrupted one bit for bit.
+system by GCR preconditioned with the LU factors of an earlier step to a relative residual. A state
+completed by :meth:`PersistentEM3DStepper.complete_state` (a checkpoint) records which factors the next
+step uses (:class:`~.stepper3d.FactorRecord`: getdp's node coordinates and gamma dt of the step that
+factorised, and the current coordinates); a new process seeded from it starts at the factorisation's
+coordinates, factorises that matrix and moves to the current ones (``prime`` messages) before its first
+step, so that a resumed run repeats the uninterrupted one bit for bit while the uninterrupted run keeps its
+factors. Where no record can be made (no kept factors, or a move that floating point cannot make exact:
+:func:`~.persistent_process.exact_increment`) the step after the checkpoint factorises in both runs. Node
+increments are exact: getdp's coordinates are the mechanics' positions bit for bit wherever an increment
+can land there (so a new process started from a mesh file at those positions has the same).
 Each step's state counts the factorisations and corrections (``timers["getdp_factorisations"]``,
 ``timers["getdp_corrections"]``).
 
-The outputs are the library's own PostOperations (``EM_Step3D``, ``EM_Elem3D``, ``EM_Field3D``),
-read with :func:`~.solver3d.read_results3d` like the per-step path's, their files deleted after each
-step.
+The outputs are the library's own PostOperations (``EM_Step3D`` with the magnetic energy from the
+sources, ``Flag_WSources``; ``EM_ElemF3D``, ``EM_Field3D``), read with :func:`~.solver3d.read_results3d`
+like the per-step path's, their files deleted after each step. Joule power and b on the conductor
+elements (``EM_ElemPB3D``) are asked for only when read (:class:`PersistentEM3DResult`: snapshots,
+fields): a step computes what the coupled loop needs.
 """
 from __future__ import annotations
 
 import logging
 import time
-from dataclasses import replace
+from dataclasses import fields, replace
 from pathlib import Path
 from typing import Sequence
 
@@ -42,17 +51,40 @@ import numpy as np
 from .files import read_element_table
 from .mesh import coil_tag
 from .mesh3d import Mesh3D
-from .persistent_process import (FLAG_ELEM, FLAG_FACTORISE, FLAG_FIELDS, FLAG_STATE, FactorReuse, PersistentProcess,
-                                 read_binary_res)
+from .persistent_process import (FLAG_COND_FIELDS, FLAG_ELEM, FLAG_FACTORISE, FLAG_FIELDS, FLAG_STATE, FactorReuse,
+                                 PersistentProcess, exact_increment, read_binary_res)
 from .runner import GetDPError, RunInfo, log_tail
 from .solver import DECK_DIR
 from .solver3d import (DECK3D, DEFAULT_PETSC_ARGS_3D, EM3DModel, EM3DResult, applied_state_values, model_numbers,
-                       read_results3d)
-from .stepper3d import EM3DState, read_res_vector, write_res_vector
+                       read_conductor_fields3d, read_results3d)
+from .stepper3d import EM3DState, FactorRecord, read_res_vector, write_res_vector
 
 log = logging.getLogger(__name__)
 
-__all__ = ["PersistentEM3DStepper", "RESOLUTION_PERSISTENT3D", "PERSISTENT_LIB3D", "pre_dof_count"]
+
+class PersistentEM3DResult(EM3DResult):
+    """An :class:`~.solver3d.EM3DResult` whose Joule power and b on the conductor elements
+    (``joule_density``, ``flux_density``) are fetched from getdp when first read (a query, PostOperation
+    ``EM_ElemPB3D``): possible until the process takes its next step. A step computes only what the
+    coupled loop needs each step (the per-element force); snapshots and fields ask for the rest."""
+
+    _fetch = None  # () -> (joule_density, flux_density), set by the stepper
+
+    def _get(self, name: str) -> np.ndarray | None:
+        lazy = self.__dict__.setdefault("_lazy", {})
+        if lazy.get(name) is None and self._fetch is not None:
+            lazy["joule_density"], lazy["flux_density"] = self._fetch()
+            self._fetch = None
+        return lazy.get(name)
+
+    def _put(self, name: str, value) -> None:
+        self.__dict__.setdefault("_lazy", {})[name] = value
+
+    joule_density = property(lambda self: self._get("joule_density"), lambda self, v: self._put("joule_density", v))
+    flux_density = property(lambda self: self._get("flux_density"), lambda self, v: self._put("flux_density", v))
+
+
+__all__ = ["PersistentEM3DStepper", "PersistentEM3DResult", "RESOLUTION_PERSISTENT3D", "PERSISTENT_LIB3D", "pre_dof_count"]
 
 RESOLUTION_PERSISTENT3D = "EM_Persistent3D"
 #: the library holding it, included by Lib_PulsedForming3D.pro when ``PulseformPersistentLib`` names it
@@ -97,6 +129,8 @@ class PersistentEM3DStepper:
             raise ValueError("the persistent 3D getdp implements time_scheme='bdf2' only")
         self.factor_reuse = factor_reuse
         self._factorise_next = False   # the step after a checkpoint factorises (module docstring)
+        self._factors: tuple[np.ndarray, float] | None = None   # getdp's nodes and gamma dt of the last factorisation
+        self._refactor_next = True     # the process's next step factorises anyway
         self.model, self.time_scheme = model, time_scheme
         self.work_dir = Path(work_dir).resolve()
         self.executable, self.petsc_args = executable, tuple(petsc_args)
@@ -119,8 +153,9 @@ class PersistentEM3DStepper:
         wall time (s)."""
         self.close()
         self.segment += 1
+        self._factors, self._refactor_next = None, True   # a new process has no factors (or primes them below)
         numbers, lines = model_numbers(self.model, mesh)
-        numbers.update(PF_T1=float(state.t), PF_Step0=int(state.steps), PF_DtPrev=0.0, PF_Seed=1)
+        numbers.update(PF_T1=float(state.t), PF_Step0=int(state.steps), PF_DtPrev=0.0, PF_Seed=1, Flag_WSources=1)
         numbers.update(self.factor_reuse.numbers())
         if self.model.applied_field is not None:   # the unit time function of the seed states (0 at rest)
             numbers["Field_F1"], numbers["Field_F2"] = applied_state_values(self.model, state.t, state.steps, state.dt_prev)
@@ -135,6 +170,10 @@ class PersistentEM3DStepper:
         elif self.model.circuit is not None and state.circuit is not None:
             numbers["Init_Vc"], numbers["Init_I"] = state.circuit
         lines = [f'PulseformPersistentLib = "{PERSISTENT_LIB3D}";'] + lines
+        prime = state.factors if seed is not None and state.factors is not None and \
+            state.factors.current.shape == mesh.points.shape else None
+        if prime is not None:   # the new process starts where the interrupted one factorised (FactorRecord)
+            mesh = replace(mesh, points=np.array(prime.points, float))
         proc = PersistentProcess(self.work_dir / f"persistent3d_{self.segment:03d}", mesh, numbers, lines, DECK3D,
                                  executable=self.executable, petsc_args=self.petsc_args, time_limit=self.timeout,
                                  verbosity=self.verbosity, resolution=RESOLUTION_PERSISTENT3D, u_system=self.u_system)
@@ -148,6 +187,10 @@ class PersistentEM3DStepper:
             c0 = time.perf_counter()
             proc.seed([(self.a_system, state.t - state.dt_prev, 0.0, 1, seed[0]),
                        (self.a_system, state.t, 0.0, 2, seed[1])])
+            if prime is not None:   # the interrupted process's kept factors, rebuilt bit for bit
+                proc.prime(prime.points, prime.dtime)
+                proc.prime(prime.current, 0.0)
+                self._factors, self._refactor_next = (np.array(prime.points, float), prime.dtime), False
             startup += time.perf_counter() - c0
         coils = np.isin(mesh.tet_tags, [coil_tag(k) for k in range(1, len(self.model.coils) + 1)])
         self._coil_nodes = np.unique(mesh.tets[coils])
@@ -194,12 +237,18 @@ class PersistentEM3DStepper:
         for old in p.out_dir.glob("*.txt"):  # getdp appends (File >)
             old.unlink()
         nk = len(self.model.conductors)
-        flags = (FLAG_ELEM if nk else 0) | (FLAG_FIELDS if field_output else 0) | \
+        flags = (FLAG_ELEM if nk else 0) | (FLAG_FIELDS | (FLAG_COND_FIELDS if nk else 0) if field_output else 0) | \
             (FLAG_FACTORISE if self._factorise_next else 0)
         ans = p.step(mesh.points, float(t1), flags)
         self._factorise_next = False
+        if ans.factorised:
+            self._factors = (p.points.copy(), ans.dtime)
+        self._refactor_next = ans.refactor_next
         c1 = time.perf_counter()
-        res = read_results3d(self.model, mesh, p.out_dir, 1, 2 if nk else 0)
+        res = read_results3d(self.model, mesh, p.out_dir, 1, 2 if nk else 0, element_fields=field_output)
+        res = PersistentEM3DResult(**{f.name: getattr(res, f.name) for f in fields(res)})
+        if nk and not field_output:
+            res._fetch = self._conductor_fields_of(p.k, mesh, res)
         if field_output:
             ids, b = read_element_table(p.out_dir / "field_b.txt", 3, 1)
             res.b_cells = np.full((mesh.n_tets, 3), np.nan)
@@ -207,7 +256,7 @@ class PersistentEM3DStepper:
         if not (np.all(np.isfinite(res.conductor_force)) and np.all(np.isfinite(res.coil_current))):
             raise GetDPError(f"non-finite EM results at t = {t1:.6g} s", log_path=p.log_path, run_dir=p.run_dir,
                              log_tail=log_tail(p.log_path))
-        res.run = RunInfo(argv=p.argv, run_dir=p.run_dir, log_path=p.log_path, wall_time=ans.wall)
+        res.run = RunInfo(argv=p.argv, run_dir=p.run_dir, log_path=p.log_path, wall_time=ans.wall, cpu_parts=ans.cpu)
         res.n_dofs, res.wall_pre, res.wall_loop, res.wall_per_step = self.n_dofs, startup, ans.wall, ans.wall
         f_end = res.force_density[-1] if res.force_density is not None else None
         if f_end is not None:
@@ -226,6 +275,20 @@ class PersistentEM3DStepper:
         tm["getdp_corrections"] = tm.get("getdp_corrections", 0.0) + float(ans.corrections)   # an older checkpoint)
         return res, new
 
+    def _conductor_fields_of(self, k: int, mesh: Mesh3D, res: EM3DResult):
+        """The fetch of step ``k``'s Joule power and b on the conductor elements (a query of the running
+        process, which must still be at step ``k``)."""
+        def fetch() -> tuple[np.ndarray, np.ndarray]:
+            p = self.proc
+            if p is None or not p.alive or p.k != k:
+                raise RuntimeError(f"conductor fields of EM step {k}: the persistent 3D getdp has moved on")
+            for name in ("elem_P.txt", "elem_b.txt"):
+                (p.out_dir / name).unlink(missing_ok=True)
+            p.query(FLAG_COND_FIELDS)
+            ids = mesh.tet_ids[res.elements]
+            return read_conductor_fields3d(mesh, p.out_dir, ids, 1)
+        return fetch
+
     # ------------------------------------------------------------------ state
     def complete_state(self, state: EM3DState) -> EM3DState:
         """``state`` (the one the last step returned) with its solution vectors: x_n as an ASCII ``.res``
@@ -242,9 +305,27 @@ class PersistentEM3DStepper:
         res.unlink(missing_ok=True)
         p.query(FLAG_STATE)  # x_n and x_{n-1} of system A, binary: the exact unknowns
         x_n, x_prev = read_binary_res(res, self.n_dofs)[-2:]
-        self._factorise_next = True   # as the process a resume from this state starts
+        factors = self._factor_record(p.points)
+        # without a record the next step factorises, as a process started from this state does
+        self._factorise_next = factors is None
         path = write_res_vector(self.work_dir / f"state_{state.steps:05d}.res", str(self.a_system), state.t, x_n)
-        return replace(state, res_path=path, x_prev=x_prev, timers=dict(state.timers))
+        return replace(state, res_path=path, x_prev=x_prev, factors=factors, timers=dict(state.timers))
+
+    def _factor_record(self, current: np.ndarray) -> FactorRecord | None:
+        """The kept factors of the next step as a :class:`~.stepper3d.FactorRecord`, or None where a new process
+        could not rebuild them bit for bit: no kept factors (``factor_reuse.tol`` 0, none yet, the next step
+        factorises anyway), or nodes that no increment takes from the factorisation's coordinates to the
+        current ones exactly in floating point (getdp adds increments as numpy does here; a coordinate that
+        shrank by orders of magnitude, say, cannot land on the finer grid of the smaller value)."""
+        if self.factor_reuse.tol <= 0.0 or self._factors is None or self._refactor_next:
+            return None
+        points, dtime = self._factors
+        moved = points + exact_increment(points, current)   # what the new process's second prime message does
+        if not np.array_equal(moved, current):
+            log.info("kept factors not recorded at the checkpoint (a node cannot move back exactly from the "
+                     "factorisation's coordinates): the next EM step factorises")
+            return None
+        return FactorRecord(points=points.copy(), dtime=float(dtime), current=current.copy())
 
     def with_model(self, **changes) -> "PersistentEM3DStepper":
         """A stepper of the same kind on a changed model (its own process)."""

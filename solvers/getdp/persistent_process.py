@@ -46,10 +46,11 @@ PERSISTENT_LIB = (DECK_DIR / "Lib_Persistent.pro").resolve()
 #: message flags (the ``TimeImag`` of a message; Lib_Persistent.pro): per-element force, Joule
 #: power and B on the conductors, nodal state of x_n and x_{n-1}, stop, no globals (profiling),
 #: query (no step), redo (the last step again on a new geometry), whole-domain fields, factorise
-#: (this step factorises its own matrix: :class:`FactorReuse`)
+#: (this step factorises its own matrix: :class:`FactorReuse`), prime (3D: move, and factorise the
+#: matrix of a given geometry and time step without a step: :meth:`PersistentProcess.prime`)
 FLAG_ELEM, FLAG_COND_FIELDS, FLAG_STATE, FLAG_STOP = 1, 2, 4, 8
 FLAG_NO_GLOBALS, FLAG_QUERY, FLAG_REDO, FLAG_FIELDS = 16, 32, 64, 128
-FLAG_FACTORISE = 512
+FLAG_FACTORISE, FLAG_PRIME = 512, 1024
 #: ``PF_GlobalsSet``: coil I, U and circuit (1) + conductor Joule power (4) + energy from the sources (32)
 LEAN_GLOBALS = 37
 _ENXIO = 6
@@ -92,6 +93,22 @@ class FactorReuse:
     def numbers(self) -> dict[str, float]:
         """The deck's ``-setnumber`` values."""
         return {"PF_ReuseTol": float(self.tol), "PF_ReuseMaxIt": float(self.max_corrections)}
+
+
+def exact_increment(x: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """An increment u with ``x + u == target`` in IEEE double arithmetic, elementwise: getdp's
+    ``DeformMesh`` adds u to its node coordinates, so that its nodes land exactly on ``target`` (not one
+    unit in the last place off, as x + (target - x) can be: a process started from a mesh file at
+    ``target`` then has the same coordinates, bit for bit). u = target - x, then moved by single units in
+    the last place where the sum misses (a few at most); where none hits, the nearest one stays."""
+    u = target - x
+    for _ in range(8):
+        s = x + u
+        miss = s != target
+        if not miss.any():
+            break
+        u[miss] = np.nextafter(u[miss], np.where(s[miss] < target[miss], np.inf, -np.inf))
+    return u
 
 
 def read_pre_dofs(path: Path, system: int) -> np.ndarray:
@@ -144,7 +161,12 @@ class StepAnswer:
     :class:`PersistentGetDPSolver` fills them in).  ``wall`` (s): Python's wait for the answer.
     The solve of a step (``Lib_PersistentStep.pro``, kept factors): ``factorised`` (the step factorised
     its own matrix), ``corrections`` (GCR iterations with kept factors), ``residual`` (their final
-    relative residual |b - A x| / |b|; 0 after a factorisation); a query answers 0, 0, 0.
+    relative residual |b - A x| / |b|; 0 after a factorisation), ``refactor_next`` (the next step factorises its
+    own matrix: this one needed more than 3/4 of the iterations allowed); a query answers 0, 0, 0, False.
+    ``dtime`` (s): the step's implicit-Euler time step gamma dt (what its matrix was assembled with). ``cpu`` (s): getdp's
+    own CPU time of the step's parts -- moving the mesh, assembling the system (Generate), solving it, the
+    outputs -- (0, 0, 0, 0) for a query: where an EM step's time goes, unaffected by other processes on
+    the machine.
     """
 
     k: int
@@ -157,6 +179,9 @@ class StepAnswer:
     factorised: bool = False
     corrections: int = 0
     residual: float = 0.0
+    refactor_next: bool = False
+    dtime: float = 0.0
+    cpu: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
 
 
 class PersistentProcess:
@@ -306,17 +331,33 @@ class PersistentProcess:
     def step(self, points: np.ndarray, t_end: float, flags: int, redo: bool = False) -> StepAnswer:
         """Move getdp's nodes to ``points`` and advance to ``t_end`` (one BDF2 step); ``redo``: the
         last step again from its start state, on the geometry ``points``."""
-        du = np.asarray(points, float) - self.points
-        if np.any(du[~self._has_u] != 0.0):
-            raise ValueError("a node without a displacement dof moved")
-        vec = self._vec
-        vec[self.u_index[self._has_u]] = du[self._has_u]
+        du = self._increment(points)
         k = self.k if redo else self.k + 1
         c0 = time.perf_counter()
-        self._send(vec, float(t_end), flags | (FLAG_REDO if redo else 0), k)
+        self._send(self._vec, float(t_end), flags | (FLAG_REDO if redo else 0), k)
         answer = self._answer(k, c0)
-        self.points += du  # what getdp computed: x + (x_new - x), the same IEEE operations
+        self.points += du  # what getdp computed: x + du, the same IEEE operation (= points: exact_increment)
         self.k, self.t = k, float(t_end)
+        return answer
+
+    def _increment(self, points: np.ndarray) -> np.ndarray:
+        """The displacement increment (n, dim) m that takes getdp's nodes to ``points`` exactly
+        (:func:`exact_increment`), written into the message vector."""
+        du = exact_increment(self.points, np.asarray(points, float))
+        if np.any(du[~self._has_u] != 0.0):
+            raise ValueError("a node without a displacement dof moved")
+        self._vec[self.u_index[self._has_u]] = du[self._has_u]
+        return du
+
+    def prime(self, points: np.ndarray, dtime: float) -> StepAnswer:
+        """Move getdp's nodes to ``points`` and, with ``dtime`` > 0, factorise the system matrix of that
+        geometry and implicit-Euler time step (s), without a step: the following steps' kept factors
+        (``decks/Lib_Persistent3D.pro``; the solution and its history stay)."""
+        du = self._increment(points)
+        c0 = time.perf_counter()
+        self._send(self._vec, float(dtime), FLAG_PRIME, self.k)
+        answer = self._answer(self.k, c0)
+        self.points += du  # what getdp computed
         return answer
 
     def query(self, flags: int) -> StepAnswer:
@@ -438,7 +479,9 @@ class PersistentProcess:
         coil, cond, glob = [], [], np.zeros(4)
         k = t = None
         has_globals = False
-        solve = (False, 0, 0.0)
+        solve = (False, 0, 0.0, False)
+        cpu = (0.0, 0.0, 0.0, 0.0)
+        dtime = 0.0
         for ln in lines:
             f = ln.split()
             if not f:
@@ -451,15 +494,17 @@ class PersistentProcess:
                 glob[:] = [float(x) for x in f[1:5]]
                 has_globals = True
             elif f[0] == "S":
-                solve = (float(f[1]) != 0.0, int(float(f[2])), float(f[3]))
+                solve = (float(f[1]) != 0.0, int(float(f[2])), float(f[3]), float(f[4]) != 0.0)
+            elif f[0] == "T":
+                cpu = tuple(float(x) for x in f[1:5])
             elif f[0] == "D":
-                k, t = int(f[1]), float(f[2])
+                k, t, dtime = int(f[1]), float(f[2]), float(f[3])
         if k != k_expected:
             raise GetDPError(f"getdp answered step {k}, expected {k_expected}", log_path=self.log_path,
                              run_dir=self.run_dir, log_tail=log_tail(self.log_path))
         c = np.array([v for _, v in sorted(coil)]).reshape(-1, 5)
         kk = np.array([v for _, v in sorted(cond)]).reshape(-1, 3)
-        return StepAnswer(k, t, c, kk, glob, has_globals, wall, *solve)
+        return StepAnswer(k, t, c, kk, glob, has_globals, wall, *solve, dtime, cpu)
 
 
 def _kill(proc: subprocess.Popen) -> None:

@@ -215,13 +215,16 @@ class GetDPError(RuntimeError):
 
 @dataclass
 class RunInfo:
-    """What one getdp run left behind."""
+    """What one getdp run left behind. ``cpu_parts`` (s): of one step of a persistent process, getdp's own
+    CPU time moving the mesh, assembling (Generate), solving, and computing the outputs
+    (:class:`~.persistent_process.StepAnswer`); None for a process per run."""
 
     argv: list[str]
     run_dir: Path
     log_path: Path
     wall_time: float
     warnings: list[str] = field(default_factory=list)
+    cpu_parts: tuple[float, float, float, float] | None = None
 
 
 def run_logged(argv: list[str], cwd: Path, log_path: Path, time_limit: float | None) -> tuple[int, str]:

@@ -386,8 +386,11 @@ def solve_transient3d(model: EM3DModel, mesh: Mesh3D, t_end: float, n_steps: int
     return res
 
 
-def read_results3d(model: EM3DModel, mesh: Mesh3D, out_dir: Path, n_steps: int, flag_elem: int) -> EM3DResult:
-    """Read the tables of a finished 3D run in ``out_dir`` (see the deck's PostOperation)."""
+def read_results3d(model: EM3DModel, mesh: Mesh3D, out_dir: Path, n_steps: int, flag_elem: int,
+                   element_fields: bool = True) -> EM3DResult:
+    """Read the tables of a finished 3D run in ``out_dir`` (see the deck's PostOperation);
+    ``element_fields=False``: of the per-element tables only the force (``EM_ElemF3D``; Joule power and b
+    per element come later, :func:`read_conductor_fields3d`)."""
     def glob(name: str, ncol: int) -> np.ndarray:
         t = read_table(out_dir / name)
         t = t.reshape(-1, t.shape[-1]) if t.ndim > 1 else t.reshape(1, -1)
@@ -416,19 +419,29 @@ def read_results3d(model: EM3DModel, mesh: Mesh3D, out_dir: Path, n_steps: int, 
     if nk and flag_elem:
         n_blocks = n_steps if flag_elem == 1 else 1
         ids, force = read_element_table(out_dir / "elem_F.txt", 3, n_blocks)
-        ids_p, power = read_element_table(out_dir / "elem_P.txt", 1, n_blocks)
-        ids_b, b = read_element_table(out_dir / "elem_b.txt", 3, n_blocks)
-        if not (np.array_equal(ids, ids_p) and np.array_equal(ids, ids_b)):
-            raise RuntimeError("element tables list different elements")
         rows = mesh.rows_of_ids(ids)
         vol = mesh.volumes(rows)
         res.elements, res.element_tags = rows, mesh.tet_tags[rows]
         res.force_density = force / vol[None, :, None]
-        res.joule_density = power[:, :, 0] / vol[None, :]
-        res.flux_density = b
+        if element_fields:
+            res.joule_density, res.flux_density = read_conductor_fields3d(mesh, out_dir, ids, n_blocks)
     return res
 
 
-__all__ = ["Coil3D", "EM3DModel", "EM3DResult", "solve_transient3d", "read_results3d", "model_numbers",
+def read_conductor_fields3d(mesh: Mesh3D, out_dir: Path, ids: np.ndarray,
+                            n_blocks: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    """(Joule power density (n_blocks, n_el) W/m^3 as element averages, b (n_blocks, n_el, 3) T at the
+    centroids) of the conductor elements ``ids`` (gmsh element ids, the order of ``elem_F.txt``) from
+    ``elem_P.txt`` and ``elem_b.txt`` in ``out_dir`` (PostOperation ``EM_ElemPB3D``)."""
+    ids_p, power = read_element_table(out_dir / "elem_P.txt", 1, n_blocks)
+    ids_b, b = read_element_table(out_dir / "elem_b.txt", 3, n_blocks)
+    if not (np.array_equal(ids, ids_p) and np.array_equal(ids, ids_b)):
+        raise RuntimeError("element tables list different elements")
+    vol = mesh.volumes(mesh.rows_of_ids(ids))
+    return power[:, :, 0] / vol[None, :], b
+
+
+__all__ = ["Coil3D", "EM3DModel", "EM3DResult", "solve_transient3d", "read_results3d", "read_conductor_fields3d",
+           "model_numbers",
            "coil_section_from_mesh", "ball_average", "DEFAULT_PETSC_ARGS_3D", "skin_tag", "AppliedField",
            "symmetry_planes", "applied_state_values"]

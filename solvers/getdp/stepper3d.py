@@ -33,7 +33,7 @@ from .solver3d import EM3DModel, EM3DResult, applied_state_values, solve_transie
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["EM3DState", "EM3DStepper", "read_res_vector", "write_res_vector"]
+__all__ = ["EM3DState", "EM3DStepper", "FactorRecord", "read_res_vector", "write_res_vector"]
 
 
 def read_res_vector(path: str | Path, block: int = -1) -> tuple[str, float, np.ndarray]:
@@ -57,6 +57,20 @@ def write_res_vector(path: str | Path, dofdata: str, t: float, values: np.ndarra
     return Path(path)
 
 
+@dataclass(frozen=True)
+class FactorRecord:
+    """Which LU factors the next step of a persistent getdp with kept factors uses, so that a process
+    started from the state rebuilds them (:meth:`~.persistent3d.PersistentEM3DStepper.complete_state`):
+    ``points`` (n, 3) m, getdp's node coordinates at the step that factorised, ``dtime`` (s) its
+    implicit-Euler time step gamma dt (the matrix depends on both only), ``current`` (n, 3) m, getdp's
+    node coordinates at the state (a new process starts at ``points``, factorises there and moves to
+    ``current``: recorded only where that move is exact in floating point)."""
+
+    points: np.ndarray
+    dtime: float
+    current: np.ndarray
+
+
 @dataclass
 class EM3DState:
     """The carried EM state at time ``t`` (s), see the module docstring.
@@ -65,7 +79,8 @@ class EM3DState:
     ``x_prev``: x_{n-1} (None: zeros, the fields at rest); ``circuit``: (capacitor voltage V, circuit
     current A) at t_n and ``circuit_prev`` at t_{n-1}; ``dt_prev`` the last step (s, 0 before the
     first); ``force_density`` (n_el, 3) N/m^3 at t_n on the conductor elements ``elements`` (rows of
-    the mesh's tets), zeros at rest; ``steps`` taken.
+    the mesh's tets), zeros at rest; ``steps`` taken; ``factors``: the kept LU factors a persistent
+    getdp's next step uses (:class:`FactorRecord`; None: that step factorises its own matrix).
     """
 
     t: float = 0.0
@@ -76,6 +91,7 @@ class EM3DState:
     dt_prev: float = 0.0
     force_density: np.ndarray | None = None
     steps: int = 0
+    factors: FactorRecord | None = None
     timers: dict[str, float] = field(default_factory=lambda: {"getdp_process_s": 0.0, "getdp_pre_s": 0.0,
                                                               "getdp_loop_s": 0.0, "res_io_s": 0.0,
                                                               "getdp_factorisations": 0.0,

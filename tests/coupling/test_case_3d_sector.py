@@ -139,22 +139,21 @@ def test_sigint_then_resume_equals_the_uninterrupted_run(tmp_path):
 
 @pytest.mark.slow
 @pytest.mark.getdp
-def test_sigint_then_resume_with_kept_factors_equals_the_run_to_the_solve_tolerance(coarse_run, tmp_path):
-    """With kept LU factors (the default) a resume from a stop between output times starts a process that
-    factorises where the uninterrupted run kept older factors: both solve every EM step's system to a relative
-    residual of 1e-10 (docs/getdp.md, Kept factors), so the metrics agree to that residual amplified by the coupled
-    dynamics (measured 6.3e-9 relative, the largest von Mises stress; bound 1e-7, a tenth of the issue's 1e-6 for
-    the racetrack's metrics), not bitwise (a stop at
-    an output time resumes bitwise: test_case_racetrack_remesh.py). Not compared: the ledgers and the energy
-    balance's relative error (round-off and discretisation measures near 0, whose relative change says nothing)."""
+def test_sigint_then_resume_with_kept_factors_equals_the_uninterrupted_run(coarse_run, tmp_path):
+    """With kept LU factors (the default) a resume from a stop between output times is the uninterrupted run
+    bit for bit too: the stop's checkpoint records which factors the next EM step uses (the nodes and gamma dt of
+    the step that factorised: FactorRecord), and the resumed process rebuilds them before its first step
+    (docs/getdp.md, Kept factors) -- every metric and the whole history. (Until issue 31's factor records the
+    step after a stop between outputs factorised in the resumed run only: the two agreed to 6.3e-9.)"""
     ref = json.loads((coarse_run / "metrics.json").read_text())
     cut, got = _interrupt_then_resume(tmp_path / "cut", [])
-    worst = max((abs(got[k] - ref[k]) / abs(ref[k]), k) for k in _compared(ref)
-                if isinstance(ref[k], float) and ref[k] != 0
-                and not any(w in k for w in ("ledger", "conservation", "error")))
-    print(f"\ninterrupted at {cut['end_time_s']:.3g} s; resumed vs uninterrupted: worst metric {worst[1]} "
-          f"{worst[0]:.1e} relative")
-    assert worst[0] < 1e-7, worst
+    print(f"\ninterrupted at {cut['end_time_s']:.3g} s; resumed: deflection {got['sheet_max_uz_mm']!r} vs "
+          f"{ref['sheet_max_uz_mm']!r} mm, impulse {got['force_impulse_z_Ns']!r} vs {ref['force_impulse_z_Ns']!r}")
+    for k in _compared(ref):
+        assert got[k] == ref[k], k   # bitwise
+    h_ref = np.loadtxt(coarse_run / "history.csv", delimiter=",", skiprows=1)
+    h_got = np.loadtxt(tmp_path / "cut" / "history.csv", delimiter=",", skiprows=1)
+    assert h_got.shape == h_ref.shape and np.array_equal(h_got, h_ref)
     assert got["em_steps"] == ref["em_steps"] and got["status"] == "ok"
 
 

@@ -264,8 +264,10 @@ def test_3d_stepper_bdf2_matches_one_run(tmp_path):
     np.testing.assert_allclose(res.joule_density[-1], ref.joule_density[-1], rtol=1e-7)
     # the persistent 3D process (the history of the applied function on GetDP's run-time variables), also
     # after a new process is seeded with two states from a completed state in mid-run
+    # The persistent process's magnetic energy comes from the sources, 1/2 (j, a) over the conductor
+    # (Flag_WSources, the reaction field's with an applied field): the whole-domain W of the one run.
     persistent = PersistentEM3DStepper(model, tmp_path / "persistent")
-    state, power = persistent.initial_state(), []
+    state, power, energy = persistent.initial_state(), [], []
     try:
         for k in range(1, n + 1):
             if k == 3:
@@ -274,10 +276,14 @@ def test_3d_stepper_bdf2_matches_one_run(tmp_path):
                 persistent = PersistentEM3DStepper(model, tmp_path / "persistent_b")
             res, state = persistent.step(mesh, state, t_end * k / n)
             power.append(res.conductor_power[-1, 0])
+            energy.append(res.magnetic_energy[-1])
     finally:
         persistent.close()
-    print(f"persistent {power}")
+    print(f"persistent {power}\nenergy: persistent (sources) {energy}, one run (whole domain) "
+          f"{ref.magnetic_energy.tolist()}")
     np.testing.assert_allclose(power, ref.conductor_power[:, 0], rtol=1e-10)
+    assert ref.magnetic_energy[-1] > 0
+    np.testing.assert_allclose(energy, ref.magnetic_energy, rtol=1e-10)
 
 
 # ------------------------------------------------------------------------------------ with coils, BDF2

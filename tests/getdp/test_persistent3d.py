@@ -163,9 +163,11 @@ def test_moving_mesh_same_as_per_step(work):
 def test_kept_factors_solve_each_steps_system_and_resume_bitwise(work):
     """Kept LU factors (FactorReuse, decks/Lib_PersistentStep.pro): each step's own system solved by GCR
     preconditioned with an earlier step's factors to a relative residual of 1e-10 gives the fresh factorisation's
-    results to 1e-8 (the issue's bound; measured 2.2e-9) with fewer factorisations than steps; a checkpoint
-    (complete_state) makes the next step factorise, so a new process seeded from it (a resume, which has no
-    factors) repeats the uninterrupted run bit for bit. Equal steps of 0.5 us on the bulging, sliding disk."""
+    results to 1e-8 (the issue's bound; measured 5.0e-9) with fewer factorisations than steps; a checkpoint
+    (complete_state) records which factors the next step uses (FactorRecord: the nodes and gamma dt of the step
+    that factorised), and a new process seeded from it (a resume) rebuilds them (the prime messages) and
+    repeats the uninterrupted run bit for bit, which goes on with its factors: no factorisation but the
+    first in the run. Equal steps of 0.5 us on the bulging, sliding disk."""
     mesh = _mesh(work / "disk.msh")
     model = _model()
     bulge = Bulge(mesh, work)
@@ -189,8 +191,9 @@ def test_kept_factors_solve_each_steps_system_and_resume_bitwise(work):
           f"factorisations and {n_corr:.0f} corrections in {len(times)} steps; resumed vs uninterrupted: "
           f"max |diff| {np.abs(resumed - kept).max():.1e}")
     assert f_state.timers["getdp_factorisations"] == len(times) and f_state.timers["getdp_corrections"] == 0
-    # steps 1 (no factors) and 5 (after the checkpoint) factorise; the others iterate
-    assert 2 <= n_fact < len(times) and n_corr > 0
+    # step 1 (no factors) factorises; the others iterate, also the one after the checkpoint (its factors
+    # recorded: the resumed process rebuilt them)
+    assert n_fact == 1 and n_corr > 0
     assert 0 < _rel(fresh, kept) < 1e-8
     assert np.array_equal(resumed, kept) and seeded.segment == 1
 
