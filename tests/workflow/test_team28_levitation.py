@@ -101,7 +101,7 @@ def test_first_rise_follows_the_filament_model(tmp_path):
     zf = np.interp(t, *_curve("filament_model.csv"))
     rise = zf.max() - 3.8
     err = float(np.abs(z - zf).max() / rise)
-    print(f"\nrise to {z[-1]:.3f} mm at 30 ms (filament model {zf[-1]:.3f}); largest difference {err:.2%} of the rise")
+    print(f"\nheight {z[-1]:.3f} mm at 30 ms (filament model {zf[-1]:.3f}); largest difference {err:.2%} of the rise")
     assert rise > 5.0 and err < 0.03
 
 
