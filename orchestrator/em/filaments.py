@@ -88,8 +88,9 @@ def _coupling_table(rc: np.ndarray, zc: np.ndarray, wc: np.ndarray, filaments: S
     return m, dm
 
 
-def _from_rest(rhs, y0: np.ndarray, t_end: float, rtol: float, atol: np.ndarray, force, weight: float,
-               z_index: int, relands: bool = False, max_phases: int = 1000) -> list:
+def _from_rest(rhs: Callable[[float, np.ndarray, bool], np.ndarray], y0: np.ndarray, t_end: float, rtol: float,
+               atol: np.ndarray, force: Callable[[float, np.ndarray], float], weight: float, z_index: int,
+               relands: bool = False, max_phases: int = 1000) -> list:
     """Integrate ``rhs(t, y, resting)`` (Radau) from ``y0``, the conductor resting on its support
     (z = ``y[z_index]`` = 0) until its axial force ``force(t, y)`` (N) exceeds its ``weight`` (N),
     then free. Back on its support (z < 0, moving down): with ``relands`` it rests there again
