@@ -134,6 +134,8 @@ def _evaluate(e: Entry, run: RunOutput | Exception, root: Path, plots: Path,
             if e.reference.function is not None and e.curve in run.curves:
                 xc = run.curves[e.curve][0]
                 ref_curve = (xc, e.reference.function(xc))
+        if e.also:
+            o.provenance["also drawn"] = ", ".join(c.describe() for c in e.also)
         if e.kind == "curve":
             xc, yc = run.curves[e.curve]
             yr = np.interp(xc, *ref_curve) if isinstance(e.reference, CsvCurve) else ref_curve[1]
@@ -170,7 +172,7 @@ def _evaluate(e: Entry, run: RunOutput | Exception, root: Path, plots: Path,
     except Exception as exc:  # a quantity the run could not provide
         o.message = f"{type(exc).__name__}: {exc}"
     try:
-        o.plot = _plot(e, run, ref_curve, plots)
+        o.plot = _plot(e, run, ref_curve, plots, root)
     except Exception as exc:  # plots never decide a verdict
         log.warning("plot of %s failed: %s", e.name, exc)
     return o
@@ -189,7 +191,7 @@ def _scalar_reference(e: Entry, run: RunOutput, ref_curve) -> float:
     return float(ref.value)
 
 
-def _plot(e: Entry, run: RunOutput, ref_curve, folder: Path) -> str:
+def _plot(e: Entry, run: RunOutput, ref_curve, folder: Path, root: Path = REPO) -> str:
     if e.curve is None or e.curve not in run.curves:
         return ""
     import matplotlib
@@ -204,7 +206,7 @@ def _plot(e: Entry, run: RunOutput, ref_curve, folder: Path) -> str:
         ref_curve = run.curves[f"{e.curve}_reference"]
     if ref_curve is not None:
         rx, ry = ref_curve
-        label = "reference"
+        label = e.reference.label if isinstance(e.reference, CsvCurve) else "reference"
         if e.align_onset and (yc > 0).any() and (ry > 0).any():
             shift = float(xc[np.argmax(yc > 0)] - rx[np.argmax(ry > 0)])
             rx, label = rx + shift, f"reference (shifted by {shift:.4g})"
@@ -212,6 +214,9 @@ def _plot(e: Entry, run: RunOutput, ref_curve, folder: Path) -> str:
     elif isinstance(e.reference, Analytic) and e.reference.value is not None and e.kind == "scalar" \
             and e.metric is None and e.error == "rel":
         ax.axhline(e.reference.value, ls="--", color="k", label="reference")
+    for other in e.also:
+        ox, oy, _, _ = other.load(root)
+        ax.plot(ox, oy, ":", lw=1.5, label=other.label)
     xl, yl = run.labels.get(e.curve, ("x", "y"))
     ax.set(xlabel=xl, ylabel=yl, title=e.name)
     ax.grid(alpha=0.3)
