@@ -14,6 +14,7 @@ import sys
 from pathlib import Path
 
 from . import __version__
+from .console_log import setup_console_logging
 from .run.interrupt import StudyInterrupted
 
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
@@ -130,34 +131,6 @@ def _parser() -> argparse.ArgumentParser:
     sub.add_parser("info", help="versions and locations of getdp, gmsh, dolfinx, PETSc, meshio, numpy",
                    description="Print the versions of the external programs and libraries and where each comes from.")
     return p
-
-
-class _ConsoleFilter(logging.Filter):
-    """pulseform's own records from INFO (WARNING with --quiet); other libraries' from WARNING."""
-
-    def __init__(self, quiet: bool) -> None:
-        super().__init__()
-        self.own_level = logging.WARNING if quiet else logging.INFO
-
-    def filter(self, record: logging.LogRecord) -> bool:
-        if record.name == "pulseform" or record.name.startswith("pulseform."):
-            return record.levelno >= self.own_level
-        return record.levelno >= logging.WARNING
-
-
-def _setup_logging(quiet: bool) -> None:
-    """One console handler on the root logger. Installed before dolfinx is imported, it also
-    turns FFCx's ``logging.basicConfig()`` into a no-op, so JIT compiler chatter stays off the
-    terminal (it still reaches run.log)."""
-    root = logging.getLogger()
-    for old in [h for h in root.handlers if getattr(h, "pulseform_console", False)]:
-        root.removeHandler(old)  # main() called again in the same process (tests): one console handler
-    handler = logging.StreamHandler(sys.stderr)
-    handler.pulseform_console = True
-    handler.setFormatter(logging.Formatter("%(levelname)s: %(message)s"))
-    handler.addFilter(_ConsoleFilter(quiet))
-    root.addHandler(handler)
-    logging.getLogger("pulseform").setLevel(logging.INFO)
 
 
 def _error(msg: str, code: int) -> int:
@@ -480,7 +453,7 @@ def entry() -> int:
 def main(argv: list[str] | None = None) -> int:
     """The ``pulseform`` command with arguments ``argv`` (default: the command line)."""
     args = _parser().parse_args(argv)
-    _setup_logging(getattr(args, "quiet", False))
+    setup_console_logging(getattr(args, "quiet", False))
     handlers = {"run": _cmd_run, "check": _cmd_check, "sweep": _cmd_sweep, "converge": _cmd_converge, "info": _cmd_info,
                 "validate": _cmd_validate, "compare": _cmd_compare, "plot": _cmd_plot, "schema": _cmd_schema}
     try:

@@ -4,13 +4,14 @@ child forked from it. Started by a study (sweep, converge, validate, compare), n
 
 import sys
 
-from .cli import _parser, _setup_logging, main
+from .cli import _parser, main
+from .console_log import setup_console_logging
 from .run.warm import serve
 
 
 def _setup() -> None:
     """The CLI's console log (before DOLFINx is imported) and its parser, built once."""
-    _setup_logging(quiet=False)
+    setup_console_logging(quiet=False)
     _parser()
 
 

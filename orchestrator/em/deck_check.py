@@ -46,7 +46,7 @@ log = logging.getLogger(__name__)
 #: the check's time step (s): of the order of a run's EM step
 CHECK_STEP_S = 1e-7
 #: the runner's time window: a deck's own plain assignment of one beats -setnumber (a template deck's are
-#: assigned again after the deck, :func:`pulseform.solvers.getdp.template.runner_guard_lines`)
+#: assigned again after the deck, :func:`pulseform.solvers.getdp.template_guard.runner_guard_lines`)
 WINDOW_NAMES = ("TimeInit", "TimeFinal", "NbSteps")
 #: largest relative difference between two chained one-step runs and one two-step run (measured on
 #: the example: 9e-13 through the Init path, whose nodal values travel as printed tables)
@@ -297,7 +297,8 @@ def _getdp_failure(deck: Path, run_dir: Path, exc: Exception, names: DeckNames |
     undefined in a region (named by ``names``); a line of the generated ``run.pro`` is quoted (the
     check's folder may be gone when the line is read)."""
     from pulseform.solvers.getdp.solver import RESOLUTION
-    from pulseform.solvers.getdp.template import NO_CIRCUIT_ERROR, OVERRIDE_ERROR
+    from pulseform.solvers.getdp.template import NO_CIRCUIT_ERROR
+    from pulseform.solvers.getdp.template_guard import OVERRIDE_ERROR
 
     names = names or DeckNames()
     log_file = run_dir / "getdp.log"

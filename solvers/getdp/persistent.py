@@ -29,8 +29,9 @@ from .bdf2 import match_rows, trapezoid_mean
 from .files import element_volumes, init_list_line, read_element_table
 from .mesh import EMMesh, coil_tag, conductor_tag
 from .model import EMModel, EMState, EMStepResult
+from .persistent_data import nodal_dof_map, read_binary_res
 from .persistent_process import (FLAG_COND_FIELDS, FLAG_ELEM, FLAG_FIELDS, FLAG_STATE, LEAN_GLOBALS, PERSISTENT_LIB,
-                                 FactorReuse, PersistentProcess, StepAnswer, nodal_dof_map, read_binary_res)
+                                 FactorReuse, PersistentProcess, StepAnswer)
 from .replay import ReplayLog, connectivity_signature, segment_length
 from .runner import GetDPError, RunInfo, log_tail
 from .solver import CASE_DECK, DEFAULT_PETSC_ARGS, GetDPSolver

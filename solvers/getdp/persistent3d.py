@@ -26,7 +26,7 @@ factorised, and the current coordinates); a new process seeded from it starts at
 coordinates, factorises that matrix and moves to the current ones (``prime`` messages) before its first
 step, so that a resumed run repeats the uninterrupted one bit for bit while the uninterrupted run keeps its
 factors. Where no record can be made (no kept factors, or a move that floating point cannot make exact:
-:func:`~.persistent_process.exact_increment`) the step after the checkpoint factorises in both runs. Node
+:func:`~.persistent_data.exact_increment`) the step after the checkpoint factorises in both runs. Node
 increments are exact: getdp's coordinates are the mechanics' positions bit for bit wherever an increment
 can land there (so a new process started from a mesh file at those positions has the same).
 Each step's state counts the factorisations and corrections (``timers["getdp_factorisations"]``,
@@ -51,8 +51,9 @@ import numpy as np
 from .files import read_element_table
 from .mesh import coil_tag
 from .mesh3d import Mesh3D
+from .persistent_data import exact_increment, read_binary_res
 from .persistent_process import (FLAG_COND_FIELDS, FLAG_ELEM, FLAG_FACTORISE, FLAG_FIELDS, FLAG_STATE, FactorReuse,
-                                 PersistentProcess, exact_increment, read_binary_res)
+                                 PersistentProcess)
 from .runner import GetDPError, RunInfo, log_tail
 from .solver import DECK_DIR
 from .solver3d import (DECK3D, DEFAULT_PETSC_ARGS_3D, EM3DModel, EM3DResult, applied_state_values, model_numbers,

@@ -33,7 +33,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from .mesh3d import Mesh3D, read_msh22_tets
-from .persistent_process import read_pre_dofs
+from .persistent_data import read_pre_dofs
 from .runner import run_getdp
 from .solver3d import DECK3D, EM3DModel, model_numbers
 from .stepper3d import write_res_vector

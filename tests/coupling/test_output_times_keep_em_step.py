@@ -19,7 +19,7 @@ import pytest
 
 from pulseform.orchestrator.coupling.fakes import AnalyticForce, RigidAxialBody
 from pulseform.orchestrator.coupling.loop import LoopOptions, StaggeredLoop, clock_round_off
-from pulseform.orchestrator.run.driver import default_interval, fixed_em_step, landing_note, milestones
+from pulseform.orchestrator.run.output_times import default_interval, fixed_em_step, landing_note, milestones
 
 NODES = np.array([[0.0, 0.0], [1.0, 0.0]])
 

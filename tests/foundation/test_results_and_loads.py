@@ -10,7 +10,7 @@ from scipy.integrate import quad
 from pulseform.orchestrator.case.model import Box, PulseExp, PulseSin2
 from pulseform.orchestrator.mech.pulses import pulse_impulse_per_area, pulse_pressure
 from pulseform.orchestrator.run.results import ResultsExistError, ResultsFolder, atomic_write_text
-from pulseform.orchestrator.run.driver import milestones
+from pulseform.orchestrator.run.output_times import milestones
 
 
 def test_existing_results_need_force(tmp_path):

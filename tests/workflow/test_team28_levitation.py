@@ -97,7 +97,7 @@ def test_first_rise_follows_the_filament_model(tmp_path):
                   "--set", "output.field_interval=0.03", "--set", "output.plots=false")
     assert r.returncode == 0, r.stderr[-3000:]
     h = np.genfromtxt(out / "history.csv", delimiter=",", names=True)
-    t, z = h["time_s"] * 1e3, 3.8 + h["plate_position_y_m"] * 1e3
+    t, z = h["time_s"] * 1e3, 3.8 + h["plate_travel_y_m"] * 1e3
     zf = np.interp(t, *_curve("filament_model.csv"))
     rise = zf.max() - 3.8
     err = float(np.abs(z - zf).max() / rise)
