@@ -6,28 +6,6 @@ import pytest
 
 REPO = Path(__file__).resolve().parents[1]
 
-#: The test files xdist hands out first (``--dist loadfile`` gives worker 0 the first file, worker 1 the second,
-#: then the third and the fourth; the others follow in collection order as workers finish): a file that compiles
-#: a shared set of numba kernels cold beside a getdp-only file, so that on a fresh machine (CI: numba's cache is
-#: empty) one worker compiles each set and writes the cache while the other runs getdp, instead of both workers
-#: compiling the same kernels at once (the 2D explicit solver's blocks, ~25 s; the 3D threaded kernel, ~15 s).
-FIRST_FILES = ("cases/test_compiled_blocks.py", "getdp/test_persistent3d.py",
-               "mechanics/test_3d_threads.py", "getdp/test_em3d_cut.py")
-
-
-def pytest_collection_modifyitems(config, items):
-    """:data:`FIRST_FILES` first (a stable sort: the rest keep their order)."""
-    rank = {name: i for i, name in enumerate(FIRST_FILES)}
-    tests = REPO / "tests"
-
-    def first(item) -> int:
-        try:
-            return rank.get(Path(str(item.fspath)).relative_to(tests).as_posix(), len(rank))
-        except ValueError:
-            return len(rank)
-
-    items.sort(key=first)
-
 
 @pytest.fixture(scope="session")
 def repo() -> Path:
