@@ -266,7 +266,9 @@ REFERENCE = {
     "max_sheet_speed_m_s": "sheet_max_speed_m_s",
     "plastic_work_device_J": "plastic_work_J",
     "external_work_device_J": lambda m, h: 4 * float(h["energy_external_work_J"][-1]),
-    "energy_balance_error_rel": lambda m, h: math.copysign(m["energy_error_rel"], float(h["energy_balance_error_J"][-1])),
+    # the study's definition, the balance over the external work at the end (the run's energy_error_rel is
+    # relative to the largest external work over the run since issue 32: 0.3 % larger here)
+    "energy_balance_error_rel": lambda m, h: float(h["energy_balance_error_J"][-1] / h["energy_external_work_J"][-1]),
     "em_mesh_frozen_at_s": "em_mesh_frozen_at_s",
     "impulse_after_freeze_device_z_Ns": "impulse_after_freeze_device_z_Ns",
 }

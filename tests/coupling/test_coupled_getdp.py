@@ -105,12 +105,15 @@ def test_kill9_at_an_em_step_then_resume(tmp_path):
         assert got[k] == pytest.approx(v, rel=1e-12, abs=1e-300), k
 
 
-@pytest.mark.parametrize("process", [pytest.param("persistent", marks=pytest.mark.slow), "per_step"])
+@pytest.mark.slow
+@pytest.mark.parametrize("process", ["persistent", "per_step"])
 def test_sigint_between_outputs_then_resume_is_bitwise(tmp_path, process):
-    """(The persistent path is slow, ~10 s: a second SIGINT/resume equality; the default tier's are the
-    per-step path here, test_kill9_at_an_em_step_then_resume (em.getdp_process 'auto' with BDF2: the
-    persistent getdp) and the persistent getdp's own resume in
-    tests/getdp/test_persistent.py::test_segments_end_and_a_resume_replays_the_last.)
+    """(Slow, ~10 s per path: repeated end-to-end runs. The default tier's resumes of a coupled 2D run:
+    test_kill9_at_an_em_step_then_resume (em.getdp_process 'auto' with BDF2: the persistent getdp); the
+    driver's SIGINT -> checkpoint -> --resume: tests/foundation/test_signals.py (a mechanics run); the persistent getdp's own
+    resume in tests/getdp/test_persistent.py::test_segments_end_and_a_resume_replays_the_last; the per-step
+    path restarts getdp from the carried state at every EM step: its steps equal the persistent process's,
+    tests/getdp/test_persistent.py::test_same_results_as_one_process_per_step.)
     SIGINT after the first checkpoint: the run stops at the next EM step (a checkpoint between
     output times: on the persistent path the getdp process is asked for its exact state there),
     exit 130; --resume then gives every physics metric of an uninterrupted run bit for bit, on
