@@ -286,6 +286,21 @@ def _fake_getdp(tmp_path, body: str):
     return str(exe)
 
 
+def test_a_stop_ends_the_process_without_a_step(work):
+    """The stop message (flag 8) ends getdp's loop without computing a step: GetDP's Break[] only ends the loop
+    after the rest of its pass, so every other branch sits in the stop test's else (a step there would append
+    a second row to the last step's tables)."""
+    mesh = _mesh(work / "disk.msh")
+    s = PersistentEM3DStepper(_model(), work / "persistent")
+    state = s.initial_state()
+    for t in TIMES[:2]:
+        _, state = s.step(mesh, state, float(t))
+    out = s.proc.out_dir
+    s.close()
+    rows = [ln for ln in (out / "W.txt").read_text().splitlines() if ln.strip()]
+    assert len(rows) == 1, rows
+
+
 def test_failures_are_one_error_with_the_log(work, tmp_path):
     """getdp killed mid-run (during a step or between two), a getdp that hangs (time limit), one that
     exits at start-up, a missing executable: each a GetDPError naming what happened, with the log."""
