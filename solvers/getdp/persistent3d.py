@@ -32,7 +32,8 @@ can land there (so a new process started from a mesh file at those positions has
 Each step's state counts the factorisations and corrections (``timers["getdp_factorisations"]``,
 ``timers["getdp_corrections"]``).
 
-The outputs are the library's own PostOperations (``EM_Step3D``, ``EM_ElemF3D``, ``EM_Field3D``), read with :func:`~.solver3d.read_results3d`
+The outputs are the library's own PostOperations (``EM_Step3D`` with the magnetic energy from the
+sources, ``Flag_WSources``; ``EM_ElemF3D``, ``EM_Field3D``), read with :func:`~.solver3d.read_results3d`
 like the per-step path's, their files deleted after each step. Joule power and b on the conductor
 elements (``EM_ElemPB3D``) are asked for only when read (:class:`PersistentEM3DResult`: snapshots,
 fields): a step computes what the coupled loop needs.
@@ -155,7 +156,7 @@ class PersistentEM3DStepper:
         self.segment += 1
         self._factors, self._refactor_next = None, True   # a new process has no factors (or primes them below)
         numbers, lines = model_numbers(self.model, mesh)
-        numbers.update(PF_T1=float(state.t), PF_Step0=int(state.steps), PF_DtPrev=0.0, PF_Seed=1)
+        numbers.update(PF_T1=float(state.t), PF_Step0=int(state.steps), PF_DtPrev=0.0, PF_Seed=1, Flag_WSources=1)
         numbers.update(self.factor_reuse.numbers())
         if self.model.applied_field is not None:   # the unit time function of the seed states (0 at rest)
             numbers["Field_F1"], numbers["Field_F2"] = applied_state_values(self.model, state.t, state.steps, state.dt_prev)

@@ -264,7 +264,8 @@ def test_3d_stepper_bdf2_matches_one_run(tmp_path):
     np.testing.assert_allclose(res.joule_density[-1], ref.joule_density[-1], rtol=1e-7)
     # the persistent 3D process (the history of the applied function on GetDP's run-time variables), also
     # after a new process is seeded with two states from a completed state in mid-run
-    # and the magnetic energy (of the reaction field) of the one run
+    # The persistent process's magnetic energy comes from the sources, 1/2 (j, a) over the conductor
+    # (Flag_WSources, the reaction field's with an applied field): the whole-domain W of the one run.
     persistent = PersistentEM3DStepper(model, tmp_path / "persistent")
     state, power, energy = persistent.initial_state(), [], []
     try:
