@@ -21,7 +21,7 @@ from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
 from pulseform.solvers.dolfinx import BodySpec, ExplicitSolver, Material, RigidWallSpec
-from pulseform.solvers.dolfinx.kernels import element_step
+from pulseform.solvers.dolfinx.kernels import WORK_SIZE, element_step
 from pulseform.solvers.dolfinx.reference_kernel import element_step_numpy
 
 
@@ -77,11 +77,12 @@ def main() -> None:
     rounds = 5
     per = max(a.steps // rounds, 1)
     t_nb, t_th, t_np, k_nb, k_np = [], [], [], [], []
+    scratch = np.empty(WORK_SIZE)
     for _ in range(rounds):
         t_nb.append(time_steps(s_nb, per))
         t_th.append(time_steps(s_th, per))
         t_np.append(time_steps(s_np, max(per // 4, 1)))
-        k_nb.append(time_kernel(element_step, s_nb, 4))
+        k_nb.append(time_kernel(lambda *g: element_step(*g, scratch), s_nb, 4))
         k_np.append(time_kernel(element_step_numpy, s_nb, 2))
     eps = s_nb.bodies["block"].eps_p
     print(f"block impact: {ne} P1 cells, plastic cells {np.count_nonzero(eps)} "

@@ -48,11 +48,12 @@ def kernel_time(solver: ExplicitSolver, reps: int) -> float:
     for n, b in solver.bodies.items():
         work.append((b, solver._prm[n], b.cell_stress.copy(), b.eps_p.copy(), np.zeros_like(b.v)))
     acc = np.zeros(3)
+    scratch = np.empty(WORK_SIZE)
     t0 = time.perf_counter()
     for _ in range(reps):
         for b, prm, st, ep, f in work:
             f[:] = 0.0
-            element_step(b.cells, b.x, b.v, dt, prm, st, ep, f, acc)
+            element_step(b.cells, b.x, b.v, dt, prm, st, ep, f, acc, scratch)
     return (time.perf_counter() - t0) / reps
 
 

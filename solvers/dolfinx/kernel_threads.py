@@ -85,6 +85,7 @@ def thread_arrays(B) -> ThreadArrays:
         shared[n0:n1] = first != last
         gather.append(n0 + np.flatnonzero(first != last).astype(np.int64))
         chunk_off.append(chunk_off[-1] + max(1, -(-(c1 - c0) // cs)))
+    shared.flags.writeable = False  # the serial kernel's constant is read-only: one compiled element_chunk
     return ThreadArrays(chunk_off=np.array(chunk_off, np.int64), shared=shared,
                         gather_off=np.cumsum([0] + [len(g) for g in gather]).astype(np.int64),
                         gather=np.concatenate(gather), fe=np.zeros((max(nc, 1), 7)), off=off,

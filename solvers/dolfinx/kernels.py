@@ -84,7 +84,7 @@ def chunk_size(nc):
 
 
 @numba.njit(cache=True, error_model="numpy", fastmath=FM)
-def element_step(cells, x, v, dt, prm, stress, eps_p, f_int, acc, work=None):
+def element_step(cells, x, v, dt, prm, stress, eps_p, f_int, acc, work):
     """Explicit element update over all ``cells``: batches of ``BATCH`` cells are gathered into a
     structure-of-arrays scratch, updated by the vectorised :func:`.element_math.batch_update`
     (rate-independent materials; a cell that needs the plane-stress secant iteration, and every
@@ -112,16 +112,15 @@ def element_step(cells, x, v, dt, prm, stress, eps_p, f_int, acc, work=None):
     acc : float64 array (3,)
         ``acc[0] += plastic dissipation (J)``, ``acc[1] += bulk-viscous dissipation (J)``;
         ``acc[2]`` is set to the first inverted cell index, or -1.
-    work : float64 array (WORK_SIZE,), optional
-        Scratch (allocated per call if not given).
+    work : float64 array (WORK_SIZE,)
+        Scratch (required: an omitted argument would be a second compiled variant of this kernel
+        and of :func:`element_chunk`).
 
     Returns
     -------
     float
         Smallest element critical time step (CFL 1, with the bulk-viscosity reduction), s.
     """
-    if work is None:
-        work = np.empty(WORK_SIZE)
     nc = cells.shape[0]
     part = work[WORK_SIZE - 4:]
     no_fe = work[:0].reshape(0, 7)

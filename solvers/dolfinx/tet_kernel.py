@@ -136,7 +136,7 @@ def clear_tet_forces(fe, shared, e, i0, i1, i2, i3):
 
 
 @numba.njit(cache=True, error_model="numpy", fastmath=FM)
-def tet_step(cells, x, v, dt, prm, stress, eps_p, f_int, acc, work=None):
+def tet_step(cells, x, v, dt, prm, stress, eps_p, f_int, acc, work):
     """Explicit update of all tetrahedra ``cells`` (same signature as
     :func:`.kernels.element_step`; ``work`` is not used), in chunks of
     :func:`tet_chunk_size` cells (:func:`tet_chunk_scalar`): the dissipation is summed per

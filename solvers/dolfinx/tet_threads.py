@@ -97,6 +97,7 @@ def tet_thread_arrays(cells: np.ndarray, n_nodes: int) -> TetThreadArrays:
     np.minimum.at(first, node, chunk)
     np.maximum.at(last, node, chunk)
     shared = (last > first).astype(np.uint8)
+    shared.flags.writeable = False  # the serial kernels' constant is read-only: one compiled chunk kernel
     gather = np.flatnonzero(shared).astype(np.int64)
     off, ent = tet_force_map(cells, gather)
     return TetThreadArrays(shared=shared, gather=gather, off=off, ent=ent,

@@ -110,7 +110,8 @@ def test_patch_test_homogeneous_motion(mat):
     # uniform stress -> zero internal force on interior nodes (the cells' forces cancel)
     f = np.zeros_like(b.x)
     prm = pack_parameters(mat, MODE_SOLID, 1.0, 0.06, 1.2, False)
-    tet_step(b.cells, b.x, np.zeros_like(b.v), 0.0, prm, st.copy(), b.eps_p.copy(), f, np.zeros(3))
+    tet_step(b.cells, b.x, np.zeros_like(b.v), 0.0, prm, st.copy(), b.eps_p.copy(), f, np.zeros(3),
+             np.empty(0))
     bnd = np.unique(b.segments)
     interior = np.setdiff1d(np.arange(b.n_local), bnd)
     assert interior.size >= 27

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from pulseform.solvers.dolfinx import BodySpec, ExplicitSolver, Material
-from pulseform.solvers.dolfinx.kernels import element_step, pack_parameters
+from pulseform.solvers.dolfinx.kernels import WORK_SIZE, element_step, pack_parameters
 from pulseform.solvers.dolfinx.kernels import (MODE_AXISYMMETRIC, MODE_PLANE_STRAIN,
                                                MODE_PLANE_STRESS)
 from pulseform.solvers.dolfinx.reference_kernel import element_step_numpy
@@ -39,7 +39,7 @@ def test_compiled_kernel_matches_numpy_twin(mode):
         stress0[:, 2] = 0.0
     prm = pack_parameters(STEEL, mode, 1.0, 0.06, 1.2, True)
     out = []
-    for kern in (element_step, element_step_numpy):
+    for kern in (lambda *a: element_step(*a, np.empty(WORK_SIZE)), element_step_numpy):
         st, ep, f, acc = stress0.copy(), np.full(len(stress0), 0.01), np.zeros_like(v), np.zeros(3)
         d = kern(b.cells, x, v, dt, prm, st, ep, f, acc)
         out.append((st, ep, f, acc, d))
@@ -80,7 +80,7 @@ def test_patch_test_homogeneous_motion(formulation):
         f = np.zeros_like(b.v)
         prm = pack_parameters(STEEL, s.mode, 1.0, 0.06, 1.2, False)
         element_step(b.cells, b.x, np.zeros_like(b.v), 0.0, prm, st.copy(), b.eps_p.copy(), f,
-                     np.zeros(3))
+                     np.zeros(3), np.empty(WORK_SIZE))
         bnd = np.unique(b.segments)
         interior = np.setdiff1d(np.arange(b.n_local), bnd)
         assert interior.size > 10
@@ -152,7 +152,8 @@ def test_return_lands_on_the_yield_surface(mode):
     st[:, 3] = rng.normal(scale=100e6, size=len(st))
     ep = np.full(len(st), 0.02)
     prm = pack_parameters(STEEL, mode, 1.0, 0.06, 1.2, False)
-    element_step(b.cells, b.x + dt * v, v, dt, prm, st, ep, np.zeros_like(v), np.zeros(3))
+    element_step(b.cells, b.x + dt * v, v, dt, prm, st, ep, np.zeros_like(v), np.zeros(3),
+                 np.empty(WORK_SIZE))
     p = st[:, :3].mean(axis=1)
     d = st[:, :3] - p[:, None]
     vm = np.sqrt(1.5 * ((d ** 2).sum(axis=1) + 2 * st[:, 3] ** 2))
@@ -192,7 +193,7 @@ def test_batched_kernel_equals_the_scalar_cell_update(mode, rate):
         stress0[:, 2] = 0.0
     prm = pack_parameters(mat, mode, 1e-3, 0.06, 1.2, True)
     st, ep, f, acc = stress0.copy(), np.full(nc, 0.01), np.zeros_like(x), np.zeros(3)
-    d = element_step(cells, x, v, dt, prm, st, ep, f, acc)
+    d = element_step(cells, x, v, dt, prm, st, ep, f, acc, np.empty(WORK_SIZE))
     assert acc[2] == bad
     assert np.array_equal(st[bad], stress0[bad]) and ep[bad] == 0.01 and not f[3 * bad:3 * bad + 3].any()
     assert (ep > 0.01).sum() > 20
