@@ -70,7 +70,8 @@ def plot_fld(curve: FormingLimitCurve, minor: np.ndarray, major: np.ndarray, pat
     u, q = max(lo, -top / 2), min(hi, top)   # ends of the uniaxial and equibiaxial paths on the axes
     for (x1, y1), text in (((u, -2 * u), "uniaxial"), ((0.0, top), "plane strain"), ((q, q), "equibiaxial")):
         ax.plot([0.0, x1], [0.0, y1], color="0.6", lw=0.6, ls=":")
-        ax.annotate(text, (x1, 0.97 * y1), fontsize=7, color="0.45", ha="center", va="top")
+        ax.annotate(text, (x1, 0.97 * y1), fontsize=7, color="0.45", va="top",
+                    ha="right" if x1 > 0 else "left" if x1 < 0 else "center")
     for z in (0, 1, 2):
         sel = zone == z
         if sel.any():
