@@ -30,6 +30,9 @@ log = logging.getLogger(__name__)
 
 #: names of the zones by their number in ``flc_zone``
 ZONES = ("safe", "marginal", "failed")
+#: a body whose RMS spread along its sheet normal exceeds this fraction of the next smallest is no sheet
+#: (a warning): a 1 mm sheet of 50 mm radius has 0.02, a square bar 1
+THIN = 0.3
 #: the cell fields the monitor adds to a body's field file
 FLC_FIELDS = ("minor_strain", "major_strain", "flc_margin", "flc_zone")
 #: the worst cell's figures in ``metrics.json`` as ``<body>_flc_<key>``: least margin (-), its time (s),
@@ -110,12 +113,15 @@ class FormingLimitMonitor:
             b = solver.bodies[name]
             own = b.X0[: b.n_owned]
             n, first, second = self._sum((float(len(own)), own.sum(axis=0), own.T @ own))
-            self.normals[name] = normal_of_moments(n, first, second)
+            self.normals[name], thin = normal_of_moments(n, first, second)
             # index of this rank's first cell in the field file (the writer stacks the ranks' cells in order)
             self.offsets[name] = int(self.comm.exscan(len(b.cells)) or 0) if self.comm.size > 1 else 0
             if solver.formulation != "plane_stress":
                 log.info("forming limit of %s: reference sheet normal %s", name,
                          np.array2string(self.normals[name], precision=3))
+                if thin > THIN and self.comm.rank == 0:
+                    log.warning("forming limit of %s: the body is not thin along any axis (spread across / along "
+                                "%.2g): the check assumes a sheet, its thickness direction is uncertain", name, thin)
         self.worst = {n: np.full(len(WORST_KEYS), np.nan) for n in self.curves}
         self._cache: tuple = (None, {})
 

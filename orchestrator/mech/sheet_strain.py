@@ -62,17 +62,20 @@ def sheet_normal(X: np.ndarray) -> np.ndarray:
     largest component. Exact for a flat sheet (the thickness direction) and a straight tube wall in a
     section (the radius)."""
     X = np.asarray(X, dtype=float)
-    return normal_of_moments(len(X), X.sum(axis=0), X.T @ X)
+    return normal_of_moments(len(X), X.sum(axis=0), X.T @ X)[0]
 
 
-def normal_of_moments(n: float, first: np.ndarray, second: np.ndarray) -> np.ndarray:
+def normal_of_moments(n: float, first: np.ndarray, second: np.ndarray) -> tuple[np.ndarray, float]:
     """:func:`sheet_normal` from the node count ``n``, the sum of positions ``first`` (d,) (m) and the sum of
-    their outer products ``second`` (d, d) (m²): moments that ranks of a parallel run add up."""
+    their outer products ``second`` (d, d) (m²): moments that ranks of a parallel run add up. Also returns
+    how thin the body is along it: the RMS spread along the normal over the next smallest spread (-; a
+    sheet's is small, a bar's near 1, where the normal is ill-defined)."""
     mean = first / n
     cov = second / n - np.outer(mean, mean)
-    _, vecs = np.linalg.eigh(cov)
+    vals, vecs = np.linalg.eigh(cov)
     nrm = vecs[:, 0]
-    return nrm if nrm[np.argmax(np.abs(nrm))] > 0 else -nrm
+    thin = float(np.sqrt(max(vals[0], 0.0) / vals[1])) if vals[1] > 0 else 1.0
+    return (nrm if nrm[np.argmax(np.abs(nrm))] > 0 else -nrm), thin
 
 
 def sheet_strains(X: np.ndarray, x: np.ndarray, cells: np.ndarray, formulation: str,

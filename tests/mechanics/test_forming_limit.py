@@ -202,3 +202,16 @@ def test_monitor_keeps_the_worst_cell_over_time():
     again = FormingLimitMonitor({"sheet": CURVE}, s)
     again.load_state_dict(mon.state_dict())
     assert again.metrics() == m
+
+
+def test_a_bar_is_no_sheet(caplog):
+    """A body as thick as it is wide has no sheet normal: the check says so (the demo's sheet does not)."""
+    X, tets = _plate_tets(2, 2, (0.01, 0.01, 0.01))
+    with caplog.at_level("WARNING"):
+        FormingLimitMonitor({"sheet": CURVE}, _solver(X, tets, "3d"))
+    assert "not thin along any axis" in caplog.text
+    caplog.clear()
+    X, tets = _plate_tets()
+    with caplog.at_level("WARNING"):
+        FormingLimitMonitor({"sheet": CURVE}, _solver(X, tets, "3d"))
+    assert "not thin" not in caplog.text
