@@ -17,6 +17,7 @@ from .em_table import EM, CapacitorBank, DampedSineCurrent
 from .em_model import (FlatCoilSheet, Geometry, OuterTube, PlanarCoilBlankDie,
                       SheetDie, SolenoidTube)
 from .em_applied import check_applied_field
+from .forming_limit import FormingLimitTable
 from .em_sources import check_coils
 from .guards import check_resources
 from .names import check_file_name, check_folder_name, folder_name
@@ -26,7 +27,7 @@ from .rigid_steps import check_rigid_time_scale
 from .schema import SchemaError, spec
 from .solid3d import SolidBox, SolidCylinder, SymmetryPlane, validate_dimension
 
-__all__ = ["Box", "Rectangle", "Polygon", "SolidBox", "SolidCylinder", "SymmetryPlane", "Shape", "CowperSymondsTable", "JohnsonCookTable", "MaterialTable", "FixedBoundary",
+__all__ = ["Box", "Rectangle", "Polygon", "SolidBox", "SolidCylinder", "SymmetryPlane", "Shape", "CowperSymondsTable", "JohnsonCookTable", "FormingLimitTable", "MaterialTable", "FixedBoundary",
            "EndStopTable", "BodyTable", "ContactPair", "RigidWall", "PulseSin2", "PulseExp", "Load", "CaseInfo", "TimeControl",
            "MechanicsTable", "Coupling", "Probe", "Output", "Limits", "Case", "EM", "CapacitorBank", "DampedSineCurrent",
            "FlatCoilSheet", "Geometry", "SolenoidTube", "SheetDie", "OuterTube", "PlanarCoilBlankDie"]
@@ -62,6 +63,10 @@ class MaterialTable:
     electrical_conductivity: float = spec(0.0, unit="S/m", ge=0.0, doc="σ for eddy currents (EM); left at 0 on a "
                                                                       "'getdp_template' deck's conductor: the deck's own")
     rate_law: CowperSymondsTable | JohnsonCookTable | None = spec(None, doc="optional strain-rate hardening")
+    forming_limit: FormingLimitTable | None = spec(
+        None, doc="[materials.<name>.forming_limit] forming limit curve of a sheet of this material: its bodies "
+                  "get per-element major/minor true strains and the margin below the curve (fields, history "
+                  "<body>_flc_margin_min, summary, plots/<body>_fld.png; docs/mechanics.md)")
 
 
 # --------------------------------------------------------------------------- loads

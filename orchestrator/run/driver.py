@@ -29,6 +29,7 @@ from ..em.skin_depth import mesh_advice
 from ..em.time_scale import rigid_mechanical_step
 from ..em.user_deck import build_user_geometry, user_deck_load
 from ..mech import probes as probe_mod
+from ..mech.forming_limit import forming_limit_monitor
 from ..mech.model import build_solver
 from ..mech.mixed import MixedMechanics, rigid_bodies, rigid_metrics
 from ..mech.participants import DolfinxMechanics, PressurePulses
@@ -103,6 +104,11 @@ class CaseDriver:
         self.loop = StaggeredLoop(load, self.mechanics, options, dt_max=case.time.dt_max)
         self.probes = probe_mod.attach(self.solver, case.probes, comm) if self.solver is not None else []
         self.analyses = [create_analysis(name, case) for name in case.analysis]
+        self.analysis_names = list(case.analysis)
+        self.flc = forming_limit_monitor(case, self.solver)  # None without a material's forming_limit
+        if self.flc is not None:  # it records, reports and checkpoints as an analysis does
+            self.analyses.append(self.flc)
+            self.analysis_names.append("forming_limit")
         self.load_columns = self.load.columns
         self.history = History(results.root / "history.csv")
         self.part = 0
@@ -184,7 +190,7 @@ class CaseDriver:
         arrays = {f"solver/{k}": v for k, v in self.mechanics.state_dict().items()}
         arrays.update({f"loop/{k}": v for k, v in self.loop.counters.state_dict().items()})
         arrays.update({f"load/{k}": v for k, v in self.load.checkpoint_state_dict().items()})
-        for name, a in zip(self.case.analysis, self.analyses):
+        for name, a in zip(self.analysis_names, self.analyses):
             arrays.update({f"analysis/{name}/{k}": v for k, v in a.state_dict().items()})
         arrays["history/rows"] = self.history.array()
         meta = {"columns": self.history.columns, "part": self.part, "ranks": self.comm.size,
@@ -203,7 +209,7 @@ class CaseDriver:
         if meta["ranks"] != self.comm.size:
             raise NothingToResume(f"{path}: written by {meta['ranks']} ranks, resuming on {self.comm.size}")
         # analysis states: "analysis/<name>/..." (checkpoints before 2026-11-25: "solver/analysis/<name>/...")
-        for name, a in zip(self.case.analysis, self.analyses):
+        for name, a in zip(self.analysis_names, self.analyses):
             pre = [f"analysis/{name}/", f"solver/analysis/{name}/"]
             a.load_state_dict({k[len(p):]: v for k, v in arrays.items() for p in pre if k.startswith(p)})
         self.mechanics.load_state_dict({k[7:]: v for k, v in arrays.items()
@@ -236,7 +242,8 @@ class CaseDriver:
         if self.landing_note and self.comm.rank == 0:  # output times that shorten the EM step the case sets
             log.log(logging.INFO if quiet else logging.WARNING, "%s", self.landing_note)
         prefix = self.results.fields / (case.case.name + (f"_part{self.part}" if self.part else ""))
-        writer = mech.FieldWriter(self.solver, str(prefix)) if self.solver is not None else _NoFieldWriter()
+        writer = mech.FieldWriter(self.solver, str(prefix), self.flc and self.flc.cell_fields) \
+            if self.solver is not None else _NoFieldWriter()
         em_writer = EMFieldWriter(self.results.fields / (f"em_part{self.part}" if self.part else "em")) \
             if self.load.em_fields and self.comm.rank == 0 else None
         if self.three_d and case.coupling.load == "getdp" and self.comm.rank == 0:  # the first body's force density

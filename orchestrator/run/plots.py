@@ -14,6 +14,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from ..case.io import CaseError, load_resolved_case  # noqa: E402
+from ..mech.forming_limit import flc_bodies  # noqa: E402
 from .analyses import create  # noqa: E402
 from .history import History  # noqa: E402
 from .units import TimeAxis, label, shown, time_axis, unit_of  # noqa: E402
@@ -204,7 +205,7 @@ def draw_all(results_dir: Path, *, case=None, history: History | None = None, sh
     run passes what it holds in memory (case, history, node positions at the output times
     ``shapes``, its analyses) and draws the same pictures as ``pulseform plot`` does later from the files. Pictures: energies, time
     step, one per history column but those without meaning in the case (:func:`columns_without_meaning`; units from :mod:`.units`, one time unit per run), the case's
-    analyses, then ``pictures_mech.draw_mechanics`` and ``pictures_em.draw_em`` when those modules
+    analyses, the forming limit diagrams (:mod:`.pictures_flc`), then ``pictures_mech.draw_mechanics`` and ``pictures_em.draw_em`` when those modules
     exist (until then the older shapes picture; the EM pictures are ``pictures_em``'s, from
     ``fields/em/``). A picture group that fails
     is reported in :attr:`Drawn.failed` and the others are still drawn. ``stop``: a function asked
@@ -276,6 +277,10 @@ def draw_all(results_dir: Path, *, case=None, history: History | None = None, sh
         before = _stamps(folder)
         attempt(f"analysis {type(a).__name__}", a.plots, history, shapes or [], folder)
         done.paths.extend(p for p, s in _stamps(folder).items() if before.get(p) != s)
+    if case is not None and deformable and flc_bodies(case):   # bodies with a forming limit curve
+        from .pictures_flc import draw_fld
+
+        attempt("forming limit diagram", draw_fld, root, case)
     if case is not None and case.case.kind == "coupled" and case.coupling.load == "getdp":  # EM fields exist
         three_d = case.mechanics.formulation == "3d"  # a 3D model: the force density on its bodies
         em = _picture_module(*(("pictures_em3d", "draw_em3d") if three_d else PICTURE_MODULES[1]), skip)

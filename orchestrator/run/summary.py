@@ -7,7 +7,8 @@ speed of the workpiece (or of any body), the peak von Mises stress of a die (or 
 the energy went: the peak kinetic energy and the plastic work in % of the bank energy, of the
 external work of the loads (pressure pulses, a prescribed coil current), or, for an impact without
 loads, of the initial kinetic energy; under loads that take back what they put in (an AC coil
-current), the peak kinetic energy in J and how far the loads' work swung.
+current), the peak kinetic energy in J and how far the loads' work swung; for a body whose material has a
+forming limit curve, its least margin below the curve and the worst element (zone, time, place, strains).
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..mech.forming_limit import ZONES
 from .history import History
 from .units import time_axis
 
@@ -111,7 +113,26 @@ def headline(case, metrics: dict[str, float], history) -> list[Headline]:
         if is_die and key in metrics:
             out.append(Headline(f"peak von Mises, {b.name}", metrics[key], "MPa", at(f"{b.name}_max_von_mises_Pa")))
 
+    out.extend(_flc_lines(case, metrics, axis))
     out.extend(_energy_lines(bank, metrics, history, cols, axis))
+    return out
+
+
+def _flc_lines(case, metrics: dict[str, float], axis) -> list[Headline]:
+    """Per body with a forming limit curve: its least margin below the curve over the run (-) and where: the
+    zone, time, cell (its index in the field file), deformed centroid (mm) and strains (ε2, ε1)."""
+    out = []
+    names = ("r", "z") if case.mechanics.formulation == "axisymmetric" else \
+        ("x", "y", "z") if case.mechanics.formulation == "3d" else ("x", "y")
+    for b in case.bodies:
+        key = f"{b.name}_flc_"
+        if f"{key}margin_min" not in metrics:
+            continue
+        at = ", ".join(f"{metrics[f'{key}worst_{c}_m'] * 1e3:.4g}" for c in ("x", "y", "z")[:len(names)])
+        note = (f"{ZONES[int(metrics[f'{key}worst_zone'])]}: element {int(metrics[f'{key}worst_element'])} at "
+                f"t = {metrics[f'{key}worst_time_s'] * axis.scale:.4g} {axis.unit}, ({', '.join(names)}) = ({at}) mm, "
+                f"(ε2, ε1) = ({metrics[f'{key}worst_minor_strain']:.3g}, {metrics[f'{key}worst_major_strain']:.3g})")
+        out.append(Headline(f"least FLC margin, {b.name}", metrics[f"{key}margin_min"], "-", note))
     return out
 
 

@@ -63,6 +63,8 @@ RULES: tuple[tuple[str, Unit], ...] = (
     (r".*_(rel|rel_diff|ratio|fraction|quality|plastic_strain|eps_p)" + _QUALIFIERS, DIMENSIONLESS),
     (r"(.*_)?(fraction|eps_p|plastic_strain)" + _QUALIFIERS, DIMENSIONLESS),
     (r".*_over_[A-Za-z0-9]+|.*_to_[a-z]+", DIMENSIONLESS),   # clearance_over_R0, final_kinetic_to_elastic
+    (r".*_flc_worst_element", COUNT),                       # the worst cell's index in the field file
+    (r".*_flc_(margin|worst_zone|worst_minor_strain|worst_major_strain)" + _QUALIFIERS, DIMENSIONLESS),
     # --- endings: the unit is the end of the name (longer endings first)
     (r".*_m_s2", _u("m/s²")),
     (r".*_m_s", _u("m/s")),

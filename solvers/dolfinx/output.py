@@ -19,6 +19,9 @@ File layout (``<prefix>_<body>.h5``; h5py reads it by name, no XDMF needed)::
                           (3D: all six, the solver's own order)
         von_mises_Pa      (C,) per cell
         plastic_strain    (C,) per cell: equivalent plastic strain (-)
+        ...               (C,) per cell: any further fields the writer's ``cell_fields`` gives
+                          (e.g. the orchestrator's forming-limit check: minor_strain, major_strain,
+                          flc_margin, flc_zone)
 
 The ``.xdmf`` beside it is a temporal collection of uniform grids, all on the same mesh datasets,
 each with all its point and cell attributes: ParaView (Xdmf3ReaderS) reads one unstructured grid
@@ -191,10 +194,15 @@ class FieldWriter:
         The solver whose bodies are written.
     path_prefix : str or Path
         Files are ``<path_prefix>_<body>.xdmf`` + ``.h5``.
+    cell_fields : callable, optional
+        ``cell_fields(name, body) -> {field: (C,) array}``: further per-cell fields of body ``name`` on this
+        rank (its owned cells, in ``body.cells`` order), written beside the others; the same names at every
+        output time.
     """
 
-    def __init__(self, solver, path_prefix):
+    def __init__(self, solver, path_prefix, cell_fields=None):
         self.solver = solver
+        self.cell_fields = cell_fields
         self.comm = solver.comm
         self._files: dict[str, _BodyFile] = {}
         prefix = Path(path_prefix)
@@ -218,7 +226,8 @@ class FieldWriter:
         t = output_time(t)
         for n, b in self.solver.bodies.items():
             own = slice(0, b.n_owned)
-            local = (self._gids[n], b.u[own], b.v[own], b.cell_stress, b.von_mises, b.eps_p)
+            extra = self.cell_fields(n, b) if self.cell_fields is not None else {}
+            local = (self._gids[n], b.u[own], b.v[own], b.cell_stress, b.von_mises, b.eps_p, extra)
             parts = self.comm.gather(local, root=0)
             if self.comm.rank != 0:
                 continue
@@ -231,9 +240,9 @@ class FieldWriter:
             s = np.vstack([p[3].reshape(-1, b.cell_stress.shape[1]) for p in parts])
             vm = np.concatenate([p[4] for p in parts])
             ep = np.concatenate([p[5] for p in parts])
-            f.write(t, {"displacement_m": _vec3(u), "velocity_m_s": _vec3(v)},
-                    {"stress_Pa": _tensor6(s), "von_mises_Pa": vm.astype(float),
-                     "plastic_strain": ep.astype(float)})
+            cells = {"stress_Pa": _tensor6(s), "von_mises_Pa": vm.astype(float), "plastic_strain": ep.astype(float)}
+            cells.update({k: np.concatenate([p[6][k] for p in parts]).astype(float) for k in extra})
+            f.write(t, {"displacement_m": _vec3(u), "velocity_m_s": _vec3(v)}, cells)
 
     def close(self) -> None:
         """Close the files."""

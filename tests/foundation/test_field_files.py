@@ -29,6 +29,8 @@ DEMO = ["--set", "time.end=4e-6", "--set", "output.field_interval=2e-6"]
 DEMO_TIMES = [0.0, 2e-6, 4e-6]
 POINT = {"displacement_m": 3, "velocity_m_s": 3}
 CELL = {"stress_Pa": 6, "von_mises_Pa": 1, "plastic_strain": 1}
+#: the demo's sheet has a forming limit curve (cases/emf_sheet_bulge): its forming-limit check's cell fields too
+FLC_CELL = {"minor_strain": 1, "major_strain": 1, "flc_margin": 1, "flc_zone": 1}
 
 
 def _env_without_display() -> dict:
@@ -61,9 +63,9 @@ def demo(shared_run):
     return shared_run("emf_sheet_bulge", DEMO, umask=0o027)
 
 
-def _check_field_files(out: Path, bodies: set[str], times: list[float]) -> None:
+def _check_field_files(out: Path, bodies: set[str], times: list[float], cell: dict[str, int] = CELL) -> None:
     """Every field file: meshio's time-series reader gives one triangle mesh and, per step, every
-    point and cell field at the exact output time; h5py reads the same by name."""
+    point and cell field (``cell``: name -> components) at the exact output time; h5py reads the same by name."""
     xdmfs = sorted((out / "fields").glob("*.xdmf"))
     assert {p.stem.split("_")[-1] for p in xdmfs} == bodies
     for xdmf in xdmfs:
@@ -83,8 +85,8 @@ def _check_field_files(out: Path, bodies: set[str], times: list[float]) -> None:
                 g = f[f"Step_{k:04d}"]
                 assert g.attrs["time"] == t
                 assert {k_: v.shape for k_, v in pd.items()} == {k_: (n, m) for k_, m in POINT.items()}
-                assert set(cd) == set(CELL)
-                for name, m in CELL.items():
+                assert set(cd) == set(cell)
+                for name, m in cell.items():
                     assert len(cd[name]) == 1 and cd[name][0].shape == ((c, m) if m > 1 else (c,))
                     assert np.array_equal(g[name][...], cd[name][0])
                 for name in POINT:
@@ -145,7 +147,7 @@ def test_bar_pictures(bar):
 
 @pytest.mark.getdp
 def test_demo_field_files(demo):
-    _check_field_files(demo, {"sheet"}, DEMO_TIMES)
+    _check_field_files(demo, {"sheet"}, DEMO_TIMES, {**CELL, **FLC_CELL})
     _check_last_step_equals_checkpoint(demo)
 
 
@@ -224,3 +226,39 @@ def test_two_ranks_write_the_serial_files(bar, tmp_path):
             for f, x in fa.items():
                 y = fb[f][ip] if f in POINT else fb[f][ic]
                 assert np.allclose(x, y, rtol=0, atol=1e-10 * max(np.abs(x).max(), 1e-30)), (name, k, f)
+
+
+@pytest.mark.getdp
+def test_demo_forming_limit_check(demo):
+    """Issue 33, item 5, on the coupled demo (its sheet has a forming limit curve): per cell the margin is the
+    case's curve (linear between its points, flat beyond) minus the major strain, one of the two strains is
+    the hoop strain ln(r / r0) of the cell's centroid (axisymmetry: the hoop direction lies in the sheet),
+    the history column is the least margin at each output time (history.csv keeps 10 digits), and metrics,
+    summary and picture name the worst cell."""
+    from pulseform.orchestrator.case.io import load_resolved_case
+    from pulseform.orchestrator.run.history import History
+    from pulseform.orchestrator.run.summary import summary_lines
+
+    case = load_resolved_case(demo / "case.toml")
+    flc = case.materials["al_blank"].forming_limit
+    h = History.read(demo / "history.csv")
+    t, col = h.column("time_s"), h.column("sheet_flc_margin_min")
+    bf = read_fields(demo)["sheet"]
+    for k, time_k in enumerate(bf.times):
+        d = bf.read(k)
+        minor, major = d["minor_strain"], d["major_strain"]
+        limit = np.interp(minor, flc.minor_strain, flc.major_strain)
+        assert np.abs(d["flc_margin"] - (limit - major)).max() <= 1e-15
+        zone = np.where(d["flc_margin"] < 0, 2, np.where(d["flc_margin"] < flc.safety_margin, 1, 0))
+        assert np.array_equal(d["flc_zone"], zone)
+        x = bf.points[:, :2] + d["displacement_m"][:, :2]
+        hoop = np.log(x[bf.triangles, 0].sum(axis=1) / bf.points[bf.triangles, 0].sum(axis=1))
+        assert np.minimum(np.abs(minor - hoop), np.abs(major - hoop)).max() <= 1e-12
+        assert np.all(minor <= major)
+        assert col[np.flatnonzero(np.isclose(t, time_k, rtol=1e-9))[-1]] == pytest.approx(d["flc_margin"].min(), rel=1e-9)
+    m = json.loads((demo / "metrics.json").read_text())
+    assert m["sheet_flc_margin_min"] == pytest.approx(col.min(), rel=1e-9)
+    assert col[np.isclose(t, m["sheet_flc_worst_time_s"], rtol=1e-9)].min() == pytest.approx(m["sheet_flc_margin_min"], rel=1e-9)
+    lines = [ln for ln in summary_lines(case, m, demo) if "least FLC margin, sheet" in ln]
+    assert len(lines) == 1 and f"element {int(m['sheet_flc_worst_element'])} at" in lines[0], lines
+    assert (demo / "plots" / "sheet_fld.png").is_file()

@@ -161,11 +161,11 @@ def test_demo_summary_before_the_metrics(demo):
     lines = _summary(demo[1].stdout)
     labels = [ln.split("  ")[0] for ln in lines]
     assert labels == ["bank energy", "peak coil current", "force impulse", "max deflection", "max speed",
-                      "peak kinetic energy", "plastic work"], lines
+                      "least FLC margin, sheet", "peak kinetic energy", "plastic work"], lines
     assert lines[0].split()[2:4] == ["900", "J"]           # ½ · 50 µF · (6 kV)²
     m = json.loads((demo[0] / "metrics.json").read_text())
     assert f"{m['coil_current_peak_kA']:.4g} kA" in lines[1]
-    assert "% " in lines[5] and "of the bank energy" in lines[5]
+    assert "% " in lines[6] and "of the bank energy" in lines[6]
 
 
 def test_bar_summary_only_the_lines_that_apply(bar):
