@@ -151,6 +151,13 @@ def _cmd_run(args: argparse.Namespace) -> int:
         resolve_defaults(case, file, args.overrides)  # its errors are bad input; the run fills the defaults in
     except CaseError as exc:
         return _error(str(exc), EXIT_BAD_INPUT)
+    from .em.deck_sources import resolve_deck_sources
+    from .em.deck_check import DeckContractError
+
+    try:  # a template deck's own bank or current, read through getdp: the run and its summary use it
+        case = resolve_deck_sources(case)
+    except DeckContractError as exc:
+        return _error(str(exc), EXIT_BAD_INPUT)
     out = args.out or Path("results") / case.case.name
     from .run.runner import ResumeError, RunFailed, RunInterrupted, run_case  # heavy imports (dolfinx) only when running
 

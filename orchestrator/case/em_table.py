@@ -78,8 +78,8 @@ class EM:
 
     def validate(self, path: str) -> None:
         given = [k for k in ("circuit", "current", "sources") if getattr(self, k)]
-        if not given and self.applied_field is not None:
-            return  # the applied field alone (3D geometry files without coils: .geometry3d checks)
+        if not given:  # the geometry decides: an applied field alone (.geometry3d), a template deck's own source
+            return  # (.model), else refused there
         if len(given) != 1:
             raise SchemaError(f"{path}.{given[1] if given else 'circuit'}", "give exactly one of circuit (capacitor "
                               "bank), current or [[em.sources]] with [[em.coils]]")

@@ -20,7 +20,6 @@ The deck (its own groups on its own physical ids, functions, constraints, then `
 from __future__ import annotations
 
 import logging
-import subprocess
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -30,6 +29,7 @@ from pulseform.solvers.getdp.template import TemplateDeckSolver, TemplateSpec, c
 
 from ..mesh.em_geometry import EMGeometry
 from .deck_check import DeckContractError
+from .deck_sources import source_summary, sources_left_to_deck
 
 log = logging.getLogger(__name__)
 
@@ -154,30 +154,17 @@ def deck_constants(deck: Path, argv: list[str], work: Path, time_limit: float) -
     dict
         Name -> value, in the deck's order.
     """
-    from pulseform.solvers.getdp.runner import find_getdp, run_logged
-
     from ..case.deck_files import define_constant_names
+    from .deck_sources import parse_deck
 
-    names = define_constant_names(Path(deck))
-    work = Path(work).resolve()
-    work.mkdir(parents=True, exist_ok=True)
-    table = work / "constants.txt"
-    lines = [f'Include "{Path(deck).resolve()}";']
-    lines += [f'If(Exists[{n}]) Printf[Sprintf["{n} %.17g", {n}]] >> "{table}"; EndIf' for n in names]
-    (work / "constants.pro").write_text("\n".join(lines) + "\n")
     numbers = [a for i, tok in enumerate(argv[:-2]) if tok == "-setnumber" for a in argv[i:i + 3]]
-    table.unlink(missing_ok=True)
-    try:
-        args = [find_getdp(), str(work / "constants.pro"), *numbers, "-v", "2"]
-        code, _ = run_logged(args, work, work / "constants.log", time_limit)
-    except (OSError, subprocess.TimeoutExpired, RuntimeError) as exc:
-        log.debug("the deck's constants were not read: %s", exc)
-        return {}
-    if code != 0 or not table.is_file():
-        log.debug("the deck's constants were not read: getdp exit code %s (%s)", code, work / "constants.log")
+    lines = [f'If(Exists[{n}]) Printf[Sprintf["{n} %.17g", {n}]] >> "{{table}}"; EndIf'
+             for n in define_constant_names(Path(deck))]
+    text = parse_deck(Path(deck), numbers, lines, "constants.txt", work, time_limit)
+    if text is None:
         return {}
     out = {}
-    for row in table.read_text().splitlines():
+    for row in text.splitlines():
         name, _, value = row.partition(" ")
         try:
             out[name] = float(value)
@@ -189,7 +176,8 @@ def deck_constants(deck: Path, argv: list[str], work: Path, time_limit: float) -
 def deck_summary(case, geometry: DeckGeometry) -> list[str]:
     """What ``pulseform check`` shows of a template deck: its constants as getdp reads them (those a
     ``--set geometry.parameters.<name>=...`` changes, then those the runner sets), and the values the
-    case leaves to the deck (a conductivity left at 0, ``geometry.turns`` not given)."""
+    case leaves to the deck (a conductivity left at 0, ``geometry.turns`` not given, the bank or the
+    prescribed current: :func:`.deck_sources.source_summary`)."""
     from ..case.deck_files import is_reserved_parameter
 
     g = case.geometry
@@ -211,6 +199,7 @@ def deck_summary(case, geometry: DeckGeometry) -> list[str]:
     for k, (key, _, group, turns) in enumerate(g.coil_groups(), start=1):
         if turns is None and f"turns_{k}" in vals:
             taken.append(f"geometry.turns = {vals[f'turns_{k}']:.6g} (js0[] over {group})")
+    taken += source_summary(case, vals)
     if taken:
         lines.append(f"# the case takes from {deck}: " + ", ".join(taken))
     return lines
@@ -232,6 +221,8 @@ def current_differences(case, model, out: Path) -> list[str]:
     source times the coil's sign (:func:`pulseform.solvers.getdp.template.current_mismatch`), as the
     phrases of :func:`check_deck_values`; coils on a bank are the circuit's and not compared."""
     diffs = []
+    if sources_left_to_deck(case):  # the deck's own current, read after the check (.deck_sources)
+        return diffs
     coils = [c[2] for c in case.geometry.coil_groups()]
     for k, coil in enumerate(model.coils, start=1):
         if coil.waveform is None:
@@ -279,7 +270,7 @@ def check_deck_values(case, model, out: Path) -> dict[str, float | str]:
         tkey = key[:-len(".group")] + ".turns" if key.startswith("geometry.coils") else "geometry.turns"
         if turns is not None:  # None: left to the deck
             want.append((f"turns_{k}", tkey, float(turns), "turns"))
-    if model.circuit is not None:
+    if model.circuit is not None and not sources_left_to_deck(case):  # left: the deck's bank (.deck_sources)
         bank = "em.circuit" if case.em.circuit is not None else "em.sources (bank)"
         cir = model.circuit
         want += [("C", f"{bank}.capacitance", cir.C, "F"), ("R", f"{bank}.resistance", cir.R_ext, "Ohm"),
