@@ -234,12 +234,13 @@ def _cmd_check(args: argparse.Namespace) -> int:
         return _error(str(exc), EXIT_BAD_INPUT)
     filled = default_sizes(loaded)
     if case.geometry is not None and case.geometry.type == "user_deck":
+        from .em.template_deck import DeckValueConflict
         from .em.user_deck import DeckContractError, check_user_deck
 
         try:  # mesh the deck, map its groups and run one tiny getdp step (in a temporary folder)
             deck_lines = check_user_deck(case)
-        except DeckContractError as exc:
-            return _error(str(exc), EXIT_BAD_INPUT)
+        except DeckContractError as exc:  # a value of the case against the deck's: both files named
+            return _error(f"{file}: {exc}" if isinstance(exc, DeckValueConflict) else str(exc), EXIT_BAD_INPUT)
         print(f"# {case.geometry.pro}: honours the deck contract")
         for line in deck_lines or ():  # a template deck's constants, the values the case takes from it
             print(line)

@@ -236,7 +236,21 @@ def current_differences(case, model, out: Path) -> list[str]:
     return diffs
 
 
-def check_deck_values(case, model, out: Path) -> dict[str, float | str]:
+class DeckValueConflict(DeckContractError):
+    """A value the case states differs from the template deck's own (the CLI names the case file)."""
+
+
+def _deck_constant(constants: dict[str, float] | None, value: float) -> str:
+    """`` (its NAME)`` when exactly one of the deck's ``DefineConstant`` numbers (:func:`deck_constants`, as
+    the run reads them) equals ``value`` to :data:`VALUE_RTOL` relative, else ``""``."""
+    from ..case.deck_files import is_reserved_parameter
+
+    hits = [n for n, v in (constants or {}).items()
+            if not is_reserved_parameter(n) and abs(v - value) <= VALUE_RTOL * max(abs(value), 1e-300)]
+    return f" (its {hits[0]})" if len(hits) == 1 else ""
+
+
+def check_deck_values(case, model, out: Path, constants: dict[str, float] | None = None) -> dict[str, float | str]:
     """Refuse a template deck whose own values differ from the case's (relative :data:`VALUE_RTOL`).
 
     Compares the deck's geometry (its Jacobian ``Vol`` axisymmetric or planar as ``geometry.planar``
@@ -245,7 +259,9 @@ def check_deck_values(case, model, out: Path) -> dict[str, float | str]:
     with its turns (``geometry.turns`` / ``geometry.coils[i].turns``), with a bank its C, R, L and
     charging voltage with ``em.circuit`` (or the bank source), and a prescribed coil current at the
     check's step with its source (:func:`current_differences`). Returns the deck's values; raises
-    :class:`DeckContractError` listing every difference in one line.
+    :class:`DeckValueConflict` listing every difference in one line: the case's key and value, the deck's
+    value and the ``DefineConstant`` that holds it (``constants``, :func:`deck_constants`, when one alone
+    has that value), and that a key left out of the case takes the deck's.
     """
     g = case.geometry
     vals = deck_values(out, len(model.coils), len(model.conductors), model.circuit is not None)
@@ -282,11 +298,12 @@ def check_deck_values(case, model, out: Path) -> dict[str, float | str]:
             what = {"sigma": f"sigma[] on {names.get(f'cond_{k}')}", "turns": f"js0[] over {names.get(f'coil_{k}')}",
                     "C": "Capacitance[]", "R": "Resistance[]", "L": "Inductance[]",
                     "V0": "Init of the capacitor's voltage"}[base]
-            diffs.append(f"{ckey} = {expected:.6g} {unit}, the deck's {what} = {got:.6g} {unit}")
+            diffs.append(f"{ckey} = {expected:.6g} {unit}, the deck's {what} = {got:.6g} {unit}"
+                         + _deck_constant(constants, got))
     diffs += current_differences(case, model, out)
     if diffs:
-        raise DeckContractError(f"deck {Path(g.pro).name} and the case differ: " + "; ".join(diffs)
-                                + " (the deck's own values are used: make them agree)")
+        raise DeckValueConflict(f"deck {Path(g.pro).name} and the case differ: " + "; ".join(diffs)
+                                + " (the deck's values are used: make them agree, or leave the key out)")
     log.info("template deck %s agrees with the case: %s", Path(g.pro).name,
              ", ".join(f"{k} = {v:.6g}" if isinstance(v, float) else f"{k} = {v}" for k, v in vals.items()))
     return vals

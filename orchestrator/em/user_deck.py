@@ -196,10 +196,10 @@ def build_user_geometry(case, work: Path, em_dir: Path):
     regions = {role: ROLE_IDS[role] for role in ("coil",) + g.conductor_roles()}
     more = [[] for _ in g.coil_groups()[1:]]
     if template:
-        values = check_deck_values(case, model, Path(em_dir) / "contract_check" / "out")
+        constants = deck_constants(Path(g.pro), report.argv, Path(em_dir) / "constants", getdp_limit)
+        values = check_deck_values(case, model, Path(em_dir) / "contract_check" / "out", constants)
         if left and model.circuit is None:  # the deck prescribes the coil's current: sampled through getdp
             values.update(deck_current(make_solver(case, model, Path(em_dir), deck_ids=deck_ids), mesh, g.regions.coil))
-        constants = deck_constants(Path(g.pro), report.argv, Path(em_dir) / "constants", getdp_limit)
         return DeckGeometry(mesh, regions, [], more_coils=more, deck_ids=deck_ids, planar=g.planar,
                             deck_values=values, deck_constants=constants)
     return EMGeometry(mesh, regions, [], more_coils=more, planar=g.planar)
