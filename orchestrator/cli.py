@@ -240,7 +240,7 @@ def _cmd_check(args: argparse.Namespace) -> int:
         try:  # mesh the deck, map its groups and run one tiny getdp step (in a temporary folder)
             deck_lines = check_user_deck(case)
         except DeckContractError as exc:  # a value of the case against the deck's: both files named
-            return _error(f"{file}: {exc}" if isinstance(exc, DeckValueConflict) else str(exc), EXIT_BAD_INPUT)
+            return _error(f"{file.name}: {exc}" if isinstance(exc, DeckValueConflict) else str(exc), EXIT_BAD_INPUT)
         print(f"# {case.geometry.pro}: honours the deck contract")
         for line in deck_lines or ():  # a template deck's constants, the values the case takes from it
             print(line)

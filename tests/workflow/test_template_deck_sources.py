@@ -147,7 +147,7 @@ def test_a_bank_the_case_states_against_the_deck_names_both():
     r = pulseform("check", str(CASE), "--set", f"em.circuit={bank}", "--set", "geometry.parameters.V0=5e3")
     assert r.returncode == 2
     assert one_line_error(r) == (
-        f"pulseform: error: {CASE / 'case.toml'}: deck sheet_bulge_template.pro and the case differ: "
+        "pulseform: error: case.toml: deck sheet_bulge_template.pro and the case differ: "
         "em.circuit.voltage = 6000 V, the deck's Init of the capacitor's voltage = 5000 V (its V0) (the deck's "
         "values are used: make them agree, or leave the key out)")
 
