@@ -14,7 +14,8 @@ The deck (its own groups on its own physical ids, functions, constraints, then `
    axisymmetric or planar (the deck's Jacobian ``Vol``) and its ``CoefGeos[]``, the conductivity of
    every conductor, the turns of every coil (the ampere-turns per ampere of ``js0``), the bank (C, R,
    L, charging voltage) or the current a coil's ``Current_2D`` prescribes: a template deck keeps its
-   own numbers, so a case that says otherwise is refused, naming both values.
+   own numbers, so a case that says otherwise is refused, naming both values. A value the case leaves
+   out is the deck's (a conductivity, the turns; the bank or the current: :mod:`.deck_sources`).
 """
 
 from __future__ import annotations
