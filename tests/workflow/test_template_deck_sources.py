@@ -80,7 +80,7 @@ def test_a_damped_sine_is_identified_from_its_samples():
 # ----------------------------------------------------------------------------- a bank left to the deck
 @pytest.mark.getdp
 def test_a_bank_left_to_the_deck_is_read_and_set_changes_both(tmp_path):
-    """cases/template_sheet_bulge states no bank: ``pulseform check`` prints the deck's (Cap, V0, Res, Ind of
+    """cases/template_sheet_bulge states no bank: ``pulseform check``'s lines give the deck's (Cap, V0, Res, Ind of
     sheet_bulge_template.pro, exactly), ``--set geometry.parameters.V0=5e3`` changes the deck's V0 and the
     case's em.circuit.voltage at once; the bank then has a meaning for the history's capacitor voltage and
     the summary's bank energy. Four EM steps of 0.5 us on the run's solver equal plain getdp on the deck with
@@ -90,20 +90,18 @@ def test_a_bank_left_to_the_deck_is_read_and_set_changes_both(tmp_path):
     from pulseform.orchestrator.case.em_table import CapacitorBank
     from pulseform.orchestrator.em import user_deck as ud
     from pulseform.orchestrator.em.deck_sources import with_deck_sources
+    from pulseform.orchestrator.em.template_deck import deck_summary
     from pulseform.orchestrator.run.plots import columns_without_meaning
     from pulseform.solvers.getdp.template import read_solutions
-
-    r = pulseform("check", str(CASE), "--set", "geometry.parameters.V0=5e3")
-    assert r.returncode == 0, r.stderr[-2000:]
-    assert ("# the case takes from sheet_bulge_template.pro: em.circuit.capacitance = 5e-05 F (Capacitance[] of "
-            "Capacitance_Cir), em.circuit.voltage = 5000 V (the capacitor's Init voltage), em.circuit.resistance = "
-            "0.01 Ohm (Resistance[] of Resistance_Cir), em.circuit.inductance = 2e-06 H (Inductance[] of "
-            "Inductance_Cir)") in r.stdout
 
     case, _ = load_case(CASE, ["geometry.parameters.V0=5e3"])
     assert case.em.circuit is None and columns_without_meaning(case) == {"capacitor_voltage_V"}
     work = tmp_path / "run"
     geometry = ud.build_user_geometry(case, work / "em_mesh", work / "em")  # as resolve_deck_sources reads it
+    assert ("# the case takes from sheet_bulge_template.pro: em.circuit.capacitance = 5e-05 F (Capacitance[] of "
+            "Capacitance_Cir), em.circuit.voltage = 5000 V (the capacitor's Init voltage), em.circuit.resistance = "
+            "0.01 Ohm (Resistance[] of Resistance_Cir), em.circuit.inductance = 2e-06 H (Inductance[] of "
+            "Inductance_Cir)") in deck_summary(case, geometry)  # what `pulseform check` prints
     resolved = with_deck_sources(case, geometry.deck_values)
     assert resolved.em.circuit == CapacitorBank(capacitance=50e-6, voltage=5e3, resistance=0.01, inductance=2e-6)
     assert columns_without_meaning(resolved) == set()
