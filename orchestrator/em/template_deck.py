@@ -69,7 +69,7 @@ def deck_physical_ids(path: Path, groups: list[tuple[str, str, int, int]]) -> di
     """
     import meshio
 
-    names = {name: int(v[0]) for name, v in meshio.read(path).field_data.items()}
+    names = {name: int(v[0]) for name, v in meshio.read(path, file_format="gmsh").field_data.items()}
     return {new_id: names[name] for _, name, _, new_id in groups}
 
 

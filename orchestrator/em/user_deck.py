@@ -127,7 +127,7 @@ def read_deck_mesh(path: Path, regions, name: str | Path | None = None, coils: S
     """
     import meshio
 
-    m = meshio.read(path)
+    m = meshio.read(path, file_format="gmsh")  # by extension meshio tries ansys first and prints its failure
     path = path if name is None else name
     names = {name: (int(v[0]), int(v[1])) for name, v in m.field_data.items()}
     phys = m.cell_data_dict.get("gmsh:physical", {})
