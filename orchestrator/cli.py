@@ -151,6 +151,13 @@ def _cmd_run(args: argparse.Namespace) -> int:
         resolve_defaults(case, file, args.overrides)  # its errors are bad input; the run fills the defaults in
     except CaseError as exc:
         return _error(str(exc), EXIT_BAD_INPUT)
+    from .em.deck_sources import resolve_deck_sources
+    from .em.deck_check import DeckContractError
+
+    try:  # a template deck's own bank or current, read through getdp: the run and its summary use it
+        case = resolve_deck_sources(case)
+    except DeckContractError as exc:
+        return _error(str(exc), EXIT_BAD_INPUT)
     out = args.out or Path("results") / case.case.name
     from .run.runner import ResumeError, RunFailed, RunInterrupted, run_case  # heavy imports (dolfinx) only when running
 
@@ -227,12 +234,13 @@ def _cmd_check(args: argparse.Namespace) -> int:
         return _error(str(exc), EXIT_BAD_INPUT)
     filled = default_sizes(loaded)
     if case.geometry is not None and case.geometry.type == "user_deck":
+        from .em.template_deck import DeckValueConflict
         from .em.user_deck import DeckContractError, check_user_deck
 
         try:  # mesh the deck, map its groups and run one tiny getdp step (in a temporary folder)
             deck_lines = check_user_deck(case)
-        except DeckContractError as exc:
-            return _error(str(exc), EXIT_BAD_INPUT)
+        except DeckContractError as exc:  # a value of the case against the deck's: both files named
+            return _error(f"{file.name}: {exc}" if isinstance(exc, DeckValueConflict) else str(exc), EXIT_BAD_INPUT)
         print(f"# {case.geometry.pro}: honours the deck contract")
         for line in deck_lines or ():  # a template deck's constants, the values the case takes from it
             print(line)

@@ -39,8 +39,10 @@ class EM:
     coil_conductivity: float = spec(5.8e7, unit="S/m", gt=0.0, doc="coil conductor (copper)")
     coil_density: float = spec(8960.0, unit="kg/m^3", gt=0.0, doc="for the coil's adiabatic heating")
     coil_heat_capacity: float = spec(385.0, unit="J/(kg·K)", gt=0.0, doc="for the coil's adiabatic heating")
-    circuit: CapacitorBank | None = spec(None, doc="capacitor-bank discharge (give this, current or sources)")
-    current: DampedSineCurrent | None = spec(None, doc="prescribed coil current (give this, circuit or sources)")
+    circuit: CapacitorBank | None = spec(None, doc="capacitor-bank discharge (give this, current or sources; a "
+                                                   "'getdp_template' deck's own bank when none is given)")
+    current: DampedSineCurrent | None = spec(None, doc="prescribed coil current (give this, circuit or sources; a "
+                                                       "'getdp_template' deck's own Current_2D when none is given)")
     sources: tuple[Source, ...] = spec((), doc="[[em.sources]] named current sources and at most one bank (give "
                                           "these with [[em.coils]], or circuit, or current)")
     coils: tuple[CoilConnection, ...] = spec((), doc="[[em.coils]] each coil of the geometry on a source, with its "
@@ -78,8 +80,8 @@ class EM:
 
     def validate(self, path: str) -> None:
         given = [k for k in ("circuit", "current", "sources") if getattr(self, k)]
-        if not given and self.applied_field is not None:
-            return  # the applied field alone (3D geometry files without coils: .geometry3d checks)
+        if not given:  # the geometry decides: an applied field alone (.geometry3d), a template deck's own source
+            return  # (.model), else refused there
         if len(given) != 1:
             raise SchemaError(f"{path}.{given[1] if given else 'circuit'}", "give exactly one of circuit (capacitor "
                               "bank), current or [[em.sources]] with [[em.coils]]")

@@ -363,9 +363,15 @@ class Case:
             if self.em.time_scheme == "bdf2" and self.coupling.em_substeps != 1:
                 raise SchemaError("coupling.em_substeps", f"got {self.coupling.em_substeps}; em.time_scheme = "
                                   "'bdf2' takes one step per getdp run: use 1 (and a smaller coupling.n)")
+            template = getattr(self.geometry, "library", None) == "getdp_template"
             if not any((self.em.circuit, self.em.current, self.em.sources)):
-                raise SchemaError("em.circuit", "the geometry's coil needs a source: give em.circuit (a capacitor "
-                                  "bank), em.current or [[em.sources]] with [[em.coils]]")
+                if not template:
+                    raise SchemaError("em.circuit", "the geometry's coil needs a source: give em.circuit (a capacitor "
+                                      "bank), em.current or [[em.sources]] with [[em.coils]]")
+                if self.geometry.coils:  # the deck's own source: one coil (orchestrator/em/deck_sources.py)
+                    raise SchemaError("em.sources", "the coils of [[geometry.coils]] need their sources in the case: "
+                                      "give [[em.sources]] with [[em.coils]] (a template deck's own bank or current "
+                                      "is read for the one coil of geometry.regions.coil)")
             check_coils(self)
             check_applied_field(self)
             if getattr(self.geometry, "library", None) == "getdp_template" and self.em.getdp_process == "persistent":

@@ -93,5 +93,5 @@ def check_rigid_time_scale(case) -> None:
         return
     if period_upper_bound(case) is None:
         raise SchemaError("time.dt_max", "missing: every body is rigid (no stability limit) and no source has a "
-                          "period to resolve (a direct current, a table, or a user deck's coil on a bank): give "
-                          "time.dt_max, the mechanical step (s)")
+                          "period to resolve (a direct current, a table, a user deck's coil on a bank, or a template "
+                          "deck's own source): give time.dt_max, the mechanical step (s)")

@@ -442,8 +442,12 @@ def _solves_the_model(solver: GetDPSolver, mesh: EMMesh, out: Path, deck: Path) 
         regions_hollow = any(p.startswith(("force rows", "field state")) for p in problems)
         ids = ("its groups must hold the mesh's own physical ids" if getattr(solver, "deck_ids", None) is not None
                else "its Region[]s must use the ids Phys_* the runner passes")
-        hint = (ids if regions_hollow
-                else "the coil must be driven by the case's circuit or current (Flag_Circuit, Init_Vc, Coil_I0_1)")
+        drive = ("nothing drives the coil: give the deck a circuit (Flag_CircuitCoupling = 1: "
+                 "cases/template_sheet_bulge) or a Current_2D value on its coil, or state em.circuit or em.current "
+                 "in case.toml"
+                 if getattr(solver, "deck_ids", None) is not None
+                 else "the coil must be driven by the case's circuit or current (Flag_Circuit, Init_Vc, Coil_I0_1)")
+        hint = ids if regions_hollow else drive
         raise DeckContractError(f"deck {deck.name} is hollow: after one step " + ", ".join(problems) + "; " + hint)
     return DeckCheckReport(magnetic_energy=w, coil_current=cur, force_rows=len(ids), state_nodes=len(state_nodes))
 

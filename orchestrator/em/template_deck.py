@@ -14,13 +14,13 @@ The deck (its own groups on its own physical ids, functions, constraints, then `
    axisymmetric or planar (the deck's Jacobian ``Vol``) and its ``CoefGeos[]``, the conductivity of
    every conductor, the turns of every coil (the ampere-turns per ampere of ``js0``), the bank (C, R,
    L, charging voltage) or the current a coil's ``Current_2D`` prescribes: a template deck keeps its
-   own numbers, so a case that says otherwise is refused, naming both values.
+   own numbers, so a case that says otherwise is refused, naming both values. A value the case leaves
+   out is the deck's (a conductivity, the turns; the bank or the current: :mod:`.deck_sources`).
 """
 
 from __future__ import annotations
 
 import logging
-import subprocess
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -30,6 +30,7 @@ from pulseform.solvers.getdp.template import TemplateDeckSolver, TemplateSpec, c
 
 from ..mesh.em_geometry import EMGeometry
 from .deck_check import DeckContractError
+from .deck_sources import source_summary, sources_left_to_deck
 
 log = logging.getLogger(__name__)
 
@@ -68,7 +69,7 @@ def deck_physical_ids(path: Path, groups: list[tuple[str, str, int, int]]) -> di
     """
     import meshio
 
-    names = {name: int(v[0]) for name, v in meshio.read(path).field_data.items()}
+    names = {name: int(v[0]) for name, v in meshio.read(path, file_format="gmsh").field_data.items()}
     return {new_id: names[name] for _, name, _, new_id in groups}
 
 
@@ -154,30 +155,17 @@ def deck_constants(deck: Path, argv: list[str], work: Path, time_limit: float) -
     dict
         Name -> value, in the deck's order.
     """
-    from pulseform.solvers.getdp.runner import find_getdp, run_logged
-
     from ..case.deck_files import define_constant_names
+    from .deck_sources import parse_deck
 
-    names = define_constant_names(Path(deck))
-    work = Path(work).resolve()
-    work.mkdir(parents=True, exist_ok=True)
-    table = work / "constants.txt"
-    lines = [f'Include "{Path(deck).resolve()}";']
-    lines += [f'If(Exists[{n}]) Printf[Sprintf["{n} %.17g", {n}]] >> "{table}"; EndIf' for n in names]
-    (work / "constants.pro").write_text("\n".join(lines) + "\n")
     numbers = [a for i, tok in enumerate(argv[:-2]) if tok == "-setnumber" for a in argv[i:i + 3]]
-    table.unlink(missing_ok=True)
-    try:
-        args = [find_getdp(), str(work / "constants.pro"), *numbers, "-v", "2"]
-        code, _ = run_logged(args, work, work / "constants.log", time_limit)
-    except (OSError, subprocess.TimeoutExpired, RuntimeError) as exc:
-        log.debug("the deck's constants were not read: %s", exc)
-        return {}
-    if code != 0 or not table.is_file():
-        log.debug("the deck's constants were not read: getdp exit code %s (%s)", code, work / "constants.log")
+    lines = [f'If(Exists[{n}]) Printf[Sprintf["{n} %.17g", {n}]] >> "{{table}}"; EndIf'
+             for n in define_constant_names(Path(deck))]
+    text = parse_deck(Path(deck), numbers, lines, "constants.txt", work, time_limit)
+    if text is None:
         return {}
     out = {}
-    for row in table.read_text().splitlines():
+    for row in text.splitlines():
         name, _, value = row.partition(" ")
         try:
             out[name] = float(value)
@@ -189,7 +177,8 @@ def deck_constants(deck: Path, argv: list[str], work: Path, time_limit: float) -
 def deck_summary(case, geometry: DeckGeometry) -> list[str]:
     """What ``pulseform check`` shows of a template deck: its constants as getdp reads them (those a
     ``--set geometry.parameters.<name>=...`` changes, then those the runner sets), and the values the
-    case leaves to the deck (a conductivity left at 0, ``geometry.turns`` not given)."""
+    case leaves to the deck (a conductivity left at 0, ``geometry.turns`` not given, the bank or the
+    prescribed current: :func:`.deck_sources.source_summary`)."""
     from ..case.deck_files import is_reserved_parameter
 
     g = case.geometry
@@ -211,6 +200,7 @@ def deck_summary(case, geometry: DeckGeometry) -> list[str]:
     for k, (key, _, group, turns) in enumerate(g.coil_groups(), start=1):
         if turns is None and f"turns_{k}" in vals:
             taken.append(f"geometry.turns = {vals[f'turns_{k}']:.6g} (js0[] over {group})")
+    taken += source_summary(case, vals)
     if taken:
         lines.append(f"# the case takes from {deck}: " + ", ".join(taken))
     return lines
@@ -232,6 +222,8 @@ def current_differences(case, model, out: Path) -> list[str]:
     source times the coil's sign (:func:`pulseform.solvers.getdp.template.current_mismatch`), as the
     phrases of :func:`check_deck_values`; coils on a bank are the circuit's and not compared."""
     diffs = []
+    if sources_left_to_deck(case):  # the deck's own current, read after the check (.deck_sources)
+        return diffs
     coils = [c[2] for c in case.geometry.coil_groups()]
     for k, coil in enumerate(model.coils, start=1):
         if coil.waveform is None:
@@ -245,7 +237,21 @@ def current_differences(case, model, out: Path) -> list[str]:
     return diffs
 
 
-def check_deck_values(case, model, out: Path) -> dict[str, float | str]:
+class DeckValueConflict(DeckContractError):
+    """A value the case states differs from the template deck's own (the CLI names the case file)."""
+
+
+def _deck_constant(constants: dict[str, float] | None, value: float) -> str:
+    """`` (its NAME)`` when exactly one of the deck's ``DefineConstant`` numbers (:func:`deck_constants`, as
+    the run reads them) equals ``value`` to :data:`VALUE_RTOL` relative, else ``""``."""
+    from ..case.deck_files import is_reserved_parameter
+
+    hits = [n for n, v in (constants or {}).items()
+            if not is_reserved_parameter(n) and abs(v - value) <= VALUE_RTOL * max(abs(value), 1e-300)]
+    return f" (its {hits[0]})" if len(hits) == 1 else ""
+
+
+def check_deck_values(case, model, out: Path, constants: dict[str, float] | None = None) -> dict[str, float | str]:
     """Refuse a template deck whose own values differ from the case's (relative :data:`VALUE_RTOL`).
 
     Compares the deck's geometry (its Jacobian ``Vol`` axisymmetric or planar as ``geometry.planar``
@@ -254,7 +260,9 @@ def check_deck_values(case, model, out: Path) -> dict[str, float | str]:
     with its turns (``geometry.turns`` / ``geometry.coils[i].turns``), with a bank its C, R, L and
     charging voltage with ``em.circuit`` (or the bank source), and a prescribed coil current at the
     check's step with its source (:func:`current_differences`). Returns the deck's values; raises
-    :class:`DeckContractError` listing every difference in one line.
+    :class:`DeckValueConflict` listing every difference in one line: the case's key and value, the deck's
+    value and the ``DefineConstant`` that holds it (``constants``, :func:`deck_constants`, when one alone
+    has that value), and that a key left out of the case takes the deck's.
     """
     g = case.geometry
     vals = deck_values(out, len(model.coils), len(model.conductors), model.circuit is not None)
@@ -279,7 +287,7 @@ def check_deck_values(case, model, out: Path) -> dict[str, float | str]:
         tkey = key[:-len(".group")] + ".turns" if key.startswith("geometry.coils") else "geometry.turns"
         if turns is not None:  # None: left to the deck
             want.append((f"turns_{k}", tkey, float(turns), "turns"))
-    if model.circuit is not None:
+    if model.circuit is not None and not sources_left_to_deck(case):  # left: the deck's bank (.deck_sources)
         bank = "em.circuit" if case.em.circuit is not None else "em.sources (bank)"
         cir = model.circuit
         want += [("C", f"{bank}.capacitance", cir.C, "F"), ("R", f"{bank}.resistance", cir.R_ext, "Ohm"),
@@ -291,11 +299,12 @@ def check_deck_values(case, model, out: Path) -> dict[str, float | str]:
             what = {"sigma": f"sigma[] on {names.get(f'cond_{k}')}", "turns": f"js0[] over {names.get(f'coil_{k}')}",
                     "C": "Capacitance[]", "R": "Resistance[]", "L": "Inductance[]",
                     "V0": "Init of the capacitor's voltage"}[base]
-            diffs.append(f"{ckey} = {expected:.6g} {unit}, the deck's {what} = {got:.6g} {unit}")
+            diffs.append(f"{ckey} = {expected:.6g} {unit}, the deck's {what} = {got:.6g} {unit}"
+                         + _deck_constant(constants, got))
     diffs += current_differences(case, model, out)
     if diffs:
-        raise DeckContractError(f"deck {Path(g.pro).name} and the case differ: " + "; ".join(diffs)
-                                + " (the deck's own values are used: make them agree)")
+        raise DeckValueConflict(f"deck {Path(g.pro).name} and the case differ: " + "; ".join(diffs)
+                                + " (the deck's values are used: make them agree, or leave the key out)")
     log.info("template deck %s agrees with the case: %s", Path(g.pro).name,
              ", ".join(f"{k} = {v:.6g}" if isinstance(v, float) else f"{k} = {v}" for k, v in vals.items()))
     return vals

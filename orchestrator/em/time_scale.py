@@ -80,7 +80,7 @@ def source_period(case: Case) -> float:
                                                          * s.capacitance))
     if not periods:
         raise ValueError("time.dt_max: every body is rigid and no source has a period to resolve (a direct current, "
-                         "a table, or a user deck's coil on a bank): give time.dt_max, the mechanical step (s)")
+                         "a table, a user deck's coil on a bank, or a template deck's own source): give time.dt_max, the mechanical step (s)")
     return min(periods)
 
 

@@ -47,6 +47,7 @@ from ..case.deck_files import (MAX_PARAMETER_NAME, check_parameters, deck_tokens
                                resolve_deck_paths, short)
 from ..mesh.em_geometry import EMGeometry
 from .deck_check import DeckCheckReport, DeckContractError, DeckNames, check_deck  # noqa: F401  (DeckContractError: the API)
+from .deck_sources import deck_current, deck_has_bank, sources_left_to_deck, unread_sources, with_deck_sources
 from .template_deck import (UNREAD, DeckGeometry, check_deck_values, deck_constants, deck_physical_ids, deck_summary,
                             template_solver)
 from .solver import em_model, factor_reuse, make_em_solver
@@ -126,7 +127,7 @@ def read_deck_mesh(path: Path, regions, name: str | Path | None = None, coils: S
     """
     import meshio
 
-    m = meshio.read(path)
+    m = meshio.read(path, file_format="gmsh")  # by extension meshio tries ansys first and prints its failure
     path = path if name is None else name
     names = {name: (int(v[0]), int(v[1])) for name, v in m.field_data.items()}
     phys = m.cell_data_dict.get("gmsh:physical", {})
@@ -184,6 +185,10 @@ def build_user_geometry(case, work: Path, em_dir: Path):
     template = getattr(g, "library", "pulseform") == "getdp_template"
     deck_ids = deck_physical_ids(msh, group_map(g.regions, g.coils)) if template else None
     model = user_em_model(case)
+    left = template and sources_left_to_deck(case)  # the deck's own bank or current (.deck_sources)
+    if left and deck_has_bank(make_solver(case, model, Path(em_dir), deck_ids=deck_ids), mesh,
+                              Path(em_dir) / "bank_probe", getdp_limit):
+        model = user_em_model(case, bank=True)  # its values read by the check
     report = check_contract(make_solver(case, model, Path(em_dir), deck_ids=deck_ids), mesh,
                             Path(em_dir) / "contract_check", time_limit=getdp_limit, names=deck_names(case, deck_ids))
     # coils 2, 3, ... (physical 102, ...) have no turn rectangles either (a user mesh is remeshed only in its
@@ -191,8 +196,10 @@ def build_user_geometry(case, work: Path, em_dir: Path):
     regions = {role: ROLE_IDS[role] for role in ("coil",) + g.conductor_roles()}
     more = [[] for _ in g.coil_groups()[1:]]
     if template:
-        values = check_deck_values(case, model, Path(em_dir) / "contract_check" / "out")
         constants = deck_constants(Path(g.pro), report.argv, Path(em_dir) / "constants", getdp_limit)
+        values = check_deck_values(case, model, Path(em_dir) / "contract_check" / "out", constants)
+        if left and model.circuit is None:  # the deck prescribes the coil's current: sampled through getdp
+            values.update(deck_current(make_solver(case, model, Path(em_dir), deck_ids=deck_ids), mesh, g.regions.coil))
         return DeckGeometry(mesh, regions, [], more_coils=more, deck_ids=deck_ids, planar=g.planar,
                             deck_values=values, deck_constants=constants)
     return EMGeometry(mesh, regions, [], more_coils=more, planar=g.planar)
@@ -216,12 +223,20 @@ def check_user_deck(case) -> list[str]:
     :class:`DeckContractError` naming what is wrong; when that names a gmsh/getdp log of the
     temporary folder, the message carries the log's last lines instead (an ``Error`` line of the
     log is in the message already)."""
+    geometry = checked_in_temporary(case)
+    return deck_summary(case, geometry) if isinstance(geometry, DeckGeometry) else []
+
+
+def checked_in_temporary(case) -> EMGeometry:
+    """:func:`build_user_geometry` in a temporary folder, which is removed whether the deck passes or not
+    (what :func:`check_user_deck` and :func:`.deck_sources.resolve_deck_sources` do). Raises
+    :class:`DeckContractError`: a message naming a log of the temporary folder carries the log's last
+    lines instead."""
     import tempfile
 
     tmp = Path(tempfile.mkdtemp(prefix="pulseform_check_"))
     try:
-        geometry = build_user_geometry(case, tmp / "em_mesh", tmp / "em")
-        return deck_summary(case, geometry) if isinstance(geometry, DeckGeometry) else []
+        return build_user_geometry(case, tmp / "em_mesh", tmp / "em")
     except DeckContractError as exc:
         if exc.log_path is None or not exc.log_path.is_relative_to(tmp):
             raise
@@ -232,7 +247,7 @@ def check_user_deck(case) -> list[str]:
 
 
 # ----------------------------------------------------------------------------- getdp
-def user_em_model(case, deck_values: dict | None = None):
+def user_em_model(case, deck_values: dict | None = None, bank: bool = False):
     """EMModel of a user-deck case: its stranded coils (``regions.coil``, or ``[[geometry.coils]]`` in their
     order), the workpiece as massive conductor 1 (a die 2).
 
@@ -240,9 +255,15 @@ def user_em_model(case, deck_values: dict | None = None):
     ``electrical_conductivity`` unset (0) and a coil without ``geometry.turns`` take the deck's values
     ``deck_values`` (:func:`.template_deck.deck_values`, ``sigma_<k>``, ``turns_<k>``, read by the deck
     check), or :data:`.template_deck.UNREAD` before the deck has been read (the runner's ``-setnumber``
-    numbers of the template path do not use them)."""
+    numbers of the template path do not use them). A case that leaves its source to such a deck
+    (:func:`.deck_sources.sources_left_to_deck`) gets the deck's (``deck_values``, :func:`.deck_sources.with_deck_sources`)
+    or, before the deck has been read, a bank (``bank``) or a prescribed current of unread values
+    (:func:`.deck_sources.unread_sources`)."""
     g = case.geometry
     shell = None if g.shell_inner_radius is None else (g.shell_inner_radius, g.shell_outer_radius)
+    if sources_left_to_deck(case):
+        own = deck_values or {}
+        case = with_deck_sources(case, own) if ("C" in own or "I0" in own) else unread_sources(case, bank)
     model = em_model(case, shell)
     if getattr(g, "library", "pulseform") == "getdp_template":
         own = deck_values or {}

@@ -16,6 +16,7 @@ from mpi4py import MPI
 
 from ..case.io import case_to_toml
 from ..case.model import Case
+from ..em.deck_sources import resolve_deck_sources
 from ..em.skin_depth import DefaultSize, default_sizes, with_default_sizes
 from . import interrupt
 from .results import DISK_FULL_ERRNOS, ResultsFolder, refuse_if_in_use
@@ -153,9 +154,14 @@ def run_case(case: Case, out: Path, *, force: bool = False, resume: bool = False
     SchemaError
         A conductor size left to the skin depth has no frequency to take it from, or its default exceeds
         ``[limits]`` (the CLI refuses both before: :func:`~..em.skin_depth.resolve_defaults`).
+    DeckContractError
+        A case that leaves its source to its template deck (:func:`~..em.deck_sources.resolve_deck_sources`,
+        done before anything is written: ``out/case.toml`` holds the deck's source) and a deck that does not
+        give one (the CLI refuses it before).
     """
     filled = default_sizes(case)  # conductor sizes the case leaves to the skin depth
     case = with_default_sizes(case)
+    case = resolve_deck_sources(case)  # a template deck's own bank or current (the CLI has done it already)
     if resume:
         refuse_if_in_use(Path(out))  # "in use" before "nothing to resume yet"
         _check_resumable(case, Path(out))
