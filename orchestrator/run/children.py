@@ -34,10 +34,14 @@ def member_env() -> dict[str, str]:
 _KEEP_OMPI = ("OMPI_ALLOW_RUN_AS_ROOT", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM")
 
 
-def run_pulseform(args: Sequence[str], env: Mapping[str, str] | None = None) -> subprocess.CompletedProcess:
-    """Run ``pulseform <args>`` (the console script beside this interpreter), output captured as text."""
+def run_pulseform(args: Sequence[str], env: Mapping[str, str] | None = None, cwd: Path | str | None = None,
+                  timeout: float | None = None) -> subprocess.CompletedProcess:
+    """Run ``pulseform <args>`` (the console script beside this interpreter) in ``cwd`` (default: this
+    process's working folder), output captured as text; ``timeout`` (s): killed after it
+    (:class:`subprocess.TimeoutExpired`)."""
     exe = str(Path(sys.executable).with_name("pulseform"))
-    return subprocess.run([exe, *args], capture_output=True, text=True, env=env, preexec_fn=_preexec)
+    return subprocess.run([exe, *args], capture_output=True, text=True, env=env, cwd=cwd, timeout=timeout,
+                          preexec_fn=_preexec)
 
 
 def failure_report(r: subprocess.CompletedProcess, out: Path, lines: int = 12) -> tuple[str, str]:

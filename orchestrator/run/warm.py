@@ -45,6 +45,7 @@ import sys
 import threading
 import time
 from concurrent.futures import FIRST_COMPLETED, Future, ThreadPoolExecutor, wait
+from concurrent.futures import TimeoutError as FutureTimeout
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, Callable, Iterable, Iterator, Mapping, Sequence
@@ -122,10 +123,13 @@ class WarmPool:
         self._watchdog.start()
 
     # ------------------------------------------------------------------ members
-    def run(self, argv: Sequence[str]) -> subprocess.CompletedProcess:
-        """``pulseform ARGV`` in a child of the warm process (the current working folder); its exit code and
-        output. Falls back to a process of its own (:func:`.children.run_pulseform`) when the warm process is
-        gone before it started the member."""
+    def run(self, argv: Sequence[str], cwd: Path | str | None = None,
+            timeout: float | None = None) -> subprocess.CompletedProcess:
+        """``pulseform ARGV`` in a child of the warm process, in ``cwd`` (default: the current working folder);
+        its exit code and output. Falls back to a process of its own (:func:`.children.run_pulseform`) when the
+        warm process is gone before it started the member. ``timeout`` (s): the member is killed (SIGKILL) after
+        it and :class:`subprocess.TimeoutExpired` raised."""
+        cwd = os.getcwd() if cwd is None else os.fspath(cwd)
         fut: Future = Future()
         with self._lock:  # the reader answers every future registered before it marks the process gone
             if self._stopping:
@@ -136,18 +140,29 @@ class WarmPool:
                 self._next += 1
                 self._futures[k] = fut
                 try:
-                    self._send({"id": k, "argv": list(argv), "cwd": os.getcwd()})
+                    self._send({"id": k, "argv": list(argv), "cwd": cwd})
                 except OSError as exc:
                     self._futures.pop(k, None)
                     self._gone = f"the warm process does not read its requests ({exc})"
                     fut.set_result(None)
             else:
                 fut.set_result(None)
-        result = fut.result()
+        try:
+            result = fut.result(timeout)
+        except FutureTimeout:
+            self._kill(k)
+            raise subprocess.TimeoutExpired(list(argv), timeout) from None
         if result is not None:
             return result
         log.info("%s: pulseform %s as a process of its own", self._gone, " ".join(argv[:2]))
-        return run_pulseform(argv, env=self.env)
+        return run_pulseform(argv, env=self.env, cwd=cwd, timeout=timeout)
+
+    def _kill(self, k: int) -> None:
+        """SIGKILL to member ``k`` if the warm process has started it (its answer then comes, unread)."""
+        with self._lock:
+            pid = self._started.get(k)
+        if pid is not None:
+            _signal(pid, signal.SIGKILL)
 
     def stop_members(self) -> None:
         """SIGTERM to every running member: each stops at its next safe point (a checkpoint) and answers; no

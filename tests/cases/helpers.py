@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 import json
-import subprocess
 import sys
 from pathlib import Path
+from warm_cli import pulseform_cli
 
 REPO = Path(__file__).resolve().parents[2]
 EXE = str(Path(sys.executable).with_name("pulseform"))
@@ -28,8 +28,7 @@ def run_many(jobs: dict[str, tuple[str, list[str]]], root: Path) -> dict[str, di
     results = {}
     for label, (case, extra) in jobs.items():
         out = root / label
-        p = subprocess.run([EXE, "run", str(REPO / case), "--out", str(out), "--quiet", "--force", *extra],
-                           capture_output=True, text=True)
+        p = pulseform_cli(["run", str(REPO / case), "--out", str(out), "--quiet", "--force", *extra])
         assert p.returncode == 0, f"{label}: exit {p.returncode}\n{p.stderr[-3000:]}"
         results[label] = json.loads((out / "metrics.json").read_text())
         results[label]["_out"] = str(out)

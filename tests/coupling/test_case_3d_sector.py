@@ -29,6 +29,7 @@ from pulseform.orchestrator.cli import main
 
 from .bad_input import one_line_refusal
 from .sector_case import CASE as CASE_DIR, COARSE as COARSE_SETS, MESH, REPO, planes, sets
+from warm_cli import pulseform_cli
 
 EXE = str(Path(sys.executable).with_name("pulseform"))
 CASE = str(CASE_DIR)
@@ -167,9 +168,8 @@ def test_sweep_of_the_3d_case(tmp_path):
     geometry, the force quadratic: over 3 µs the sheet moves ~1e-7 m against a 1.5 mm gap, so the
     impulse ratio is (3/6)² = 0.25 and the peak-current ratio 1/2 to far better than 1e-3 (1e-4 held)."""
     out = tmp_path / "sw"
-    r = subprocess.run([EXE, "sweep", CASE, "--out", str(out), "--jobs", "1", "--param",
-                        "em.circuit.voltage=3000.0,6000.0", *COARSE, "--set", "output.plots=false"],
-                       capture_output=True, text=True)
+    r = pulseform_cli(["sweep", CASE, "--out", str(out), "--jobs", "1", "--param",
+                       "em.circuit.voltage=3000.0,6000.0", *COARSE, "--set", "output.plots=false"])
     assert r.returncode == 0, r.stderr[-3000:]
     rows = {row["em.circuit.voltage"]: row for row in csv.DictReader(open(out / "sweep.csv"))}
     a, b = (float(rows[k]["force_impulse_z_Ns"]) for k in ("3000.0", "6000.0"))
@@ -212,8 +212,8 @@ def test_bad_input_of_a_coupled_3d_case(capsys, sets_, says):
 def test_too_many_em_steps_are_refused_before_the_first_step(tmp_path):
     """limits.max_em_steps below the run's EM steps (60 us / 0.45 us: 133): one line naming time.end, exit 2,
     found once the mesh's stable step is known (before any getdp run)."""
-    r = subprocess.run([EXE, "run", CASE, "--out", str(tmp_path / "x"), "--quiet", *sets(MESH),
-                        "--set", "limits.max_em_steps=100"], capture_output=True, text=True)
+    r = pulseform_cli(["run", CASE, "--out", str(tmp_path / "x"), "--quiet", *sets(MESH),
+                       "--set", "limits.max_em_steps=100"])
     lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
     assert r.returncode == 2 and len(lines) == 1 and "limits.max_em_steps" in lines[0], r.stderr
     assert not (tmp_path / "x" / "em" / "getdp").exists() or not any((tmp_path / "x" / "em" / "getdp").iterdir())

@@ -27,8 +27,6 @@ from __future__ import annotations
 
 import csv
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -39,10 +37,10 @@ from pulseform.orchestrator.em.model3d import em_model3d
 from pulseform.orchestrator.mesh.geometry3d import build_geometry3d
 from pulseform.solvers.getdp.mesh import conductor_tag
 from pulseform.solvers.getdp.solver3d import solve_transient3d
+from warm_cli import pulseform_cli
 
 REPO = Path(__file__).resolve().parents[2]
 CASE = str(REPO / "cases/emf_tube_field_shaper")
-EXE = str(Path(sys.executable).with_name("pulseform"))
 #: a coarse mesh of the case (~14k EM tets, ~1 s per EM step)
 COARSE = {"geometry.mesh_sizes.tube": 3e-3, "geometry.mesh_sizes.shaper": 4e-3, "geometry.mesh_sizes.coil": 8e-3,
           "geometry.parameters.mesh_size_air": 0.03, "geometry.parameters.mesh_size_shell": 0.04}
@@ -198,8 +196,8 @@ def _history(out: Path) -> dict[str, np.ndarray]:
 def test_coupled_run_compresses_the_tube(tmp_path):
     out = tmp_path / "run"
     sets = [a for k, v in COARSE.items() for a in ("--set", f"{k}={v!r}")]
-    r = subprocess.run([EXE, "run", CASE, "--out", str(out), "--quiet", "--set", "time.end=20e-6",
-                        "--set", "output.field_interval=10e-6", *sets], capture_output=True, text=True)
+    r = pulseform_cli(["run", CASE, "--out", str(out), "--quiet", "--set", "time.end=20e-6",
+                       "--set", "output.field_interval=10e-6", *sets])
     assert r.returncode == 0, r.stderr[-3000:]
     m = json.loads((out / "metrics.json").read_text())
     h = _history(out)

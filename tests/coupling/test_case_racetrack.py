@@ -36,6 +36,7 @@ from pulseform.orchestrator.cli import main
 
 from .bad_input import one_line_refusal
 from .resume_check import assert_coupled3d_outputs_bitwise
+from warm_cli import pulseform_cli
 
 REPO = Path(__file__).resolve().parents[2]
 EXE = str(Path(sys.executable).with_name("pulseform"))
@@ -50,8 +51,7 @@ CLAMP_X, CLAMP_Y = 35e-3, 45e-3
 
 
 def _run(out: Path, *extra: str) -> subprocess.CompletedProcess:
-    return subprocess.run([EXE, "run", CASE, "--out", str(out), "--quiet", *COARSE, *extra],
-                          capture_output=True, text=True)
+    return pulseform_cli(["run", CASE, "--out", str(out), "--quiet", *COARSE, *extra])
 
 
 @pytest.fixture(scope="module")
@@ -290,8 +290,7 @@ def test_the_case_reproduces_the_study_reference(tmp_path):
     step). Figures the general path does not write are computed from its history (10 digits)."""
     ref = json.loads((REPO / "studies/emf_racetrack_groove/reference/racetrack_metrics.json").read_text())
     out = tmp_path / "run"
-    r = subprocess.run([EXE, "run", CASE, "--out", str(out), "--quiet", "--set", "output.plots=false"],
-                       capture_output=True, text=True)
+    r = pulseform_cli(["run", CASE, "--out", str(out), "--quiet", "--set", "output.plots=false"])
     assert r.returncode == 0, r.stderr[-3000:]
     m = json.loads((out / "metrics.json").read_text())
     h = _history(out)

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from .resume_check import sigint_then_resume
+from warm_cli import pulseform_cli
 
 pytestmark = pytest.mark.getdp
 
@@ -25,8 +26,7 @@ NO_PICTURES = ["--set", "output.plots=false"]
 
 
 def _run(out: Path, *extra: str) -> subprocess.CompletedProcess:
-    return subprocess.run([EXE, "run", str(REPO / "cases/emf_sheet_bulge"), "--out", str(out), *SHORT, *extra],
-                          capture_output=True, text=True)
+    return pulseform_cli(["run", str(REPO / "cases/emf_sheet_bulge"), "--out", str(out), *SHORT, *extra])
 
 
 @pytest.fixture(scope="module")

@@ -14,9 +14,6 @@ step). Not for the die: its fixed top is one or two elements (8 mm here) above i
 so the support reacts from the first step (its momentum is printed, 10 % off its free impulse).
 """
 import json
-import subprocess
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -27,8 +24,8 @@ from pulseform.orchestrator.mech.participants import DolfinxMechanics
 from pulseform.solvers.getdp.solver3d import solve_transient3d
 
 from .racetrack_coarse import CASE, COARSE_SIZES, StepRecorder, coarse_participants
+from warm_cli import pulseform_cli
 
-EXE = str(Path(sys.executable).with_name("pulseform"))
 
 
 def test_two_bodies_must_not_share_a_region_or_a_name(tmp_path):
@@ -95,9 +92,8 @@ def test_coarse_racetrack_end_to_end(tmp_path):
     from pulseform.orchestrator.run.pictures_section3d import draw_sections3d
 
     out = tmp_path / "run"
-    r = subprocess.run([EXE, "run", str(CASE), "--out", str(out), "--quiet", "--set", "output.plots=false",
-                        "--set", "output.field_interval=15e-6", *(a for s in COARSE_SIZES for a in ("--set", s))],
-                       capture_output=True, text=True)
+    r = pulseform_cli(["run", str(CASE), "--out", str(out), "--quiet", "--set", "output.plots=false",
+                       "--set", "output.field_interval=15e-6", *(a for s in COARSE_SIZES for a in ("--set", s))])
     assert r.returncode == 0, r.stderr[-3000:]
     m = json.loads((out / "metrics.json").read_text())
     print("\n" + ", ".join(f"{k} {v:.4g}" for k, v in m.items() if isinstance(v, float)))

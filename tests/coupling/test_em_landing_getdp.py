@@ -3,17 +3,15 @@
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
+from warm_cli import pulseform_cli
 
 pytestmark = pytest.mark.getdp
 
 REPO = Path(__file__).resolve().parents[2]
-EXE = str(Path(sys.executable).with_name("pulseform"))
 END, INTERVAL = 20e-6, 5e-6
 
 
@@ -25,9 +23,9 @@ def spike(x: np.ndarray) -> float:
 @pytest.fixture(scope="module")
 def demo_history(tmp_path_factory):
     out = tmp_path_factory.mktemp("landing") / "demo"
-    r = subprocess.run([EXE, "run", str(REPO / "cases/emf_sheet_bulge"), "--out", str(out), "--quiet",
-                        "--set", f"time.end={END}", "--set", f"output.field_interval={INTERVAL}",
-                        "--set", "output.history_every=1"], capture_output=True, text=True)
+    r = pulseform_cli(["run", str(REPO / "cases/emf_sheet_bulge"), "--out", str(out), "--quiet",
+                       "--set", f"time.end={END}", "--set", f"output.field_interval={INTERVAL}",
+                       "--set", "output.history_every=1"])
     assert r.returncode == 0, r.stderr[-3000:]
     h = np.genfromtxt(out / "history.csv", delimiter=",", names=True)
     return h, json.loads((out / "metrics.json").read_text())
@@ -71,8 +69,8 @@ def test_demo_metrics_move_less_than_0p2_percent(tmp_path):
     spikes were an error of the old landing; measured: +0.012 % deflection, +0.013 % impulse,
     +0.028 % peak current, +0.040 % plastic work, the most)."""
     out = tmp_path / "demo"
-    r = subprocess.run([EXE, "run", str(REPO / "cases/emf_sheet_bulge"), "--out", str(out), "--quiet",
-                        "--set", "output.plots=false"], capture_output=True, text=True)
+    r = pulseform_cli(["run", str(REPO / "cases/emf_sheet_bulge"), "--out", str(out), "--quiet",
+                       "--set", "output.plots=false"])
     assert r.returncode == 0, r.stderr[-3000:]
     m = json.loads((out / "metrics.json").read_text())
     for key, before in BEFORE_LANDING.items():

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from pulseform.orchestrator.em.snapshots import PEAK_LOOKAHEAD_STEPS, peak_is_near
+from warm_cli import pulseform_cli
 
 
 def _flags(t, current):
@@ -49,16 +50,12 @@ def test_the_demos_peak_snapshot_is_the_peak_step(tmp_path):
     near the predicted peak) is the EM step of the largest |I| in history.csv, with no "came sooner
     than predicted" fallback in run.log."""
     import json
-    import subprocess
-    import sys
     from pathlib import Path
 
     repo = Path(__file__).resolve().parents[2]
-    exe = str(Path(sys.executable).with_name("pulseform"))
     out = tmp_path / "demo"
-    r = subprocess.run([exe, "run", str(repo / "cases/emf_sheet_bulge"), "--out", str(out), "--quiet",
-                        "--set", "time.end=2e-5", "--set", "output.field_interval=1e-5", "--set", "output.plots=false"],
-                       capture_output=True, text=True)
+    r = pulseform_cli(["run", str(repo / "cases/emf_sheet_bulge"), "--out", str(out), "--quiet",
+                       "--set", "time.end=2e-5", "--set", "output.field_interval=1e-5", "--set", "output.plots=false"])
     assert r.returncode == 0, r.stderr[-3000:]
     assert "sooner than predicted" not in (out / "run.log").read_text()
     peak = json.loads((out / "fields/em/em_peak_current.json").read_text())

@@ -8,28 +8,26 @@ that was not an output (getdp -pos EM_Field), while the outputs print their fiel
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import meshio
 import numpy as np
 import pytest
+from warm_cli import pulseform_cli
 
 pytestmark = pytest.mark.getdp
 
 REPO = Path(__file__).resolve().parents[2]
-EXE = str(Path(sys.executable).with_name("pulseform"))
 MU0 = 4e-7 * np.pi
 
 
 @pytest.fixture(scope="module")
 def ringing(tmp_path_factory):
     out = tmp_path_factory.mktemp("em_snapshots") / "run"
-    r = subprocess.run([EXE, "run", str(REPO / "cases/emf_sheet_bulge"), "--out", str(out), "--quiet",
-                        "--set", "time.end=8e-6", "--set", "output.field_interval=3e-6",
-                        "--set", "em.circuit.capacitance=2e-6"], capture_output=True, text=True)
+    r = pulseform_cli(["run", str(REPO / "cases/emf_sheet_bulge"), "--out", str(out), "--quiet",
+                       "--set", "time.end=8e-6", "--set", "output.field_interval=3e-6",
+                       "--set", "em.circuit.capacitance=2e-6"])
     assert r.returncode == 0, r.stderr[-3000:]
     return out
 

@@ -20,6 +20,7 @@ from pulseform.orchestrator.mesh.shared import conductor_submesh
 from pulseform.orchestrator.coupling.transfer import cell_volumes
 from pulseform.solvers.getdp import Coil, Conductor, EMModel
 from pulseform.solvers.getdp.mesh import AXIS
+from warm_cli import pulseform_cli
 
 REPO = Path(__file__).resolve().parents[2]
 EXE = str(Path(sys.executable).with_name("pulseform"))
@@ -139,10 +140,9 @@ def test_two_remeshes_keep_every_body_on_its_own_nodes(tmp_path, sheet_die, plan
 def _run(case: str, out: Path, *extra: str) -> dict:
     """A short run of ``cases/<case>``; its metrics. Without pictures: the tests read metrics and history.csv (a
     picture group that fails is only logged, so drawing them tested nothing here)."""
-    r = subprocess.run([EXE, "run", str(REPO / "cases" / case), "--out", str(out), "--quiet",
-                        "--set", "time.end=2e-6", "--set", "output.field_interval=1e-6", "--set", "output.plots=false",
-                        *extra],
-                       capture_output=True, text=True)
+    r = pulseform_cli(["run", str(REPO / "cases" / case), "--out", str(out), "--quiet",
+                       "--set", "time.end=2e-6", "--set", "output.field_interval=1e-6", "--set", "output.plots=false",
+                       *extra])
     assert r.returncode == 0, r.stderr[-3000:]
     return json.loads((out / "metrics.json").read_text())
 

@@ -11,8 +11,6 @@ from __future__ import annotations
 
 import json
 import shlex
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
@@ -21,9 +19,9 @@ from pulseform.orchestrator.case.io import load_case
 from pulseform.orchestrator.case.model import STEPS_PER_PERIOD
 from pulseform.orchestrator.em.time_scale import steps_per_period
 from pulseform.orchestrator.run.summary import coarse_step_note
+from warm_cli import pulseform_cli
 
 REPO = Path(__file__).resolve().parents[2]
-EXE = str(Path(sys.executable).with_name("pulseform"))
 CASE = REPO / "cases/jumping_ring"
 
 
@@ -63,8 +61,8 @@ def test_a_coarser_step_suggests_converge(tmp_path):
 @pytest.mark.getdp
 def test_run_prints_the_suggestion(tmp_path):
     """`pulseform run` (not quiet) prints the note after the summary: 1 EM step of the ring at 40 per period."""
-    r = subprocess.run([EXE, "run", str(CASE), "--out", str(tmp_path / "o"), "--set", "time.end=5e-4",
-                        "--set", "output.field_interval=5e-4", "--set", "output.plots=false"], capture_output=True, text=True, timeout=600)
+    r = pulseform_cli(["run", str(CASE), "--out", str(tmp_path / "o"), "--set", "time.end=5e-4",
+                       "--set", "output.field_interval=5e-4", "--set", "output.plots=false"], timeout=600)
     assert r.returncode == 0, r.stderr[-2000:]
     lines = r.stdout.splitlines()
     note = [ln for ln in lines if ln.startswith("note: ")]
@@ -81,10 +79,9 @@ def test_first_peak_against_the_steps_per_period(tmp_path):
     peaks = {}
     for steps in (40, 80, 320):
         out = tmp_path / f"spp{steps}"
-        r = subprocess.run([EXE, "run", str(CASE), "--out", str(out), "--quiet", "--set", "time.end=0.08",
-                            "--set", "output.field_interval=0.04", "--set", "output.plots=false",
-                            "--set", f"coupling.steps_per_period={steps}"], capture_output=True, text=True,
-                           timeout=1800)
+        r = pulseform_cli(["run", str(CASE), "--out", str(out), "--quiet", "--set", "time.end=0.08",
+                           "--set", "output.field_interval=0.04", "--set", "output.plots=false",
+                           "--set", f"coupling.steps_per_period={steps}"], timeout=1800)
         assert r.returncode == 0, r.stderr[-2000:]
         m = json.loads((out / "metrics.json").read_text())
         assert m["em_steps"] == pytest.approx(0.08 * 50 * steps, abs=1)

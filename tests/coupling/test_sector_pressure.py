@@ -15,15 +15,14 @@ from __future__ import annotations
 import json
 import math
 import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from .sector_case import CASE, COARSE
+from warm_cli import pulseform_cli
 
-EXE = str(Path(sys.executable).with_name("pulseform"))
 #: the 2D demo's loaded surface (compare.loaded_surface: the sheet's lower face over the coil, r in
 #: [10, 34] mm at z = 1.5 mm) as a 3D box (rmin/rmax about the z-axis, z bounds) with an eq. (7) pulse of the
 #: demo's discharge
@@ -76,8 +75,8 @@ def test_pressure_on_the_lower_face_sums_to_p_times_its_area(tmp_path):
 def free_sheet(tmp_path_factory) -> Path:
     """The coarse sector without its clamp (a free sheet), 3 µs of the eq. (7) pulse."""
     out = tmp_path_factory.mktemp("free3d") / "run"
-    r = subprocess.run([EXE, "run", str(CASE), "--out", str(out), "--quiet", *_sets("bodies.sheet.fixed=[]"),
-                        "--set", "output.plots=false"], capture_output=True, text=True)
+    r = pulseform_cli(["run", str(CASE), "--out", str(out), "--quiet", *_sets("bodies.sheet.fixed=[]"),
+                       "--set", "output.plots=false"])
     assert r.returncode == 0, r.stderr[-3000:]
     return out
 

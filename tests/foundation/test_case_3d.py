@@ -25,6 +25,7 @@ from mpi4py import MPI
 from pulseform.orchestrator.case.io import load_case
 from pulseform.orchestrator.cli import main
 from pulseform.solvers.dolfinx.verification import PAPER_BAR_MATERIAL as MAT
+from warm_cli import pulseform_cli
 
 REPO = Path(__file__).resolve().parents[2]
 EXE = str(Path(sys.executable).with_name("pulseform"))
@@ -37,7 +38,7 @@ DURATION_MS = 2 * 4.0 / MAT.bar_wave_speed * 1e3                       # 1.6 ms
 def run3d(tmp_path_factory):
     out = tmp_path_factory.mktemp("bar3d") / "run"
     t0 = time.perf_counter()
-    r = subprocess.run([EXE, "run", CASE, "--out", str(out), "--quiet"], capture_output=True, text=True)
+    r = pulseform_cli(["run", CASE, "--out", str(out), "--quiet"])
     assert r.returncode == 0, r.stderr[-2000:]
     m = json.loads((out / "metrics.json").read_text())
     print(f"\n3D bar impact case (mesh_size 0.125 m): plateau {m['contact_stress_plateau_MPa']:.2f} MPa "
@@ -64,8 +65,8 @@ def test_two_bodies_match_the_paper_and_the_wall(run3d, tmp_path):
     70 MPa +-3 %, 1.6 ms +-4 %, and the wall run's plateau within 2 % (the 2D cases' check,
     tests/foundation/test_cases_bar.py)."""
     out = tmp_path / "two"
-    r = subprocess.run([EXE, "run", str(REPO / "cases/bar_impact_3d/two_bodies.toml"), "--out", str(out),
-                        "--quiet", "--set", "output.plots=false"], capture_output=True, text=True)
+    r = pulseform_cli(["run", str(REPO / "cases/bar_impact_3d/two_bodies.toml"), "--out", str(out),
+                       "--quiet", "--set", "output.plots=false"])
     assert r.returncode == 0, r.stderr[-2000:]
     m = json.loads((out / "metrics.json").read_text())
     print(f"\n3D two bars: plateau {m['contact_stress_plateau_MPa']:.2f} MPa, duration "

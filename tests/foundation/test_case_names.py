@@ -6,8 +6,6 @@ The refused names are in test_bad_input.py (``name_*``); here the accepted ones,
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 import tomllib
 import unicodedata
 from pathlib import Path
@@ -17,9 +15,9 @@ import pytest
 
 from pulseform.orchestrator.case.names import FOLDER_NAME_CHARACTERS, MAX_NAME_BYTES
 from pulseform.orchestrator.cli import main
+from warm_cli import pulseform_cli
 
 REPO = Path(__file__).resolve().parents[2]
-EXE = str(Path(sys.executable).with_name("pulseform"))
 #: accepted case names: German with a space, Japanese, Greek, Devanagari (its vowel signs are combining marks),
 #: Arabic-Indic digits, a dotted version, the ASCII names the old rule refused
 ACCEPTED = ["Blechumformung Prüfstand", "名前", "Ελασματουργία", "नामा", "تجربة ٣", "Prüfstand v1.2_b-3",
@@ -66,9 +64,9 @@ def test_coupled_run_in_a_folder_named_in_japanese_and_german(tmp_path):
     """The default results folder of a coupled run (gmsh and getdp work inside it) named
     ``名前 Prüfstand``, typed decomposed: 2 EM steps of the jumping ring (the pictures: the deformable run below)."""
     name = "名前 " + NFD[0]
-    r = subprocess.run([EXE, "run", str(REPO / "cases/jumping_ring"), "--quiet", "--set", f"case.name={json.dumps(name)}",
-                        "--set", "time.end=1e-3", "--set", "output.field_interval=5e-4", "--set", "output.plots=false"],
-                       cwd=tmp_path, capture_output=True, text=True, timeout=600)
+    r = pulseform_cli(["run", str(REPO / "cases/jumping_ring"), "--quiet", "--set", f"case.name={json.dumps(name)}",
+                       "--set", "time.end=1e-3", "--set", "output.field_interval=5e-4", "--set", "output.plots=false"],
+                      cwd=tmp_path, timeout=600)
     assert r.returncode == 0, r.stderr[-2000:]
     assert [p.name for p in (tmp_path / "results").iterdir()] == ["名前 Prüfstand"]
     out = tmp_path / "results" / "名前 Prüfstand"
@@ -81,10 +79,10 @@ def test_deformable_run_writes_its_fields_under_the_name(tmp_path):
     """The field files fields/<case>_<body>.xdmf of a name with a space and an umlaut, read back by meshio
     (the .xdmf names its .h5 by that name)."""
     name = "Blechumformung Prüfstand"
-    r = subprocess.run([EXE, "run", str(REPO / "cases/bar_impact"), "--quiet", "--set", f"case.name={json.dumps(name)}",
-                        "--set", "bodies.left.mesh_size=0.25", "--set", "bodies.right.mesh_size=0.25",
-                        "--set", "time.end=1e-4", "--set", "output.field_interval=5e-5", "--set", "output.plots=false"],
-                       cwd=tmp_path, capture_output=True, text=True, timeout=600)
+    r = pulseform_cli(["run", str(REPO / "cases/bar_impact"), "--quiet", "--set", f"case.name={json.dumps(name)}",
+                       "--set", "bodies.left.mesh_size=0.25", "--set", "bodies.right.mesh_size=0.25",
+                       "--set", "time.end=1e-4", "--set", "output.field_interval=5e-5", "--set", "output.plots=false"],
+                      cwd=tmp_path, timeout=600)
     assert r.returncode == 0, r.stderr[-2000:]
     fields = tmp_path / "results" / name / "fields"
     assert {f"{name}_left.xdmf", f"{name}_left.h5", f"{name}_right.xdmf"} <= {p.name for p in fields.iterdir()}

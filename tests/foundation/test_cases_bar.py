@@ -3,20 +3,18 @@ plateau ρ c v / 2 = 70 MPa within 3 % (c = sqrt(E/ρ) = 5000 m/s, v = 10 m/s), 
 within 4 %, and the rigid-wall variant within 2 % of the two-body plateau."""
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
+from warm_cli import pulseform_cli
 
 REPO = Path(__file__).resolve().parents[2]
-EXE = str(Path(sys.executable).with_name("pulseform"))
 
 
 def _metrics(case: str, out: Path) -> dict:
     # the case file as shipped; no pictures (nothing here looks at them; test_field_files does)
-    r = subprocess.run([EXE, "run", str(REPO / "cases" / case), "--out", str(out), "--quiet",
-                        "--set", "output.plots=false"], capture_output=True, text=True)
+    r = pulseform_cli(["run", str(REPO / "cases" / case), "--out", str(out), "--quiet",
+                       "--set", "output.plots=false"])
     assert r.returncode == 0, r.stderr[-2000:]
     return json.loads((out / "metrics.json").read_text())
 

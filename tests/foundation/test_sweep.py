@@ -1,23 +1,20 @@
 """`pulseform sweep`: full grid, parallel members, a bad member fails alone."""
 
 import csv
-import subprocess
-import sys
 from pathlib import Path
+from warm_cli import pulseform_cli
 
 REPO = Path(__file__).resolve().parents[2]
-EXE = str(Path(sys.executable).with_name("pulseform"))
 
 
 def test_sweep_grid_with_failing_members(tmp_path):
     out = tmp_path / "sw"
-    r = subprocess.run([EXE, "sweep", str(REPO / "cases/bar_impact"), "--out", str(out), "--jobs", "2",
-                        "--param", "time.cfl=0.5,2.0",
-                        "--param", "bodies.left.initial_velocity=[10.0, 0.0],[3000.0, 0.0]",
-                        "--set", "bodies.left.mesh_size=0.25", "--set", "bodies.right.mesh_size=0.25",
-                        "--set", "time.end=2e-4", "--set", "output.field_interval=1e-4",
-                        "--set", "output.plots=false"],  # the members' own pictures: nothing here looks at them
-                       capture_output=True, text=True)
+    r = pulseform_cli(["sweep", str(REPO / "cases/bar_impact"), "--out", str(out), "--jobs", "2",
+                       "--param", "time.cfl=0.5,2.0",
+                       "--param", "bodies.left.initial_velocity=[10.0, 0.0],[3000.0, 0.0]",
+                       "--set", "bodies.left.mesh_size=0.25", "--set", "bodies.right.mesh_size=0.25",
+                       "--set", "time.end=2e-4", "--set", "output.field_interval=1e-4",
+                       "--set", "output.plots=false"])  # the members' own pictures: nothing here looks at them
     assert r.returncode == 1, r.stderr
     rows = list(csv.DictReader(open(out / "sweep.csv")))
     assert len(rows) == 4
@@ -33,8 +30,8 @@ def test_sweep_grid_with_failing_members(tmp_path):
 
 
 def test_sweep_bad_param_syntax_is_bad_input(tmp_path):
-    r = subprocess.run([EXE, "sweep", str(REPO / "cases/bar_impact"), "--out", str(tmp_path / "x"),
-                        "--param", "time.cfl"], capture_output=True, text=True)
+    r = pulseform_cli(["sweep", str(REPO / "cases/bar_impact"), "--out", str(tmp_path / "x"),
+                       "--param", "time.cfl"])
     assert r.returncode == 2 and "time.cfl" in r.stderr and "Traceback" not in r.stderr
 
 
@@ -46,10 +43,9 @@ def test_sweep_of_a_3d_case_plots_its_physics(tmp_path):
     from pulseform.orchestrator.workflows.sweep import Member, main_metrics
 
     out = tmp_path / "sw3d"
-    r = subprocess.run([EXE, "sweep", str(REPO / "cases/bar_impact_3d"), "--out", str(out), "--jobs", "1",
-                        "--param", "materials.paper_al.density=1792.0,2800.0",
-                        "--set", "bodies.bar.mesh_size=0.25", "--set", "output.field_interval=1.4e-3"],
-                       capture_output=True, text=True)
+    r = pulseform_cli(["sweep", str(REPO / "cases/bar_impact_3d"), "--out", str(out), "--jobs", "1",
+                       "--param", "materials.paper_al.density=1792.0,2800.0",
+                       "--set", "bodies.bar.mesh_size=0.25", "--set", "output.field_interval=1.4e-3"])
     assert r.returncode == 0, r.stderr
     rows = {row["materials.paper_al.density"]: row for row in csv.DictReader(open(out / "sweep.csv"))}
     light, paper = rows["1792.0"], rows["2800.0"]

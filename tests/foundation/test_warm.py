@@ -144,3 +144,28 @@ def test_without_a_warm_process_members_run_on_their_own(tmp_path, monkeypatch):
     finally:
         broken.close()
     assert "No module named" in (tmp_path / "broken.log").read_text()
+
+
+def test_a_member_runs_in_its_folder_and_is_killed_past_its_time_limit(tmp_path):
+    """``WarmPool.run(argv, cwd=, timeout=)`` (what tests/warm_cli.py gives the tests' runs): a relative ``--out`` is
+    taken in ``cwd``; a member still running at its time limit is killed (SIGKILL) and TimeoutExpired raised, as
+    ``subprocess.run(timeout=)`` does, and the pool serves the next member."""
+    from pulseform.orchestrator.run.warm import WarmPool
+
+    coarse = ["--quiet", "--set", "bodies.left.mesh_size=0.25", "--set", "bodies.right.mesh_size=0.25",
+              "--set", "output.plots=false"]
+    pool = WarmPool()
+    try:
+        assert pool.ready.wait(180)
+        t0 = time.perf_counter()
+        with pytest.raises(subprocess.TimeoutExpired):  # the whole bar impact: seconds, not 0.2 s
+            pool.run(["run", str(REPO / "cases/bar_impact"), "--out", "killed", *coarse], cwd=tmp_path, timeout=0.2)
+        assert time.perf_counter() - t0 < 5
+        time.sleep(1.0)
+        assert not (tmp_path / "killed" / "metrics.json").exists()  # it did not finish after the limit either
+        r = pool.run(["run", str(REPO / "cases/bar_impact"), "--out", "rel", *coarse, "--set", "time.end=1e-4",
+                      "--set", "output.field_interval=5e-5"], cwd=tmp_path, timeout=300)
+        assert r.returncode == 0, r.stderr[-2000:]
+        assert (tmp_path / "rel" / "metrics.json").is_file()
+    finally:
+        pool.close()

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import json
 import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -15,16 +14,15 @@ from pulseform.orchestrator.case.io import load_case
 from pulseform.orchestrator.run.history import History
 from pulseform.orchestrator.run.summary import headline
 from pulseform.orchestrator.run.units import label, time_axis, unit_of
+from warm_cli import pulseform_cli
 
 REPO = Path(__file__).resolve().parents[2]
-EXE = str(Path(sys.executable).with_name("pulseform"))
 DEMO_SHORT = ["--set", "time.end=2e-6", "--set", "output.field_interval=1e-6"]
 BAR_COARSE = ["--set", "bodies.left.mesh_size=0.25", "--set", "bodies.right.mesh_size=0.25"]
 
 
 def _run(case: str, out: Path, *extra: str) -> subprocess.CompletedProcess:
-    r = subprocess.run([EXE, "run", str(REPO / "cases" / case), "--out", str(out), *extra],
-                       capture_output=True, text=True)
+    r = pulseform_cli(["run", str(REPO / "cases" / case), "--out", str(out), *extra])
     assert r.returncode == 0, r.stderr[-3000:]
     return r
 
@@ -114,7 +112,7 @@ def test_pressure_t0_row_holds_the_pulse_at_t0(press_fit):
 
 # ------------------------------------------------------------------ pulseform plot
 def _plot(folder: Path) -> subprocess.CompletedProcess:
-    return subprocess.run([EXE, "plot", str(folder)], capture_output=True, text=True)
+    return pulseform_cli(["plot", str(folder)])
 
 
 def test_plot_redraws_the_pictures_of_a_run(bar, tmp_path):

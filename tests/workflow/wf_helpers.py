@@ -2,18 +2,19 @@
 
 from __future__ import annotations
 
-import os
 import subprocess
 import sys
 from pathlib import Path
 
+from warm_cli import pulseform_cli
+
 REPO = Path(__file__).resolve().parents[2]
-EXE = str(Path(sys.executable).with_name("pulseform"))
+EXE = str(Path(sys.executable).with_name("pulseform"))  # the console script (runs that need a process of their own)
 
 
 def pulseform(*args: str, timeout: float = 600, env: dict | None = None, cwd=None) -> subprocess.CompletedProcess:
-    return subprocess.run([EXE, *args], capture_output=True, text=True, timeout=timeout, cwd=cwd,
-                          env=None if env is None else dict(os.environ, **env))
+    """``pulseform ARGS`` as users run it (a warm child unless ``env``: tests/warm_cli.py)."""
+    return pulseform_cli(args, cwd=cwd, timeout=timeout, env=env)
 
 
 def one_line_error(r: subprocess.CompletedProcess) -> str:
