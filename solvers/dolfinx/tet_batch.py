@@ -16,11 +16,11 @@ import numba
 import numpy as np
 
 from .element_math import (BATCH, FM, P_B1, P_B2, P_BULK, P_G, P_H, P_K, P_RATE, P_RHO, P_SY0,
-                           ROW, add_chunk_part)
+                           ROW, add_chunk_part, general_material)
 from .tet_kernel import (_NO_SHARED, add_tet_forces, clear_tet_forces, store_tet_forces,
                          tet_chunk_scalar, tet_chunk_size)
 
-__all__ = ["tet_step_batched", "tet_chunk_batched", "tet_chunk", "TET_WORK_SIZE"]
+__all__ = ["tet_step_batched", "tet_chunk_batched", "tet_chunk", "batched_material", "TET_WORK_SIZE"]
 
 #: scratch rows in: positions of the 4 nodes (0-11: x0 y0 z0 x1 ...), velocities (12-23),
 #: stress (24-29), plastic strain (30)
@@ -220,9 +220,10 @@ def _batch(inp, out, n, dt, prm):
 
 
 @numba.njit(cache=True, error_model="numpy", fastmath=FM)
-def tet_step_batched(cells, x, v, dt, prm, stress, eps_p, f_int, acc, work=None):
+def tet_step_batched(cells, x, v, dt, prm, stress, eps_p, f_int, acc, work=None, temp=None):
     """:func:`.tet_kernel.tet_step` in vectorised batches (same arguments, same results to the
-    bit; rate-independent materials only), in the same chunks (:func:`tet_chunk_batched`).
+    bit; rate-independent materials with the linear law and no temperature only, ``temp`` is not
+    used), in the same chunks (:func:`tet_chunk_batched`).
     ``work``: float64 scratch of :data:`TET_WORK_SIZE` (allocated per call if not given)."""
     if work is None or work.shape[0] < TET_WORK_SIZE:
         work = np.empty(TET_WORK_SIZE)
@@ -318,11 +319,19 @@ def _store_batch(cells, out, s, n, f_int, fe, shared):
 
 
 @numba.njit(cache=True, error_model="numpy", fastmath=FM)
-def tet_chunk(cells, x, v, dt, prm, stress, eps_p, f_int, fe, shared, e0, e1, work, part):
+def tet_chunk(cells, x, v, dt, prm, stress, eps_p, f_int, fe, shared, e0, e1, work, part, temp):
     """Cells ``e0:e1`` by the solver's kernel for the material: :func:`tet_chunk_batched`
-    (rate-independent), else :func:`.tet_kernel.tet_chunk_scalar` (a rate law); same arguments."""
-    if prm[P_RATE] == 0:
+    (rate-independent, the linear law, no temperature), else :func:`.tet_kernel.tet_chunk_scalar`
+    (a rate law, a flow curve, a temperature per cell in ``temp``); same arguments."""
+    if batched_material(prm):
         tet_chunk_batched(cells, x, v, dt, prm, stress, eps_p, f_int, fe, shared, e0, e1, work,
                           part)
     else:
-        tet_chunk_scalar(cells, x, v, dt, prm, stress, eps_p, f_int, fe, shared, e0, e1, part)
+        tet_chunk_scalar(cells, x, v, dt, prm, stress, eps_p, f_int, fe, shared, e0, e1, part, temp)
+
+
+@numba.njit(cache=True)
+def batched_material(prm):
+    """Whether the vectorised 3D kernel serves the material: no rate law, the linear law, no
+    temperature per cell (:func:`.element_math.general_material`)."""
+    return prm[P_RATE] == 0 and not general_material(prm)

@@ -27,7 +27,9 @@ import numba
 import numpy as np
 
 from .element_math import (FM, P_B1, P_B2, P_BULK, P_G, P_H, P_K, P_R1, P_R2, P_RATE, P_RHO,
-                           P_SY0, add_chunk_part, rate_factor_at)
+                           P_SY0, add_chunk_part, general_material, heated, rate_factor_at)
+from .flow_curves import plastic_return
+from .kernel_layout import P_T0
 
 __all__ = ["tet_step", "tet_chunk_scalar", "tet_chunk_size", "TET_CHUNK", "add_tet_forces",
            "store_tet_forces", "clear_tet_forces",
@@ -136,7 +138,7 @@ def clear_tet_forces(fe, shared, e, i0, i1, i2, i3):
 
 
 @numba.njit(cache=True, error_model="numpy", fastmath=FM)
-def tet_step(cells, x, v, dt, prm, stress, eps_p, f_int, acc, work=None):
+def tet_step(cells, x, v, dt, prm, stress, eps_p, f_int, acc, work=None, temp=None):
     """Explicit update of all tetrahedra ``cells`` (same signature as
     :func:`.kernels.element_step`; ``work`` is not used), in chunks of
     :func:`tet_chunk_size` cells (:func:`tet_chunk_scalar`): the dissipation is summed per
@@ -164,6 +166,9 @@ def tet_step(cells, x, v, dt, prm, stress, eps_p, f_int, acc, work=None):
     acc : float64 array (3,)
         ``acc[0] += plastic dissipation (J)``, ``acc[1] += bulk-viscous dissipation (J)``;
         ``acc[2]`` is set to the first inverted cell index, or -1.
+    temp : float64 array (nc,), optional
+        Temperature per cell, K, heated in place by the plastic work of a material with a
+        specific heat (:func:`.kernels.element_step`).
 
     Returns
     -------
@@ -172,6 +177,8 @@ def tet_step(cells, x, v, dt, prm, stress, eps_p, f_int, acc, work=None):
     """
     part = np.empty(4)
     no_fe = np.empty((0, 12))
+    if temp is None:
+        temp = np.empty(0)
     nc = cells.shape[0]
     dtmin = 1e300
     wp = 0.0
@@ -180,7 +187,7 @@ def tet_step(cells, x, v, dt, prm, stress, eps_p, f_int, acc, work=None):
     cs = tet_chunk_size(nc)
     for e0 in range(0, nc, cs):
         tet_chunk_scalar(cells, x, v, dt, prm, stress, eps_p, f_int, no_fe, _NO_SHARED, e0,
-                         min(nc, e0 + cs), part)
+                         min(nc, e0 + cs), part, temp)
         dtmin, wp, wv, acc[2] = add_chunk_part(part, dtmin, wp, wv, acc[2])
     acc[0] += wp
     acc[1] += wv
@@ -188,8 +195,9 @@ def tet_step(cells, x, v, dt, prm, stress, eps_p, f_int, acc, work=None):
 
 
 @numba.njit(cache=True, error_model="numpy", fastmath=FM)
-def tet_chunk_scalar(cells, x, v, dt, prm, stress, eps_p, f_int, fe, shared, e0, e1, part):
-    """Cells ``e0:e1`` of :func:`tet_step` (the scalar kernel, any rate law): the arguments of
+def tet_chunk_scalar(cells, x, v, dt, prm, stress, eps_p, f_int, fe, shared, e0, e1, part, temp):
+    """Cells ``e0:e1`` of :func:`tet_step` (the scalar kernel, any rate law and flow curve; ``temp``
+    the temperature per cell, K, or empty: the material's initial temperature): the arguments of
     :func:`tet_step`; the nodal forces are added to ``f_int`` (:func:`add_tet_forces`), or, if
     ``fe`` has rows (the threaded kernel), by :func:`store_tet_forces` with ``shared``; ``part`` (4,)
     receives (smallest critical step s, plastic and bulk-viscous dissipation J summed in cell
@@ -207,6 +215,8 @@ def tet_chunk_scalar(cells, x, v, dt, prm, stress, eps_p, f_int, fe, shared, e0,
     b1 = prm[P_B1]
     b2 = prm[P_B2]
     bulk = prm[P_BULK] > 0.0
+    general = general_material(prm)
+    has_t = temp.shape[0] > 0
     c = math.sqrt((K + 4.0 * G / 3.0) / rho)
     hdt = 0.5 * dt
     dtmin = 1e300
@@ -320,12 +330,22 @@ def tet_chunk_scalar(cells, x, v, dt, prm, stress, eps_p, f_int, fe, shared, e0,
         # elastic predictor + radial return
         trd = dxx + dyy + dzz
         mr = trd / 3.0
-        fac = rate_factor_at(rid, r1, r2, math.sqrt(2.0 / 3.0 * (
-            (dxx - mr) ** 2 + (dyy - mr) ** 2 + (dzz - mr) ** 2
-            + 2.0 * (dxy * dxy + dyz * dyz + dxz * dxz)))) if rid != 0 else 1.0
         ep = eps_p[e]
-        sy = (sy0 + H * ep) * fac
-        hr = H * fac
+        rate = 0.0
+        tc = 0.0
+        sy = 0.0
+        if general:
+            rate = math.sqrt(2.0 / 3.0 * ((dxx - mr) ** 2 + (dyy - mr) ** 2 + (dzz - mr) ** 2
+                                          + 2.0 * (dxy * dxy + dyz * dyz + dxz * dxz)))
+            fac = rate_factor_at(rid, r1, r2, rate)
+            tc = temp[e] if has_t else prm[P_T0]
+            hr = 0.0
+        else:
+            fac = rate_factor_at(rid, r1, r2, math.sqrt(2.0 / 3.0 * (
+                (dxx - mr) ** 2 + (dyy - mr) ** 2 + (dzz - mr) ** 2
+                + 2.0 * (dxy * dxy + dyz * dyz + dxz * dxz)))) if rid != 0 else 1.0
+            sy = (sy0 + H * ep) * fac
+            hr = H * fac
         ltr = lam * trd * dt
         g2 = 2.0 * G * dt
         txx = rxx + ltr + g2 * dxx
@@ -341,8 +361,16 @@ def tet_chunk_scalar(cells, x, v, dt, prm, stress, eps_p, f_int, fe, shared, e0,
         qm = math.sqrt(1.5 * (exx * exx + eyy * eyy + ezz * ezz
                               + 2.0 * (txy * txy + tyz * tyz + txz * txz)))
         dep = 0.0
-        if qm > sy:
-            dep = (qm - sy) / (3.0 * G + hr)
+        if general:
+            dep, sy = plastic_return(qm, G, ep, rate, tc, fac, prm)
+            plastic = dep > 0.0
+            if has_t:
+                temp[e] = heated(tc, sy, dep, prm)
+        else:
+            plastic = qm > sy
+            if plastic:
+                dep = (qm - sy) / (3.0 * G + hr)
+        if plastic:
             f = 1.0 - 3.0 * G * dep / qm
             txx = exx * f + p
             tyy = eyy * f + p
