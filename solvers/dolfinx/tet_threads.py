@@ -104,8 +104,7 @@ def tet_thread_arrays(cells: np.ndarray, n_nodes: int) -> TetThreadArrays:
                            parts=np.zeros((n_chunks, 4)))
 
 
-@numba.njit(cache=True, parallel=True, error_model="numpy", fastmath=FM)
-def tet_step_threaded(cells, x, v, dt, prm, stress, eps_p, f_int, acc, T, temp=None):
+def tet_step_threaded(cells, x, v, dt, prm, stress, eps_p, f_int, acc, T, temp=None) -> float:
     """The solver's 3D element kernel (:func:`.tet_batch.tet_step_batched` for a rate-independent
     material, :func:`.tet_kernel.tet_step` for a rate law) on the threads numba has
     (``numba.set_num_threads``): same arguments but ``T`` (:class:`TetThreadArrays` of these
@@ -139,8 +138,14 @@ def tet_step_threaded(cells, x, v, dt, prm, stress, eps_p, f_int, acc, T, temp=N
     float
         Smallest element critical time step (CFL 1), s.
     """
-    if temp is None:
-        temp = np.empty(0)
+    return _threaded(cells, x, v, dt, prm, stress, eps_p, f_int, acc, T,
+                     np.empty(0) if temp is None else temp)
+
+
+@numba.njit(cache=True, parallel=True, error_model="numpy", fastmath=FM)
+def _threaded(cells, x, v, dt, prm, stress, eps_p, f_int, acc, T, temp):
+    """:func:`tet_step_threaded` compiled (``temp`` an array: numba's parallel loops take no optional
+    argument)."""
     nc = cells.shape[0]
     cs = tet_chunk_size(nc)
     nq = T.parts.shape[0]
