@@ -19,6 +19,8 @@ File layout (``<prefix>_<body>.h5``; h5py reads it by name, no XDMF needed)::
                           (3D: all six, the solver's own order)
         von_mises_Pa      (C,) per cell
         plastic_strain    (C,) per cell: equivalent plastic strain (-)
+        temperature_K     (C,) per cell, only for a body whose material carries a temperature
+                          (``Material.specific_heat``)
 
 The ``.xdmf`` beside it is a temporal collection of uniform grids, all on the same mesh datasets,
 each with all its point and cell attributes: ParaView (Xdmf3ReaderS) reads one unstructured grid
@@ -179,8 +181,8 @@ def _ensure_space(path: Path, nbytes: int) -> None:
 
 class FieldWriter:
     """Write displacement and velocity (nodes) and stress tensor, von Mises stress and equivalent
-    plastic strain (cells) of every body: one mesh, all fields, per output time (see the module
-    docstring for the file layout).
+    plastic strain (cells; the temperature of a body that carries one) of every body: one mesh, all
+    fields, per output time (see the module docstring for the file layout).
 
     The mesh is stored in the reference configuration; warp it by ``displacement_m`` to see the
     deformed shape.
@@ -218,7 +220,8 @@ class FieldWriter:
         t = output_time(t)
         for n, b in self.solver.bodies.items():
             own = slice(0, b.n_owned)
-            local = (self._gids[n], b.u[own], b.v[own], b.cell_stress, b.von_mises, b.eps_p)
+            local = (self._gids[n], b.u[own], b.v[own], b.cell_stress, b.von_mises, b.eps_p,
+                     b.temperature if b.material.thermal else None)
             parts = self.comm.gather(local, root=0)
             if self.comm.rank != 0:
                 continue
@@ -231,9 +234,10 @@ class FieldWriter:
             s = np.vstack([p[3].reshape(-1, b.cell_stress.shape[1]) for p in parts])
             vm = np.concatenate([p[4] for p in parts])
             ep = np.concatenate([p[5] for p in parts])
-            f.write(t, {"displacement_m": _vec3(u), "velocity_m_s": _vec3(v)},
-                    {"stress_Pa": _tensor6(s), "von_mises_Pa": vm.astype(float),
-                     "plastic_strain": ep.astype(float)})
+            cell = {"stress_Pa": _tensor6(s), "von_mises_Pa": vm.astype(float), "plastic_strain": ep.astype(float)}
+            if b.material.thermal:
+                cell["temperature_K"] = np.concatenate([p[6] for p in parts]).astype(float)
+            f.write(t, {"displacement_m": _vec3(u), "velocity_m_s": _vec3(v)}, cell)
 
     def close(self) -> None:
         """Close the files."""
