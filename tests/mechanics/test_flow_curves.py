@@ -275,3 +275,44 @@ def test_screened_batches_equal_the_scalar_update(mode):
         cell_update(*x[cells[e]].ravel(), *v[cells[e]].ravel(), *stress0[e], 0.01, dt, prm, out, temp0[e])
         assert np.array_equal(st[e], out[:4]) and ep[e] == out[4] and tp[e] == out[16]
         assert (tp[e] > temp0[e]) == (ep[e] > 0.01)
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_temperature_restarts_bitwise(dim):
+    """A Johnson-Cook impact with a temperature per cell, stopped and restarted from ``state_dict``
+    (the run's checkpoint), continues bit for bit: positions, stresses, plastic strains, temperatures."""
+    mat = _material(JC, thermal=True)
+    a = _impact(mat, dim=dim, steps=60)
+    state = a.state_dict()
+    assert f"b/temperature" in state
+    dt = a._dt_prev
+    a.advance(dt, 40)
+    b = _impact(mat, dim=dim, steps=1)
+    b.load_state_dict(state)
+    b.advance(dt, 40)
+    ba, bb = a.bodies["b"], b.bodies["b"]
+    assert ba.temperature.max() > 300.0
+    for key in ("x", "cell_stress", "eps_p", "temperature"):
+        assert np.array_equal(getattr(ba, key), getattr(bb, key)), key
+
+
+def test_no_temperature_without_specific_heat():
+    """Without a specific heat the cells keep the initial temperature (plastic work not turned into heat),
+    the checkpoint has no temperature (the state of the runs before issue 33), and Joule heat is ignored."""
+    s = _impact(_material(JC), steps=60)
+    b = s.bodies["b"]
+    assert b.eps_p.max() > 0 and np.all(b.temperature == 293.15)
+    assert "b/temperature" not in s.state_dict()
+    s.add_heat("b", np.full(len(b.cells), 1e9))
+    assert np.all(b.temperature == 293.15)
+
+
+def test_joule_heat_adds_adiabatically():
+    """``add_heat``: T += e / (rho c_p) per cell, in the compiled path's arrays (the next steps see it)."""
+    s = _impact(_material(LAWS["voce"], thermal=True), steps=1)
+    b = s.bodies["b"]
+    T0 = b.temperature.copy()
+    e = np.linspace(0.0, 1e8, len(b.cells))
+    s.add_heat("b", e)
+    assert np.allclose(b.temperature - T0, e / (RHO * CP), rtol=1e-14, atol=1e-12)   # K: T0 + x - T0 rounds
+    assert s.compiled is not None and np.shares_memory(b.temperature, s.compiled.B.temp)
