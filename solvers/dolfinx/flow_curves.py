@@ -34,7 +34,7 @@ from typing import Tuple, Union
 import numba
 import numpy as np
 
-from .kernel_layout import FM, P_FLOW, P_FP, P_H, P_SY0
+from .kernel_layout import FM, P_FLOW, P_FP, P_H, P_SY0, P_SYF, P_T0
 
 __all__ = ["TabulatedFlow", "Swift", "Voce", "Ludwik", "JohnsonCookFlow", "FlowCurve", "encode",
            "flow_stress", "flow_floor", "plastic_return", "LAW_LINEAR", "LAW_TABLE", "LAW_SWIFT",
@@ -243,7 +243,7 @@ def _power_slope(k, x, n):
     return 0.0, k if n == 1.0 else 0.0
 
 
-@numba.njit(cache=True, error_model="numpy", fastmath=FM)
+@numba.njit(cache=True, inline="always", error_model="numpy", fastmath=FM)
 def _curve(prm, ne, ext, eo, so, ep):
     """Yield stress and slope of one tabulated curve: strains ``prm[eo:eo+ne]``, stresses
     ``prm[so:so+ne]`` at the plastic strain ``ep`` (>= 0)."""
@@ -293,7 +293,7 @@ def _table(prm, ep, rate, T, floor):
     to = ro + nr
     so = to + nt
     it, wt = _bracket(prm, to, nt, T)
-    if floor:
+    if floor and nr > 1:
         s_min = math.inf
         h_min = 0.0
         for ir in range(nr):
@@ -306,8 +306,9 @@ def _table(prm, ep, rate, T, floor):
                 s_min = s
                 h_min = h
         return s_min, h_min
-    lr = math.log(rate) if rate > 0.0 else -math.inf
-    ir, wr = _bracket(prm, ro, nr, lr)
+    ir, wr = 0, 0.0
+    if nr > 1:
+        ir, wr = _bracket(prm, ro, nr, math.log(rate) if rate > 0.0 else -math.inf)
     s = 0.0
     h = 0.0
     for jt in range(2):
@@ -364,6 +365,14 @@ def flow_floor(prm, ep, T):
     """A lower bound (Pa) of the yield stress at ``ep`` and ``T`` (K) over every strain rate, the
     rate laws' factors (>= 1) included: the vectorised kernels call a cell elastic when its trial
     stress is below it."""
+    if ep == 0.0 and T == prm[P_T0]:   # a cell that has not yielded nor heated: the value at the start
+        return prm[P_SYF]
+    return floor_value(prm, ep, T)
+
+
+@numba.njit(cache=True, error_model="numpy", fastmath=FM)
+def floor_value(prm, ep, T):
+    """:func:`flow_floor` evaluated (its value at the start, ``prm[P_SYF]``, is this one)."""
     if int(prm[P_FLOW]) == LAW_TABLE:
         return _table(prm, ep, 0.0, T, True)[0]
     return flow_stress(prm, ep, 0.0, T)[0]

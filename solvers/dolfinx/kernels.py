@@ -25,8 +25,8 @@ from .element_math import (BATCH, FM, add_chunk_part, IN_ROWS, MODE_AXISYMMETRIC
                            MODE_PLANE_STRESS, N_PRM, OUT_ROWS, P_B1, P_B2, P_BULK, P_G, P_H, P_K,
                            P_MODE, P_R1, P_R2, P_RATE, P_RHO, P_SY0, P_THICK, ROW, ST_INVERTED,
                            ST_REDO, batch_update, cell_update, general_material)
-from .flow_curves import encode, flow_floor
-from .kernel_layout import P_BETA, P_FLOW, P_RHOCP, P_T0, P_THERM
+from .flow_curves import encode, flow_floor, floor_value
+from .kernel_layout import P_BETA, P_FLOW, P_RHOCP, P_SYF, P_T0, P_THERM
 
 __all__ = ["MODE_PLANE_STRESS", "MODE_PLANE_STRAIN", "MODE_AXISYMMETRIC", "pack_parameters",
            "element_step", "element_chunk", "element_critical_dt", "N_PRM", "WORK_SIZE", "CHUNK", "chunk_size"]
@@ -75,6 +75,7 @@ def pack_parameters(material, mode: int, thickness: float, b1: float, b2: float,
     prm[P_RHOCP] = material.density * (material.specific_heat or 0.0)
     prm[P_T0] = material.initial_temperature
     prm[N_PRM:] = fp
+    prm[P_SYF] = floor_value(prm, 0.0, prm[P_T0])
     return prm
 
 
