@@ -478,6 +478,9 @@ def mech_metrics(solver, case: Case, history: History, e: dict[str, float]) -> d
                 out[f"{b.name}_max_u{c}_mm"] = float(history.column(f"{b.name}_max_u{c}_m").max()) * 1e3
         out[f"{b.name}_max_speed_m_s"] = float(history.column(f"{b.name}_max_speed_m_s").max())
         out[f"{b.name}_max_von_mises_MPa"] = float(history.column(f"{b.name}_max_von_mises_Pa").max()) / 1e6
+        for q in ("max", "mean"):   # a body that carries a temperature: its largest cell and mean at the end
+            if f"{b.name}_temperature_{q}_K" in history.columns:
+                out[f"{b.name}_temperature_{q}_final_K"] = float(history.column(f"{b.name}_temperature_{q}_K")[-1])
         if b.region == "workpiece" and case.geometry is not None:
             if case.geometry.type == "flat_coil_sheet":  # the axial displacement: z in 3D, y in r-z
                 out["max_deflection_mm"] = out.get(f"{b.name}_max_uz_mm", out[f"{b.name}_max_uy_mm"])
