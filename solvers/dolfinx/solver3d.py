@@ -34,10 +34,10 @@ log = logging.getLogger(__name__)
 
 def _tet_kernel(cells, x, v, dt, prm, stress, eps_p, f_int, acc, work, temp=None):
     """The 3D element kernel of a body: the vectorised batches for a rate-independent material
-    with the linear law and no temperature, else the scalar kernel (a rate law, a flow curve, a
-    temperature per cell ``temp``, K); both give the same bits where both apply."""
+    or a general one (a flow curve, a temperature per cell ``temp``, K: screened), else the scalar
+    kernel (the linear law with a rate law); both give the same bits where both apply."""
     if batched_material(prm):
-        return tet_step_batched(cells, x, v, dt, prm, stress, eps_p, f_int, acc, work)
+        return tet_step_batched(cells, x, v, dt, prm, stress, eps_p, f_int, acc, work, temp)
     return tet_step(cells, x, v, dt, prm, stress, eps_p, f_int, acc, work, temp)
 
 

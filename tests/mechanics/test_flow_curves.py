@@ -316,3 +316,45 @@ def test_joule_heat_adds_adiabatically():
     s.add_heat("b", e)
     assert np.allclose(b.temperature - T0, e / (RHO * CP), rtol=1e-14, atol=1e-12)   # K: T0 + x - T0 rounds
     assert s.compiled is not None and np.shares_memory(b.temperature, s.compiled.B.temp)
+
+
+@pytest.mark.parametrize("thermal", [False, True])
+def test_3d_screened_batches_equal_the_scalar_kernel(thermal):
+    """3D, a general material (Johnson-Cook, with or without a temperature per cell): the vectorised
+    kernel (screened batches, yielding cells by the scalar kernel one at a time) gives the scalar
+    kernel's bits: stresses, plastic strains, temperatures, forces, critical step, dissipation; and on
+    two threads (several chunks) the same again."""
+    from pulseform.solvers.dolfinx.tet_batch import tet_step_batched
+    from pulseform.solvers.dolfinx.tet_kernel import TET_CHUNK
+    from pulseform.solvers.dolfinx.tet_threads import tet_step_threaded, tet_thread_arrays
+
+    msh = dmesh.create_box(MPI.COMM_SELF, [np.zeros(3), np.array([0.02, 0.01, 0.01])], [40, 20, 20])
+    s = ExplicitSolver3D([BodySpec("b", msh, _material(JC, thermal=thermal), initial_velocity=(0.0, 0.0, 0.0))],
+                         comm=msh.comm)
+    b = s.bodies["b"]
+    assert len(b.cells) > TET_CHUNK                     # several chunks: the threaded kernel's gather
+    rng = np.random.default_rng(5)
+    v = rng.normal(scale=5.0, size=b.v.shape)
+    dt = 0.3 * s.stable_time_step()
+    x = b.x + dt * v
+    stress0 = rng.normal(scale=120e6, size=b.cell_stress.shape)
+    temp0 = rng.uniform(293.15, 600.0, size=len(b.cells))
+    prm = s._prm["b"]
+    runs = []
+    for kern in ("scalar", "batched", "threads"):
+        st, ep, f, acc, tp = stress0.copy(), np.full(len(b.cells), 0.01), np.zeros_like(x), np.zeros(3), temp0.copy()
+        if kern == "scalar":
+            d = tet_step(b.cells, x, v, dt, prm, st, ep, f, acc, None, tp)
+        elif kern == "batched":
+            d = tet_step_batched(b.cells, x, v, dt, prm, st, ep, f, acc, None, tp)
+        else:
+            import numba
+            numba.set_num_threads(2)
+            d = tet_step_threaded(b.cells, x, v, dt, prm, st, ep, f, acc, tet_thread_arrays(b.cells, len(x)), tp)
+        runs.append((st, ep, f, acc, tp, d))
+    ref = runs[0]
+    assert 0.05 * len(b.cells) < (ref[1] > 0.01).sum() < 0.95 * len(b.cells)   # both kinds of cells
+    assert np.array_equal(ref[4] > temp0, ref[1] > 0.01) if thermal else np.array_equal(ref[4], temp0)
+    for run in runs[1:]:
+        for a, c in zip(ref, run):
+            assert np.array_equal(a, c)
