@@ -347,6 +347,14 @@ def flow_stress(prm, ep, rate, T):
         return prm[b] + p, h
     # Johnson-Cook
     p, h = _power_slope(prm[b + 1], ep, prm[b + 2])
+    f = _jc_factor(prm, rate, T)
+    return (prm[b] + p) * f, h * f
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy", fastmath=FM)
+def _jc_factor(prm, rate, T):
+    """Johnson-Cook's rate and thermal factor (1 + C ln eps_rate*)(1 - T*^m) at ``rate`` (1/s) and ``T`` (K)."""
+    b = P_FP
     r = 1.0
     if rate > prm[b + 4]:
         r = 1.0 + prm[b + 3] * math.log(rate / prm[b + 4])
@@ -356,8 +364,17 @@ def flow_stress(prm, ep, rate, T):
         th = 0.0
     elif ts > 0.0:
         th = 1.0 - ts ** prm[b + 7]
-    f = r * th
-    return (prm[b] + p) * f, h * f
+    return r * th
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy", fastmath=FM)
+def _hardening(prm, jc, ep, rate, T):
+    """The yield stress and slope the return iterates on: Johnson-Cook's (A + B eps_p^n) alone (its rate
+    and thermal factor, constant over a return, taken out once), any other law's :func:`flow_stress`."""
+    if jc:
+        p, h = _power_slope(prm[P_FP + 1], ep, prm[P_FP + 2])
+        return prm[P_FP] + p, h
+    return flow_stress(prm, ep, rate, T)
 
 
 @numba.njit(cache=True, error_model="numpy", fastmath=FM)
@@ -386,7 +403,10 @@ def plastic_return(q, G, ep, rate, T, fac, prm):
     (bisection where a step leaves it, or the slope is not finite), iterated to round-off.
     Returns (d, yield stress after the return = q - 3 G d, Pa); d = 0 if q is not above the yield
     stress."""
-    s, h = flow_stress(prm, ep, rate, T)
+    jc = int(prm[P_FLOW]) == LAW_JOHNSON_COOK
+    if jc:
+        fac = fac * _jc_factor(prm, rate, T)
+    s, h = _hardening(prm, jc, ep, rate, T)
     s *= fac
     if not q > s:
         return 0.0, s
@@ -394,11 +414,21 @@ def plastic_return(q, G, ep, rate, T, fac, prm):
     lo = 0.0
     hi = q / g3                   # f(hi) = -fac sigma_y <= 0
     den = g3 + fac * h
-    d = (q - s) / den if (den > 0.0 and den < math.inf) else 0.5 * hi
+    if den > 0.0 and den < math.inf:
+        d = (q - s) / den
+    else:   # a power law starting vertically (eps_p = 0, n < 1): q - s = 3 G d + k d^n bounds d by each term
+        law = int(prm[P_FLOW])
+        k = fac * prm[P_FP + 1]
+        n = prm[P_FP + 2]
+        d = (q - s) / g3
+        if (law == LAW_JOHNSON_COOK or law == LAW_LUDWIK) and k > 0.0:
+            d = min(d, ((q - s) / k) ** (1.0 / n))
+        hi = min(hi, d)           # f <= 0 there too
+        d = 0.5 * d
     if not (d > lo and d < hi):
         d = 0.5 * (lo + hi)
     for _it in range(100):
-        s, h = flow_stress(prm, ep + d, rate, T)
+        s, h = _hardening(prm, jc, ep + d, rate, T)
         f = q - g3 * d - fac * s
         if f == 0.0:
             break

@@ -25,7 +25,7 @@ from .element_math import (BATCH, FM, P_B1, P_B2, P_BULK, P_G, P_H, P_K, P_RATE,
 from .flow_curves import flow_floor
 from .kernel_layout import P_T0
 from .tet_kernel import (_NO_SHARED, add_tet_forces, clear_tet_forces, store_tet_forces,
-                         tet_chunk_scalar, tet_chunk_size)
+                         tet_cell, tet_chunk_scalar, tet_chunk_size)
 
 __all__ = ["tet_step_batched", "tet_chunk_batched", "tet_chunk", "batched_material", "TET_WORK_SIZE"]
 
@@ -36,12 +36,11 @@ _IN = 32
 #: (16), plastic and bulk-viscous dissipation (17, 18), status (19: 1 done, 0 inverted, 2 to be
 #: redone by the scalar kernel)
 _OUT = 20
-#: a redone cell's scratch: its 4 nodes' positions, velocities and forces (3 x 12), its part (4)
-_ONE = 40
+#: a redone cell's scratch (:func:`.tet_kernel.tet_cell`'s results)
+_ONE = 16
 #: float64 length of the scratch of :func:`tet_step_batched` (the batches', a redone cell's, then 4
 #: for a chunk's results)
 TET_WORK_SIZE = (_IN + _OUT) * ROW + _ONE + 4
-_CELL = np.arange(4, dtype=np.int32).reshape(1, 4)   # a redone cell's own numbering
 
 
 @numba.njit(cache=True, error_model="numpy", fastmath=FM)
@@ -331,33 +330,21 @@ def tet_chunk_batched(cells, x, v, dt, prm, stress, eps_p, f_int, fe, shared, e0
 
 
 @numba.njit(cache=True, error_model="numpy", fastmath=FM)
-def _redo_cell(cells, x, v, dt, prm, stress, eps_p, temp, e, one, out, j):
-    """Cell ``e`` by the scalar kernel (:func:`.tet_kernel.tet_chunk_scalar` on the cell alone, its nodes
-    numbered 0-3 in the scratch ``one``): its stress, plastic strain and temperature updated in place, its
-    outputs written into column ``j`` of the batch's rows ``out`` (forces of nodes 1-3, critical step,
-    dissipation, status 1), so that the batch adds its forces in cell order."""
-    xl = one[0:12].reshape(4, 3)
-    vl = one[12:24].reshape(4, 3)
-    fl = one[24:36].reshape(4, 3)
-    part = one[36:40]
-    for k in range(4):
-        i = cells[e, k]
-        for c in range(3):
-            xl[k, c] = x[i, c]
-            vl[k, c] = v[i, c]
-            fl[k, c] = 0.0
-    tet_chunk_scalar(_CELL, xl, vl, dt, prm, stress[e:e + 1], eps_p[e:e + 1], fl, fl[:0], _NO_SHARED, 0, 1,
-                     part, temp[e:e + 1] if temp.shape[0] > 0 else temp)
+def _redo_cell(cells, x, v, dt, prm, stress, eps_p, temp, e, res, out, j):
+    """Cell ``e`` by the scalar kernel's :func:`.tet_kernel.tet_cell` (its stress, plastic strain and
+    temperature updated in place; ``res`` its scratch), its outputs written into column ``j`` of the
+    batch's rows ``out`` (forces of nodes 1-3, critical step, dissipation, status), so that the batch
+    adds its forces in cell order."""
+    tet_cell(cells, x, v, dt, prm, stress, eps_p, temp, e, res)
     for r in range(6):
         out[r * ROW + j] = stress[e, r]
     out[6 * ROW + j] = eps_p[e]
-    for k in range(3):
-        for c in range(3):
-            out[(7 + 3 * k + c) * ROW + j] = fl[k + 1, c]
-    out[16 * ROW + j] = part[0]
-    out[17 * ROW + j] = part[1]
-    out[18 * ROW + j] = part[2]
-    out[19 * ROW + j] = 1.0 if part[3] < 0.0 else 0.0
+    for r in range(9):
+        out[(7 + r) * ROW + j] = res[r]
+    out[16 * ROW + j] = res[9]
+    out[17 * ROW + j] = res[10]
+    out[18 * ROW + j] = res[11]
+    out[19 * ROW + j] = res[12]
 
 
 @numba.njit(cache=True, error_model="numpy", fastmath=FM)
