@@ -90,7 +90,7 @@ def j2_return(sxx, syy, szz, sxy, dxx, dyy, dzz, dxy, dt, G, lam, sy, hr):
     return txx, tyy, tzz, txy, 0.0
 
 
-@numba.njit(cache=True, inline="always", error_model="numpy", fastmath=FM)
+@numba.njit(cache=True, error_model="numpy", fastmath=FM)
 def equivalent_rate(dxx, dyy, dzz, dxy):
     """Equivalent strain rate sqrt(2/3 e:e) (1/s) of the rate of deformation d (1/s), e its
     deviator."""
@@ -119,14 +119,14 @@ def j2_return_flow(sxx, syy, szz, sxy, dxx, dyy, dzz, dxy, dt, G, lam, ep, rate,
     return txx, tyy, tzz, txy, 0.0, sy
 
 
-@numba.njit(cache=True, inline="always", error_model="numpy", fastmath=FM)
+@numba.njit(cache=True, error_model="numpy", fastmath=FM)
 def general_material(prm):
     """Whether the material needs the general return (a flow curve other than the linear law, or
     a temperature per cell): the vectorised kernels then only screen for elastic cells."""
     return prm[P_FLOW] != 0.0 or prm[P_THERM] != 0.0
 
 
-@numba.njit(cache=True, inline="always", error_model="numpy", fastmath=FM)
+@numba.njit(cache=True, error_model="numpy", fastmath=FM)
 def heated(T, sy, dep, prm):
     """Temperature (K) after the adiabatic plastic heating rho c_p dT = beta sy dep (sy: yield
     stress after the return, Pa; dep: plastic strain increment) of a cell at ``T``."""

@@ -232,7 +232,7 @@ def encode(curve) -> Tuple[int, np.ndarray]:
 
 
 # ---------------------------------------------------------------------------------------- compiled
-@numba.njit(cache=True, inline="always", error_model="numpy", fastmath=FM)
+@numba.njit(cache=True, error_model="numpy", fastmath=FM)
 def _power_slope(k, x, n):
     """(k x^n, d/dx k x^n) for x >= 0 (the slope at x = 0: inf for n < 1, k for n = 1, 0 above)."""
     if x > 0.0:
@@ -243,7 +243,7 @@ def _power_slope(k, x, n):
     return 0.0, k if n == 1.0 else 0.0
 
 
-@numba.njit(cache=True, inline="always", error_model="numpy", fastmath=FM)
+@numba.njit(cache=True, error_model="numpy", fastmath=FM)
 def _curve(prm, ne, ext, eo, so, ep):
     """Yield stress and slope of one tabulated curve: strains ``prm[eo:eo+ne]``, stresses
     ``prm[so:so+ne]`` at the plastic strain ``ep`` (>= 0)."""
@@ -266,7 +266,7 @@ def _curve(prm, ne, ext, eo, so, ep):
     return prm[so + lo] + h * (ep - e0), h
 
 
-@numba.njit(cache=True, inline="always", error_model="numpy", fastmath=FM)
+@numba.njit(cache=True, error_model="numpy", fastmath=FM)
 def _bracket(prm, o, n, x):
     """Index i and weight w of ``x`` in the increasing ``prm[o:o+n]``: x ~ (1-w) p[i] + w p[i+1],
     clamped to the ends (w in [0, 1]; i = n - 1, w = 0 beyond the last)."""
@@ -351,7 +351,7 @@ def flow_stress(prm, ep, rate, T):
     return (prm[b] + p) * f, h * f
 
 
-@numba.njit(cache=True, inline="always", error_model="numpy", fastmath=FM)
+@numba.njit(cache=True, error_model="numpy", fastmath=FM)
 def _jc_factor(prm, rate, T):
     """Johnson-Cook's rate and thermal factor (1 + C ln eps_rate*)(1 - T*^m) at ``rate`` (1/s) and ``T`` (K)."""
     b = P_FP
@@ -367,7 +367,7 @@ def _jc_factor(prm, rate, T):
     return r * th
 
 
-@numba.njit(cache=True, inline="always", error_model="numpy", fastmath=FM)
+@numba.njit(cache=True, error_model="numpy", fastmath=FM)
 def _hardening(prm, jc, ep, rate, T):
     """The yield stress and slope the return iterates on: Johnson-Cook's (A + B eps_p^n) alone (its rate
     and thermal factor, constant over a return, taken out once), any other law's :func:`flow_stress`."""
