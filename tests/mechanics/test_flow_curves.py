@@ -358,3 +358,25 @@ def test_3d_screened_batches_equal_the_scalar_kernel(thermal):
     for run in runs[1:]:
         for a, c in zip(ref, run):
             assert np.array_equal(a, c)
+
+
+def test_2d_threads_give_the_serial_bits_with_a_general_material():
+    """2D compiled steps on 2 threads (two chunks of cells) with Johnson-Cook and a temperature per cell: the
+    one-thread bits (positions, stresses, plastic strains, temperatures, energy ledger)."""
+    import numba
+
+    if numba.config.NUMBA_NUM_THREADS < 2:
+        pytest.skip("needs 2 threads")
+    msh = dmesh.create_rectangle(MPI.COMM_SELF, [np.array([0.0, 0.0]), np.array([0.01, 0.01])], [70, 70])
+    runs = []
+    for threads in (1, 2):
+        s = ExplicitSolver([BodySpec("b", msh, _material(JC, thermal=True), initial_velocity=(-150.0, 0.0))],
+                           formulation="plane_strain", rigid_walls=(RigidWallSpec((0.0, 0.0), (1.0, 0.0)),),
+                           comm=msh.comm, threads=threads)
+        s.advance(0.5 * s.stable_time_step(), 60)
+        runs.append(s)
+    a, b = (r.bodies["b"] for r in runs)
+    assert len(a.cells) > 8192 and a.temperature.max() > 300.0
+    for key in ("x", "cell_stress", "eps_p", "temperature"):
+        assert np.array_equal(getattr(a, key), getattr(b, key)), key
+    assert runs[0].energies() == runs[1].energies()
