@@ -87,11 +87,12 @@ def main() -> None:
         f = np.zeros_like(b.x)
         acc = np.zeros(3)
         work = np.zeros(TET_WORK_SIZE)
+        no_temp = np.empty(0)  # no temperature per cell
         arrays = tet_thread_arrays(b.cells, len(b.x))
         prm = one._prm["bar"]
-        kernels = (("k_one", 1, lambda *g: tet_step_batched(*g, work)),
+        kernels = (("k_one", 1, lambda *g: tet_step_batched(*g, work, no_temp)),
                    ("k_many", nt, lambda *g: tet_step_threaded(*g, arrays)),
-                   ("k_scalar", 1, lambda *g: tet_step(*g, work)))
+                   ("k_scalar", 1, lambda *g: tet_step(*g, work, no_temp)))
         for _ in range(a.rounds):
             for name, s in (("one", one), ("many", many)):
                 t0 = time.perf_counter()

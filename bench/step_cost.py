@@ -26,7 +26,7 @@ from pulseform.orchestrator.case.io import load_case
 from pulseform.orchestrator.mech.model import build_solver
 from pulseform.orchestrator.mech.pulses import box_marker
 from pulseform.solvers.dolfinx import ExplicitSolver
-from pulseform.solvers.dolfinx.kernels import element_step
+from pulseform.solvers.dolfinx.kernels import WORK_SIZE, element_step
 
 REPO = Path(__file__).resolve().parents[1]
 CASES = ("corner_fill", "tube_press_fit")
@@ -53,7 +53,7 @@ def kernel_time(solver: ExplicitSolver, reps: int) -> float:
     for _ in range(reps):
         for b, prm, st, ep, f in work:
             f[:] = 0.0
-            element_step(b.cells, b.x, b.v, dt, prm, st, ep, f, acc, scratch)
+            element_step(b.cells, b.x, b.v, dt, prm, st, ep, f, acc, scratch, np.empty(0))
     return (time.perf_counter() - t0) / reps
 
 

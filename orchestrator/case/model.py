@@ -19,6 +19,7 @@ from .em_model import (FlatCoilSheet, Geometry, OuterTube, PlanarCoilBlankDie,
 from .em_applied import check_applied_field
 from .forming_limit import FormingLimitTable
 from .em_sources import check_coils
+from .flow import FlowCurveTable, JohnsonCookFlowTable, TableFlowTable, initial_yield_stress
 from .guards import check_resources
 from .names import check_file_name, check_folder_name, folder_name
 from .parts import (Box, BodyTable, ContactPair, EndStopTable, FixedBoundary, Polygon, Rectangle, RigidWall, Shape,
@@ -53,20 +54,50 @@ class JohnsonCookTable:
 
 @dataclass(frozen=True, kw_only=True)
 class MaterialTable:
-    """Elastic–plastic material with linear isotropic hardening σ_s = σ0 + A ε_p (paper, sec. 4–5)."""
+    """Elastic–plastic material with linear isotropic hardening σ_s = σ0 + A ε_p (paper, sec. 4–5), or a flow
+    curve; optionally a temperature per cell (adiabatic heating by the plastic work)."""
 
     density: float = spec(unit="kg/m^3", gt=0.0, doc="mass density ρ")
     shear_modulus: float = spec(unit="Pa", gt=0.0, doc="shear modulus G")
     bulk_modulus: float = spec(unit="Pa", gt=0.0, doc="bulk modulus K")
-    yield_stress: float = spec(unit="Pa", gt=0.0, doc="initial yield stress σ0")
+    yield_stress: float | None = spec(None, unit="Pa", gt=0.0, doc="initial yield stress σ0 of the linear law "
+                                                                   "(required without flow_curve)")
     hardening_modulus: float = spec(0.0, unit="Pa", ge=0.0, doc="linear hardening modulus A")
     electrical_conductivity: float = spec(0.0, unit="S/m", ge=0.0, doc="σ for eddy currents (EM); left at 0 on a "
                                                                       "'getdp_template' deck's conductor: the deck's own")
     rate_law: CowperSymondsTable | JohnsonCookTable | None = spec(None, doc="optional strain-rate hardening")
+    flow_curve: FlowCurveTable | None = spec(None, doc="flow curve σ_y(ε_p, ε̇, T) in place of the linear law "
+                                                       "(yield_stress, hardening_modulus)")
+    specific_heat: float | None = spec(None, unit="J/(kg·K)", gt=0.0, doc="c_p: a temperature per cell, raised "
+                                       "adiabatically by β × the plastic work; unset: no temperature")
+    taylor_quinney: float = spec(0.9, unit="-", ge=0.0, le=1.0, doc="β, the share of the plastic work that heats")
+    initial_temperature: float = spec(293.15, unit="K", gt=0.0, doc="temperature of every cell at the start")
     forming_limit: FormingLimitTable | None = spec(
         None, doc="[materials.<name>.forming_limit] forming limit curve of a sheet of this material: its bodies "
                   "get per-element major/minor true strains and the margin below the curve (fields, history "
                   "<body>_flc_margin_min, summary, plots/<body>_fld.png; docs/mechanics.md)")
+
+    def validate(self, path: str) -> None:
+        fc = self.flow_curve
+        if fc is None and self.yield_stress is None:
+            raise SchemaError(f"{path}.yield_stress", "missing required key (a number > 0, in Pa), or give a "
+                                                      "flow_curve")
+        if fc is not None and self.yield_stress is not None:
+            raise SchemaError(f"{path}.yield_stress", "give either yield_stress (with hardening_modulus: the linear "
+                                                      "law) or flow_curve, not both")
+        if self.rate_law is not None and (isinstance(fc, JohnsonCookFlowTable) or (
+                isinstance(fc, TableFlowTable) and len(fc.strain_rates) > 1)):
+            raise SchemaError(f"{path}.rate_law", "the flow_curve has its own strain-rate term (Johnson–Cook, or "
+                                                  "curves per strain rate); remove rate_law")
+        if isinstance(fc, JohnsonCookFlowTable) and not self.initial_temperature < fc.melting_temperature:
+            raise SchemaError(f"{path}.initial_temperature",
+                              f"got {self.initial_temperature:g}; must be below the flow curve's melting_temperature "
+                              f"= {fc.melting_temperature:g} (K)")
+
+    @property
+    def initial_yield_stress(self) -> float:
+        """σ0 of the linear law, or the flow curve's yield stress at zero plastic strain, Pa."""
+        return self.yield_stress if self.flow_curve is None else initial_yield_stress(self.flow_curve)
 
 
 # --------------------------------------------------------------------------- loads

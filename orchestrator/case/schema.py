@@ -53,6 +53,7 @@ PLAUSIBLE: dict[str, tuple[float, float]] = {
     "H": (1e-15, 1.0),
     "Ω": (1e-12, 1e6),
     "J/(kg·K)": (1e-3, 1e6),
+    "K": (1.0, 1e4),
     "T": (1e-9, 1e3),
 }
 #: Range of a number without a unit in :data:`PLAUSIBLE` (e.g. user-deck parameters): finite and not huge.

@@ -28,11 +28,16 @@ class LoadStep:
         The provider's own ∫ f dV (N) for the conservation ledger (None when not applicable).
     values : dict
         Scalars for history.csv (SI units in the names), e.g. coil current.
+    heat : dict
+        Heat per unit volume deposited over the step per mechanical cell of a body (J/m^3; the Joule
+        heat of the bodies that carry a temperature), added by the mechanics at the end of the step
+        (``add_heat``); empty for none.
     """
 
     forces: dict[str, np.ndarray]
     reference_integral: np.ndarray | None = None
     values: dict[str, float] = field(default_factory=dict)
+    heat: dict[str, np.ndarray] = field(default_factory=dict)
 
 
 @dataclass

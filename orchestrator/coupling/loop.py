@@ -225,6 +225,8 @@ class StaggeredLoop:
         iterations = 1
         if saved is not None:
             step, resultant, iterations = self._iterate(saved, step, resultant, dt, k, t0, t1, t_mid)
+        if step.heat:   # the step's Joule heat, once the mechanics has gone through the step
+            self.mech.add_heat(step.heat)
         err = ledger_error(resultant[None, :], step.reference_integral) if step.reference_integral is not None else 0.0
         c.em_steps += 1
         c.last_em_step = dt * k

@@ -45,6 +45,7 @@ from ..mesh.em_geometry import EMGeometry
 from ..mesh.motion import MeshMover, MeshQualityError
 from ..mesh.remesh import remesh_around
 from ..mesh.shared import ConductorBody, ConductorMesh  # noqa: F401  (ConductorBody: the participant's API)
+from .joule_heat import JouleHeat
 from .snapshots import EMSnapshots
 from .solver import make_em_solver
 
@@ -127,6 +128,7 @@ class GetDPLoad(EMSnapshots, LoadCapabilities):
         self.X0 = {b.name: geometry.mesh.points[b.body_to_em].copy() for b in self.bodies}
         self.material = geometry.mesh.points.copy()  # material coordinates of every EM node
         self.remeshes = 0
+        self.joule = JouleHeat()   # the Joule heat per mechanical cell of the bodies with a temperature
         self.gmsh_time_limit: float | None = None  # wall-time limit of a remesh (s)
         self._set_mesh(geometry.mesh)
         self.min_quality = float(self.mover.q_ref.min())
@@ -234,6 +236,7 @@ class GetDPLoad(EMSnapshots, LoadCapabilities):
         forces = {b.name: f_em[b.body_to_em] for b in self.bodies}
         integral = self.scale * cell_force_integral(x_em, tris, f, axisymmetric=self.axisymmetric)
         getdp_total = result.conductor_force[-1, 0]
+        heat = self.joule.heat(mechanics, self.bodies, result, mesh_k.triangles, t1 - t0)
         c3 = time.perf_counter()
         # getdp's own time: the step's answer, a process start (pre-processing) and any fields fetched for the
         # peak snapshot (timed by _fields); the rest of c1..c2 is the files and the bookkeeping around them
@@ -243,7 +246,7 @@ class GetDPLoad(EMSnapshots, LoadCapabilities):
         self.timers["getdp_process_s"] += process
         self.timers["getdp_io_s"] += (c2 - c1) - process - fetched
         self.timers["transfer_s"] += c3 - c2
-        return LoadStep(forces, integral, self._values(result, getdp_total))
+        return LoadStep(forces, integral, self._values(result, getdp_total), heat)
 
     def _values(self, result, getdp_total: np.ndarray) -> dict[str, float]:
         """History values of an EM step (circuit, energies, the workpiece's GetDP force; per coil with several)."""

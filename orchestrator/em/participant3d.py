@@ -55,6 +55,7 @@ from ..coupling.interfaces import LoadCapabilities, LoadStep
 from ..coupling.transfer3d import tet_force_integral, tet_nodal_forces
 from ..mesh.motion3d import MeshMover3D
 from ..mesh.shared3d import ConductorMesh3D
+from .joule_heat import JouleHeat
 
 log = logging.getLogger(__name__)
 
@@ -156,6 +157,7 @@ class GetDPLoad3D(LoadCapabilities):
         self._peak_conductors: tuple | None = None   # every conductor at the peak (:meth:`take_peak_conductors`)
         self._last_step: tuple | None = None        # (t1, current, x_em, result) of the last step
         self._last_snapshot: tuple | None = None    # its sheet snapshot, made when first asked for
+        self.joule = JouleHeat()   # the Joule heat per mechanical cell of the bodies with a temperature
         sub = self.bodies[0].sub
         self._sheet_pos = np.full(len(mesh.tets), -1, dtype=np.int64)
         self._sheet_pos[sub.rows] = np.arange(len(sub.rows))
@@ -228,12 +230,13 @@ class GetDPLoad3D(LoadCapabilities):
         for k, name in enumerate(self.coil_names):   # several coils: each one's current and power (whole device)
             values[f"{name}_current_A"] = float(result.coil_current[-1, k])
             values[f"{name}_joule_power_W"] = s * float(result.coil_power[-1, k])
+        heat = self.joule.heat(mechanics, self.bodies, result, self.mesh.tets, t1 - t0)
         self.last = (x_em, result)   # the moved nodes and GetDP's result of the last step
         self._last_step, self._last_snapshot = (t1, current, x_em, result), None
         if abs(current) > self.peak_current:
             self.peak_current, self._peak = abs(current), self.last_snapshot
             self._peak_conductors = self._conductor_snapshot(t1, current, x_em, result)
-        return LoadStep(forces, integral, values)
+        return LoadStep(forces, integral, values, heat)
 
     @property
     def last_snapshot(self) -> tuple | None:

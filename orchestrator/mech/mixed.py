@@ -152,6 +152,15 @@ class MixedMechanics:
             self.deformable.advance(dt, n_steps, deformable)
         self.rigid.advance(dt, n_steps, rigid)
 
+    def heated_cells(self) -> dict[str, np.ndarray]:
+        """The deformable bodies' cells that carry a temperature (:meth:`DolfinxMechanics.heated_cells`)."""
+        return self.deformable.heated_cells() if self.deformable is not None else {}
+
+    def add_heat(self, heat: dict[str, np.ndarray]) -> None:
+        """Joule heat (J/m^3 per cell) of deformable bodies (rigid bodies carry no temperature)."""
+        if self.deformable is not None:
+            self.deformable.add_heat({n: e for n, e in heat.items() if n not in self.rigid.bodies})
+
     def positions(self) -> dict[str, np.ndarray]:
         """Current node coordinates per body (m)."""
         out = self.deformable.positions() if self.deformable is not None else {}

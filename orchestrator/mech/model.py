@@ -6,10 +6,31 @@ from mpi4py import MPI
 
 from pulseform.solvers import dolfinx as mech
 
+from ..case.flow import FlowCurveTable, LudwikTable, SwiftTable, TableFlowTable, VoceTable
 from ..case.model import Case, CowperSymondsTable, MaterialTable
 from ..mesh.shapes import mesh_shape
 from .model3d import build_solver_3d
 from ..mesh.markers import box_marker
+
+
+def solver_flow_curve(fc: FlowCurveTable | None):
+    """Case flow-curve table -> solver flow curve (:mod:`pulseform.solvers.dolfinx.flow_curves`), None: the
+    linear law."""
+    if fc is None:
+        return None
+    if isinstance(fc, TableFlowTable):
+        return mech.TabulatedFlow(plastic_strain=fc.plastic_strain, yield_stress=fc.curves(),
+                                  strain_rates=fc.strain_rates, temperatures=fc.temperatures,
+                                  extrapolation=fc.extrapolation)
+    if isinstance(fc, SwiftTable):
+        return mech.Swift(K=fc.K, eps0=fc.eps0, n=fc.n)
+    if isinstance(fc, VoceTable):
+        return mech.Voce(sigma0=fc.sigma0, Q=fc.Q, b=fc.b)
+    if isinstance(fc, LudwikTable):
+        return mech.Ludwik(sigma0=fc.sigma0, K=fc.K, n=fc.n)
+    return mech.JohnsonCookFlow(A=fc.A, B=fc.B, n=fc.n, C=fc.C, reference_strain_rate=fc.reference_strain_rate,
+                                room_temperature=fc.room_temperature, melting_temperature=fc.melting_temperature,
+                                m=fc.m)
 
 
 def solver_material(m: MaterialTable) -> "mech.Material":
@@ -20,8 +41,10 @@ def solver_material(m: MaterialTable) -> "mech.Material":
     elif m.rate_law is not None:
         rate = mech.JohnsonCook(C=m.rate_law.C, eps_rate0=m.rate_law.reference_strain_rate)
     return mech.Material(density=m.density, shear_modulus=m.shear_modulus,
-                         bulk_modulus=m.bulk_modulus, yield_stress=m.yield_stress,
-                         hardening_modulus=m.hardening_modulus, rate_law=rate)
+                         bulk_modulus=m.bulk_modulus, yield_stress=m.initial_yield_stress,
+                         hardening_modulus=m.hardening_modulus, rate_law=rate,
+                         flow_curve=solver_flow_curve(m.flow_curve), specific_heat=m.specific_heat,
+                         taylor_quinney=m.taylor_quinney, initial_temperature=m.initial_temperature)
 
 
 def build_solver(case: Case, comm: MPI.Comm = MPI.COMM_WORLD,

@@ -84,6 +84,15 @@ class DolfinxMechanics:
         """Current node coordinates per body (m), this rank's nodes (ghosts included)."""
         return {n: b.x for n, b in self.solver.bodies.items()}
 
+    def heated_cells(self) -> dict[str, np.ndarray]:
+        """The cells (node rows, (nc, 3) or (nc, 4)) of every body that carries a temperature, by name."""
+        return {n: b.cells for n, b in self.solver.bodies.items() if b.material.thermal}
+
+    def add_heat(self, heat: dict[str, np.ndarray]) -> None:
+        """Heat the cells of bodies adiabatically: body name -> J/m^3 per cell (``ExplicitSolver.add_heat``)."""
+        for name, e in heat.items():
+            self.solver.add_heat(name, e)
+
     def total_force(self, forces: dict[str, np.ndarray]) -> np.ndarray:
         """Resultant (N) over owned nodes of every rank (ghost rows are complete copies)."""
         local = np.zeros(next(iter(self.solver.bodies.values())).gdim)   # 2 components, or 3 in 3D

@@ -44,6 +44,7 @@ from .em_fields3d import CONDUCTORS_PEAK
 from .em_fields3d import FOLDER as EM3D_FOLDER
 from .em_fields3d import STEM as EM3D_STEM
 from .extremes3d import body_extremes_3d, contact_columns_3d, contact_metrics_3d
+from .temperature import temperature_columns
 from .history import History
 from .impulse import impulse_metrics
 from .output_times import default_interval, fixed_em_step, landing_note, milestones
@@ -404,7 +405,8 @@ def _rigid_step(case: Case, solver) -> float:
 def body_extremes(solver, comm: MPI.Comm) -> dict[str, float]:
     """Per body: largest |u_x| and |u_y| (m), largest speed (m/s), y-momentum Σ m v_y (N·s;
     full ring in axisymmetry; velocities as the solver stores them, at the last half step) and
-    largest cell von Mises stress (Pa). The maxima in one compiled pass over the nodes."""
+    largest cell von Mises stress (Pa); with a temperature per cell its largest and mean value (K,
+    :mod:`.temperature`). The maxima in one compiled pass over the nodes."""
     out = {}
     serial = comm.size == 1
 
@@ -414,6 +416,7 @@ def body_extremes(solver, comm: MPI.Comm) -> dict[str, float]:
     for name, b in solver.bodies.items():
         if b.gdim == 3:
             out.update(body_extremes_3d(name, b, reduce))
+            out.update(temperature_columns(name, b, reduce))
             continue
         own = slice(0, b.n_owned)
         ux, uy, sp = nodal_extremes(b.x, b.X0, b.v, b.n_owned) if b.n_owned else (0.0, 0.0, 0.0)
@@ -422,6 +425,7 @@ def body_extremes(solver, comm: MPI.Comm) -> dict[str, float]:
         out[f"{name}_max_speed_m_s"] = reduce(sp, MPI.MAX)
         out[f"{name}_momentum_y_Ns"] = reduce(float(b.mass[own] @ b.v[own, 1]), MPI.SUM)
         out[f"{name}_max_von_mises_Pa"] = reduce(max_von_mises(b.cell_stress), MPI.MAX)
+        out.update(temperature_columns(name, b, reduce))
     return out
 
 
@@ -481,6 +485,9 @@ def mech_metrics(solver, case: Case, history: History, e: dict[str, float]) -> d
                 out[f"{b.name}_max_u{c}_mm"] = float(history.column(f"{b.name}_max_u{c}_m").max()) * 1e3
         out[f"{b.name}_max_speed_m_s"] = float(history.column(f"{b.name}_max_speed_m_s").max())
         out[f"{b.name}_max_von_mises_MPa"] = float(history.column(f"{b.name}_max_von_mises_Pa").max()) / 1e6
+        for q in ("max", "mean"):   # a body that carries a temperature: its largest cell and mean at the end
+            if f"{b.name}_temperature_{q}_K" in history.columns:
+                out[f"{b.name}_temperature_{q}_final_K"] = float(history.column(f"{b.name}_temperature_{q}_K")[-1])
         if b.region == "workpiece" and case.geometry is not None:
             if case.geometry.type == "flat_coil_sheet":  # the axial displacement: z in 3D, y in r-z
                 out["max_deflection_mm"] = out.get(f"{b.name}_max_uz_mm", out[f"{b.name}_max_uy_mm"])

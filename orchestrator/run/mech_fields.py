@@ -43,13 +43,22 @@ class BodyFields:
 
     def read(self, k: int, names: tuple[str, ...] | None = None) -> dict[str, np.ndarray]:
         """Fields of output ``k`` (all, or ``names``): displacement_m, velocity_m_s (N, 3);
-        stress_Pa (C, 6: xx yy zz xy yz xz), von_mises_Pa, plastic_strain (C,)."""
+        stress_Pa (C, 6: xx yy zz xy yz xz), von_mises_Pa, plastic_strain (C,); temperature_K (C,) of a body
+        that carries a temperature."""
         import h5py
 
         path, group = self._where[k]
         with h5py.File(path, "r") as f:
             g = f[group]
             return {n: g[n][...] for n in (names or tuple(g.keys()))}
+
+    def names(self, k: int) -> tuple[str, ...]:
+        """The fields stored at output ``k`` (``temperature_K`` only for a body that carries a temperature)."""
+        import h5py
+
+        path, group = self._where[k]
+        with h5py.File(path, "r") as f:
+            return tuple(f[group].keys())
 
     def displacement(self, k: int) -> np.ndarray:
         """(N, 2) displacement at output ``k``, m."""

@@ -12,6 +12,8 @@
   r-z section); a planar model is shown as it is (x-y plane, parallel projection); a 3D model is shown
   as its exterior surface, and a 3D wedge model (two symmetry planes through the z-axis) unfolded by its
   symmetry over 270° about z and seen like a revolved one (:mod:`.pictures_wedge`).
+* ``deformed_temperature.png``: the same for the temperature (K) of the bodies that carry one (a material with a
+  ``specific_heat``), its colour scale from the lowest to the highest value.
 * ``mechanics/<field>_<k>.png``: the same at every output time ``k`` (one frame per time, same
   camera and colour scale, for flipping through or an animation).
 * ``section_<plane>_{von_mises,plastic_strain}.png`` (3D geometry-file cases: :mod:`.pictures_section3d`):
@@ -54,6 +56,8 @@ __all__ = ["draw_mechanics", "PicturesFailed", "plot_shapes", "render_fields"]
 #: (field in the files, file-name stem, colour-bar title, scale to the shown unit, colour map)
 QUANTITIES = (("von_mises_Pa", "von_mises", "von Mises stress [MPa]", 1e-6, "turbo"),
               ("plastic_strain", "plastic_strain", "equivalent plastic strain [-]", 1.0, "viridis"))
+#: the temperature picture, drawn when a body carries a temperature (its own colour scale: lowest to highest)
+TEMPERATURE = ("temperature_K", "temperature", "temperature [K]", 1.0, "inferno")
 MONTAGE_PANELS = 6
 REVOLVE_DEG = 270.0
 REVOLVE_SEGMENTS = 72
@@ -294,16 +298,21 @@ def render_fields(results_dir: Path) -> list[Path]:
     def tlabel(t: float) -> str:
         return f"t = {t * axis.scale:.4g} {axis.unit}"
 
-    for field, stem, title, scale, cmap in QUANTITIES:
+    heated = {n: b for n, b in bodies.items() if TEMPERATURE[0] in b.names(0)}
+    for field, stem, title, scale, cmap in QUANTITIES + ((TEMPERATURE,) if heated else ()):
+        shown_bodies = heated if field == TEMPERATURE[0] else bodies
         # every time's surfaces (small: surfaces only); one colour scale over all times and bodies
         per_time, raw = [], []
         for k in range(len(times)):
             meshes = {}
-            for n, b in bodies.items():
+            for n, b in shown_bodies.items():
                 meshes[n], v = scene.surface(n, min(k, len(b.times) - 1), field, scale)
                 raw.append(v)
             per_time.append(meshes)
         clim, note = _colour_scale(np.concatenate(raw), title)
+        if field == TEMPERATURE[0]:
+            values = np.concatenate(raw)
+            clim, note = (float(values.min()), max(float(values.max()), float(values.min()) + 1e-9)), ""
         bounds = _bounds([m for meshes in per_time for m in meshes.values()])
         shown = dict(scalars="value", cmap=cmap, clim=clim, above_color=ABOVE_COLOUR if note else None,
                      render=False)
@@ -327,7 +336,7 @@ def render_fields(results_dir: Path) -> list[Path]:
                 live[n].cell_data["value"][:] = m.cell_data["value"]
                 live[n].Modified()
             text.SetText(2, f"{name}: {title.split(' [')[0]}, {tlabel(float(t))}\n"
-                            f"{', '.join(bodies)} ({where}; mm)")
+                            f"{', '.join(shown_bodies)} ({where}; mm)")
             paths.append(_screenshot(p, frames_dir / f"{stem}_{k:04d}.png"))
         p.close()
 
@@ -345,7 +354,7 @@ def render_fields(results_dir: Path) -> list[Path]:
             p.add_text(tlabel(float(times[k])), position="upper_left", font_size=10, color="black", render=False)
             scene.camera(p, bounds)
         p.subplot(rows, 0)
-        p.add_text(f"{name}: {', '.join(bodies)} ({where}; mm)" + (f"; {note}" if note else ""),
+        p.add_text(f"{name}: {', '.join(shown_bodies)} ({where}; mm)" + (f"; {note}" if note else ""),
                    position="upper_left", font_size=9, color="black", render=False)
         p.add_scalar_bar(title=title, vertical=False, position_x=0.2, position_y=0.1, width=0.6, height=0.5,
                          title_font_size=12, label_font_size=10, n_labels=5, fmt="%.3g", color="black",

@@ -1,7 +1,8 @@
 """Explicit elastic-plastic dynamics with soft contact on DOLFINx (package
 ``pulseform.solvers.dolfinx``).
 
-Public API: :class:`Material` (+ :class:`CowperSymonds`, :class:`JohnsonCook`), :class:`BodySpec`,
+Public API: :class:`Material` (+ :class:`CowperSymonds`, :class:`JohnsonCook`; the flow curves
+:class:`TabulatedFlow`, :class:`Swift`, :class:`Voce`, :class:`Ludwik`, :class:`JohnsonCookFlow`), :class:`BodySpec`,
 :class:`ContactPairSpec`, :class:`RigidWallSpec`, :class:`ExplicitSolver`, :class:`ExplicitSolver3D`
 (3D bodies on tetrahedra) with :class:`SoftPlaneSpec`, :class:`FieldWriter`,
 :class:`ContactPenetrationError`, and the metrics helpers in :mod:`.analysis`.
@@ -9,12 +10,14 @@ Public API: :class:`Material` (+ :class:`CowperSymonds`, :class:`JohnsonCook`), 
 from .analysis import bar_impact_metrics, contact_stress_metrics, energy_error_rel
 from .body import BodySpec
 from .contact import ContactPairSpec, ContactPenetrationError, RigidWallSpec
+from .flow_curves import JohnsonCookFlow, Ludwik, Swift, TabulatedFlow, Voce
 from .material import CowperSymonds, JohnsonCook, Material
 from .output import FieldWriter
 from .solver import ExplicitSolver
 from .soft_plane import SoftPlaneSpec
 from .solver3d import ExplicitSolver3D
 
-__all__ = ["Material", "CowperSymonds", "JohnsonCook", "BodySpec", "ContactPairSpec",
+__all__ = ["Material", "CowperSymonds", "JohnsonCook", "TabulatedFlow", "Swift", "Voce", "Ludwik",
+           "JohnsonCookFlow", "BodySpec", "ContactPairSpec",
            "RigidWallSpec", "ContactPenetrationError", "ExplicitSolver", "ExplicitSolver3D", "SoftPlaneSpec", "FieldWriter",
            "contact_stress_metrics", "energy_error_rel", "bar_impact_metrics"]

@@ -37,7 +37,7 @@ _NCONTACT = 16
 #: Nodal and cell arrays of every body, concatenated (see ``block_data.build_bodies``).
 BodyArrays = namedtuple("BodyArrays", [
     "node_off", "cell_off", "cells", "prm", "x", "v", "a", "m", "f", "fext", "fext_on",
-    "stress", "eps_p", "con_off", "con_idx", "con_val", "cidx_off", "cidx", "ke_half", "tmp",
+    "stress", "eps_p", "temp", "con_off", "con_idx", "con_val", "cidx_off", "cidx", "ke_half", "tmp",
     "acc", "work"])
 
 #: Rigid walls: their planes, the bodies they act on, and per-node scratch.
@@ -281,7 +281,7 @@ def _forces(B, W, C, sc, dt, ev, evf):
         c1 = B.cell_off[ib + 1]
         B.acc[:] = 0.0
         d = element_step(B.cells[c0:c1], B.x, B.v, dt, B.prm[ib], B.stress[c0:c1],
-                         B.eps_p[c0:c1], B.f, B.acc, B.work)
+                         B.eps_p[c0:c1], B.f, B.acc, B.work, B.temp[c0:c1])
         dtc = after_kernel(B, sc, ib, d, dtc, ev)
         if ev[0] != EV_NONE:
             return

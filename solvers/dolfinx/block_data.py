@@ -16,7 +16,7 @@ from .block import N_SC, SC, BodyArrays, WallArrays
 from .cell_list import new_grid
 from .contact_kernel import ContactArrays
 from .kernel_threads import thread_arrays
-from .kernels import N_PRM, WORK_SIZE
+from .kernels import WORK_SIZE
 
 if TYPE_CHECKING:
     from .solver import ExplicitSolver
@@ -74,14 +74,18 @@ class BlockData:
         a, av = _concat_views([b.a for b in bodies], (2,))
         st, sv = _concat_views([b.cell_stress for b in bodies], (4,))
         ep, ev = _concat_views([b.eps_p for b in bodies], ())
+        tp, tv = _concat_views([b.temperature for b in bodies], ())
         fx, fv = _concat_views([solver._fext[n] for n in names], (2,))
-        for b, x_, v_, a_, s_, e_ in zip(bodies, xv, vv, av, sv, ev):
-            b.x, b.v, b.a, b.cell_stress, b.eps_p = x_, v_, a_, s_, e_
+        for b, x_, v_, a_, s_, e_, t_ in zip(bodies, xv, vv, av, sv, ev, tv):
+            b.x, b.v, b.a, b.cell_stress, b.eps_p, b.temperature = x_, v_, a_, s_, e_, t_
         for n, f_ in zip(names, fv):
             solver._fext[n] = f_
         cells = np.concatenate([b.cells.astype(np.int32) + np.int32(o)
                                 for b, o in zip(bodies, node_off[:-1])]).reshape(-1, 3)
-        prm = np.array([solver._prm[n] for n in names]).reshape(len(names), N_PRM)
+        # one row per body, padded to the longest (a flow curve's parameters follow N_PRM)
+        prm = np.zeros((len(names), max(len(solver._prm[n]) for n in names)))
+        for ib, n in enumerate(names):
+            prm[ib, :len(solver._prm[n])] = solver._prm[n]
         con_idx, con_val, con_off = [], [], [0]
         for b, o in zip(bodies, node_off[:-1]):
             for kind, nodes, comps, val in b._constraints:
@@ -97,7 +101,7 @@ class BlockData:
         self.B = BodyArrays(
             node_off=node_off, cell_off=cell_off, cells=np.ascontiguousarray(cells), prm=prm,
             x=x, v=v, a=a, m=np.concatenate([b.mass for b in bodies]), f=np.zeros((ntot, 2)),
-            fext=fx, fext_on=np.zeros(len(names), np.uint8), stress=st, eps_p=ep,
+            fext=fx, fext_on=np.zeros(len(names), np.uint8), stress=st, eps_p=ep, temp=tp,
             con_off=np.array(con_off, np.int64),
             con_idx=np.concatenate(con_idx).astype(np.int64) if con_idx else np.zeros(0, np.int64),
             con_val=np.concatenate(con_val) if con_val else np.zeros(0),

@@ -134,6 +134,8 @@ class Body:
         if spec.initial_stress is not None:
             self.cell_stress[:] = np.asarray(spec.initial_stress, dtype=float)
         self.eps_p = np.zeros(nc)
+        #: temperature per cell, K (updated only for a material with a specific heat)
+        self.temperature = np.full(nc, float(spec.material.initial_temperature))
         self._buf = fem.Function(self.V)
         self.mass = self._lumped_mass()
 

@@ -21,30 +21,26 @@ import numba
 __all__ = ["cell_update", "batch_update", "rate_factor_at", "BATCH", "ROW", "IN_ROWS", "OUT_ROWS",
            "MODE_PLANE_STRESS", "MODE_PLANE_STRAIN", "MODE_AXISYMMETRIC", "FM", "N_PRM"]
 
-# fast-math: only "no signed zeros". Reassociation, contraction (FMA) and reciprocal approximation let LLVM
-# optimise the kernel differently where numba inlines it (a caller compiled now or loaded from the cache):
-# results then depended on the cache state (docs/mechanics.md). No nnan/ninf: NaN/inf checks must work.
-FM = {"nsz"}
+from .flow_curves import plastic_return
+from .kernel_layout import (FM, N_PRM, P_B1, P_B2, P_BETA, P_BULK, P_FLOW, P_G, P_H, P_K, P_MODE,  # noqa: F401
+                            P_R1, P_R2, P_RATE, P_RHO, P_RHOCP, P_SY0, P_T0, P_THERM, P_THICK)
 
 MODE_PLANE_STRESS = 0
 MODE_PLANE_STRAIN = 1
 MODE_AXISYMMETRIC = 2
-
-#: the kernel's float64 parameter vector (:func:`.kernels.pack_parameters`)
-P_RHO, P_G, P_K, P_SY0, P_H, P_RATE, P_R1, P_R2, P_B1, P_B2, P_BULK, P_THICK, P_MODE = range(13)
-N_PRM = 13
 
 #: cells per batch, and the row length of the scratch arrays: padded so that the rows are not a
 #: power-of-two number of bytes apart (rows 2 KiB apart alias in the L1 cache: 2x slower gather)
 BATCH = 128
 ROW = BATCH + 8
 #: scratch rows in: node coordinates x0 y0 x1 y1 x2 y2 (0-5), velocities (6-11), stress (12-15),
-#: plastic strain (16)
-IN_ROWS = 17
+#: plastic strain (16); a general material's (:func:`general_material`) lower bound of the yield
+#: stress (17, :func:`.flow_curves.flow_floor`) and temperature (18)
+IN_ROWS = 19
 #: scratch rows out: stress (0-3), plastic strain (4), nodal forces f0x f0y f1x f1y f2x f2y (5-10),
 #: hoop force per node (11), critical step (12), plastic and bulk-viscous dissipation (13, 14),
-#: status (15: 1 done, 0 inverted, 2 to be redone by cell_update)
-OUT_ROWS = 16
+#: status (15: 1 done, 0 inverted, 2 to be redone by cell_update), temperature (16, cell_update)
+OUT_ROWS = 17
 ST_INVERTED = 0.0
 ST_DONE = 1.0
 ST_REDO = 2.0
@@ -95,9 +91,54 @@ def j2_return(sxx, syy, szz, sxy, dxx, dyy, dzz, dxy, dt, G, lam, sy, hr):
 
 
 @numba.njit(cache=True, error_model="numpy", fastmath=FM)
+def equivalent_rate(dxx, dyy, dzz, dxy):
+    """Equivalent strain rate sqrt(2/3 e:e) (1/s) of the rate of deformation d (1/s), e its
+    deviator."""
+    m = (dxx + dyy + dzz) / 3.0
+    exx, eyy, ezz = dxx - m, dyy - m, dzz - m
+    return math.sqrt(2.0 / 3.0 * (exx * exx + eyy * eyy + ezz * ezz + 2.0 * dxy * dxy))
+
+
+@numba.njit(cache=True, error_model="numpy", fastmath=FM)
+def j2_return_flow(sxx, syy, szz, sxy, dxx, dyy, dzz, dxy, dt, G, lam, ep, rate, T, fac, prm):
+    """:func:`j2_return` for any flow curve (:mod:`.flow_curves`) at the plastic strain ``ep``, the
+    equivalent strain rate ``rate`` (1/s) and the temperature ``T`` (K), times the rate law's
+    factor ``fac``. Returns (sxx, syy, szz, sxy, deps_p, yield stress after the return (Pa))."""
+    tr = (dxx + dyy + dzz) * dt
+    txx = sxx + lam * tr + 2.0 * G * dxx * dt
+    tyy = syy + lam * tr + 2.0 * G * dyy * dt
+    tzz = szz + lam * tr + 2.0 * G * dzz * dt
+    txy = sxy + 2.0 * G * dxy * dt
+    p = (txx + tyy + tzz) / 3.0
+    exx, eyy, ezz = txx - p, tyy - p, tzz - p
+    q = math.sqrt(1.5 * (exx * exx + eyy * eyy + ezz * ezz + 2.0 * txy * txy))
+    dep, sy = plastic_return(q, G, ep, rate, T, fac, prm)
+    if dep > 0.0:
+        f = 1.0 - 3.0 * G * dep / q
+        return exx * f + p, eyy * f + p, ezz * f + p, txy * f, dep, sy
+    return txx, tyy, tzz, txy, 0.0, sy
+
+
+@numba.njit(cache=True, error_model="numpy", fastmath=FM)
+def general_material(prm):
+    """Whether the material needs the general return (a flow curve other than the linear law, or
+    a temperature per cell): the vectorised kernels then only screen for elastic cells."""
+    return prm[P_FLOW] != 0.0 or prm[P_THERM] != 0.0
+
+
+@numba.njit(cache=True, error_model="numpy", fastmath=FM)
+def heated(T, sy, dep, prm):
+    """Temperature (K) after the adiabatic plastic heating rho c_p dT = beta sy dep (sy: yield
+    stress after the return, Pa; dep: plastic strain increment) of a cell at ``T``."""
+    if prm[P_THERM] != 0.0:
+        return T + prm[P_BETA] * sy * dep / prm[P_RHOCP]
+    return T
+
+
+@numba.njit(cache=True, error_model="numpy", fastmath=FM)
 def cell_update(x0, y0, x1, y1, x2, y2, vx0, vy0, vx1, vy1, vx2, vy2, sxx, syy, szz, sxy, ep,
-                dt, prm, out):
-    """One cell's update, scalar (any rate law; the plane-stress secant iteration).
+                dt, prm, out, T=-1.0):
+    """One cell's update, scalar (any rate law and flow curve; the plane-stress secant iteration).
 
     Parameters
     ----------
@@ -115,6 +156,8 @@ def cell_update(x0, y0, x1, y1, x2, y2, vx0, vy0, vx1, vy1, vx2, vy2, sxx, syy, 
         Kernel parameters (:func:`.kernels.pack_parameters`).
     out : float64 array (OUT_ROWS,)
         Receives the cell's outputs in the order of the scratch rows out (see ``OUT_ROWS``).
+    T : float
+        Temperature at the start of the step, K (negative: the material's initial temperature).
     """
     rho = prm[P_RHO]
     G = prm[P_G]
@@ -174,10 +217,20 @@ def cell_update(x0, y0, x1, y1, x2, y2, vx0, vy0, vx1, vy1, vx2, vy2, sxx, syy, 
     rxx = cs * cs * sxx + 2.0 * cs * sn * sxy + sn * sn * syy
     ryy = sn * sn * sxx - 2.0 * cs * sn * sxy + cs * cs * syy
     rxy = -cs * sn * sxx + (cs * cs - sn * sn) * sxy + cs * sn * syy
-    fac = rate_factor(rid, r1, r2, dxx, dyy, dzz, dxy)
-    sy = (sy0 + H * ep) * fac
-    hr = H * fac
-    nxx, nyy, nzz, nxy, dep = j2_return(rxx, ryy, szz, rxy, dxx, dyy, dzz, dxy, dt, G, lam, sy, hr)
+    general = general_material(prm)
+    if T < 0.0:
+        T = prm[P_T0]
+    if general:
+        rate = equivalent_rate(dxx, dyy, dzz, dxy)
+        fac = rate_factor_at(rid, r1, r2, rate)
+        hr = 0.0
+        nxx, nyy, nzz, nxy, dep, sy = j2_return_flow(rxx, ryy, szz, rxy, dxx, dyy, dzz, dxy, dt, G,
+                                                     lam, ep, rate, T, fac, prm)
+    else:
+        fac = rate_factor(rid, r1, r2, dxx, dyy, dzz, dxy)
+        sy = (sy0 + H * ep) * fac
+        hr = H * fac
+        nxx, nyy, nzz, nxy, dep = j2_return(rxx, ryy, szz, rxy, dxx, dyy, dzz, dxy, dt, G, lam, sy, hr)
     if mode == MODE_PLANE_STRESS:
         tol = 1e-12 * (sy + abs(nxx) + abs(nyy))
         if dep > 0.0 and abs(nzz) > tol:
@@ -186,11 +239,17 @@ def cell_update(x0, y0, x1, y1, x2, y2, vx0, vy0, vx1, vy1, vx2, vy2, sxx, syy, 
             r0 = nzz
             z1 = dzz - nzz / ((lam + 2.0 * G) * dt)
             for _it in range(30):
-                fac = rate_factor(rid, r1, r2, dxx, dyy, z1, dxy)
-                sy = (sy0 + H * ep) * fac
-                hr = H * fac
-                nxx, nyy, nzz, nxy, dep = j2_return(rxx, ryy, szz, rxy, dxx, dyy, z1, dxy, dt, G,
-                                                    lam, sy, hr)
+                if general:
+                    rate = equivalent_rate(dxx, dyy, z1, dxy)
+                    fac = rate_factor_at(rid, r1, r2, rate)
+                    nxx, nyy, nzz, nxy, dep, sy = j2_return_flow(rxx, ryy, szz, rxy, dxx, dyy, z1, dxy,
+                                                                 dt, G, lam, ep, rate, T, fac, prm)
+                else:
+                    fac = rate_factor(rid, r1, r2, dxx, dyy, z1, dxy)
+                    sy = (sy0 + H * ep) * fac
+                    hr = H * fac
+                    nxx, nyy, nzz, nxy, dep = j2_return(rxx, ryy, szz, rxy, dxx, dyy, z1, dxy, dt, G,
+                                                        lam, sy, hr)
                 if abs(nzz) <= tol or nzz == r0:
                     break
                 z2 = z1 - nzz * (z1 - z0) / (nzz - r0)
@@ -204,6 +263,7 @@ def cell_update(x0, y0, x1, y1, x2, y2, vx0, vy0, vx1, vy1, vx2, vy2, sxx, syy, 
     out[2] = nzz
     out[3] = nxy
     out[4] = ep + dep
+    out[16] = heated(T, sy, dep, prm)
     # geometry at the end of the step
     l01 = (x1 - x0) * (x1 - x0) + (y1 - y0) * (y1 - y0)
     l12 = (x2 - x1) * (x2 - x1) + (y2 - y1) * (y2 - y1)
@@ -254,7 +314,10 @@ def cell_update(x0, y0, x1, y1, x2, y2, vx0, vy0, vx1, vy1, vx2, vy2, sxx, syy, 
 @numba.njit(cache=True, error_model="numpy", fastmath=FM)
 def batch_update(inp, out, n, dt, prm):
     """Update ``n`` <= BATCH cells held in the scratch ``inp`` (IN_ROWS x ROW, flattened) into
-    ``out`` (OUT_ROWS x ROW, flattened); rate-independent materials only (``prm[P_RATE] == 0``).
+    ``out`` (OUT_ROWS x ROW, flattened); rate-independent materials with the linear law
+    (``prm[P_RATE] == 0``), or, for a general material (:func:`general_material`), the elastic
+    cells: a cell whose trial stress exceeds the lower bound of its yield stress (scratch row 17)
+    is flagged for :func:`cell_update`.
     The formulas of :func:`cell_update`, with selects instead of branches so that the loop
     vectorises (LLVM also turns the branches on the formulation into selects: measured as fast as
     one loop per formulation, which took minutes to compile). They are written out again here on
@@ -273,6 +336,7 @@ def batch_update(inp, out, n, dt, prm):
     lam = K - 2.0 * G / 3.0
     sy0 = prm[P_SY0]
     H = prm[P_H]
+    screen = general_material(prm)
     b1 = prm[P_B1]
     b2 = prm[P_B2]
     bulk = prm[P_BULK] > 0.0
@@ -336,7 +400,7 @@ def batch_update(inp, out, n, dt, prm):
         rxx = cs * cs * sxx + 2.0 * cs * sn * sxy + sn * sn * syy
         ryy = sn * sn * sxx - 2.0 * cs * sn * sxy + cs * cs * syy
         rxy = -cs * sn * sxx + (cs * cs - sn * sn) * sxy + cs * sn * syy
-        sy = sy0 + H * ep
+        sy = inp[17 * ROW + j] if screen else sy0 + H * ep
         # elastic predictor + radial return (j2_return, with selects)
         tr = (dxx + dyy + dzz) * dt
         txx = rxx + lam * tr + 2.0 * G * dxx * dt
@@ -356,6 +420,7 @@ def batch_update(inp, out, n, dt, prm):
         nzz = ezz * fac + p if plastic else tzz
         nxy = txy * fac if plastic else txy
         status = ST_DONE if ok else ST_INVERTED
+        status = ST_REDO if ok & screen & plastic else status
         if mode == MODE_PLANE_STRESS:
             tol = 1e-12 * (sy + abs(nxx) + abs(nyy))
             redo = plastic & (abs(nzz) > tol)

@@ -145,13 +145,14 @@ def run_steps_threaded(B, W, C, sc, dt, n_steps, ev, evf, T):
             cells = B.cells[c0:c1]
             stress = B.stress[c0:c1]
             eps_p = B.eps_p[c0:c1]
+            temp = B.temp[c0:c1]
             fe = T.fe[c0:c1]
             prm = B.prm[ib]
             k1 = T.chunk_off[ib + 1]
             cs = chunk_size(nc)
             for q in numba.prange(k1 - k0):
                 element_chunk(cells, x, v, dt, prm, stress, eps_p, f, fe, shared,
-                              q * cs, min(nc, (q + 1) * cs), work[k0 + q], parts[k0 + q])
+                              q * cs, min(nc, (q + 1) * cs), work[k0 + q], parts[k0 + q], temp)
             axi = int(prm[P_MODE]) == MODE_AXISYMMETRIC
             g0 = T.gather_off[ib]
             g1 = T.gather_off[ib + 1]

@@ -24,7 +24,9 @@ import numpy as np
 from .element_math import (BATCH, FM, add_chunk_part, IN_ROWS, MODE_AXISYMMETRIC, MODE_PLANE_STRAIN,
                            MODE_PLANE_STRESS, N_PRM, OUT_ROWS, P_B1, P_B2, P_BULK, P_G, P_H, P_K,
                            P_MODE, P_R1, P_R2, P_RATE, P_RHO, P_SY0, P_THICK, ROW, ST_INVERTED,
-                           ST_REDO, batch_update, cell_update)
+                           ST_REDO, batch_update, cell_update, general_material)
+from .flow_curves import encode, flow_floor, floor_value
+from .kernel_layout import P_BETA, P_FLOW, P_RHOCP, P_SYF, P_T0, P_THERM
 
 __all__ = ["MODE_PLANE_STRESS", "MODE_PLANE_STRAIN", "MODE_AXISYMMETRIC", "pack_parameters",
            "element_step", "element_chunk", "element_critical_dt", "N_PRM", "WORK_SIZE", "CHUNK", "chunk_size"]
@@ -47,9 +49,16 @@ def pack_parameters(material, mode: int, thickness: float, b1: float, b2: float,
         Linear and quadratic bulk-viscosity coefficients (dimensionless).
     bulk_viscosity : bool
         Whether bulk viscosity is active.
+
+    Returns
+    -------
+    float64 array (N_PRM + the flow curve's parameters,)
+        The layout of :mod:`.kernel_layout`; the flow curve's own parameters from ``P_FP`` on
+        (:func:`.flow_curves.encode`).
     """
     rid, r1, r2 = material.rate_parameters()
-    prm = np.zeros(N_PRM)
+    law, fp = encode(material.flow_curve)
+    prm = np.zeros(N_PRM + len(fp))
     prm[P_RHO] = material.density
     prm[P_G] = material.shear_modulus
     prm[P_K] = material.bulk_modulus
@@ -60,6 +69,13 @@ def pack_parameters(material, mode: int, thickness: float, b1: float, b2: float,
     prm[P_BULK] = 1.0 if bulk_viscosity else 0.0
     prm[P_THICK] = thickness
     prm[P_MODE] = mode
+    prm[P_FLOW] = law
+    prm[P_THERM] = 1.0 if material.specific_heat is not None else 0.0
+    prm[P_BETA] = material.taylor_quinney
+    prm[P_RHOCP] = material.density * (material.specific_heat or 0.0)
+    prm[P_T0] = material.initial_temperature
+    prm[N_PRM:] = fp
+    prm[P_SYF] = floor_value(prm, 0.0, prm[P_T0])
     return prm
 
 
@@ -84,7 +100,7 @@ def chunk_size(nc):
 
 
 @numba.njit(cache=True, error_model="numpy", fastmath=FM)
-def element_step(cells, x, v, dt, prm, stress, eps_p, f_int, acc, work):
+def element_step(cells, x, v, dt, prm, stress, eps_p, f_int, acc, work, temp):
     """Explicit element update over all ``cells``: batches of ``BATCH`` cells are gathered into a
     structure-of-arrays scratch, updated by the vectorised :func:`.element_math.batch_update`
     (rate-independent materials; a cell that needs the plane-stress secant iteration, and every
@@ -113,8 +129,12 @@ def element_step(cells, x, v, dt, prm, stress, eps_p, f_int, acc, work):
         ``acc[0] += plastic dissipation (J)``, ``acc[1] += bulk-viscous dissipation (J)``;
         ``acc[2]`` is set to the first inverted cell index, or -1.
     work : float64 array (WORK_SIZE,)
-        Scratch (required: an omitted argument would be a second compiled variant of this kernel
-        and of :func:`element_chunk`).
+        Scratch.
+    temp : float64 array (nc,) or (0,)
+        Temperature per cell, K; updated in place by the plastic heating of a material with a
+        specific heat. Empty: the material's initial temperature, not updated.
+        (Both required: an omitted or None argument would compile a second variant of this kernel
+        and of :func:`element_chunk`.)
 
     Returns
     -------
@@ -131,7 +151,7 @@ def element_step(cells, x, v, dt, prm, stress, eps_p, f_int, acc, work):
     cs = chunk_size(nc)
     for e0 in range(0, nc, cs):
         element_chunk(cells, x, v, dt, prm, stress, eps_p, f_int, no_fe, _NO_SHARED, e0,
-                      min(nc, e0 + cs), work, part)
+                      min(nc, e0 + cs), work, part, temp)
         dtmin, wp, wv, acc[2] = add_chunk_part(part, dtmin, wp, wv, acc[2])
     acc[0] += wp
     acc[1] += wv
@@ -139,18 +159,28 @@ def element_step(cells, x, v, dt, prm, stress, eps_p, f_int, acc, work):
 
 
 @numba.njit(cache=True, error_model="numpy", fastmath=FM)
-def element_chunk(cells, x, v, dt, prm, stress, eps_p, f_int, fe, shared, e0, e1, work, part):
+def element_chunk(cells, x, v, dt, prm, stress, eps_p, f_int, fe, shared, e0, e1, work, part, temp):
     """Cells ``e0:e1`` of :func:`element_step`. Their nodal forces are added to ``f_int`` in cell
     order; if ``fe`` has rows (the threaded kernel), those of the nodes flagged in ``shared`` (node
     rows of ``f_int``: nodes whose cells lie in more than one chunk) are stored per cell in ``fe``
     instead (nc, 7: f0x f0y f1x f1y f2x f2y, and the hoop force per node in axisymmetry) for a
     gather. ``part`` receives (smallest critical step s, plastic and bulk-viscous dissipation J
-    summed in cell order, first inverted cell or -1)."""
+    summed in cell order, first inverted cell or -1). ``temp``: the temperature per cell (K; empty:
+    the material's initial temperature, not updated).
+
+    Kernels by material: the linear law without a rate law in vectorised batches
+    (:func:`.element_math.batch_update`), with a rate law by the scalar
+    :func:`.element_math.cell_update`; a general material (another flow curve, or a temperature)
+    screened in the batches (the cells whose trial stress stays below
+    :func:`.flow_curves.flow_floor` are elastic) and its other cells by :func:`cell_update`."""
     inp = work[:IN_ROWS * ROW]
     out = work[IN_ROWS * ROW:(IN_ROWS + OUT_ROWS) * ROW]
     one = work[(IN_ROWS + OUT_ROWS) * ROW:(IN_ROWS + OUT_ROWS) * ROW + OUT_ROWS]
     axi = int(prm[P_MODE]) == MODE_AXISYMMETRIC
-    vector = int(prm[P_RATE]) == 0
+    general = general_material(prm)
+    vector = int(prm[P_RATE]) == 0 or general
+    has_t = temp.shape[0] > 0
+    t0 = prm[P_T0]
     store = fe.shape[0] > 0
     dtmin = 1e300
     wp = 0.0
@@ -180,6 +210,10 @@ def element_chunk(cells, x, v, dt, prm, stress, eps_p, f_int, fe, shared, e0, e1
             inp[14 * ROW + j] = stress[e, 2]
             inp[15 * ROW + j] = stress[e, 3]
             inp[16 * ROW + j] = eps_p[e]
+            if general:
+                tc = temp[e] if has_t else t0
+                inp[17 * ROW + j] = flow_floor(prm, eps_p[e], tc)
+                inp[18 * ROW + j] = tc
         if vector:
             batch_update(inp, out, n, dt, prm)
         else:
@@ -192,9 +226,12 @@ def element_chunk(cells, x, v, dt, prm, stress, eps_p, f_int, fe, shared, e0, e1
                             inp[4 * ROW + j], inp[5 * ROW + j], inp[6 * ROW + j], inp[7 * ROW + j],
                             inp[8 * ROW + j], inp[9 * ROW + j], inp[10 * ROW + j],
                             inp[11 * ROW + j], inp[12 * ROW + j], inp[13 * ROW + j],
-                            inp[14 * ROW + j], inp[15 * ROW + j], inp[16 * ROW + j], dt, prm, one)
+                            inp[14 * ROW + j], inp[15 * ROW + j], inp[16 * ROW + j], dt, prm, one,
+                            inp[18 * ROW + j] if general else -1.0)
                 for r in range(OUT_ROWS):
                     out[r * ROW + j] = one[r]
+                if general and has_t and one[15] != ST_INVERTED:
+                    temp[e] = one[16]
             if out[15 * ROW + j] == ST_INVERTED:
                 if bad < 0.0:
                     bad = e

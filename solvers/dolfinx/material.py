@@ -1,9 +1,12 @@
-"""Material data: isotropic elasticity, J2 plasticity with linear hardening, optional rate laws."""
+"""Material data: isotropic elasticity, J2 plasticity with linear hardening or a flow curve
+(:mod:`.flow_curves`), optional rate laws, optional temperature per cell (adiabatic heating)."""
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
 from typing import Optional, Union
+
+from .flow_curves import FlowCurve, JohnsonCookFlow, TabulatedFlow, _IDS as _FLOW_TYPES
 
 __all__ = ["CowperSymonds", "JohnsonCook", "Material", "RATE_NONE", "RATE_COWPER_SYMONDS",
            "RATE_JOHNSON_COOK"]
@@ -58,11 +61,18 @@ RateLaw = Union[CowperSymonds, JohnsonCook]
 
 @dataclass(frozen=True)
 class Material:
-    """Isotropic hypo-elastic, J2-plastic material with linear isotropic hardening.
+    """Isotropic hypo-elastic, J2-plastic material with isotropic hardening.
 
     The yield stress is ``sigma_s = (yield_stress + hardening_modulus * eps_p) * rate_factor``
-    (the paper's ``sigma_s = sigma_0 + A eps``).  The rate factor of the optional rate law is
+    (the paper's ``sigma_s = sigma_0 + A eps``), or, with a ``flow_curve``, that curve's
+    sigma_y(eps_p, eps_rate, T) times the rate factor.  The rate factor of the optional rate law is
     evaluated with the element's total equivalent strain rate (as LS-DYNA does by default).
+
+    With a ``specific_heat`` every cell carries a temperature T (K), raised by the plastic work
+    alone, adiabatically (no conduction: the pulse lasts microseconds to a millisecond, far shorter
+    than heat diffusion over an element): ``rho c_p dT = beta sigma_y d eps_p`` per cell (the
+    solver's ``heat_cells`` adds Joule heat). The flow curve softens with it (Johnson-Cook's T*
+    term, or per-temperature tables).
 
     Parameters
     ----------
@@ -78,6 +88,15 @@ class Material:
         Linear hardening modulus A (d sigma_s / d eps_p), Pa.
     rate_law : CowperSymonds or JohnsonCook, optional
         Strain-rate hardening law; ``None`` for rate independence.
+    flow_curve : TabulatedFlow, Swift, Voce, Ludwik or JohnsonCookFlow, optional
+        Flow curve (:mod:`.flow_curves`) in place of the linear law (``yield_stress`` and
+        ``hardening_modulus`` are then not used by the kernels); ``None``: the linear law.
+    specific_heat : float, optional
+        c_p, J/(kg K): track a temperature per cell; ``None``: no temperature.
+    taylor_quinney : float
+        beta, the fraction of the plastic work turned into heat (0..1, default 0.9).
+    initial_temperature : float
+        Temperature of every cell at the start, K (default 293.15).
     """
 
     density: float
@@ -86,6 +105,10 @@ class Material:
     yield_stress: float
     hardening_modulus: float
     rate_law: Optional[RateLaw] = None
+    flow_curve: Optional[FlowCurve] = None
+    specific_heat: Optional[float] = None
+    taylor_quinney: float = 0.9
+    initial_temperature: float = 293.15
 
     def __post_init__(self) -> None:
         for name in ("density", "shear_modulus", "bulk_modulus", "yield_stress"):
@@ -95,6 +118,27 @@ class Material:
             raise ValueError("Material.hardening_modulus must be >= 0")
         if self.rate_law is not None and not isinstance(self.rate_law, (CowperSymonds, JohnsonCook)):
             raise TypeError("rate_law must be CowperSymonds, JohnsonCook or None")
+        fc = self.flow_curve
+        if fc is not None and type(fc) not in _FLOW_TYPES:
+            raise TypeError(f"flow_curve must be one of {[t.__name__ for t in _FLOW_TYPES]} or None")
+        if self.rate_law is not None and (isinstance(fc, JohnsonCookFlow) or (
+                isinstance(fc, TabulatedFlow) and fc.rate_dependent)):
+            raise ValueError("a rate_law with a flow_curve that has its own rate dependence "
+                             "(Johnson-Cook, or tables per strain rate) would count the rate twice")
+        if self.specific_heat is not None and not self.specific_heat > 0:
+            raise ValueError(f"Material.specific_heat must be > 0, got {self.specific_heat!r}")
+        if not 0.0 <= self.taylor_quinney <= 1.0:
+            raise ValueError(f"Material.taylor_quinney must be in [0, 1], got {self.taylor_quinney!r}")
+        if not self.initial_temperature > 0:
+            raise ValueError(f"Material.initial_temperature must be > 0 K, got {self.initial_temperature!r}")
+        if isinstance(fc, JohnsonCookFlow) and not self.initial_temperature < fc.melting_temperature:
+            raise ValueError(f"Material.initial_temperature ({self.initial_temperature} K) must be below "
+                             f"the melting temperature ({fc.melting_temperature} K)")
+
+    @property
+    def thermal(self) -> bool:
+        """Whether every cell carries a temperature (a specific heat is given)."""
+        return self.specific_heat is not None
 
     @property
     def youngs_modulus(self) -> float:

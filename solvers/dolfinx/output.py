@@ -19,6 +19,8 @@ File layout (``<prefix>_<body>.h5``; h5py reads it by name, no XDMF needed)::
                           (3D: all six, the solver's own order)
         von_mises_Pa      (C,) per cell
         plastic_strain    (C,) per cell: equivalent plastic strain (-)
+        temperature_K     (C,) per cell, only for a body whose material carries a temperature
+                          (``Material.specific_heat``)
         ...               (C,) per cell: any further fields the writer's ``cell_fields`` gives
                           (e.g. the orchestrator's forming-limit check: minor_strain, major_strain,
                           flc_margin, flc_zone)
@@ -182,8 +184,8 @@ def _ensure_space(path: Path, nbytes: int) -> None:
 
 class FieldWriter:
     """Write displacement and velocity (nodes) and stress tensor, von Mises stress and equivalent
-    plastic strain (cells) of every body: one mesh, all fields, per output time (see the module
-    docstring for the file layout).
+    plastic strain (cells; the temperature of a body that carries one) of every body: one mesh, all
+    fields, per output time (see the module docstring for the file layout).
 
     The mesh is stored in the reference configuration; warp it by ``displacement_m`` to see the
     deformed shape.
@@ -227,7 +229,8 @@ class FieldWriter:
         for n, b in self.solver.bodies.items():
             own = slice(0, b.n_owned)
             extra = self.cell_fields(n, b) if self.cell_fields is not None else {}
-            local = (self._gids[n], b.u[own], b.v[own], b.cell_stress, b.von_mises, b.eps_p, extra)
+            local = (self._gids[n], b.u[own], b.v[own], b.cell_stress, b.von_mises, b.eps_p, extra,
+                     b.temperature if b.material.thermal else None)
             parts = self.comm.gather(local, root=0)
             if self.comm.rank != 0:
                 continue
@@ -241,6 +244,8 @@ class FieldWriter:
             vm = np.concatenate([p[4] for p in parts])
             ep = np.concatenate([p[5] for p in parts])
             cells = {"stress_Pa": _tensor6(s), "von_mises_Pa": vm.astype(float), "plastic_strain": ep.astype(float)}
+            if b.material.thermal:
+                cells["temperature_K"] = np.concatenate([p[7] for p in parts]).astype(float)
             cells.update({k: np.concatenate([p[6][k] for p in parts]).astype(float) for k in extra})
             f.write(t, {"displacement_m": _vec3(u), "velocity_m_s": _vec3(v)}, cells)
 

@@ -131,10 +131,10 @@ class PythonSteps:
             kernel = self._body_kernel(n)
             if update_state:
                 d = kernel(b.cells, b.x, b.v, dt, self._prm[n], b.cell_stress, b.eps_p, f, acc,
-                           self._work)
+                           self._work, b.temperature)
             else:
                 d = kernel(b.cells, b.x, np.zeros_like(b.v), 0.0, self._prm[n],
-                           b.cell_stress.copy(), b.eps_p.copy(), f, acc, self._work)
+                           b.cell_stress.copy(), b.eps_p.copy(), f, acc, self._work, b.temperature.copy())
             if acc[2] >= 0:
                 e = int(acc[2])
                 raise RuntimeError(f"t={self.time:.6e} s: cell {e} of body {n!r} inverted "

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .kernel_layout import P_FLOW, P_THERM
 from .kernels import (MODE_AXISYMMETRIC, MODE_PLANE_STRAIN, MODE_PLANE_STRESS, P_B1, P_B2, P_BULK,
                       P_G, P_H, P_K, P_MODE, P_RATE, P_RHO, P_SY0, P_THICK)
 
@@ -41,11 +42,13 @@ def _grads(X):
     return ta, gx, gy
 
 
-def element_step_numpy(cells, x, v, dt, prm, stress, eps_p, f_int, acc, work=None):
+def element_step_numpy(cells, x, v, dt, prm, stress, eps_p, f_int, acc, work=None, temp=None):
     """Vectorised-numpy twin of :func:`.kernels.element_step` (same arguments and return value;
-    ``work`` is not used)."""
+    ``work`` and ``temp`` are not used: the linear law without temperature only)."""
     if int(prm[P_RATE]) != 0:
         raise NotImplementedError("the numpy reference kernel supports rate-independent materials")
+    if prm[P_FLOW] != 0 or prm[P_THERM] != 0:
+        raise NotImplementedError("the numpy reference kernel supports the linear law without temperature")
     rho, G, K = prm[P_RHO], prm[P_G], prm[P_K]
     lam = K - 2.0 * G / 3.0
     mode = int(prm[P_MODE])

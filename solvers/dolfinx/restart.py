@@ -10,6 +10,13 @@ __all__ = ["state_dict", "load_state_dict"]
 _ACC_KEYS = ("plastic_J", "viscous_J", "external_work_J", "wall_dissipated_J", "kinetic_damping_J")
 
 
+def _state_keys(body) -> tuple[str, ...]:
+    """The body's state arrays: the temperature per cell only where the material carries one (the
+    state of every other body is what it was before temperatures existed)."""
+    keys = ("x", "v", "a", "cell_stress", "eps_p")
+    return keys + ("temperature",) if body.material.thermal else keys
+
+
 def state_dict(solver) -> Dict[str, np.ndarray]:
     """Complete solver state as arrays (exact restart with :meth:`load_state_dict`)."""
     d: Dict[str, np.ndarray] = {
@@ -26,7 +33,7 @@ def state_dict(solver) -> Dict[str, np.ndarray]:
         d[f"active/{ip}/{k}/slave"] = si.copy()
         d[f"active/{ip}/{k}/segment"] = mj.copy()
     for n, b in solver.bodies.items():
-        for key in ("x", "v", "a", "cell_stress", "eps_p"):
+        for key in _state_keys(b):
             d[f"{n}/{key}"] = getattr(b, key).copy()
         d[f"{n}/fext"] = solver._fext[n].copy()
     for i, out in enumerate(solver._contact_out):
@@ -37,7 +44,9 @@ def state_dict(solver) -> Dict[str, np.ndarray]:
 def load_state_dict(solver, d: Mapping[str, np.ndarray]) -> None:
     """Restore a state written by :meth:`state_dict` (same meshes and partitioning)."""
     for n, b in solver.bodies.items():
-        for key in ("x", "v", "a", "cell_stress", "eps_p"):
+        for key in _state_keys(b):
+            if f"{n}/{key}" not in d:
+                raise ValueError(f"state has no {n}/{key} (written without a temperature per cell?)")
             arr = np.asarray(d[f"{n}/{key}"])
             cur = getattr(b, key)
             if arr.shape != cur.shape:

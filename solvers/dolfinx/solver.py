@@ -373,6 +373,26 @@ class ExplicitSolver(PythonSteps):
                                 - self._E0)
         return e
 
+    def add_heat(self, body: str, energy_density: np.ndarray) -> None:
+        """Heat the cells of ``body`` adiabatically by ``energy_density`` (J/m^3 per cell of this rank,
+        e.g. the Joule heat of an EM step): T += e / (rho c_p). A body without a temperature
+        (``Material.specific_heat`` unset) is left as it is.
+
+        Parameters
+        ----------
+        body : str
+            Body name.
+        energy_density : (n_cells,) array
+            Heat per unit volume, J/m^3 (>= 0 for Joule heat).
+        """
+        b = self.bodies[body]
+        if not b.material.thermal:
+            return
+        e = np.asarray(energy_density, dtype=float)
+        if e.shape != b.temperature.shape:
+            raise ValueError(f"energy_density for {body!r} must have shape {b.temperature.shape}, got {e.shape}")
+        b.temperature += e / (b.material.density * b.material.specific_heat)
+
     @property
     def initial_energy(self) -> float:
         """Stored energy (kinetic + elastic + contact layer) at t = 0, J."""

@@ -23,8 +23,7 @@ from .contact3d import soft_contact_pass_3d
 from .kernels import pack_parameters
 from .soft_plane import SoftPlaneSpec, soft_plane_forces
 from .solver import ExplicitSolver
-from .element_math import P_RATE
-from .tet_batch import TET_WORK_SIZE, tet_step_batched
+from .tet_batch import TET_WORK_SIZE, batched_material, tet_step_batched
 from .tet_kernel import MODE_SOLID, tet_chunk_size, tet_critical_dt, tet_step
 from .tet_threads import TetThreadArrays, tet_step_threaded, tet_thread_arrays
 
@@ -32,13 +31,17 @@ __all__ = ["ExplicitSolver3D"]
 
 log = logging.getLogger(__name__)
 
+_NO_TEMP = np.empty(0)  # no temperature per cell (a material without a specific heat)
 
-def _tet_kernel(cells, x, v, dt, prm, stress, eps_p, f_int, acc, work):
-    """The 3D element kernel of a body: the vectorised batches for a rate-independent material,
-    the scalar kernel for a rate law (both give the same bits where both apply)."""
-    if prm[P_RATE] == 0:
-        return tet_step_batched(cells, x, v, dt, prm, stress, eps_p, f_int, acc, work)
-    return tet_step(cells, x, v, dt, prm, stress, eps_p, f_int, acc, work)
+
+def _tet_kernel(cells, x, v, dt, prm, stress, eps_p, f_int, acc, work, temp=None):
+    """The 3D element kernel of a body: the vectorised batches for a rate-independent material
+    or a general one (a flow curve, a temperature per cell ``temp``, K: screened), else the scalar
+    kernel (the linear law with a rate law); both give the same bits where both apply."""
+    temp = _NO_TEMP if temp is None else temp  # an array always: one compiled variant of each kernel
+    if batched_material(prm):
+        return tet_step_batched(cells, x, v, dt, prm, stress, eps_p, f_int, acc, work, temp)
+    return tet_step(cells, x, v, dt, prm, stress, eps_p, f_int, acc, work, temp)
 
 
 class _ThreadedKernel:
@@ -49,9 +52,9 @@ class _ThreadedKernel:
         self.arrays = arrays
         self.threads = threads
 
-    def __call__(self, cells, x, v, dt, prm, stress, eps_p, f_int, acc, work=None) -> float:
+    def __call__(self, cells, x, v, dt, prm, stress, eps_p, f_int, acc, work=None, temp=None) -> float:
         numba.set_num_threads(self.threads)
-        return tet_step_threaded(cells, x, v, dt, prm, stress, eps_p, f_int, acc, self.arrays)
+        return tet_step_threaded(cells, x, v, dt, prm, stress, eps_p, f_int, acc, self.arrays, temp)
 
 
 class ExplicitSolver3D(ExplicitSolver):

@@ -5,8 +5,13 @@ that LLVM vectorises it over cells) and scattered back in cell order.
 
 The formulas are those of :func:`.tet_kernel.tet_step`, written out again in the same order, so
 that every cell gets the same bits (``tests/mechanics/test_3d_kernel.py`` compares the two with
-``np.array_equal``). Rate-independent materials only: the solver uses the scalar kernel for a
-material with a rate law.
+``np.array_equal``). Rate-independent materials with the linear law; the solver uses the scalar kernel
+for a material with the linear law and a rate law. A general material (another flow curve, or a temperature
+per cell: :func:`.element_math.general_material`) is screened in the batches: a cell whose trial stress
+stays below the lower bound of its yield stress (:func:`.flow_curves.flow_floor`, scratch row 31) is
+elastic and done there; every other cell is updated by the scalar kernel on its own (:func:`_redo_cell`),
+its results written into the batch's rows, so that the forces are added in cell order as in the scalar
+kernel: the same bits as :func:`.tet_kernel.tet_step`.
 """
 from __future__ import annotations
 
@@ -16,21 +21,26 @@ import numba
 import numpy as np
 
 from .element_math import (BATCH, FM, P_B1, P_B2, P_BULK, P_G, P_H, P_K, P_RATE, P_RHO, P_SY0,
-                           ROW, add_chunk_part)
+                           ROW, add_chunk_part, general_material)
+from .flow_curves import flow_floor
+from .kernel_layout import P_T0
 from .tet_kernel import (_NO_SHARED, add_tet_forces, clear_tet_forces, store_tet_forces,
-                         tet_chunk_scalar, tet_chunk_size)
+                         tet_cell, tet_chunk_scalar, tet_chunk_size)
 
-__all__ = ["tet_step_batched", "tet_chunk_batched", "tet_chunk", "TET_WORK_SIZE"]
+__all__ = ["tet_step_batched", "tet_chunk_batched", "tet_chunk", "batched_material", "TET_WORK_SIZE"]
 
 #: scratch rows in: positions of the 4 nodes (0-11: x0 y0 z0 x1 ...), velocities (12-23),
-#: stress (24-29), plastic strain (30)
-_IN = 31
+#: stress (24-29), plastic strain (30), a general material's lower bound of the yield stress (31)
+_IN = 32
 #: scratch rows out: stress (0-5), plastic strain (6), forces of nodes 1-3 (7-15), critical step
-#: (16), plastic and bulk-viscous dissipation (17, 18), status (19: 1 done, 0 inverted)
+#: (16), plastic and bulk-viscous dissipation (17, 18), status (19: 1 done, 0 inverted, 2 to be
+#: redone by the scalar kernel)
 _OUT = 20
-#: float64 length of the scratch of :func:`tet_step_batched` (the batches', then 4 for a chunk's
-#: results)
-TET_WORK_SIZE = (_IN + _OUT) * ROW + 4
+#: a redone cell's scratch (:func:`.tet_kernel.tet_cell`'s results)
+_ONE = 16
+#: float64 length of the scratch of :func:`tet_step_batched` (the batches', a redone cell's, then 4
+#: for a chunk's results)
+TET_WORK_SIZE = (_IN + _OUT) * ROW + _ONE + 4
 
 
 @numba.njit(cache=True, error_model="numpy", fastmath=FM)
@@ -42,6 +52,7 @@ def _batch(inp, out, n, dt, prm):
     lam = K - 2.0 * G / 3.0
     sy0 = prm[P_SY0]
     H = prm[P_H]
+    screen = general_material(prm)
     b1 = prm[P_B1]
     b2 = prm[P_B2]
     bulk = prm[P_BULK] > 0.0
@@ -154,7 +165,7 @@ def _batch(inp, out, n, dt, prm):
         rxz = t00 * q20 + t01 * q21 + t02 * q22
         trd = dxx + dyy + dzz
         ep = inp[30 * ROW + j]
-        sy = (sy0 + H * ep) * 1.0
+        sy = inp[31 * ROW + j] if screen else (sy0 + H * ep) * 1.0
         hr = H * 1.0
         ltr = lam * trd * dt
         g2 = 2.0 * G * dt
@@ -216,18 +227,19 @@ def _batch(inp, out, n, dt, prm):
         out[13 * ROW + j] = sx * n3x + sxy6 * n3y + sxz6 * n3z
         out[14 * ROW + j] = sxy6 * n3x + sy_ * n3y + syz6 * n3z
         out[15 * ROW + j] = sxz6 * n3x + syz6 * n3y + sz * n3z
-        out[19 * ROW + j] = 1.0 if ok else 0.0
+        status = 1.0 if ok else 0.0
+        out[19 * ROW + j] = 2.0 if ok & screen & plastic else status
 
 
 @numba.njit(cache=True, error_model="numpy", fastmath=FM)
-def tet_step_batched(cells, x, v, dt, prm, stress, eps_p, f_int, acc, work=None):
+def tet_step_batched(cells, x, v, dt, prm, stress, eps_p, f_int, acc, work, temp):
     """:func:`.tet_kernel.tet_step` in vectorised batches (same arguments, same results to the
-    bit; rate-independent materials only), in the same chunks (:func:`tet_chunk_batched`).
-    ``work``: float64 scratch of :data:`TET_WORK_SIZE` (allocated per call if not given)."""
-    if work is None or work.shape[0] < TET_WORK_SIZE:
-        work = np.empty(TET_WORK_SIZE)
-    part = work[TET_WORK_SIZE - 4:TET_WORK_SIZE]
-    no_fe = work[:0].reshape(0, 12)
+    bit; rate-independent materials, or a general material screened: see the module docstring), in
+    the same chunks (:func:`tet_chunk_batched`). ``work``: float64 scratch of :data:`TET_WORK_SIZE`
+    (a shorter one: allocated per call); ``temp``: the temperature per cell (K), or empty."""
+    scratch = work if work.shape[0] >= TET_WORK_SIZE else np.empty(TET_WORK_SIZE)
+    part = scratch[TET_WORK_SIZE - 4:TET_WORK_SIZE]
+    no_fe = scratch[:0].reshape(0, 12)
     nc = cells.shape[0]
     dtmin = 1e300
     wp = 0.0
@@ -236,7 +248,7 @@ def tet_step_batched(cells, x, v, dt, prm, stress, eps_p, f_int, acc, work=None)
     cs = tet_chunk_size(nc)
     for e0 in range(0, nc, cs):
         tet_chunk_batched(cells, x, v, dt, prm, stress, eps_p, f_int, no_fe, _NO_SHARED, e0,
-                          min(nc, e0 + cs), work, part)
+                          min(nc, e0 + cs), scratch, part, temp)
         dtmin, wp, wv, acc[2] = add_chunk_part(part, dtmin, wp, wv, acc[2])
     acc[0] += wp
     acc[1] += wv
@@ -244,12 +256,16 @@ def tet_step_batched(cells, x, v, dt, prm, stress, eps_p, f_int, acc, work=None)
 
 
 @numba.njit(cache=True, error_model="numpy", fastmath=FM)
-def tet_chunk_batched(cells, x, v, dt, prm, stress, eps_p, f_int, fe, shared, e0, e1, work, part):
+def tet_chunk_batched(cells, x, v, dt, prm, stress, eps_p, f_int, fe, shared, e0, e1, work, part, temp):
     """Cells ``e0:e1`` of :func:`tet_step_batched`: the arguments of
     :func:`.tet_kernel.tet_chunk_scalar` and ``work`` (its scratch, at least
-    ``TET_WORK_SIZE - 4`` float64); the same results to the bit (rate-independent materials)."""
+    ``TET_WORK_SIZE - 4`` float64); the same results to the bit (rate-independent materials, or a
+    general material, screened)."""
     inp = work[:_IN * ROW]
     out = work[_IN * ROW:(_IN + _OUT) * ROW]
+    one = work[(_IN + _OUT) * ROW:(_IN + _OUT) * ROW + _ONE]
+    screen = general_material(prm)
+    has_t = temp.shape[0] > 0
     store = fe.shape[0] > 0
     dtmin = 1e300
     wp = 0.0
@@ -270,7 +286,13 @@ def tet_chunk_batched(cells, x, v, dt, prm, stress, eps_p, f_int, fe, shared, e0
             for r in range(6):
                 inp[(24 + r) * ROW + j] = stress[e, r]
             inp[30 * ROW + j] = eps_p[e]
+            if screen:
+                inp[31 * ROW + j] = flow_floor(prm, eps_p[e], temp[e] if has_t else prm[P_T0])
         _batch(inp, out, n, dt, prm)
+        if screen:
+            for j in range(n):
+                if out[19 * ROW + j] == 2.0:
+                    _redo_cell(cells, x, v, dt, prm, stress, eps_p, temp, s + j, one, out, j)
         for j in range(n):
             e = s + j
             if out[19 * ROW + j] == 0.0:
@@ -303,6 +325,24 @@ def tet_chunk_batched(cells, x, v, dt, prm, stress, eps_p, f_int, fe, shared, e0
 
 
 @numba.njit(cache=True, error_model="numpy", fastmath=FM)
+def _redo_cell(cells, x, v, dt, prm, stress, eps_p, temp, e, res, out, j):
+    """Cell ``e`` by the scalar kernel's :func:`.tet_kernel.tet_cell` (its stress, plastic strain and
+    temperature updated in place; ``res`` its scratch), its outputs written into column ``j`` of the
+    batch's rows ``out`` (forces of nodes 1-3, critical step, dissipation, status), so that the batch
+    adds its forces in cell order."""
+    tet_cell(cells, x, v, dt, prm, stress, eps_p, temp, e, res)
+    for r in range(6):
+        out[r * ROW + j] = stress[e, r]
+    out[6 * ROW + j] = eps_p[e]
+    for r in range(9):
+        out[(7 + r) * ROW + j] = res[r]
+    out[16 * ROW + j] = res[9]
+    out[17 * ROW + j] = res[10]
+    out[18 * ROW + j] = res[11]
+    out[19 * ROW + j] = res[12]
+
+
+@numba.njit(cache=True, error_model="numpy", fastmath=FM)
 def _store_batch(cells, out, s, n, f_int, fe, shared):
     """The forces of the batch's cells ``s:s+n`` for the threaded kernel
     (:func:`.tet_kernel.store_tet_forces`; an inverted cell stores none)."""
@@ -318,11 +358,19 @@ def _store_batch(cells, out, s, n, f_int, fe, shared):
 
 
 @numba.njit(cache=True, error_model="numpy", fastmath=FM)
-def tet_chunk(cells, x, v, dt, prm, stress, eps_p, f_int, fe, shared, e0, e1, work, part):
+def tet_chunk(cells, x, v, dt, prm, stress, eps_p, f_int, fe, shared, e0, e1, work, part, temp):
     """Cells ``e0:e1`` by the solver's kernel for the material: :func:`tet_chunk_batched`
-    (rate-independent), else :func:`.tet_kernel.tet_chunk_scalar` (a rate law); same arguments."""
-    if prm[P_RATE] == 0:
+    (rate-independent, or a general material: a flow curve, a temperature per cell in ``temp``), else
+    :func:`.tet_kernel.tet_chunk_scalar` (the linear law with a rate law); same arguments."""
+    if batched_material(prm):
         tet_chunk_batched(cells, x, v, dt, prm, stress, eps_p, f_int, fe, shared, e0, e1, work,
-                          part)
+                          part, temp)
     else:
-        tet_chunk_scalar(cells, x, v, dt, prm, stress, eps_p, f_int, fe, shared, e0, e1, part)
+        tet_chunk_scalar(cells, x, v, dt, prm, stress, eps_p, f_int, fe, shared, e0, e1, part, temp)
+
+
+@numba.njit(cache=True)
+def batched_material(prm):
+    """Whether the vectorised 3D kernel serves the material: no rate law, or a general material
+    (:func:`.element_math.general_material`; screened, its yielding cells by the scalar kernel)."""
+    return prm[P_RATE] == 0 or general_material(prm)

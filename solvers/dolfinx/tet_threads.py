@@ -105,8 +105,7 @@ def tet_thread_arrays(cells: np.ndarray, n_nodes: int) -> TetThreadArrays:
                            parts=np.zeros((n_chunks, 4)))
 
 
-@numba.njit(cache=True, parallel=True, error_model="numpy", fastmath=FM)
-def tet_step_threaded(cells, x, v, dt, prm, stress, eps_p, f_int, acc, T):
+def tet_step_threaded(cells, x, v, dt, prm, stress, eps_p, f_int, acc, T, temp=None) -> float:
     """The solver's 3D element kernel (:func:`.tet_batch.tet_step_batched` for a rate-independent
     material, :func:`.tet_kernel.tet_step` for a rate law) on the threads numba has
     (``numba.set_num_threads``): same arguments but ``T`` (:class:`TetThreadArrays` of these
@@ -132,19 +131,29 @@ def tet_step_threaded(cells, x, v, dt, prm, stress, eps_p, f_int, acc, T):
         ``acc[0] +=`` plastic, ``acc[1] +=`` bulk-viscous dissipation (J); ``acc[2]`` = first
         inverted cell or -1.
     T : TetThreadArrays
+    temp : float64 array (nc,), optional
+        Temperature per cell, K (:func:`.tet_kernel.tet_step`).
 
     Returns
     -------
     float
         Smallest element critical time step (CFL 1), s.
     """
+    return _threaded(cells, x, v, dt, prm, stress, eps_p, f_int, acc, T,
+                     np.empty(0) if temp is None else temp)
+
+
+@numba.njit(cache=True, parallel=True, error_model="numpy", fastmath=FM)
+def _threaded(cells, x, v, dt, prm, stress, eps_p, f_int, acc, T, temp):
+    """:func:`tet_step_threaded` compiled (``temp`` an array: numba's parallel loops take no optional
+    argument)."""
     nc = cells.shape[0]
     cs = tet_chunk_size(nc)
     nq = T.parts.shape[0]
     work, parts, fe, shared = T.work, T.parts, T.fe, T.shared
     for q in numba.prange(nq):
         tet_chunk(cells, x, v, dt, prm, stress, eps_p, f_int, fe, shared, q * cs,
-                  min(nc, (q + 1) * cs), work[q], parts[q])
+                  min(nc, (q + 1) * cs), work[q], parts[q], temp)
     gather, off, ent = T.gather, T.off, T.ent
     fef = fe.reshape(-1)
     for g in numba.prange(gather.shape[0]):

@@ -23,6 +23,9 @@ from pulseform.orchestrator.case.schema import PLAUSIBLE, reference_rows
 
 REPO = Path(__file__).resolve().parents[2]
 BASE = tomllib.loads((REPO / "cases/bar_impact/case.toml").read_text())
+FLOW_TABLE = {"type": "table", "plastic_strain": [0.0, 0.1, 0.2], "yield_stress": [2e8, 2.5e8, 3e8]}
+FLOW_JC = {"type": "johnson_cook", "A": 3.24e8, "B": 1.14e8, "n": 0.42, "C": 0.002, "m": 1.34,
+           "melting_temperature": 855.0}
 PULSE = {"type": "pulse_sin2", "body": "left", "surface": {"xmin": 0.0, "xmax": 0.0},
          "amplitude": 30e6, "beta": 1e4, "omega": 1e5, "t_end": 3e-4}
 
@@ -157,6 +160,42 @@ BAD_FILES = [
     ("threads_above_the_cores", [(("mechanics", "threads"), 10 ** 6)], "mechanics.threads"),
     ("n_5000_digits", [(("coupling",), {"n": 10 ** 4000})], "coupling.n"),
     ("end_int_4000_digits", [(("time", "end"), 10 ** 4000)], "time.end"),
+    # issue 33: flow curves and temperatures
+    ("flow_table_not_increasing", [(("materials", "paper_al", "yield_stress"), _DELETE),
+                                   (("materials", "paper_al", "flow_curve"), dict(FLOW_TABLE, plastic_strain=[0.0, 0.1, 0.05]))],
+     "materials.paper_al.flow_curve.plastic_strain[2]"),
+    ("flow_table_negative_stress", [(("materials", "paper_al", "yield_stress"), _DELETE),
+                                    (("materials", "paper_al", "flow_curve"), dict(FLOW_TABLE, yield_stress=[2e8, -1e6, 3e8]))],
+     "materials.paper_al.flow_curve.yield_stress[1]"),
+    ("flow_table_negative_strain", [(("materials", "paper_al", "yield_stress"), _DELETE),
+                                    (("materials", "paper_al", "flow_curve"), dict(FLOW_TABLE, plastic_strain=[0.0, -0.1, 0.2]))],
+     "materials.paper_al.flow_curve.plastic_strain[1]"),
+    ("flow_table_temperatures_not_increasing",
+     [(("materials", "paper_al", "yield_stress"), _DELETE),
+      (("materials", "paper_al", "flow_curve"), dict(FLOW_TABLE, temperatures=[573.0, 293.0],
+                                                     yield_stress=[[2e8, 2.5e8, 3e8], [1.5e8, 1.8e8, 2e8]]))],
+     "materials.paper_al.flow_curve.temperatures[1]"),
+    ("flow_table_curve_count", [(("materials", "paper_al", "yield_stress"), _DELETE),
+                                (("materials", "paper_al", "flow_curve"), dict(FLOW_TABLE, strain_rates=[1.0, 1e3]))],
+     "materials.paper_al.flow_curve.yield_stress"),
+    ("flow_and_linear_law", [(("materials", "paper_al", "flow_curve"), FLOW_TABLE)], "materials.paper_al.yield_stress"),
+    ("no_yield_no_flow", [(("materials", "paper_al", "yield_stress"), _DELETE)], "materials.paper_al.yield_stress"),
+    ("jc_melting_below_room", [(("materials", "paper_al", "yield_stress"), _DELETE),
+                               (("materials", "paper_al", "flow_curve"), dict(FLOW_JC, melting_temperature=250.0))],
+     "materials.paper_al.flow_curve.melting_temperature"),
+    ("initial_temperature_above_melting", [(("materials", "paper_al", "yield_stress"), _DELETE),
+                                           (("materials", "paper_al", "flow_curve"), FLOW_JC),
+                                           (("materials", "paper_al", "initial_temperature"), 900.0)],
+     "materials.paper_al.initial_temperature"),
+    ("jc_with_rate_law", [(("materials", "paper_al", "yield_stress"), _DELETE),
+                          (("materials", "paper_al", "flow_curve"), FLOW_JC),
+                          (("materials", "paper_al", "rate_law"), {"type": "johnson_cook", "C": 0.01})],
+     "materials.paper_al.rate_law"),
+    ("taylor_quinney_above_one", [(("materials", "paper_al", "taylor_quinney"), 1.5)], "materials.paper_al.taylor_quinney"),
+    ("specific_heat_negative", [(("materials", "paper_al", "specific_heat"), -900.0)], "materials.paper_al.specific_heat"),
+    ("flow_type_unknown", [(("materials", "paper_al", "yield_stress"), _DELETE),
+                           (("materials", "paper_al", "flow_curve"), {"type": "zerilli_armstrong"})],
+     "materials.paper_al.flow_curve.type"),
 ]
 
 BAD_OVERRIDES = [

@@ -111,7 +111,7 @@ def test_patch_test_homogeneous_motion(mat):
     f = np.zeros_like(b.x)
     prm = pack_parameters(mat, MODE_SOLID, 1.0, 0.06, 1.2, False)
     tet_step(b.cells, b.x, np.zeros_like(b.v), 0.0, prm, st.copy(), b.eps_p.copy(), f, np.zeros(3),
-             np.empty(0))
+             np.empty(0), np.empty(0))
     bnd = np.unique(b.segments)
     interior = np.setdiff1d(np.arange(b.n_local), bnd)
     assert interior.size >= 27
@@ -214,7 +214,7 @@ def test_batched_kernel_equals_the_scalar_kernel(bulk):
     res = []
     for kernel in (tet_step, tet_step_batched):
         st, ep, f, acc = st0.copy(), np.full(nc, 0.01), np.zeros_like(x), np.zeros(3)
-        d = kernel(cells, x, v, 2e-8, prm, st, ep, f, acc, np.zeros(TET_WORK_SIZE))
+        d = kernel(cells, x, v, 2e-8, prm, st, ep, f, acc, np.zeros(TET_WORK_SIZE), np.empty(0))
         res.append((d, st, ep, f, acc))
     (d0, st, ep, f, acc), other = res
     assert acc[2] == bad and np.array_equal(st[bad], st0[bad]) and ep[bad] == 0.01

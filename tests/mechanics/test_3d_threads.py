@@ -77,7 +77,7 @@ def compare_kernels(threads: int) -> None:
                 x += 2e-8 * v
                 f, acc = np.zeros_like(x), np.zeros(3)
                 if n == 0:
-                    d = serial(cells, x, v, 2e-8, prm, st, ep, f, acc, np.zeros(TET_WORK_SIZE))
+                    d = serial(cells, x, v, 2e-8, prm, st, ep, f, acc, np.zeros(TET_WORK_SIZE), np.empty(0))
                 else:
                     numba.set_num_threads(n)
                     d = tet_step_threaded(cells, x, v, 2e-8, prm, st, ep, f, acc, T)

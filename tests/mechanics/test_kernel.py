@@ -39,7 +39,7 @@ def test_compiled_kernel_matches_numpy_twin(mode):
         stress0[:, 2] = 0.0
     prm = pack_parameters(STEEL, mode, 1.0, 0.06, 1.2, True)
     out = []
-    for kern in (lambda *a: element_step(*a, np.empty(WORK_SIZE)), element_step_numpy):
+    for kern in (lambda *a: element_step(*a, np.empty(WORK_SIZE), np.empty(0)), element_step_numpy):
         st, ep, f, acc = stress0.copy(), np.full(len(stress0), 0.01), np.zeros_like(v), np.zeros(3)
         d = kern(b.cells, x, v, dt, prm, st, ep, f, acc)
         out.append((st, ep, f, acc, d))
@@ -80,7 +80,7 @@ def test_patch_test_homogeneous_motion(formulation):
         f = np.zeros_like(b.v)
         prm = pack_parameters(STEEL, s.mode, 1.0, 0.06, 1.2, False)
         element_step(b.cells, b.x, np.zeros_like(b.v), 0.0, prm, st.copy(), b.eps_p.copy(), f,
-                     np.zeros(3), np.empty(WORK_SIZE))
+                     np.zeros(3), np.empty(WORK_SIZE), np.empty(0))
         bnd = np.unique(b.segments)
         interior = np.setdiff1d(np.arange(b.n_local), bnd)
         assert interior.size > 10
@@ -153,7 +153,7 @@ def test_return_lands_on_the_yield_surface(mode):
     ep = np.full(len(st), 0.02)
     prm = pack_parameters(STEEL, mode, 1.0, 0.06, 1.2, False)
     element_step(b.cells, b.x + dt * v, v, dt, prm, st, ep, np.zeros_like(v), np.zeros(3),
-                 np.empty(WORK_SIZE))
+                 np.empty(WORK_SIZE), np.empty(0))
     p = st[:, :3].mean(axis=1)
     d = st[:, :3] - p[:, None]
     vm = np.sqrt(1.5 * ((d ** 2).sum(axis=1) + 2 * st[:, 3] ** 2))
@@ -193,7 +193,7 @@ def test_batched_kernel_equals_the_scalar_cell_update(mode, rate):
         stress0[:, 2] = 0.0
     prm = pack_parameters(mat, mode, 1e-3, 0.06, 1.2, True)
     st, ep, f, acc = stress0.copy(), np.full(nc, 0.01), np.zeros_like(x), np.zeros(3)
-    d = element_step(cells, x, v, dt, prm, st, ep, f, acc, np.empty(WORK_SIZE))
+    d = element_step(cells, x, v, dt, prm, st, ep, f, acc, np.empty(WORK_SIZE), np.empty(0))
     assert acc[2] == bad
     assert np.array_equal(st[bad], stress0[bad]) and ep[bad] == 0.01 and not f[3 * bad:3 * bad + 3].any()
     assert (ep > 0.01).sum() > 20
@@ -204,7 +204,7 @@ def test_batched_kernel_equals_the_scalar_cell_update(mode, rate):
             continue
         p = x[cells[e]].ravel()
         q = v[cells[e]].ravel()
-        cell_update(*p, *q, *stress0[e], 0.01, dt, prm, out)
+        cell_update(*p, *q, *stress0[e], 0.01, dt, prm, out, -1.0)  # T given: the compiled variant the kernels use
         scale = np.abs(out[:4]).max()
         assert np.abs(st[e] - out[:4]).max() <= 1e-12 * scale
         assert ep[e] == pytest.approx(out[4], rel=1e-12, abs=1e-15)

@@ -76,7 +76,7 @@ class TubePressFit(Analysis):
         self.R2 = outer.shape.origin[0]                               # outer tube's inner radius
         self.clearance = self.R2 - self.R1 - self.h0                  # gap beyond the force layer
         mat = case.materials[inner.material]
-        self.t_star = self.R0 / np.sqrt(mat.yield_stress / mat.density)
+        self.t_star = self.R0 / np.sqrt(mat.initial_yield_stress / mat.density)
         self._nodes = None
 
     def _setup(self, solver) -> None:

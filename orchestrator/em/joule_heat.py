@@ -1,0 +1,116 @@
+"""The Joule heat of an EM step handed to the mechanics (issue 33), 2D and 3D alike.
+
+GetDP computes the Joule power density q = |j|^2 / sigma per conductor element (W/m^3) at the end of every
+sub-step of an EM step. The heat an element receives over the step [t0, t1] is taken as the mean of those
+values times t1 - t0 (J/m^3; the rectangle rule of the implicit-Euler sub-steps, as the held force density),
+and it goes to the mechanical cell on the same nodes (a body whose mesh is cut from the EM mesh: shared
+nodes, the same cells in another order). The mechanics adds it to the cell's temperature adiabatically
+(``ExplicitSolver.add_heat``) at the end of the step.
+
+A mechanical cell without a matching EM element (meshes that do not share their nodes) gets no Joule heat:
+:func:`cell_of_elements` reports how many.
+"""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+
+__all__ = ["cell_of_elements", "joule_heat", "JouleHeat"]
+
+log = logging.getLogger(__name__)
+
+
+def cell_of_elements(em_cells: np.ndarray, body_to_em: np.ndarray, cells: np.ndarray) -> np.ndarray:
+    """For each mechanical cell, the row of ``em_cells`` on the same nodes, or -1.
+
+    Parameters
+    ----------
+    em_cells : int array (m, k)
+        EM node indices of the body's EM elements (triangles k = 3, tetrahedra k = 4).
+    body_to_em : int array (n,)
+        The EM node of each of the body's node rows.
+    cells : int array (nc, k)
+        The mechanical cells' node rows.
+    """
+    em_cells = np.asarray(em_cells, dtype=np.int64)
+    body_to_em = np.asarray(body_to_em, dtype=np.int64)
+    em_to_body = np.full(int(max(body_to_em.max(initial=-1), em_cells.max(initial=-1))) + 1, -1, np.int64)
+    em_to_body[body_to_em] = np.arange(len(body_to_em))
+    rows = em_to_body[em_cells]
+    ok = np.flatnonzero(np.all(rows >= 0, axis=1))
+    both = np.vstack([np.sort(rows[ok], axis=1), np.sort(np.asarray(cells, dtype=np.int64), axis=1)])
+    _, ident = np.unique(both, axis=0, return_inverse=True)
+    ident = ident.reshape(-1)
+    element_of = np.full(int(ident.max(initial=-1)) + 1, -1, np.int64)
+    element_of[ident[:len(ok)]] = ok
+    return element_of[ident[len(ok):]]
+
+
+def joule_heat(joule_density: np.ndarray, duration: float, match: np.ndarray) -> np.ndarray:
+    """Heat per unit volume (J/m^3) of the mechanical cells over an EM step.
+
+    Parameters
+    ----------
+    joule_density : (n_sub, m) array
+        GetDP's Joule power density of the body's EM elements at the end of each sub-step, W/m^3.
+    duration : float
+        The EM step t1 - t0, s.
+    match : (nc,) int array
+        :func:`cell_of_elements`: the EM element of each cell, -1 for none (no heat).
+    """
+    e = np.maximum(np.asarray(joule_density, dtype=float), 0.0).mean(axis=0) * duration
+    out = np.zeros(len(match))
+    on = match >= 0
+    out[on] = e[match[on]]
+    return out
+
+
+class JouleHeat:
+    """The Joule heat of every EM step for the mechanics' bodies that carry a temperature (an EM participant
+    holds one): the element-to-cell matches, made once per set of EM elements (again after a remesh)."""
+
+    def __init__(self) -> None:
+        self._match: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+
+    def heat(self, mechanics, bodies, result, em_cells: np.ndarray, duration: float) -> dict[str, np.ndarray]:
+        """Body name -> heat per unit volume of its mechanical cells over the step (J/m^3); empty when no body
+        carries a temperature (no Joule power is then asked of GetDP).
+
+        Parameters
+        ----------
+        mechanics
+            The loop's mechanics (``heated_cells()``: the cells of the bodies with a temperature).
+        bodies : list
+            The participant's conductor bodies (``name``, ``tag``, ``body_to_em``).
+        result
+            GetDP's step result (``elements``, ``element_tags``, ``joule_density`` (n_sub, n_el) W/m^3).
+        em_cells : int array
+            The EM mesh's triangles (2D) or tetrahedra (3D), EM node indices.
+        duration : float
+            The EM step, s.
+        """
+        cells = getattr(mechanics, "heated_cells", dict)()
+        if not cells:
+            return {}
+        q = result.joule_density
+        if q is None:
+            raise RuntimeError("GetDP gave no Joule power density per element: the temperature per cell needs it")
+        out = {}
+        for b in bodies:
+            if b.name not in cells:
+                continue
+            mine = np.flatnonzero(result.element_tags == b.tag)
+            elements = result.elements[mine]
+            known = self._match.get(b.name)
+            if known is None or not np.array_equal(known[0], elements):
+                match = cell_of_elements(em_cells[elements], b.body_to_em, cells[b.name])
+                missing = int((match < 0).sum())
+                if missing:
+                    log.warning("body %s: %d of %d cells share no EM element (meshes that do not share their "
+                                "nodes): they get no Joule heat", b.name, missing, len(match))
+                known = (elements.copy(), match)
+                self._match[b.name] = known
+            out[b.name] = joule_heat(np.asarray(q)[:, mine], duration, known[1])
+        return out
