@@ -40,7 +40,7 @@ def cell_volumes(cells: np.ndarray, x: np.ndarray, axisymmetric: bool,
     return out
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def _pressure_and_dev_norm2(stress: np.ndarray, e: int) -> tuple[float, float]:
     """Mean stress p (Pa) of cell ``e`` and s:s (Pa^2) of its deviator (xx, yy, zz, xy components),
     summed in the order of the numpy code it replaced (same bits)."""
@@ -85,7 +85,7 @@ def von_mises_max(stress: np.ndarray) -> float:
     return best
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def _max_nan(best: float, value: float) -> float:
     """max(best, value) as numpy's ``max`` reduces: a NaN sticks."""
     return value if best == best and not value <= best else best

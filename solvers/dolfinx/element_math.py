@@ -46,7 +46,7 @@ ST_DONE = 1.0
 ST_REDO = 2.0
 
 
-@numba.njit(cache=True, inline="always", error_model="numpy", fastmath=FM)
+@numba.njit(cache=True, error_model="numpy", fastmath=FM)
 def rate_factor(rid, r1, r2, dxx, dyy, dzz, dxy):
     """Yield-stress factor of the rate law ``rid`` (0 none, 1 Cowper-Symonds, 2 Johnson-Cook) at
     the rate of deformation d (1/s)."""
@@ -58,7 +58,7 @@ def rate_factor(rid, r1, r2, dxx, dyy, dzz, dxy):
     return rate_factor_at(rid, r1, r2, rate)
 
 
-@numba.njit(cache=True, inline="always", error_model="numpy", fastmath=FM)
+@numba.njit(cache=True, error_model="numpy", fastmath=FM)
 def rate_factor_at(rid, r1, r2, rate):
     """Yield-stress factor of the rate law ``rid`` (0 none, 1 Cowper-Symonds, 2 Johnson-Cook) at
     the equivalent strain rate ``rate`` = sqrt(2/3 e:e) (1/s), e the deviatoric rate of deformation
@@ -72,7 +72,7 @@ def rate_factor_at(rid, r1, r2, rate):
     return 1.0
 
 
-@numba.njit(cache=True, inline="always", error_model="numpy", fastmath=FM)
+@numba.njit(cache=True, error_model="numpy", fastmath=FM)
 def j2_return(sxx, syy, szz, sxy, dxx, dyy, dzz, dxy, dt, G, lam, sy, hr):
     """Elastic predictor + radial return (Pa, 1/s, s). Returns (sxx, syy, szz, sxy, deps_p)."""
     tr = (dxx + dyy + dzz) * dt
@@ -475,7 +475,7 @@ def batch_update(inp, out, n, dt, prm):
         out[15 * ROW + j] = status
 
 
-@numba.njit(cache=True, inline="always", error_model="numpy", fastmath=FM)
+@numba.njit(cache=True, error_model="numpy", fastmath=FM)
 def add_chunk_part(part, dtmin, wp, wv, bad):
     """A chunk's partial results (``part``: its smallest critical step (s), plastic and viscous dissipation
     (J), its first inverted cell or -1) added to the running ones (``dtmin``, ``wp``, ``wv``, ``bad``), chunk

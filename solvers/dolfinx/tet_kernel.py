@@ -64,7 +64,7 @@ def _norm2(ax, ay, az):
     return ax * ax + ay * ay + az * az
 
 
-@numba.njit(cache=True, inline="always", error_model="numpy", fastmath=FM)
+@numba.njit(cache=True, error_model="numpy", fastmath=FM)
 def add_tet_forces(f_int, i0, i1, i2, i3, f1x, f1y, f1z, f2x, f2y, f2z, f3x, f3y, f3z):
     """Add a cell's nodal forces (f_1, f_2, f_3; f_0 = -(f_1 + f_2 + f_3)), N, to the rows
     ``i0..i3`` of ``f_int``."""
@@ -82,7 +82,7 @@ def add_tet_forces(f_int, i0, i1, i2, i3, f1x, f1y, f1z, f2x, f2y, f2z, f3x, f3y
     f_int[i3, 2] += f3z
 
 
-@numba.njit(cache=True, inline="always", error_model="numpy", fastmath=FM)
+@numba.njit(cache=True, error_model="numpy", fastmath=FM)
 def store_tet_forces(f_int, fe, shared, e, i0, i1, i2, i3, f1x, f1y, f1z, f2x, f2y, f2z, f3x,
                      f3y, f3z):
     """:func:`add_tet_forces` for the threaded kernel (:mod:`.tet_threads`): the rows flagged in

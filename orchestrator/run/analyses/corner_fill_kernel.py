@@ -24,7 +24,7 @@ __all__ = ["segment_distance", "profile_samples", "build_midpoint_grid", "distan
            "blank_motion"]
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def segment_distance(px: float, py: float, ax: float, ay: float, bx: float, by: float) -> float:
     """Distance (m) of the point (px, py) to the segment a-b, rounded as ``_segment_distances``:
     xi = clip((p - a) . t / max(|t|^2, 1e-300), 0, 1), q = a + xi t, |p - q| with t = b - a."""
