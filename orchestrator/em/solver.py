@@ -126,7 +126,11 @@ def make_em_solver(model: EMModel, work_dir: Path, time_scheme: str, getdp_proce
         raise ValueError(f"getdp_process must be 'auto', 'persistent' or 'per_step', got {getdp_process!r}")
     if getdp_process == "persistent" and time_scheme != "bdf2":
         raise ValueError("the persistent getdp implements time_scheme='bdf2' only")
-    if getdp_process != "per_step" and time_scheme == "bdf2":
+    laws = any(c.conductivity_law is not None for c in list(model.coils) + list(model.conductors))
+    if getdp_process == "persistent" and laws:
+        raise ValueError("a conductivity that follows temperature (conductivity_curve) runs getdp per step: "
+                         "em.getdp_process must be 'auto' or 'per_step'")
+    if getdp_process != "per_step" and time_scheme == "bdf2" and not laws:
         from pulseform.solvers.getdp.persistent import PersistentGetDPSolver
 
         return PersistentGetDPSolver(model, work_dir, factor_reuse=factor_reuse, **kw)

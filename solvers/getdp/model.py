@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 
+from .conductivity import ConductivityLaw, law_from_dict
 from .mesh import EMMesh
 from .runner import RunInfo
 
@@ -64,6 +65,9 @@ class Coil:
     ``sign``: the coil's orientation, +1 or -1 (wound the other way): its current is ``sign`` times
     its waveform, or ``sign`` times the circuit's current (the deck connects it the other way round).
     ``name``: what the coil is called (history columns), free text.
+    ``conductivity_law``: σ(T) (:mod:`.conductivity`; None: ``sigma`` at every temperature); the coil is one
+    lumped body at ``initial_temperature`` (K) plus its adiabatic rise (Joule heat / (m c_p)), and its σ — so its
+    resistance — follows that temperature EM step by step (evaluated at the step's start).
     """
 
     turns: int
@@ -73,8 +77,11 @@ class Coil:
     heat_capacity: float = 385.0
     sign: int = 1
     name: str = ""
+    conductivity_law: ConductivityLaw | None = None
+    initial_temperature: float = 293.15
 
     def __post_init__(self):
+        self.conductivity_law = law_from_dict(self.conductivity_law)
         if isinstance(self.waveform, dict):
             self.waveform = (CurrentTable if "times" in self.waveform else DampedSine)(**self.waveform)
         if self.sign not in (1, -1):
@@ -83,10 +90,19 @@ class Coil:
 
 @dataclass
 class Conductor:
-    """A massive conductor (physical region 200+k) with eddy currents."""
+    """A massive conductor (physical region 200+k) with eddy currents.
+
+    ``conductivity_law``: σ(T) per element (:mod:`.conductivity`), from the element temperatures given with
+    :meth:`~.solver.GetDPSolver.set_element_temperatures` (K; an element without one is at
+    ``initial_temperature``); None: ``sigma`` everywhere."""
 
     sigma: float
     name: str = ""
+    conductivity_law: ConductivityLaw | None = None
+    initial_temperature: float = 293.15
+
+    def __post_init__(self):
+        self.conductivity_law = law_from_dict(self.conductivity_law)
 
 
 @dataclass

@@ -10,6 +10,7 @@ import numpy as np
 
 from .applied_field import applied_start
 from .bdf2 import bdf2_coefficients, match_rows, trapezoid_mean
+from .conductivity import element_list_line
 from .files import discard_folder, element_volumes, init_list_line, read_element_table, read_table
 from .mesh import AXIS, OUTER, EMMesh, coil_tag, conductor_tag, physical_numbers, write_msh22
 from .model import (Circuit, Coil, Conductor, CurrentTable, DampedSine, EMModel, EMState, EMStepResult,  # noqa: F401
@@ -69,12 +70,75 @@ class GetDPSolver:
         self.keep_runs = keep_runs
         self.reuse_pre = reuse_pre
         self._runs: list[Path] = []
+        #: per-element temperatures (K) of the conductors with a σ(T) law: EM triangle row -> temperature
+        self._elem_temperature: tuple[np.ndarray, np.ndarray] | None = None
+        if self.has_conductivity_laws and self.deck != CASE_DECK.resolve():
+            raise ValueError("a conductivity that follows temperature needs the built-in deck (em_case.pro): "
+                             f"{self.deck.name} has no per-element conductivity")
 
     # -- state
     def initial_state(self, t0: float = 0.0) -> EMState:
         v0 = self.model.circuit.V0 if self.model.circuit else 0.0
         return EMState(t=float(t0), capacitor_voltage=v0, current=0.0,
                        coil_heat=[0.0] * len(self.model.coils))
+
+    # -- conductivity that follows temperature (:mod:`.conductivity`)
+    @property
+    def has_conductivity_laws(self) -> bool:
+        """True when a coil or a conductor has a σ(T) law."""
+        m = self.model
+        return any(c.conductivity_law is not None for c in list(m.coils) + list(m.conductors))
+
+    def set_element_temperatures(self, elements: np.ndarray, temperature: np.ndarray) -> None:
+        """Temperatures (K) of EM elements (rows of the mesh's triangles) for the conductors' σ(T) laws at the
+        next steps; an element of such a conductor not listed is at the conductor's ``initial_temperature``."""
+        elements = np.asarray(elements, np.int64).ravel()
+        temperature = np.asarray(temperature, float).ravel()
+        if elements.shape != temperature.shape:
+            raise ValueError("set_element_temperatures needs one temperature per element")
+        if not np.all(np.isfinite(temperature)) or np.any(temperature <= 0):
+            raise ValueError("element temperatures must be finite and > 0 K")
+        self._elem_temperature = (elements, temperature)
+
+    def coil_mass_cp(self, mesh: EMMesh) -> np.ndarray:
+        """m c_p (J/K) of every coil: density × heat capacity × the coil region's volume (2πr-weighted in
+        axisymmetry, per metre in planar)."""
+        m = self.model
+        return np.array([c.density * c.heat_capacity
+                         * element_volumes(mesh, np.flatnonzero(mesh.tri_tags == coil_tag(k)), m.axisymmetric).sum()
+                         for k, c in enumerate(m.coils, start=1)])
+
+    def coil_temperature(self, mesh: EMMesh, state: EMState) -> np.ndarray:
+        """The coils' lumped temperatures (K) at ``state``: initial temperature + Joule heat so far / (m c_p)."""
+        m = self.model
+        heat = np.asarray(state.coil_heat or [0.0] * len(m.coils), float)
+        t0 = np.array([c.initial_temperature for c in m.coils], float)
+        return t0 + heat / self.coil_mass_cp(mesh) if len(m.coils) else t0
+
+    def conductivity_inputs(self, mesh: EMMesh, state: EMState) -> tuple[dict[str, float], list[str]]:
+        """The numbers and ``run.pro`` lines of the σ(T) laws for a step from ``state`` on ``mesh``: each coil's σ
+        at its lumped temperature, each conductor's σ per element; nothing without a law."""
+        m = self.model
+        numbers: dict[str, float] = {}
+        lines: list[str] = []
+        if any(c.conductivity_law is not None for c in m.coils):
+            temp = self.coil_temperature(mesh, state)
+            for k, c in enumerate(m.coils, start=1):
+                if c.conductivity_law is not None:
+                    numbers[f"Coil_sigma_{k}"] = float(c.conductivity_law(temp[k - 1]))
+        for k, c in enumerate(m.conductors, start=1):
+            if c.conductivity_law is None:
+                continue
+            rows = np.flatnonzero(mesh.tri_tags == conductor_tag(k))
+            temp = np.full(len(rows), float(c.initial_temperature))
+            if self._elem_temperature is not None:
+                lookup = np.full(len(mesh.triangles), np.nan)
+                lookup[self._elem_temperature[0]] = self._elem_temperature[1]
+                given = lookup[rows]
+                temp = np.where(np.isnan(given), temp, given)
+            numbers[f"Cond_SigmaElem_{k}"] = 1
+            lines.append(element_list_line(f"Cond_SigmaList_{k}", rows + 1, c.conductivity_law(temp)))
+        return numbers, lines
 
     # -- one step
     def step(self, mesh: EMMesh, state: EMState, t_end: float, n_sub: int = 1, *,
@@ -128,6 +192,10 @@ class GetDPSolver:
         numbers.update(Flag_ElemOut={"all": 1, "last": 2, "none": 0}[element_output],
                        Flag_FieldOut=int(bool(field_output)))
         data_lines = self.preamble + self._table_lines()
+        if self.has_conductivity_laws:
+            sig_numbers, sig_lines = self.conductivity_inputs(mesh, state)
+            numbers.update(sig_numbers)
+            data_lines += sig_lines
         extra: list[str] = []
         has_field = state.res_path is not None
         pts = mesh.points if material_points is None else np.asarray(material_points, float)
@@ -471,9 +539,7 @@ class GetDPSolver:
         # Joule heat over the step: rectangle rule (implicit Euler) or trapezoid (BDF2, from power_start)
         q = cp.sum(axis=0) * dt if power_start is None else trapezoid_mean(power_start, cp) * n * dt
         heat = np.asarray(state.coil_heat or [0.0] * nc, float) + q
-        mass_cp = np.array([c.density * c.heat_capacity
-                            * element_volumes(mesh, np.flatnonzero(mesh.tri_tags == coil_tag(k)), m.axisymmetric).sum()
-                            for k, c in enumerate(m.coils, start=1)])
+        mass_cp = self.coil_mass_cp(mesh)
         for name, arr in (("force density", force), ("coil current", cur), ("energy", w[:, 1])):
             if not np.all(np.isfinite(arr)):
                 raise RuntimeError(f"non-finite {name} in {out}")
