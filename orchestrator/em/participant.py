@@ -45,7 +45,7 @@ from ..mesh.em_geometry import EMGeometry
 from ..mesh.motion import MeshMover, MeshQualityError
 from ..mesh.remesh import remesh_around
 from ..mesh.shared import ConductorBody, ConductorMesh  # noqa: F401  (ConductorBody: the participant's API)
-from .joule_heat import JouleHeat
+from .joule_heat import JouleHeat, element_temperatures
 from .snapshots import EMSnapshots
 from .solver import make_em_solver
 
@@ -129,6 +129,8 @@ class GetDPLoad(EMSnapshots, LoadCapabilities):
         self.material = geometry.mesh.points.copy()  # material coordinates of every EM node
         self.remeshes = 0
         self.joule = JouleHeat()   # the Joule heat per mechanical cell of the bodies with a temperature
+        #: a conductor's σ follows its cells' temperatures (:mod:`pulseform.solvers.getdp.conductivity`)
+        self.conductivity_follows_temperature = any(c.conductivity_law is not None for c in model.conductors)
         self.gmsh_time_limit: float | None = None  # wall-time limit of a remesh (s)
         self._set_mesh(geometry.mesh)
         self.min_quality = float(self.mover.q_ref.min())
@@ -222,6 +224,9 @@ class GetDPLoad(EMSnapshots, LoadCapabilities):
         # after a remesh, keep carrying the state through the Init path: a -restart from the .res of an
         # Init-path run gave garbage fields near the axis (GetDP 3.2.0; seen in tests, see the issue notes)
         fields = {"field_output": True} if self._wants_fields(t1) else {}
+        if self.conductivity_follows_temperature:   # σ(T) per element from the cells' temperatures at t0
+            self.solver.set_element_temperatures(*element_temperatures(mechanics, self.bodies, mesh_k.triangles,
+                                                                       mesh_k.tri_tags))
         result, self.state = self.solver.step(mesh_k, self.state, t1, n_sub=self.em_substeps,
                                               material_points=self.material,
                                               force_init_path=self.remeshes > 0 and self.init_after_remesh, **fields)
