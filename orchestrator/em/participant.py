@@ -44,6 +44,7 @@ from ..coupling.transfer import cell_force_integral, cell_to_nodal_forces
 from ..mesh.em_geometry import EMGeometry
 from ..mesh.motion import MeshMover, MeshQualityError
 from ..mesh.remesh import remesh_around
+from ..mesh.triangles import region_surface
 from ..mesh.shared import ConductorBody, ConductorMesh  # noqa: F401  (ConductorBody: the participant's API)
 from .joule_heat import JouleHeat, element_temperatures
 from .snapshots import EMSnapshots
@@ -375,6 +376,45 @@ class GetDPLoad(EMSnapshots, LoadCapabilities):
         thread = discard_folder(path)
         if thread is not None:
             self._deleting.append(thread)
+
+    # ------------------------------------------------------------------ repeated shots (run/shots.py)
+    def coil_temperatures(self) -> np.ndarray:
+        """The coils' lumped temperatures now (K): their initial temperature + Joule heat / (m c_p)."""
+        return self.solver.coil_temperature(self.geometry.mesh, self.state)
+
+    def coil_heat_paths(self) -> tuple[np.ndarray, np.ndarray]:
+        """(outer surface m², m c_p J/K) of every coil, for their cooling between shots (per metre in planar)."""
+        mesh = self.geometry.mesh
+        area = np.array([region_surface(mesh.points, mesh.triangles[mesh.tri_tags == tag], self.axisymmetric)
+                         for tag, _ in self.geometry.coil_turns()])
+        return area, self.solver.coil_mass_cp(mesh)
+
+    def begin_shot(self, t0: float, voltage: float, coil_temperature: np.ndarray) -> None:
+        """Start a new discharge at ``t0`` (s): the EM state at rest, the bank charged to ``voltage`` (V), the coils
+        at ``coil_temperature`` (K; their Joule heat counts from here)."""
+        m = self.solver.model
+        if m.circuit is None:
+            raise ValueError("a new shot needs a capacitor bank")
+        m.circuit.V0 = float(voltage)
+        for c, temp in zip(m.coils, np.asarray(coil_temperature, float)):
+            c.initial_temperature = float(temp)
+        self.state = self.solver.initial_state(t0)
+        self._moved = None
+        self._rise = []
+
+    def shot_state(self) -> dict:
+        """What a checkpoint keeps of the current shot: the bank's voltage and the coils' start temperatures."""
+        m = self.solver.model
+        return {"v0": m.circuit.V0 if m.circuit is not None else 0.0,
+                "coil_t0": [c.initial_temperature for c in m.coils]}
+
+    def load_shot_state(self, d: dict) -> None:
+        """Restore :meth:`shot_state`."""
+        m = self.solver.model
+        if m.circuit is not None:
+            m.circuit.V0 = float(d["v0"])
+        for c, temp in zip(m.coils, d["coil_t0"]):
+            c.initial_temperature = float(temp)
 
     def close(self) -> None:
         """End a persistent getdp and wait until the old run folders are deleted (call once the run is

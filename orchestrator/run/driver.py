@@ -44,6 +44,7 @@ from .em_fields3d import CONDUCTORS_PEAK
 from .em_fields3d import FOLDER as EM3D_FOLDER
 from .em_fields3d import STEM as EM3D_STEM
 from .extremes3d import body_extremes_3d, contact_columns_3d, contact_metrics_3d
+from .shots import ShotSequence
 from .temperature import temperature_columns
 from .history import History
 from .impulse import impulse_metrics
@@ -119,6 +120,12 @@ class CaseDriver:
         self.em_step = fixed_em_step(self.loop, all_rigid=self.solver is None)
         interval = case.output.field_interval or default_interval(case.time.end, self.em_step)
         self.stops = milestones(case.time.end, interval)
+        #: repeated shots (em.shots; run/shots.py): each shot is the window time.end again, after a cooling pause
+        self.shots = None
+        if case.case.kind == "coupled" and case.em.shots is not None:
+            bank = case.em.circuit.voltage if case.em.circuit is not None else next(
+                s.voltage for s in case.em.sources if s.type == "bank")
+            self.shots = ShotSequence(case.em.shots, case.time.end, bank)
         self.landing_note = landing_note(self.stops, self.em_step)  # said at the start of run()
 
     # ----------------------------------------------------------------- records
@@ -197,6 +204,8 @@ class CaseDriver:
         meta = {"columns": self.history.columns, "part": self.part, "ranks": self.comm.size,
                 "since_record": self._since_record,
                 "wall_time_s": self.wall_before_s + _time.perf_counter() - self.wall_start}
+        if self.shots is not None:
+            meta["shots"] = {"rows": self.shots.rows, **self.load.shot_state()}
         save_checkpoint(self.results.root / self._rank_file(), arrays, meta)
         if self.comm.rank == 0:
             self.history.flush()
@@ -222,7 +231,42 @@ class CaseDriver:
         self.part = int(meta["part"]) + 1
         self._since_record = int(meta["since_record"])
         self.wall_before_s = float(meta.get("wall_time_s", 0.0))
+        if self.shots is not None and "shots" in meta:
+            self.shots.rows = [dict(r) for r in meta["shots"]["rows"]]
+            self.load.load_shot_state(meta["shots"])
         log.info("resumed at t = %.6g s, step %d (part %d)", self.mechanics.time, self.mechanics.step_count, self.part)
+
+    # ----------------------------------------------------------------- repeated shots
+    def _shot_stops(self) -> list[tuple[int, float]]:
+        """(shot, milestone time) of the whole run: the milestones of time.end, again for every shot."""
+        if self.shots is None:
+            return [(1, t) for t in self.stops]
+        return [(n, self.shots.start(n) + t) for n in range(1, self.shots.count + 1) for t in self.stops]
+
+    def _body_temperatures(self) -> dict[str, float]:
+        """Every heated body's largest and mean cell temperature now (K)."""
+        out: dict[str, float] = {}
+        if self.solver is not None:
+            for name, b in self.solver.bodies.items():
+                out.update(temperature_columns(name, b, lambda v, op: v))
+        return out
+
+    def _end_shot(self, n: int) -> None:
+        """Shot ``n`` reached its end: its report row (shots.csv, written now)."""
+        self.shots.record(n, self.history, self.load.coil_temperatures(), None, self._body_temperatures())
+        if self.comm.rank == 0:
+            self.shots.write(self.results.root / "shots.csv")
+        log.info("shot %d of %d: peak current %.4g kA, coil at %.2f K", n, self.shots.count,
+                 self.shots.rows[-1]["peak_current_A"] / 1e3, self.shots.rows[-1]["coil_temperature_end_K"])
+
+    def _begin_shot(self, n: int) -> None:
+        """The pause before shot ``n``: cool the coil and the bodies (lumped), bodies to rest, a fresh discharge."""
+        coil = self.shots.cool_coil(self.load.coil_temperatures(), *self.load.coil_heat_paths())
+        self.shots.set_after_pause(n - 1, coil)
+        self.shots.cool_bodies(self.solver)
+        self.load.begin_shot(self.shots.start(n), self.shots.voltages[n - 1], coil)
+        if self.comm.rank == 0:
+            self.shots.write(self.results.root / "shots.csv")
 
     def _check_interrupt(self) -> None:
         """Stop here if a stop signal reached any rank (all ranks stop at the same step)."""
@@ -251,7 +295,7 @@ class CaseDriver:
             em_writer = EMFieldWriter(self.results.fields / (f"{EM3D_FOLDER}_part{self.part}" if self.part
                                                              else EM3D_FOLDER), stem=EM3D_STEM)
         if em_writer is not None:
-            self.load.request_fields(self.stops)  # whole-domain EM fields only on the snapshot steps
+            self.load.request_fields(np.array([t for _, t in self._shot_stops()]))  # whole-domain EM fields only on the snapshot steps
         if not self.history.rows:
             self.record(self.initial_row())
         writer.write(s.time)
@@ -267,11 +311,14 @@ class CaseDriver:
         log.debug("loop from t = %.6g s", s.time)  # bench/sweep_split.py: set-up ends, the loop starts
         try:
             self._check_interrupt()  # a signal during set-up (meshing, deck check)
-            with Progress(case.time.end, quiet=quiet or self.comm.rank != 0, desc=case.case.name) as bar:
+            n_shots = self.shots.count if self.shots is not None else 1
+            with Progress(case.time.end * n_shots, quiet=quiet or self.comm.rank != 0, desc=case.case.name) as bar:
                 bar.update_to(s.time)
-                for stop in self.stops:
+                for shot, stop in self._shot_stops():
                     if s.time >= stop * (1.0 - 1e-12):
                         continue
+                    if self.shots is not None and shot > 1 and s.time <= self.shots.start(shot) * (1.0 + 1e-12):
+                        self._begin_shot(shot)
                     self.loop.run_until(stop, on_step)
                     if self.history.rows[-1][0] != s.time:
                         self.record(self._last_row)  # the values of the step that reached the milestone
@@ -282,6 +329,8 @@ class CaseDriver:
                     snap = self.load.snapshot() if em_writer is not None else None
                     if snap is not None:
                         em_writer.write(t_out, *snap)
+                    if self.shots is not None and stop == self.shots.start(shot) + self.stops[-1]:
+                        self._end_shot(shot)
                     self.checkpoint()
                     interrupt.rearm()  # a library (gmsh, at import) may have replaced the handlers
                     self._check_interrupt()
@@ -320,6 +369,8 @@ class CaseDriver:
             metrics.update(rigid_metrics(case, self.history, {n: b.mass for n, b in self.rigid.bodies.items()}))
         for a in self.analyses:
             metrics.update(a.metrics(self.solver, self.history))
+        if self.shots is not None:
+            metrics.update(self.shots.metrics())
         self.load.close()  # old getdp run folders are deleted in the background: wait for them
         return MechanicsRun(self.solver, self.history, metrics, self.shapes, self.analyses, self.wall_before_s)
 
