@@ -189,7 +189,7 @@ class EMState:
     conductor element) at element centroids ``force_points`` (material coordinates).
     ``applied_f``, ``applied_f_prev``: with an applied field, its unit time function of the states at
     ``t`` and at ``t - dt_prev`` (0 for the state at rest). ``factorisations``, ``corrections``: the
-    persistent getdp's solves so far.
+    persistent getdp's solves so far. ``coil_sigma``: with a coil σ(T), each coil's σ (S/m) of the last step.
     """
 
     t: float = 0.0
@@ -221,6 +221,9 @@ class EMState:
     # kept-factor corrections
     factorisations: int = 0
     corrections: int = 0
+    # a coil conductivity that follows temperature (:mod:`.conductivity`): each coil's σ (S/m) over the last step
+    # (the power ``coil_power`` at its end was computed with it)
+    coil_sigma: list | None = None
 
     def to_dict(self) -> dict:
         """The fields as a dict for JSON: lists are shared, not copied (``dataclasses.asdict``'s

@@ -115,14 +115,17 @@ class GetDPSolver:
         t0 = np.array([c.initial_temperature for c in m.coils], float)
         return t0 + heat / self.coil_mass_cp(mesh) if len(m.coils) else t0
 
-    def conductivity_inputs(self, mesh: EMMesh, state: EMState) -> tuple[dict[str, float], list[str]]:
-        """The numbers and ``run.pro`` lines of the σ(T) laws for a step from ``state`` on ``mesh``: each coil's σ
-        at its lumped temperature, each conductor's σ per element; nothing without a law."""
+    def conductivity_inputs(self, mesh: EMMesh, state: EMState, dt: float) -> tuple[dict[str, float], list[str]]:
+        """The numbers and ``run.pro`` lines of the σ(T) laws for a step of ``dt`` (s) from ``state`` on ``mesh``:
+        each coil's σ at its lumped temperature predicted for the step's middle, T + P dt / (2 m c_p) with P the
+        coil's Joule power at the step's start (``state.coil_power``; 0 from rest), each conductor's σ per element
+        at the element temperatures given (:meth:`set_element_temperatures`); nothing without a law."""
         m = self.model
         numbers: dict[str, float] = {}
         lines: list[str] = []
         if any(c.conductivity_law is not None for c in m.coils):
-            temp = self.coil_temperature(mesh, state)
+            power = np.asarray(state.coil_power if state.coil_power is not None else [0.0] * len(m.coils), float)
+            temp = self.coil_temperature(mesh, state) + 0.5 * dt * power / self.coil_mass_cp(mesh)
             for k, c in enumerate(m.coils, start=1):
                 if c.conductivity_law is not None:
                     numbers[f"Coil_sigma_{k}"] = float(c.conductivity_law(temp[k - 1]))
@@ -193,7 +196,7 @@ class GetDPSolver:
                        Flag_FieldOut=int(bool(field_output)))
         data_lines = self.preamble + self._table_lines()
         if self.has_conductivity_laws:
-            sig_numbers, sig_lines = self.conductivity_inputs(mesh, state)
+            sig_numbers, sig_lines = self.conductivity_inputs(mesh, state, float(t_end) - state.t)
             numbers.update(sig_numbers)
             data_lines += sig_lines
         extra: list[str] = []
@@ -249,8 +252,11 @@ class GetDPSolver:
         for w in info.warnings:
             warnings.warn(f"getdp ({run_dir.name}): {w}", RuntimeWarning, stacklevel=2)
         power_start = None
+        coil_sigma = [float(numbers.get(f"Coil_sigma_{k}", c.sigma)) for k, c in enumerate(model.coils, start=1)]
         if bdf2:
             power_start = np.asarray(state.coil_power if state.coil_power is not None else [0.0] * len(model.coils))
+            if state.coil_sigma is not None:   # the start power with this step's σ: the heat of the step's circuit
+                power_start = power_start * np.asarray(state.coil_sigma, float) / np.asarray(coil_sigma)
         result = self._read(mesh, out_dir, state, float(t_end), int(n_sub), n_elem_rows, power_start)
         result.run = info
         result.path = str(run_dir)
@@ -259,6 +265,10 @@ class GetDPSolver:
         new_state = self._next_state(mesh, material_points, out_dir, run_dir, state, result, sig, float(t_end))
         if bdf2:
             self._bdf2_history(mesh, pts, state, result, new_state, a_prev)
+        elif self.has_conductivity_laws:   # the coil's power at the step's end: the next step's σ(T) prediction
+            new_state.coil_power = result.coil_power[-1].tolist()
+        if self.has_conductivity_laws:
+            new_state.coil_sigma = coil_sigma
         # the .pre of a run without the Init list is reusable by later restarts on this connectivity
         new_state.pre_path = str(run_dir / "em.pre") if "Flag_InitA" not in numbers else None
         if model.applied_field is not None:
