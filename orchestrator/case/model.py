@@ -380,6 +380,8 @@ class Case:
     def _validate_coupled(self) -> None:
         regions = [b.region for b in self.bodies if b.region is not None]
         file3d = getattr(self.geometry, "type", None) == "geometry_3d"  # .geometry3d (validate_dimension)
+        if self.case.kind == "coupled" and self.em is not None:
+            _check_temperature_em(self)
         if self.case.kind == "coupled" and not file3d:
             for key in ("geometry", "em"):
                 if getattr(self, key) is None:
@@ -422,7 +424,6 @@ class Case:
                                       "is read for the one coil of geometry.regions.coil)")
             check_coils(self)
             check_applied_field(self)
-            _check_temperature_em(self)
             if getattr(self.geometry, "library", None) == "getdp_template" and self.em.getdp_process == "persistent":
                 raise SchemaError("em.getdp_process", "got 'persistent'; a deck on GetDP's template runs a getdp "
                                   "process per EM step (its state carried by -restart): set em.getdp_process = "
