@@ -36,6 +36,7 @@ from pulseform.solvers.getdp import EMMesh, EMModel, EMState, GetDPSolver
 from pulseform.solvers.getdp.mesh import AXIS as AXIS_TAG
 from pulseform.solvers.getdp.mesh import OUTER as OUTER_TAG
 from pulseform.solvers.getdp.mesh import SHELL as SHELL_TAG
+from pulseform.solvers.getdp.conductivity import coil_mass_cp, coil_temperature
 from pulseform.solvers.getdp.files import discard_folder
 from pulseform.solvers.getdp.persistent_process import FactorReuse
 
@@ -380,14 +381,14 @@ class GetDPLoad(EMSnapshots, LoadCapabilities):
     # ------------------------------------------------------------------ repeated shots (run/shots.py)
     def coil_temperatures(self) -> np.ndarray:
         """The coils' lumped temperatures now (K): their initial temperature + Joule heat / (m c_p)."""
-        return self.solver.coil_temperature(self.geometry.mesh, self.state)
+        return coil_temperature(self.solver.model, self.geometry.mesh, self.state)
 
     def coil_heat_paths(self) -> tuple[np.ndarray, np.ndarray]:
         """(outer surface m², m c_p J/K) of every coil, for their cooling between shots (per metre in planar)."""
         mesh = self.geometry.mesh
         area = np.array([region_surface(mesh.points, mesh.triangles[mesh.tri_tags == tag], self.axisymmetric)
                          for tag, _ in self.geometry.coil_turns()])
-        return area, self.solver.coil_mass_cp(mesh)
+        return area, coil_mass_cp(self.solver.model, mesh)
 
     def begin_shot(self, t0: float, voltage: float, coil_temperature: np.ndarray) -> None:
         """Start a new discharge at ``t0`` (s): the EM state at rest, the bank charged to ``voltage`` (V), the coils

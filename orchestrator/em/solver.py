@@ -134,7 +134,7 @@ def make_em_solver(model: EMModel, work_dir: Path, time_scheme: str, getdp_proce
         raise ValueError(f"getdp_process must be 'auto', 'persistent' or 'per_step', got {getdp_process!r}")
     if getdp_process == "persistent" and time_scheme != "bdf2":
         raise ValueError("the persistent getdp implements time_scheme='bdf2' only")
-    laws = any(c.conductivity_law is not None for c in list(model.coils) + list(model.conductors))
+    laws = model.has_conductivity_laws
     if getdp_process == "persistent" and laws:
         raise ValueError("a conductivity that follows temperature (conductivity_curve) runs getdp per step: "
                          "em.getdp_process must be 'auto' or 'per_step'")

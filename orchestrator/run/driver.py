@@ -120,12 +120,7 @@ class CaseDriver:
         self.em_step = fixed_em_step(self.loop, all_rigid=self.solver is None)
         interval = case.output.field_interval or default_interval(case.time.end, self.em_step)
         self.stops = milestones(case.time.end, interval)
-        #: repeated shots (em.shots; run/shots.py): each shot is the window time.end again, after a cooling pause
-        self.shots = None
-        if case.case.kind == "coupled" and case.em.shots is not None:
-            bank = case.em.circuit.voltage if case.em.circuit is not None else next(
-                s.voltage for s in case.em.sources if s.type == "bank")
-            self.shots = ShotSequence(case.em.shots, case.time.end, bank)
+        self.shots = ShotSequence.of_case(case)  # em.shots: the window time.end again after cooling pauses, or None
         self.landing_note = landing_note(self.stops, self.em_step)  # said at the start of run()
 
     # ----------------------------------------------------------------- records
@@ -205,7 +200,7 @@ class CaseDriver:
                 "since_record": self._since_record,
                 "wall_time_s": self.wall_before_s + _time.perf_counter() - self.wall_start}
         if self.shots is not None:
-            meta["shots"] = {"rows": self.shots.rows, **self.load.shot_state()}
+            meta["shots"] = self.shots.state(self.load)
         save_checkpoint(self.results.root / self._rank_file(), arrays, meta)
         if self.comm.rank == 0:
             self.history.flush()
@@ -231,42 +226,13 @@ class CaseDriver:
         self.part = int(meta["part"]) + 1
         self._since_record = int(meta["since_record"])
         self.wall_before_s = float(meta.get("wall_time_s", 0.0))
-        if self.shots is not None and "shots" in meta:
-            self.shots.rows = [dict(r) for r in meta["shots"]["rows"]]
-            self.load.load_shot_state(meta["shots"])
+        if self.shots is not None:
+            self.shots.load_state(meta.get("shots"), self.load)
         log.info("resumed at t = %.6g s, step %d (part %d)", self.mechanics.time, self.mechanics.step_count, self.part)
 
-    # ----------------------------------------------------------------- repeated shots
     def _shot_stops(self) -> list[tuple[int, float]]:
-        """(shot, milestone time) of the whole run: the milestones of time.end, again for every shot."""
-        if self.shots is None:
-            return [(1, t) for t in self.stops]
-        return [(n, self.shots.start(n) + t) for n in range(1, self.shots.count + 1) for t in self.stops]
-
-    def _body_temperatures(self) -> dict[str, float]:
-        """Every heated body's largest and mean cell temperature now (K)."""
-        out: dict[str, float] = {}
-        if self.solver is not None:
-            for name, b in self.solver.bodies.items():
-                out.update(temperature_columns(name, b, lambda v, op: v))
-        return out
-
-    def _end_shot(self, n: int) -> None:
-        """Shot ``n`` reached its end: its report row (shots.csv, written now)."""
-        self.shots.record(n, self.history, self.load.coil_temperatures(), None, self._body_temperatures())
-        if self.comm.rank == 0:
-            self.shots.write(self.results.root / "shots.csv")
-        log.info("shot %d of %d: peak current %.4g kA, coil at %.2f K", n, self.shots.count,
-                 self.shots.rows[-1]["peak_current_A"] / 1e3, self.shots.rows[-1]["coil_temperature_end_K"])
-
-    def _begin_shot(self, n: int) -> None:
-        """The pause before shot ``n``: cool the coil and the bodies (lumped), bodies to rest, a fresh discharge."""
-        coil = self.shots.cool_coil(self.load.coil_temperatures(), *self.load.coil_heat_paths())
-        self.shots.set_after_pause(n - 1, coil)
-        self.shots.cool_bodies(self.solver)
-        self.load.begin_shot(self.shots.start(n), self.shots.voltages[n - 1], coil)
-        if self.comm.rank == 0:
-            self.shots.write(self.results.root / "shots.csv")
+        """(shot, milestone time) of the whole run (one shot without em.shots)."""
+        return self.shots.milestones(self.stops) if self.shots is not None else [(1, t) for t in self.stops]
 
     def _check_interrupt(self) -> None:
         """Stop here if a stop signal reached any rank (all ranks stop at the same step)."""
@@ -318,7 +284,7 @@ class CaseDriver:
                     if s.time >= stop * (1.0 - 1e-12):
                         continue
                     if self.shots is not None and shot > 1 and s.time <= self.shots.start(shot) * (1.0 + 1e-12):
-                        self._begin_shot(shot)
+                        self.shots.begin(shot, self.load, self.solver, self.results.root, self.comm.rank == 0)
                     self.loop.run_until(stop, on_step)
                     if self.history.rows[-1][0] != s.time:
                         self.record(self._last_row)  # the values of the step that reached the milestone
@@ -330,7 +296,8 @@ class CaseDriver:
                     if snap is not None:
                         em_writer.write(t_out, *snap)
                     if self.shots is not None and stop == self.shots.start(shot) + self.stops[-1]:
-                        self._end_shot(shot)
+                        self.shots.end(shot, self.history, self.load, self.solver, self.results.root,
+                                       self.comm.rank == 0)
                     self.checkpoint()
                     interrupt.rearm()  # a library (gmsh, at import) may have replaced the handlers
                     self._check_interrupt()

@@ -29,6 +29,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .temperature import temperature_columns
+
 log = logging.getLogger(__name__)
 
 __all__ = ["cooling_factor", "ShotSequence"]
@@ -65,6 +67,26 @@ class ShotSequence:
         self.voltages = [float(v) for v in shots.voltages] or [float(v0)] * self.count
         self.rows: list[dict[str, float]] = []
 
+    @classmethod
+    def of_case(cls, case) -> "ShotSequence | None":
+        """The shots of a coupled case with ``[em.shots]`` (its bank's voltage for shots without their own), else
+        None."""
+        if case.case.kind != "coupled" or case.em is None or case.em.shots is None:
+            return None
+        bank = case.em.circuit.voltage if case.em.circuit is not None else next(
+            s.voltage for s in case.em.sources if s.type == "bank")
+        return cls(case.em.shots, case.time.end, bank)
+
+    def state(self, load) -> dict:
+        """What a checkpoint keeps: the rows so far, the bank's voltage and the coils' start temperatures."""
+        return {"rows": self.rows, **load.shot_state()}
+
+    def load_state(self, d: dict | None, load) -> None:
+        """Restore :meth:`state` (None: a checkpoint without shots, nothing to do)."""
+        if d is not None:
+            self.rows = [dict(r) for r in d["rows"]]
+            load.load_shot_state(d)
+
     def start(self, n: int) -> float:
         """Start time (s) of shot ``n`` (1-based) on the history's time axis."""
         return (n - 1) * self.window
@@ -98,6 +120,33 @@ class ShotSequence:
         s = self.spec
         f = np.array([cooling_factor(s.coil_heat_transfer, a, m, s.pause) for a, m in zip(area, mass_cp)])
         return s.ambient_temperature + (np.asarray(temperature, float) - s.ambient_temperature) * f
+
+    # ------------------------------------------------------------------ the run's shots
+    def milestones(self, stops) -> list[tuple[int, float]]:
+        """(shot, time) of every output milestone of the run: the milestones ``stops`` of one window, every shot."""
+        return [(n, self.start(n) + float(t)) for n in range(1, self.count + 1) for t in stops]
+
+    def end(self, n: int, history, load, solver, root: Path, write: bool) -> None:
+        """Shot ``n`` reached its end: its report row from the ``history``, the EM ``load``'s coil temperatures and
+        the mechanics ``solver``'s bodies (``shots.csv`` in ``root`` rewritten when ``write``)."""
+        temps: dict[str, float] = {}
+        for name, b in (solver.bodies.items() if solver is not None else ()):
+            temps.update(temperature_columns(name, b, lambda v, op: v))   # coupled runs are serial
+        row = self.record(n, history, load.coil_temperatures(), None, temps)
+        if write:
+            self.write(root / "shots.csv")
+        log.info("shot %d of %d: peak current %.4g kA, coil at %.2f K", n, self.count, row["peak_current_A"] / 1e3,
+                 row["coil_temperature_end_K"])
+
+    def begin(self, n: int, load, solver, root: Path, write: bool) -> None:
+        """The pause before shot ``n``: cool the coil and the bodies (lumped), bodies to rest, a fresh discharge of
+        the EM ``load`` (``shots.csv`` in ``root`` rewritten when ``write``)."""
+        coil = self.cool_coil(load.coil_temperatures(), *load.coil_heat_paths())
+        self.set_after_pause(n - 1, coil)
+        self.cool_bodies(solver)
+        load.begin_shot(self.start(n), self.voltages[n - 1], coil)
+        if write:
+            self.write(root / "shots.csv")
 
     # ------------------------------------------------------------------ report
     def record(self, n: int, history, coil_end: np.ndarray, coil_after: np.ndarray | None,

@@ -17,11 +17,19 @@ Both are evaluated at the step's start temperatures (explicit in temperature, li
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 
-__all__ = ["ConductivityTable", "LinearResistivity", "ConductivityLaw", "law_from_dict", "element_list_line"]
+from .files import element_volumes
+from .mesh import EMMesh, coil_tag, conductor_tag
+
+if TYPE_CHECKING:
+    from .model import EMModel, EMState
+
+__all__ = ["ConductivityTable", "LinearResistivity", "ConductivityLaw", "law_from_dict", "element_list_line",
+           "coil_mass_cp", "coil_temperature", "step_inputs", "checked_temperatures", "start_power", "check_deck"]
 
 
 @dataclass(frozen=True)
@@ -101,3 +109,79 @@ def element_list_line(name: str, tags: Sequence[int] | np.ndarray, sigma: Sequen
     pairs = [f"{t}, {s:.17g}" for t, s in zip(tags.tolist(), sigma.tolist())]
     body = ",\n  ".join(", ".join(pairs[j:j + 8]) for j in range(0, len(pairs), 8))
     return f"{name}() = {{\n  {body}}};"
+
+
+def coil_mass_cp(model: "EMModel", mesh: EMMesh) -> np.ndarray:
+    """m c_p (J/K) of every coil of ``model``: density × heat capacity × the coil region's volume (2πr-weighted in
+    axisymmetry, per metre in planar)."""
+    return np.array([c.density * c.heat_capacity
+                     * element_volumes(mesh, np.flatnonzero(mesh.tri_tags == coil_tag(k)), model.axisymmetric).sum()
+                     for k, c in enumerate(model.coils, start=1)])
+
+
+def coil_temperature(model: "EMModel", mesh: EMMesh, state: "EMState") -> np.ndarray:
+    """The coils' lumped temperatures (K) at ``state``: initial temperature + Joule heat so far / (m c_p)."""
+    heat = np.asarray(state.coil_heat or [0.0] * len(model.coils), float)
+    t0 = np.array([c.initial_temperature for c in model.coils], float)
+    return t0 + heat / coil_mass_cp(model, mesh) if len(model.coils) else t0
+
+
+def step_inputs(model: "EMModel", mesh: EMMesh, state: "EMState", dt: float,
+                elem_temperature: tuple[np.ndarray, np.ndarray] | None) -> tuple[dict[str, float], list[str]]:
+    """The numbers and ``run.pro`` lines of the σ(T) laws for a step of ``dt`` (s) from ``state`` on ``mesh``.
+
+    Each coil with a law: ``Coil_sigma_k`` at its lumped temperature predicted for the step's middle,
+    T + P dt / (2 m c_p), P its Joule power at the step's start (``state.coil_power``; 0 from rest). Each
+    conductor with a law: ``Cond_SigmaElem_k = 1`` and the list ``Cond_SigmaList_k`` of σ per element at the
+    temperatures ``elem_temperature`` = (EM triangle rows, K), an element not listed at the conductor's
+    ``initial_temperature``. Nothing without a law.
+    """
+    numbers: dict[str, float] = {}
+    lines: list[str] = []
+    if any(c.conductivity_law is not None for c in model.coils):
+        power = np.asarray(state.coil_power if state.coil_power is not None else [0.0] * len(model.coils), float)
+        temp = coil_temperature(model, mesh, state) + 0.5 * dt * power / coil_mass_cp(model, mesh)
+        for k, c in enumerate(model.coils, start=1):
+            if c.conductivity_law is not None:
+                numbers[f"Coil_sigma_{k}"] = float(c.conductivity_law(temp[k - 1]))
+    for k, c in enumerate(model.conductors, start=1):
+        if c.conductivity_law is None:
+            continue
+        rows = np.flatnonzero(mesh.tri_tags == conductor_tag(k))
+        temp = np.full(len(rows), float(c.initial_temperature))
+        if elem_temperature is not None:
+            lookup = np.full(len(mesh.triangles), np.nan)
+            lookup[elem_temperature[0]] = elem_temperature[1]
+            given = lookup[rows]
+            temp = np.where(np.isnan(given), temp, given)
+        numbers[f"Cond_SigmaElem_{k}"] = 1
+        lines.append(element_list_line(f"Cond_SigmaList_{k}", rows + 1, c.conductivity_law(temp)))
+    return numbers, lines
+
+
+def checked_temperatures(elements: np.ndarray, temperature: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(element rows, temperatures K) as flat arrays, refused unless one finite temperature > 0 per element."""
+    elements = np.asarray(elements, np.int64).ravel()
+    temperature = np.asarray(temperature, float).ravel()
+    if elements.shape != temperature.shape:
+        raise ValueError("element temperatures: one temperature per element")
+    if not np.all(np.isfinite(temperature)) or np.any(temperature <= 0):
+        raise ValueError("element temperatures must be finite and > 0 K")
+    return elements, temperature
+
+
+def start_power(state: "EMState", coil_sigma: Sequence[float]) -> np.ndarray:
+    """The coils' Joule power (W) at the start of a BDF2 step, for its trapezoid: the state's end power of the
+    step before (0 from rest), taken at this step's σ (``coil_sigma``, S/m) where a σ(T) changed it (P ∝ 1/σ at a
+    given current): the heat of the circuit the step solves."""
+    p = np.asarray(state.coil_power if state.coil_power is not None else [0.0] * len(coil_sigma), float)
+    if state.coil_sigma is not None:
+        p = p * np.asarray(state.coil_sigma, float) / np.asarray(coil_sigma, float)
+    return p
+
+
+def check_deck(model: "EMModel", deck: Path, builtin: Path) -> None:
+    """Refuse a σ(T) law on a deck other than the built-in ``builtin`` (it alone reads per-element σ)."""
+    if model.has_conductivity_laws and Path(deck).resolve() != Path(builtin).resolve():
+        raise ValueError("a conductivity that follows temperature needs the built-in deck (em_case.pro): "
+                         f"{Path(deck).name} has no per-element conductivity")

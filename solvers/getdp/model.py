@@ -165,6 +165,11 @@ class EMModel:
         if self.circuit is not None and not self.coils:
             raise ValueError("a circuit needs at least one coil")
 
+    @property
+    def has_conductivity_laws(self) -> bool:
+        """True when a coil or a conductor has a σ(T) law (:mod:`.conductivity`)."""
+        return any(c.conductivity_law is not None for c in list(self.coils) + list(self.conductors))
+
     def to_dict(self) -> dict:
         return asdict(self)
 

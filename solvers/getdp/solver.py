@@ -10,7 +10,7 @@ import numpy as np
 
 from .applied_field import applied_start
 from .bdf2 import bdf2_coefficients, match_rows, trapezoid_mean
-from .conductivity import element_list_line
+from .conductivity import check_deck, checked_temperatures, coil_mass_cp, start_power, step_inputs
 from .files import discard_folder, element_volumes, init_list_line, read_element_table, read_table
 from .mesh import AXIS, OUTER, EMMesh, coil_tag, conductor_tag, physical_numbers, write_msh22
 from .model import (Circuit, Coil, Conductor, CurrentTable, DampedSine, EMModel, EMState, EMStepResult,  # noqa: F401
@@ -70,11 +70,8 @@ class GetDPSolver:
         self.keep_runs = keep_runs
         self.reuse_pre = reuse_pre
         self._runs: list[Path] = []
-        #: per-element temperatures (K) of the conductors with a σ(T) law: EM triangle row -> temperature
-        self._elem_temperature: tuple[np.ndarray, np.ndarray] | None = None
-        if self.has_conductivity_laws and self.deck != CASE_DECK.resolve():
-            raise ValueError("a conductivity that follows temperature needs the built-in deck (em_case.pro): "
-                             f"{self.deck.name} has no per-element conductivity")
+        check_deck(model, self.deck, CASE_DECK)   # σ(T) needs the built-in deck
+        self._elem_temperature: tuple[np.ndarray, np.ndarray] | None = None   # (EM triangle rows, K) for σ(T)
 
     # -- state
     def initial_state(self, t0: float = 0.0) -> EMState:
@@ -82,66 +79,10 @@ class GetDPSolver:
         return EMState(t=float(t0), capacitor_voltage=v0, current=0.0,
                        coil_heat=[0.0] * len(self.model.coils))
 
-    # -- conductivity that follows temperature (:mod:`.conductivity`)
-    @property
-    def has_conductivity_laws(self) -> bool:
-        """True when a coil or a conductor has a σ(T) law."""
-        m = self.model
-        return any(c.conductivity_law is not None for c in list(m.coils) + list(m.conductors))
-
     def set_element_temperatures(self, elements: np.ndarray, temperature: np.ndarray) -> None:
         """Temperatures (K) of EM elements (rows of the mesh's triangles) for the conductors' σ(T) laws at the
-        next steps; an element of such a conductor not listed is at the conductor's ``initial_temperature``."""
-        elements = np.asarray(elements, np.int64).ravel()
-        temperature = np.asarray(temperature, float).ravel()
-        if elements.shape != temperature.shape:
-            raise ValueError("set_element_temperatures needs one temperature per element")
-        if not np.all(np.isfinite(temperature)) or np.any(temperature <= 0):
-            raise ValueError("element temperatures must be finite and > 0 K")
-        self._elem_temperature = (elements, temperature)
-
-    def coil_mass_cp(self, mesh: EMMesh) -> np.ndarray:
-        """m c_p (J/K) of every coil: density × heat capacity × the coil region's volume (2πr-weighted in
-        axisymmetry, per metre in planar)."""
-        m = self.model
-        return np.array([c.density * c.heat_capacity
-                         * element_volumes(mesh, np.flatnonzero(mesh.tri_tags == coil_tag(k)), m.axisymmetric).sum()
-                         for k, c in enumerate(m.coils, start=1)])
-
-    def coil_temperature(self, mesh: EMMesh, state: EMState) -> np.ndarray:
-        """The coils' lumped temperatures (K) at ``state``: initial temperature + Joule heat so far / (m c_p)."""
-        m = self.model
-        heat = np.asarray(state.coil_heat or [0.0] * len(m.coils), float)
-        t0 = np.array([c.initial_temperature for c in m.coils], float)
-        return t0 + heat / self.coil_mass_cp(mesh) if len(m.coils) else t0
-
-    def conductivity_inputs(self, mesh: EMMesh, state: EMState, dt: float) -> tuple[dict[str, float], list[str]]:
-        """The numbers and ``run.pro`` lines of the σ(T) laws for a step of ``dt`` (s) from ``state`` on ``mesh``:
-        each coil's σ at its lumped temperature predicted for the step's middle, T + P dt / (2 m c_p) with P the
-        coil's Joule power at the step's start (``state.coil_power``; 0 from rest), each conductor's σ per element
-        at the element temperatures given (:meth:`set_element_temperatures`); nothing without a law."""
-        m = self.model
-        numbers: dict[str, float] = {}
-        lines: list[str] = []
-        if any(c.conductivity_law is not None for c in m.coils):
-            power = np.asarray(state.coil_power if state.coil_power is not None else [0.0] * len(m.coils), float)
-            temp = self.coil_temperature(mesh, state) + 0.5 * dt * power / self.coil_mass_cp(mesh)
-            for k, c in enumerate(m.coils, start=1):
-                if c.conductivity_law is not None:
-                    numbers[f"Coil_sigma_{k}"] = float(c.conductivity_law(temp[k - 1]))
-        for k, c in enumerate(m.conductors, start=1):
-            if c.conductivity_law is None:
-                continue
-            rows = np.flatnonzero(mesh.tri_tags == conductor_tag(k))
-            temp = np.full(len(rows), float(c.initial_temperature))
-            if self._elem_temperature is not None:
-                lookup = np.full(len(mesh.triangles), np.nan)
-                lookup[self._elem_temperature[0]] = self._elem_temperature[1]
-                given = lookup[rows]
-                temp = np.where(np.isnan(given), temp, given)
-            numbers[f"Cond_SigmaElem_{k}"] = 1
-            lines.append(element_list_line(f"Cond_SigmaList_{k}", rows + 1, c.conductivity_law(temp)))
-        return numbers, lines
+        next steps (:func:`.conductivity.step_inputs`; an element not listed is at its ``initial_temperature``)."""
+        self._elem_temperature = checked_temperatures(elements, temperature)
 
     # -- one step
     def step(self, mesh: EMMesh, state: EMState, t_end: float, n_sub: int = 1, *,
@@ -195,8 +136,8 @@ class GetDPSolver:
         numbers.update(Flag_ElemOut={"all": 1, "last": 2, "none": 0}[element_output],
                        Flag_FieldOut=int(bool(field_output)))
         data_lines = self.preamble + self._table_lines()
-        if self.has_conductivity_laws:
-            sig_numbers, sig_lines = self.conductivity_inputs(mesh, state, float(t_end) - state.t)
+        if model.has_conductivity_laws:
+            sig_numbers, sig_lines = step_inputs(model, mesh, state, float(t_end) - state.t, self._elem_temperature)
             numbers.update(sig_numbers)
             data_lines += sig_lines
         extra: list[str] = []
@@ -251,12 +192,8 @@ class GetDPSolver:
                          executable=self.executable, timeout=self.timeout, reuse_pre=reuse_pre)
         for w in info.warnings:
             warnings.warn(f"getdp ({run_dir.name}): {w}", RuntimeWarning, stacklevel=2)
-        power_start = None
         coil_sigma = [float(numbers.get(f"Coil_sigma_{k}", c.sigma)) for k, c in enumerate(model.coils, start=1)]
-        if bdf2:
-            power_start = np.asarray(state.coil_power if state.coil_power is not None else [0.0] * len(model.coils))
-            if state.coil_sigma is not None:   # the start power with this step's σ: the heat of the step's circuit
-                power_start = power_start * np.asarray(state.coil_sigma, float) / np.asarray(coil_sigma)
+        power_start = start_power(state, coil_sigma) if bdf2 else None
         result = self._read(mesh, out_dir, state, float(t_end), int(n_sub), n_elem_rows, power_start)
         result.run = info
         result.path = str(run_dir)
@@ -265,10 +202,8 @@ class GetDPSolver:
         new_state = self._next_state(mesh, material_points, out_dir, run_dir, state, result, sig, float(t_end))
         if bdf2:
             self._bdf2_history(mesh, pts, state, result, new_state, a_prev)
-        elif self.has_conductivity_laws:   # the coil's power at the step's end: the next step's σ(T) prediction
-            new_state.coil_power = result.coil_power[-1].tolist()
-        if self.has_conductivity_laws:
-            new_state.coil_sigma = coil_sigma
+        if model.has_conductivity_laws:   # this step's σ and end power: the next step's σ(T) and start power
+            new_state.coil_sigma, new_state.coil_power = coil_sigma, result.coil_power[-1].tolist()
         # the .pre of a run without the Init list is reusable by later restarts on this connectivity
         new_state.pre_path = str(run_dir / "em.pre") if "Flag_InitA" not in numbers else None
         if model.applied_field is not None:
@@ -549,7 +484,7 @@ class GetDPSolver:
         # Joule heat over the step: rectangle rule (implicit Euler) or trapezoid (BDF2, from power_start)
         q = cp.sum(axis=0) * dt if power_start is None else trapezoid_mean(power_start, cp) * n * dt
         heat = np.asarray(state.coil_heat or [0.0] * nc, float) + q
-        mass_cp = self.coil_mass_cp(mesh)
+        mass_cp = coil_mass_cp(m, mesh)
         for name, arr in (("force density", force), ("coil current", cur), ("energy", w[:, 1])):
             if not np.all(np.isfinite(arr)):
                 raise RuntimeError(f"non-finite {name} in {out}")

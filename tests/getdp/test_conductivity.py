@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from pulseform.solvers.getdp import Circuit, Coil, Conductor, EMModel, GetDPSolver, Rect, coil_conductor_mesh
-from pulseform.solvers.getdp.conductivity import ConductivityTable, LinearResistivity, element_list_line
+from pulseform.solvers.getdp.conductivity import ConductivityTable, LinearResistivity, element_list_line, step_inputs
 from pulseform.solvers.getdp.mesh import conductor_tag
 
 from getdp_testlib import needs_getdp, ten_turn_coil
@@ -68,5 +68,5 @@ def test_prescribed_temperatures_equal_constant_conductivities(tmp_path):
     assert ra.conductor_power[-1, 0] != pytest.approx(ra.conductor_power[-1, 1], rel=0.05)
     # the element list reached GetDP: an element left out takes the conductor's initial temperature (293.15 K)
     b.set_element_temperatures(rows[0], np.full(len(rows[0]), temps[0]))
-    numbers, lines = b.conductivity_inputs(mesh, sb, 1e-6)
+    numbers, lines = step_inputs(following, mesh, sb, 1e-6, b._elem_temperature)
     assert numbers["Cond_SigmaElem_2"] == 1 and f"{law(293.15):.17g}" in lines[1]
