@@ -7,6 +7,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal
 
+from .conductivity import ConductivityCurve, check_below_melting
 from .em_applied import AppliedField
 from .em_sources import CoilConnection, Source, check_sources
 from .schema import SchemaError, spec
@@ -32,6 +33,28 @@ class DampedSineCurrent:
     omega: float = spec(unit="rad/s", gt=0.0, doc="angular frequency ω")
 
 
+#: copper's melting temperature (K): the coil's σ(T) table must stay below it unless it names its own
+COPPER_MELTING_K = 1357.77
+
+
+@dataclass(frozen=True, kw_only=True)
+class Shots:
+    """Repeated discharges of the bank with a pause between them (lumped cooling to ambient)."""
+
+    count: int = spec(ge=1, le=1000, doc="number of discharges N")
+    pause: float = spec(unit="s", gt=0.0, doc="time between the end of a shot's window (time.end) and the next "
+                                              "discharge")
+    voltages: tuple[float, ...] = spec((), unit="V", gt=0.0, doc="charging voltage of each shot (default: the "
+                                                                 "bank's voltage every shot)")
+    ambient_temperature: float = spec(293.15, unit="K", gt=0.0, doc="temperature the coil and the bodies cool "
+                                                                    "towards during a pause")
+    coil_heat_transfer: float = spec(0.0, unit="W/(m²·K)", ge=0.0, doc="h of the coil's surface to ambient "
+                                                                      "(lumped: dT/dt = −h A (T − T_amb)/(m c_p))")
+    body_heat_transfer: float = spec(0.0, unit="W/(m²·K)", ge=0.0, doc="h of every deformable body's surface to "
+                                                                      "ambient, lumped per body, applied to every "
+                                                                      "cell")
+
+
 @dataclass(frozen=True, kw_only=True)
 class EM:
     """Electromagnetic model (GetDP): coil, its source, and what to keep."""
@@ -39,6 +62,15 @@ class EM:
     coil_conductivity: float = spec(5.8e7, unit="S/m", gt=0.0, doc="coil conductor (copper)")
     coil_density: float = spec(8960.0, unit="kg/m^3", gt=0.0, doc="for the coil's adiabatic heating")
     coil_heat_capacity: float = spec(385.0, unit="J/(kg·K)", gt=0.0, doc="for the coil's adiabatic heating")
+    coil_conductivity_curve: ConductivityCurve | None = spec(
+        None, doc="[em.coil_conductivity_curve] σ(T) of the coil in place of the constant coil_conductivity: "
+                  "type = 'table' or 'linear_resistivity' (σ_ref = coil_conductivity); the coil is one lumped body "
+                  "heated adiabatically during a shot, its resistance follows its temperature every EM step (2D, "
+                  "getdp per step; docs/guide/em.md)")
+    coil_initial_temperature: float = spec(293.15, unit="K", gt=0.0, doc="the coil's temperature at the start "
+                                                                         "(its σ(T); shots: cooled towards ambient)")
+    shots: Shots | None = spec(None, doc="[em.shots] repeated discharges with cooling between them (count, pause, "
+                                         "voltages, heat transfer to ambient; docs/guide/em.md, Repeated shots)")
     circuit: CapacitorBank | None = spec(None, doc="capacitor-bank discharge (give this, current or sources; a "
                                                    "'getdp_template' deck's own bank when none is given)")
     current: DampedSineCurrent | None = spec(None, doc="prescribed coil current (give this, circuit or sources; a "
@@ -90,6 +122,23 @@ class EM:
         elif self.coils:
             raise SchemaError(f"{path}.coils", "[[em.coils]] connect coils to [[em.sources]]: give the sources "
                               "(or drop the coils and keep em.circuit / em.current)")
+        cc = self.coil_conductivity_curve
+        if cc is not None:
+            check_below_melting(cc, f"{path}.coil_conductivity_curve",
+                                cc.melting_temperature if cc.melting_temperature is not None else COPPER_MELTING_K)
+            if not self.coil_initial_temperature < (cc.melting_temperature or COPPER_MELTING_K):
+                raise SchemaError(f"{path}.coil_initial_temperature",
+                                  f"got {self.coil_initial_temperature:g}; must be below the coil's melting "
+                                  f"temperature {cc.melting_temperature or COPPER_MELTING_K:g} (K)")
+        if cc is not None and self.getdp_process == "persistent":
+            raise SchemaError(f"{path}.getdp_process", "got 'persistent'; a conductivity that follows temperature "
+                              "runs getdp per step: set getdp_process = 'auto' or 'per_step'")
+        if self.shots is not None and not self.has_bank:
+            raise SchemaError(f"{path}.shots", "repeated shots are capacitor-bank discharges: give em.circuit or a "
+                                               "'bank' source")
+        if self.shots is not None and self.shots.voltages and len(self.shots.voltages) != self.shots.count:
+            raise SchemaError(f"{path}.shots.voltages", f"got {len(self.shots.voltages)} voltages; needs "
+                                                        f"{self.shots.count}, one per shot (or none: the bank's)")
         if self.getdp_process == "persistent" and self.time_scheme != "bdf2":
             raise SchemaError(f"{path}.getdp_process", "got 'persistent'; the persistent getdp implements "
                               "em.time_scheme = 'bdf2' only: set it, or getdp_process = 'auto' or 'per_step'")

@@ -17,6 +17,7 @@ from .em_table import EM, CapacitorBank, DampedSineCurrent
 from .em_model import (FlatCoilSheet, Geometry, OuterTube, PlanarCoilBlankDie,
                       SheetDie, SolenoidTube)
 from .em_applied import check_applied_field
+from .conductivity import ConductivityCurve, LinearResistivitySpec, check_below_melting
 from .forming_limit import FormingLimitTable
 from .em_sources import check_coils
 from .flow import FlowCurveTable, JohnsonCookFlowTable, TableFlowTable, initial_yield_stress
@@ -72,6 +73,11 @@ class MaterialTable:
                                        "adiabatically by β × the plastic work; unset: no temperature")
     taylor_quinney: float = spec(0.9, unit="-", ge=0.0, le=1.0, doc="β, the share of the plastic work that heats")
     initial_temperature: float = spec(293.15, unit="K", gt=0.0, doc="temperature of every cell at the start")
+    conductivity_curve: ConductivityCurve | None = spec(
+        None, doc="[materials.<name>.conductivity_curve] σ(T) of a conductor body in place of the constant "
+                  "electrical_conductivity: type = 'table' (temperatures, conductivities) or 'linear_resistivity' "
+                  "(ρ = ρ_ref (1 + α (T − T_ref))); GetDP gets σ per element from the cells' temperatures every EM "
+                  "step (needs specific_heat; 2D, getdp per step; docs/guide/em.md)")
     forming_limit: FormingLimitTable | None = spec(
         None, doc="[materials.<name>.forming_limit] forming limit curve of a sheet of this material: its bodies "
                   "get per-element major/minor true strains and the margin below the curve (fields, history "
@@ -89,6 +95,17 @@ class MaterialTable:
                 isinstance(fc, TableFlowTable) and len(fc.strain_rates) > 1)):
             raise SchemaError(f"{path}.rate_law", "the flow_curve has its own strain-rate term (Johnson–Cook, or "
                                                   "curves per strain rate); remove rate_law")
+        cc = self.conductivity_curve
+        if cc is not None:
+            melt = cc.melting_temperature if cc.melting_temperature is not None else (
+                fc.melting_temperature if isinstance(fc, JohnsonCookFlowTable) else None)
+            check_below_melting(cc, f"{path}.conductivity_curve", melt)
+            if self.specific_heat is None:
+                raise SchemaError(f"{path}.conductivity_curve", "needs specific_heat (J/(kg·K)): σ follows the "
+                                                                "temperature of the cells")
+            if isinstance(cc, LinearResistivitySpec) and not self.electrical_conductivity > 0:
+                raise SchemaError(f"{path}.electrical_conductivity", "must be > 0 (S/m): the linear_resistivity "
+                                                                     "law's σ at its reference_temperature")
         if isinstance(fc, JohnsonCookFlowTable) and not self.initial_temperature < fc.melting_temperature:
             raise SchemaError(f"{path}.initial_temperature",
                               f"got {self.initial_temperature:g}; must be below the flow curve's melting_temperature "
@@ -363,6 +380,8 @@ class Case:
     def _validate_coupled(self) -> None:
         regions = [b.region for b in self.bodies if b.region is not None]
         file3d = getattr(self.geometry, "type", None) == "geometry_3d"  # .geometry3d (validate_dimension)
+        if self.case.kind == "coupled" and self.em is not None:
+            _check_temperature_em(self)
         if self.case.kind == "coupled" and not file3d:
             for key in ("geometry", "em"):
                 if getattr(self, key) is None:
@@ -445,3 +464,25 @@ def _shape_xmin(shape: Shape) -> float:
 
 def _choices(names) -> str:
     return ", ".join(repr(n) for n in names) if names else "(none defined)"
+
+
+def _check_temperature_em(case: "Case") -> None:
+    """A conductivity that follows temperature and repeated shots: 2D, on the built-in deck, getdp per step
+    (one line naming the key otherwise)."""
+    em = case.em
+    curves = [f"materials.{b.material}.conductivity_curve" for b in case.bodies
+              if case.materials[b.material].conductivity_curve is not None]
+    if em.coil_conductivity_curve is not None:
+        curves.append("em.coil_conductivity_curve")
+    keys = curves + (["em.shots"] if em.shots is not None else [])
+    if not keys:
+        return
+    if case.mechanics.formulation == "3d":
+        raise SchemaError(keys[0], "a conductivity that follows temperature and repeated shots are 2D only for now "
+                                   "(planar or axisymmetric): remove it for a 3d case")
+    if case.geometry.type == "user_deck":
+        raise SchemaError(keys[0], "needs the built-in GetDP deck (a user_deck geometry has its own conductivities)")
+    if em.shots is not None and any(b.rigid for b in case.bodies):
+        raise SchemaError("em.shots", "repeated shots carry deformable bodies only: a rigid body's motion would "
+                                      "restart; make the bodies deformable or drop em.shots")
+

@@ -54,6 +54,8 @@ PLAUSIBLE: dict[str, tuple[float, float]] = {
     "Ω": (1e-12, 1e6),
     "J/(kg·K)": (1e-3, 1e6),
     "K": (1.0, 1e4),
+    "1/K": (1e-9, 1.0),
+    "W/(m²·K)": (1e-6, 1e6),
     "T": (1e-9, 1e3),
 }
 #: Range of a number without a unit in :data:`PLAUSIBLE` (e.g. user-deck parameters): finite and not huge.

@@ -17,7 +17,7 @@ import logging
 
 import numpy as np
 
-__all__ = ["cell_of_elements", "joule_heat", "JouleHeat"]
+__all__ = ["cell_of_elements", "joule_heat", "JouleHeat", "element_temperatures"]
 
 log = logging.getLogger(__name__)
 
@@ -65,6 +65,38 @@ def joule_heat(joule_density: np.ndarray, duration: float, match: np.ndarray) ->
     on = match >= 0
     out[on] = e[match[on]]
     return out
+
+
+def element_temperatures(mechanics, bodies, em_cells: np.ndarray, tri_tags: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The temperature (K) of the EM elements of the bodies that carry one: (EM element rows, temperatures), each
+    element at the temperature of the mechanical cell on the same nodes (:func:`cell_of_elements`; an element
+    without such a cell is left out: GetDP's σ(T) then takes the conductor's initial temperature there).
+
+    Parameters
+    ----------
+    mechanics
+        The loop's mechanics (``heated_cells()``, ``cell_temperatures()``).
+    bodies : list
+        The participant's conductor bodies (``name``, ``tag``, ``body_to_em``).
+    em_cells : int array
+        The EM mesh's cells (EM node indices).
+    tri_tags : int array
+        The EM cells' physical ids.
+    """
+    cells = getattr(mechanics, "heated_cells", dict)()
+    temps = getattr(mechanics, "cell_temperatures", dict)()
+    rows, values = [], []
+    for b in bodies:
+        if b.name not in cells:
+            continue
+        elements = np.flatnonzero(tri_tags == b.tag)
+        match = cell_of_elements(em_cells[elements], b.body_to_em, cells[b.name])
+        on = match >= 0
+        rows.append(elements[match[on]])
+        values.append(np.asarray(temps[b.name], float)[on])
+    if not rows:
+        return np.zeros(0, np.int64), np.zeros(0)
+    return np.concatenate(rows), np.concatenate(values)
 
 
 class JouleHeat:

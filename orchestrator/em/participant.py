@@ -36,6 +36,7 @@ from pulseform.solvers.getdp import EMMesh, EMModel, EMState, GetDPSolver
 from pulseform.solvers.getdp.mesh import AXIS as AXIS_TAG
 from pulseform.solvers.getdp.mesh import OUTER as OUTER_TAG
 from pulseform.solvers.getdp.mesh import SHELL as SHELL_TAG
+from pulseform.solvers.getdp.conductivity import coil_mass_cp, coil_temperature
 from pulseform.solvers.getdp.files import discard_folder
 from pulseform.solvers.getdp.persistent_process import FactorReuse
 
@@ -44,8 +45,9 @@ from ..coupling.transfer import cell_force_integral, cell_to_nodal_forces
 from ..mesh.em_geometry import EMGeometry
 from ..mesh.motion import MeshMover, MeshQualityError
 from ..mesh.remesh import remesh_around
+from ..mesh.triangles import region_surface
 from ..mesh.shared import ConductorBody, ConductorMesh  # noqa: F401  (ConductorBody: the participant's API)
-from .joule_heat import JouleHeat
+from .joule_heat import JouleHeat, element_temperatures
 from .snapshots import EMSnapshots
 from .solver import make_em_solver
 
@@ -129,6 +131,8 @@ class GetDPLoad(EMSnapshots, LoadCapabilities):
         self.material = geometry.mesh.points.copy()  # material coordinates of every EM node
         self.remeshes = 0
         self.joule = JouleHeat()   # the Joule heat per mechanical cell of the bodies with a temperature
+        #: a conductor's σ follows its cells' temperatures (:mod:`pulseform.solvers.getdp.conductivity`)
+        self.conductivity_follows_temperature = any(c.conductivity_law is not None for c in model.conductors)
         self.gmsh_time_limit: float | None = None  # wall-time limit of a remesh (s)
         self._set_mesh(geometry.mesh)
         self.min_quality = float(self.mover.q_ref.min())
@@ -222,6 +226,9 @@ class GetDPLoad(EMSnapshots, LoadCapabilities):
         # after a remesh, keep carrying the state through the Init path: a -restart from the .res of an
         # Init-path run gave garbage fields near the axis (GetDP 3.2.0; seen in tests, see the issue notes)
         fields = {"field_output": True} if self._wants_fields(t1) else {}
+        if self.conductivity_follows_temperature:   # σ(T) per element from the cells' temperatures at t0
+            self.solver.set_element_temperatures(*element_temperatures(mechanics, self.bodies, mesh_k.triangles,
+                                                                       mesh_k.tri_tags))
         result, self.state = self.solver.step(mesh_k, self.state, t1, n_sub=self.em_substeps,
                                               material_points=self.material,
                                               force_init_path=self.remeshes > 0 and self.init_after_remesh, **fields)
@@ -370,6 +377,45 @@ class GetDPLoad(EMSnapshots, LoadCapabilities):
         thread = discard_folder(path)
         if thread is not None:
             self._deleting.append(thread)
+
+    # ------------------------------------------------------------------ repeated shots (run/shots.py)
+    def coil_temperatures(self) -> np.ndarray:
+        """The coils' lumped temperatures now (K): their initial temperature + Joule heat / (m c_p)."""
+        return coil_temperature(self.solver.model, self.geometry.mesh, self.state)
+
+    def coil_heat_paths(self) -> tuple[np.ndarray, np.ndarray]:
+        """(outer surface m², m c_p J/K) of every coil, for their cooling between shots (per metre in planar)."""
+        mesh = self.geometry.mesh
+        area = np.array([region_surface(mesh.points, mesh.triangles[mesh.tri_tags == tag], self.axisymmetric)
+                         for tag, _ in self.geometry.coil_turns()])
+        return area, coil_mass_cp(self.solver.model, mesh)
+
+    def begin_shot(self, t0: float, voltage: float, coil_temperature: np.ndarray) -> None:
+        """Start a new discharge at ``t0`` (s): the EM state at rest, the bank charged to ``voltage`` (V), the coils
+        at ``coil_temperature`` (K; their Joule heat counts from here)."""
+        m = self.solver.model
+        if m.circuit is None:
+            raise ValueError("a new shot needs a capacitor bank")
+        m.circuit.V0 = float(voltage)
+        for c, temp in zip(m.coils, np.asarray(coil_temperature, float)):
+            c.initial_temperature = float(temp)
+        self.state = self.solver.initial_state(t0)
+        self._moved = None
+        self._rise = []
+
+    def shot_state(self) -> dict:
+        """What a checkpoint keeps of the current shot: the bank's voltage and the coils' start temperatures."""
+        m = self.solver.model
+        return {"v0": m.circuit.V0 if m.circuit is not None else 0.0,
+                "coil_t0": [c.initial_temperature for c in m.coils]}
+
+    def load_shot_state(self, d: dict) -> None:
+        """Restore :meth:`shot_state`."""
+        m = self.solver.model
+        if m.circuit is not None:
+            m.circuit.V0 = float(d["v0"])
+        for c, temp in zip(m.coils, d["coil_t0"]):
+            c.initial_temperature = float(temp)
 
     def close(self) -> None:
         """End a persistent getdp and wait until the old run folders are deleted (call once the run is

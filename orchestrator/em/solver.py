@@ -9,6 +9,7 @@ from pulseform.solvers.getdp import (AppliedField, Circuit, Coil, Conductor, Cur
                                      GetDPSolver)
 from pulseform.solvers.getdp.persistent_process import FactorReuse
 
+from ..case.conductivity import conductivity_law
 from ..case.em_applied import AppliedDC, AppliedSine, AppliedTable
 from ..case.em_sources import BankSource, DCSource, SineSource, TableSource, read_current_table
 from ..case.model import Case
@@ -76,7 +77,9 @@ def _coils(case: Case) -> tuple[list[Coil], Circuit | None]:
     """The coils of a coupled case in the mesh's coil order (coil k is physical 100 + k: the order of
     ``[[geometry.coils]]`` where the geometry names its coils), and the circuit (None without a bank)."""
     em, g = case.em, case.geometry
-    kw = {"sigma": em.coil_conductivity, "density": em.coil_density, "heat_capacity": em.coil_heat_capacity}
+    kw = {"sigma": em.coil_conductivity, "density": em.coil_density, "heat_capacity": em.coil_heat_capacity,
+          "conductivity_law": conductivity_law(em.coil_conductivity_curve, em.coil_conductivity),
+          "initial_temperature": em.coil_initial_temperature}
     if not em.sources:  # em.circuit or em.current: the geometry's one coil
         drives, circuit = coil_drives(case, [None])
         return [Coil(turns=g.turns, waveform=drives[0][0], **kw)], circuit
@@ -103,10 +106,15 @@ def em_model(case: Case, shell: tuple[float, float] | None) -> EMModel:
     deck_own = getattr(g, "library", "pulseform") == "getdp_template"  # 0: the deck's own (user_deck.user_em_model)
     for role in g.conductor_roles():
         body = next(b for b in case.bodies if b.region == role)
-        sigma = case.materials[body.material].electrical_conductivity
+        mat = case.materials[body.material]
+        sigma = mat.electrical_conductivity
+        law = conductivity_law(mat.conductivity_curve, sigma)
+        if sigma <= 0.0 and law is not None:   # a table law alone: its σ at the initial temperature
+            sigma = float(law(mat.initial_temperature))
         if sigma <= 0.0 and not deck_own:
             raise ValueError(f"materials.{body.material}.electrical_conductivity must be > 0 for the {role}")
-        conductors.append(Conductor(sigma=sigma, name=body.name))
+        conductors.append(Conductor(sigma=sigma, name=body.name, conductivity_law=law,
+                                    initial_temperature=mat.initial_temperature))
     return EMModel(axisymmetric=not g.planar, coils=coils, conductors=conductors, circuit=circuit, shell=shell,
                    applied_field=applied_field(case.em.applied_field))
 
@@ -126,7 +134,11 @@ def make_em_solver(model: EMModel, work_dir: Path, time_scheme: str, getdp_proce
         raise ValueError(f"getdp_process must be 'auto', 'persistent' or 'per_step', got {getdp_process!r}")
     if getdp_process == "persistent" and time_scheme != "bdf2":
         raise ValueError("the persistent getdp implements time_scheme='bdf2' only")
-    if getdp_process != "per_step" and time_scheme == "bdf2":
+    laws = model.has_conductivity_laws
+    if getdp_process == "persistent" and laws:
+        raise ValueError("a conductivity that follows temperature (conductivity_curve) runs getdp per step: "
+                         "em.getdp_process must be 'auto' or 'per_step'")
+    if getdp_process != "per_step" and time_scheme == "bdf2" and not laws:
         from pulseform.solvers.getdp.persistent import PersistentGetDPSolver
 
         return PersistentGetDPSolver(model, work_dir, factor_reuse=factor_reuse, **kw)

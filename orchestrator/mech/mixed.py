@@ -156,6 +156,10 @@ class MixedMechanics:
         """The deformable bodies' cells that carry a temperature (:meth:`DolfinxMechanics.heated_cells`)."""
         return self.deformable.heated_cells() if self.deformable is not None else {}
 
+    def cell_temperatures(self) -> dict[str, np.ndarray]:
+        """The deformable bodies' temperatures per cell (:meth:`DolfinxMechanics.cell_temperatures`)."""
+        return self.deformable.cell_temperatures() if self.deformable is not None else {}
+
     def add_heat(self, heat: dict[str, np.ndarray]) -> None:
         """Joule heat (J/m^3 per cell) of deformable bodies (rigid bodies carry no temperature)."""
         if self.deformable is not None:

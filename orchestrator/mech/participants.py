@@ -88,6 +88,11 @@ class DolfinxMechanics:
         """The cells (node rows, (nc, 3) or (nc, 4)) of every body that carries a temperature, by name."""
         return {n: b.cells for n, b in self.solver.bodies.items() if b.material.thermal}
 
+    def cell_temperatures(self) -> dict[str, np.ndarray]:
+        """The temperature per cell (K, a view) of every body that carries one, by name (its cells in the order
+        of :meth:`heated_cells`)."""
+        return {n: b.temperature for n, b in self.solver.bodies.items() if b.material.thermal}
+
     def add_heat(self, heat: dict[str, np.ndarray]) -> None:
         """Heat the cells of bodies adiabatically: body name -> J/m^3 per cell (``ExplicitSolver.add_heat``)."""
         for name, e in heat.items():

@@ -20,3 +20,18 @@ def boundary_facets(cells: np.ndarray, x: np.ndarray) -> np.ndarray:
     key = np.sort(edges, axis=1)
     _, inverse, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
     return edges[counts[inverse] == 1]
+
+
+def region_surface(points: np.ndarray, triangles: np.ndarray, axisymmetric: bool) -> float:
+    """Outer surface (m²; per metre of depth in planar) of the triangles ``triangles`` (node rows of ``points``):
+    their :func:`boundary_facets`, times 2π r at each edge's midpoint in axisymmetry."""
+    tri = np.asarray(triangles, np.int64)
+    if len(tri) == 0:
+        return 0.0
+    p = np.asarray(points, float)
+    edges = boundary_facets(tri, p)
+    a, b = p[edges[:, 0]], p[edges[:, 1]]
+    length = np.linalg.norm(b - a, axis=1)
+    if axisymmetric:
+        return float(np.sum(np.pi * (a[:, 0] + b[:, 0]) * length))
+    return float(length.sum())

@@ -44,6 +44,7 @@ from .em_fields3d import CONDUCTORS_PEAK
 from .em_fields3d import FOLDER as EM3D_FOLDER
 from .em_fields3d import STEM as EM3D_STEM
 from .extremes3d import body_extremes_3d, contact_columns_3d, contact_metrics_3d
+from .shots import ShotSequence
 from .temperature import temperature_columns
 from .history import History
 from .impulse import impulse_metrics
@@ -119,6 +120,7 @@ class CaseDriver:
         self.em_step = fixed_em_step(self.loop, all_rigid=self.solver is None)
         interval = case.output.field_interval or default_interval(case.time.end, self.em_step)
         self.stops = milestones(case.time.end, interval)
+        self.shots = ShotSequence.of_case(case)  # em.shots: the window time.end again after cooling pauses, or None
         self.landing_note = landing_note(self.stops, self.em_step)  # said at the start of run()
 
     # ----------------------------------------------------------------- records
@@ -197,6 +199,8 @@ class CaseDriver:
         meta = {"columns": self.history.columns, "part": self.part, "ranks": self.comm.size,
                 "since_record": self._since_record,
                 "wall_time_s": self.wall_before_s + _time.perf_counter() - self.wall_start}
+        if self.shots is not None:
+            meta["shots"] = self.shots.state(self.load)
         save_checkpoint(self.results.root / self._rank_file(), arrays, meta)
         if self.comm.rank == 0:
             self.history.flush()
@@ -222,7 +226,13 @@ class CaseDriver:
         self.part = int(meta["part"]) + 1
         self._since_record = int(meta["since_record"])
         self.wall_before_s = float(meta.get("wall_time_s", 0.0))
+        if self.shots is not None:
+            self.shots.load_state(meta.get("shots"), self.load)
         log.info("resumed at t = %.6g s, step %d (part %d)", self.mechanics.time, self.mechanics.step_count, self.part)
+
+    def _shot_stops(self) -> list[tuple[int, float]]:
+        """(shot, milestone time) of the whole run (one shot without em.shots)."""
+        return self.shots.milestones(self.stops) if self.shots is not None else [(1, t) for t in self.stops]
 
     def _check_interrupt(self) -> None:
         """Stop here if a stop signal reached any rank (all ranks stop at the same step)."""
@@ -251,7 +261,7 @@ class CaseDriver:
             em_writer = EMFieldWriter(self.results.fields / (f"{EM3D_FOLDER}_part{self.part}" if self.part
                                                              else EM3D_FOLDER), stem=EM3D_STEM)
         if em_writer is not None:
-            self.load.request_fields(self.stops)  # whole-domain EM fields only on the snapshot steps
+            self.load.request_fields(np.array([t for _, t in self._shot_stops()]))  # whole-domain EM fields only on the snapshot steps
         if not self.history.rows:
             self.record(self.initial_row())
         writer.write(s.time)
@@ -267,11 +277,14 @@ class CaseDriver:
         log.debug("loop from t = %.6g s", s.time)  # bench/sweep_split.py: set-up ends, the loop starts
         try:
             self._check_interrupt()  # a signal during set-up (meshing, deck check)
-            with Progress(case.time.end, quiet=quiet or self.comm.rank != 0, desc=case.case.name) as bar:
+            n_shots = self.shots.count if self.shots is not None else 1
+            with Progress(case.time.end * n_shots, quiet=quiet or self.comm.rank != 0, desc=case.case.name) as bar:
                 bar.update_to(s.time)
-                for stop in self.stops:
+                for shot, stop in self._shot_stops():
                     if s.time >= stop * (1.0 - 1e-12):
                         continue
+                    if self.shots is not None and shot > 1 and s.time <= self.shots.start(shot) * (1.0 + 1e-12):
+                        self.shots.begin(shot, self.load, self.solver, self.results.root, self.comm.rank == 0)
                     self.loop.run_until(stop, on_step)
                     if self.history.rows[-1][0] != s.time:
                         self.record(self._last_row)  # the values of the step that reached the milestone
@@ -282,6 +295,9 @@ class CaseDriver:
                     snap = self.load.snapshot() if em_writer is not None else None
                     if snap is not None:
                         em_writer.write(t_out, *snap)
+                    if self.shots is not None and stop == self.shots.start(shot) + self.stops[-1]:
+                        self.shots.end(shot, self.history, self.load, self.solver, self.results.root,
+                                       self.comm.rank == 0)
                     self.checkpoint()
                     interrupt.rearm()  # a library (gmsh, at import) may have replaced the handlers
                     self._check_interrupt()
@@ -320,6 +336,8 @@ class CaseDriver:
             metrics.update(rigid_metrics(case, self.history, {n: b.mass for n, b in self.rigid.bodies.items()}))
         for a in self.analyses:
             metrics.update(a.metrics(self.solver, self.history))
+        if self.shots is not None:
+            metrics.update(self.shots.metrics())
         self.load.close()  # old getdp run folders are deleted in the background: wait for them
         return MechanicsRun(self.solver, self.history, metrics, self.shapes, self.analyses, self.wall_before_s)
 

@@ -115,6 +115,22 @@ def headline(case, metrics: dict[str, float], history) -> list[Headline]:
 
     out.extend(_flc_lines(case, metrics, axis))
     out.extend(_energy_lines(bank, metrics, history, cols, axis))
+    out.extend(_shot_lines(case, metrics))
+    return out
+
+
+def _shot_lines(case, metrics: dict[str, float]) -> list[Headline]:
+    """Repeated shots (em.shots): per shot its peak coil current, with the coil's temperature at its end and each
+    heated body's largest cell temperature then (shots.csv has the rest)."""
+    out = []
+    for n in range(1, int(metrics.get("shots", 0)) + 1):
+        if f"shot{n}_peak_current_kA" not in metrics:
+            continue
+        note = [f"coil {metrics[f'shot{n}_coil_temperature_K']:.1f} K at its end"]
+        note += [f"{b.name} max {metrics[k]:.1f} K" for b in case.bodies
+                 if (k := f"shot{n}_{b.name}_temperature_max_K") in metrics]
+        out.append(Headline(f"shot {n}, peak coil current", metrics[f"shot{n}_peak_current_kA"], "kA",
+                            "; ".join(note)))
     return out
 
 

@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 
+from .conductivity import ConductivityLaw, law_from_dict
 from .mesh import EMMesh
 from .runner import RunInfo
 
@@ -64,6 +65,9 @@ class Coil:
     ``sign``: the coil's orientation, +1 or -1 (wound the other way): its current is ``sign`` times
     its waveform, or ``sign`` times the circuit's current (the deck connects it the other way round).
     ``name``: what the coil is called (history columns), free text.
+    ``conductivity_law``: σ(T) (:mod:`.conductivity`; None: ``sigma`` at every temperature); the coil is one
+    lumped body at ``initial_temperature`` (K) plus its adiabatic rise (Joule heat / (m c_p)), and its σ — so its
+    resistance — follows that temperature EM step by step (evaluated at the step's start).
     """
 
     turns: int
@@ -73,8 +77,11 @@ class Coil:
     heat_capacity: float = 385.0
     sign: int = 1
     name: str = ""
+    conductivity_law: ConductivityLaw | None = None
+    initial_temperature: float = 293.15
 
     def __post_init__(self):
+        self.conductivity_law = law_from_dict(self.conductivity_law)
         if isinstance(self.waveform, dict):
             self.waveform = (CurrentTable if "times" in self.waveform else DampedSine)(**self.waveform)
         if self.sign not in (1, -1):
@@ -83,10 +90,19 @@ class Coil:
 
 @dataclass
 class Conductor:
-    """A massive conductor (physical region 200+k) with eddy currents."""
+    """A massive conductor (physical region 200+k) with eddy currents.
+
+    ``conductivity_law``: σ(T) per element (:mod:`.conductivity`), from the element temperatures given with
+    :meth:`~.solver.GetDPSolver.set_element_temperatures` (K; an element without one is at
+    ``initial_temperature``); None: ``sigma`` everywhere."""
 
     sigma: float
     name: str = ""
+    conductivity_law: ConductivityLaw | None = None
+    initial_temperature: float = 293.15
+
+    def __post_init__(self):
+        self.conductivity_law = law_from_dict(self.conductivity_law)
 
 
 @dataclass
@@ -149,6 +165,11 @@ class EMModel:
         if self.circuit is not None and not self.coils:
             raise ValueError("a circuit needs at least one coil")
 
+    @property
+    def has_conductivity_laws(self) -> bool:
+        """True when a coil or a conductor has a σ(T) law (:mod:`.conductivity`)."""
+        return any(c.conductivity_law is not None for c in list(self.coils) + list(self.conductors))
+
     def to_dict(self) -> dict:
         return asdict(self)
 
@@ -173,7 +194,7 @@ class EMState:
     conductor element) at element centroids ``force_points`` (material coordinates).
     ``applied_f``, ``applied_f_prev``: with an applied field, its unit time function of the states at
     ``t`` and at ``t - dt_prev`` (0 for the state at rest). ``factorisations``, ``corrections``: the
-    persistent getdp's solves so far.
+    persistent getdp's solves so far. ``coil_sigma``: with a coil σ(T), each coil's σ (S/m) of the last step.
     """
 
     t: float = 0.0
@@ -205,6 +226,9 @@ class EMState:
     # kept-factor corrections
     factorisations: int = 0
     corrections: int = 0
+    # a coil conductivity that follows temperature (:mod:`.conductivity`): each coil's σ (S/m) over the last step
+    # (the power ``coil_power`` at its end was computed with it)
+    coil_sigma: list | None = None
 
     def to_dict(self) -> dict:
         """The fields as a dict for JSON: lists are shared, not copied (``dataclasses.asdict``'s

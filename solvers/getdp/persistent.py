@@ -82,6 +82,9 @@ class PersistentGetDPSolver(GetDPSolver):
             raise ValueError("the persistent getdp implements time_scheme='bdf2' only")
         super().__init__(model, work_dir, executable=executable, petsc_args=petsc_args, timeout=timeout, deck=deck,
                          extra_numbers=extra_numbers, preamble=preamble, time_scheme="bdf2")
+        if self.model.has_conductivity_laws:   # its messages carry the geometry only, not a σ per step
+            raise ValueError("the persistent getdp has no conductivity that follows temperature: run getdp per "
+                             "step (em.getdp_process = 'per_step')")
         self.verbosity = verbosity
         self.factor_reuse = factor_reuse  # kept LU factors across steps (Lib_PersistentStep.pro)
         self.proc: PersistentProcess | None = None

@@ -10,6 +10,7 @@ import numpy as np
 
 from .applied_field import applied_start
 from .bdf2 import bdf2_coefficients, match_rows, trapezoid_mean
+from .conductivity import check_deck, checked_temperatures, coil_mass_cp, start_power, step_inputs
 from .files import discard_folder, element_volumes, init_list_line, read_element_table, read_table
 from .mesh import AXIS, OUTER, EMMesh, coil_tag, conductor_tag, physical_numbers, write_msh22
 from .model import (Circuit, Coil, Conductor, CurrentTable, DampedSine, EMModel, EMState, EMStepResult,  # noqa: F401
@@ -69,12 +70,19 @@ class GetDPSolver:
         self.keep_runs = keep_runs
         self.reuse_pre = reuse_pre
         self._runs: list[Path] = []
+        check_deck(model, self.deck, CASE_DECK)   # σ(T) needs the built-in deck
+        self._elem_temperature: tuple[np.ndarray, np.ndarray] | None = None   # (EM triangle rows, K) for σ(T)
 
     # -- state
     def initial_state(self, t0: float = 0.0) -> EMState:
         v0 = self.model.circuit.V0 if self.model.circuit else 0.0
         return EMState(t=float(t0), capacitor_voltage=v0, current=0.0,
                        coil_heat=[0.0] * len(self.model.coils))
+
+    def set_element_temperatures(self, elements: np.ndarray, temperature: np.ndarray) -> None:
+        """Temperatures (K) of EM elements (rows of the mesh's triangles) for the conductors' σ(T) laws at the
+        next steps (:func:`.conductivity.step_inputs`; an element not listed is at its ``initial_temperature``)."""
+        self._elem_temperature = checked_temperatures(elements, temperature)
 
     # -- one step
     def step(self, mesh: EMMesh, state: EMState, t_end: float, n_sub: int = 1, *,
@@ -128,6 +136,10 @@ class GetDPSolver:
         numbers.update(Flag_ElemOut={"all": 1, "last": 2, "none": 0}[element_output],
                        Flag_FieldOut=int(bool(field_output)))
         data_lines = self.preamble + self._table_lines()
+        if model.has_conductivity_laws:
+            sig_numbers, sig_lines = step_inputs(model, mesh, state, float(t_end) - state.t, self._elem_temperature)
+            numbers.update(sig_numbers)
+            data_lines += sig_lines
         extra: list[str] = []
         has_field = state.res_path is not None
         pts = mesh.points if material_points is None else np.asarray(material_points, float)
@@ -180,9 +192,8 @@ class GetDPSolver:
                          executable=self.executable, timeout=self.timeout, reuse_pre=reuse_pre)
         for w in info.warnings:
             warnings.warn(f"getdp ({run_dir.name}): {w}", RuntimeWarning, stacklevel=2)
-        power_start = None
-        if bdf2:
-            power_start = np.asarray(state.coil_power if state.coil_power is not None else [0.0] * len(model.coils))
+        coil_sigma = [float(numbers.get(f"Coil_sigma_{k}", c.sigma)) for k, c in enumerate(model.coils, start=1)]
+        power_start = start_power(state, coil_sigma) if bdf2 else None
         result = self._read(mesh, out_dir, state, float(t_end), int(n_sub), n_elem_rows, power_start)
         result.run = info
         result.path = str(run_dir)
@@ -191,6 +202,8 @@ class GetDPSolver:
         new_state = self._next_state(mesh, material_points, out_dir, run_dir, state, result, sig, float(t_end))
         if bdf2:
             self._bdf2_history(mesh, pts, state, result, new_state, a_prev)
+        if model.has_conductivity_laws:   # this step's σ and end power: the next step's σ(T) and start power
+            new_state.coil_sigma, new_state.coil_power = coil_sigma, result.coil_power[-1].tolist()
         # the .pre of a run without the Init list is reusable by later restarts on this connectivity
         new_state.pre_path = str(run_dir / "em.pre") if "Flag_InitA" not in numbers else None
         if model.applied_field is not None:
@@ -471,9 +484,7 @@ class GetDPSolver:
         # Joule heat over the step: rectangle rule (implicit Euler) or trapezoid (BDF2, from power_start)
         q = cp.sum(axis=0) * dt if power_start is None else trapezoid_mean(power_start, cp) * n * dt
         heat = np.asarray(state.coil_heat or [0.0] * nc, float) + q
-        mass_cp = np.array([c.density * c.heat_capacity
-                            * element_volumes(mesh, np.flatnonzero(mesh.tri_tags == coil_tag(k)), m.axisymmetric).sum()
-                            for k, c in enumerate(m.coils, start=1)])
+        mass_cp = coil_mass_cp(m, mesh)
         for name, arr in (("force density", force), ("coil current", cur), ("energy", w[:, 1])):
             if not np.all(np.isfinite(arr)):
                 raise RuntimeError(f"non-finite {name} in {out}")

@@ -26,6 +26,7 @@ BASE = tomllib.loads((REPO / "cases/bar_impact/case.toml").read_text())
 FLOW_TABLE = {"type": "table", "plastic_strain": [0.0, 0.1, 0.2], "yield_stress": [2e8, 2.5e8, 3e8]}
 FLOW_JC = {"type": "johnson_cook", "A": 3.24e8, "B": 1.14e8, "n": 0.42, "C": 0.002, "m": 1.34,
            "melting_temperature": 855.0}
+COND_TABLE = {"type": "table", "temperatures": [293.0, 500.0, 800.0], "conductivities": [3.5e7, 2.2e7, 1.5e7]}
 PULSE = {"type": "pulse_sin2", "body": "left", "surface": {"xmin": 0.0, "xmax": 0.0},
          "amplitude": 30e6, "beta": 1e4, "omega": 1e5, "t_end": 3e-4}
 
@@ -193,6 +194,34 @@ BAD_FILES = [
      "materials.paper_al.rate_law"),
     ("taylor_quinney_above_one", [(("materials", "paper_al", "taylor_quinney"), 1.5)], "materials.paper_al.taylor_quinney"),
     ("specific_heat_negative", [(("materials", "paper_al", "specific_heat"), -900.0)], "materials.paper_al.specific_heat"),
+    # issue 33: a conductivity that follows temperature
+    ("conductivity_table_not_increasing",
+     [(("materials", "paper_al", "specific_heat"), 900.0),
+      (("materials", "paper_al", "conductivity_curve"), dict(COND_TABLE, temperatures=[293.0, 500.0, 400.0]))],
+     "materials.paper_al.conductivity_curve.temperatures[2]"),
+    ("conductivity_table_negative",
+     [(("materials", "paper_al", "specific_heat"), 900.0),
+      (("materials", "paper_al", "conductivity_curve"), dict(COND_TABLE, conductivities=[3.5e7, -1e7, 2e7]))],
+     "materials.paper_al.conductivity_curve.conductivities[1]"),
+    ("conductivity_table_lengths",
+     [(("materials", "paper_al", "specific_heat"), 900.0),
+      (("materials", "paper_al", "conductivity_curve"), dict(COND_TABLE, conductivities=[3.5e7, 2e7]))],
+     "materials.paper_al.conductivity_curve.conductivities"),
+    ("conductivity_table_above_own_melting",
+     [(("materials", "paper_al", "specific_heat"), 900.0),
+      (("materials", "paper_al", "conductivity_curve"), dict(COND_TABLE, melting_temperature=700.0))],
+     "materials.paper_al.conductivity_curve.temperatures[2]"),
+    ("conductivity_table_above_flow_curve_melting",
+     [(("materials", "paper_al", "yield_stress"), _DELETE), (("materials", "paper_al", "specific_heat"), 900.0),
+      (("materials", "paper_al", "flow_curve"), FLOW_JC),
+      (("materials", "paper_al", "conductivity_curve"), dict(COND_TABLE, temperatures=[293.0, 600.0, 900.0]))],
+     "materials.paper_al.conductivity_curve.temperatures[2]"),
+    ("conductivity_curve_without_specific_heat",
+     [(("materials", "paper_al", "conductivity_curve"), COND_TABLE)], "materials.paper_al.conductivity_curve"),
+    ("resistivity_coefficient_negative",
+     [(("materials", "paper_al", "specific_heat"), 900.0),
+      (("materials", "paper_al", "conductivity_curve"), {"type": "linear_resistivity", "temperature_coefficient": -4e-3})],
+     "materials.paper_al.conductivity_curve.temperature_coefficient"),
     ("flow_type_unknown", [(("materials", "paper_al", "yield_stress"), _DELETE),
                            (("materials", "paper_al", "flow_curve"), {"type": "zerilli_armstrong"})],
      "materials.paper_al.flow_curve.type"),
@@ -275,6 +304,25 @@ BAD_COUPLED = [
      "em.sources[0].file"),
     ("table_outside", "two_coils_plate", ["em.sources[0]={name = 'main', type = 'table', file = '../../x.csv'}"],
      "em.sources[0].file"),
+    # issue 33: the coil's σ(T), repeated shots
+    ("coil_conductivity_above_copper_melting", "emf_sheet_bulge",
+     ["em.coil_conductivity_curve={type = 'table', temperatures = [293.0, 1500.0], conductivities = [5.8e7, 1e7]}"],
+     "em.coil_conductivity_curve.temperatures[1]"),
+    ("coil_conductivity_not_increasing", "emf_sheet_bulge",
+     ["em.coil_conductivity_curve={type = 'table', temperatures = [400.0, 293.0], conductivities = [4e7, 5.8e7]}"],
+     "em.coil_conductivity_curve.temperatures[1]"),
+    ("coil_initial_temperature_above_melting", "emf_sheet_bulge",
+     ["em.coil_conductivity_curve={type = 'linear_resistivity', temperature_coefficient = 3.9e-3}",
+      "em.coil_initial_temperature=1400.0"], "em.coil_initial_temperature"),
+    ("shots_voltage_count", "emf_sheet_bulge", ["em.shots={count = 3, pause = 1.0, voltages = [6e3]}"],
+     "em.shots.voltages"),
+    ("shots_pause_zero", "emf_sheet_bulge", ["em.shots={count = 3, pause = 0.0}"], "em.shots.pause"),
+    ("shots_without_bank", "two_coils_plate", ["em.shots={count = 2, pause = 1.0}"], "em.shots"),
+    ("shots_in_3d", "emf_sheet_bulge_3d", ["em.shots={count = 2, pause = 1.0}"], "em.shots"),
+    ("shots_on_a_user_deck", "user_deck_sheet_bulge", ["em.shots={count = 2, pause = 1.0}"], "em.shots"),
+    ("coil_curve_on_persistent", "emf_sheet_bulge",
+     ["em.coil_conductivity_curve={type = 'linear_resistivity', temperature_coefficient = 3.9e-3}",
+      "em.time_scheme='bdf2'", "em.getdp_process='persistent'"], "em.getdp_process"),
 ]
 
 
