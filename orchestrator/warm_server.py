@@ -6,7 +6,7 @@ import sys
 
 from .cli import _parser, main
 from .console_log import setup_console_logging
-from .run.warm import serve
+from .run.warm_process import serve
 
 
 def _setup() -> None:

@@ -1,4 +1,4 @@
-"""History columns of a 3D body (tetrahedra): the 2D body's extremes (``driver.body_extremes``) plus
+"""History columns of a 3D body (tetrahedra): the 2D body's extremes (``extremes.body_extremes``) plus
 the z displacement and z-momentum, with the speed and von Mises stress from all three components."""
 
 from __future__ import annotations

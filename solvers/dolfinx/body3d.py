@@ -16,7 +16,7 @@ from petsc4py import PETSc
 
 from .body import Body, BodySpec
 from .sliding import SlidingPlanes
-from .tet_kernel import tet_elastic_energy_density, tet_volumes, tet_von_mises
+from .tet_fields import tet_elastic_energy_density, tet_volumes, tet_von_mises
 
 __all__ = ["Body3D"]
 

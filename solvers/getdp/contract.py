@@ -10,7 +10,8 @@ from functools import lru_cache
 
 from .mesh import AIR, AXIS, OUTER, SHELL, EMMesh, coil_tag, conductor_tag, physical_numbers
 from .model import Circuit, Coil, Conductor, CurrentTable, DampedSine, EMModel
-from .solver import DECK_DIR, GetDPSolver
+from .deck_numbers import model_deck_numbers
+from .solver import DECK_DIR
 
 __all__ = ["ROLE_IDS", "ROLE_NUMBERS", "SURFACE_ROLES", "CURVE_ROLES", "OPTIONAL_ROLES", "REQUIRED_TABLES",
            "CIRCUIT_TABLES", "RUN_PRO_LISTS", "COIL_NUMBERS", "coil_number_name", "coil_tables", "runner_number_names"]
@@ -78,7 +79,7 @@ def runner_number_names() -> tuple[str, ...]:
     The union of (1) the ``DefineConstant`` inputs of the library decks ``Lib_PulsedForming.pro``
     and ``Lib_Persistent.pro``
     (the numbers and strings a step passes with ``-setnumber`` / ``-setstring``: ``TimeInit``,
-    ``NbSteps``, ``Flag_*``, ``C_bank``, ``OutDir``, ...), (2) the numbers :meth:`GetDPSolver._numbers`
+    ``NbSteps``, ``Flag_*``, ``C_bank``, ``OutDir``, ...), (2) the numbers :func:`.deck_numbers.model_deck_numbers`
     computes from a model and mesh (evaluated here on small models with every option on: a
     circuit or a prescribed current, a shell, a probe, a coil and two conductors), (3) the physical
     ids the built-in deck receives (:func:`.mesh.physical_numbers`: ``Phys_Air``, ...,
@@ -98,9 +99,7 @@ def runner_number_names() -> tuple[str, ...]:
               EMModel(True, [Coil(1, waveform=DampedSine(1.0, 1.0, 1.0))], conductors),
               EMModel(True, [Coil(1, waveform=CurrentTable([0.0, 1.0], [0.0, 1.0]))], conductors)]
     for model in models:
-        solver = object.__new__(GetDPSolver)  # _numbers reads only the model (no work folder made)
-        solver.model = model
-        names.update(_indexed(n) for n in solver._numbers(mesh))
+        names.update(_indexed(n) for n in model_deck_numbers(model, mesh, {}))
     names.update(physical_numbers())
     names.update(RUN_PRO_LISTS)
     return tuple(sorted(names))

@@ -94,8 +94,8 @@ def test_von_mises_max_bitwise():
 
 
 def test_history_row_extremes_bitwise_as_numpy():
-    """driver.body_extremes / max_von_mises: the compiled passes give numpy's bits."""
-    from pulseform.orchestrator.run.driver import max_von_mises
+    """extremes.body_extremes / max_von_mises: the compiled passes give numpy's bits."""
+    from pulseform.orchestrator.run.extremes import max_von_mises
 
     rng = np.random.default_rng(7)
     stress = rng.normal(0, 3e8, (7000, 4))

@@ -211,7 +211,7 @@ def test_solid_shapes_mesh_their_volume(shape, exact, rel):
     from pulseform.orchestrator.case.schema import convert
     from pulseform.orchestrator.case.parts import Shape
     from pulseform.orchestrator.mesh.solids import mesh_solid
-    from pulseform.solvers.dolfinx.tet_kernel import tet_volumes
+    from pulseform.solvers.dolfinx.tet_fields import tet_volumes
 
     s = convert(Shape, shape, "shape")
     msh = mesh_solid(s, 0.05, name="solid")
