@@ -145,6 +145,30 @@ class TimeControl:
 
 
 @dataclass(frozen=True, kw_only=True)
+class ImplicitTable:
+    """The implicit integrator's step and Newton iterations (``mechanics.integrator = "implicit"``)."""
+
+    dt: float | None = spec(None, unit="s", gt=0.0,
+                            doc="the implicit mechanical step (required with integrator = 'implicit'; no stability "
+                                "limit: accuracy decides, e.g. 1/40 of the shortest period of interest, period error "
+                                "(2π/40)²/12 = 0.2 %)")
+    scheme: Literal["trapezoidal", "hht", "static"] = spec(
+        "trapezoidal", doc="'trapezoidal': Newmark average acceleration (no numerical damping); 'hht': HHT-α (damps "
+                           "the modes the step does not resolve); 'static': equilibrium steps without inertia "
+                           "(quasi-static loading; every body must be supported against rigid motion)")
+    alpha: float = spec(-0.1, unit="-", ge=-1.0 / 3.0, le=0.0,
+                        doc="HHT's α (scheme = 'hht' only): 0 is the trapezoidal rule, −1/3 the most damping "
+                            "(spectral radius (1 + α)/(1 − α) at high frequency)")
+    newton_tol: float = spec(1e-8, unit="-", gt=0.0, lt=1.0,
+                             doc="Newton stops when the residual is below this fraction of the largest of the "
+                                 "inertia, internal and external force norms")
+    newton_max: int = spec(25, unit="-", ge=1, doc="most Newton iterations per step")
+    max_cuts: int = spec(6, unit="-", ge=0, le=30,
+                         doc="a step that does not converge is retried as two half steps, at most this many times "
+                             "in a row; then the run stops in one line with the results so far")
+
+
+@dataclass(frozen=True, kw_only=True)
 class MechanicsTable:
     """Mechanical model options."""
 
@@ -165,6 +189,11 @@ class MechanicsTable:
             "whenever its kinetic energy has passed a peak (quasi-static loading; 0: off)")
     gravity: Vec2 = spec((0.0, 0.0), unit="m/s^2", doc="acceleration of gravity on the rigid bodies, e.g. "
                          "[0, -9.81] (deformable bodies: not applied)")
+    integrator: Literal["explicit", "implicit"] = spec(
+        "explicit", doc="'explicit': central differences at the stable step (forming pulses, µs); 'implicit': "
+                        "Newmark / HHT-α / static steps of mechanics.implicit.dt with Newton iterations (slow "
+                        "motions, ms to s; mechanics cases, no contact or walls yet; docs/mechanics.md)")
+    implicit: ImplicitTable = spec(ImplicitTable(), doc="[mechanics.implicit] table")
     threads: int = spec(1, unit="-", ge=1,
                         doc="threads of the element kernel in serial GetDP-coupled runs and in 3D runs (results do not "
                             "depend on it; worth it from ~10^4 cells in 2D, from 65 536 tetrahedra in a 3D body, on cores "
@@ -174,6 +203,13 @@ class MechanicsTable:
         cores = os.cpu_count() or 1
         if self.threads > cores:
             raise SchemaError(f"{path}.threads", f"got {self.threads}; this machine has {cores} cores: 1 to {cores}")
+        if self.integrator == "implicit":
+            if self.implicit.dt is None:
+                raise SchemaError(f"{path}.implicit.dt", "missing; integrator = 'implicit' needs its step (s), "
+                                  "e.g. 1/40 of the shortest period of interest")
+            if self.kinetic_damping_until > 0.0:
+                raise SchemaError(f"{path}.kinetic_damping_until", "kinetic damping is the explicit integrator's; "
+                                  "with integrator = 'implicit' use implicit.scheme = 'static' (or 'hht') instead")
 
 
 #: default EM steps per period of an all-rigid run's source (docs/mechanics.md: the jumping ring's first peak
@@ -296,6 +332,7 @@ class Case:
             if ld.body not in names:
                 raise SchemaError(f"loads[{i}].body", f"got {ld.body!r}; allowed: {_choices(names)}")
         self._validate_coupled()
+        self._validate_integrator()
         for i, name in enumerate(self.analysis):
             if name not in ANALYSES:
                 raise SchemaError(f"analysis[{i}]", f"got {name!r}; allowed: {_choices(sorted(ANALYSES))}")
@@ -382,6 +419,23 @@ class Case:
         check_rigid_time_scale(self)
         if len(set(regions)) != len(regions):
             raise SchemaError("bodies", "each geometry region may be used by one body only")
+
+    def _validate_integrator(self) -> None:
+        """The implicit integrator's present reach: mechanics cases of deformable bodies without contact or walls."""
+        if self.mechanics.integrator != "implicit":
+            return
+        key = "mechanics.integrator"
+        if self.case.kind == "coupled":
+            raise SchemaError(key, "got 'implicit'; coupled runs with implicit mechanics are not done yet (issue 34 "
+                              "item 2): use 'explicit', or case.kind = 'mechanics'")
+        for what, items in (("[[contact]] pairs", self.contact), ("[[walls]]", self.walls)):
+            if items:
+                raise SchemaError(key, f"got 'implicit'; the implicit integrator has no {what} yet: remove them or "
+                                  "use 'explicit'")
+        for i, b in enumerate(self.bodies):
+            if b.rigid:
+                raise SchemaError(f"bodies[{i}].rigid", "rigid bodies run with the explicit integrator only (for now); "
+                                  "use mechanics.integrator = 'explicit'")
 
     def rigid_moves(self, b: BodyTable) -> tuple[int, ...]:
         """The free translation components of rigid body ``b`` (see :func:`.parts.rigid_moves`)."""

@@ -194,6 +194,11 @@ class ImplicitSteps:
         """The implicit step (s): ``options.dt`` (no stability limit)."""
         return self.options.dt
 
+    def impulse_window(self, t0: float, dt: float, k: int) -> float:
+        """Centre (s) of the window over which ``k`` steps of ``dt`` from ``t0`` deliver a force held by
+        :meth:`advance`: the force acts over [t0, t0 + k dt], so t0 + k dt / 2."""
+        return t0 + 0.5 * k * dt
+
     @property
     def compiled(self):
         """None: no compiled explicit block path (the pulse blocks run the Python loop)."""
@@ -284,9 +289,9 @@ class ImplicitSteps:
             du[b.axis_nodes, 0] = 0.0
         return du
 
-    def _cells(self, n: str, b, du_cells: np.ndarray, dt: float, tangent: bool = False):
+    def _cells(self, n: str, b, du_cells: np.ndarray, dt: float):
         """The cell update of body ``n`` for cell increments ``du_cells`` (nc, nn, gdim); adds the
-        assembled nodal internal force as ``force_nodal`` (and the cell tangents as ``K``)."""
+        assembled nodal internal force as ``force_nodal`` and ``tangent()``, which computes the cell tangents."""
         st = CellState(b.x[b.cells], b.cell_stress, b.eps_p, b.material, self.mode,
                        float(getattr(b, "thickness", 1.0)), dt)
         res = cell_update(st, du_cells)
@@ -294,7 +299,7 @@ class ImplicitSteps:
         for c in range(b.gdim):
             f[:, c] = np.bincount(b.cells.ravel(), weights=res.force[:, :, c].ravel(), minlength=len(b.x))
         res.force_nodal = f
-        res.K = cell_tangent(st, du_cells) if tangent else None
+        res.tangent = lambda: cell_tangent(st, du_cells)
         return res
 
     def _newton(self, dt: float) -> _Trial:
@@ -307,7 +312,9 @@ class ImplicitSteps:
         c_k = 1.0 + alpha
         du: Dict[str, np.ndarray] = {}
         for n, b in self.bodies.items():
-            pred = np.zeros_like(b.x) if static else dt * b.v + 0.5 * dt * dt * b.a
+            # predictor: constant velocity (a + dt^2/2 a^n term would carry the lumped mass's response to a
+            # just-applied load, a^n = M^-1 F, into a large step and invert the loaded cells)
+            pred = np.zeros_like(b.x) if static else dt * b.v
             pre = self._prescribed(n, b, dt)
             m = self._mask[n]
             pred[m] = pre[m]
@@ -316,7 +323,7 @@ class ImplicitSteps:
         for it in range(o.newton_max + 1):
             R_parts, scale_parts, blocks = [], [0.0, 0.0, 0.0], []
             for n, b in self.bodies.items():
-                res = self._cells(n, b, du[n][b.cells], dt, tangent=True)
+                res = self._cells(n, b, du[n][b.cells], dt)
                 if res.inverted.any():
                     e = int(np.flatnonzero(res.inverted)[0])
                     raise _NotConverged(f"cell {e} of body {n!r} inverted", residuals)
@@ -369,7 +376,7 @@ class ImplicitSteps:
             nd = dofs.shape[1]
             rows.append(np.repeat(dofs, nd, axis=1).ravel())
             cols.append(np.tile(dofs, (1, nd)).ravel())
-            vals.append((c_k * res.K).ravel())
+            vals.append((c_k * res.tangent()).ravel())
             diag.append(np.repeat(c_m * b.mass, d))
         K = sp.coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
                           shape=(self._ndof, self._ndof)).tocsr()
