@@ -258,11 +258,9 @@ class ImplicitSteps:
             trial = self._newton(dt)
         except _NotConverged as exc:
             if depth >= self.options.max_cuts:
-                res = ", ".join(f"{r:.2e}" for r in exc.residuals[-4:])
                 raise ImplicitConvergenceError(
-                    f"t={self.time:.6e} s: Newton did not converge ({exc.why}) on a step of {dt:.4e} s, the "
-                    f"step cut {depth} times (mechanics.implicit.max_cuts); last relative residuals [{res}]: "
-                    "the load or motion is too abrupt for the step, or the structure lost stability") from None
+                    f"t={self.time:.6g} s: Newton did not converge on a step of {dt:.4g} s after {depth} cuts "
+                    f"({exc.why}): the load is too abrupt for the step, or the structure lost stability") from None
             log.info("t=%.6e s: %s on a step of %.4e s; two half steps", self.time, exc.why, dt)
             self.step_cuts += 1
             self._step_with_cuts(0.5 * dt, depth + 1)
@@ -364,8 +362,8 @@ class ImplicitSteps:
             for n, b in self.bodies.items():
                 o0 = self._offsets[n]
                 du[n] = du[n] + full[o0:o0 + b.x.size].reshape(b.x.shape)
-        raise _NotConverged(f"{o.newton_max} iterations (mechanics.implicit.newton_max), relative residual "
-                            f"{residuals[-1]:.2e} > {o.newton_tol:.1e}", residuals)
+        raise _NotConverged(f"relative residual {residuals[-1]:.2g} > {o.newton_tol:.2g} after {o.newton_max} "
+                            "iterations", residuals)
 
     def _assemble(self, blocks, c_m: float, c_k: float) -> sp.csr_matrix:
         """The effective tangent c_m M + c_k K_T over all bodies' components (sparse, N/m)."""
@@ -429,9 +427,8 @@ class ImplicitSteps:
             free = free_rigid_modes(b.x, self._mask[n], bool(b.axisymmetric))
             if free:
                 raise SingularSystemError(
-                    f"t={self.time:.6e} s: body {n!r} is free to move rigidly ({', '.join(free)}) in a static "
-                    "step: its stiffness matrix is singular; fix components of its boundary ([[bodies.fixed]]) "
-                    "or use a dynamic scheme (mechanics.implicit.scheme = 'trapezoidal' or 'hht')")
+                    f"t={self.time:.6g} s: body {n!r} can move rigidly ({', '.join(free)}) in a static step: singular "
+                    "stiffness; add [[bodies.fixed]] or use scheme 'trapezoidal'")
         self._supported = True
 
     # ------------------------------------------------------------------ ledger and restart

@@ -86,19 +86,19 @@ def rigid_modes(x: np.ndarray, axisymmetric: bool) -> tuple[np.ndarray, List[str
     if axisymmetric:
         t = np.zeros((n, dim))
         t[:, 1] = 1.0
-        return t.reshape(-1, 1), ["translation along the axis (y)"]
+        return t.reshape(-1, 1), ["translation y (along the axis)"]
     for i in range(dim):
         t = np.zeros((n, dim))
         t[:, i] = 1.0
         cols.append(t.ravel())
-        names.append(f"translation along {'xyz'[i]}")
+        names.append(f"translation {'xyz'[i]}")
     rots = [(0, 1, "z")] if dim == 2 else [(1, 2, "x"), (2, 0, "y"), (0, 1, "z")]
     for i, j, ax in rots:
         w = np.zeros((n, dim))
         w[:, i] = -r[:, j] / scale
         w[:, j] = r[:, i] / scale
         cols.append(w.ravel())
-        names.append(f"rotation about {ax}")
+        names.append(f"rotation {ax}")
     return np.stack(cols, axis=1), names
 
 

@@ -257,7 +257,7 @@ def test_static_step_of_an_unsupported_body_is_one_line():
         s.advance(1.0, 1)
     msg = str(err.value)
     print(msg)
-    assert "\n" not in msg and "'beam'" in msg and "translation along x" in msg and "rotation about z" in msg
+    assert "\n" not in msg and "'beam'" in msg and "translation x" in msg and "rotation z" in msg
     assert s.time == 0.0 and s.step_count == 0
 
 
@@ -273,7 +273,7 @@ def test_newton_failure_is_one_line_and_keeps_the_last_state():
         s.advance(1e-3, 1, {"beam": f})
     msg = str(err.value)
     print(msg)
-    assert "\n" not in msg and "Newton did not converge" in msg and "cut 1 times" in msg
+    assert "\n" not in msg and "Newton did not converge" in msg and "after 1 cuts" in msg
     assert s.step_count == 0 and np.array_equal(b.x, x0)
 
 
