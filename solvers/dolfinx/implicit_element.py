@@ -32,7 +32,7 @@ from typing import Optional
 import numpy as np
 
 from .implicit_flow import flow_stress
-from .kernels import MODE_AXISYMMETRIC, MODE_PLANE_STRAIN, MODE_PLANE_STRESS
+from .kernels import MODE_AXISYMMETRIC, MODE_PLANE_STRESS
 from .material import Material
 from .tet_kernel import MODE_SOLID
 

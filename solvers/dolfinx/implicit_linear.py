@@ -3,7 +3,7 @@ MUMPS) on one process, and the check that a static system is not singular becaus
 as a rigid body."""
 from __future__ import annotations
 
-from typing import List, Sequence
+from typing import List
 
 import numpy as np
 import scipy.sparse as sp
