@@ -106,25 +106,35 @@ class ImplicitSteps:
             off += b.x.size
         self._ndof = off
         self._mask = {n: b.constrained_mask() for n, b in self.bodies.items()}
-        self._fint = {n: self._cells(n, b, np.zeros((b.cells.shape[0],) + b.cells.shape[1:] + (b.gdim,)),
-                                     options.dt).force_nodal for n, b in self.bodies.items()}
+        self._fint: Dict[str, np.ndarray] = {}
+        self._f_from = {n: np.zeros_like(b.x) for n, b in self.bodies.items()}
         self._iacc = {"internal_work_J": 0.0, "support_work_J": 0.0}
-        self._KE0 = self._kinetic()
-        if options.scheme == "static":
-            for b in self.bodies.values():
-                b.v[...] = 0.0
-                b.a[...] = 0.0
-        else:   # a^0 from M a^0 = -f_int(u^0) on the free components (initial stress; F = 0 at t = 0)
-            for n, b in self.bodies.items():
-                a = -self._fint[n] / b.mass[:, None]
-                a[self._mask[n]] = 0.0
-                b.a[...] = a
-        self._KE0 = self._kinetic()
-        self._E0 = self._stored_energy()
+        self._restart_from_state()
         self._supported: Optional[bool] = None
         log.info("implicit integrator: %s (alpha %g), dt %.4g s, Newton tol %.1e, at most %d iterations, "
                  "%d cuts", options.scheme, options.alpha, options.dt, options.newton_tol, options.newton_max,
                  options.max_cuts)
+
+    def _restart_from_state(self) -> None:
+        """Start stepping from the bodies' present positions, stress and plastic strain (after construction, or
+        after they were copied from another solver: :mod:`.springback`): the internal forces, the acceleration
+        (dynamic: M a = -f_int on the free components; static: zero, and zero velocity), the ledger's start."""
+        for n, b in self.bodies.items():
+            zero = np.zeros(b.cells.shape + (b.gdim,))
+            self._fint[n] = self._cells(n, b, zero, self.options.dt).force_nodal
+            if self.options.scheme == "static":
+                b.v[...] = 0.0
+                b.a[...] = 0.0
+            else:
+                a = (self._fext[n] - self._fint[n]) / b.mass[:, None]
+                a[self._mask[n]] = 0.0
+                b.a[...] = a
+        for k in self._acc:
+            self._acc[k] = 0.0
+        for k in self._iacc:
+            self._iacc[k] = 0.0
+        self._KE0 = self._kinetic()
+        self._E0 = self._stored_energy()
 
     # ------------------------------------------------------------------ the loop's view
     def stable_time_step(self) -> float:
@@ -186,13 +196,24 @@ class ImplicitSteps:
         if self.options.scheme == "static":
             self._check_supported()
         for _ in range(int(n_steps)):
-            self._step_with_cuts(dt, 0)
+            self._step_with_cuts(dt, 0, 0.0, 1.0)
+            for n in self.bodies:   # static: the state is now in equilibrium with the held force
+                self._f_from[n][...] = self._fext[n]
 
     # ------------------------------------------------------------------ one step
-    def _step_with_cuts(self, dt: float, depth: int) -> None:
-        """One step of ``dt``; on failure two of dt / 2 (each may be cut again), down to ``max_cuts``."""
+    def _load(self, n: str, s: float) -> np.ndarray:
+        """The external force (N) on body ``n`` at the fraction ``s`` in [0, 1] of the present call's steps: the
+        held force (dynamic schemes: zero-order hold); static steps ramp it from the force of the last
+        equilibrium, so that a cut step also cuts the load increment."""
+        if self.options.scheme != "static":
+            return self._fext[n]
+        return self._f_from[n] + s * (self._fext[n] - self._f_from[n])
+
+    def _step_with_cuts(self, dt: float, depth: int, s0: float, s1: float) -> None:
+        """One step of ``dt`` taking the load fraction from ``s0`` to ``s1`` (:meth:`_load`); on failure two of
+        dt / 2 (each may be cut again), down to ``max_cuts``."""
         try:
-            trial = self._newton(dt)
+            trial = self._newton(dt, s1)
         except _NotConverged as exc:
             if depth >= self.options.max_cuts:
                 raise ImplicitConvergenceError(
@@ -200,10 +221,11 @@ class ImplicitSteps:
                     f"({exc.why}): the load is too abrupt for the step, or the structure lost stability") from None
             log.info("t=%.6e s: %s on a step of %.4e s; two half steps", self.time, exc.why, dt)
             self.step_cuts += 1
-            self._step_with_cuts(0.5 * dt, depth + 1)
-            self._step_with_cuts(0.5 * dt, depth + 1)
+            mid = 0.5 * (s0 + s1)
+            self._step_with_cuts(0.5 * dt, depth + 1, s0, mid)
+            self._step_with_cuts(0.5 * dt, depth + 1, mid, s1)
             return
-        self._commit(trial, dt)
+        self._commit(trial, dt, s0, s1)
 
     def _prescribed(self, n: str, b, dt: float) -> np.ndarray:
         """Displacement increments (N, gdim), m, of the constrained components over [t, t + dt]
@@ -237,9 +259,9 @@ class ImplicitSteps:
         res.tangent = lambda: cell_tangent(st, du_cells)
         return res
 
-    def _newton(self, dt: float) -> _Trial:
-        """Newton iterations of one step from the current state; returns the converged iterate
-        (the state is not changed) or raises :class:`_NotConverged`."""
+    def _newton(self, dt: float, s1: float) -> _Trial:
+        """Newton iterations of one step from the current state to the load fraction ``s1``; returns the
+        converged iterate (the state is not changed) or raises :class:`_NotConverged`."""
         o = self.options
         static = o.scheme == "static"
         beta, alpha = o.beta, o.alpha
@@ -256,7 +278,7 @@ class ImplicitSteps:
             du[n] = pred
         residuals: List[float] = []
         for it in range(o.newton_max + 1):
-            R_parts, scale_parts, blocks = [], [0.0, 0.0, 0.0], []
+            R_parts, scale_parts, blocks = [], [0.0, 0.0, 0.0, 0.0], []
             for n, b in self.bodies.items():
                 res = self._cells(n, b, du[n][b.cells], dt)
                 if res.inverted.any():
@@ -267,12 +289,15 @@ class ImplicitSteps:
                 if not static:
                     a_new = c_m * (du[n] - dt * b.v - dt * dt * (0.5 - beta) * b.a)
                     inert = b.mass[:, None] * a_new
-                R = inert + c_k * fint - alpha * self._fint[n] - self._fext[n]
+                F = self._load(n, s1)
+                R = inert + c_k * fint - alpha * self._fint[n] - F
                 free = ~self._mask[n]
                 R_parts.append(R[free])
                 scale_parts[0] += float(np.sum(inert[free] ** 2))
                 scale_parts[1] += float(np.sum(fint[free] ** 2))
-                scale_parts[2] += float(np.sum(self._fext[n][free] ** 2))
+                scale_parts[2] += float(np.sum(F[free] ** 2))
+                # the force scale must not vanish with the solution (a static step back to zero load)
+                scale_parts[3] += float(np.sum(self._fint[n][free] ** 2))
                 blocks.append((n, b, res))
             R = np.concatenate(R_parts)
             if not np.all(np.isfinite(R)):
@@ -319,7 +344,7 @@ class ImplicitSteps:
             K = K + sp.diags(np.concatenate(diag))
         return K.tocsr()
 
-    def _commit(self, trial: _Trial, dt: float) -> None:
+    def _commit(self, trial: _Trial, dt: float, s0: float, s1: float) -> None:
         """Take the converged iterate: positions, velocities, accelerations, stresses, ledger."""
         o = self.options
         static = o.scheme == "static"
@@ -337,11 +362,12 @@ class ImplicitSteps:
                 v_new = b.v + dt * ((1.0 - gamma) * b.a + gamma * a_new)
             m = self._mask[n]
             # supports: their reaction R = M a + f_int - F (trapezoidal average) works on prescribed motion
-            r_old = b.mass[:, None] * b.a + self._fint[n] - self._fext[n]
-            r_new = b.mass[:, None] * a_new + fint - self._fext[n]
+            F0, F1 = self._load(n, s0), self._load(n, s1)
+            r_old = b.mass[:, None] * b.a + self._fint[n] - F0
+            r_new = b.mass[:, None] * a_new + fint - F1
             w_sup += float(np.sum((du * 0.5 * (r_old + r_new))[m]))
             w_int += float(np.sum(du * 0.5 * (self._fint[n] + fint)))
-            w_ext += float(np.sum(du * self._fext[n]))
+            w_ext += float(np.sum(du * 0.5 * (F0 + F1)))
             w_p += float(np.sum(res.plastic_work))
             b.x += du
             b.v[...] = v_new
@@ -387,6 +413,7 @@ class ImplicitSteps:
         d = super().state_dict()
         for n in self.bodies:
             d[f"{n}/implicit_fint"] = self._fint[n].copy()
+            d[f"{n}/implicit_f_from"] = self._f_from[n].copy()
         d["implicit/acc"] = np.array([self._iacc["internal_work_J"], self._iacc["support_work_J"], self._KE0])
         return d
 
@@ -395,6 +422,7 @@ class ImplicitSteps:
         super().load_state_dict(d)
         for n in self.bodies:
             self._fint[n] = np.array(d[f"{n}/implicit_fint"], dtype=float)
+            self._f_from[n][...] = np.asarray(d[f"{n}/implicit_f_from"], dtype=float)
         acc = np.asarray(d["implicit/acc"], dtype=float)
         self._iacc["internal_work_J"], self._iacc["support_work_J"], self._KE0 = (float(v) for v in acc)
 

@@ -167,7 +167,9 @@ def _radial_return(T: np.ndarray, st: CellState, rate: Optional[np.ndarray]):
     q = np.sqrt(1.5 * np.einsum("nij,nij->n", dev, dev))   # analytic in the entries (no abs)
     sy, slope = flow_stress(st.material, st.eps_p, rate)
     f = q - sy
-    plastic = np.real(f) > 0.0
+    # plastic beyond rounding only: a cell left on the yield surface by the last step (q = sy to rounding) starts
+    # the next one with the elastic tangent — an unloading step's tangent, and loading is found at the next iterate
+    plastic = np.real(f) > 1e-12 * np.real(sy)
     dep = np.where(plastic, f / (3.0 * G + slope), 0.0)
     if plastic.any() and not _linear(st.material):
         for _ in range(50):
