@@ -268,6 +268,19 @@ class Output:
 
 
 @dataclass(frozen=True, kw_only=True)
+class SpringbackTable:
+    """Springback after the run: a static equilibrium with the loads off, from the state at time.end."""
+
+    supports: Literal["kept", "minimal"] = spec(
+        "kept", doc="'kept': the bodies keep their [[bodies.fixed]] boundaries (clamps); 'minimal': they are "
+                    "released onto statically determinate supports that stop rigid motion only (3-2-1 rule). "
+                    "Contact, walls and loads are removed either way")
+    steps: int = spec(1, unit="-", ge=1, le=1000, doc="static steps over which the internal forces left "
+                                                       "unbalanced by the removed loads and supports are released")
+    bodies: tuple[str, ...] = spec((), doc="the bodies that spring back (default: every deformable body)")
+
+
+@dataclass(frozen=True, kw_only=True)
 class Limits:
     """Guards against runs that would exhaust the machine (orchestrator/case/guards.py says how they are estimated)."""
 
@@ -303,6 +316,8 @@ class Case:
     probes: tuple[Probe, ...] = spec((), doc="[[probes]] point histories")
     output: Output = spec(Output(), doc="[output] table")
     analysis: tuple[str, ...] = spec((), doc="case-specific analyses (extra history columns, metrics, plots)")
+    springback: SpringbackTable | None = spec(None, doc="[springback] after the run (fields/<name>_springback_<body>, "
+                                              "<body>_springback_* metrics; docs/mechanics.md)")
     limits: Limits = spec(Limits(), doc="[limits] resource guards")
 
     def validate(self, path: str) -> None:
@@ -333,6 +348,11 @@ class Case:
                 raise SchemaError(f"loads[{i}].body", f"got {ld.body!r}; allowed: {_choices(names)}")
         self._validate_coupled()
         self._validate_integrator()
+        if self.springback is not None:
+            for i, n in enumerate(self.springback.bodies):
+                if n not in names or self.body(n).rigid:
+                    raise SchemaError(f"springback.bodies[{i}]", f"got {n!r}; allowed: "
+                                      f"{_choices([b.name for b in self.bodies if not b.rigid])}")
         for i, name in enumerate(self.analysis):
             if name not in ANALYSES:
                 raise SchemaError(f"analysis[{i}]", f"got {name!r}; allowed: {_choices(sorted(ANALYSES))}")

@@ -1,6 +1,6 @@
 """`pulseform run` with ``mechanics.integrator = "implicit"`` (issue 34 item 1): a slow elastic-plastic
 cantilever under a pressure pulse end to end, its schema checks, the one-line stop of a singular static
-system with the results so far on disk, and (slow) the same case run explicitly: peak and final tip
+system with the results so far on disk, [springback] after a run, and (slow) the same case run explicitly: peak and final tip
 deflection within 1 %."""
 from __future__ import annotations
 
@@ -129,3 +129,41 @@ def test_implicit_matches_explicit_on_a_slow_elastic_plastic_case(tmp_path):
     assert np.max(-exp) > 0.01                                     # 10 mm: well past the elastic range
     assert imp.min() == pytest.approx(exp.min(), rel=0.01)
     assert imp[-1] == pytest.approx(exp[-1], rel=0.01)
+
+
+def test_springback_after_the_run(tmp_path):
+    """``[springback]`` after an implicit HHT run: the springback fields (a file ParaView opens: one output with
+    the final shape and the residual stress), the metrics of the largest springback and of the tip probe, the
+    residual stress; the springback lifts the tip back up (the pulse pushed it down)."""
+    import h5py
+
+    data = copy.deepcopy(CASE)
+    data["mechanics"]["implicit"] = {"dt": 5e-5, "scheme": "hht", "alpha": -0.1}
+    data["springback"] = {"supports": "kept"}
+    out = tmp_path / "out"
+    r = _run(_write(tmp_path, data), out, *COARSE)
+    assert r.returncode == 0, r.stderr[-2000:]
+    m = json.loads((out / "metrics.json").read_text())
+    assert m["beam_springback_max_m"] > 0 and m["tip_springback_y_m"] > 0
+    assert m["beam_springback_max_m"] >= abs(m["tip_springback_y_m"])
+    assert m["beam_residual_von_mises_max_Pa"] > 0
+    with h5py.File(out / "fields" / "implicit_cantilever_springback_beam.h5", "r") as f:
+        assert list(f["times"]) == [pytest.approx(1e-3)]
+        assert f["Step_0000/stress_Pa"].shape[1] == 6
+    assert (out / "fields" / "implicit_cantilever_springback_beam.xdmf").is_file()
+
+
+@pytest.mark.parametrize("edit,key", [
+    ({"springback": {"supports": "loose"}}, "springback.supports"),
+    ({"springback": {"bodies": ["die"]}}, "springback.bodies[0]"),
+    ({"springback": {"steps": 0}}, "springback.steps"),
+])
+def test_bad_springback_keys_are_one_line(tmp_path, capsys, edit, key):
+    """Bad springback keys: exit 2, one line naming the file and the key."""
+    data = copy.deepcopy(CASE)
+    data.update(edit)
+    file = _write(tmp_path, data)
+    rc = main(["check", str(file)])
+    _, err = capsys.readouterr()
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert rc == 2 and len(lines) == 1 and key in lines[0] and str(file) in lines[0], err
