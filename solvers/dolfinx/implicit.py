@@ -268,14 +268,18 @@ class ImplicitSteps:
         c_m = 0.0 if static else 1.0 / (beta * dt * dt)
         c_k = 1.0 + alpha
         du: Dict[str, np.ndarray] = {}
+        pending = np.zeros(self._ndof)   # prescribed increments not yet in du (the first iteration's load)
         for n, b in self.bodies.items():
             # predictor: constant velocity (a + dt^2/2 a^n term would carry the lumped mass's response to a
-            # just-applied load, a^n = M^-1 F, into a large step and invert the loaded cells)
+            # just-applied load, a^n = M^-1 F, into a large step and invert the loaded cells); the prescribed
+            # components join through the first iteration's linear solve on the start-of-step tangent, which
+            # spreads them over the body (set at once, they strain only the cells at the boundary: yield there)
             pred = np.zeros_like(b.x) if static else dt * b.v
-            pre = self._prescribed(n, b, dt)
             m = self._mask[n]
-            pred[m] = pre[m]
+            o0 = self._offsets[n]
+            pending[o0:o0 + b.x.size] = np.where(m, self._prescribed(n, b, dt) - pred, 0.0).ravel()
             du[n] = pred
+        first_load = bool(np.any(pending))
         residuals: List[float] = []
         for it in range(o.newton_max + 1):
             R_parts, scale_parts, blocks = [], [0.0, 0.0, 0.0, 0.0], []
@@ -294,7 +298,7 @@ class ImplicitSteps:
                 free = ~self._mask[n]
                 R_parts.append(R[free])
                 scale_parts[0] += float(np.sum(inert[free] ** 2))
-                scale_parts[1] += float(np.sum(fint[free] ** 2))
+                scale_parts[1] += float(np.sum(fint ** 2))   # all components: the reactions of prescribed motions too
                 scale_parts[2] += float(np.sum(F[free] ** 2))
                 # the force scale must not vanish with the solution (a static step back to zero load)
                 scale_parts[3] += float(np.sum(self._fint[n][free] ** 2))
@@ -306,7 +310,7 @@ class ImplicitSteps:
             rn = float(np.linalg.norm(R))
             rel = rn / scale if scale > 0 else (0.0 if rn == 0 else math.inf)
             residuals.append(rel)
-            if rel <= o.newton_tol:
+            if rel <= o.newton_tol and not (it == 0 and first_load):
                 self.last_residuals = residuals
                 self.newton_iterations += it
                 trial = _Trial(du)
@@ -318,8 +322,11 @@ class ImplicitSteps:
             K = self._assemble(blocks, c_m, c_k)
             free_all = np.concatenate([~self._mask[n].ravel() for n in self.bodies])
             Kff = K[free_all][:, free_all]
-            delta = solve_sparse(Kff, -R, f"t = {self.time:.6e} s, Newton iteration {it + 1}")
-            full = np.zeros(self._ndof)
+            rhs = -R
+            if it == 0 and first_load:
+                rhs = rhs - K[free_all][:, ~free_all] @ pending[~free_all]
+            delta = solve_sparse(Kff, rhs, f"t = {self.time:.6e} s, Newton iteration {it + 1}")
+            full = pending.copy() if it == 0 else np.zeros(self._ndof)
             full[free_all] = delta
             for n, b in self.bodies.items():
                 o0 = self._offsets[n]

@@ -179,7 +179,7 @@ def test_step_convergence_order_is_two():
 def test_newton_converges_quadratically_past_yield():
     """One static step takes the cantilever past yield under an end shear of 1.2 times the plastic-hinge load
     (plastic cells at the clamp): Newton's relative residuals fall quadratically (the consistent tangent);
-    measured 1.0 1.0 0.61 0.15 4.2e-5 3.8e-10."""
+    measured 1.0 0.98 1.2e-2 2.4e-3 6.5e-7 6.6e-12 (rates 2.36, 1.81 once the plastic zone is set)."""
     s = _cantilever(20, 4, ImplicitOptions(dt=1e-3, scheme="static"), material=PLASTIC)
     b = s.bodies["beam"]
     tip = np.isclose(b.X0[:, 0], L)
