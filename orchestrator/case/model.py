@@ -316,7 +316,7 @@ class Case:
     probes: tuple[Probe, ...] = spec((), doc="[[probes]] point histories")
     output: Output = spec(Output(), doc="[output] table")
     analysis: tuple[str, ...] = spec((), doc="case-specific analyses (extra history columns, metrics, plots)")
-    springback: SpringbackTable | None = spec(None, doc="[springback] after the run (fields/<name>_springback_<body>, "
+    springback: SpringbackTable | None = spec(None, doc="[springback] after the run (fields/springback/<name>_<body>, "
                                               "<body>_springback_* metrics; docs/mechanics.md)")
     limits: Limits = spec(Limits(), doc="[limits] resource guards")
 

@@ -6,6 +6,7 @@ displacement per body and at the displacement probes, the residual stresses."""
 from __future__ import annotations
 
 import logging
+from pathlib import Path
 
 import numpy as np
 
@@ -20,8 +21,9 @@ __all__ = ["run_springback"]
 
 
 def run_springback(case: Case, solver, fields_prefix: str) -> dict[str, float]:
-    """Spring the case's bodies back from ``solver``'s state and write ``<fields_prefix>_springback_<body>.xdmf``
-    (one output: the final shape, residual stress and plastic strain at the run's end time).
+    """Spring the case's bodies back from ``solver``'s state and write ``fields/springback/<name>_<body>.xdmf``
+    (one output: the final shape, residual stress and plastic strain at the run's end time; a folder of its own,
+    so that the run's field series, ``fields/*.h5``, stays the forming run's).
 
     Parameters
     ----------
@@ -30,7 +32,7 @@ def run_springback(case: Case, solver, fields_prefix: str) -> dict[str, float]:
     solver : ExplicitSolver, ExplicitSolver3D, ImplicitSolver or ImplicitSolver3D
         The run's deformable bodies at the end of the run (one process).
     fields_prefix : str
-        Path prefix of the run's field files (``fields/<case name>``).
+        Path prefix of the run's field files (``fields/<case name>[_partN]``): its folder holds ``springback/``.
 
     Returns
     -------
@@ -42,7 +44,9 @@ def run_springback(case: Case, solver, fields_prefix: str) -> dict[str, float]:
     cfg = case.springback
     names = list(cfg.bodies) or list(solver.bodies)
     sb = springback(solver, supports=cfg.supports, steps=cfg.steps, bodies=names)
-    writer = mech.FieldWriter(sb, fields_prefix + "_springback")
+    folder = Path(fields_prefix).parent / "springback"
+    folder.mkdir(exist_ok=True)
+    writer = mech.FieldWriter(sb, str(folder / case.case.name))
     try:
         writer.write(solver.time)
     finally:

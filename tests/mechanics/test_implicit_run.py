@@ -133,8 +133,9 @@ def test_implicit_matches_explicit_on_a_slow_elastic_plastic_case(tmp_path):
 
 def test_springback_after_the_run(tmp_path):
     """``[springback]`` after an implicit HHT run: the springback fields (a file ParaView opens: one output with
-    the final shape and the residual stress), the metrics of the largest springback and of the tip probe, the
-    residual stress; the springback lifts the tip back up (the pulse pushed it down)."""
+    the final shape and the residual stress, in fields/springback/, apart from the run's series), the metrics of
+    the largest springback and of the tip probe, the residual stress, the picture before and after; the
+    springback lifts the tip back up (the pulse pushed it down)."""
     import h5py
 
     data = copy.deepcopy(CASE)
@@ -147,10 +148,15 @@ def test_springback_after_the_run(tmp_path):
     assert m["beam_springback_max_m"] > 0 and m["tip_springback_y_m"] > 0
     assert m["beam_springback_max_m"] >= abs(m["tip_springback_y_m"])
     assert m["beam_residual_von_mises_max_Pa"] > 0
-    with h5py.File(out / "fields" / "implicit_cantilever_springback_beam.h5", "r") as f:
+    with h5py.File(out / "fields" / "springback" / "implicit_cantilever_beam.h5", "r") as f:
         assert list(f["times"]) == [pytest.approx(1e-3)]
         assert f["Step_0000/stress_Pa"].shape[1] == 6
-    assert (out / "fields" / "implicit_cantilever_springback_beam.xdmf").is_file()
+    assert (out / "fields" / "springback" / "implicit_cantilever_beam.xdmf").is_file()
+    from pulseform.orchestrator.run.mech_fields import read_fields
+    from pulseform.orchestrator.run.pictures_springback import draw_springback
+
+    assert read_fields(out)["beam"].times[-1] == pytest.approx(1e-3)        # the run's own series, not springback's
+    assert [p.name for p in draw_springback(out)] == ["springback_beam.png"]
 
 
 @pytest.mark.parametrize("edit,key", [
