@@ -192,7 +192,8 @@ class MechanicsTable:
     integrator: Literal["explicit", "implicit"] = spec(
         "explicit", doc="'explicit': central differences at the stable step (forming pulses, µs); 'implicit': "
                         "Newmark / HHT-α / static steps of mechanics.implicit.dt with Newton iterations (slow "
-                        "motions, ms to s; mechanics cases, no contact or walls yet; docs/mechanics.md)")
+                        "motions, ms to s; no contact, walls or rigid bodies yet; coupled runs: coupling.n = 1, and "
+                        "coupling.iterate = true for steps near the parts' periods; docs/mechanics.md)")
     implicit: ImplicitTable = spec(ImplicitTable(), doc="[mechanics.implicit] table")
     threads: int = spec(1, unit="-", ge=1,
                         doc="threads of the element kernel in serial GetDP-coupled runs and in 3D runs (results do not "
@@ -445,9 +446,6 @@ class Case:
         if self.mechanics.integrator != "implicit":
             return
         key = "mechanics.integrator"
-        if self.case.kind == "coupled":
-            raise SchemaError(key, "got 'implicit'; coupled runs with implicit mechanics are not done yet (issue 34 "
-                              "item 2): use 'explicit', or case.kind = 'mechanics'")
         for what, items in (("[[contact]] pairs", self.contact), ("[[walls]]", self.walls)):
             if items:
                 raise SchemaError(key, f"got 'implicit'; the implicit integrator has no {what} yet: remove them or "
