@@ -91,7 +91,7 @@ class Mechanics(Protocol):
         """The centre (s) of the window over which ``k`` steps of ``dt`` from ``t0`` deliver a held
         force's impulse, where the loop evaluates the load. Optional: without it the explicit
         scheme's t0 + (k − 1)·dt/2 (central differences apply the force in the velocity updates at
-        t0, ..., t1 − dt); an implicit step holds it over [t0, t1]: t0 + k·dt/2."""
+        t0, ..., t1 − dt); an implicit step holds it over [t0, t1]: t0 + k·dt/2 (a static one: its end, t1)."""
 
 
 def plain_total(forces: dict[str, np.ndarray], dim: int | None = None) -> np.ndarray:

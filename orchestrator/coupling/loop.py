@@ -17,7 +17,8 @@ One EM step k covers [t_k, t_k + n·dt_mech]:
    mean of its implicit sub-steps; pressure and analytic loads: at t0 + (n − 1)·dt/2, the centre of
    the window over which central differences deliver the held force's impulse: a force passed to
    ``advance`` acts from the current time on, i.e. in the velocity updates at t0, ..., t1 − dt; an
-   implicit mechanics holds it over [t0, t1], centre t0 + n·dt/2: the mechanics' ``impulse_window``).
+   implicit mechanics holds it over [t0, t1], centre t0 + n·dt/2, static steps at t1: the mechanics'
+   ``impulse_window``).
 4. The forces are **held** constant over the n mechanical substeps (zero-order hold; no
    interpolation), the conservation ledger |Σ nodal F − ∫ f dV| / |∫ f dV| and the impulse
    Σ F·Δt are updated.

@@ -85,8 +85,8 @@ class DolfinxMechanics:
         return {n: b.x for n, b in self.solver.bodies.items()}
 
     def impulse_window(self, t0: float, dt: float, k: int) -> float:
-        """Centre (s) of the window over which ``k`` steps of ``dt`` from ``t0`` deliver a held force's
-        impulse: the solver's own (the implicit one's t0 + k·dt/2), else central differences' t0 + (k − 1)·dt/2."""
+        """Where the loop evaluates the load of ``k`` steps of ``dt`` from ``t0`` (s): the solver's own (the implicit
+        one's t0 + k·dt/2, t0 + k·dt for static steps), else central differences' t0 + (k − 1)·dt/2."""
         window = getattr(self.solver, "impulse_window", None)
         return window(t0, dt, k) if window is not None else t0 + 0.5 * (k - 1) * dt
 

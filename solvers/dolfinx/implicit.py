@@ -142,9 +142,10 @@ class ImplicitSteps:
         return self.options.dt
 
     def impulse_window(self, t0: float, dt: float, k: int) -> float:
-        """Centre (s) of the window over which ``k`` steps of ``dt`` from ``t0`` deliver a force held by
-        :meth:`advance`: the force acts over [t0, t0 + k dt], so t0 + k dt / 2."""
-        return t0 + 0.5 * k * dt
+        """Where the loop evaluates the load of ``k`` steps of ``dt`` from ``t0`` (s): dynamic schemes hold the
+        force over [t0, t0 + k dt], the centre of that window is t0 + k dt / 2; static steps reach equilibrium
+        with it at the end, t0 + k dt."""
+        return t0 + (1.0 if self.options.scheme == "static" else 0.5) * k * dt
 
     @property
     def compiled(self):
