@@ -49,14 +49,14 @@ def solve_sparse(A: sp.csr_matrix, b: np.ndarray, what: str) -> np.ndarray:
                               comm=PETSc.COMM_SELF)
     M.assemble()
     ksp = PETSc.KSP().create(PETSc.COMM_SELF)
-    try:
+    pc = ksp.getPC()
+    rhs = PETSc.Vec().createWithArray(np.ascontiguousarray(b, dtype=float), comm=PETSc.COMM_SELF)
+    x = rhs.duplicate()
+    try:   # every PETSc object destroyed explicitly: the PC holds the factor (a leak of its size per solve)
         ksp.setOperators(M)
         ksp.setType("preonly")
-        pc = ksp.getPC()
         pc.setType("lu")
         pc.setFactorSolverType("mumps")
-        rhs = PETSc.Vec().createWithArray(np.ascontiguousarray(b, dtype=float), comm=PETSc.COMM_SELF)
-        x = rhs.duplicate()
         try:
             ksp.solve(rhs, x)
         except PETSc.Error as exc:
@@ -66,12 +66,10 @@ def solve_sparse(A: sp.csr_matrix, b: np.ndarray, what: str) -> np.ndarray:
         out = x.getArray().copy()
         if ksp.getConvergedReason() < 0 or failed or not np.all(np.isfinite(out)):
             raise SingularSystemError(f"{what}: the sparse LU found a zero pivot: the system is singular")
-        rhs.destroy()
-        x.destroy()
         return out
     finally:
-        ksp.destroy()
-        M.destroy()
+        for obj in (x, rhs, pc, ksp, M):
+            obj.destroy()
 
 
 def rigid_modes(x: np.ndarray, axisymmetric: bool) -> tuple[np.ndarray, List[str]]:
