@@ -161,7 +161,7 @@ class ImplicitTable:
                             "(spectral radius (1 + α)/(1 − α) at high frequency)")
     newton_tol: float = spec(1e-8, unit="-", gt=0.0, lt=1.0,
                              doc="Newton stops when the residual is below this fraction of the largest of the "
-                                 "inertia, internal and external force norms")
+                                 "inertia, internal (reactions included) and external force norms")
     newton_max: int = spec(25, unit="-", ge=1, doc="most Newton iterations per step")
     max_cuts: int = spec(6, unit="-", ge=0, le=30,
                          doc="a step that does not converge is retried as two half steps, at most this many times "

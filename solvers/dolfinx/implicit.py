@@ -21,8 +21,9 @@ unknown is the displacement increment du = u^{n+1} - u^n; f_int(du) is
 :func:`.implicit_element.cell_update` (the explicit kernels' updated-Lagrangian, Hughes-Winget,
 J2 radial-return update with du in place of dt v^{n+1/2}) and its tangent the exact one of
 :func:`.implicit_element.cell_tangent`. Newton: K_eff = M / (beta dt^2) + (1 + alpha) K_T, a sparse
-LU (MUMPS), converged when the residual of the free components is below ``newton_tol`` times
-the largest of the inertia, internal and external force norms. A step that does not converge in
+LU (MUMPS) from du = 0, converged when the residual of the free components is below ``newton_tol``
+times the largest of the norms of the inertia, the internal forces (reactions included), the external
+forces and the start-of-step internal forces. A step that does not converge in
 ``newton_max`` iterations (or inverts a cell) is retried as two half steps, down to
 2^-max_cuts of the step; beyond that :class:`ImplicitConvergenceError` stops the run in one line.
 The static scheme drops the inertia (f_int(u^{n+1}) = F: quasi-static equilibrium steps, velocity
