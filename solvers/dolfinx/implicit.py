@@ -52,6 +52,7 @@ from mpi4py import MPI
 from .body import BodySpec
 from .contact import ContactPairSpec, RigidWallSpec
 from .implicit_element import CellState, cell_tangent, cell_update
+from .implicit_flow import unsupported_material
 from .implicit_linear import SingularSystemError, free_rigid_modes, solve_sparse
 from .implicit_options import SCHEMES, ImplicitConvergenceError, ImplicitOptions
 from .solver import ExplicitSolver
@@ -95,6 +96,10 @@ class ImplicitSteps:
         for n, b in self.bodies.items():
             if b.sliding is not None:
                 raise ValueError(f"body {n!r}: oblique sliding planes are not in the implicit integrator yet")
+            unsupported = unsupported_material(b.material)
+            if unsupported:
+                raise ValueError(f"body {n!r}: the implicit integrator's return mapping has no {unsupported} yet "
+                                 "(implicit_flow.flow_stress): use mechanics.integrator = 'explicit'")
         self.options = options
         self._dt_prev = 0.0     # velocities are full-step values: the kinetic energy is 1/2 m v^2
         self.last_residuals: List[float] = []

@@ -15,7 +15,7 @@ import numpy as np
 
 from .material import CowperSymonds, JohnsonCook, Material
 
-__all__ = ["flow_stress", "rate_factor"]
+__all__ = ["flow_stress", "rate_factor", "unsupported_material"]
 
 
 def rate_factor(material: Material, rate: np.ndarray) -> np.ndarray:
@@ -71,3 +71,14 @@ def flow_stress(material: Material, eps_p: np.ndarray, rate: Optional[np.ndarray
     sy = (material.yield_stress + material.hardening_modulus * eps_p) * fac
     slope = material.hardening_modulus * fac * np.ones_like(eps_p)
     return sy, slope
+
+
+def unsupported_material(material: Material) -> str:
+    """What of ``material`` :func:`flow_stress` does not evaluate ("" when nothing): a flow curve in place of the
+    linear law, or a temperature per cell (attributes of materials that carry them; the implicit solver refuses
+    such a material rather than integrating it with the linear law)."""
+    if getattr(material, "flow_curve", None) is not None:
+        return f"flow curve ({type(material.flow_curve).__name__})"
+    if getattr(material, "thermal", False):
+        return "temperature (adiabatic heating, thermal softening)"
+    return ""

@@ -314,3 +314,21 @@ def test_cantilever_first_frequency_euler_bernoulli():
     measured = 2 * np.diff(zc).mean()
     print(f"period {measured:.6e} s, Euler-Bernoulli {period:.6e} s, {100 * (measured / period - 1):+.3f} %")
     assert measured == pytest.approx(period, rel=0.01)
+
+
+def test_materials_the_return_mapping_does_not_know_are_refused(monkeypatch):
+    """A material with a flow curve or a temperature (attributes of other materials) is named by
+    ``unsupported_material``, and the solver refuses such a body in one line, never integrating it with the linear
+    law."""
+    from types import SimpleNamespace
+
+    from pulseform.solvers.dolfinx import implicit as implicit_mod
+    from pulseform.solvers.dolfinx.implicit_flow import unsupported_material
+
+    assert unsupported_material(PLASTIC) == ""
+    assert unsupported_material(SimpleNamespace(flow_curve=SimpleNamespace(), thermal=False)).startswith("flow curve")
+    assert unsupported_material(SimpleNamespace(flow_curve=None, thermal=True)).startswith("temperature")
+    monkeypatch.setattr(implicit_mod, "unsupported_material", lambda m: "flow curve (Swift)")
+    msh = dmesh.create_rectangle(MPI.COMM_SELF, [np.array([0.0, 0.0]), np.array([L, H])], [4, 1])
+    with pytest.raises(ValueError, match="body 'beam': the implicit integrator's return mapping has no flow curve"):
+        ImplicitSolver([BodySpec("beam", msh, PLASTIC)], ImplicitOptions(dt=1e-3), comm=msh.comm)
