@@ -109,7 +109,7 @@ def participants_3d(case: Case, work: Path):
                   for c in case.contact)
     mo = case.mechanics
     if mo.integrator == "implicit" and specs:
-        solver = ImplicitSolver3D(specs, implicit_options(mo), comm=MPI.COMM_SELF, contact_pairs=pairs)
+        solver = ImplicitSolver3D(specs, implicit_options(case), comm=MPI.COMM_SELF, contact_pairs=pairs)
     else:
         solver = ExplicitSolver3D(specs, contact_pairs=pairs, cfl=case.time.cfl, bulk_viscosity=mo.bulk_viscosity,
                                   bulk_linear=mo.bulk_viscosity_linear, bulk_quadratic=mo.bulk_viscosity_quadratic,
