@@ -150,8 +150,11 @@ def estimated_cells(case) -> tuple[float, Region | None]:
 def estimated_steps(case) -> tuple[float, str]:
     """(estimated explicit steps to time.end, the key path of the size that sets the step)."""
     worst, key = math.inf, ""
+    implicit = case.mechanics.integrator == "implicit" and case.mechanics.implicit.dt is not None
+    if implicit:  # no stability limit: the case's step
+        worst, key = case.mechanics.implicit.dt, "mechanics.implicit.dt"
     for region, b in zip(_body_regions(case), case.bodies):
-        if region is None or b.rigid:  # a rigid body has no stability limit
+        if region is None or b.rigid or implicit:  # a rigid body has no stability limit
             continue
         m = case.materials[b.material]
         c_d = math.sqrt((m.bulk_modulus + 4.0 * m.shear_modulus / 3.0) / m.density)

@@ -17,10 +17,9 @@ from .em_table import EM, CapacitorBank, DampedSineCurrent
 from .em_model import (FlatCoilSheet, Geometry, OuterTube, PlanarCoilBlankDie,
                       SheetDie, SolenoidTube)
 from .em_applied import check_applied_field
-from .conductivity import ConductivityCurve, LinearResistivitySpec, check_below_melting
 from .forming_limit import FormingLimitTable
+from .materials import CowperSymondsTable, JohnsonCookTable, MaterialTable
 from .em_sources import check_coils
-from .flow import FlowCurveTable, JohnsonCookFlowTable, TableFlowTable, initial_yield_stress
 from .guards import check_resources
 from .names import check_file_name, check_folder_name, folder_name
 from .parts import (Box, BodyTable, ContactPair, EndStopTable, FixedBoundary, Polygon, Rectangle, RigidWall, Shape,
@@ -33,89 +32,6 @@ __all__ = ["Box", "Rectangle", "Polygon", "SolidBox", "SolidCylinder", "Symmetry
            "EndStopTable", "BodyTable", "ContactPair", "RigidWall", "PulseSin2", "PulseExp", "Load", "CaseInfo", "TimeControl",
            "MechanicsTable", "Coupling", "Probe", "Output", "Limits", "Case", "EM", "CapacitorBank", "DampedSineCurrent",
            "FlatCoilSheet", "Geometry", "SolenoidTube", "SheetDie", "OuterTube", "PlanarCoilBlankDie"]
-
-# --------------------------------------------------------------------------- materials
-@dataclass(frozen=True, kw_only=True)
-class CowperSymondsTable:
-    """Cowper–Symonds rate law: σ_s · (1 + (ε̇_p / D)^(1/q))."""
-
-    type: Literal["cowper_symonds"] = spec(doc="rate law kind")
-    D: float = spec(unit="1/s", gt=0.0, doc="reference strain rate D")
-    q: float = spec(unit="-", gt=0.0, doc="exponent q")
-
-
-@dataclass(frozen=True, kw_only=True)
-class JohnsonCookTable:
-    """Johnson–Cook rate term: σ_s · (1 + C ln(ε̇_p / ε̇_0)) for ε̇_p > ε̇_0."""
-
-    type: Literal["johnson_cook"] = spec(doc="rate law kind")
-    C: float = spec(unit="-", ge=0.0, doc="rate sensitivity C")
-    reference_strain_rate: float = spec(1.0, unit="1/s", gt=0.0, doc="reference strain rate ε̇_0")
-
-
-@dataclass(frozen=True, kw_only=True)
-class MaterialTable:
-    """Elastic–plastic material with linear isotropic hardening σ_s = σ0 + A ε_p (paper, sec. 4–5), or a flow
-    curve; optionally a temperature per cell (adiabatic heating by the plastic work)."""
-
-    density: float = spec(unit="kg/m^3", gt=0.0, doc="mass density ρ")
-    shear_modulus: float = spec(unit="Pa", gt=0.0, doc="shear modulus G")
-    bulk_modulus: float = spec(unit="Pa", gt=0.0, doc="bulk modulus K")
-    yield_stress: float | None = spec(None, unit="Pa", gt=0.0, doc="initial yield stress σ0 of the linear law "
-                                                                   "(required without flow_curve)")
-    hardening_modulus: float = spec(0.0, unit="Pa", ge=0.0, doc="linear hardening modulus A")
-    electrical_conductivity: float = spec(0.0, unit="S/m", ge=0.0, doc="σ for eddy currents (EM); left at 0 on a "
-                                                                      "'getdp_template' deck's conductor: the deck's own")
-    rate_law: CowperSymondsTable | JohnsonCookTable | None = spec(None, doc="optional strain-rate hardening")
-    flow_curve: FlowCurveTable | None = spec(None, doc="flow curve σ_y(ε_p, ε̇, T) in place of the linear law "
-                                                       "(yield_stress, hardening_modulus)")
-    specific_heat: float | None = spec(None, unit="J/(kg·K)", gt=0.0, doc="c_p: a temperature per cell, raised "
-                                       "adiabatically by β × the plastic work; unset: no temperature")
-    taylor_quinney: float = spec(0.9, unit="-", ge=0.0, le=1.0, doc="β, the share of the plastic work that heats")
-    initial_temperature: float = spec(293.15, unit="K", gt=0.0, doc="temperature of every cell at the start")
-    conductivity_curve: ConductivityCurve | None = spec(
-        None, doc="[materials.<name>.conductivity_curve] σ(T) of a conductor body in place of the constant "
-                  "electrical_conductivity: type = 'table' (temperatures, conductivities) or 'linear_resistivity' "
-                  "(ρ = ρ_ref (1 + α (T − T_ref))); GetDP gets σ per element from the cells' temperatures every EM "
-                  "step (needs specific_heat; 2D, getdp per step; docs/guide/em.md)")
-    forming_limit: FormingLimitTable | None = spec(
-        None, doc="[materials.<name>.forming_limit] forming limit curve of a sheet of this material: its bodies "
-                  "get per-element major/minor true strains and the margin below the curve (fields, history "
-                  "<body>_flc_margin_min, summary, plots/<body>_fld.png; docs/mechanics.md)")
-
-    def validate(self, path: str) -> None:
-        fc = self.flow_curve
-        if fc is None and self.yield_stress is None:
-            raise SchemaError(f"{path}.yield_stress", "missing required key (a number > 0, in Pa), or give a "
-                                                      "flow_curve")
-        if fc is not None and self.yield_stress is not None:
-            raise SchemaError(f"{path}.yield_stress", "give either yield_stress (with hardening_modulus: the linear "
-                                                      "law) or flow_curve, not both")
-        if self.rate_law is not None and (isinstance(fc, JohnsonCookFlowTable) or (
-                isinstance(fc, TableFlowTable) and len(fc.strain_rates) > 1)):
-            raise SchemaError(f"{path}.rate_law", "the flow_curve has its own strain-rate term (Johnson–Cook, or "
-                                                  "curves per strain rate); remove rate_law")
-        cc = self.conductivity_curve
-        if cc is not None:
-            melt = cc.melting_temperature if cc.melting_temperature is not None else (
-                fc.melting_temperature if isinstance(fc, JohnsonCookFlowTable) else None)
-            check_below_melting(cc, f"{path}.conductivity_curve", melt)
-            if self.specific_heat is None:
-                raise SchemaError(f"{path}.conductivity_curve", "needs specific_heat (J/(kg·K)): σ follows the "
-                                                                "temperature of the cells")
-            if isinstance(cc, LinearResistivitySpec) and not self.electrical_conductivity > 0:
-                raise SchemaError(f"{path}.electrical_conductivity", "must be > 0 (S/m): the linear_resistivity "
-                                                                     "law's σ at its reference_temperature")
-        if isinstance(fc, JohnsonCookFlowTable) and not self.initial_temperature < fc.melting_temperature:
-            raise SchemaError(f"{path}.initial_temperature",
-                              f"got {self.initial_temperature:g}; must be below the flow curve's melting_temperature "
-                              f"= {fc.melting_temperature:g} (K)")
-
-    @property
-    def initial_yield_stress(self) -> float:
-        """σ0 of the linear law, or the flow curve's yield stress at zero plastic strain, Pa."""
-        return self.yield_stress if self.flow_curve is None else initial_yield_stress(self.flow_curve)
-
 
 # --------------------------------------------------------------------------- loads
 @dataclass(frozen=True, kw_only=True)
@@ -193,6 +109,30 @@ class TimeControl:
 
 
 @dataclass(frozen=True, kw_only=True)
+class ImplicitTable:
+    """The implicit integrator's step and Newton iterations (``mechanics.integrator = "implicit"``)."""
+
+    dt: float | None = spec(None, unit="s", gt=0.0,
+                            doc="the implicit mechanical step (required with integrator = 'implicit'; no stability "
+                                "limit: accuracy decides, e.g. 1/40 of the shortest period of interest, period error "
+                                "(2π/40)²/12 = 0.2 %)")
+    scheme: Literal["trapezoidal", "hht", "static"] = spec(
+        "trapezoidal", doc="'trapezoidal': Newmark average acceleration (no numerical damping); 'hht': HHT-α (damps "
+                           "the modes the step does not resolve); 'static': equilibrium steps without inertia "
+                           "(quasi-static loading; every body must be supported against rigid motion)")
+    alpha: float = spec(-0.1, unit="-", ge=-1.0 / 3.0, le=0.0,
+                        doc="HHT's α (scheme = 'hht' only): 0 is the trapezoidal rule, −1/3 the most damping "
+                            "(spectral radius (1 + α)/(1 − α) at high frequency)")
+    newton_tol: float = spec(1e-8, unit="-", gt=0.0, lt=1.0,
+                             doc="Newton stops when the residual is below this fraction of the largest of the "
+                                 "inertia, internal (reactions included) and external force norms")
+    newton_max: int = spec(25, unit="-", ge=1, doc="most Newton iterations per step")
+    max_cuts: int = spec(6, unit="-", ge=0, le=30,
+                         doc="a step that does not converge is retried as two half steps, at most this many times "
+                             "in a row; then the run stops in one line with the results so far")
+
+
+@dataclass(frozen=True, kw_only=True)
 class MechanicsTable:
     """Mechanical model options."""
 
@@ -213,6 +153,12 @@ class MechanicsTable:
             "whenever its kinetic energy has passed a peak (quasi-static loading; 0: off)")
     gravity: Vec2 = spec((0.0, 0.0), unit="m/s^2", doc="acceleration of gravity on the rigid bodies, e.g. "
                          "[0, -9.81] (deformable bodies: not applied)")
+    integrator: Literal["explicit", "implicit"] = spec(
+        "explicit", doc="'explicit': central differences at the stable step (forming pulses, µs); 'implicit': "
+                        "Newmark / HHT-α / static steps of mechanics.implicit.dt with Newton iterations (slow "
+                        "motions, ms to s; no contact, walls or rigid bodies yet; coupled runs: coupling.n = 1, and "
+                        "coupling.iterate = true for steps near the parts' periods; docs/mechanics.md)")
+    implicit: ImplicitTable = spec(ImplicitTable(), doc="[mechanics.implicit] table")
     threads: int = spec(1, unit="-", ge=1,
                         doc="threads of the element kernel in serial GetDP-coupled runs and in 3D runs (results do not "
                             "depend on it; worth it from ~10^4 cells in 2D, from 65 536 tetrahedra in a 3D body, on cores "
@@ -222,6 +168,13 @@ class MechanicsTable:
         cores = os.cpu_count() or 1
         if self.threads > cores:
             raise SchemaError(f"{path}.threads", f"got {self.threads}; this machine has {cores} cores: 1 to {cores}")
+        if self.integrator == "implicit":
+            if self.implicit.dt is None:
+                raise SchemaError(f"{path}.implicit.dt", "missing; integrator = 'implicit' needs its step (s), "
+                                  "e.g. 1/40 of the shortest period of interest")
+            if self.kinetic_damping_until > 0.0:
+                raise SchemaError(f"{path}.kinetic_damping_until", "kinetic damping is the explicit integrator's; "
+                                  "with integrator = 'implicit' use implicit.scheme = 'static' (or 'hht') instead")
 
 
 #: default EM steps per period of an all-rigid run's source (docs/mechanics.md: the jumping ring's first peak
@@ -280,6 +233,19 @@ class Output:
 
 
 @dataclass(frozen=True, kw_only=True)
+class SpringbackTable:
+    """Springback after the run: a static equilibrium with the loads off, from the state at time.end."""
+
+    supports: Literal["kept", "minimal"] = spec(
+        "kept", doc="'kept': the bodies keep their [[bodies.fixed]] boundaries (clamps); 'minimal': they are "
+                    "released onto statically determinate supports that stop rigid motion only (3-2-1 rule). "
+                    "Contact, walls and loads are removed either way")
+    steps: int = spec(1, unit="-", ge=1, le=1000, doc="static steps over which the internal forces left "
+                                                       "unbalanced by the removed loads and supports are released")
+    bodies: tuple[str, ...] = spec((), doc="the bodies that spring back (default: every deformable body)")
+
+
+@dataclass(frozen=True, kw_only=True)
 class Limits:
     """Guards against runs that would exhaust the machine (orchestrator/case/guards.py says how they are estimated)."""
 
@@ -315,6 +281,8 @@ class Case:
     probes: tuple[Probe, ...] = spec((), doc="[[probes]] point histories")
     output: Output = spec(Output(), doc="[output] table")
     analysis: tuple[str, ...] = spec((), doc="case-specific analyses (extra history columns, metrics, plots)")
+    springback: SpringbackTable | None = spec(None, doc="[springback] after the run (fields/springback/<name>_<body>, "
+                                              "<body>_springback_* metrics; docs/mechanics.md)")
     limits: Limits = spec(Limits(), doc="[limits] resource guards")
 
     def validate(self, path: str) -> None:
@@ -344,6 +312,12 @@ class Case:
             if ld.body not in names:
                 raise SchemaError(f"loads[{i}].body", f"got {ld.body!r}; allowed: {_choices(names)}")
         self._validate_coupled()
+        self._validate_integrator()
+        if self.springback is not None:
+            for i, n in enumerate(self.springback.bodies):
+                if n not in names or self.body(n).rigid:
+                    raise SchemaError(f"springback.bodies[{i}]", f"got {n!r}; allowed: "
+                                      f"{_choices([b.name for b in self.bodies if not b.rigid])}")
         for i, name in enumerate(self.analysis):
             if name not in ANALYSES:
                 raise SchemaError(f"analysis[{i}]", f"got {name!r}; allowed: {_choices(sorted(ANALYSES))}")
@@ -438,6 +412,20 @@ class Case:
         check_rigid_time_scale(self)
         if len(set(regions)) != len(regions):
             raise SchemaError("bodies", "each geometry region may be used by one body only")
+
+    def _validate_integrator(self) -> None:
+        """The implicit integrator's present reach: mechanics cases of deformable bodies without contact or walls."""
+        if self.mechanics.integrator != "implicit":
+            return
+        key = "mechanics.integrator"
+        for what, items in (("[[contact]] pairs", self.contact), ("[[walls]]", self.walls)):
+            if items:
+                raise SchemaError(key, f"got 'implicit'; the implicit integrator has no {what} yet: remove them or "
+                                  "use 'explicit'")
+        for i, b in enumerate(self.bodies):
+            if b.rigid:
+                raise SchemaError(f"bodies[{i}].rigid", "rigid bodies run with the explicit integrator only (for now); "
+                                  "use mechanics.integrator = 'explicit'")
 
     def rigid_moves(self, b: BodyTable) -> tuple[int, ...]:
         """The free translation components of rigid body ``b`` (see :func:`.parts.rigid_moves`)."""

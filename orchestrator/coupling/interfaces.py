@@ -92,6 +92,12 @@ class Mechanics(Protocol):
     def load_state_dict(self, state: dict[str, np.ndarray]) -> None:
         """Restore :meth:`state_dict`."""
 
+    def impulse_window(self, t0: float, dt: float, k: int) -> float:
+        """The centre (s) of the window over which ``k`` steps of ``dt`` from ``t0`` deliver a held
+        force's impulse, where the loop evaluates the load. Optional: without it the explicit
+        scheme's t0 + (k − 1)·dt/2 (central differences apply the force in the velocity updates at
+        t0, ..., t1 − dt); an implicit step holds it over [t0, t1]: t0 + k·dt/2 (a static one: its end, t1)."""
+
 
 def plain_total(forces: dict[str, np.ndarray], dim: int | None = None) -> np.ndarray:
     """Resultant (N) of nodal forces held entirely on this process: ``dim`` components (default: those of the

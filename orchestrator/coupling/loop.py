@@ -16,7 +16,9 @@ One EM step k covers [t_k, t_k + n·dt_mech]:
 3. The load provider computes nodal forces on the *current* geometry for that interval (GetDP: the
    mean of its implicit sub-steps; pressure and analytic loads: at t0 + (n − 1)·dt/2, the centre of
    the window over which central differences deliver the held force's impulse: a force passed to
-   ``advance`` acts from the current time on, i.e. in the velocity updates at t0, ..., t1 − dt).
+   ``advance`` acts from the current time on, i.e. in the velocity updates at t0, ..., t1 − dt; an
+   implicit mechanics holds it over [t0, t1], centre t0 + n·dt/2, static steps at t1: the mechanics'
+   ``impulse_window``).
 4. The forces are **held** constant over the n mechanical substeps (zero-order hold; no
    interpolation), the conservation ledger |Σ nodal F − ∫ f dV| / |∫ f dV| and the impulse
    Σ F·Δt are updated.
@@ -210,7 +212,7 @@ class StaggeredLoop:
         dt, k = self.substeps(t_stop)
         t0 = self.mech.time
         t1 = t0 + dt * k
-        t_mid = t0 + 0.5 * (k - 1) * dt
+        t_mid = self._load_time(t0, dt, k)
         c = self.counters
         saved = (self.mech.state_dict(), self.load.state_dict()) if self.options.iterate else None
         c0 = time.perf_counter()
@@ -245,6 +247,13 @@ class StaggeredLoop:
         c.last_values = dict(step.values)
         c.last_resultant = resultant
         return row
+
+    def _load_time(self, t0: float, dt: float, k: int) -> float:
+        """Where the load of an EM step of ``k`` mechanical steps of ``dt`` from ``t0`` is evaluated (s): the
+        centre of the window over which the mechanics delivers a held force's impulse (its
+        ``impulse_window``; without one the explicit scheme's t0 + (k − 1)·dt/2)."""
+        window = getattr(self.mech, "impulse_window", None)
+        return window(t0, dt, k) if window is not None else t0 + 0.5 * (k - 1) * dt
 
     def _follow(self, t0: float) -> None:
         """Step 2: the load's mesh follows the mechanics (a no-op for a load without a mesh of its own)."""

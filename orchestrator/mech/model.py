@@ -1,16 +1,21 @@
-"""Translate a validated :class:`Case` into the explicit DOLFINx solver's objects."""
+"""Translate a validated :class:`Case` into the DOLFINx solvers' objects (explicit, or implicit with mechanics.integrator)."""
 
 from __future__ import annotations
+
+import logging
 
 from mpi4py import MPI
 
 from pulseform.solvers import dolfinx as mech
+from pulseform.solvers.dolfinx.implicit import ImplicitOptions, ImplicitSolver
 
 from ..case.flow import FlowCurveTable, LudwikTable, SwiftTable, TableFlowTable, VoceTable
 from ..case.model import Case, CowperSymondsTable, MaterialTable
 from ..mesh.shapes import mesh_shape
 from .model3d import build_solver_3d
 from ..mesh.markers import box_marker
+
+log = logging.getLogger(__name__)
 
 
 def solver_flow_curve(fc: FlowCurveTable | None):
@@ -47,13 +52,27 @@ def solver_material(m: MaterialTable) -> "mech.Material":
                          taylor_quinney=m.taylor_quinney, initial_temperature=m.initial_temperature)
 
 
+def implicit_options(case: Case) -> ImplicitOptions:
+    """The case's ``[mechanics.implicit]`` table -> the implicit solver's options (alpha only for 'hht'). A coupled
+    case without ``coupling.iterate`` gets a warning: its staggered loop gains energy when the implicit step is not
+    small against the parts' periods (docs/mechanics.md, *Coupled runs*)."""
+    mo = case.mechanics
+    if case.case.kind == "coupled" and not case.coupling.iterate:
+        log.warning("implicit mechanics in a coupled run without coupling.iterate: the staggered loop gains energy "
+                    "when mechanics.implicit.dt is not small against the parts' periods (set coupling.iterate = "
+                    "true, or take a short step; docs/mechanics.md)")
+    im = mo.implicit
+    return ImplicitOptions(dt=im.dt, scheme=im.scheme, alpha=im.alpha if im.scheme == "hht" else 0.0,
+                           newton_tol=im.newton_tol, newton_max=im.newton_max, max_cuts=im.max_cuts)
+
+
 def build_solver(case: Case, comm: MPI.Comm = MPI.COMM_WORLD,
                  region_meshes: dict | None = None, compiled_steps: bool = True) -> "mech.ExplicitSolver":
     """Mesh every deformable body (or take its region's mesh, cut from the EM mesh) and build the
-    solver (``compiled_steps``: the solver's compiled block path, else its Python step loop); rigid
-    bodies are not the solver's (:mod:`.mixed`)."""
+    solver (``compiled_steps``: the solver's compiled block path, else its Python step loop; the implicit
+    solver when ``mechanics.integrator = "implicit"``); rigid bodies are not the solver's (:mod:`.mixed`)."""
     if case.mechanics.formulation == "3d":  # tetrahedra (mechanics-only cases for now)
-        return build_solver_3d(case, comm, solver_material)
+        return build_solver_3d(case, comm, solver_material, implicit_options)
     bodies = []
     for b in case.bodies:
         if b.rigid:
@@ -71,6 +90,9 @@ def build_solver(case: Case, comm: MPI.Comm = MPI.COMM_WORLD,
     walls = tuple(mech.RigidWallSpec(point=tuple(w.point), normal=tuple(w.normal),
                                      bodies=tuple(w.bodies) or None, sliding=w.sliding) for w in case.walls)
     mo = case.mechanics
+    if mo.integrator == "implicit":
+        return ImplicitSolver(bodies, implicit_options(case), formulation=mo.formulation, thickness=mo.thickness,
+                              comm=comm, contact_pairs=pairs, rigid_walls=walls)
     return mech.ExplicitSolver(bodies, formulation=mo.formulation, contact_pairs=pairs, rigid_walls=walls,
                                cfl=case.time.cfl, bulk_viscosity=mo.bulk_viscosity,
                                bulk_linear=mo.bulk_viscosity_linear, bulk_quadratic=mo.bulk_viscosity_quadratic,

@@ -98,6 +98,12 @@ class DolfinxMechanics:
         for name, e in heat.items():
             self.solver.add_heat(name, e)
 
+    def impulse_window(self, t0: float, dt: float, k: int) -> float:
+        """Where the loop evaluates the load of ``k`` steps of ``dt`` from ``t0`` (s): the solver's own (the implicit
+        one's t0 + k·dt/2, t0 + k·dt for static steps), else central differences' t0 + (k − 1)·dt/2."""
+        window = getattr(self.solver, "impulse_window", None)
+        return window(t0, dt, k) if window is not None else t0 + 0.5 * (k - 1) * dt
+
     def total_force(self, forces: dict[str, np.ndarray]) -> np.ndarray:
         """Resultant (N) over owned nodes of every rank (ghost rows are complete copies)."""
         local = np.zeros(next(iter(self.solver.bodies.values())).gdim)   # 2 components, or 3 in 3D

@@ -33,6 +33,7 @@ from ..mech.model import build_solver
 from ..mech.mixed import MixedMechanics, rigid_bodies, rigid_metrics
 from ..mech.participants import DolfinxMechanics, PressurePulses
 from ..mech.rigid import RigidMechanics
+from ..mech.springback import run_springback
 from ..mesh.em_geometry import PendingEMGeometry, build_em_geometry
 from ..mesh.shared import ConductorBody, conductor_submesh, match_nodes, to_dolfinx
 from . import interrupt
@@ -337,6 +338,7 @@ class CaseDriver:
             metrics.update(a.metrics(self.solver, self.history))
         if self.shots is not None:
             metrics.update(self.shots.metrics())
+        metrics.update(run_springback(case, self.solver, str(prefix)) if case.springback and self.solver else {})
         self.load.close()  # old getdp run folders are deleted in the background: wait for them
         return MechanicsRun(self.solver, self.history, metrics, self.shapes, self.analyses, self.wall_before_s)
 

@@ -85,7 +85,11 @@ def _read_file(path: Path):
 
 def read_fields(results_dir: Path) -> dict[str, BodyFields]:
     """Every body's fields of the results folder, by body name (in the order of the files)."""
-    folder = Path(results_dir) / "fields"
+    return read_folder(Path(results_dir) / "fields")
+
+
+def read_folder(folder: Path) -> dict[str, BodyFields]:
+    """Every body's fields in the field files ``folder/*.h5`` (the run's ``fields/``, or ``fields/springback/``)."""
     files = sorted(folder.glob("*.h5")) if folder.is_dir() else []
     if not files:
         raise FieldFileError(f"{folder}: no field files (*.h5)")

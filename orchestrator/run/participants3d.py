@@ -24,6 +24,7 @@ import numpy as np
 from mpi4py import MPI
 
 from pulseform.solvers import dolfinx as mech
+from pulseform.solvers.dolfinx.implicit import ImplicitSolver3D
 from pulseform.solvers.dolfinx.solver3d import ExplicitSolver3D
 from pulseform.solvers.getdp.mesh import COIL_BASE, CONDUCTOR_BASE, SHELL, conductor_tag
 from pulseform.solvers.getdp.mesh3d import Mesh3D
@@ -37,7 +38,7 @@ from ..em.participant3d import ConductorBody3D
 from ..em.solver import factor_reuse
 from ..em.remesh3d import RemeshingGetDPLoad3D
 from ..mech.mixed import rigid_bodies
-from ..mech.model import solver_material
+from ..mech.model import implicit_options, solver_material
 from ..mech.participants import DolfinxMechanics
 from ..mech.pulses3d import PressurePulses3D
 from ..mech.rigid import RigidMechanics
@@ -107,9 +108,12 @@ def participants_3d(case: Case, work: Path):
                                        friction=c.friction, viscosity=c.viscosity, two_pass=c.two_pass)
                   for c in case.contact)
     mo = case.mechanics
-    solver = ExplicitSolver3D(specs, contact_pairs=pairs, cfl=case.time.cfl, bulk_viscosity=mo.bulk_viscosity,
-                              bulk_linear=mo.bulk_viscosity_linear, bulk_quadratic=mo.bulk_viscosity_quadratic,
-                              comm=MPI.COMM_SELF, threads=mo.threads) if specs else None
+    if mo.integrator == "implicit" and specs:
+        solver = ImplicitSolver3D(specs, implicit_options(case), comm=MPI.COMM_SELF, contact_pairs=pairs)
+    else:
+        solver = ExplicitSolver3D(specs, contact_pairs=pairs, cfl=case.time.cfl, bulk_viscosity=mo.bulk_viscosity,
+                                  bulk_linear=mo.bulk_viscosity_linear, bulk_quadratic=mo.bulk_viscosity_quadratic,
+                                  comm=MPI.COMM_SELF, threads=mo.threads) if specs else None
     dt_mech = solver.stable_time_step() if solver is not None else rigid_step_3d(case)
     if case.coupling.load == "pressure":   # the same meshes and loop, the [[loads]] pulses instead of getdp
         load = pressure_pulses_3d(case, solver, float(model.symmetry_factor), Path(g.file).name)

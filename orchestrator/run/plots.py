@@ -281,6 +281,10 @@ def draw_all(results_dir: Path, *, case=None, history: History | None = None, sh
         from .pictures_flc import draw_fld
 
         attempt("forming limit diagram", draw_fld, root, case)
+    if case is not None and deformable and getattr(case, "springback", None) is not None:
+        from .pictures_springback import draw_springback
+
+        attempt("springback", draw_springback, root, case)
     if case is not None and case.case.kind == "coupled" and case.coupling.load == "getdp":  # EM fields exist
         three_d = case.mechanics.formulation == "3d"  # a 3D model: the force density on its bodies
         em = _picture_module(*(("pictures_em3d", "draw_em3d") if three_d else PICTURE_MODULES[1]), skip)

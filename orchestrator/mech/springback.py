@@ -1,0 +1,74 @@
+"""The case's ``[springback]``: after the run, release the deformable bodies from the solver's final state
+(:func:`pulseform.solvers.dolfinx.springback.springback`: static implicit steps, loads, contact and walls off,
+supports kept or minimal) and report what came out of the die: the springback fields, the largest springback
+displacement per body and at the displacement probes, the residual stresses."""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+import numpy as np
+
+from pulseform.solvers import dolfinx as mech
+from pulseform.solvers.dolfinx.springback import springback
+
+from ..case.model import Case
+
+log = logging.getLogger(__name__)
+
+__all__ = ["run_springback"]
+
+
+def run_springback(case: Case, solver, fields_prefix: str) -> dict[str, float]:
+    """Spring the case's bodies back from ``solver``'s state and write ``fields/springback/<name>_<body>.xdmf``
+    (one output: the final shape, residual stress and plastic strain at the run's end time; a folder of its own,
+    so that the run's field series, ``fields/*.h5``, stays the forming run's).
+
+    Parameters
+    ----------
+    case : Case
+        The case (its ``springback`` table and probes).
+    solver : ExplicitSolver, ExplicitSolver3D, ImplicitSolver or ImplicitSolver3D
+        The run's deformable bodies at the end of the run (one process).
+    fields_prefix : str
+        Path prefix of the run's field files (``fields/<case name>[_partN]``): its folder holds ``springback/``.
+
+    Returns
+    -------
+    dict
+        Metrics: ``<body>_springback_max_m`` (largest springback displacement, m), ``<body>_springback_max_<c>_m``
+        (largest |component|, m), ``<body>_residual_von_mises_max_Pa``, ``<body>_residual_plastic_strain_max``,
+        ``<probe>_springback_<c>_m`` for the displacement probes on those bodies (m), ``springback_newton_iterations``.
+    """
+    cfg = case.springback
+    names = list(cfg.bodies) or list(solver.bodies)
+    sb = springback(solver, supports=cfg.supports, steps=cfg.steps, bodies=names)
+    folder = Path(fields_prefix).parent / "springback"
+    folder.mkdir(exist_ok=True)
+    writer = mech.FieldWriter(sb, str(folder / case.case.name))
+    try:
+        writer.write(solver.time)
+    finally:
+        writer.close()
+    out: dict[str, float] = {"springback_newton_iterations": float(sb.newton_iterations)}
+    comps = "xyz"
+    for n in names:
+        b = sb.bodies[n]
+        d = sb.springback_displacement[n][: b.n_owned]
+        out[f"{n}_springback_max_m"] = float(np.linalg.norm(d, axis=1).max()) if len(d) else 0.0
+        for c in range(b.gdim):
+            out[f"{n}_springback_max_{comps[c]}_m"] = float(np.abs(d[:, c]).max()) if len(d) else 0.0
+        out[f"{n}_residual_von_mises_max_Pa"] = float(b.von_mises.max()) if len(b.cells) else 0.0
+        out[f"{n}_residual_plastic_strain_max"] = float(b.eps_p.max()) if len(b.cells) else 0.0
+        log.info("springback of %s: largest displacement %.4g m, largest residual von Mises stress %.4g Pa",
+                 n, out[f"{n}_springback_max_m"], out[f"{n}_residual_von_mises_max_Pa"])
+    for p in case.probes:
+        if p.quantity != "displacement" or p.body not in names:
+            continue
+        b = sb.bodies[p.body]
+        point = np.asarray(p.point, float)[: b.gdim]
+        i = int(np.argmin(np.linalg.norm(b.X0 - point, axis=1)))
+        for c in range(b.gdim):
+            out[f"{p.name}_springback_{comps[c]}_m"] = float(sb.springback_displacement[p.body][i, c])
+    return out

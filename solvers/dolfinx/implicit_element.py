@@ -1,0 +1,328 @@
+"""The element update of the implicit solver and its exact tangent, on numpy arrays over the cells
+(P1 triangles in plane stress / plane strain / axisymmetry, P1 tetrahedra in 3D).
+
+The update is the explicit kernels' finite-strain treatment written for a displacement increment
+``du`` over a step instead of ``dt * v^{n+1/2}`` (:mod:`.element_math`, :mod:`.tet_kernel`):
+
+* updated Lagrangian: the increment's gradient ``H = d du / d x`` on the mid-step configuration
+  ``x^n + du / 2``; strain increment ``sym H``, spin increment ``skew H`` (axisymmetry: hoop strain
+  increment = mean radial increment / mid-step centroid radius; plane strain: 0; plane stress:
+  the value that makes sigma_zz = 0 after the return, by a secant iteration);
+* the old stress rotated by the Hughes-Winget (Cayley) rotation ``Q = (I - W/2)^-1 (I + W/2)``
+  (the Jaumann objective rate, exact for a rigid rotation increment);
+* hypo-elastic predictor ``Q sigma Q^T + lambda tr(de) I + 2 G de``, J2 radial return on the yield
+  stress of :func:`.implicit_flow.flow_stress` (a local Newton iteration: one step for the linear law);
+* internal nodal forces with sigma^{n+1} on x^{n+1} (one-point rule, exact for P1).
+
+So an implicit step of size dt and an explicit step with ``v^{n+1/2} = du / dt`` give the same
+stress: the two solvers share one constitutive update.
+
+The tangent ``d f_int / d du`` of every cell is the exact derivative of this update — the
+consistent (algorithmic) tangent of the return mapping with the geometric terms of the updated
+Lagrangian kinematics — computed by complex-step differentiation: ``K[:, j] = Im f(du + i h e_j) / h``
+is exact to rounding for any h small enough (no subtraction; h = 1e-20 of the cell size here),
+because every operation of the update is analytic in ``du`` (the only branch, elastic or plastic,
+follows the real part). Newton on it converges quadratically (tests/solvers/test_implicit.py).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Optional
+
+import numpy as np
+
+from .implicit_flow import flow_stress
+from .kernels import MODE_AXISYMMETRIC, MODE_PLANE_STRESS
+from .material import Material
+from .tet_kernel import MODE_SOLID
+
+__all__ = ["CellState", "CellResult", "cell_update", "cell_tangent", "voigt_to_tensor", "tensor_to_voigt"]
+
+#: (row, column) of each Voigt component: 2D [xx, yy, zz, xy], 3D [xx, yy, zz, xy, yz, xz]
+_VOIGT = {4: ((0, 0), (1, 1), (2, 2), (0, 1)), 6: ((0, 0), (1, 1), (2, 2), (0, 1), (1, 2), (0, 2))}
+#: relative step of the complex-step derivative (times the cell size, m)
+_H_REL = 1e-20
+
+
+def voigt_to_tensor(s: np.ndarray) -> np.ndarray:
+    """Voigt stresses (n, 4) [xx, yy, zz, xy] or (n, 6) [xx, yy, zz, xy, yz, xz] -> symmetric (n, 3, 3), Pa."""
+    t = np.zeros((s.shape[0], 3, 3), dtype=s.dtype)
+    for k, (i, j) in enumerate(_VOIGT[s.shape[1]]):
+        t[:, i, j] = s[:, k]
+        t[:, j, i] = s[:, k]
+    return t
+
+
+def tensor_to_voigt(t: np.ndarray, n: int) -> np.ndarray:
+    """Symmetric (m, 3, 3) -> Voigt (m, n), n = 4 (2D) or 6 (3D)."""
+    return np.stack([t[:, i, j] for i, j in _VOIGT[n]], axis=1)
+
+
+@dataclass(frozen=True)
+class CellState:
+    """What the update of a set of cells needs besides the increment.
+
+    Attributes
+    ----------
+    x : ndarray (nc, nn, dim)
+        Node positions of each cell at the start of the step, m.
+    stress : ndarray (nc, 4) or (nc, 6)
+        Cauchy stress at the start of the step (Voigt), Pa.
+    eps_p : ndarray (nc,)
+        Equivalent plastic strain at the start of the step.
+    material : Material
+        The cells' material.
+    mode : int
+        ``MODE_PLANE_STRESS``, ``MODE_PLANE_STRAIN``, ``MODE_AXISYMMETRIC`` or ``MODE_SOLID``.
+    thickness : float
+        Out-of-plane thickness (planar modes), m.
+    dt : float
+        The step, s (for the strain rate of a rate law).
+    """
+
+    x: np.ndarray
+    stress: np.ndarray
+    eps_p: np.ndarray
+    material: Material
+    mode: int
+    thickness: float
+    dt: float
+
+    def take(self, idx: np.ndarray) -> "CellState":
+        """The state of the cells ``idx``."""
+        return CellState(self.x[idx], self.stress[idx], self.eps_p[idx], self.material, self.mode,
+                         self.thickness, self.dt)
+
+
+@dataclass
+class CellResult:
+    """The update's result per cell.
+
+    Attributes
+    ----------
+    force : ndarray (nc, nn, dim)
+        Internal nodal forces, N (planar: for the thickness; axisymmetric: the full 2 pi ring).
+    stress : ndarray (nc, 4) or (nc, 6)
+        Cauchy stress at the end of the step, Pa.
+    deps_p : ndarray (nc,)
+        Plastic strain increment.
+    plastic_work : ndarray (nc,)
+        Plastic dissipation of the step, sigma_s^{n+1} deps_p V^{n+1/2}, J.
+    inverted : ndarray (nc,) bool
+        Cells whose mid-step or end configuration is inverted (their force is not meaningful).
+    """
+
+    force: np.ndarray
+    stress: np.ndarray
+    deps_p: np.ndarray
+    plastic_work: np.ndarray
+    inverted: np.ndarray
+
+
+def _gradients(x: np.ndarray):
+    """Shape-function gradients (nc, nn, dim) and the Jacobian determinant (2 area or 6 volume) of
+    the P1 cells ``x`` (nc, nn, dim)."""
+    J = np.swapaxes(x[:, 1:, :] - x[:, :1, :], 1, 2)        # J[c, i, j] = x_{j+1, i} - x_{0, i}
+    adj, det = _adjugate(J)
+    bad = np.real(det) <= 0.0
+    inv = adj / np.where(bad, 1.0, det)[:, None, None]     # rows: gradients of N_1 .. N_dim
+    g = np.concatenate([-inv.sum(axis=1, keepdims=True), inv], axis=1)
+    return g, det, bad
+
+
+def _adjugate(J: np.ndarray):
+    """Adjugate and determinant of 2x2 or 3x3 matrices (n, d, d), in closed form (cofactors: analytic
+    for complex entries, and faster than batched LAPACK calls on tiny matrices)."""
+    if J.shape[1] == 2:
+        a, b, c, d = J[:, 0, 0], J[:, 0, 1], J[:, 1, 0], J[:, 1, 1]
+        adj = np.stack([np.stack([d, -b], axis=1), np.stack([-c, a], axis=1)], axis=1)
+        return adj, a * d - b * c
+    c0 = np.cross(J[:, :, 1], J[:, :, 2])                 # rows of the inverse: (col_j x col_k) / det
+    c1 = np.cross(J[:, :, 2], J[:, :, 0])
+    c2 = np.cross(J[:, :, 0], J[:, :, 1])
+    det = np.einsum("ni,ni->n", J[:, :, 0], c0)
+    return np.stack([c0, c1, c2], axis=1), det
+
+
+def _measure(x: np.ndarray, det: np.ndarray, st: CellState) -> np.ndarray:
+    """Cell volumes (m^3) from the Jacobian determinant: 3D det/6; planar thickness x area;
+    axisymmetric 2 pi r_centroid x area."""
+    if st.mode == MODE_SOLID:
+        return det / 6.0
+    area = 0.5 * det
+    if st.mode == MODE_AXISYMMETRIC:
+        return 2.0 * np.pi * x[:, :, 0].mean(axis=1) * area
+    return st.thickness * area
+
+
+def _radial_return(T: np.ndarray, st: CellState, rate: Optional[np.ndarray]):
+    """J2 radial return of the trial stresses ``T`` (n, 3, 3), Pa: the stress, plastic strain increment
+    and the yield stress after it. A local Newton iteration on the plastic multiplier for a
+    nonlinear flow law (one step for the linear one)."""
+    G = st.material.shear_modulus
+    p = (T[:, 0, 0] + T[:, 1, 1] + T[:, 2, 2]) / 3.0
+    dev = T.copy()
+    for i in range(3):
+        dev[:, i, i] -= p
+    q = np.sqrt(1.5 * np.einsum("nij,nij->n", dev, dev))   # analytic in the entries (no abs)
+    sy, slope = flow_stress(st.material, st.eps_p, rate)
+    f = q - sy
+    # plastic beyond rounding only: a cell left on the yield surface by the last step (q = sy to rounding) starts
+    # the next one with the elastic tangent — an unloading step's tangent, and loading is found at the next iterate
+    plastic = np.real(f) > 1e-12 * np.real(sy)
+    dep = np.where(plastic, f / (3.0 * G + slope), 0.0)
+    if plastic.any() and not _linear(st.material):
+        for _ in range(50):
+            sy, slope = flow_stress(st.material, st.eps_p + dep, rate)
+            r = np.where(plastic, q - 3.0 * G * dep - sy, 0.0)
+            dep = dep + r / (3.0 * G + slope)
+            if np.all(np.abs(r) <= 1e-13 * np.abs(sy)):
+                break
+    sy_new, _ = flow_stress(st.material, st.eps_p + dep, rate)
+    qs = np.where(plastic, q, 1.0)
+    fac = np.where(plastic, 1.0 - 3.0 * G * dep / qs, 1.0)
+    out = dev * fac[:, None, None]
+    for i in range(3):
+        out[:, i, i] += p
+    return out, dep, sy_new
+
+
+def _linear(m: Material) -> bool:
+    """The flow law is linear in eps_p at fixed rate (the return is exact in one step)."""
+    return True  # the Material law today; a nonlinear flow curve returns False here
+
+
+def _update_stress(Sr: np.ndarray, E: np.ndarray, st: CellState):
+    """Hypo-elastic predictor on the rotated stress ``Sr`` with the strain increment ``E`` (n, 3, 3),
+    then the radial return."""
+    G, K = st.material.shear_modulus, st.material.bulk_modulus
+    lam = K - 2.0 * G / 3.0
+    tr = E[:, 0, 0] + E[:, 1, 1] + E[:, 2, 2]
+    T = Sr + 2.0 * G * E
+    for i in range(3):
+        T[:, i, i] += lam * tr
+    rate = None
+    if st.material.rate_law is not None:
+        e = E.copy()
+        for i in range(3):
+            e[:, i, i] -= tr / 3.0
+        rate = np.sqrt(2.0 / 3.0 * np.einsum("nij,nij->n", e, e)) / st.dt
+    return _radial_return(T, st, rate)
+
+
+def cell_update(st: CellState, du: np.ndarray) -> CellResult:
+    """Stress, plastic strain and internal forces of the cells at the end of a step with the nodal
+    displacement increments ``du`` (nc, nn, dim), m (real, or complex for :func:`cell_tangent`).
+
+    Parameters
+    ----------
+    st : CellState
+        The cells at the start of the step.
+    du : ndarray (nc, nn, dim)
+        Displacement increment of each cell's nodes over the step, m.
+
+    Returns
+    -------
+    CellResult
+    """
+    nc, nn, dim = du.shape
+    xm = st.x + 0.5 * du
+    x1 = st.x + du
+    gm, detm, badm = _gradients(xm)
+    g1, det1, bad1 = _gradients(x1)
+    H = np.einsum("cai,caj->cij", du, gm)                  # d du_i / d x_j on the mid-step configuration
+    dtype = np.result_type(du, st.stress)
+    E = np.zeros((nc, 3, 3), dtype=dtype)
+    W = np.zeros((nc, 3, 3), dtype=dtype)
+    E[:, :dim, :dim] = 0.5 * (H + np.swapaxes(H, 1, 2))
+    W[:, :dim, :dim] = 0.5 * (H - np.swapaxes(H, 1, 2))
+    if st.mode == MODE_AXISYMMETRIC:
+        E[:, 2, 2] = du[:, :, 0].mean(axis=1) / xm[:, :, 0].mean(axis=1)
+    # Hughes-Winget: Q = (I - A)^-1 (I + A) = I + 2 (A + A^2) / (1 + a.a), A = W/2 with axial vector a
+    A = 0.5 * W
+    aa = A[:, 0, 1] ** 2 + A[:, 0, 2] ** 2 + A[:, 1, 2] ** 2
+    Q = np.eye(3) + (2.0 / (1.0 + aa))[:, None, None] * (A + A @ A)
+    S0 = voigt_to_tensor(st.stress)
+    Sr = Q @ S0 @ np.swapaxes(Q, 1, 2)
+    if st.mode == MODE_PLANE_STRESS:
+        S, dep, sy = _plane_stress(Sr, E, st)
+    else:
+        S, dep, sy = _update_stress(Sr, E, st)
+    vol1 = _measure(x1, det1, st)
+    f = vol1[:, None, None] * np.einsum("cij,caj->cai", S[:, :dim, :dim], g1)
+    if st.mode == MODE_AXISYMMETRIC:
+        f[:, :, 0] += (2.0 * np.pi * 0.5 * det1 * S[:, 2, 2] / 3.0)[:, None]
+    volm = _measure(xm, detm, st)
+    bad = badm | bad1
+    return CellResult(f, tensor_to_voigt(S, st.stress.shape[1]), dep, sy * dep * volm, bad)
+
+
+def _plane_stress(Sr: np.ndarray, E: np.ndarray, st: CellState):
+    """Plane stress: the out-of-plane strain increment that makes sigma_zz = 0 after the
+    return (elastic: closed form; plastic: a secant iteration, as the explicit kernel does)."""
+    G, K = st.material.shear_modulus, st.material.bulk_modulus
+    lam = K - 2.0 * G / 3.0
+    E = E.copy()
+    E[:, 2, 2] = -(lam * (E[:, 0, 0] + E[:, 1, 1]) + Sr[:, 2, 2]) / (lam + 2.0 * G)
+    S, dep, sy = _update_stress(Sr, E, st)
+    tol = 1e-12 * (np.abs(sy) + np.abs(S[:, 0, 0]) + np.abs(S[:, 1, 1]))
+    idx = np.flatnonzero((np.real(dep) > 0.0) & (np.abs(S[:, 2, 2]) > tol))
+    if idx.size:
+        sub = st.take(idx)
+        Ei, Si = E[idx].copy(), Sr[idx]
+        z0 = Ei[:, 2, 2].copy()
+        r0 = S[idx, 2, 2].copy()
+        z1 = z0 - r0 / (lam + 2.0 * G)
+        for _ in range(60):
+            Ei[:, 2, 2] = z1
+            s_i, d_i, y_i = _update_stress(Si, Ei, sub)
+            r1 = s_i[:, 2, 2]
+            done = np.abs(r1) <= tol[idx]
+            same = r1 == r0
+            step = np.where(same | done, 0.0, r1 * (z1 - z0) / np.where(same, 1.0, r1 - r0))
+            z0, r0, z1 = z1, r1, z1 - step
+            if np.all(done | same):
+                break
+        if np.iscomplexobj(z0):
+            z0 = _exact_derivative(Si, Ei, sub, z0)
+        Ei[:, 2, 2] = z0
+        s_i, d_i, y_i = _update_stress(Si, Ei, sub)
+        S[idx], dep[idx], sy[idx] = s_i, d_i, y_i
+    S[:, 2, 2] = 0.0
+    return S, dep, sy
+
+
+def _exact_derivative(Sr: np.ndarray, E: np.ndarray, st: CellState, z: np.ndarray) -> np.ndarray:
+    """Plane stress under a complex step: the secant iteration converges the real part of the out-of-plane strain
+    increment z but not its imaginary part (the derivative). Two Newton corrections z - sigma_zz(z) / s with the
+    slope s = d sigma_zz / dz at the solution (a real one-sided difference) make Im z the implicit function's
+    derivative, -(d sigma_zz / d du) / s, to the slope's accuracy (1e-7)."""
+    E = E.copy()
+    for _ in range(2):
+        E[:, 2, 2] = z
+        r = _update_stress(Sr, E, st)[0][:, 2, 2]
+        dz = 1e-7 * np.maximum(np.abs(np.real(z)), 1e-9)
+        E[:, 2, 2] = z + dz
+        slope = np.real(_update_stress(Sr, E, st)[0][:, 2, 2] - r) / dz
+        z = z - r / np.where(slope != 0.0, slope, 1.0)
+    return z
+
+
+def cell_tangent(st: CellState, du: np.ndarray) -> np.ndarray:
+    """The exact tangent d f_int / d du of every cell by complex steps, (nc, nn*dim, nn*dim), N/m.
+
+    Row and column ``a * dim + i`` are node ``a``'s component ``i``.
+    """
+    nc, nn, dim = du.shape
+    nd = nn * dim
+    size = np.abs(st.x - st.x.mean(axis=1, keepdims=True)).max(axis=(1, 2))
+    h = _H_REL * np.where(size > 0, size, 1.0)            # (nc,)
+    pert = np.zeros((nd, nc, nn, dim), dtype=complex)
+    pert[...] = du[None]
+    for j in range(nd):
+        pert[j, :, j // dim, j % dim] += 1j * h
+    big = CellState(np.tile(st.x, (nd, 1, 1)), np.tile(st.stress, (nd, 1)), np.tile(st.eps_p, nd),
+                    st.material, st.mode, st.thickness, st.dt)
+    res = cell_update(big, pert.reshape(nd * nc, nn, dim))
+    f = np.imag(res.force).reshape(nd, nc, nd) / h[None, :, None]   # [j, c, row]
+    return np.ascontiguousarray(np.transpose(f, (1, 2, 0)))

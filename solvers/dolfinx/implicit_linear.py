@@ -1,0 +1,131 @@
+"""The linear solves of the implicit solver: a sparse direct LU (PETSc KSP ``preonly`` + ``lu`` with
+MUMPS) on one process, and the check that a static system is not singular because a body can move
+as a rigid body."""
+from __future__ import annotations
+
+from typing import List
+
+import numpy as np
+import scipy.sparse as sp
+from petsc4py import PETSc
+
+__all__ = ["SingularSystemError", "solve_sparse", "free_rigid_modes"]
+
+
+class SingularSystemError(RuntimeError):
+    """The tangent system of a step is singular (a body free to move as a rigid body in a static
+    step, or a zero pivot in the factorisation)."""
+
+
+def solve_sparse(A: sp.csr_matrix, b: np.ndarray, what: str) -> np.ndarray:
+    """Solve ``A x = b`` by a sparse direct LU (MUMPS through PETSc, one process).
+
+    Parameters
+    ----------
+    A : scipy.sparse.csr_matrix (n, n)
+        The matrix (N/m for a stiffness).
+    b : ndarray (n,)
+        The right-hand side (N).
+    what : str
+        Names the system in an error message (e.g. "t = 1e-3 s, Newton iteration 2").
+
+    Returns
+    -------
+    ndarray (n,)
+        The solution (m).
+
+    Raises
+    ------
+    SingularSystemError
+        The factorisation failed (zero pivot) or gave a non-finite solution.
+    """
+    n = A.shape[0]
+    if n == 0:
+        return np.zeros(0)
+    A = A.tocsr()
+    A.sort_indices()
+    M = PETSc.Mat().createAIJ(size=(n, n), csr=(A.indptr.astype(PETSc.IntType),
+                                                A.indices.astype(PETSc.IntType), A.data),
+                              comm=PETSc.COMM_SELF)
+    M.assemble()
+    ksp = PETSc.KSP().create(PETSc.COMM_SELF)
+    pc = ksp.getPC()
+    rhs = PETSc.Vec().createWithArray(np.ascontiguousarray(b, dtype=float), comm=PETSc.COMM_SELF)
+    x = rhs.duplicate()
+    try:   # every PETSc object destroyed explicitly: the PC holds the factor (a leak of its size per solve)
+        ksp.setOperators(M)
+        ksp.setType("preonly")
+        pc.setType("lu")
+        pc.setFactorSolverType("mumps")
+        try:
+            ksp.solve(rhs, x)
+        except PETSc.Error as exc:
+            raise SingularSystemError(f"{what}: the sparse LU failed (PETSc error {exc.ierr}): the system is "
+                                      "singular") from None
+        failed = pc.getFailedReason() if hasattr(pc, "getFailedReason") else 0
+        out = x.getArray().copy()
+        if ksp.getConvergedReason() < 0 or failed or not np.all(np.isfinite(out)):
+            raise SingularSystemError(f"{what}: the sparse LU found a zero pivot: the system is singular")
+        return out
+    finally:
+        for obj in (x, rhs, pc, ksp, M):
+            obj.destroy()
+
+
+def rigid_modes(x: np.ndarray, axisymmetric: bool) -> tuple[np.ndarray, List[str]]:
+    """The rigid-body motions of a body with nodes at ``x`` (N, dim), m, as columns (N*dim, k) and
+    their names: planar translations x, y and the rotation about z; axisymmetric the translation
+    along the axis (z = y) only; 3D three translations and three rotations (about the centroid)."""
+    n, dim = x.shape
+    c = x.mean(axis=0)
+    r = x - c
+    scale = max(float(np.abs(r).max()), 1e-300)
+    cols, names = [], []
+    if axisymmetric:
+        t = np.zeros((n, dim))
+        t[:, 1] = 1.0
+        return t.reshape(-1, 1), ["translation y (along the axis)"]
+    for i in range(dim):
+        t = np.zeros((n, dim))
+        t[:, i] = 1.0
+        cols.append(t.ravel())
+        names.append(f"translation {'xyz'[i]}")
+    rots = [(0, 1, "z")] if dim == 2 else [(1, 2, "x"), (2, 0, "y"), (0, 1, "z")]
+    for i, j, ax in rots:
+        w = np.zeros((n, dim))
+        w[:, i] = -r[:, j] / scale
+        w[:, j] = r[:, i] / scale
+        cols.append(w.ravel())
+        names.append(f"rotation {ax}")
+    return np.stack(cols, axis=1), names
+
+
+def free_rigid_modes(x: np.ndarray, constrained: np.ndarray, axisymmetric: bool) -> List[str]:
+    """The rigid-body motions that the constrained components do not prevent.
+
+    Parameters
+    ----------
+    x : ndarray (N, dim)
+        Node positions, m.
+    constrained : ndarray (N, dim) bool
+        Components whose displacement is prescribed.
+    axisymmetric : bool
+        Axisymmetric body (only the translation along the axis is rigid).
+
+    Returns
+    -------
+    list of str
+        Names of the free motions (empty: the body is supported). A free combination is named by
+        its largest part.
+    """
+    R, names = rigid_modes(x, axisymmetric)
+    Rc = R[constrained.ravel()]
+    if Rc.shape[0] == 0:
+        return list(names)
+    s, vt = np.linalg.svd(Rc, full_matrices=True)[1:]
+    tol = 1e-10 * max(float(np.sqrt(Rc.shape[0])), 1.0)
+    rank = int(np.sum(s > tol))
+    free = []
+    for row in vt[rank:]:
+        free.append(names[int(np.argmax(np.abs(row)))])
+    return free

@@ -1,0 +1,145 @@
+"""Springback (issue 34, item 3, first piece): the static equilibrium a formed part reaches when the loads
+are taken off, from the state of any solver of this package (explicit or implicit; positions, stress,
+plastic strain), by the implicit solver's static steps.
+
+The part keeps its supports (``supports="kept"``: the ``fixed`` components of its :class:`~.body.BodySpec`)
+or is released onto a statically determinate set of supports that stops its rigid motions without
+loading it (``supports="minimal"``: one node held in every component, a second one across the line
+between them, in 3D a third one across their plane — the 3-2-1 rule; :func:`minimal_supports`). The
+unbalanced internal forces of the stressed state are released over ``steps`` static steps (the external
+force −(1 − k/steps) f_int^0 at step k), so that reverse yielding is followed in increments.
+
+Not done yet: contact between the parts (a press fit's residual contact pressure), dies kept as rigid
+walls, MPI (the implicit solver's limits).
+"""
+from __future__ import annotations
+
+import logging
+from dataclasses import replace
+from typing import Dict, Optional, Sequence
+
+import numpy as np
+
+from .implicit import ImplicitSolver, ImplicitSolver3D
+from .implicit_options import ImplicitOptions
+from .tet_kernel import MODE_SOLID
+
+__all__ = ["springback", "minimal_supports", "SUPPORTS"]
+
+log = logging.getLogger(__name__)
+
+#: how a part is held during springback
+SUPPORTS = ("kept", "minimal")
+
+
+def minimal_supports(x: np.ndarray) -> tuple:
+    """Statically determinate supports of a body with nodes at ``x`` (N, dim), m: ``fixed`` entries
+    ``(marker, components)`` of :class:`~.body.BodySpec` that stop every rigid motion and nothing else.
+
+    2D: the node nearest the centroid held in x and y, the node farthest from it held across the line
+    between them (the component of the larger normal part). 3D: the first node in x, y, z, the farthest
+    one in the two components most across their line, a third node, farthest from that line, in the
+    component most normal to the plane of the three.
+    """
+    dim = x.shape[1]
+    c = x.mean(axis=0)
+    a = int(np.argmin(np.linalg.norm(x - c, axis=1)))
+    b = int(np.argmax(np.linalg.norm(x - x[a], axis=1)))
+    t = (x[b] - x[a]) / np.linalg.norm(x[b] - x[a])
+    fixed = [(_node_marker(x[a]), tuple(range(dim)))]
+    if dim == 2:
+        fixed.append((_node_marker(x[b]), (int(np.argmin(np.abs(t))),)))
+        return tuple(fixed)
+    across = tuple(int(i) for i in np.argsort(np.abs(t))[:2])
+    fixed.append((_node_marker(x[b]), across))
+    d = x - x[a]
+    off = d - np.outer(d @ t, t)
+    k = int(np.argmax(np.linalg.norm(off, axis=1)))
+    n = np.cross(t, off[k])
+    fixed.append((_node_marker(x[k]), (int(np.argmax(np.abs(n))),)))
+    return tuple(fixed)
+
+
+def _node_marker(p: np.ndarray):
+    """Marker of the node at ``p`` (m) in coordinates given as (3, N)."""
+    p = np.asarray(p, float)
+    tol = 1e-9 * max(float(np.abs(p).max()), 1e-3)
+
+    def marker(X: np.ndarray) -> np.ndarray:
+        return np.all(np.abs(X[: p.size] - p[:, None]) <= tol, axis=0)
+
+    return marker
+
+
+def springback(source, supports: str = "kept", steps: int = 1, newton_tol: float = 1e-8,
+               newton_max: int = 25, max_cuts: int = 6, bodies: Optional[Sequence[str]] = None):
+    """The springback of ``source``'s bodies: a static implicit solver started from their state, released.
+
+    Parameters
+    ----------
+    source : ExplicitSolver, ExplicitSolver3D, ImplicitSolver or ImplicitSolver3D
+        The solver at the end of forming (one process).
+    supports : {"kept", "minimal"}
+        The bodies' own fixed components, or statically determinate supports (:func:`minimal_supports`)
+        applied in the reference configuration's node positions.
+    steps : int
+        Static steps over which the unbalanced internal forces are released.
+    newton_tol, newton_max, max_cuts : float, int, int
+        Newton settings of the static steps (:class:`~.implicit_options.ImplicitOptions`).
+    bodies : sequence of str, optional
+        The bodies to release (default: all).
+
+    Returns
+    -------
+    ImplicitSolver or ImplicitSolver3D
+        The static solver after springback: its bodies hold the final shape (``x``), the residual stresses
+        and plastic strain; ``springback_displacement[name]`` (N, dim), m, is the motion of springback.
+
+    Raises
+    ------
+    SingularSystemError
+        ``supports = "kept"`` and a body's supports leave it free to move rigidly.
+    ImplicitConvergenceError
+        Newton did not converge on the smallest step.
+    """
+    if supports not in SUPPORTS:
+        raise ValueError(f"supports must be one of {SUPPORTS}, got {supports!r}")
+    if int(steps) != steps or steps < 1:
+        raise ValueError(f"steps must be a positive integer, got {steps!r}")
+    names = list(source.bodies) if bodies is None else list(bodies)
+    unknown = set(names) - set(source.bodies)
+    if unknown:
+        raise ValueError(f"unknown bodies {sorted(unknown)}")
+    specs = []
+    for n in names:
+        b = source.bodies[n]
+        spec = b.spec
+        fixed = spec.fixed if supports == "kept" else minimal_supports(b.X0)
+        zero = (0.0,) * b.gdim
+        specs.append(replace(spec, fixed=fixed, motion=(), initial_velocity=zero, sliding=()))
+    options = ImplicitOptions(dt=1.0, scheme="static", newton_tol=newton_tol, newton_max=newton_max,
+                              max_cuts=max_cuts)
+    if source.mode == MODE_SOLID:
+        sb = ImplicitSolver3D(specs, options, comm=source.comm)
+    else:
+        sb = ImplicitSolver(specs, options, formulation=source.formulation,
+                            thickness=float(next(iter(source.bodies.values())).thickness), comm=source.comm)
+    for n in names:
+        src, dst = source.bodies[n], sb.bodies[n]
+        dst.x[...] = src.x
+        dst.cell_stress[...] = src.cell_stress
+        dst.eps_p[...] = src.eps_p
+    sb.time = float(source.time)
+    sb._restart_from_state()
+    start = {n: sb.bodies[n].x.copy() for n in names}
+    f0 = {n: sb._fint[n].copy() for n in names}
+    for n in names:   # the present state is in equilibrium with its own internal forces: cut steps ramp from them
+        sb._f_from[n][...] = f0[n]
+    for k in range(1, int(steps) + 1):
+        frac = 1.0 - k / steps
+        sb.advance(1.0 / steps, 1, {n: frac * f0[n] for n in names})
+    sb.springback_displacement: Dict[str, np.ndarray] = {n: sb.bodies[n].x - start[n] for n in names}
+    for n in names:
+        d = np.linalg.norm(sb.springback_displacement[n], axis=1)
+        log.info("springback of %s: largest displacement %.4g m", n, float(d.max()) if d.size else 0.0)
+    return sb
