@@ -73,8 +73,9 @@ def rate_factor_at(rid, r1, r2, rate):
 
 
 @numba.njit(cache=True, error_model="numpy", fastmath=FM)
-def j2_return(sxx, syy, szz, sxy, dxx, dyy, dzz, dxy, dt, G, lam, sy, hr):
-    """Elastic predictor + radial return (Pa, 1/s, s). Returns (sxx, syy, szz, sxy, deps_p)."""
+def elastic_trial(sxx, syy, szz, sxy, dxx, dyy, dzz, dxy, dt, G, lam):
+    """Elastic predictor of a step (Pa, 1/s, s): the trial stress (txx, tyy, tzz, txy), its pressure p, its
+    deviator (exx, eyy, ezz; the shear is txy) and its von Mises stress q, Pa."""
     tr = (dxx + dyy + dzz) * dt
     txx = sxx + lam * tr + 2.0 * G * dxx * dt
     tyy = syy + lam * tr + 2.0 * G * dyy * dt
@@ -83,6 +84,13 @@ def j2_return(sxx, syy, szz, sxy, dxx, dyy, dzz, dxy, dt, G, lam, sy, hr):
     p = (txx + tyy + tzz) / 3.0
     exx, eyy, ezz = txx - p, tyy - p, tzz - p
     q = math.sqrt(1.5 * (exx * exx + eyy * eyy + ezz * ezz + 2.0 * txy * txy))
+    return txx, tyy, tzz, txy, p, exx, eyy, ezz, q
+
+
+@numba.njit(cache=True, error_model="numpy", fastmath=FM)
+def j2_return(sxx, syy, szz, sxy, dxx, dyy, dzz, dxy, dt, G, lam, sy, hr):
+    """Elastic predictor + radial return (Pa, 1/s, s). Returns (sxx, syy, szz, sxy, deps_p)."""
+    txx, tyy, tzz, txy, p, exx, eyy, ezz, q = elastic_trial(sxx, syy, szz, sxy, dxx, dyy, dzz, dxy, dt, G, lam)
     if q > sy:
         dep = (q - sy) / (3.0 * G + hr)
         fac = 1.0 - 3.0 * G * dep / q
@@ -104,14 +112,7 @@ def j2_return_flow(sxx, syy, szz, sxy, dxx, dyy, dzz, dxy, dt, G, lam, ep, rate,
     """:func:`j2_return` for any flow curve (:mod:`.flow_curves`) at the plastic strain ``ep``, the
     equivalent strain rate ``rate`` (1/s) and the temperature ``T`` (K), times the rate law's
     factor ``fac``. Returns (sxx, syy, szz, sxy, deps_p, yield stress after the return (Pa))."""
-    tr = (dxx + dyy + dzz) * dt
-    txx = sxx + lam * tr + 2.0 * G * dxx * dt
-    tyy = syy + lam * tr + 2.0 * G * dyy * dt
-    tzz = szz + lam * tr + 2.0 * G * dzz * dt
-    txy = sxy + 2.0 * G * dxy * dt
-    p = (txx + tyy + tzz) / 3.0
-    exx, eyy, ezz = txx - p, tyy - p, tzz - p
-    q = math.sqrt(1.5 * (exx * exx + eyy * eyy + ezz * ezz + 2.0 * txy * txy))
+    txx, tyy, tzz, txy, p, exx, eyy, ezz, q = elastic_trial(sxx, syy, szz, sxy, dxx, dyy, dzz, dxy, dt, G, lam)
     dep, sy = plastic_return(q, G, ep, rate, T, fac, prm)
     if dep > 0.0:
         f = 1.0 - 3.0 * G * dep / q
