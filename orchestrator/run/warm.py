@@ -88,6 +88,7 @@ class WarmPool:
         self._lock = threading.Lock()
         self._futures: dict[int, Future] = {}
         self._started: dict[int, int] = {}   # id -> the member's pid, once the warm process forked it
+        self._abandoned: set[int] = set()    # ids whose caller's time limit passed before the member started
         self._next = 0
         self._gone: str | None = None        # why the warm process is no longer usable
         self._stopping = False               # the study was stopped: no member starts any more
@@ -151,9 +152,12 @@ class WarmPool:
         return run_pulseform(argv, env=self.env, cwd=cwd, timeout=timeout)
 
     def _kill(self, k: int) -> None:
-        """SIGKILL to member ``k`` if the warm process has started it (its answer then comes, unread)."""
+        """SIGKILL to member ``k`` (its answer then comes, unread); one the warm process has not started yet is
+        killed as soon as it says it has."""
         with self._lock:
             pid = self._started.get(k)
+            if pid is None:
+                self._abandoned.add(k)
         if pid is not None:
             _signal(pid, signal.SIGKILL)
 
@@ -217,6 +221,9 @@ class WarmPool:
             if "started" in msg:
                 with self._lock:
                     self._started[k] = int(msg["started"])
+                    late = k in self._abandoned
+                if late:  # its caller's time limit passed before it started
+                    _signal(int(msg["started"]), signal.SIGKILL)
                 continue
             with self._lock:
                 fut = self._futures.pop(k, None)

@@ -149,13 +149,16 @@ def test_without_a_warm_process_members_run_on_their_own(tmp_path, monkeypatch):
 def test_a_member_runs_in_its_folder_and_is_killed_past_its_time_limit(tmp_path):
     """``WarmPool.run(argv, cwd=, timeout=)`` (what tests/warm_cli.py gives the tests' runs): a relative ``--out`` is
     taken in ``cwd``; a member still running at its time limit is killed (SIGKILL) and TimeoutExpired raised, as
-    ``subprocess.run(timeout=)`` does, and the pool serves the next member."""
+    ``subprocess.run(timeout=)`` does (one whose limit passed before the warm process started it: as soon as it
+    starts), and the pool serves the next member."""
     from pulseform.orchestrator.run.warm import WarmPool
 
     coarse = ["--quiet", "--set", "bodies.left.mesh_size=0.25", "--set", "bodies.right.mesh_size=0.25",
               "--set", "output.plots=false"]
     pool = WarmPool()
     try:
+        with pytest.raises(subprocess.TimeoutExpired):  # its limit passes while the warm process still imports
+            pool.run(["run", str(REPO / "cases/bar_impact"), "--out", "early", *coarse], cwd=tmp_path, timeout=0.01)
         assert pool.ready.wait(180)
         t0 = time.perf_counter()
         with pytest.raises(subprocess.TimeoutExpired):  # the whole bar impact: seconds, not 0.2 s
@@ -163,6 +166,7 @@ def test_a_member_runs_in_its_folder_and_is_killed_past_its_time_limit(tmp_path)
         assert time.perf_counter() - t0 < 5
         time.sleep(1.0)
         assert not (tmp_path / "killed" / "metrics.json").exists()  # it did not finish after the limit either
+        assert not (tmp_path / "early" / "metrics.json").exists()   # killed as soon as it started
         r = pool.run(["run", str(REPO / "cases/bar_impact"), "--out", "rel", *coarse, "--set", "time.end=1e-4",
                       "--set", "output.field_interval=5e-5"], cwd=tmp_path, timeout=300)
         assert r.returncode == 0, r.stderr[-2000:]
