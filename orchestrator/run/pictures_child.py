@@ -14,7 +14,7 @@ from pathlib import Path
 __all__ = ["Renderer", "spawn", "warm_up"]
 
 #: the child's entry: ``python -m`` this module's sibling, with RESULTS_DIR or ``--wait``
-CHILD_MODULE = "pulseform.orchestrator.run.pictures_mech"
+CHILD_MODULE = "pulseform.orchestrator.pictures_renderer"
 
 
 def warm_up() -> None:
@@ -66,7 +66,7 @@ class Renderer:
 
 
 def spawn(args: list[str], stdin=None) -> subprocess.Popen:
-    """The child ``python -m pulseform.orchestrator.run.pictures_mech ARGS`` (off-screen, EGL)."""
+    """The child ``python -m pulseform.orchestrator.pictures_renderer ARGS`` (off-screen, EGL)."""
     env = dict(os.environ, PYVISTA_OFF_SCREEN="true")
     if not env.get("DISPLAY"):  # straight to EGL (Mesa), without VTK's failed attempt at an X server
         env.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")

@@ -23,7 +23,7 @@ Workpieces are the bodies with ``region = "workpiece"`` (coupled cases), else th
 a ``[[loads]]`` pulse, else every body.
 
 The 3D pictures are rendered by pyvista/VTK off-screen (Mesa; no display needed) in a child
-process (``python -m pulseform.orchestrator.run.pictures_mech RESULTS_DIR``), so that a crash or a hang
+process (``python -m pulseform.orchestrator.pictures_renderer RESULTS_DIR``), so that a crash or a hang
 of the graphics stack cannot take the run down: it becomes a :class:`PicturesFailed` error, which
 the caller reports as a warning. ``shapes.png`` (matplotlib) is drawn first, in this process.
 """
@@ -36,7 +36,6 @@ import logging
 import os
 import signal
 import subprocess
-import sys
 import time
 import tomllib
 from pathlib import Path
@@ -44,7 +43,7 @@ from pathlib import Path
 import numpy as np
 
 from .mech_fields import BodyFields, read_fields
-from .pictures_child import Renderer, spawn, warm_up
+from .pictures_child import Renderer, spawn
 from .pictures_wedge import UnfoldedBody, Wedge, wedge_planes
 from .pictures_solid import boundary_faces, solid_camera, solid_surface
 from .units import time_axis
@@ -473,24 +472,3 @@ def draw_mechanics(results_dir: Path, *, isolated: bool = True,
 
     finish.cancel = cancel
     return finish() if wait else finish
-
-
-def main(argv: list[str] | None = None) -> int:
-    """``python -m pulseform.orchestrator.run.pictures_mech RESULTS_DIR``: render the 3D pictures and
-    print their paths as one JSON line."""
-    args = sys.argv[1:] if argv is None else argv
-    if len(args) != 1:
-        print("usage: python -m pulseform.orchestrator.run.pictures_mech RESULTS_DIR | --wait", file=sys.stderr)
-        return 2
-    if args[0] == "--wait":  # a Renderer: get ready, then read the folder from stdin
-        warm_up()
-        args = [sys.stdin.readline().strip()]
-        if not args[0]:
-            return 0
-    paths = render_fields(Path(args[0]))
-    print(json.dumps([str(p) for p in paths]))
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())
