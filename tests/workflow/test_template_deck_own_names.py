@@ -29,7 +29,7 @@ import tomli_w
 
 from pulseform.orchestrator.case.io import load_case
 
-from wf_helpers import REPO, one_line_error, pulseform
+from wf_helpers import REPO, four_steps, one_line_error, pulseform, worst_vs_plain_getdp
 
 LIBRARY = REPO / "cases/user_deck_sheet_bulge"
 DECK = Path(__file__).with_name("template_decks") / "current_template.pro"
@@ -238,7 +238,6 @@ def test_a_deck_constant_changed_through_set_reaches_both_sides(tmp_path):
     after every step: measured ~1e-15; asserted 1e-9. The deck's own 2.5e7 differs by far more (the
     comparison sees the conductivity)."""
     from pulseform.orchestrator.em import user_deck as ud
-    from pulseform.solvers.getdp.template import read_solutions
 
     folder = _case(tmp_path, edit=_left_to_the_deck)
     r = pulseform("check", str(folder), "--set", "geometry.parameters.Sigma_Sheet=3e7")
@@ -255,31 +254,9 @@ def test_a_deck_constant_changed_through_set_reaches_both_sides(tmp_path):
     model = ud.user_em_model(case, geometry.deck_values)
     assert model.conductors[0].sigma == pytest.approx(3e7, rel=1e-12) and model.coils[0].turns == pytest.approx(5)
     solver = ud.make_solver(case, model, work / "em", deck_ids=geometry.deck_ids)
-    state, results = solver.initial_state(0.0), []
-    for k in range(1, 5):
-        result, state = solver.step(geometry.mesh, state, k * 0.5e-6)
-        results.append(result)
-
-    def plain(name: str, *numbers: str) -> list:
-        out = tmp_path / name
-        out.mkdir()
-        argv = [shutil.which("getdp"), str(folder / "current_template.pro"), "-msh",
-                str(Path(results[0].path) / "mesh.msh"), "-name", str(out / "plain"), *numbers,
-                "-setnumber", "TimeFinal", "2e-6", "-solve", "Magnetodynamics2D_av", "-v", "2"]
-        p = subprocess.run(argv, cwd=out, capture_output=True, text=True, timeout=300, check=False)
-        assert p.returncode == 0 and "Error" not in p.stdout, p.stdout[-2000:]
-        return read_solutions(out / "plain.res")
-
-    def largest(reference: list) -> float:
-        assert len(reference) == len(results) == 4
-        worst = 0.0
-        for result, (t_ref, x_ref) in zip(results, reference):
-            t, x = read_solutions(Path(result.path) / "em.res")[-1]
-            assert t == pytest.approx(t_ref, rel=1e-12)
-            worst = max(worst, float(np.abs(x - x_ref).max() / np.abs(x_ref).max()))
-        return worst
-
-    same, other = largest(plain("set", "-setnumber", "Sigma_Sheet", "3e7")), largest(plain("own"))
+    results = four_steps(solver, geometry.mesh)
+    same = worst_vs_plain_getdp(tmp_path, folder / "current_template.pro", results, "set", "-setnumber", "Sigma_Sheet", "3e7")
+    other = worst_vs_plain_getdp(tmp_path, folder / "current_template.pro", results, "own")
     print(f"against plain getdp -setnumber Sigma_Sheet 3e7: {same:.1e}; against the deck's own 2.5e7: {other:.1e}")
     assert same <= 1e-9 and other > 1e-4
 

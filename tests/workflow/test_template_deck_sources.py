@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import math
 import shutil
-import subprocess
 import tomllib
 from pathlib import Path
 
@@ -27,7 +26,7 @@ import tomli_w
 from pulseform.orchestrator.case.io import CaseError, load_case
 from pulseform.orchestrator.em.deck_sources import damped_sine_from_samples
 
-from wf_helpers import REPO, one_line_error, pulseform
+from wf_helpers import REPO, four_steps, one_line_error, pulseform, worst_vs_plain_getdp
 
 CASE = REPO / "cases/template_sheet_bulge"
 LIBRARY = REPO / "cases/user_deck_sheet_bulge"
@@ -92,7 +91,6 @@ def test_a_bank_left_to_the_deck_is_read_and_set_changes_both(tmp_path):
     from pulseform.orchestrator.em.deck_sources import with_deck_sources
     from pulseform.orchestrator.em.template_deck import deck_summary
     from pulseform.orchestrator.run.plots import columns_without_meaning
-    from pulseform.solvers.getdp.template import read_solutions
 
     case, _ = load_case(CASE, ["geometry.parameters.V0=5e3"])
     assert case.em.circuit is None and columns_without_meaning(case) == {"capacitor_voltage_V"}
@@ -108,31 +106,9 @@ def test_a_bank_left_to_the_deck_is_read_and_set_changes_both(tmp_path):
     model = ud.user_em_model(case, geometry.deck_values)
     assert (model.circuit.C, model.circuit.V0) == (50e-6, 5e3)
     solver = ud.make_solver(case, model, work / "em", deck_ids=geometry.deck_ids)
-    state, results = solver.initial_state(0.0), []
-    for k in range(1, 5):
-        result, state = solver.step(geometry.mesh, state, k * 0.5e-6)
-        results.append(result)
-
-    def plain(name: str, *numbers: str) -> list:
-        out = tmp_path / name
-        out.mkdir()
-        argv = [shutil.which("getdp"), str(CASE / "sheet_bulge_template.pro"), "-msh",
-                str(Path(results[0].path) / "mesh.msh"), "-name", str(out / "plain"), *numbers,
-                "-setnumber", "TimeFinal", "2e-6", "-solve", "Magnetodynamics2D_av", "-v", "2"]
-        p = subprocess.run(argv, cwd=out, capture_output=True, text=True, timeout=300, check=False)
-        assert p.returncode == 0 and "Error" not in p.stdout, p.stdout[-2000:]
-        return read_solutions(out / "plain.res")
-
-    def largest(reference: list) -> float:
-        assert len(reference) == len(results) == 4
-        worst = 0.0
-        for result, (t_ref, x_ref) in zip(results, reference):
-            t, x = read_solutions(Path(result.path) / "em.res")[-1]
-            assert t == pytest.approx(t_ref, rel=1e-12)
-            worst = max(worst, float(np.abs(x - x_ref).max() / np.abs(x_ref).max()))
-        return worst
-
-    same, other = largest(plain("set", "-setnumber", "V0", "5e3")), largest(plain("own"))
+    results = four_steps(solver, geometry.mesh)
+    same = worst_vs_plain_getdp(tmp_path, CASE / "sheet_bulge_template.pro", results, "set", "-setnumber", "V0", "5e3")
+    other = worst_vs_plain_getdp(tmp_path, CASE / "sheet_bulge_template.pro", results, "own")
     print(f"against plain getdp -setnumber V0 5e3: {same:.1e}; against the deck's own 6 kV: {other:.1e}")
     assert same <= 1e-9 and other > 1e-4
 
