@@ -60,14 +60,15 @@ class LocalExecutor:
     def run(self, case: str, members: list, sets: list[str], on_done: Callback, on_start: Callback) -> None:
         from .sweep import run_member
 
-        with warm_pool(self.folder) as pool:  # its imports overlap the members' checks
-            self.figures = import_in_background("matplotlib.pyplot", after=pool)  # for the study's figures
+        with warm_pool(self.folder) as pool:
+            figures = import_in_background("matplotlib.pyplot", after=pool)  # for the study's figures at the end
 
             def one(m):
                 on_start(m)
                 on_done(run_member(case, m, sets, pool))
 
             run_all(one, members, self.jobs, pool)
+        figures.join()  # matplotlib.use on a half-imported pyplot fails
 
 
 class MPIExecutor:

@@ -160,7 +160,8 @@ def run_sweep(case: str, params: list[str] | StudySpec, out: Path, *, jobs: int 
                                               f"{'ok' if m.returncode == 0 else f'FAILED({m.returncode})'}")
 
         try:
-            executor.run(case, runnable, sets, done, progress.started)
+            if runnable:
+                executor.run(case, runnable, sets, done, progress.started)
         finally:
             progress.close()
         _finish(case, todo, parsed, keys, spec, objective, constraints, results)

@@ -1,0 +1,114 @@
+"""Issue 36: studies that resume and extend (members named by the hash of their resolved case), a failed member
+re-run only when asked, the answer (study.json, report.md, pictures), and the Dask backend giving the local
+backend's table. Members: the bar impact on 0.25 m elements for 20 µs (~0.5 s each)."""
+
+from __future__ import annotations
+
+import csv
+import json
+import re
+
+import pytest
+
+from warm_cli import pulseform_cli
+from wf_helpers import REPO
+
+CASE = str(REPO / "cases/bar_impact")
+SMALL = ["--set", "bodies.left.mesh_size=0.25", "--set", "bodies.right.mesh_size=0.25", "--set", "time.end=2e-5",
+         "--set", "output.field_interval=1e-5"]
+SOBOL = ["--design", "sobol", "--seed", "3", "--param", "time.cfl=0.3:0.9", "--param",
+         "materials.paper_al.density=2000:3000"]
+#: wall times and the member's worker differ from run to run; everything else of the table must not
+VARYING = re.compile(r".*(_time_s|_transfer_s|_mesh_motion_s|_getdp_process_s|_getdp_io_s)$|worker")
+
+
+def _table(out) -> list[dict]:
+    return [{k: v for k, v in row.items() if not VARYING.fullmatch(k)} for row in csv.DictReader(open(out / "sweep.csv"))]
+
+
+def _records(out) -> dict[str, bytes]:
+    return {p.parent.name: p.read_bytes() for p in out.glob("*/member.json")}
+
+
+def test_a_study_resumes_and_extends_running_only_the_members_it_lacks(tmp_path):
+    out = tmp_path / "st"
+    r = pulseform_cli(["sweep", CASE, "--out", out, "--sample", "4", *SOBOL, *SMALL, "--jobs", "2"])
+    assert r.returncode == 0, r.stderr[-3000:]
+    first, table4 = _records(out), _table(out)
+    assert len(first) == 4 and len(table4) == 4
+    # a study killed while a member ran: that member has no record yet (nor its results)
+    lost = json.loads((out / "design.json").read_text())["members"][1]["folder"]
+    for name in ("member.json", "metrics.json"):
+        (out / lost / name).unlink()
+    r = pulseform_cli(["sweep", CASE, "--out", out, "--resume", "--sample", "4", *SOBOL, *SMALL])
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert "3 of 4 members need not run" in r.stderr
+    again = _records(out)
+    assert {k: v for k, v in again.items() if k != lost} == {k: v for k, v in first.items() if k != lost}
+    assert _table(out) == table4  # the table rebuilt from the folders: the uninterrupted study's
+    # extended: a Sobol design of 6 starts with the 4 points of the design of 4
+    r = pulseform_cli(["sweep", CASE, "--out", out, "--resume", "--sample", "6", *SOBOL, *SMALL])
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert "4 of 6 members need not run" in r.stderr
+    table6 = _table(out)
+    assert table6[:4] == table4 and len(table6) == 6
+    assert {k: v for k, v in _records(out).items() if k in again} == again  # the first four did not run again
+    # the answer: each metric's sensitivities and surface, the pictures
+    study = json.loads((out / "study.json").read_text())
+    stress = study["answer"]["metrics"]["left_max_von_mises_MPa"]
+    assert stress["n"] == 6 and stress["ranking"][0] == "materials.paper_al.density"  # the wave's ρc: density
+    assert stress["surface"]["loo_rmse"] > 0 and set(stress["sobol_total"]) == {"time.cfl", "materials.paper_al.density"}
+    assert "| 1 | materials.paper_al.density |" in (out / "report.md").read_text()
+    for name in ("study_scatter.png", "study_sensitivity.png", "study_surface_left_max_von_mises_MPa.png"):
+        assert (out / "plots" / name).is_file()
+
+
+def test_a_failed_member_is_run_again_only_when_asked(tmp_path):
+    """3 km/s into the contact layer stops the solver (exit 1); cfl 2 is refused by validation (exit 2, no folder);
+    each has its line in the table; --resume leaves the failure, --resume --retry-failed runs it again."""
+    out = tmp_path / "st"
+    grid = ["--param", "bodies.left.initial_velocity=[10.0, 0.0],[3000.0, 0.0]", "--param", "time.cfl=0.5,2.0"]
+    r = pulseform_cli(["sweep", CASE, "--out", out, *grid, *SMALL])
+    assert r.returncode == 1, r.stderr[-3000:]
+    rows = {(row["bodies.left.initial_velocity"], row["time.cfl"]): row["returncode"]
+            for row in csv.DictReader(open(out / "sweep.csv"))}
+    assert rows == {("[10.0, 0.0]", "0.5"): "0", ("[3000.0, 0.0]", "0.5"): "1",
+                    ("[10.0, 0.0]", "2.0"): "2", ("[3000.0, 0.0]", "2.0"): "2"}
+    before = _records(out)
+    assert len(before) == 2  # the refused members have no folder
+    r = pulseform_cli(["sweep", CASE, "--out", out, "--resume", *grid, *SMALL])
+    assert r.returncode == 1 and "4 of 4 members need not run (done, failed or rejected)" in r.stderr, r.stderr[-2000:]
+    assert _records(out) == before
+    r = pulseform_cli(["sweep", CASE, "--out", out, "--resume", "--retry-failed", *grid, *SMALL])
+    assert r.returncode == 1 and "runs again (it failed)" in r.stderr, r.stderr[-2000:]
+    after = _records(out)
+    failed = next(k for k in before if k.startswith("initial_velocity-3000"))
+    assert after[failed] != before[failed]  # run again (a new worker)
+    assert {k: v for k, v in after.items() if k != failed} == {k: v for k, v in before.items() if k != failed}
+
+
+def test_study_arguments_are_bad_input(tmp_path):
+    """One line, exit 2, nothing run: a range without --sample, --retry-failed without --resume, a bad objective."""
+    cases = [(["--param", "time.cfl=0.3:0.9"], "--sample"),
+             (["--param", "time.cfl=0.5", "--retry-failed"], "--retry-failed"),
+             (["--param", "time.cfl=0.3:0.9", "--sample", "4", "--objective", "most:x"], "--objective")]
+    for extra, word in cases:
+        r = pulseform_cli(["sweep", CASE, "--out", tmp_path / "x", *extra])
+        lines = r.stderr.strip().splitlines()
+        assert r.returncode == 2 and len(lines) == 1 and word in lines[0], r.stderr
+    assert not (tmp_path / "x").exists()
+
+
+@pytest.mark.parametrize("backend", ["dask"])
+def test_the_dask_backend_gives_the_local_table(tmp_path, backend):
+    """The same study through dask.distributed (a LocalCluster of 2 workers) and through local processes."""
+    pytest.importorskip("distributed")
+    tables = []
+    for executor in ("local", backend):
+        out = tmp_path / executor
+        r = pulseform_cli(["sweep", CASE, "--out", out, "--sample", "4", *SOBOL, *SMALL, "--jobs", "2",
+                           "--executor", executor])
+        assert r.returncode == 0, r.stderr[-3000:]
+        tables.append(_table(out))
+    assert tables[0] == tables[1] and len(tables[0]) == 4
+    assert "dask.distributed: 2 worker threads" in r.stderr
