@@ -1,8 +1,8 @@
 """A study's pictures of its answer (:mod:`.study_answer`), in ``OUT/plots/``:
 
 - ``study_scatter.png``: each headline metric (rows) against each numeric parameter (columns), the members;
-- ``study_sensitivity.png``: per metric, bars of |SRC| (members, linear) and S_T (the surface's total Sobol index)
-  per parameter;
+- ``study_sensitivity.png``: per metric, bars of SRC² (the members' linear share of the variance) and S_T (the
+  surface's total Sobol index) per parameter;
 - ``study_surface_<metric>.png``: the response surface of a metric (the objective's, else the first) over its two
   most influential parameters (the others at the middle of their range), the members on it.
 """
@@ -54,7 +54,7 @@ def plot_study(members: list, answer: dict, folder: Path, focus: str | None = No
     x = np.arange(len(keys))
     for ax, name in zip(axes[:, 0], names):
         r = good[name]
-        ax.bar(x - 0.2, [abs(r["src"][k]) for k in keys], 0.4, label=f"|SRC| (linear R² {r['r2_linear']:.2f})")
+        ax.bar(x - 0.2, [r["src"][k] ** 2 for k in keys], 0.4, label=f"SRC² (members, linear R² {r['r2_linear']:.2f})")
         ax.bar(x + 0.2, [r["sobol_total"][k] for k in keys], 0.4,
                label=f"S_T of the {r['surface']['kind']} surface (LOO {100 * r['surface']['loo_rmse_rel_std']:.2g} % std)")
         ax.set_xticks(x, [k.split(".")[-1] for k in keys], fontsize=8)
