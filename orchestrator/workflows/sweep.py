@@ -140,7 +140,8 @@ def run_sweep(case: str, params: list[str] | StudySpec, out: Path, *, jobs: int 
     executor = make_executor(spec.executor, spec.jobs, address=spec.address)
     results = ResultsFolder(out, force=force and not spec.resume, resume=spec.resume)
     sets = list(overrides or [])
-    todo = _members(case, points, sets, results.root)
+    where = str(resolve_case_file(case).resolve())  # members may run elsewhere (a cluster's workers): absolute paths
+    todo = _members(where, points, sets, results.root.resolve())
     if hasattr(executor, "folder"):  # the local backend's warm process logs to the study's folder
         executor.folder = results.root
     store.write_design(results.root, parsed, spec.sample, spec.design, spec.seed, todo)
@@ -161,7 +162,7 @@ def run_sweep(case: str, params: list[str] | StudySpec, out: Path, *, jobs: int 
 
         try:
             if runnable:
-                executor.run(case, runnable, sets, done, progress.started)
+                executor.run(where, runnable, sets, done, progress.started)
         finally:
             progress.close()
         _finish(case, todo, parsed, keys, spec, objective, constraints, results)

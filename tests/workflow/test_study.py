@@ -99,6 +99,7 @@ def test_study_arguments_are_bad_input(tmp_path):
     assert not (tmp_path / "x").exists()
 
 
+@pytest.mark.slow  # ~13 s (a LocalCluster's start and cold members); tests/workflow/test_study_demo.py: 32 members
 @pytest.mark.parametrize("backend", ["dask"])
 def test_the_dask_backend_gives_the_local_table(tmp_path, backend):
     """The same study through dask.distributed (a LocalCluster of 2 workers) and through local processes."""
@@ -112,3 +113,44 @@ def test_the_dask_backend_gives_the_local_table(tmp_path, backend):
         tables.append(_table(out))
     assert tables[0] == tables[1] and len(tables[0]) == 4
     assert "dask.distributed: 2 worker threads" in r.stderr
+
+
+def test_a_members_hash_is_its_resolved_case_and_the_files_it_names(tmp_path):
+    """The same resolved case, the same member (a comment or a --set of the file's own value change nothing); a value
+    or a deck's content that changes makes another member."""
+    import shutil
+
+    from pulseform.orchestrator.workflows.study_store import member_hash
+
+    bar = tmp_path / "bar"
+    shutil.copytree(REPO / "cases/bar_impact", bar)
+    h = member_hash(bar, ["time.cfl=0.4"])
+    assert member_hash(bar, ["time.cfl=0.4", "time.end=2.2e-3"]) == h  # the file's own end time
+    (bar / "case.toml").write_text("# a comment\n" + (bar / "case.toml").read_text())
+    assert member_hash(bar, ["time.cfl=0.4"]) == h
+    assert member_hash(bar, ["time.cfl=0.41"]) != h
+    deck = tmp_path / "deck"
+    shutil.copytree(REPO / "cases/user_deck_sheet_bulge", deck)
+    d = member_hash(deck, [])
+    pro = deck / "sheet_bulge.pro"
+    pro.write_text(pro.read_text() + "\n// edited\n")
+    assert member_hash(deck, []) != d
+
+
+def test_without_dask_the_dask_backend_is_refused_in_one_line(tmp_path, monkeypatch, capsys):
+    import builtins
+
+    from pulseform.orchestrator.cli import main
+
+    real = builtins.__import__
+
+    def no_distributed(name, *args, **kwargs):
+        if name == "distributed" or name.startswith("distributed."):
+            raise ImportError(f"No module named {name!r}")
+        return real(name, *args, **kwargs)
+
+    monkeypatch.setattr(builtins, "__import__", no_distributed)
+    code = main(["sweep", CASE, "--out", str(tmp_path / "x"), "--executor", "dask", "--param", "time.cfl=0.5"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and not (tmp_path / "x").exists()
+    assert len(err) == 1 and "dask.distributed is not installed" in err[0] and "python3-distributed" in err[0], err
