@@ -10,7 +10,9 @@ file or deck makes a new one.
 When a member ends, the study writes ``member.json`` in its folder (its values, hash, exit code, error, log
 tail, worker); the table ``sweep.csv`` is rebuilt from these records and the members' ``metrics.json``. At the
 start, ``design.json`` lists the design (its arguments, every member's values and folder). A member is **done**
-when its record says exit 0; **failed** with any other exit code (re-run only when asked: ``retry_failed``); a
+when its record says exit 0, or it has no record but its run's ``metrics.json`` says ``ok`` (a run that ended after
+its study was killed, or on a remote worker of a stopped study: its folder's name is its case's hash, so the
+result is this member's; the study records it then); **failed** with any other exit code (re-run only when asked: ``retry_failed``); a
 member that was stopped (its run's ``metrics.json`` status ``interrupted`` with a ``checkpoint.npz``) continues
 from its checkpoint (``pulseform run --resume``); any other member (never started, or its study was killed
 before it ended) runs from the start.
@@ -118,6 +120,11 @@ def member_state(member) -> str:
             return "done"
         if not stopped:
             return "failed"
+    elif _status(member.out) == "ok":  # its run ended well but its study did not record it (killed, a remote worker)
+        member.returncode, member.error, member.log_tail = 0, "", ""
+        member.metrics = _metrics(member.out)
+        write_record(member)
+        return "done"
     return "stopped" if stopped else "new"
 
 

@@ -36,15 +36,21 @@ def test_a_study_resumes_and_extends_running_only_the_members_it_lacks(tmp_path)
     assert r.returncode == 0, r.stderr[-3000:]
     first, table4 = _records(out), _table(out)
     assert len(first) == 4 and len(table4) == 4
-    # a study killed while a member ran: that member has no record yet (nor its results)
-    lost = json.loads((out / "design.json").read_text())["members"][1]["folder"]
+    # a study killed while a member ran: that member has no record yet (nor its results); another one ended just
+    # as the study died: its run's metrics.json says ok, but the study did not record it
+    folders = [m["folder"] for m in json.loads((out / "design.json").read_text())["members"]]
+    lost, ended = folders[1], folders[2]
     for name in ("member.json", "metrics.json"):
         (out / lost / name).unlink()
+    (out / ended / "member.json").unlink()
+    mtime = (out / ended / "metrics.json").stat().st_mtime_ns
     r = pulseform_cli(["sweep", CASE, "--out", out, "--resume", "--sample", "4", *SOBOL, *SMALL])
     assert r.returncode == 0, r.stderr[-3000:]
     assert "3 of 4 members need not run" in r.stderr
     again = _records(out)
-    assert {k: v for k, v in again.items() if k != lost} == {k: v for k, v in first.items() if k != lost}
+    same = set(first) - {lost, ended}
+    assert {k: again[k] for k in same} == {k: first[k] for k in same}
+    assert json.loads(again[ended])["returncode"] == 0 and (out / ended / "metrics.json").stat().st_mtime_ns == mtime
     assert _table(out) == table4  # the table rebuilt from the folders: the uninterrupted study's
     # extended: a Sobol design of 6 starts with the 4 points of the design of 4
     r = pulseform_cli(["sweep", CASE, "--out", out, "--resume", "--sample", "6", *SOBOL, *SMALL])
