@@ -163,7 +163,7 @@ def _drain(futures: dict, on_done: Callback, on_start: Callback, slots: int, can
                 cancel(list(todo))
                 signum = interrupt.pending()
                 raise StudyInterrupted(signum, f"interrupted by {_name(signum)}: the members not started were "
-                                       "cancelled; `--resume` runs what is left")
+                                       "cancelled")
             if not finished:
                 time.sleep(0.1)
 

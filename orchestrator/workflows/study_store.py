@@ -12,7 +12,8 @@ tail, worker); the table ``sweep.csv`` is rebuilt from these records and the mem
 start, ``design.json`` lists the design (its arguments, every member's values and folder). A member is **done**
 when its record says exit 0, or it has no record but its run's ``metrics.json`` says ``ok`` (a run that ended after
 its study was killed, or on a remote worker of a stopped study: its folder's name is its case's hash, so the
-result is this member's; the study records it then); **failed** with any other exit code (re-run only when asked: ``retry_failed``); a
+result is this member's; the study records it then) or its record says it was stopped by a signal after its run
+ended (``metrics.json`` ``ok``); **failed** with any other exit code (re-run only when asked: ``retry_failed``); a
 member that was stopped (its run's ``metrics.json`` status ``interrupted`` with a ``checkpoint.npz``) continues
 from its checkpoint (``pulseform run --resume``); any other member (never started, or its study was killed
 before it ended) runs from the start.
@@ -39,6 +40,8 @@ RECORD = "member.json"
 DESIGN = "design.json"
 TABLE = "sweep.csv"
 HASH_DIGITS = 12
+#: exit codes of a member ended by a stop signal (SIGINT, SIGTERM: handled, 128 + n, or not, -n)
+_STOPPED = (130, 143, -2, -15)
 #: the record's fields copied to and from a member
 _FIELDS = ("returncode", "error", "worker", "log_tail")
 
@@ -117,6 +120,11 @@ def member_state(member) -> str:
             setattr(member, k, record.get(k, getattr(member, k)))
         member.metrics = _metrics(member.out)
         if record["returncode"] == 0:
+            return "done"
+        if record["returncode"] in _STOPPED and _status(member.out) == "ok":  # the stop came after its run ended
+            log.info("member %d (%s): its run had ended before the stop signal", member.index, member.out.name)
+            member.returncode, member.error, member.log_tail = 0, "", ""
+            write_record(member)
             return "done"
         if not stopped:
             return "failed"

@@ -24,7 +24,7 @@ import threading
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..case.io import CaseError, load_case, resolve_case_file
+from ..case.io import CaseError, resolve_case_file
 from ..run.children import member_env, run_pulseform
 from ..run.progress import StudyProgress
 from ..run.results import ResultsFolder, atomic_write_text
@@ -32,7 +32,7 @@ from ..run.units import label
 from ..run.warm import StudyInterrupted, WarmPool, failure_report, member_run_argv
 from . import study_store as store
 from .designs import Param, design_points, parse_params
-from .executors import ExecutorError, make_executor, serve_mpi_workers  # noqa: F401 - the CLI's MPI workers
+from .executors import make_executor, serve_mpi_workers  # noqa: F401 - serve_mpi_workers: the CLI's MPI workers
 
 log = logging.getLogger(__name__)
 

@@ -160,3 +160,35 @@ def test_without_dask_the_dask_backend_is_refused_in_one_line(tmp_path, monkeypa
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and not (tmp_path / "x").exists()
     assert len(err) == 1 and "dask.distributed is not installed" in err[0] and "python3-distributed" in err[0], err
+
+
+@pytest.mark.parametrize("record, status, checkpoint, state", [
+    (None, None, False, "new"),                       # never started (or killed before it wrote anything)
+    (None, "interrupted", True, "stopped"),           # stopped at a checkpoint, its study killed before recording
+    (None, "ok", False, "done"),                      # ended well, its study killed before recording it
+    (0, "ok", False, "done"),
+    (1, "failed", False, "failed"),
+    (-9, "interrupted", False, "failed"),             # killed without a checkpoint
+    (143, "interrupted", True, "stopped"),            # SIGTERM: continues from its checkpoint
+    (-2, "ok", False, "done"),                        # SIGINT after its run ended
+    (0, "ok", False, "new"),                          # ... but the record of another case (hash): runs again
+])
+def test_what_a_member_folder_says(tmp_path, record, status, checkpoint, state):
+    from pulseform.orchestrator.workflows.study_store import member_state
+    from pulseform.orchestrator.workflows.sweep import Member
+
+    m = Member(0, {"time.cfl": "0.5"}, tmp_path / "m", digest="abc")
+    m.out.mkdir()
+    if record is not None:
+        other = state == "new"
+        (m.out / "member.json").write_text(json.dumps({"hash": "xyz" if other else "abc", "returncode": record}))
+        if other:
+            status = None
+    if status is not None:
+        (m.out / "metrics.json").write_text(json.dumps({"status": status, "end_time_s": 1e-4}))
+    if checkpoint:
+        (m.out / "checkpoint.npz").write_bytes(b"")
+    assert member_state(m) == state
+    if state == "done":
+        assert m.returncode == 0 and json.loads((m.out / "member.json").read_text())["returncode"] == 0
+        assert m.metrics == {"end_time_s": 1e-4}
