@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import csv
 import json
+import os
 import re
 
 import pytest
@@ -192,3 +193,30 @@ def test_what_a_member_folder_says(tmp_path, record, status, checkpoint, state):
     if state == "done":
         assert m.returncode == 0 and json.loads((m.out / "member.json").read_text())["returncode"] == 0
         assert m.metrics == {"end_time_s": 1e-4}
+
+
+@pytest.mark.getdp
+def test_a_member_whose_getdp_fails_fails_alone(tmp_path):
+    """A getdp on PATH that fails for one bank (C_bank = 44 µF: 'Error : ...', exit 1) and runs the real one
+    otherwise: that member fails with getdp's error in its line of the table, the other succeeds."""
+    import shutil
+
+    real = shutil.which("getdp")
+    if real is None:
+        pytest.skip("getdp not found")
+    fake = tmp_path / "bin" / "getdp"
+    fake.parent.mkdir()
+    fake.write_text('#!/bin/sh\ncase "$*" in *"C_bank 4.4e-05 "*) echo "Error   : fake getdp failure" >&2; exit 1;; '
+                    f'esac\nexec {real} "$@"\n')
+    fake.chmod(0o755)
+    out = tmp_path / "st"
+    r = pulseform_cli(["sweep", str(REPO / "cases/emf_sheet_bulge"), "--out", out, "--quiet",
+                       "--param", "em.circuit.capacitance=5e-5,4.4e-5", "--set", "geometry.mesh_size_sheet=1e-3",
+                       "--set", "geometry.mesh_size_coil=2e-3", "--set", "time.end=4e-6",
+                       "--set", "output.field_interval=2e-6"],
+                      env={"PATH": f"{fake.parent}:{os.environ['PATH']}"})
+    assert r.returncode == 1, r.stderr[-3000:]
+    rows = {row["em.circuit.capacitance"]: row for row in csv.DictReader(open(out / "sweep.csv"))}
+    assert rows["5e-5"]["returncode"] == "0" and float(rows["5e-5"]["max_deflection_mm"]) > 0
+    assert rows["4.4e-5"]["returncode"] == "1" and "getdp" in rows["4.4e-5"]["error"], rows["4.4e-5"]
+    assert "Traceback" not in r.stderr
