@@ -92,3 +92,24 @@ def test_best_member_under_constraints():
         parse_objective("biggest:defl")
     with pytest.raises(AnswerError):
         parse_constraint("stress<<3")
+
+
+def test_study_progress_counts_and_time_left(caplog, monkeypatch):
+    """Counts done / failed / running and the time left: the members left over the rate of this session's ends."""
+    import logging
+    import time
+
+    from pulseform.orchestrator.run import progress
+
+    clock = iter([0.0, 10.0, 20.0])
+    monkeypatch.setattr(time, "perf_counter", lambda: next(clock))
+    p = progress.StudyProgress(6, already=(1, 1), quiet=True)  # a resumed study: 2 of 6 ended before
+    p.started()
+    p.started()
+    with caplog.at_level(logging.INFO, logger="pulseform.orchestrator.run.progress"):
+        p.ended(True, "member 2 ok")      # t = 10 s: 1 end in 10 s, 3 left -> 30 s
+        assert (p.done, p.failed, p.running) == (2, 1, 1) and p.eta_s == pytest.approx(30.0)
+        p.ended(False, "member 3 FAILED(1)")  # t = 20 s: 2 ends in 20 s, 2 left -> 20 s
+    assert (p.done, p.failed, p.running) == (2, 2, 0) and p.eta_s == pytest.approx(20.0)
+    assert caplog.messages[-1] == "member 3 FAILED(1): 4/6 ended (done 2, failed 2, running 0; ~20 s left)"
+    p.close()
