@@ -123,16 +123,18 @@ def test_a_stopped_sweep_stops_its_members_at_a_safe_point(tmp_path, how):
     assert member_dir(out, 1) is None and member_dir(out, 2) is None  # never started
     if sig != signal.SIGTERM:
         return
-    # issue 36: `--resume` continues the stopped member from its checkpoint and runs the two it lacks
+    # issue 36: `--resume` continues the stopped member from its checkpoint (the design narrowed to that member, to
+    # keep the test short: the same resolved case, the same folder; tests/workflow/test_study_demo.py resumes a
+    # whole study)
     r = subprocess.run([EXE, "sweep", *CORNER[2:3], *CORNER[4:], "--out", str(out), "--resume",
-                        "--param", "time.end=3.0e-4,3.1e-4,3.2e-4"], capture_output=True, text=True, timeout=600)
+                        "--param", "time.end=3.0e-4"], capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, r.stderr[-3000:]
     assert "member 0 (" in r.stderr and "continues from its checkpoint" in r.stderr, r.stderr[-3000:]
     rows = list(csv.DictReader(open(out / "sweep.csv")))
-    assert [row["returncode"] for row in rows] == ["0", "0", "0"], rows
+    assert [row["returncode"] for row in rows] == ["0"], rows
     m = json.loads((first() / "metrics.json").read_text())
     assert m["status"] == "ok" and m["end_time_s"] == pytest.approx(3.0e-4)
-    assert "resum" in (first() / "run.log").read_text().lower()
+    assert "resumed at t" in (first() / "run.log").read_text()
 
 
 def test_without_a_warm_process_members_run_on_their_own(tmp_path, monkeypatch):
