@@ -14,6 +14,7 @@ import sys
 from pathlib import Path
 
 from . import __version__
+from .cli_sweep import add_sweep_parser
 from .console_log import setup_console_logging
 from .run.interrupt import StudyInterrupted
 
@@ -45,22 +46,7 @@ def _parser() -> argparse.ArgumentParser:
     check.add_argument("case", metavar="CASE")
     check.add_argument("--set", metavar="KEY.PATH=VALUE", action="append", default=[], dest="overrides")
 
-    sweep = sub.add_parser("sweep", help="run a case over a grid of parameter values",
-                           description="Run CASE for every combination of the --param values (full grid); "
-                                       "each member a `pulseform run` in OUT/<member>/, forked from a process that holds the "
-                                       "libraries, without pictures unless --set output.plots=true (`pulseform plot "
-                                       "OUT/<member>` draws them). Writes OUT/sweep.csv and OUT/plots/sweep_*.png.")
-    sweep.add_argument("case", metavar="CASE")
-    sweep.add_argument("--param", metavar="KEY.PATH=V1,V2,...", action="append", required=True,
-                       help="a swept key and its values (repeatable: full grid)")
-    sweep.add_argument("--set", metavar="KEY.PATH=VALUE", action="append", default=[], dest="overrides",
-                       help="override applied to every member")
-    sweep.add_argument("--out", metavar="DIR", type=Path, help="sweep folder (default: results/<case>_sweep)")
-    sweep.add_argument("--jobs", type=int, default=1, metavar="N", help="members run at the same time (default 1)")
-    sweep.add_argument("--force", action="store_true", help="replace an existing sweep folder")
-    sweep.add_argument("--mpi", action="store_true",
-                       help="run the members through mpi4py.futures: start under mpirun -n N (N >= 2): rank 0 "
-                            "manages, ranks 1..N-1 run the members")
+    add_sweep_parser(sub)
 
     conv = sub.add_parser("converge", help="run a case on refined meshes and report the grid convergence index",
                           description="Run CASE on LEVELS meshes (every element size divided by RATIO per level; or "
@@ -269,15 +255,24 @@ def _cmd_check(args: argparse.Namespace) -> int:
 def _cmd_sweep(args: argparse.Namespace) -> int:
     from .case.io import CaseError, load_case
     from .run.results import ResultsExistError
-    from .workflows.sweep import run_sweep
+    from .workflows.executors import ExecutorError
+    from .workflows.study_answer import AnswerError
+    from .workflows.sweep import StudySpec, run_sweep
 
     if args.jobs < 1:
         return _error(f"--jobs: got {args.jobs}; must be >= 1", EXIT_BAD_INPUT)
-    if args.mpi:
+    if args.retry_failed and not args.resume:
+        return _error("--retry-failed: only with --resume (a new study has no failed member)", EXIT_BAD_INPUT)
+    if args.resume and args.force:
+        return _error("--resume and --force: choose one (continue the study, or replace it)", EXIT_BAD_INPUT)
+    if args.scheduler and args.executor != "dask":
+        return _error("--scheduler: only with --executor dask", EXIT_BAD_INPUT)
+    executor = "mpi" if args.mpi else args.executor
+    if executor == "mpi":
         from mpi4py import MPI
 
         if MPI.COMM_WORLD.Get_size() < 2:
-            return _error("--mpi: start the sweep under mpirun with at least 2 ranks (rank 0 manages, the "
+            return _error("--executor mpi: start the sweep under mpirun with at least 2 ranks (rank 0 manages, the "
                           "others run members), e.g. mpirun -n 3 pulseform sweep CASE --mpi --param ...; "
                           "without mpirun use --jobs N", EXIT_BAD_INPUT)
         if MPI.COMM_WORLD.Get_rank() > 0:  # mpirun -n N: ranks > 0 are the sweep's workers
@@ -285,21 +280,20 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
 
             serve_mpi_workers()
             return EXIT_OK
+    spec = StudySpec(args.param, sample=args.sample, design=args.design, seed=args.seed, executor=executor,
+                     jobs=args.jobs, address=args.scheduler, resume=args.resume, retry_failed=args.retry_failed,
+                     metrics=args.metric, objective=args.objective, constraints=args.constraint, quiet=args.quiet)
     try:
         case, _ = load_case(args.case, args.overrides)
         out = args.out or Path("results") / f"{case.case.name}_sweep"
-        todo = run_sweep(args.case, args.param, out, jobs=args.jobs, force=args.force, overrides=args.overrides,
-                         mpi=args.mpi)
-    except (CaseError, ResultsExistError) as exc:
+        todo = run_sweep(args.case, spec, out, force=args.force, overrides=args.overrides)
+    except (CaseError, ResultsExistError, ExecutorError, AnswerError) as exc:
         return _error(str(exc), EXIT_BAD_INPUT)
-    keys = list(todo[0].values)
-    shown = ("max_deflection_mm", "force_impulse_Ns", "em_time_s", "mech_time_s", "wall_time_s")
-    print("  ".join(f"{k:>14}" for k in keys + ["status", *shown]))
-    for m in todo:
-        status = "ok" if m.returncode == 0 else f"FAILED({m.returncode})"
-        vals = [f"{m.metrics[k]:14.6g}" if k in m.metrics else f"{'-':>14}" for k in shown]
-        print("  ".join([f"{m.values[k]:>14}" for k in keys] + [f"{status:>14}"] + vals))
-    failed = [m for m in todo if m.returncode != 0]
+    from .workflows.study_answer import summary_lines
+
+    for line in summary_lines(todo, out):
+        print(line)
+    failed = [m for m in todo if m.returncode not in (0, None)]
     for m in failed:
         print(f"member {m.index} ({' '.join(m.overrides)}): {m.error}", file=sys.stderr)
     print(f"table: {out / 'sweep.csv'}")

@@ -7,7 +7,7 @@ cd "$here"
 
 APT_PACKAGES=(getdp gmsh python3-gmsh python3-dolfinx python3-meshio python3-h5py python3-scipy
   python3-pytest python3-pytest-xdist python3-mpi4py python3-numba python3-matplotlib python3-hypothesis python3-tqdm
-  python3-tomli-w python3-jsonschema python3-venv python3-pip python3-setuptools python3-dev gcc
+  python3-tomli-w python3-jsonschema python3-dask python3-distributed python3-venv python3-pip python3-setuptools python3-dev gcc
   openmpi-bin libegl1 libegl-mesa0 libgl1-mesa-dri)  # the last three: VTK's off-screen rendering through Mesa (EGL)
 
 # shellcheck source=scripts/apt_install.sh

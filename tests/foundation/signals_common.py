@@ -30,6 +30,18 @@ def _wait_for(predicate, proc: subprocess.Popen | None = None, timeout: float = 
         time.sleep(0.005)
 
 
+def member_dir(out: Path, index: int) -> Path | None:
+    """The folder of member ``index`` of the study in ``out`` (named by its case's hash; listed in design.json, which
+    the study writes before any member starts), once it exists; else None."""
+    import json
+
+    try:
+        folder = out / json.loads((out / "design.json").read_text())["members"][index]["folder"]
+    except (OSError, ValueError, KeyError, IndexError):
+        return None
+    return folder if folder.is_dir() else None
+
+
 def _stepping(out: Path) -> bool:
     log = out / "run.log"
     return log.is_file() and "ExplicitSolver:" in log.read_text(errors="replace")

@@ -15,7 +15,7 @@ from datetime import datetime
 import pytest
 
 from pulseform.orchestrator.cli import main
-from signals_common import CORNER, EXE, REPO, TIMERS, _alive, _children, _stepping, _wait_for
+from signals_common import CORNER, EXE, REPO, TIMERS, _alive, _children, _stepping, _wait_for, member_dir
 
 
 @pytest.fixture(scope="module")
@@ -110,9 +110,9 @@ def test_sweep_killed_its_members_stop_with_a_checkpoint(tmp_path):
     out = tmp_path / "sweep"
     sweep = subprocess.Popen([EXE, "sweep", *CORNER[2:3], *CORNER[4:], "--param", "time.end=1.6e-4,1.7e-4",
                               "--out", str(out)], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    first = lambda: sorted(out.glob("000_*"))  # noqa: E731
-    _wait_for(lambda: first() and _stepping(first()[0]), sweep, what="the first member's first step")
-    member_out = first()[0]
+    first = lambda: member_dir(out, 0)  # noqa: E731
+    _wait_for(lambda: first() is not None and _stepping(first()), sweep, what="the first member's first step")
+    member_out = first()
     warm = _children(sweep.pid, "pulseform-warm")
     members = [p for w in warm for p in _children(w, "pulseform")]
     assert len(warm) == 1 and len(members) == 1, (warm, members)
