@@ -9,9 +9,9 @@ have B_n >= μ0 H_n (a magnetised material: B < μ0 H at the top of the curve is
 How GetDP receives it (``decks/em_magnetic.pro``): the reluctivity ν = H/B as a function of |b|², the list
 ``{|b|², ν, ...}`` interpolated linearly (``InterpolationLinear`` / ``dInterpolationLinear`` for the Newton
 Jacobian, as GetDP's ``Lib_Materials.pro``), sampled densely enough (:data:`SUBDIVISIONS` points per segment
-of the curve and a geometric vacuum tail) that the deck's h(b) follows the piecewise-linear curve to about
-1e-4 relative; and the energy density w(b) = ∫_0^b H dB' (J/m³; exact for the piecewise-linear curve) on the
-same |b|² points, for the magnetic energy.
+of the curve and a geometric vacuum tail) that the deck's h(b) follows the piecewise-linear curve to 2e-4
+relative (tests/getdp/test_magnetic.py); and the energy density w(b) = ∫_0^b H dB' (J/m³; exact for the
+piecewise-linear curve) on the same |b|² points, for the magnetic energy.
 
 Each region's choice reaches the deck as ``Cond_Mag_k`` / ``Core_Mag_k`` (0 vacuum, 1 μ_r, 2 curve) with
 ``Cond_MuR_k`` / ``Core_MuR_k`` or the lists ``Cond_BH_k`` / ``Cond_BHw_k`` (:func:`magnetic_inputs`).
@@ -27,8 +27,8 @@ from .runner import GetDPError
 
 MU0 = 4e-7 * math.pi   # H/m, as the decks' mu0 = 4e-7 * Pi
 #: points per segment of the curve in the deck's |b|² table
-SUBDIVISIONS = 16
-#: the vacuum tail of the deck's table reaches B_n + μ0 * TAIL_H (T): ~1.3e3 T, never reached
+SUBDIVISIONS = 64
+#: the vacuum tail of the deck's table reaches B_n + μ0 * TAIL_H (T; at least 1e3 H_n): ~1.3e3 T, never reached
 TAIL_H = 1e9
 
 __all__ = ["MU0", "BHCurve", "check_relative_permeability", "magnetic_inputs", "read_newton", "NewtonFailed"]
@@ -88,7 +88,9 @@ class BHCurve:
         """(|b|² T², ν m/H, w J/m³): the deck's tables (module docstring), |b|² strictly increasing from 0."""
         bb = np.asarray(self.b)
         parts = [np.linspace(bb[i], bb[i + 1], SUBDIVISIONS + 1)[:-1] for i in range(len(bb) - 1)]
-        tail = bb[-1] + np.geomspace(MU0 * 1.0, MU0 * TAIL_H, 40)
+        hn = max(self.h[-1], 1.0)   # the tail: dense up to 100 H_n (where H/B still changes), then geometric
+        tail = bb[-1] + MU0 * np.concatenate([np.geomspace(1e-3 * hn, 100 * hn, 256),
+                                              np.geomspace(100 * hn, max(TAIL_H, 1e3 * hn), 128)[1:]])
         b = np.concatenate(parts + [[bb[-1]], tail])
         nu = np.empty_like(b)
         nu[1:] = self.h_of_b(b[1:]) / b[1:]

@@ -1,0 +1,155 @@
+"""Magnetic materials (issue 35): a constant μ_r and a nonlinear B–H curve in GetDP, with Newton's iterations.
+
+Reference (analytic): a closed ring core of inner radius r1 and outer radius r2 around a round conductor of N
+turns carrying I (2D planar, circles concentric, a = 0 on a concentric outer circle: the field is exactly
+azimuthal) has H(r) = N I / (2 π r) by Ampère's law in the core whatever its material, and B = B(H) from
+the curve; the flux per metre through the core is Φ = ∫_{r1}^{r2} B(N I / (2 π r)) dr (quadrature of the
+analytic integrand), the FE's the difference of the nodal a_z on the core's two circles. The magnetic
+energy per metre: μ0 (N I)² / (16 π) in the conductor, (μ0 / 2) (N I / 2π)² 2π ln(r_out / r_in) in each air
+annulus, ∫ w(B(H(r))) 2π r dr in the core with w = ∫_0^B H dB'.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.integrate import quad
+
+from pulseform.solvers.getdp import Coil, Conductor, DampedSine, EMModel, GetDPSolver, Rect, coil_conductor_mesh
+from pulseform.solvers.getdp.bh_curve import MU0, BHCurve, NewtonFailed
+from pulseform.solvers.getdp.mesh import AIR, OUTER, _mesh_from_gmsh, coil_tag, core_tag, gmsh_session
+from pulseform.solvers.getdp.model import MagneticCore
+
+from getdp_testlib import needs_getdp
+
+R0, R1, R2, R_OUT = 5e-3, 20e-3, 30e-3, 60e-3   # conductor, core inner / outer, Dirichlet circle (m)
+NI = 500.0   # ampere-turns: H from 2653 to 3979 A/m in the core, the curve's knee
+#: a soft steel's shape (A/m, T); the first segment's μ_r is ~6400
+STEEL = BHCurve(h=(0, 100, 200, 400, 1000, 3000, 10000, 1e5), b=(0, 0.8, 1.1, 1.3, 1.45, 1.6, 1.75, 2.1))
+
+
+def _ring_core_mesh(h: float):
+    """The conductor disk (coil 1), the core annulus (core 1) and air out to R_OUT, triangles of size ``h``."""
+    with gmsh_session("ring_core") as gmsh:
+        occ = gmsh.model.occ
+        outer, coil = occ.addDisk(0, 0, 0, R_OUT, R_OUT), occ.addDisk(0, 0, 0, R0, R0)
+        core = occ.cut([(2, occ.addDisk(0, 0, 0, R2, R2))], [(2, occ.addDisk(0, 0, 0, R1, R1))])[0][0][1]
+        _, pieces = occ.fragment([(2, outer)], [(2, coil), (2, core)])
+        occ.synchronize()
+        coil_s, core_s = [p[1] for p in pieces[1]], [p[1] for p in pieces[2]]
+        air = [s for _, s in gmsh.model.getEntities(2) if s not in coil_s + core_s]
+        gmsh.model.addPhysicalGroup(2, coil_s, coil_tag(1))
+        gmsh.model.addPhysicalGroup(2, core_s, core_tag(1))
+        gmsh.model.addPhysicalGroup(2, air, AIR)
+        bnd = [abs(c) for _, c in gmsh.model.getBoundary([(2, s) for s in air], combined=True, oriented=False)]
+        gmsh.model.addPhysicalGroup(1, [c for c in bnd if gmsh.model.getBoundingBox(1, c)[3] > 0.9 * R_OUT], OUTER)
+        gmsh.option.setNumber("Mesh.MeshSizeMax", h)
+        gmsh.option.setNumber("Mesh.MeshSizeMin", h)
+        gmsh.model.mesh.generate(2)
+        return _mesh_from_gmsh(gmsh)
+
+
+@pytest.fixture(scope="module")
+def ring_mesh():
+    return _ring_core_mesh(1e-3)
+
+
+def _dc_model(core: MagneticCore, **kw) -> EMModel:
+    """A direct current N I switched on at t = 0: with no conductor, one implicit-Euler step is magnetostatics."""
+    wave = DampedSine(I0=NI / 100, beta=0.0, omega=0.0, phase=math.pi / 2)
+    return EMModel(axisymmetric=False, coils=[Coil(turns=100, waveform=wave)], cores=[core], **kw)
+
+
+def _core_flux(mesh, a_nodes) -> float:
+    """Flux per metre through the core (Wb/m): a_z on its inner circle minus a_z on its outer circle."""
+    r = np.hypot(*mesh.points.T)
+    return float(a_nodes[np.abs(r - R1) < 1e-9].mean() - a_nodes[np.abs(r - R2) < 1e-9].mean())
+
+
+def _energy(core_w) -> float:
+    """The analytic magnetic energy per metre (J/m), ``core_w(r)`` the core's energy density (J/m^3)."""
+    air = MU0 / 2 * (NI / (2 * math.pi)) ** 2 * 2 * math.pi * (math.log(R1 / R0) + math.log(R_OUT / R2))
+    return MU0 * NI ** 2 / (16 * math.pi) + air + quad(lambda r: core_w(r) * 2 * math.pi * r, R1, R2, limit=200)[0]
+
+
+def test_bh_curve_tables_follow_the_curve():
+    """The deck's ν(|b|²) table gives back H(B) of the piecewise-linear curve and its vacuum tail (2e-4), and
+    w(B) is the integral of H dB (the trapezoid rule on a fine grid)."""
+    b2, nu, w = STEEL.deck_tables()
+    assert np.all(np.diff(b2) > 0) and b2[0] == 0.0
+    b = np.concatenate([np.linspace(1e-3, 2.6, 2001), np.linspace(2.6, 50.0, 2001)])
+    h_deck = np.interp(b ** 2, b2, nu) * b
+    assert np.max(np.abs(h_deck / STEEL.h_of_b(b) - 1)) < 2e-4
+    assert STEEL.h_of_b(2.1 + MU0 * 1e4) == pytest.approx(1e5 + 1e4, rel=1e-12)   # the vacuum slope beyond
+    fine = np.linspace(0, 2.6, 200001)
+    hf = STEEL.h_of_b(fine)
+    assert STEEL.energy_density(2.6)[0] == pytest.approx(np.sum(0.5 * (hf[1:] + hf[:-1]) * np.diff(fine)), rel=1e-8)
+    assert np.allclose(STEEL.b_of_h(STEEL.h_of_b(b)), b, rtol=1e-12)
+
+
+@pytest.mark.parametrize("h,b,allowed", [
+    ((0, 400, 100), (0, 0.8, 1.3), "strictly increasing"), ((0, 100, 400), (0, 0.8, 0.7), "strictly increasing"),
+    ((0, 100, math.inf), (0, 0.8, 1.3), "finite"), ((0, -1, 100), (0, 0.1, 0.8), ">= 0"),
+    ((0, 100), (0, 0.8), "at least 2"), ((0, 100, 2e6), (0, 0.8, 1.0), "B >= mu0 H"), ((0, 1, 2), (0, 1), "as many")])
+def test_bad_bh_curves_are_refused(h, b, allowed):
+    with pytest.raises(ValueError, match=allowed):
+        BHCurve(h=h, b=b)
+
+
+@needs_getdp
+@pytest.mark.getdp
+def test_ring_core_nonlinear_matches_the_curve(ring_mesh, work):
+    """A nonlinear ring core (26,747 triangles of 1 mm): the flux per metre within 0.1 % of ∫ B(N I / 2πr) dr
+    and the magnetic energy within 0.5 % of the analytic one (the disks are polygons of 1 mm sides); Newton
+    converges from rest (a count of linear solves in the result)."""
+    solver = GetDPSolver(_dc_model(MagneticCore(bh_curve=STEEL), newton_tolerance=1e-10), work)
+    res, _ = solver.step(ring_mesh, solver.initial_state(), 1e-3, field_output=True)
+    phi = quad(lambda r: STEEL.b_of_h(NI / (2 * math.pi * r)), R1, R2, limit=200)[0]
+    assert _core_flux(ring_mesh, res.a_nodes) == pytest.approx(phi, rel=1e-3)
+    w = _energy(lambda r: STEEL.energy_density(STEEL.b_of_h(NI / (2 * math.pi * r)))[0])
+    assert res.magnetic_energy[-1] == pytest.approx(w, rel=5e-3)
+    assert len(res.newton_iterations) == 1 and 2 <= res.newton_iterations[0] <= 30
+
+
+@needs_getdp
+@pytest.mark.getdp
+def test_ring_core_linear_mu_r(ring_mesh, work):
+    """A linear core μ_r = 1000: Φ = μ0 μ_r N I ln(r2 / r1) / 2π within 0.1 %, no Newton iterations."""
+    solver = GetDPSolver(_dc_model(MagneticCore(mu_r=1000.0)), work)
+    res, _ = solver.step(ring_mesh, solver.initial_state(), 1e-3, field_output=True)
+    phi = MU0 * 1000.0 * NI * math.log(R2 / R1) / (2 * math.pi)
+    assert _core_flux(ring_mesh, res.a_nodes) == pytest.approx(phi, rel=1e-3)
+    assert res.newton_iterations is None
+
+
+@needs_getdp
+@pytest.mark.getdp
+def test_newton_that_stops_above_the_tolerance_is_one_line(ring_mesh, work):
+    """Newton's iterations cut at 1 from rest: the step fails with one line naming the keys, the run folder
+    (its tables, newton.txt) stays."""
+    solver = GetDPSolver(_dc_model(MagneticCore(bh_curve=STEEL), newton_max_iterations=1), work)
+    with pytest.raises(NewtonFailed) as err:
+        solver.step(ring_mesh, solver.initial_state(), 1e-3)
+    assert "\n" not in err.value.summary and "em.newton_max_iterations = 1" in err.value.summary
+    assert (err.value.run_dir / "out" / "newton.txt").is_file()
+
+
+@needs_getdp
+@pytest.mark.getdp
+def test_mu_r_one_through_the_magnetic_path_is_the_default(work):
+    """A conductor given μ_r = 1 through the per-region reluctivity (Cond_Mag_1 = 1, em_magnetic.pro) gives
+    the default deck's (nu[] = 1 / mu0 everywhere) force, energy and coil current to the last bit."""
+    mesh = coil_conductor_mesh([[Rect(0.02, -0.003, 0.024, 0.0)]], [Rect(0.0, 0.001, 0.04, 0.002)], r_domain=0.1,
+                               h_fine=1.5e-3)
+    model = EMModel(axisymmetric=True, coils=[Coil(turns=5, waveform=DampedSine(I0=1e4, beta=0.0, omega=1e5))],
+                    conductors=[Conductor(sigma=3e7)])
+    out = []
+    for k, extra in enumerate(({}, {"Cond_Mag_1": 1, "Cond_MuR_1": 1.0})):
+        s = GetDPSolver(model, work / str(k), extra_numbers=extra)
+        r1, st = s.step(mesh, s.initial_state(), 2e-6)
+        r2, _ = s.step(mesh, st, 4e-6)
+        out.append((r2.force_density, r2.magnetic_energy, r2.coil_voltage))
+    for x, y in zip(*out):
+        assert np.array_equal(x, y)
