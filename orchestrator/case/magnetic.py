@@ -14,7 +14,7 @@ from pulseform.solvers.getdp.bh_curve import BHCurve
 from .flow import check_increasing
 from .schema import SchemaError, spec
 
-__all__ = ["BHCurveTable", "bh_curve", "MAX_BH_POINTS"]
+__all__ = ["BHCurveTable", "bh_curve", "magnetic_keywords", "check_magnetic_em", "MAX_BH_POINTS"]
 
 #: the most points a B–H table may give
 MAX_BH_POINTS = 1000
@@ -56,6 +56,12 @@ def bh_curve(table: BHCurveTable | None) -> BHCurve | None:
     if table is None:
         return None
     return BHCurve(h=tuple(table.field_strength), b=tuple(table.flux_density))
+
+
+def magnetic_keywords(material) -> dict:
+    """A material's ``mu_r`` and ``bh_curve`` as the keywords of a GetDP conductor
+    (:class:`pulseform.solvers.getdp.model.Conductor`)."""
+    return {"mu_r": material.relative_permeability, "bh_curve": bh_curve(material.bh_curve)}
 
 
 def check_magnetic_em(case) -> None:

@@ -129,7 +129,8 @@ class GetDPLoad3D(LoadCapabilities):
             raise ValueError(f"getdp_process is 'auto', 'persistent' or 'per_step', got {getdp_process!r}")
         if getdp_process == "persistent" and time_scheme != "bdf2":
             raise ValueError("the persistent getdp implements time_scheme='bdf2' only")
-        self.persistent = getdp_process == "persistent" or (getdp_process == "auto" and time_scheme == "bdf2")
+        self.persistent = getdp_process == "persistent" or (getdp_process == "auto" and time_scheme == "bdf2"
+                                                              and not model.is_nonlinear)   # Newton: per step
         stepper = PersistentEM3DStepper if self.persistent else EM3DStepper
         self.stepper = stepper(model, self.work_dir, time_scheme=time_scheme, timeout=getdp_timeout,
                                **({"factor_reuse": factor_reuse} if self.persistent else {}))
@@ -141,7 +142,8 @@ class GetDPLoad3D(LoadCapabilities):
         self.coil_names = [c.name or f"coil_{k}" for k, c in enumerate(model.coils, start=1)] \
             if len(model.coils) > 1 else []
         self.columns = tuple(self.columns) + tuple(f"{n}_{q}" for n in self.coil_names
-                                                   for q in ("current_A", "joule_power_W"))
+                                                   for q in ("current_A", "joule_power_W")) \
+            + (("em_newton_iterations",) if model.is_nonlinear else ())
         self.min_quality = float(mover.q_ref.min())
         self._moved: tuple[float, np.ndarray] | None = None
         self._runs: list[Path] = []
@@ -227,6 +229,8 @@ class GetDPLoad3D(LoadCapabilities):
                   "getdp_force_z_N": fz, "device_force_z_N": s * self.device_axes[2] * fz, "device_impulse_z_Ns": self.impulse_device,
                   "em_mesh_min_quality": float(self.mover.last_min_quality),
                   **self._solve_counts(), **per_body}
+        if result.newton_iterations:   # a B–H curve: the linear solves of the step (first + Newton's)
+            values["em_newton_iterations"] = float(max(result.newton_iterations))
         for k, name in enumerate(self.coil_names):   # several coils: each one's current and power (whole device)
             values[f"{name}_current_A"] = float(result.coil_current[-1, k])
             values[f"{name}_joule_power_W"] = s * float(result.coil_power[-1, k])

@@ -31,7 +31,8 @@ SUBDIVISIONS = 64
 #: the vacuum tail of the deck's table reaches B_n + μ0 * TAIL_H (T; at least 1e3 H_n): ~1.3e3 T, never reached
 TAIL_H = 1e9
 
-__all__ = ["MU0", "BHCurve", "check_relative_permeability", "magnetic_inputs", "read_newton", "NewtonFailed"]
+__all__ = ["MU0", "BHCurve", "check_relative_permeability", "magnetic_inputs", "read_newton", "NewtonFailed",
+           "MagneticRegions", "model_magnetic"]
 
 
 @dataclass(frozen=True)
@@ -176,3 +177,32 @@ def model_magnetic(model) -> tuple[dict[str, float], list[str]]:
     if model.is_nonlinear:
         numbers.update(NL_tol_rel=model.newton_tolerance, NL_iter_max=model.newton_max_iterations)
     return numbers, lines
+
+
+class MagneticRegions:
+    """What the 2D and 3D EM models (:class:`~.model.EMModel`, :class:`~.solver3d.EM3DModel`) share about their
+    magnetic materials: their ``conductors`` and ``cores`` (each with ``mu_r`` and ``bh_curve``), Newton's
+    ``newton_tolerance`` and ``newton_max_iterations``, and ``applied_field``."""
+
+    def check_magnetic(self) -> None:
+        """Build the cores from dicts and check Newton's settings; ValueError for an applied field beside a
+        magnetic material (the reduced-field split's source is exact only with μ0 everywhere)."""
+        from .model import MagneticCore
+
+        self.cores = [c if isinstance(c, MagneticCore) else MagneticCore(**c) for c in self.cores]
+        if not (0 < self.newton_tolerance < 1) or int(self.newton_max_iterations) < 1:
+            raise ValueError("newton_tolerance must be in (0, 1) and newton_max_iterations >= 1")
+        self.newton_max_iterations = int(self.newton_max_iterations)
+        if self.applied_field is not None and self.is_magnetic:
+            raise ValueError("an applied field (the reduced-field split) needs mu0 everywhere: its source is "
+                             "exact only where nu is uniform; model the field's source as a coil instead")
+
+    @property
+    def is_magnetic(self) -> bool:
+        """True when a conductor or a core has μ_r != 1 or a B–H curve."""
+        return any(r.mu_r != 1.0 or r.bh_curve is not None for r in list(self.conductors) + list(self.cores))
+
+    @property
+    def is_nonlinear(self) -> bool:
+        """True when a conductor or a core has a B–H curve (Newton's iterations in every step)."""
+        return any(r.bh_curve is not None for r in list(self.conductors) + list(self.cores))

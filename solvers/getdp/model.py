@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 
-from .bh_curve import BHCurve, check_relative_permeability
+from .bh_curve import BHCurve, MagneticRegions, check_relative_permeability
 from .conductivity import ConductivityLaw, law_from_dict
 from .mesh import EMMesh
 from .runner import RunInfo
@@ -144,7 +144,7 @@ class Circuit:
 
 
 @dataclass
-class EMModel:
+class EMModel(MagneticRegions):
     """Static description of the EM problem (everything except the mesh and the state).
 
     ``shell = (R_int, R_ext)`` enables the shell transformation to infinity on region 2,
@@ -199,24 +199,7 @@ class EMModel:
                 raise ValueError("without a circuit every coil needs a waveform")
         if self.circuit is not None and not self.coils:
             raise ValueError("a circuit needs at least one coil")
-        self.cores = [c if isinstance(c, MagneticCore) else MagneticCore(**c) for c in self.cores]
-        if not (0 < self.newton_tolerance < 1) or int(self.newton_max_iterations) < 1:
-            raise ValueError("newton_tolerance must be in (0, 1) and newton_max_iterations >= 1")
-        self.newton_max_iterations = int(self.newton_max_iterations)
-        if self.applied_field is not None and self.is_magnetic:
-            raise ValueError("an applied field (the reduced-field split) needs mu0 everywhere: its source is "
-                             "exact only where nu is uniform; model the field's source as a coil instead")
-
-    @property
-    def is_magnetic(self) -> bool:
-        """True when a conductor or a core has μ_r != 1 or a B–H curve."""
-        regions = list(self.conductors) + list(self.cores)
-        return any(r.mu_r != 1.0 or r.bh_curve is not None for r in regions)
-
-    @property
-    def is_nonlinear(self) -> bool:
-        """True when a conductor or a core has a B–H curve (Newton's iterations in every step)."""
-        return any(r.bh_curve is not None for r in list(self.conductors) + list(self.cores))
+        self.check_magnetic()
 
     @property
     def has_conductivity_laws(self) -> bool:
