@@ -185,3 +185,66 @@ def test_3d_sector_steel_ring_vs_axisymmetric(work):
     s0 = GetDPSolver(EMModel(axisymmetric=True, coils=[Coil(5, waveform=wave)], conductors=[Conductor(1e2)],
                              shell=(0.1, 0.125)), work / "run0")
     assert r2.magnetic_energy[-1] > 1.4 * s0.step(mesh2, s0.initial_state(), 1e-3)[0].magnetic_energy[-1]
+
+
+def _c_core_mesh(a: float, w: float, gap: float, h_gap: float):
+    """A square C-core (planar): outer side 2a, legs w wide, an air gap ``gap`` across the right leg at y = 0
+    (triangles of ``h_gap`` within 2 mm of it, 1 mm in and around the core), the winding as two coils on either
+    side of the left leg (coil 1 in the window, coil 2 outside), air to a = 0 on the circle r = 0.3 m."""
+    r = 0.3
+    with gmsh_session("c_core") as gmsh:
+        occ = gmsh.model.occ
+        outer = occ.addDisk(0, 0, 0, r, r)
+        frame = occ.cut([(2, occ.addRectangle(-a, -a, 0, 2 * a, 2 * a))],
+                        [(2, occ.addRectangle(-a + w, -a + w, 0, 2 * (a - w), 2 * (a - w)))])[0]
+        frame = occ.cut(frame, [(2, occ.addRectangle(a - w - 1e-3, -gap / 2, 0, w + 2e-3, gap))])[0]
+        c1 = occ.addRectangle(-a + w + 1e-3, -0.015, 0, 0.008, 0.030)
+        c2 = occ.addRectangle(-a - 9e-3, -0.015, 0, 0.008, 0.030)
+        _, pieces = occ.fragment([(2, outer)], frame + [(2, c1), (2, c2)])
+        occ.synchronize()
+        core_s = [p[1] for pc in pieces[1:1 + len(frame)] for p in pc]
+        s1, s2 = [p[1] for p in pieces[1 + len(frame)]], [p[1] for p in pieces[2 + len(frame)]]
+        air = [s for _, s in gmsh.model.getEntities(2) if s not in core_s + s1 + s2]
+        for surfs, tag in ((core_s, core_tag(1)), (s1, coil_tag(1)), (s2, coil_tag(2)), (air, AIR)):
+            gmsh.model.addPhysicalGroup(2, surfs, tag)
+        bnd = [abs(c) for _, c in gmsh.model.getBoundary([(2, s) for s in air], combined=True, oriented=False)]
+        gmsh.model.addPhysicalGroup(1, [c for c in bnd if gmsh.model.getBoundingBox(1, c)[3] > 0.9 * r], OUTER)
+        f = gmsh.model.mesh.field
+        boxes = []
+        for h, x0, x1, y0, y1, thick in ((h_gap, a - w - 2e-3, a + 2e-3, -gap / 2 - 2e-3, gap / 2 + 2e-3, 0.01),
+                                         (1e-3, -a - 0.01, a + 0.01, -a - 0.01, a + 0.01, 0.05)):
+            boxes.append(f.add("Box"))
+            for k, v in (("VIn", h), ("VOut", 1.0), ("XMin", x0), ("XMax", x1), ("YMin", y0), ("YMax", y1),
+                         ("Thickness", thick)):
+                f.setNumber(boxes[-1], k, v)
+        fmin = f.add("Min")
+        f.setNumbers(fmin, "FieldsList", boxes)
+        f.setAsBackgroundMesh(fmin)
+        for o in ("Mesh.MeshSizeFromPoints", "Mesh.MeshSizeExtendFromBoundary", "Mesh.MeshSizeFromCurvature"):
+            gmsh.option.setNumber(o, 0)
+        gmsh.option.setNumber("Mesh.MeshSizeMax", 0.03)
+        gmsh.model.mesh.generate(2)
+        return _mesh_from_gmsh(gmsh)
+
+
+@needs_getdp
+@pytest.mark.getdp
+@pytest.mark.slow
+def test_c_core_with_air_gap_vs_magnetic_circuit(work):
+    """A C-core of STEEL (outer side 80 mm, legs 20 mm, gap g = 1 mm; 800 A-turns) against the magnetic-circuit
+    estimate N I = H(B) l_c + B g / μ0 with the mean path l_c = 4 (2a − w) − g (no leakage, no fringing): B at
+    the gap's centre within 2 % (observed −1.2 % with 0.2 mm triangles in the gap, 28k triangles; −1.2 % at
+    0.1 mm too: the rest is the circuit model's, whose leakage grows as the core saturates: −2.5 % at
+    900 A-turns, −11 % at 1500). B ≈ 0.95 T, past the curve's first point (0.8 T): the core is nonlinear."""
+    a, w, gap, ni = 0.040, 0.020, 1e-3, 800.0
+    mesh = _c_core_mesh(a, w, gap, 2e-4)
+    wave = DampedSine(I0=ni / 100, beta=0.0, omega=0.0, phase=math.pi / 2)
+    model = EMModel(axisymmetric=False, coils=[Coil(turns=100, waveform=wave), Coil(turns=100, waveform=wave, sign=-1)],
+                    cores=[MagneticCore(bh_curve=STEEL)], probes=[(a - w / 2, 0.0)], newton_tolerance=1e-10)
+    solver = GetDPSolver(model, work)
+    res, _ = solver.step(mesh, solver.initial_state(), 1e-3)
+    lc = 4 * (2 * a - w) - gap
+    from scipy.optimize import brentq
+    b_circuit = brentq(lambda b: STEEL.h_of_b(b) * lc + b * gap / MU0 - ni, 1e-6, 3.0)
+    assert b_circuit > 0.8
+    assert float(np.linalg.norm(res.probe_b[-1, 0])) == pytest.approx(b_circuit, rel=0.02)
