@@ -102,8 +102,8 @@ def test_bad_bh_curves_are_refused(h, b, allowed):
 @pytest.mark.getdp
 def test_ring_core_nonlinear_matches_the_curve(ring_mesh, work):
     """A nonlinear ring core (26,747 triangles of 1 mm): the flux per metre within 0.1 % of ∫ B(N I / 2πr) dr
-    and the magnetic energy within 0.5 % of the analytic one (the disks are polygons of 1 mm sides); Newton
-    converges from rest (a count of linear solves in the result)."""
+    (observed -0.031 %) and the magnetic energy within 0.5 % of the analytic one (observed -0.16 %); Newton
+    converges from rest (7 linear solves to 1e-10)."""
     solver = GetDPSolver(_dc_model(MagneticCore(bh_curve=STEEL), newton_tolerance=1e-10), work)
     res, _ = solver.step(ring_mesh, solver.initial_state(), 1e-3, field_output=True)
     phi = quad(lambda r: STEEL.b_of_h(NI / (2 * math.pi * r)), R1, R2, limit=200)[0]
@@ -116,11 +116,14 @@ def test_ring_core_nonlinear_matches_the_curve(ring_mesh, work):
 @needs_getdp
 @pytest.mark.getdp
 def test_ring_core_linear_mu_r(ring_mesh, work):
-    """A linear core μ_r = 1000: Φ = μ0 μ_r N I ln(r2 / r1) / 2π within 0.1 %, no Newton iterations."""
+    """A linear core μ_r = 1000: Φ = μ0 μ_r N I ln(r2 / r1) / 2π and the energy within 1e-4 (observed -2e-6 and
+    -6e-6 on the 1 mm mesh), no Newton iterations."""
     solver = GetDPSolver(_dc_model(MagneticCore(mu_r=1000.0)), work)
     res, _ = solver.step(ring_mesh, solver.initial_state(), 1e-3, field_output=True)
     phi = MU0 * 1000.0 * NI * math.log(R2 / R1) / (2 * math.pi)
-    assert _core_flux(ring_mesh, res.a_nodes) == pytest.approx(phi, rel=1e-3)
+    assert _core_flux(ring_mesh, res.a_nodes) == pytest.approx(phi, rel=1e-4)
+    w = _energy(lambda r: 0.5 * MU0 * 1000.0 * (NI / (2 * math.pi * r)) ** 2)
+    assert res.magnetic_energy[-1] == pytest.approx(w, rel=1e-4)
     assert res.newton_iterations is None
 
 
