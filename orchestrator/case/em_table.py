@@ -103,7 +103,7 @@ class EM:
     newton_tolerance: float = spec(
         1e-8, unit="-", gt=0.0, lt=0.1,
         doc="with a B–H curve (materials.<name>.bh_curve): Newton's iterations of an EM step end when the residual "
-            "norm is this fraction of its value after the step's first solve (history: em_newton_iterations)")
+            "norm is this fraction of the right-hand side's norm (history: em_newton_iterations)")
     newton_max_iterations: int = spec(
         30, ge=1, le=1000, doc="with a B–H curve: the most Newton iterations per EM step; a step still above "
                                "newton_tolerance stops the run (results so far kept)")

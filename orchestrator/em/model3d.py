@@ -30,7 +30,8 @@ def em_model3d(case: Case, geo: Geometry3D) -> EM3DModel:
                             cut_normal=tuple(c.cut_direction) if c.cut_direction is not None else None))
     mats = [(case.materials[b.material], b.name) for b in case.bodies]
     mats += [(case.materials[c.material], c.name) for c in g.conductors]
-    conductors = [Conductor(m.electrical_conductivity, name=name, **magnetic_keywords(m)) for m, name in mats]
+    conductors = [Conductor(m.electrical_conductivity, name=name, **magnetic_keywords(m, name))
+                  for m, name in mats]
     model = EM3DModel(coils=coils, conductors=conductors, circuit=circuit, shell=geo.shell,
                       shell_centre=tuple(g.shell_centre), sector_deg=geo.mesh.sector_deg,
                       symmetry_factor=360.0 / geo.mesh.sector_deg, applied_field=applied_field(em.applied_field),

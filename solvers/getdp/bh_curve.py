@@ -142,20 +142,19 @@ class NewtonFailed(GetDPError):
 def read_newton(out_dir: Path, tol_rel: float, tol_abs: float, max_iter: int, *,
                 log_path: Path | None = None) -> list[int]:
     """The linear solves of every time step of a run (first solve + Newton iterations) from
-    ``out_dir/newton.txt`` (``decks/Lib_Newton.pro``; [] without a nonlinear material). NewtonFailed when a
-    step stopped at ``max_iter`` iterations with its residual above both tolerances."""
+    ``out_dir/newton.txt`` (``decks/Lib_Newton.pro``: time, iterations, residual norm, right-hand side's norm;
+    [] without a nonlinear material). NewtonFailed when a step stopped with its residual above ``tol_rel`` times
+    the right-hand side's norm and above ``tol_abs``."""
     path = Path(out_dir) / "newton.txt"
     if not path.is_file():
         return []
-    rows = np.loadtxt(path, ndmin=2)
     counts = []
-    for t, it, res, res0 in rows:
-        if not (res <= tol_abs or res <= tol_rel * res0 or res0 == 0.0) or not math.isfinite(res):
-            raise NewtonFailed(f"Newton's iterations did not reach the tolerance at t = {t:.6g} s: residual "
-                               f"{res:.3g} = {res / res0 if res0 else float('inf'):.3g} of the first after "
-                               f"{int(it)} iterations (em.newton_tolerance = {tol_rel:g}, "
-                               f"em.newton_max_iterations = {max_iter})", log_path=log_path,
-                               run_dir=Path(out_dir).parent)
+    for t, it, res, rhs in np.loadtxt(path, ndmin=2):
+        if not (res <= tol_abs or res <= tol_rel * rhs):
+            raise NewtonFailed(f"Newton's iterations stopped at t = {t:.6g} s with a residual "
+                               f"{res / rhs if rhs > 0 else math.inf:.2g} of the right-hand side after {int(it)} "
+                               f"(em.newton_tolerance = {tol_rel:g}, em.newton_max_iterations = {max_iter})",
+                               log_path=log_path, run_dir=Path(out_dir).parent)
         counts.append(int(it) + 1)
     return counts
 
@@ -182,7 +181,7 @@ def model_magnetic(model) -> tuple[dict[str, float], list[str]]:
 class MagneticRegions:
     """What the 2D and 3D EM models (:class:`~.model.EMModel`, :class:`~.solver3d.EM3DModel`) share about their
     magnetic materials: their ``conductors`` and ``cores`` (each with ``mu_r`` and ``bh_curve``), Newton's
-    ``newton_tolerance`` and ``newton_max_iterations``, and ``applied_field``."""
+    ``newton_tolerance`` (relative to the right-hand side's norm) and ``newton_max_iterations``, and ``applied_field``."""
 
     def check_magnetic(self) -> None:
         """Build the cores from dicts and check Newton's settings; ValueError for an applied field beside a

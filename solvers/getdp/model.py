@@ -157,7 +157,7 @@ class EMModel(MagneticRegions):
     the nodal unknown (``a_nodes``, the state) are those of the reaction field.
     ``cores``: non-conducting magnetic regions (:class:`MagneticCore`). With a B–H curve in a conductor or a
     core, every time step is solved by Newton's method: at most ``newton_max_iterations`` iterations until the
-    residual norm is ``newton_tolerance`` times that after the step's first solve
+    residual norm is ``newton_tolerance`` times the right-hand side's norm
     (:func:`~.bh_curve.read_newton` stops the run otherwise).
     """
 

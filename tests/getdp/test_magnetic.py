@@ -103,7 +103,7 @@ def test_bad_bh_curves_are_refused(h, b, allowed):
 def test_ring_core_nonlinear_matches_the_curve(ring_mesh, work):
     """A nonlinear ring core (26,747 triangles of 1 mm): the flux per metre within 0.1 % of ∫ B(N I / 2πr) dr
     (observed -0.031 %) and the magnetic energy within 0.5 % of the analytic one (observed -0.16 %); Newton
-    converges from rest (7 linear solves to 1e-10)."""
+    converges from rest (8 linear solves to 1e-10 of the right-hand side)."""
     solver = GetDPSolver(_dc_model(MagneticCore(bh_curve=STEEL), newton_tolerance=1e-10), work)
     res, _ = solver.step(ring_mesh, solver.initial_state(), 1e-3, field_output=True)
     phi = quad(lambda r: STEEL.b_of_h(NI / (2 * math.pi * r)), R1, R2, limit=200)[0]
