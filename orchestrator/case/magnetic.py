@@ -6,7 +6,6 @@ the last point; docs/guide/em.md, Magnetic materials).
 
 from __future__ import annotations
 
-import logging
 import math
 from dataclasses import dataclass
 
@@ -14,8 +13,6 @@ from pulseform.solvers.getdp.bh_curve import BHCurve
 
 from .flow import check_increasing
 from .schema import SchemaError, spec
-
-log = logging.getLogger(__name__)
 
 __all__ = ["BHCurveTable", "bh_curve", "magnetic_keywords", "check_magnetic_em", "MAX_BH_POINTS"]
 
@@ -61,15 +58,10 @@ def bh_curve(table: BHCurveTable | None) -> BHCurve | None:
     return BHCurve(h=tuple(table.field_strength), b=tuple(table.flux_density))
 
 
-def magnetic_keywords(material, body: str) -> dict:
-    """A material's ``mu_r`` and ``bh_curve`` as the keywords of the GetDP conductor of ``body``
-    (:class:`pulseform.solvers.getdp.model.Conductor`); a warning in the run's log for a magnetic one: its force
-    is the Lorentz force j × B only (the magnetisation force is not yet computed)."""
-    kw = {"mu_r": material.relative_permeability, "bh_curve": bh_curve(material.bh_curve)}
-    if kw["mu_r"] != 1.0 or kw["bh_curve"] is not None:
-        log.warning("%s is magnetic: its force is the Lorentz force j x B only, without the magnetisation force "
-                    "(docs/guide/em.md, Magnetic materials)", body)
-    return kw
+def magnetic_keywords(material) -> dict:
+    """A material's ``mu_r`` and ``bh_curve`` as the keywords of a GetDP conductor
+    (:class:`pulseform.solvers.getdp.model.Conductor`)."""
+    return {"mu_r": material.relative_permeability, "bh_curve": bh_curve(material.bh_curve)}
 
 
 def check_magnetic_em(case) -> None:

@@ -38,6 +38,7 @@ from pulseform.solvers.getdp.mesh import OUTER as OUTER_TAG
 from pulseform.solvers.getdp.mesh import SHELL as SHELL_TAG
 from pulseform.solvers.getdp.conductivity import coil_mass_cp, coil_temperature
 from pulseform.solvers.getdp.files import discard_folder
+from pulseform.solvers.getdp.magnetic_force import model_magnetisation_forces
 from pulseform.solvers.getdp.persistent_process import FactorReuse
 
 from ..coupling.interfaces import LoadCapabilities, LoadStep
@@ -240,8 +241,11 @@ class GetDPLoad(EMSnapshots, LoadCapabilities):
         f = result.force_density_mean[keep]  # impulse-consistent mean over the sub-steps
         tris = mesh_k.triangles[result.elements[keep]]
         f_em = self.scale * cell_to_nodal_forces(x_em, tris, f, axisymmetric=self.axisymmetric)
-        forces = {b.name: f_em[b.body_to_em] for b in self.bodies}
         integral = self.scale * cell_force_integral(x_em, tris, f, axisymmetric=self.axisymmetric)
+        mag = model_magnetisation_forces(self.solver.model, mesh_k, result)   # magnetised bodies: + surface force
+        if mag is not None:
+            f_em, integral = f_em + self.scale * mag, integral + self.scale * mag.sum(axis=0)
+        forces = {b.name: f_em[b.body_to_em] for b in self.bodies}
         getdp_total = result.conductor_force[-1, 0]
         heat = self.joule.heat(mechanics, self.bodies, result, mesh_k.triangles, t1 - t0)
         c3 = time.perf_counter()

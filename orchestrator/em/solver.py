@@ -118,7 +118,7 @@ def em_model(case: Case, shell: tuple[float, float] | None) -> EMModel:
         if sigma <= 0.0 and not deck_own:
             raise ValueError(f"materials.{body.material}.electrical_conductivity must be > 0 for the {role}")
         conductors.append(Conductor(sigma=sigma, name=body.name, conductivity_law=law,
-                                    initial_temperature=mat.initial_temperature, **magnetic_keywords(mat, body.name)))
+                                    initial_temperature=mat.initial_temperature, **magnetic_keywords(mat)))
     return EMModel(axisymmetric=not g.planar, coils=coils, conductors=conductors, circuit=circuit, shell=shell,
                    applied_field=applied_field(case.em.applied_field), newton_tolerance=case.em.newton_tolerance,
                    newton_max_iterations=case.em.newton_max_iterations)
