@@ -71,8 +71,10 @@ def magnetisation_forces(mesh: EMMesh, rows: np.ndarray, b: np.ndarray, *, mu_r:
     ``rows``: the body's triangles (rows of ``mesh.triangles``), ``b`` (len(rows), 2): B (T) in each of them
     (GetDP frame); its material: ``mu_r`` or ``curve``. Returns (node ids (k,), forces (k, 2) N; in planar N per
     metre of depth, in axisymmetry the whole ring's, i.e. only the axial component has a total)."""
-    h_of_b, w_of_b = material_laws(mu_r, curve)
     edges, owner, n, length = body_surface(mesh, rows)
+    if curve is None and mu_r == 1.0:   # vacuum: no magnetisation (exactly, not to round-off)
+        return np.unique(edges), np.zeros((len(np.unique(edges)), 2))
+    h_of_b, w_of_b = material_laws(mu_r, curve)
     bb = np.asarray(b, float)[owner]
     bmag = np.hypot(bb[:, 0], bb[:, 1])
     hmag = h_of_b(bmag)
