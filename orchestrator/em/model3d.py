@@ -4,7 +4,6 @@ symmetry factor of the meshed :class:`~..mesh.geometry3d.Geometry3D`."""
 
 from __future__ import annotations
 
-import logging
 from dataclasses import replace
 
 from pulseform.solvers.getdp import Conductor
@@ -14,8 +13,6 @@ from ..case.magnetic import magnetic_keywords
 from ..case.model import Case
 from ..mesh.geometry3d import Geometry3D
 from .solver import applied_field, coil_drives
-
-log = logging.getLogger(__name__)
 
 
 def em_model3d(case: Case, geo: Geometry3D) -> EM3DModel:
@@ -34,10 +31,6 @@ def em_model3d(case: Case, geo: Geometry3D) -> EM3DModel:
     mats = [(case.materials[b.material], b.name) for b in case.bodies]
     mats += [(case.materials[c.material], c.name) for c in g.conductors]
     conductors = [Conductor(m.electrical_conductivity, name=name, **magnetic_keywords(m)) for m, name in mats]
-    for c in conductors:
-        if c.mu_r != 1.0 or c.bh_curve is not None:   # the 2D participant adds the magnetisation force
-            log.warning("%s is magnetic: in 3D its force is the Lorentz force j x B only, without the "
-                        "magnetisation force (docs/guide/em.md, Magnetic materials)", c.name)
     model = EM3DModel(coils=coils, conductors=conductors, circuit=circuit, shell=geo.shell,
                       shell_centre=tuple(g.shell_centre), sector_deg=geo.mesh.sector_deg,
                       symmetry_factor=360.0 / geo.mesh.sector_deg, applied_field=applied_field(em.applied_field),

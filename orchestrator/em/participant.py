@@ -242,8 +242,8 @@ class GetDPLoad(EMSnapshots, LoadCapabilities):
         tris = mesh_k.triangles[result.elements[keep]]
         f_em = self.scale * cell_to_nodal_forces(x_em, tris, f, axisymmetric=self.axisymmetric)
         integral = self.scale * cell_force_integral(x_em, tris, f, axisymmetric=self.axisymmetric)
-        mag = model_magnetisation_forces(self.solver.model, mesh_k, result)   # magnetised bodies: + surface force
-        if mag is not None:
+        mag = model_magnetisation_forces(self.solver.model, x_em, mesh_k.triangles, result, mesh_k.lines)
+        if mag is not None:   # magnetised bodies: their surface force joins the Lorentz force
             f_em, integral = f_em + self.scale * mag, integral + self.scale * mag.sum(axis=0)
         forces = {b.name: f_em[b.body_to_em] for b in self.bodies}
         getdp_total = result.conductor_force[-1, 0]

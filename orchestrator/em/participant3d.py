@@ -44,6 +44,7 @@ from pathlib import Path
 import numpy as np
 
 from pulseform.solvers.getdp.files import discard_folder
+from pulseform.solvers.getdp.magnetic_force import model_magnetisation_forces, no_surface
 from pulseform.solvers.getdp.mesh import CONDUCTOR_BASE
 from pulseform.solvers.getdp.mesh3d import Mesh3D
 from pulseform.solvers.getdp.persistent3d import PersistentEM3DStepper
@@ -197,14 +198,20 @@ class GetDPLoad3D(LoadCapabilities):
         f = result.force_density_mean[keep]
         tets = self.mesh.tets[result.elements[keep]]
         f_em = tet_nodal_forces(x_em, tets, f)
-        forces = {b.name: f_em[b.body_to_em] for b in self.bodies}
         integral = tet_force_integral(x_em, tets, f)
+        mag = model_magnetisation_forces(self.model, x_em, self.mesh.tets, result, no_surface(self.mesh)) \
+            if self.model.is_magnetic else None
+        if mag is not None:   # magnetised bodies: their surface force joins the Lorentz force
+            f_em, integral = f_em + mag, integral + mag.sum(axis=0)
+        forces = {b.name: f_em[b.body_to_em] for b in self.bodies}
         per_body = {}
         if len(self.bodies) > 1:
             tags = result.element_tags[keep]
             for b in self.bodies:
                 mine = tags == b.tag
                 ref = tet_force_integral(x_em, tets[mine], f[mine])
+                if mag is not None:
+                    ref = ref + mag[b.body_to_em].sum(axis=0)
                 total = forces[b.name].sum(axis=0)
                 per_body.update({f"{b.name}_force_x_N": float(total[0]), f"{b.name}_force_y_N": float(total[1]),
                                  f"{b.name}_force_z_N": float(total[2]),

@@ -36,3 +36,21 @@ def test_magnetised_sheet_runs_coupled(tmp_path):
         assert 1 <= float(row["em_newton_iterations"]) <= 30
         lorentz, total = float(row["getdp_force_z_N"]), float(row["force_y_N"])
         assert 0 < total < lorentz
+
+
+@pytest.mark.slow
+def test_magnetised_sheet_runs_coupled_3d(tmp_path):
+    """The same in 3D (the coarse 5° sector of cases/emf_sheet_bulge_3d, 3 us): Newton's counts, the ledger at
+    round-off, the sheet's force (``force_z_N``) below GetDP's Lorentz force at every step."""
+    from .sector_case import CASE, COARSE, sets
+
+    out = tmp_path / "out"
+    r = pulseform_cli(["run", str(CASE), "--out", str(out), "--quiet",
+                       *sets(COARSE + ["output.plots=false", CURVE])])
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert json.loads((out / "metrics.json").read_text())["conservation_error_rel"] <= 1e-10
+    rows = list(csv.DictReader((out / "history.csv").open()))[1:]
+    assert len(rows) >= 5
+    for row in rows:
+        assert 1 <= float(row["em_newton_iterations"]) <= 30
+        assert 0 < float(row["force_z_N"]) < float(row["getdp_force_z_N"])
