@@ -100,6 +100,13 @@ class EM:
     factor_reuse_max_corrections: int = spec(
         20, ge=1, le=50, doc="GCR iterations before an EM step factorises its own matrix (and the next one does "
                              "when a step needed more than 3/4 of them); each keeps two vectors in getdp")
+    newton_tolerance: float = spec(
+        1e-8, unit="-", gt=0.0, lt=0.1,
+        doc="with a B–H curve (materials.<name>.bh_curve): Newton's iterations of an EM step end when the residual "
+            "norm is this fraction of the right-hand side's norm (history: em_newton_iterations)")
+    newton_max_iterations: int = spec(
+        30, ge=1, le=1000, doc="with a B–H curve: the most Newton iterations per EM step; a step still above "
+                               "newton_tolerance stops the run (results so far kept)")
     remesh_quality: float = spec(0.3, unit="-", gt=0.0, lt=1.0,
                                  doc="remesh the air when the worst element quality 4√3A/Σl² falls below this "
                                      "fraction of the fresh mesh's worst")

@@ -9,6 +9,7 @@ from typing import Literal
 from .conductivity import ConductivityCurve, LinearResistivitySpec, check_below_melting
 from .flow import FlowCurveTable, JohnsonCookFlowTable, TableFlowTable, initial_yield_stress
 from .forming_limit import FormingLimitTable
+from .magnetic import BHCurveTable
 from .schema import SchemaError, spec
 
 __all__ = ["CowperSymondsTable", "JohnsonCookTable", "MaterialTable"]
@@ -58,6 +59,14 @@ class MaterialTable:
                   "electrical_conductivity: type = 'table' (temperatures, conductivities) or 'linear_resistivity' "
                   "(ρ = ρ_ref (1 + α (T − T_ref))); GetDP gets σ per element from the cells' temperatures every EM "
                   "step (needs specific_heat; 2D, getdp per step; docs/guide/em.md)")
+    relative_permeability: float = spec(
+        1.0, unit="-", gt=0.0, le=1e6, doc="μ_r of the material's EM regions (conductor bodies, 2D and 3D), constant; "
+                                           "1: vacuum (the default)")
+    bh_curve: BHCurveTable | None = spec(
+        None, doc="[materials.<name>.bh_curve] a magnetisation curve B(H) in place of relative_permeability: "
+                  "field_strength (A/m) and flux_density (T), piecewise linear from the origin, the vacuum slope "
+                  "beyond the last point; every EM step is then solved by Newton's method (em.newton_tolerance; "
+                  "getdp per step; docs/guide/em.md)")
     forming_limit: FormingLimitTable | None = spec(
         None, doc="[materials.<name>.forming_limit] forming limit curve of a sheet of this material: its bodies "
                   "get per-element major/minor true strains and the margin below the curve (fields, history "
@@ -86,6 +95,9 @@ class MaterialTable:
             if isinstance(cc, LinearResistivitySpec) and not self.electrical_conductivity > 0:
                 raise SchemaError(f"{path}.electrical_conductivity", "must be > 0 (S/m): the linear_resistivity "
                                                                      "law's σ at its reference_temperature")
+        if self.bh_curve is not None and self.relative_permeability != 1.0:
+            raise SchemaError(f"{path}.relative_permeability", f"got {self.relative_permeability:g}; give either "
+                              "relative_permeability or bh_curve, not both")
         if isinstance(fc, JohnsonCookFlowTable) and not self.initial_temperature < fc.melting_temperature:
             raise SchemaError(f"{path}.initial_temperature",
                               f"got {self.initial_temperature:g}; must be below the flow curve's melting_temperature "

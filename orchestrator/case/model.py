@@ -18,6 +18,7 @@ from .em_model import (FlatCoilSheet, Geometry, OuterTube, PlanarCoilBlankDie,
                       SheetDie, SolenoidTube)
 from .em_applied import check_applied_field
 from .forming_limit import FormingLimitTable
+from .magnetic import check_magnetic_em
 from .materials import CowperSymondsTable, JohnsonCookTable, MaterialTable
 from .em_sources import check_coils
 from .guards import check_resources
@@ -356,6 +357,7 @@ class Case:
         file3d = getattr(self.geometry, "type", None) == "geometry_3d"  # .geometry3d (validate_dimension)
         if self.case.kind == "coupled" and self.em is not None:
             _check_temperature_em(self)
+            check_magnetic_em(self)
         if self.case.kind == "coupled" and not file3d:
             for key in ("geometry", "em"):
                 if getattr(self, key) is None:

@@ -57,6 +57,7 @@ PLAUSIBLE: dict[str, tuple[float, float]] = {
     "1/K": (1e-9, 1.0),
     "W/(m²·K)": (1e-6, 1e6),
     "T": (1e-9, 1e3),
+    "A/m": (1e-6, 1e10),
 }
 #: Range of a number without a unit in :data:`PLAUSIBLE` (e.g. user-deck parameters): finite and not huge.
 PLAUSIBLE_OTHER: tuple[float, float] = (0.0, 1e15)

@@ -9,6 +9,7 @@ from dataclasses import replace
 from pulseform.solvers.getdp import Conductor
 from pulseform.solvers.getdp.solver3d import Coil3D, EM3DModel
 
+from ..case.magnetic import magnetic_keywords
 from ..case.model import Case
 from ..mesh.geometry3d import Geometry3D
 from .solver import applied_field, coil_drives
@@ -27,11 +28,13 @@ def em_model3d(case: Case, geo: Geometry3D) -> EM3DModel:
         coils.append(Coil3D(turns=c.turns, sigma=em.coil_conductivity, waveform=wave, sign=sign,
                             direction=c.direction, axis=axis, section=section, name=c.name,
                             cut_normal=tuple(c.cut_direction) if c.cut_direction is not None else None))
-    conductors = [Conductor(case.materials[b.material].electrical_conductivity, name=b.name) for b in case.bodies]
-    conductors += [Conductor(case.materials[c.material].electrical_conductivity, name=c.name) for c in g.conductors]
+    mats = [(case.materials[b.material], b.name) for b in case.bodies]
+    mats += [(case.materials[c.material], c.name) for c in g.conductors]
+    conductors = [Conductor(m.electrical_conductivity, name=name, **magnetic_keywords(m)) for m, name in mats]
     model = EM3DModel(coils=coils, conductors=conductors, circuit=circuit, shell=geo.shell,
                       shell_centre=tuple(g.shell_centre), sector_deg=geo.mesh.sector_deg,
-                      symmetry_factor=360.0 / geo.mesh.sector_deg, applied_field=applied_field(em.applied_field))
+                      symmetry_factor=360.0 / geo.mesh.sector_deg, applied_field=applied_field(em.applied_field),
+                      newton_tolerance=em.newton_tolerance, newton_max_iterations=em.newton_max_iterations)
     if g.em_order != 1:
         model = replace(model, order=g.em_order, order2_air=False)
     return model

@@ -38,6 +38,7 @@ from pulseform.solvers.getdp.mesh import OUTER as OUTER_TAG
 from pulseform.solvers.getdp.mesh import SHELL as SHELL_TAG
 from pulseform.solvers.getdp.conductivity import coil_mass_cp, coil_temperature
 from pulseform.solvers.getdp.files import discard_folder
+from pulseform.solvers.getdp.magnetic_force import model_magnetisation_forces
 from pulseform.solvers.getdp.persistent_process import FactorReuse
 
 from ..coupling.interfaces import LoadCapabilities, LoadStep
@@ -124,7 +125,7 @@ class GetDPLoad(EMSnapshots, LoadCapabilities):
         self.solver = make_em_solver(model, work_dir, time_scheme, getdp_process, factor_reuse=factor_reuse)
         #: coil names of the history columns (several coils: one column set per coil)
         self.coil_names = [c.name or f"coil{k}" for k, c in enumerate(model.coils, start=1)]
-        self.columns = coupled_columns(self.coil_names)
+        self.columns = coupled_columns(self.coil_names) + (("em_newton_iterations",) if model.is_nonlinear else ())
         self.state = self.solver.initial_state(0.0)
         # the bodies' material coordinates
         self.X0 = {b.name: geometry.mesh.points[b.body_to_em].copy() for b in self.bodies}
@@ -240,8 +241,11 @@ class GetDPLoad(EMSnapshots, LoadCapabilities):
         f = result.force_density_mean[keep]  # impulse-consistent mean over the sub-steps
         tris = mesh_k.triangles[result.elements[keep]]
         f_em = self.scale * cell_to_nodal_forces(x_em, tris, f, axisymmetric=self.axisymmetric)
-        forces = {b.name: f_em[b.body_to_em] for b in self.bodies}
         integral = self.scale * cell_force_integral(x_em, tris, f, axisymmetric=self.axisymmetric)
+        mag = model_magnetisation_forces(self.solver.model, x_em, mesh_k.triangles, result, mesh_k.lines)
+        if mag is not None:   # magnetised bodies: their surface force joins the Lorentz force
+            f_em, integral = f_em + self.scale * mag, integral + self.scale * mag.sum(axis=0)
+        forces = {b.name: f_em[b.body_to_em] for b in self.bodies}
         getdp_total = result.conductor_force[-1, 0]
         heat = self.joule.heat(mechanics, self.bodies, result, mesh_k.triangles, t1 - t0)
         c3 = time.perf_counter()
@@ -270,17 +274,20 @@ class GetDPLoad(EMSnapshots, LoadCapabilities):
             "workpiece_joule_power_W": float(result.conductor_power[-1, 0]),
             "getdp_force_z_N": float(self.scale * getdp_total[1]),
             "em_mesh_min_quality": float(self.mover.last_min_quality),
-            "em_remeshes": float(self.remeshes), **self._solve_counts(),
+            "em_remeshes": float(self.remeshes), **self._solve_counts(result),
         }
 
-    def _solve_counts(self) -> dict[str, float]:
+    def _solve_counts(self, result) -> dict[str, float]:
         """The run's factorisations and kept-factor corrections so far (history columns): the persistent
         getdp's counts (:class:`~pulseform.solvers.getdp.persistent_process.FactorReuse`); a getdp
-        process per EM step factorises every one of its ``em_substeps`` sub-steps."""
+        process per EM step factorises every one of its ``em_substeps`` sub-steps. With a B–H curve
+        ``em_newton_iterations``: the most linear solves (first + Newton's) of a sub-step of ``result``."""
         s = self.state
         if hasattr(self.solver, "factor_reuse"):
             return {"em_factorisations": float(s.factorisations), "em_corrections": float(s.corrections)}
-        return {"em_factorisations": float(s.step_index * self.em_substeps), "em_corrections": 0.0}
+        nl = {"em_newton_iterations": float(max(result.newton_iterations)) if result is not None else 0.0} \
+            if self.solver.model.is_nonlinear else {}
+        return {"em_factorisations": float(s.step_index * self.em_substeps), "em_corrections": 0.0, **nl}
 
     def _coil_values(self, result, getdp_total: np.ndarray) -> dict[str, float]:
         """:meth:`_values` with several coils: the shared columns, then each coil's."""
@@ -291,7 +298,7 @@ class GetDPLoad(EMSnapshots, LoadCapabilities):
             "workpiece_joule_power_W": float(result.conductor_power[-1, 0]),
             "getdp_force_z_N": float(self.scale * getdp_total[1]),
             "em_mesh_min_quality": float(self.mover.last_min_quality),
-            "em_remeshes": float(self.remeshes), **self._solve_counts(),
+            "em_remeshes": float(self.remeshes), **self._solve_counts(result),
         }
         for k, name in enumerate(self.coil_names):
             out.update({f"{name}_current_A": float(result.coil_current[-1, k]),
@@ -311,7 +318,7 @@ class GetDPLoad(EMSnapshots, LoadCapabilities):
             values = {"coil_current_abs_max_A": abs(float(s.current)), "capacitor_voltage_V": float(s.capacitor_voltage),
                       "magnetic_energy_J": 0.0, "workpiece_joule_power_W": 0.0, "getdp_force_z_N": 0.0,
                       "em_mesh_min_quality": float(self.mover.q_ref.min()), "em_remeshes": float(self.remeshes),
-                      **self._solve_counts()}
+                      **self._solve_counts(None)}
             for k, name in enumerate(self.coil_names):
                 values.update({f"{name}_current_A": signs[k] * float(s.current), f"{name}_voltage_V": 0.0,
                                f"{name}_joule_heat_J": float(s.coil_heat[k]) if s.coil_heat else 0.0,
@@ -328,7 +335,7 @@ class GetDPLoad(EMSnapshots, LoadCapabilities):
             "workpiece_joule_power_W": 0.0,
             "getdp_force_z_N": 0.0,
             "em_mesh_min_quality": float(self.mover.q_ref.min()),
-            "em_remeshes": float(self.remeshes), **self._solve_counts(),
+            "em_remeshes": float(self.remeshes), **self._solve_counts(None),
         })
 
     #: after a remesh, every step carries the state through the Init path (False: the remesh carried a

@@ -44,6 +44,7 @@ from pathlib import Path
 import numpy as np
 
 from pulseform.solvers.getdp.files import discard_folder
+from pulseform.solvers.getdp.magnetic_force import model_magnetisation_forces, no_surface
 from pulseform.solvers.getdp.mesh import CONDUCTOR_BASE
 from pulseform.solvers.getdp.mesh3d import Mesh3D
 from pulseform.solvers.getdp.persistent3d import PersistentEM3DStepper
@@ -129,7 +130,8 @@ class GetDPLoad3D(LoadCapabilities):
             raise ValueError(f"getdp_process is 'auto', 'persistent' or 'per_step', got {getdp_process!r}")
         if getdp_process == "persistent" and time_scheme != "bdf2":
             raise ValueError("the persistent getdp implements time_scheme='bdf2' only")
-        self.persistent = getdp_process == "persistent" or (getdp_process == "auto" and time_scheme == "bdf2")
+        self.persistent = getdp_process == "persistent" or (getdp_process == "auto" and time_scheme == "bdf2"
+                                                              and not model.is_nonlinear)   # Newton: per step
         stepper = PersistentEM3DStepper if self.persistent else EM3DStepper
         self.stepper = stepper(model, self.work_dir, time_scheme=time_scheme, timeout=getdp_timeout,
                                **({"factor_reuse": factor_reuse} if self.persistent else {}))
@@ -141,7 +143,8 @@ class GetDPLoad3D(LoadCapabilities):
         self.coil_names = [c.name or f"coil_{k}" for k, c in enumerate(model.coils, start=1)] \
             if len(model.coils) > 1 else []
         self.columns = tuple(self.columns) + tuple(f"{n}_{q}" for n in self.coil_names
-                                                   for q in ("current_A", "joule_power_W"))
+                                                   for q in ("current_A", "joule_power_W")) \
+            + (("em_newton_iterations",) if model.is_nonlinear else ())
         self.min_quality = float(mover.q_ref.min())
         self._moved: tuple[float, np.ndarray] | None = None
         self._runs: list[Path] = []
@@ -195,14 +198,20 @@ class GetDPLoad3D(LoadCapabilities):
         f = result.force_density_mean[keep]
         tets = self.mesh.tets[result.elements[keep]]
         f_em = tet_nodal_forces(x_em, tets, f)
-        forces = {b.name: f_em[b.body_to_em] for b in self.bodies}
         integral = tet_force_integral(x_em, tets, f)
+        mag = model_magnetisation_forces(self.model, x_em, self.mesh.tets, result, no_surface(self.mesh)) \
+            if self.model.is_magnetic else None
+        if mag is not None:   # magnetised bodies: their surface force joins the Lorentz force
+            f_em, integral = f_em + mag, integral + mag.sum(axis=0)
+        forces = {b.name: f_em[b.body_to_em] for b in self.bodies}
         per_body = {}
         if len(self.bodies) > 1:
             tags = result.element_tags[keep]
             for b in self.bodies:
                 mine = tags == b.tag
                 ref = tet_force_integral(x_em, tets[mine], f[mine])
+                if mag is not None:
+                    ref = ref + mag[b.body_to_em].sum(axis=0)
                 total = forces[b.name].sum(axis=0)
                 per_body.update({f"{b.name}_force_x_N": float(total[0]), f"{b.name}_force_y_N": float(total[1]),
                                  f"{b.name}_force_z_N": float(total[2]),
@@ -227,6 +236,8 @@ class GetDPLoad3D(LoadCapabilities):
                   "getdp_force_z_N": fz, "device_force_z_N": s * self.device_axes[2] * fz, "device_impulse_z_Ns": self.impulse_device,
                   "em_mesh_min_quality": float(self.mover.last_min_quality),
                   **self._solve_counts(), **per_body}
+        if result.newton_iterations:   # a B–H curve: the linear solves of the step (first + Newton's)
+            values["em_newton_iterations"] = float(max(result.newton_iterations))
         for k, name in enumerate(self.coil_names):   # several coils: each one's current and power (whole device)
             values[f"{name}_current_A"] = float(result.coil_current[-1, k])
             values[f"{name}_joule_power_W"] = s * float(result.coil_power[-1, k])

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 import math
 from pathlib import Path
 
@@ -12,7 +13,10 @@ from pulseform.solvers.getdp.persistent_process import FactorReuse
 from ..case.conductivity import conductivity_law
 from ..case.em_applied import AppliedDC, AppliedSine, AppliedTable
 from ..case.em_sources import BankSource, DCSource, SineSource, TableSource, read_current_table
+from ..case.magnetic import magnetic_keywords
 from ..case.model import Case
+
+log = logging.getLogger(__name__)
 
 
 def source_waveform(source: SineSource | DCSource | TableSource) -> DampedSine | CurrentTable:
@@ -114,9 +118,10 @@ def em_model(case: Case, shell: tuple[float, float] | None) -> EMModel:
         if sigma <= 0.0 and not deck_own:
             raise ValueError(f"materials.{body.material}.electrical_conductivity must be > 0 for the {role}")
         conductors.append(Conductor(sigma=sigma, name=body.name, conductivity_law=law,
-                                    initial_temperature=mat.initial_temperature))
+                                    initial_temperature=mat.initial_temperature, **magnetic_keywords(mat)))
     return EMModel(axisymmetric=not g.planar, coils=coils, conductors=conductors, circuit=circuit, shell=shell,
-                   applied_field=applied_field(case.em.applied_field))
+                   applied_field=applied_field(case.em.applied_field), newton_tolerance=case.em.newton_tolerance,
+                   newton_max_iterations=case.em.newton_max_iterations)
 
 
 def factor_reuse(case: Case) -> FactorReuse:
@@ -138,7 +143,12 @@ def make_em_solver(model: EMModel, work_dir: Path, time_scheme: str, getdp_proce
     if getdp_process == "persistent" and laws:
         raise ValueError("a conductivity that follows temperature (conductivity_curve) runs getdp per step: "
                          "em.getdp_process must be 'auto' or 'per_step'")
-    if getdp_process != "per_step" and time_scheme == "bdf2" and not laws:
+    if model.is_nonlinear and getdp_process == "persistent":
+        raise ValueError("a B-H curve runs getdp per step (Newton's iterations in every EM step): "
+                         "em.getdp_process must be 'auto' or 'per_step'")
+    if model.is_nonlinear and getdp_process == "auto" and time_scheme == "bdf2":
+        log.info("a B-H curve: getdp runs per EM step (the persistent getdp has no Newton iterations)")
+    if getdp_process != "per_step" and time_scheme == "bdf2" and not laws and not model.is_nonlinear:
         from pulseform.solvers.getdp.persistent import PersistentGetDPSolver
 
         return PersistentGetDPSolver(model, work_dir, factor_reuse=factor_reuse, **kw)

@@ -1,13 +1,15 @@
 """The numbers a library-deck run of GetDP gets with ``-setnumber`` (em_case.pro's ``DefineConstant``s): the
-model's regions, coils, conductors, circuit, shell and applied field, checked against the mesh."""
+model's regions, coils, conductors, magnetic cores and materials, circuit, shell and applied field, checked
+against the mesh."""
 from __future__ import annotations
 
 from typing import Mapping
 
 import numpy as np
 
+from .bh_curve import model_magnetic
 from .files import element_volumes
-from .mesh import AXIS, OUTER, EMMesh, coil_tag, conductor_tag
+from .mesh import AXIS, OUTER, EMMesh, coil_tag, conductor_tag, core_tag
 from .model import CurrentTable, DampedSine, EMModel
 
 __all__ = ["model_deck_numbers"]
@@ -48,6 +50,10 @@ def model_deck_numbers(model: EMModel, mesh: EMMesh, extra_numbers: Mapping[str,
         if not np.any(mesh.tri_tags == conductor_tag(k)):
             raise ValueError(f"conductor {k}: region {conductor_tag(k)} is empty in the mesh")
         nb[f"Cond_sigma_{k}"] = c.sigma
+    for k in range(1, len(m.cores) + 1):
+        if not np.any(mesh.tri_tags == core_tag(k)):
+            raise ValueError(f"magnetic core {k}: region {core_tag(k)} is empty in the mesh")
+    nb.update(model_magnetic(m)[0])
     if m.circuit is not None:
         nb.update(C_bank=m.circuit.C, R_ext=m.circuit.R_ext, L_ext=m.circuit.L_ext)
     if m.applied_field is not None:

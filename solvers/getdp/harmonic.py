@@ -58,6 +58,8 @@ def solve_harmonic(model: EMModel, mesh: EMMesh, frequency: float, currents: Seq
         raise ValueError("a time-harmonic solve takes prescribed coil currents, not a capacitor-bank circuit")
     if model.applied_field is not None:
         raise ValueError("a time-harmonic solve has no applied field (its source is a transient's step difference)")
+    if model.is_nonlinear:
+        raise ValueError("a time-harmonic solve is linear: a B-H curve needs the transient (Newton's iterations)")
     if len(currents) != len(model.coils):
         raise ValueError(f"{len(model.coils)} coils but {len(currents)} current phasors")
     if not frequency > 0.0:

@@ -8,6 +8,7 @@ Physical ids (defined here once; ``decks/em_case.pro`` receives them with ``-set
 2                     shell (transformation to infinity)
 100 + k               coil k (k = 1..), all its turns
 200 + k               massive conductor k (k = 1..)
+800 + k               non-conducting magnetic core k (k = 1..)
 11                    axis (a = 0, axisymmetric)
 12                    outer boundary (a = 0)
 13                    boundary with an imposed tangential field
@@ -30,6 +31,7 @@ import numpy as np
 
 AIR, SHELL, AXIS, OUTER, NEUMANN = 1, 2, 11, 12, 13
 COIL_BASE, CONDUCTOR_BASE = 100, 200  # coil k: COIL_BASE + k, massive conductor k: CONDUCTOR_BASE + k
+CORE_BASE = 800  # non-conducting magnetic core k: CORE_BASE + k
 
 
 @contextmanager
@@ -64,10 +66,12 @@ def gmsh_session(model_name: str) -> Iterator[Any]:
 
 
 def default_name(tag: int) -> str:
-    """Name of a physical id: air, shell, axis, outer, neumann, coil_k, conductor_k."""
+    """Name of a physical id: air, shell, axis, outer, neumann, coil_k, conductor_k, core_k."""
     fixed = {AIR: "air", SHELL: "shell", AXIS: "axis", OUTER: "outer", NEUMANN: "neumann"}
     if tag in fixed:
         return fixed[tag]
+    if tag > CORE_BASE:
+        return f"core_{tag - CORE_BASE}"
     return f"coil_{tag - COIL_BASE}" if COIL_BASE < tag < CONDUCTOR_BASE else f"conductor_{tag - CONDUCTOR_BASE}"
 
 
@@ -81,14 +85,20 @@ def conductor_tag(k: int) -> int:
     return CONDUCTOR_BASE + k
 
 
+def core_tag(k: int) -> int:
+    """Physical id of the non-conducting magnetic core ``k`` (1-based)."""
+    return CORE_BASE + k
+
+
 def physical_numbers() -> dict[str, int]:
     """The physical ids as the built-in deck ``decks/em_case.pro`` receives them with ``-setnumber``
     (its ``DefineConstant`` defaults repeat them, so the deck also runs alone): ``Phys_Air``,
     ``Phys_Shell``, ``Phys_Axis``, ``Phys_Outer``, ``Phys_Neumann``, and the bases
     ``Phys_Coil_Base`` / ``Phys_Cond_Base``: coil k is ``Phys_Coil_Base + k``, massive conductor k
-    ``Phys_Cond_Base + k`` (:func:`coil_tag`, :func:`conductor_tag`)."""
+    ``Phys_Cond_Base + k`` (:func:`coil_tag`, :func:`conductor_tag`); ``Phys_Core_Base``: magnetic core k
+    is ``Phys_Core_Base + k`` (:func:`core_tag`; ``decks/em_magnetic.pro``)."""
     return {"Phys_Air": AIR, "Phys_Shell": SHELL, "Phys_Axis": AXIS, "Phys_Outer": OUTER, "Phys_Neumann": NEUMANN,
-            "Phys_Coil_Base": COIL_BASE, "Phys_Cond_Base": CONDUCTOR_BASE}
+            "Phys_Coil_Base": COIL_BASE, "Phys_Cond_Base": CONDUCTOR_BASE, "Phys_Core_Base": CORE_BASE}
 
 
 @dataclass
@@ -283,10 +293,12 @@ def coil_conductor_mesh(
     h_coarse: float | None = None,
     h_conductor: float | list[float] | None = None,
     names: dict[int, str] | None = None,
+    cores: "list[Rect | np.ndarray] | None" = None,
 ) -> EMMesh:
-    """Gmsh mesh of coils (each a list of turn rectangles) and conductors in air.
+    """Gmsh mesh of coils (each a list of turn rectangles), conductors and magnetic cores in air.
 
-    A conductor is a :class:`Rect` or a simple polygon (array of vertices (x, y), m).
+    A conductor or a core (non-conducting magnetic region 800+k, meshed at ``h_fine``) is a :class:`Rect` or
+    a simple polygon (array of vertices (x, y), m).
     Air fills a (half-)disk of radius ``r_domain`` centred at the origin; with ``r_shell``
     a shell region (id 2) between ``r_domain`` and ``r_shell`` carries the transformation
     to infinity.  With ``half`` (default: ``axisymmetric``) only x >= 0 is meshed and x = 0
@@ -314,13 +326,15 @@ def coil_conductor_mesh(
                 rect_tags.append(("coil", k, occ.addRectangle(r.x0, r.y0, 0, r.x1 - r.x0, r.y1 - r.y0)))
         for k, r in enumerate(conductors, start=1):
             rect_tags.append(("cond", k, _add_shape(occ, r)))
+        for k, r in enumerate(cores or [], start=1):
+            rect_tags.append(("core", k, _add_shape(occ, r)))
         tools = [(2, t) for _, _, t in rect_tags] + ([(2, inner)] if r_shell else [])
         out, out_map = occ.fragment([(2, outer)], tools)
         occ.synchronize()
         # out_map[0] -> pieces of outer; then one entry per tool
         groups: dict[int, list[int]] = {}
         for (kind, k, _), pieces in zip(rect_tags, out_map[1 : 1 + len(rect_tags)]):
-            tag = coil_tag(k) if kind == "coil" else conductor_tag(k)
+            tag = {"coil": coil_tag, "cond": conductor_tag, "core": core_tag}[kind](k)
             groups.setdefault(tag, []).extend(p[1] for p in pieces)
         used = {s for v in groups.values() for s in v}
         inner_pieces = {p[1] for p in out_map[-1]} if r_shell else set()

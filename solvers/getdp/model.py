@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 
+from .bh_curve import BHCurve, MagneticRegions, check_relative_permeability
 from .conductivity import ConductivityLaw, law_from_dict
 from .mesh import EMMesh
 from .runner import RunInfo
@@ -94,15 +95,42 @@ class Conductor:
 
     ``conductivity_law``: σ(T) per element (:mod:`.conductivity`), from the element temperatures given with
     :meth:`~.solver.GetDPSolver.set_element_temperatures` (K; an element without one is at
-    ``initial_temperature``); None: ``sigma`` everywhere."""
+    ``initial_temperature``); None: ``sigma`` everywhere.
+    ``mu_r``: relative permeability; ``bh_curve``: a B–H curve in its place (:class:`~.bh_curve.BHCurve`;
+    nonlinear: Newton's iterations in every EM step)."""
 
     sigma: float
     name: str = ""
     conductivity_law: ConductivityLaw | None = None
     initial_temperature: float = 293.15
+    mu_r: float = 1.0
+    bh_curve: BHCurve | None = None
 
     def __post_init__(self):
         self.conductivity_law = law_from_dict(self.conductivity_law)
+        self.mu_r, self.bh_curve = _permeability(self.mu_r, self.bh_curve)
+
+
+def _permeability(mu_r, bh_curve) -> tuple[float, BHCurve | None]:
+    """A region's checked (μ_r, B–H curve): one of them (μ_r = 1 with a curve)."""
+    mu_r, curve = check_relative_permeability(mu_r), BHCurve.from_any(bh_curve)
+    if curve is not None and mu_r != 1.0:
+        raise ValueError("give a relative permeability or a B-H curve, not both")
+    return mu_r, curve
+
+
+@dataclass
+class MagneticCore:
+    """A non-conducting magnetic region (physical region 800+k, :func:`~.mesh.core_tag`): a constant relative
+    permeability ``mu_r`` or a B–H curve ``bh_curve`` (:class:`~.bh_curve.BHCurve`); no eddy current, no
+    Lorentz force."""
+
+    mu_r: float = 1.0
+    bh_curve: BHCurve | None = None
+    name: str = ""
+
+    def __post_init__(self):
+        self.mu_r, self.bh_curve = _permeability(self.mu_r, self.bh_curve)
 
 
 @dataclass
@@ -116,7 +144,7 @@ class Circuit:
 
 
 @dataclass
-class EMModel:
+class EMModel(MagneticRegions):
     """Static description of the EM problem (everything except the mesh and the state).
 
     ``shell = (R_int, R_ext)`` enables the shell transformation to infinity on region 2,
@@ -127,6 +155,10 @@ class EMModel:
     (x, y), in axisymmetry (r, z) with only z allowed), with or without coils; the decks' reduced-field
     split (see :mod:`.applied_field`): B, j, forces and Joule power are total, the magnetic energy and
     the nodal unknown (``a_nodes``, the state) are those of the reaction field.
+    ``cores``: non-conducting magnetic regions (:class:`MagneticCore`). With a B–H curve in a conductor or a
+    core, every time step is solved by Newton's method: at most ``newton_max_iterations`` iterations until the
+    residual norm is ``newton_tolerance`` times the right-hand side's norm
+    (:func:`~.bh_curve.read_newton` stops the run otherwise).
     """
 
     axisymmetric: bool
@@ -138,6 +170,9 @@ class EMModel:
     h0_step: float = 0.0
     probes: list = field(default_factory=list)
     applied_field: AppliedField | None = None
+    cores: list[MagneticCore] = field(default_factory=list)
+    newton_tolerance: float = 1e-8
+    newton_max_iterations: int = 30
 
     def __post_init__(self):
         from .applied_field import AppliedField
@@ -164,6 +199,7 @@ class EMModel:
                 raise ValueError("without a circuit every coil needs a waveform")
         if self.circuit is not None and not self.coils:
             raise ValueError("a circuit needs at least one coil")
+        self.check_magnetic()
 
     @property
     def has_conductivity_laws(self) -> bool:
@@ -279,6 +315,9 @@ class EMStepResult:
     shell region the values belong to the mapped, infinite domain), and ``a_nodes`` (n_nodes,)
     the nodal unknown at every node: r a_z of the GetDP frame in axisymmetry (= -r a_phi of the
     right-handed (r, phi, z) frame; its contours are flux lines), a_z in planar (Wb/m).
+
+    ``newton_iterations``: with a B–H curve, the linear solves of each sub-step (the first solve and Newton's
+    iterations, :func:`~.bh_curve.read_newton`); None for a linear model.
     """
 
     times: np.ndarray
@@ -306,6 +345,7 @@ class EMStepResult:
     force_density_start: np.ndarray | None = None
     b_cells: np.ndarray | None = None
     a_nodes: np.ndarray | None = None
+    newton_iterations: list[int] | None = None
 
     @property
     def force_density_mean(self) -> np.ndarray:

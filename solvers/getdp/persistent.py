@@ -85,6 +85,9 @@ class PersistentGetDPSolver(GetDPSolver):
         if self.model.has_conductivity_laws:   # its messages carry the geometry only, not a σ per step
             raise ValueError("the persistent getdp has no conductivity that follows temperature: run getdp per "
                              "step (em.getdp_process = 'per_step')")
+        if self.model.is_nonlinear:   # Lib_PersistentStep.pro solves each step once (and may keep LU factors)
+            raise ValueError("the persistent getdp has no Newton iterations for a B-H curve: run getdp per step "
+                             "(em.getdp_process = 'per_step')")
         self.verbosity = verbosity
         self.factor_reuse = factor_reuse  # kept LU factors across steps (Lib_PersistentStep.pro)
         self.proc: PersistentProcess | None = None

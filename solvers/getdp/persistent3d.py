@@ -128,6 +128,9 @@ class PersistentEM3DStepper:
                  timeout: float | None = None, verbosity: int = 2, factor_reuse: FactorReuse = FactorReuse()) -> None:
         if time_scheme != "bdf2":
             raise ValueError("the persistent 3D getdp implements time_scheme='bdf2' only")
+        if model.is_nonlinear:   # Lib_Persistent3D.pro solves each step once (and may keep LU factors)
+            raise ValueError("the persistent getdp has no Newton iterations for a B-H curve: run getdp per step "
+                             "(em.getdp_process = 'per_step')")
         self.factor_reuse = factor_reuse
         self._factorise_next = False   # the step after a checkpoint factorises (module docstring)
         self._factors: tuple[np.ndarray, float] | None = None   # getdp's nodes and gamma dt of the last factorisation

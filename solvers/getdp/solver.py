@@ -9,6 +9,7 @@ from typing import Sequence
 import numpy as np
 
 from .applied_field import applied_start
+from .bh_curve import model_magnetic, read_newton
 from .bdf2 import bdf2_coefficients, match_rows, trapezoid_mean
 from .deck_numbers import model_deck_numbers
 from .conductivity import check_deck, checked_temperatures, coil_mass_cp, start_power, step_inputs
@@ -72,6 +73,9 @@ class GetDPSolver:
         self.reuse_pre = reuse_pre
         self._runs: list[Path] = []
         check_deck(model, self.deck, CASE_DECK)   # σ(T) needs the built-in deck
+        if model.is_magnetic and self.deck != CASE_DECK.resolve():
+            raise ValueError("a magnetic material (mu_r or a B-H curve) needs the built-in deck (em_case.pro): "
+                             f"{self.deck.name} does not read them")
         self._elem_temperature: tuple[np.ndarray, np.ndarray] | None = None   # (EM triangle rows, K) for σ(T)
 
     # -- state
@@ -198,6 +202,9 @@ class GetDPSolver:
         result = self._read(mesh, out_dir, state, float(t_end), int(n_sub), n_elem_rows, power_start)
         result.run = info
         result.path = str(run_dir)
+        if model.is_nonlinear:   # Newton's iterations of every sub-step; a step above the tolerance stops here
+            result.newton_iterations = read_newton(out_dir, model.newton_tolerance, 0.0, model.newton_max_iterations,
+                                                   log_path=info.log_path)
         if field_output:
             self._read_fields(mesh, out_dir, result)
         new_state = self._next_state(mesh, material_points, out_dir, run_dir, state, result, sig, float(t_end))
@@ -343,8 +350,9 @@ class GetDPSolver:
         return model_deck_numbers(self.model, mesh, self.extra_numbers)
 
     def _table_lines(self) -> list[str]:
-        """The run deck's table lines (:func:`.model.table_lines`)."""
-        return table_lines(self.model.coils, self.model.applied_field)
+        """The run deck's table lines (:func:`.model.table_lines`) and the B–H curves' lists
+        (:func:`.bh_curve.model_magnetic`)."""
+        return table_lines(self.model.coils, self.model.applied_field) + model_magnetic(self.model)[1]
 
     def conductor_nodes(self, mesh: EMMesh) -> tuple[np.ndarray, np.ndarray]:
         """(triangles, sorted unique nodes) of the coil and conductor regions.

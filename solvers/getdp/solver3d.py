@@ -23,11 +23,12 @@ from typing import Sequence
 import numpy as np
 
 from .files import read_element_table, read_table
-from .mesh import AIR, COIL_BASE, CONDUCTOR_BASE, OUTER, SHELL, coil_tag, conductor_tag
+from .mesh import AIR, COIL_BASE, CONDUCTOR_BASE, CORE_BASE, OUTER, SHELL, coil_tag, conductor_tag, core_tag
 from .applied_field import AppliedField, planes_of_faces
 from .mesh3d import (CUT_BASE, ELEC_IN_BASE, ELEC_OUT_BASE, SKIN_BASE, SYM_A, SYM_H, Mesh3D, cut_orientation, cut_tag,
                      physical_surface_area, read_msh22_triangles, skin_tag)
-from .model import Circuit, Conductor, CurrentTable, DampedSine, table_lines
+from .bh_curve import MagneticRegions, model_magnetic, read_newton
+from .model import Circuit, Conductor, CurrentTable, DampedSine, MagneticCore, table_lines
 from .runner import RunInfo, run_getdp
 
 logger = logging.getLogger(__name__)
@@ -85,7 +86,7 @@ class Coil3D:
 
 
 @dataclass
-class EM3DModel:
+class EM3DModel(MagneticRegions):
     """Static description of a 3D EM problem.
 
     ``sector_deg``: angle of the modelled sector about the z-axis (degrees; 360 for a whole model);
@@ -102,6 +103,8 @@ class EM3DModel:
     Joule power and probes are total, the magnetic energy is the reaction field's. It must be tangential
     to the symmetry planes with n x a = 0 (physical 14: a sector's meridian planes admit only B_z) and
     normal to those with n x h = 0 (physical 15); the run refuses other directions (``ValueError``).
+    ``cores`` (non-conducting magnetic regions 800+k), the conductors' ``mu_r`` / ``bh_curve`` and Newton's
+    settings: as :class:`~.model.EMModel`'s.
     """
 
     coils: list[Coil3D] = field(default_factory=list)
@@ -116,6 +119,9 @@ class EM3DModel:
     order2_air: bool = True
     order2_conductors: tuple[int, ...] | None = None
     applied_field: AppliedField | None = None
+    cores: list[MagneticCore] = field(default_factory=list)
+    newton_tolerance: float = 1e-8
+    newton_max_iterations: int = 30
 
     def __post_init__(self) -> None:
         if isinstance(self.applied_field, dict):
@@ -134,6 +140,7 @@ class EM3DModel:
                 raise ValueError("with a circuit the coil current is computed: give no waveform")
             if self.circuit is None and c.waveform is None:
                 raise ValueError("without a circuit every coil needs a waveform")
+        self.check_magnetic()
 
 
 @dataclass
@@ -180,6 +187,7 @@ class EM3DResult:
     wall_per_step: float = math.nan
     cpu_per_step: float = math.nan
     run: RunInfo | None = None
+    newton_iterations: list[int] | None = None   # with a B–H curve: linear solves per step (.bh_curve.read_newton)
 
 
 def coil_section_from_mesh(mesh: Mesh3D, k: int, axis: tuple[float, float] = (0.0, 0.0)) -> float:
@@ -203,6 +211,7 @@ def model_numbers(model: EM3DModel, mesh: Mesh3D) -> tuple[dict[str, float], lis
     nb: dict[str, float] = {"Phys_Air": AIR, "Phys_Shell": SHELL, "Phys_Outer": OUTER, "Phys_SymA": SYM_A,
                             "Phys_Coil_Base": COIL_BASE, "Phys_Cond_Base": CONDUCTOR_BASE, "Phys_Skin_Base": SKIN_BASE,
                             "Phys_ElecIn_Base": ELEC_IN_BASE, "Phys_ElecOut_Base": ELEC_OUT_BASE, "Phys_Cut_Base": CUT_BASE,
+                            "Phys_Core_Base": CORE_BASE,
                             "NbCoils": len(model.coils), "NbConductors": len(model.conductors),
                             "Flag_Circuit": int(model.circuit is not None), "NbProbes": len(model.probes),
                             "SymmetryFactor": float(model.symmetry_factor)}
@@ -243,12 +252,17 @@ def model_numbers(model: EM3DModel, mesh: Mesh3D) -> tuple[dict[str, float], lis
         if not np.any(mesh.tet_tags == conductor_tag(k)):
             raise ValueError(f"conductor {k}: region {conductor_tag(k)} is empty in the mesh")
         nb[f"Cond_sigma_{k}"] = c.sigma
+    for k in range(1, len(model.cores) + 1):
+        if not np.any(mesh.tet_tags == core_tag(k)):
+            raise ValueError(f"magnetic core {k}: region {core_tag(k)} is empty in the mesh")
     if model.circuit is not None:
         nb.update(C_bank=model.circuit.C, R_ext=model.circuit.R_ext, L_ext=model.circuit.L_ext,
                   Init_Vc=model.circuit.V0, Init_I=0.0)
     if model.applied_field is not None:   # Field_F1 / Field_F2 (the state's) are the caller's
         nb.update(model.applied_field.numbers_3d(*symmetry_planes(mesh)))
-    return nb, table_lines(model.coils, model.applied_field)
+    mag_numbers, mag_lines = model_magnetic(model)
+    nb.update(mag_numbers)
+    return nb, table_lines(model.coils, model.applied_field) + mag_lines
 
 
 def symmetry_planes(mesh: Mesh3D) -> tuple[list, list]:
@@ -366,6 +380,9 @@ def solve_transient3d(model: EM3DModel, mesh: Mesh3D, t_end: float, n_steps: int
                      strings={"OutDir": str(out_dir) + "/"}, extra_args=restart + list(petsc_args),
                      executable=executable, timeout=timeout, verbosity=5)
     res = read_results3d(model, mesh, out_dir, int(n_steps), flag_elem)
+    if model.is_nonlinear:   # a step above Newton's tolerance stops here (NewtonFailed)
+        res.newton_iterations = read_newton(out_dir, model.newton_tolerance, 0.0, model.newton_max_iterations,
+                                            log_path=info.log_path)
     if field_output:
         ids, b = read_element_table(out_dir / "field_b.txt", 3, 1)
         res.b_cells = np.full((mesh.n_tets, 3), np.nan)

@@ -18,4 +18,4 @@ def test_deck_default_ids_equal_python_ids(tmp_path):
     numbers, _ = model_numbers(EM3DModel(coils=[Coil3D(1, waveform=DampedSine(1.0, 0.0, 0.0), section=1e-6)],
                                          sector_deg=90.0), mesh)
     passed = {k: v for k, v in numbers.items() if k.startswith("Phys_")}
-    assert len(defaults) == 10 and passed == defaults
+    assert len(defaults) == 11 and passed == defaults   # 11: Phys_Core_Base (issue 35)

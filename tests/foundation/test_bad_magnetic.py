@@ -1,0 +1,71 @@
+"""Bad magnetic materials (issue 35): exit code 2, one line naming the file, the key and what is allowed."""
+
+from __future__ import annotations
+
+import tomllib
+from pathlib import Path
+
+import pytest
+import tomli_w
+
+from pulseform.orchestrator.case.io import load_case
+from pulseform.orchestrator.cli import main
+
+REPO = Path(__file__).resolve().parents[2]
+BASE = tomllib.loads((REPO / "cases/emf_sheet_bulge/case.toml").read_text())
+GOOD_H = [0.0, 100.0, 400.0, 3000.0, 1e5]
+GOOD_B = [0.0, 0.8, 1.3, 1.6, 2.1]
+
+# (id, bh_curve table or extra material keys, key named in the message, text of what is allowed)
+BAD = [
+    ("h_not_increasing", {"bh_curve": {"field_strength": [0.0, 400.0, 100.0, 3000.0],
+                                       "flux_density": [0.0, 0.8, 1.3, 1.6]}}, "bh_curve.field_strength[2]",
+     "strictly increasing"),
+    ("b_not_increasing", {"bh_curve": {"field_strength": GOOD_H, "flux_density": [0.0, 0.8, 0.7, 1.6, 2.1]}},
+     "bh_curve.flux_density[2]", "strictly increasing"),
+    ("non_finite", {"bh_curve": {"field_strength": GOOD_H, "flux_density": [0.0, 0.8, float("inf"), 1.6, 2.1]}},
+     "bh_curve.flux_density[2]", "finite"),
+    ("nan", {"bh_curve": {"field_strength": [0.0, float("nan"), 400.0, 3000.0, 1e5], "flux_density": GOOD_B}},
+     "bh_curve.field_strength[1]", "finite"),
+    ("negative", {"bh_curve": {"field_strength": [-10.0, 100.0, 400.0], "flux_density": [0.1, 0.8, 1.3]}},
+     "bh_curve.field_strength", ">= 0"),
+    ("too_few", {"bh_curve": {"field_strength": [0.0, 100.0], "flux_density": [0.0, 0.8]}},
+     "bh_curve.field_strength", "at least 2 points"),
+    ("lengths_differ", {"bh_curve": {"field_strength": GOOD_H, "flux_density": GOOD_B[:-1]}},
+     "bh_curve.flux_density", "one flux density"),
+    ("below_vacuum_at_top", {"bh_curve": {"field_strength": [0.0, 100.0, 2e6], "flux_density": [0.0, 0.8, 1.0]}},
+     "bh_curve.flux_density", "B >= mu0 H"),
+    ("both", {"relative_permeability": 100.0, "bh_curve": {"field_strength": GOOD_H, "flux_density": GOOD_B}},
+     "relative_permeability", "not both"),
+    ("mu_r_zero", {"relative_permeability": 0.0}, "relative_permeability", "> 0"),
+]
+
+
+def _case(tmp_path: Path, material: dict, **em) -> Path:
+    data = tomllib.loads(tomli_w.dumps(BASE))
+    data["materials"]["al_blank"].update(material)
+    data["em"].update(em)
+    p = tmp_path / "case.toml"
+    p.write_text(tomli_w.dumps(data))
+    return p
+
+
+@pytest.mark.parametrize("material,key,allowed", [b[1:] for b in BAD], ids=[b[0] for b in BAD])
+def test_bad_magnetic_material_is_one_line(tmp_path, capsys, material, key, allowed):
+    file = _case(tmp_path, material)
+    rc = main(["check", str(file)])
+    _, err = capsys.readouterr()
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert rc == 2 and len(lines) == 1 and "Traceback" not in err, err
+    assert str(file) in lines[0] and f"materials.al_blank.{key}" in lines[0] and allowed in lines[0], lines[0]
+
+
+def test_a_bh_curve_refuses_the_persistent_getdp(tmp_path, capsys):
+    """A B–H curve runs getdp per step: getdp_process = 'persistent' is refused, 'auto' accepted."""
+    mat = {"bh_curve": {"field_strength": GOOD_H, "flux_density": GOOD_B}}
+    rc = main(["check", str(_case(tmp_path, mat, getdp_process="persistent"))])
+    err = capsys.readouterr().err
+    assert rc == 2 and "em.getdp_process" in err and "per step" in err, err
+    case, _ = load_case(_case(tmp_path, mat))
+    curve = case.materials["al_blank"].bh_curve
+    assert curve.field_strength == tuple(GOOD_H) and case.em.newton_tolerance == 1e-8
