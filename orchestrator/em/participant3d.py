@@ -376,6 +376,8 @@ class GetDPLoad3D(LoadCapabilities):
             value = getattr(st, key)
             if value is not None:
                 out[key] = np.asarray(value, dtype=float)
+        for i, x in enumerate(st.x_older):   # the kept-factor solves' older states (history directions)
+            out[f"x_older_{i}"] = np.asarray(x, dtype=float)
         if st.factors is not None:   # the kept factors a resumed process rebuilds (FactorRecord)
             out.update({"factor_points": st.factors.points, "factor_dtime": np.float64(st.factors.dtime),
                         "factor_current": st.factors.current})
@@ -409,6 +411,7 @@ class GetDPLoad3D(LoadCapabilities):
                                dt_prev=float(state["dt_prev"]), force_density=opt("force_density"), steps=steps,
                                factors=FactorRecord(opt("factor_points"), float(state["factor_dtime"]),
                                                     opt("factor_current")) if "factor_points" in state else None,
+                               x_older=tuple(opt(f"x_older_{i}") for i in range(2) if f"x_older_{i}" in state),
                                timers=dict(zip(self.state.timers, timers[len(self.timers):])))
         self.impulse_device, self.coil_heat, self.peak_current, self.min_quality = (float(v) for v in state["sums"])
         if "body_impulse" in state:   # checkpoints before 2026-11-28 have none

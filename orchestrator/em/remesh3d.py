@@ -169,7 +169,7 @@ class RemeshingGetDPLoad3D(FreezingGetDPLoad3D):
             dofdata, t_res, x_n = read_res_vector(state.res_path)
             res = write_res_vector(folder / "x_n.res", dofdata, t_res, carry_vector(x_n, old_dofs, old_to_new, new_dofs))
             x_prev = None if state.x_prev is None else carry_vector(state.x_prev, old_dofs, old_to_new, new_dofs)
-            state = replace(state, res_path=res, x_prev=x_prev, factors=None)   # a new connectivity: new factors
+            state = replace(state, res_path=res, x_prev=x_prev, factors=None, x_older=())   # a new connectivity: new factors, no history
         self.stepper.close()   # the persistent getdp of the old mesh ends; the next step starts one on the new
         self._adopt(new, {b.name: old_to_new[b.body_to_em] for b in self.bodies}, read_msh22_triangles(new.path))
         self.state, self._dofs = state, (new.path, new_dofs)

@@ -169,8 +169,8 @@ class PersistentEM3DStepper:
                 raise ValueError(f"the EM state of step {state.steps} has no solution vectors to start a getdp "
                                  "process from (a state of another process: take it through complete_state)")
             _, _, x_n = read_res_vector(state.res_path)
-            seed = (np.asarray(state.x_prev, float), x_n)
-            numbers.update(PF_Seed=2, PF_DtPrev=float(state.dt_prev))
+            seed = (np.asarray(state.x_prev, float), x_n, *(np.asarray(x, float) for x in state.x_older[:2]))
+            numbers.update(PF_Seed=2, PF_DtPrev=float(state.dt_prev), PF_SeedHist=len(seed) - 2)
         elif self.model.circuit is not None and state.circuit is not None:
             numbers["Init_Vc"], numbers["Init_I"] = state.circuit
         lines = [f'PulseformPersistentLib = "{PERSISTENT_LIB3D}";'] + lines
@@ -190,7 +190,8 @@ class PersistentEM3DStepper:
                                  f"{self.n_dofs}: another connectivity")
             c0 = time.perf_counter()
             proc.seed([(self.a_system, state.t - state.dt_prev, 0.0, 1, seed[0]),
-                       (self.a_system, state.t, 0.0, 2, seed[1])])
+                       (self.a_system, state.t, 0.0, 2, seed[1]),
+                       *((self.a_system, state.t, 0.0, 3, x) for x in seed[2:])])   # x_n-2, x_n-3 (history)
             if prime is not None:   # the interrupted process's kept factors, rebuilt bit for bit
                 proc.prime(prime.points, prime.dtime)
                 proc.prime(prime.current, 0.0)
@@ -308,12 +309,13 @@ class PersistentEM3DStepper:
         res = p.run_dir / "em.res"
         res.unlink(missing_ok=True)
         p.query(FLAG_STATE)  # x_n and x_{n-1} of system A, binary: the exact unknowns
-        x_n, x_prev = read_binary_res(res, self.n_dofs)[-2:]
+        *older, x_n, x_prev = read_binary_res(res, self.n_dofs)   # [x_n-2, [x_n-3,]] x_n, x_n-1 (Lib_Persistent3D.pro)
         factors = self._factor_record(p.points)
         # without a record the next step factorises, as a process started from this state does
         self._factorise_next = factors is None
         path = write_res_vector(self.work_dir / f"state_{state.steps:05d}.res", str(self.a_system), state.t, x_n)
-        return replace(state, res_path=path, x_prev=x_prev, factors=factors, timers=dict(state.timers))
+        return replace(state, res_path=path, x_prev=x_prev, factors=factors, x_older=tuple(older),
+                       timers=dict(state.timers))
 
     def _factor_record(self, current: np.ndarray) -> FactorRecord | None:
         """The kept factors of the next step as a :class:`~.stepper3d.FactorRecord`, or None where a new process

@@ -77,20 +77,28 @@ class FactorReuse:
     max_corrections : int
         GCR iterations before a step factorises its own matrix (each keeps two vectors of the system's
         size in getdp).
+    history : int
+        History directions searched before the first solve with the factors (0, 1 or 2): the second and
+        third differences of the last states (a product with A each, no triangular solve; Fischer's
+        projection for successive right-hand sides).
     """
 
     tol: float = 0.0
     max_corrections: int = 20
+    history: int = 2
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.tol < 1.0:
             raise ValueError(f"factor reuse tolerance must be in [0, 1), got {self.tol!r}")
         if self.max_corrections < 1:
             raise ValueError(f"factor reuse max_corrections must be >= 1, got {self.max_corrections!r}")
+        if self.history not in (0, 1, 2):
+            raise ValueError(f"factor reuse history must be 0, 1 or 2, got {self.history!r}")
 
     def numbers(self) -> dict[str, float]:
         """The deck's ``-setnumber`` values."""
-        return {"PF_ReuseTol": float(self.tol), "PF_ReuseMaxIt": float(self.max_corrections)}
+        return {"PF_ReuseTol": float(self.tol), "PF_ReuseMaxIt": float(self.max_corrections),
+                "PF_ReuseHist": float(self.history)}
 
 
 @dataclass

@@ -80,7 +80,9 @@ class EM3DState:
     current A) at t_n and ``circuit_prev`` at t_{n-1}; ``dt_prev`` the last step (s, 0 before the
     first); ``force_density`` (n_el, 3) N/m^3 at t_n on the conductor elements ``elements`` (rows of
     the mesh's tets), zeros at rest; ``steps`` taken; ``factors``: the kept LU factors a persistent
-    getdp's next step uses (:class:`FactorRecord`; None: that step factorises its own matrix).
+    getdp's next step uses (:class:`FactorRecord`; None: that step factorises its own matrix);
+    ``x_older``: x_{n-2}, x_{n-3} as far as a persistent getdp's kept-factor solves use them (their history
+    directions, decks/Lib_PersistentStep.pro; empty: none), so that a process seeded from this state repeats them.
     """
 
     t: float = 0.0
@@ -92,6 +94,7 @@ class EM3DState:
     force_density: np.ndarray | None = None
     steps: int = 0
     factors: FactorRecord | None = None
+    x_older: tuple[np.ndarray, ...] = ()
     timers: dict[str, float] = field(default_factory=lambda: {"getdp_process_s": 0.0, "getdp_pre_s": 0.0,
                                                               "getdp_loop_s": 0.0, "res_io_s": 0.0,
                                                               "getdp_factorisations": 0.0,
