@@ -130,7 +130,8 @@ class PersistentGetDPSolver(GetDPSolver):
             numbers["Field_F2"] = state.applied_f_prev if numbers["PF_Seed"] == 2 else state.applied_f
         numbers.update(extra_numbers or {})
         return PersistentProcess(run_dir, mesh, numbers, lines, self.deck, executable=self.executable,
-                                 petsc_args=self.petsc_args, time_limit=self.timeout, verbosity=self.verbosity)
+                                 petsc_args=self.factor_reuse.solver_args(self.petsc_args), time_limit=self.timeout,
+                                 verbosity=self.verbosity)
 
     def _start(self, mesh: EMMesh, material: np.ndarray, state: EMState) -> None:
         """A new process on ``mesh`` from ``state`` (fresh, or seeded with its BDF2 history)."""

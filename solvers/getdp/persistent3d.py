@@ -179,7 +179,8 @@ class PersistentEM3DStepper:
         if prime is not None:   # the new process starts where the interrupted one factorised (FactorRecord)
             mesh = replace(mesh, points=np.array(prime.points, float))
         proc = PersistentProcess(self.work_dir / f"persistent3d_{self.segment:03d}", mesh, numbers, lines, DECK3D,
-                                 executable=self.executable, petsc_args=self.petsc_args, time_limit=self.timeout,
+                                 executable=self.executable, petsc_args=self.factor_reuse.solver_args(self.petsc_args),
+                                 time_limit=self.timeout,
                                  verbosity=self.verbosity, resolution=RESOLUTION_PERSISTENT3D, u_system=self.u_system)
         self.proc = proc
         startup = proc.start(state.steps, state.t)

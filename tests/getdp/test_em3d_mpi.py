@@ -14,7 +14,7 @@ import pytest
 
 from pulseform.solvers.getdp import Conductor, DampedSine, Rect
 from pulseform.solvers.getdp.mesh3d import ring_sector_mesh
-from pulseform.solvers.getdp.solver3d import Coil3D, EM3DModel, solve_transient3d
+from pulseform.solvers.getdp.solver3d import MUMPS_PETSC_ARGS_3D, Coil3D, EM3DModel, solve_transient3d
 
 from getdp_testlib import needs_getdp
 from test_em3d_static import demo_coil_turns
@@ -30,7 +30,9 @@ def test_mumps_under_mpirun_equals_serial(work):
                             h_coil=3e-3, h_conductor=2e-3, h_air=0.02, conductor_layers=2)
     model = EM3DModel(coils=[Coil3D(5, waveform=DampedSine(20e3, 1e4, 1e5))], conductors=[Conductor(3.5e7)],
                       shell=(0.1, 0.125), sector_deg=10.0)
-    serial = solve_transient3d(model, mesh, 4e-6, 4, work / "serial", element_output="none")
+    # MUMPS (the serial default is UMFPACK, which is sequential: MUMPS_PETSC_ARGS_3D under mpirun)
+    serial = solve_transient3d(model, mesh, 4e-6, 4, work / "serial", element_output="none",
+                               petsc_args=MUMPS_PETSC_ARGS_3D)
     run_dir = work / "mpi"
     (run_dir / "out").mkdir(parents=True)
     old = str(serial.run.run_dir)
