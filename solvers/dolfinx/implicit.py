@@ -106,7 +106,6 @@ class ImplicitSteps(ImplicitLedger):
         if getattr(self, "soft_planes", ()):
             raise ValueError("the implicit integrator has no soft planes yet: use a contact pair with a body, "
                              "a rigid wall, or mechanics.integrator = 'explicit'")
-        check_pairs(self.contact_pairs)
         for n, b in self.bodies.items():
             if b.sliding is not None:
                 raise ValueError(f"body {n!r}: oblique sliding planes are not in the implicit integrator yet")
@@ -478,6 +477,7 @@ class ImplicitSolver(ImplicitSteps, ExplicitSolver):
                  formulation: str = "plane_stress", thickness: float = 1.0, comm=MPI.COMM_WORLD,
                  contact_pairs: Sequence[ContactPairSpec] = (), rigid_walls: Sequence[RigidWallSpec] = ()):
         self.options = options   # the explicit constructor logs stable_time_step()
+        check_pairs(contact_pairs)
         super().__init__(bodies, formulation=formulation, contact_pairs=contact_pairs, rigid_walls=rigid_walls,
                          bulk_viscosity=False, thickness=thickness, comm=comm, compiled_steps=False)
         self._implicit_init(options)
@@ -489,6 +489,7 @@ class ImplicitSolver3D(ImplicitSteps, ExplicitSolver3D):
     def __init__(self, bodies: Sequence[BodySpec], options: ImplicitOptions, comm=MPI.COMM_WORLD,
                  contact_pairs: Sequence[ContactPairSpec] = (), rigid_walls: Sequence[RigidWallSpec] = ()):
         self.options = options
+        check_pairs(contact_pairs)
         super().__init__(bodies, rigid_walls=rigid_walls, contact_pairs=contact_pairs, bulk_viscosity=False,
                          comm=comm)
         self._implicit_init(options)

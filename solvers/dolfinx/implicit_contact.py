@@ -5,9 +5,10 @@ The contact forces of an iterate are those of the explicit solver's passes
 search, areas and law p = k (1/h - 1/h0)), evaluated at the iterate's positions. Their tangent is
 that of each active pair (a slave node against a master segment or triangle) differentiated by the
 complex step in every coordinate of the pair's nodes, with the pair, the clipped weights of a projection
-beyond the master's edges and the node's contact area held at their values of the iterate (the area's
-change with the positions, of relative size h / R, is left out of the tangent: Newton stays exact in
-the residual and converges linearly in that share). The barrier 1/h makes the contact smooth for
+beyond the master's edges and the node's contact area held at their values of the iterate. The area's
+change with the lengths of the slave node's own segments (a motion across the contact normal) is left out
+of the tangent: relative size h / (segment length), 5e-3 in the tests; the residual stays exact and Newton
+converges linearly in that share. The barrier 1/h makes the contact smooth for
 Newton; an iterate that crosses it (h <= 0) is reported as :class:`ContactCrossed`, and the Newton loop
 halves its update (and, failing that, cuts the step).
 
