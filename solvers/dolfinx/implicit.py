@@ -416,6 +416,9 @@ class ImplicitSteps(ImplicitLedger):
             else:
                 a_new = (du - dt * b.v - dt * dt * (0.5 - beta) * b.a) / (beta * dt * dt)
                 v_new = b.v + dt * ((1.0 - gamma) * b.a + gamma * a_new)
+                ke = 0.5 * float(np.sum(b.mass[:, None] * v_new ** 2))
+                trial.walls.stop(n, v_new, a_new)
+                w_wall -= ke - 0.5 * float(np.sum(b.mass[:, None] * v_new ** 2))   # the wall's impact
             m = self._mask[n]
             # supports and walls: their reaction R = M a + f_int - f_c - F (trapezoidal average) works on the
             # prescribed motion

@@ -100,6 +100,21 @@ class WallSet:
             out[n] = f
         return out
 
+    def stop(self, n: str, v: np.ndarray, a: np.ndarray) -> None:
+        """The explicit wall's rule on the held nodes of body ``n``: no velocity or acceleration (sticking), none
+        along the normal (sliding); ``v`` and ``a`` (N, gdim) are changed in place. Without it the Newmark update
+        of a held node (du = 0) flips its velocity every step."""
+        for r, h in self.held[n].items():
+            for iw in h:
+                w = self.solver.rigid_walls[iw]
+                if not w.sliding:
+                    v[r] = 0.0
+                    a[r] = 0.0
+                else:
+                    nrm = w.unit_normal()
+                    v[r] -= (v[r] @ nrm) * nrm
+                    a[r] -= (a[r] @ nrm) * nrm
+
     def held_mask(self, n: str) -> np.ndarray:
         """(N, gdim) bool: the components of body ``n`` a sticking wall holds, and the normal component of
         nodes on a sliding wall whose normal is a coordinate axis (for the static step's rigid-motion check)."""
