@@ -157,7 +157,7 @@ class MechanicsTable:
     integrator: Literal["explicit", "implicit"] = spec(
         "explicit", doc="'explicit': central differences at the stable step (forming pulses, µs); 'implicit': "
                         "Newmark / HHT-α / static steps of mechanics.implicit.dt with Newton iterations (slow "
-                        "motions, ms to s; no contact, walls or rigid bodies yet; coupled runs: coupling.n = 1, and "
+                        "motions, ms to s; contact (no friction or viscosity) and walls, no rigid bodies yet; coupled runs: coupling.n = 1, and "
                         "coupling.iterate = true for steps near the parts' periods; docs/mechanics.md)")
     implicit: ImplicitTable = spec(ImplicitTable(), doc="[mechanics.implicit] table")
     threads: int = spec(1, unit="-", ge=1,
@@ -416,14 +416,15 @@ class Case:
             raise SchemaError("bodies", "each geometry region may be used by one body only")
 
     def _validate_integrator(self) -> None:
-        """The implicit integrator's present reach: mechanics cases of deformable bodies without contact or walls."""
+        """The implicit integrator's present reach: deformable bodies; contact pairs with the elastic law of eq. (5)
+        only (no friction or viscosity), rigid walls."""
         if self.mechanics.integrator != "implicit":
             return
-        key = "mechanics.integrator"
-        for what, items in (("[[contact]] pairs", self.contact), ("[[walls]]", self.walls)):
-            if items:
-                raise SchemaError(key, f"got 'implicit'; the implicit integrator has no {what} yet: remove them or "
-                                  "use 'explicit'")
+        for i, c in enumerate(self.contact):
+            for key in ("friction", "viscosity"):
+                if getattr(c, key) > 0:
+                    raise SchemaError(f"contact[{i}].{key}", f"got {getattr(c, key)!r}; the implicit integrator has "
+                                      "the elastic law of eq. (5) only: set 0 or use mechanics.integrator = 'explicit'")
         for i, b in enumerate(self.bodies):
             if b.rigid:
                 raise SchemaError(f"bodies[{i}].rigid", "rigid bodies run with the explicit integrator only (for now); "

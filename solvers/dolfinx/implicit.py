@@ -36,8 +36,10 @@ infinity (1 + alpha) / (1 - alpha)). The energy ledger adds ``internal_work_J`` 
 work of the internal forces) and ``algorithmic_dissipation_J`` = external work - change of kinetic
 energy - internal work: zero to the Newton tolerance for the trapezoidal rule, the energy HHT removes.
 
-Not done yet (the solver refuses them in one line): soft contact and rigid walls, oblique sliding
-planes, MPI (one process), bulk viscosity (not needed: HHT damps the high modes).
+Contact pairs (eq. (5), elastic law) join the residual with their tangent (:mod:`.implicit_contact`);
+rigid walls are exact constraints on an active set (:mod:`.implicit_walls`). Not done yet (the solver
+refuses them in one line): contact friction and viscosity, soft planes, oblique sliding planes, MPI (one
+process), bulk viscosity (not needed: HHT damps the high modes).
 """
 from __future__ import annotations
 
@@ -51,10 +53,13 @@ from mpi4py import MPI
 
 from .body import BodySpec
 from .contact import ContactPairSpec, RigidWallSpec
+from .implicit_contact import ContactCrossed, check_pairs, evaluate_contact
 from .implicit_element import CellState, cell_tangent, cell_update
 from .implicit_flow import unsupported_material
-from .implicit_linear import SingularSystemError, free_rigid_modes, solve_sparse
+from .implicit_ledger import ImplicitLedger
+from .implicit_linear import SingularSystemError, solve_sparse
 from .implicit_options import SCHEMES, ImplicitConvergenceError, ImplicitOptions
+from .implicit_walls import WallSet, check_static_supports, reduced_basis
 from .solver import ExplicitSolver
 from .solver3d import ExplicitSolver3D
 
@@ -62,6 +67,10 @@ __all__ = ["ImplicitOptions", "ImplicitSolver", "ImplicitSolver3D", "ImplicitCon
            "SingularSystemError", "SCHEMES"]
 
 log = logging.getLogger(__name__)
+
+#: halvings of a Newton update that crossed a contact layer before the step is cut
+_BACKTRACKS = 8
+
 
 class _NotConverged(Exception):
     """A Newton solve failed (iterations exhausted, a cell inverted, a non-finite residual)."""
@@ -73,15 +82,19 @@ class _NotConverged(Exception):
 
 
 class _Trial:
-    """The unknowns and cell results of one Newton iterate."""
+    """One Newton iterate: the unknowns, cell results, contact, residual (N) and its scale, the held walls."""
 
     def __init__(self, du: Dict[str, np.ndarray]):
         self.du = du
         self.results = {}
-        self.fint: Dict[str, np.ndarray] = {}
+        self.reaction: Dict[str, np.ndarray] = {}
+        self.contact = None
+        self.walls = None
+        self.R = np.zeros(0)
+        self.scale = 0.0
 
 
-class ImplicitSteps:
+class ImplicitSteps(ImplicitLedger):
     """The implicit step, a part of :class:`ImplicitSolver` and :class:`ImplicitSolver3D` (the bodies,
     mass, constraints, ledger and restart are those of the explicit solver they extend)."""
 
@@ -90,9 +103,9 @@ class ImplicitSteps:
     def _implicit_init(self, options: ImplicitOptions) -> None:
         if self.comm.size > 1:
             raise ValueError("the implicit integrator runs on one process (MPI: not done yet); run without mpirun")
-        if self.contact_pairs or self.rigid_walls or getattr(self, "soft_planes", ()):
-            raise ValueError("the implicit integrator has no soft contact, rigid walls or soft planes yet: "
-                             "remove them or use mechanics.integrator = 'explicit'")
+        if getattr(self, "soft_planes", ()):
+            raise ValueError("the implicit integrator has no soft planes yet: use a contact pair with a body, "
+                             "a rigid wall, or mechanics.integrator = 'explicit'")
         for n, b in self.bodies.items():
             if b.sliding is not None:
                 raise ValueError(f"body {n!r}: oblique sliding planes are not in the implicit integrator yet")
@@ -113,8 +126,10 @@ class ImplicitSteps:
         self._ndof = off
         self._mask = {n: b.constrained_mask() for n, b in self.bodies.items()}
         self._fint: Dict[str, np.ndarray] = {}
+        self._fcon: Dict[str, np.ndarray] = {}
+        self._fwall = {n: np.zeros_like(b.x) for n, b in self.bodies.items()}
         self._f_from = {n: np.zeros_like(b.x) for n, b in self.bodies.items()}
-        self._iacc = {"internal_work_J": 0.0, "support_work_J": 0.0}
+        self._iacc = {"internal_work_J": 0.0, "support_work_J": 0.0, "contact_work_J": 0.0, "wall_work_J": 0.0}
         self._restart_from_state()
         self._supported: Optional[bool] = None
         log.info("implicit integrator: %s (alpha %g), dt %.4g s, Newton tol %.1e, at most %d iterations, "
@@ -125,14 +140,21 @@ class ImplicitSteps:
         """Start stepping from the bodies' present positions, stress and plastic strain (after construction, or
         after they were copied from another solver: :mod:`.springback`): the internal forces, the acceleration
         (dynamic: M a = -f_int on the free components; static: zero, and zero velocity), the ledger's start."""
+        self._active = {}
+        ev = evaluate_contact(self, {n: b.x for n, b in self.bodies.items()}, self._offsets)
+        self._active, self._contact_out = ev.active, ev.out
+        self._contact_stored = self._contact_stored0 = ev.stored
+        self._contact_work = 0.0
         for n, b in self.bodies.items():
             zero = np.zeros(b.cells.shape + (b.gdim,))
             self._fint[n] = self._cells(n, b, zero, self.options.dt).force_nodal
+            self._fcon[n] = ev.force[n]
+            self._fwall[n][...] = 0.0
             if self.options.scheme == "static":
                 b.v[...] = 0.0
                 b.a[...] = 0.0
             else:
-                a = (self._fext[n] - self._fint[n]) / b.mass[:, None]
+                a = (self._fext[n] - self._fint[n] + self._fcon[n]) / b.mass[:, None]
                 a[self._mask[n]] = 0.0
                 b.a[...] = a
         for k in self._acc:
@@ -200,8 +222,8 @@ class ImplicitSteps:
                 b.a += delta
             self._fext[n][...] = f
             self._fext_nonzero[n] = bool(np.any(f))
-        if self.options.scheme == "static":
-            self._check_supported()
+        if self.options.scheme == "static" and not self._supported:
+            self._supported = check_static_supports(self)
         for _ in range(int(n_steps)):
             self._step_with_cuts(dt, 0, 0.0, 1.0)
             for n in self.bodies:   # static: the state is now in equilibrium with the held force
@@ -266,85 +288,97 @@ class ImplicitSteps:
         res.tangent = lambda: cell_tangent(st, du_cells)
         return res
 
+    def _evaluate(self, du: Dict[str, np.ndarray], dt: float, c_m: float, c_k: float, s1: float) -> _Trial:
+        """The cells, contact and residual R = M a + (1 + alpha)(f_int - f_c) - alpha (f_int^n - f_c^n) - F of the
+        iterate ``du`` (all components; the wall and support reactions are R at their components)."""
+        o = self.options
+        trial = _Trial(du)
+        trial.contact = evaluate_contact(self, {n: b.x + du[n] for n, b in self.bodies.items()}, self._offsets)
+        R_parts, scale_parts = [], [0.0, 0.0, 0.0, 0.0]
+        for n, b in self.bodies.items():
+            res = self._cells(n, b, du[n][b.cells], dt)
+            if res.inverted.any():
+                raise _NotConverged(f"cell {int(np.flatnonzero(res.inverted)[0])} of body {n!r} inverted",
+                                    self.last_residuals)
+            inert = np.zeros_like(b.x)
+            if c_m:
+                inert = b.mass[:, None] * c_m * (du[n] - dt * b.v - dt * dt * (0.5 - o.beta) * b.a)
+            F = self._load(n, s1)
+            fc = trial.contact.force[n]
+            R = inert + c_k * (res.force_nodal - fc) - o.alpha * (self._fint[n] - self._fcon[n]) - F
+            trial.reaction[n] = R
+            R_parts.append(R.ravel())
+            free = ~self._mask[n]
+            scale_parts[0] += float(np.sum(inert[free] ** 2))
+            scale_parts[1] += float(np.sum(res.force_nodal ** 2))   # all components: the reactions too
+            scale_parts[2] += float(np.sum(F[free] ** 2))
+            # the force scale must not vanish with the solution (a static step back to zero load)
+            scale_parts[3] += float(np.sum(self._fint[n][free] ** 2))
+            trial.results[n] = res
+        trial.R = np.concatenate(R_parts)
+        trial.scale = math.sqrt(max(scale_parts))
+        return trial
+
     def _newton(self, dt: float, s1: float) -> _Trial:
         """Newton iterations of one step from the current state to the load fraction ``s1``; returns the
-        converged iterate (the state is not changed) or raises :class:`_NotConverged`."""
+        converged iterate (the state is not changed) or raises :class:`_NotConverged`.
+
+        The predictor is no motion: extrapolations invert cells on large steps (the constant-acceleration one
+        carries the lumped mass's response to a just-applied load, the constant-velocity one the velocity of
+        modes the step does not resolve). The prescribed components (supports, walls) join through the
+        correction of the first solve on the start-of-step tangent, which spreads them over the body (set at
+        once, they strain only the cells at the boundary: yield there). An update that crosses a contact
+        layer is halved (up to ``_BACKTRACKS`` times)."""
         o = self.options
-        static = o.scheme == "static"
-        beta, alpha = o.beta, o.alpha
-        c_m = 0.0 if static else 1.0 / (beta * dt * dt)
-        c_k = 1.0 + alpha
-        du: Dict[str, np.ndarray] = {}
-        pending = np.zeros(self._ndof)   # prescribed increments not yet in du (the first iteration's load)
-        for n, b in self.bodies.items():
-            # predictor: no motion. Extrapolations invert cells on large steps: the constant-acceleration one
-            # carries the lumped mass's response to a just-applied load (a^n = M^-1 F), the constant-velocity one
-            # the velocity of modes the step does not resolve (HHT at 0.25 ms on a plate ringing at 1.5 kHz). The
-            # first Newton iteration (linear in the inertia) finds the motion. The prescribed components join
-            # through that iteration's solve on the start-of-step tangent, which spreads them over the body (set
-            # at once, they strain only the cells at the boundary: yield there)
-            pred = np.zeros_like(b.x)
-            m = self._mask[n]
-            o0 = self._offsets[n]
-            pending[o0:o0 + b.x.size] = np.where(m, self._prescribed(n, b, dt) - pred, 0.0).ravel()
-            du[n] = pred
-        first_load = bool(np.any(pending))
+        c_m = 0.0 if o.scheme == "static" else 1.0 / (o.beta * dt * dt)
+        c_k = 1.0 + o.alpha
+        du = {n: np.zeros_like(b.x) for n, b in self.bodies.items()}
+        target = {n: np.where(self._mask[n], self._prescribed(n, b, dt), 0.0) for n, b in self.bodies.items()}
+        walls = WallSet(self)
         residuals: List[float] = []
+        self.last_residuals = residuals
+        last, halvings = None, 0
         for it in range(o.newton_max + 1):
-            R_parts, scale_parts, blocks = [], [0.0, 0.0, 0.0, 0.0], []
-            for n, b in self.bodies.items():
-                res = self._cells(n, b, du[n][b.cells], dt)
-                if res.inverted.any():
-                    e = int(np.flatnonzero(res.inverted)[0])
-                    raise _NotConverged(f"cell {e} of body {n!r} inverted", residuals)
-                fint = res.force_nodal
-                inert = np.zeros_like(b.x)
-                if not static:
-                    a_new = c_m * (du[n] - dt * b.v - dt * dt * (0.5 - beta) * b.a)
-                    inert = b.mass[:, None] * a_new
-                F = self._load(n, s1)
-                R = inert + c_k * fint - alpha * self._fint[n] - F
-                free = ~self._mask[n]
-                R_parts.append(R[free])
-                scale_parts[0] += float(np.sum(inert[free] ** 2))
-                scale_parts[1] += float(np.sum(fint ** 2))   # all components: the reactions of prescribed motions too
-                scale_parts[2] += float(np.sum(F[free] ** 2))
-                # the force scale must not vanish with the solution (a static step back to zero load)
-                scale_parts[3] += float(np.sum(self._fint[n][free] ** 2))
-                blocks.append((n, b, res))
-            R = np.concatenate(R_parts)
-            if not np.all(np.isfinite(R)):
+            try:
+                trial = self._evaluate(du, dt, c_m, c_k, s1)
+            except ContactCrossed as exc:
+                if last is None or halvings >= _BACKTRACKS:
+                    raise _NotConverged(str(exc), residuals) from None
+                halvings += 1
+                for n in du:
+                    last[n] *= 0.5
+                    du[n] -= last[n]
+                continue
+            if not np.all(np.isfinite(trial.R)):
                 raise _NotConverged("non-finite residual", residuals)
-            scale = math.sqrt(max(scale_parts))
-            rn = float(np.linalg.norm(R))
-            rel = rn / scale if scale > 0 else (0.0 if rn == 0 else math.inf)
+            T, corr = reduced_basis(self, walls, du, self._mask, target, self._offsets, self._ndof)
+            Rr = T.T @ trial.R
+            rn = float(np.linalg.norm(Rr))
+            rel = rn / trial.scale if trial.scale > 0 else (0.0 if rn == 0 else math.inf)
             residuals.append(rel)
-            if rel <= o.newton_tol and not (it == 0 and first_load):
-                self.last_residuals = residuals
+            if rel <= o.newton_tol and not np.any(corr) and not walls.release(trial.reaction,
+                                                                            o.newton_tol * trial.scale):
                 self.newton_iterations += it
-                trial = _Trial(du)
-                for n, b, res in blocks:
-                    trial.results[n] = res
+                trial.walls = walls
                 return trial
             if it == o.newton_max:
                 break
-            K = self._assemble(blocks, c_m, c_k)
-            free_all = np.concatenate([~self._mask[n].ravel() for n in self.bodies])
-            Kff = K[free_all][:, free_all]
-            rhs = -R
-            if it == 0 and first_load:
-                rhs = rhs - K[free_all][:, ~free_all] @ pending[~free_all]
-            delta = solve_sparse(Kff, rhs, f"t = {self.time:.6e} s, Newton iteration {it + 1}")
-            full = pending.copy() if it == 0 else np.zeros(self._ndof)
-            full[free_all] = delta
+            K = self._assemble([(n, b, trial.results[n]) for n, b in self.bodies.items()], c_m, c_k, trial.contact)
+            delta = T @ solve_sparse((T.T @ K @ T).tocsr(), -(Rr + T.T @ (K @ corr)),
+                                     f"t = {self.time:.6e} s, Newton iteration {it + 1}") + corr
+            last = {}
             for n, b in self.bodies.items():
                 o0 = self._offsets[n]
-                du[n] = du[n] + full[o0:o0 + b.x.size].reshape(b.x.shape)
+                last[n] = delta[o0:o0 + b.x.size].reshape(b.x.shape)
+                du[n] = du[n] + last[n]
+            walls.activate(du)
         raise _NotConverged(f"relative residual {residuals[-1]:.2g} > {o.newton_tol:.2g} after {o.newton_max} "
                             "iterations", residuals)
 
-    def _assemble(self, blocks, c_m: float, c_k: float) -> sp.csr_matrix:
-        """The effective tangent c_m M + c_k K_T over all bodies' components (sparse, N/m)."""
+    def _assemble(self, blocks, c_m: float, c_k: float, contact=None) -> sp.csr_matrix:
+        """The effective tangent c_m M + c_k (K_T + K_c) over all bodies' components (sparse, N/m) from the
+        ``(name, body, cell results)`` of ``blocks``; K_c that of ``contact``
+        (:meth:`.implicit_contact.ContactEval.tangent`, none if None)."""
         rows, cols, vals, diag = [], [], [], []
         for n, b, res in blocks:
             d = b.gdim
@@ -354,6 +388,11 @@ class ImplicitSteps:
             cols.append(np.tile(dofs, (1, nd)).ravel())
             vals.append((c_k * res.tangent()).ravel())
             diag.append(np.repeat(c_m * b.mass, d))
+        if contact is not None:
+            r, c, v = contact.tangent()
+            rows.append(r)
+            cols.append(c)
+            vals.append(c_k * v)
         K = sp.coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
                           shape=(self._ndof, self._ndof)).tocsr()
         if c_m:
@@ -365,82 +404,57 @@ class ImplicitSteps:
         o = self.options
         static = o.scheme == "static"
         beta, gamma = o.beta, o.gamma
-        w_int = w_sup = w_ext = w_p = 0.0
+        w_int = w_sup = w_ext = w_p = w_con = w_wall = 0.0
+        r_end, x_end = {}, {}
         for n, b in self.bodies.items():
             du = trial.du[n]
             res = trial.results[n]
-            fint = res.force_nodal
+            fint, fcon = res.force_nodal, trial.contact.force[n]
             if static:
                 a_new = np.zeros_like(b.x)
                 v_new = np.zeros_like(b.x)
             else:
                 a_new = (du - dt * b.v - dt * dt * (0.5 - beta) * b.a) / (beta * dt * dt)
                 v_new = b.v + dt * ((1.0 - gamma) * b.a + gamma * a_new)
+                ke = 0.5 * float(np.sum(b.mass[:, None] * v_new ** 2))
+                trial.walls.stop(n, v_new, a_new)
+                w_wall -= ke - 0.5 * float(np.sum(b.mass[:, None] * v_new ** 2))   # the wall's impact
             m = self._mask[n]
-            # supports: their reaction R = M a + f_int - F (trapezoidal average) works on prescribed motion
+            # supports and walls: their reaction R = M a + f_int - f_c - F (trapezoidal average) works on the
+            # prescribed motion
             F0, F1 = self._load(n, s0), self._load(n, s1)
-            r_old = b.mass[:, None] * b.a + self._fint[n] - F0
-            r_new = b.mass[:, None] * a_new + fint - F1
-            w_sup += float(np.sum((du * 0.5 * (r_old + r_new))[m]))
+            r_old = b.mass[:, None] * b.a + self._fint[n] - self._fcon[n] - F0
+            r_end[n] = b.mass[:, None] * a_new + fint - fcon - F1
+            w_sup += float(np.sum((du * 0.5 * (r_old + r_end[n]))[m]))
             w_int += float(np.sum(du * 0.5 * (self._fint[n] + fint)))
+            w_con += float(np.sum(du * 0.5 * (self._fcon[n] + fcon)))
             w_ext += float(np.sum(du * 0.5 * (F0 + F1)))
             w_p += float(np.sum(res.plastic_work))
             b.x += du
+            x_end[n] = b.x
             b.v[...] = v_new
             b.a[...] = a_new
             b.cell_stress[...] = np.real(res.stress)
             b.eps_p += res.deps_p
             self._fint[n] = fint
+            self._fcon[n] = fcon
+        fwall = trial.walls.wall_force(r_end)
+        for n in self.bodies:
+            w_wall += float(np.sum(trial.du[n] * 0.5 * (self._fwall[n] + fwall[n])))
+            self._fwall[n] = fwall[n]
+        self._wall_out = trial.walls.pressures(r_end, x_end)
+        self._active, self._contact_out = trial.contact.active, trial.contact.out
+        self._contact_stored = trial.contact.stored
+        self._contact_work += w_con
+        self._iacc["contact_work_J"] += w_con
+        self._iacc["wall_work_J"] += w_wall
+        self._acc["wall_dissipated_J"] -= w_wall
         self._iacc["internal_work_J"] += w_int
         self._iacc["support_work_J"] += w_sup
         self._acc["external_work_J"] += w_ext + w_sup
         self._acc["plastic_J"] += w_p
         self.time += dt
         self.step_count += 1
-
-    def _check_supported(self) -> None:
-        """A static step needs every body held against rigid motion (else its tangent is singular)."""
-        if self._supported:
-            return
-        for n, b in self.bodies.items():
-            free = free_rigid_modes(b.x, self._mask[n], bool(b.axisymmetric))
-            if free:
-                raise SingularSystemError(
-                    f"t={self.time:.6g} s: body {n!r} can move rigidly ({', '.join(free)}) in a static step: singular "
-                    "stiffness; add [[bodies.fixed]] or use scheme 'trapezoidal'")
-        self._supported = True
-
-    # ------------------------------------------------------------------ ledger and restart
-    def energies(self) -> Dict[str, float]:
-        """The explicit solver's ledger (J) plus ``internal_work_J`` (trapezoidal work of the internal
-        forces), ``support_work_J`` (work of the reactions on prescribed motions, part of
-        ``external_work_J``) and ``algorithmic_dissipation_J`` (external work - kinetic energy change -
-        internal work: 0 to the Newton tolerance for the trapezoidal rule, what HHT-alpha damps), which
-        ``balance_error_J`` counts as dissipated."""
-        e = super().energies()
-        e.update(self._iacc)
-        diss = e["external_work_J"] - (e["kinetic_J"] - self._KE0) - self._iacc["internal_work_J"]
-        e["algorithmic_dissipation_J"] = diss
-        e["balance_error_J"] += diss
-        return e
-
-    def state_dict(self) -> Dict[str, np.ndarray]:
-        """The explicit solver's state plus the internal forces of the last step and the implicit ledger."""
-        d = super().state_dict()
-        for n in self.bodies:
-            d[f"{n}/implicit_fint"] = self._fint[n].copy()
-            d[f"{n}/implicit_f_from"] = self._f_from[n].copy()
-        d["implicit/acc"] = np.array([self._iacc["internal_work_J"], self._iacc["support_work_J"], self._KE0])
-        return d
-
-    def load_state_dict(self, d: Mapping[str, np.ndarray]) -> None:
-        """Restore :meth:`state_dict`."""
-        super().load_state_dict(d)
-        for n in self.bodies:
-            self._fint[n] = np.array(d[f"{n}/implicit_fint"], dtype=float)
-            self._f_from[n][...] = np.asarray(d[f"{n}/implicit_f_from"], dtype=float)
-        acc = np.asarray(d["implicit/acc"], dtype=float)
-        self._iacc["internal_work_J"], self._iacc["support_work_J"], self._KE0 = (float(v) for v in acc)
 
 
 class ImplicitSolver(ImplicitSteps, ExplicitSolver):
@@ -466,6 +480,7 @@ class ImplicitSolver(ImplicitSteps, ExplicitSolver):
                  formulation: str = "plane_stress", thickness: float = 1.0, comm=MPI.COMM_WORLD,
                  contact_pairs: Sequence[ContactPairSpec] = (), rigid_walls: Sequence[RigidWallSpec] = ()):
         self.options = options   # the explicit constructor logs stable_time_step()
+        check_pairs(contact_pairs)
         super().__init__(bodies, formulation=formulation, contact_pairs=contact_pairs, rigid_walls=rigid_walls,
                          bulk_viscosity=False, thickness=thickness, comm=comm, compiled_steps=False)
         self._implicit_init(options)
@@ -477,6 +492,7 @@ class ImplicitSolver3D(ImplicitSteps, ExplicitSolver3D):
     def __init__(self, bodies: Sequence[BodySpec], options: ImplicitOptions, comm=MPI.COMM_WORLD,
                  contact_pairs: Sequence[ContactPairSpec] = (), rigid_walls: Sequence[RigidWallSpec] = ()):
         self.options = options
+        check_pairs(contact_pairs)
         super().__init__(bodies, rigid_walls=rigid_walls, contact_pairs=contact_pairs, bulk_viscosity=False,
                          comm=comm)
         self._implicit_init(options)

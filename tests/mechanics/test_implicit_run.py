@@ -100,14 +100,23 @@ def test_bad_implicit_keys_are_one_line(tmp_path, capsys, edit, key):
     assert rc == 2 and len(lines) == 1 and key in lines[0] and str(file) in lines[0], err
 
 
-def test_implicit_refuses_contact_in_one_line(tmp_path, capsys):
-    """Walls (and contact) are not in the implicit integrator yet: the case check says so."""
+def test_implicit_takes_walls_and_refuses_contact_friction_in_one_line(tmp_path, capsys):
+    """Walls and elastic contact pairs are in the implicit integrator (issue 34, item 1): the case check passes
+    them; a pair with friction (velocity-dependent, not in the implicit integrator) is refused in one line
+    naming the file and the key."""
     data = copy.deepcopy(CASE)
     data["walls"] = [{"point": [0.0, -0.01], "normal": [0.0, 1.0]}]
+    assert main(["check", str(_write(tmp_path, data))]) == 0
+    capsys.readouterr()
+    die = copy.deepcopy(data["bodies"][0])
+    die.update(name="die", shape={"type": "rectangle", "origin": [0.0, -0.006], "width": 0.1, "height": 0.005})
+    data["bodies"].append(die)
+    data["contact"] = [{"slave": "beam", "master": "die", "stiffness": 1e6, "h0": 1e-4, "friction": 0.2}]
     file = _write(tmp_path, data)
     rc = main(["check", str(file)])
     _, err = capsys.readouterr()
-    assert rc == 2 and "mechanics.integrator" in err and "[[walls]]" in err
+    lines = err.strip().splitlines()
+    assert rc == 2 and len(lines) == 1 and "contact[0].friction" in lines[0] and str(file) in lines[0], err
 
 
 @pytest.mark.slow
