@@ -191,7 +191,7 @@ def _file_argument(tokens: list, i: int) -> str | None:
 
 
 #: names of the runner's own deck libraries (absolute paths the runner defines) a .pro may Include
-RUNNER_LIBRARIES = ("PulseformLib", "PulseformPersistentLib", "PulseformHarmonicLib")
+RUNNER_LIBRARIES = ("PulseformLib", "PulseformPersistentLib", "PulseformHarmonicLib", "PulseformNewtonLib")
 #: most files one deck scan reads (a deck with more cannot be checked)
 MAX_DECK_FILES = 1000
 

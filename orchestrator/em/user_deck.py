@@ -293,7 +293,8 @@ def make_solver(case, model, work_dir: Path, getdp_process: str = "per_step", de
         return template_solver(case, model, work_dir, deck_ids, numbers)
     lib = (DECK_DIR / "Lib_PulsedForming.pro").resolve()
     return make_em_solver(model, work_dir, case.em.time_scheme, getdp_process, deck=g.pro, extra_numbers=numbers,
-                          preamble=[f'PulseformLib = "{lib}";'], factor_reuse=factor_reuse(case))
+                          preamble=[f'PulseformLib = "{lib}";', f'PulseformNewtonLib = "{lib.parent / "Lib_Newton.pro"}";'],
+                          factor_reuse=factor_reuse(case))
 
 
 def deck_names(case, deck_ids: dict[int, int] | None = None) -> DeckNames:
