@@ -7,6 +7,7 @@ from operator import attrgetter
 from typing import ClassVar, Literal
 
 from .deck_files import remesh_air_error
+from .em_cores import Box4, CoaxialCore, check_cores
 from .geometry3d import GeometryFile3D
 from .schema import SchemaError, spec
 
@@ -209,9 +210,6 @@ class PlanarCoilBlankDie(_ConductorRoles):
         _check_open_boundary(path, extent, self.air_radius, self.shell_radius, "coil/blank/die")
 
 
-Box4 = tuple[float, float, float, float]
-
-
 def _check_box(box: Box4, path: str) -> None:
     """A rectangle [r0, z0, r1, z1] (m) in the half plane r >= 0 with positive extents."""
     r0, z0, r1, z1 = box
@@ -275,6 +273,8 @@ class CoaxialCoils(_ConductorRoles):
                                    "windings and workpiece as [x0, y0, x1, y1]) instead of an axisymmetric one")
     coils: tuple[CoaxialCoil, ...] = spec(doc="[[geometry.coils]] the coils (coil k is physical 100 + k, in this order)")
     workpiece: CoaxialWorkpiece = spec(doc="[geometry.workpiece] the conducting workpiece")
+    cores: tuple[CoaxialCore, ...] = spec((), doc="[[geometry.cores]] non-conducting magnetic cores (laminated "
+                                                  "or powder iron; core k is physical 800 + k, one per box)")
     air_radius: float = spec(unit="m", gt=0.0, doc="radius of the meshed air half-disk")
     shell_radius: float = spec(unit="m", gt=0.0, doc="outer radius of the shell to infinity")
     mesh_size_coil: float = spec(unit="m", gt=0.0, doc="element size in and near the coils")
@@ -302,8 +302,9 @@ class CoaxialCoils(_ConductorRoles):
                     if _boxes_meet(w, box, touching=False):
                         raise SchemaError(key, f"overlaps {other}")
                 placed.append((f"coils[{i}].windings[{j}]", w))
+        placed += check_cores(path, self.cores, placed, work, _check_box, _boxes_meet)
         corners = [abs(x) for _, b in placed for x in b] + [abs(x) for x in work]
-        _check_open_boundary(path, max(corners), self.air_radius, self.shell_radius, "coils/workpiece")
+        _check_open_boundary(path, max(corners), self.air_radius, self.shell_radius, "coils/workpiece/cores")
 
 
 @dataclass(frozen=True, kw_only=True)
