@@ -4,7 +4,8 @@
 Reference (magnetic circuit, Ampère's law). While the aluminium ring shields the core's window (the first 10 µs:
 the field diffuses sqrt(2 t / (μ0 σ)) = 0.67 mm into its 2 mm), a loop up the centre post (r <= a = 10 mm),
 across the window under the ring, down the outer wall (r >= b = 30 mm) and back through the back plate encloses
-the coil's N I, with H ≈ 0 in the iron (μ_r ≈ 670 on the curve's first segment: B < 0.2 T in these steps). With
+the coil's N I, with H ≈ 0 in the iron (μ_r 670 .. 990 on the curve's steep part: B below ~0.6 T in the post in these steps,
+1.7 T at the peak current). With
 H_r = C / r under the ring (flux conservation), the ring's face a' = 11 mm .. b' = 29 mm (1 mm clearances to the
 post and the wall) gets F = π μ0 C² ln(b'/a'), between two bounds:
 
