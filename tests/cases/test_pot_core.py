@@ -4,10 +4,9 @@
 Reference (magnetic circuit, Ampère's law). While the aluminium ring shields the core's window (the first 10 µs:
 the field diffuses sqrt(2 t / (μ0 σ)) = 0.67 mm into its 2 mm), a loop up the centre post (r <= a = 10 mm),
 across the window under the ring, down the outer wall (r >= b = 30 mm) and back through the back plate encloses
-the coil's N I, with H ≈ 0 in the iron (μ_r 670 .. 990 on the curve's steep part: B below ~0.6 T in the post in these steps,
-1.7 T at the peak current). With
-H_r = C / r under the ring (flux conservation), the ring's face a' = 11 mm .. b' = 29 mm (1 mm clearances to the
-post and the wall) gets F = π μ0 C² ln(b'/a'), between two bounds:
+the coil's N I, with H ≈ 0 in the iron (μ_r 670 .. 990 on the curve's steep part: below ~0.6 T in the post in
+these steps; 1.7 T at the peak current). With H_r = C / r under the ring (flux conservation), the ring's face
+a' = 11 mm .. b' = 29 mm (1 mm clearances to the post and the wall) gets F = π μ0 C² ln(b'/a'), between two bounds:
 
 - lower: the MMF spread over the whole window, C ln(b/a) = N I (the clearances carry the field the ring sees),
   F_lo = π μ0 (N I)² ln(b'/a') / ln²(b/a) = 3.171e-6 N/A² · (N I)²;
@@ -17,8 +16,8 @@ post and the wall) gets F = π μ0 C² ln(b'/a'), between two bounds:
 The iron's own reluctance and the field above the ring lower the force below F_hi. The same coil and ring without
 the core take no such circuit: their force per (N I)² (the FE's) is the comparison, and the core's factor is the
 estimate's over it. Measured: F/(N I)² = 3.45e-6 .. 3.62e-6 N/A² with the core, 1.66e-6 .. 1.70e-6 without: a
-factor 2.07 .. 2.13 (the estimate's 1.87 .. 2.41); the Newton counts 3 .. 4 (5 s). At the same bank (the whole 300 µs) the core
-raises the peak force 1032 -> 1427 N and the ring's speed 7.0 -> 10.0 m/s (README of the case).
+factor 2.07 .. 2.13 (the estimate's 1.87 .. 2.41); the Newton counts 3 .. 4 (5 s). At the same bank (the whole
+300 µs) the core raises the peak force 1032 -> 1427 N and the ring's speed 7.0 -> 10.0 m/s (README of the case).
 """
 from __future__ import annotations
 
