@@ -2,7 +2,7 @@
 ``[[geometry.cores]]``, each a set of rectangles of one material whose ``relative_permeability`` or ``bh_curve``
 it takes (a laminated or powder core: no eddy current, no force on it, it does not move). GetDP meshes each
 rectangle as a magnetic core region (physical 800 + k, :class:`pulseform.solvers.getdp.model.MagneticCore`).
-Units: m.
+Also the rectangle checks ``coaxial_coils`` applies to its windings, workpiece and cores. Units: m.
 """
 
 from __future__ import annotations
@@ -11,9 +11,25 @@ from dataclasses import dataclass
 
 from .schema import SchemaError, spec
 
-__all__ = ["CoaxialCore", "check_cores", "check_core_materials"]
+__all__ = ["Box4", "CoaxialCore", "check_box", "boxes_meet", "check_cores", "check_core_materials"]
 
 Box4 = tuple[float, float, float, float]
+
+
+def check_box(box: Box4, path: str) -> None:
+    """A rectangle [r0, z0, r1, z1] (m) in the half plane r >= 0 with positive extents."""
+    r0, z0, r1, z1 = box
+    if r0 < 0.0:
+        raise SchemaError(path, f"got r0 = {r0:g}; must be >= 0 (the axis is r = 0) (m)")
+    if r1 <= r0 or z1 <= z0:
+        raise SchemaError(path, f"got [{r0:g}, {z0:g}, {r1:g}, {z1:g}]; need r1 > r0 and z1 > z0 (m)")
+
+
+def boxes_meet(a: Box4, b: Box4, touching: bool) -> bool:
+    """True if rectangles ``a`` and ``b`` overlap with positive area (or, with ``touching``, share any point)."""
+    if touching:
+        return a[0] <= b[2] and b[0] <= a[2] and a[1] <= b[3] and b[1] <= a[3]
+    return a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -28,11 +44,11 @@ class CoaxialCore:
                                                  "may touch each other and the coils, not overlap)")
 
 
-def check_cores(path: str, cores: tuple[CoaxialCore, ...], placed: list[tuple[str, Box4]], work: Box4,
-                check_box, boxes_meet) -> list[tuple[str, Box4]]:
+def check_cores(path: str, cores: tuple[CoaxialCore, ...], placed: list[tuple[str, Box4]],
+                work: Box4) -> list[tuple[str, Box4]]:
     """One line for a core's box that is no rectangle, overlaps another box or a coil's winding, or touches the
     workpiece (it moves, the cores do not); the cores' boxes with their keys. ``placed``: the coils' windings
-    (key, box); ``check_box`` and ``boxes_meet``: the geometry's rectangle checks."""
+    (key, box); ``work``: the workpiece's box."""
     names: list[str] = []
     out: list[tuple[str, Box4]] = []
     for i, c in enumerate(cores):
