@@ -7,6 +7,7 @@ from operator import attrgetter
 from typing import ClassVar, Literal
 
 from .deck_files import remesh_air_error
+from .em_cores import Box4, CoaxialCore, boxes_meet, check_box, check_cores
 from .geometry3d import GeometryFile3D
 from .schema import SchemaError, spec
 
@@ -209,25 +210,6 @@ class PlanarCoilBlankDie(_ConductorRoles):
         _check_open_boundary(path, extent, self.air_radius, self.shell_radius, "coil/blank/die")
 
 
-Box4 = tuple[float, float, float, float]
-
-
-def _check_box(box: Box4, path: str) -> None:
-    """A rectangle [r0, z0, r1, z1] (m) in the half plane r >= 0 with positive extents."""
-    r0, z0, r1, z1 = box
-    if r0 < 0.0:
-        raise SchemaError(path, f"got r0 = {r0:g}; must be >= 0 (the axis is r = 0) (m)")
-    if r1 <= r0 or z1 <= z0:
-        raise SchemaError(path, f"got [{r0:g}, {z0:g}, {r1:g}, {z1:g}]; need r1 > r0 and z1 > z0 (m)")
-
-
-def _boxes_meet(a: Box4, b: Box4, touching: bool) -> bool:
-    """True if rectangles ``a`` and ``b`` overlap with positive area (or, with ``touching``, share any point)."""
-    if touching:
-        return a[0] <= b[2] and b[0] <= a[2] and a[1] <= b[3] and b[1] <= a[3]
-    return a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3]
-
-
 @dataclass(frozen=True, kw_only=True)
 class CoaxialCoil:
     """One coil of ``coaxial_coils``: its turns in series, spread uniformly over its winding cross-sections."""
@@ -249,7 +231,7 @@ class CoaxialWorkpiece:
     mesh_size: float | None = spec(None, unit="m", gt=0.0, doc="element size in the workpiece (unset: skin depth)")
 
     def validate(self, path: str) -> None:
-        _check_box((self.r0, self.z0, self.r1, self.z1), path)
+        check_box((self.r0, self.z0, self.r1, self.z1), path)
 
     @property
     def box(self) -> Box4:
@@ -275,6 +257,8 @@ class CoaxialCoils(_ConductorRoles):
                                    "windings and workpiece as [x0, y0, x1, y1]) instead of an axisymmetric one")
     coils: tuple[CoaxialCoil, ...] = spec(doc="[[geometry.coils]] the coils (coil k is physical 100 + k, in this order)")
     workpiece: CoaxialWorkpiece = spec(doc="[geometry.workpiece] the conducting workpiece")
+    cores: tuple[CoaxialCore, ...] = spec((), doc="[[geometry.cores]] non-conducting magnetic cores (laminated "
+                                                  "or powder iron; core k is physical 800 + k, one per box)")
     air_radius: float = spec(unit="m", gt=0.0, doc="radius of the meshed air half-disk")
     shell_radius: float = spec(unit="m", gt=0.0, doc="outer radius of the shell to infinity")
     mesh_size_coil: float = spec(unit="m", gt=0.0, doc="element size in and near the coils")
@@ -294,16 +278,17 @@ class CoaxialCoils(_ConductorRoles):
                 raise SchemaError(f"{path}.coils[{i}].windings", "got an empty list; give at least one [r0, z0, r1, z1]")
             for j, w in enumerate(c.windings):
                 key = f"{path}.coils[{i}].windings[{j}]"
-                _check_box(w, key)
-                if _boxes_meet(w, work, touching=True):
+                check_box(w, key)
+                if boxes_meet(w, work, touching=True):
                     raise SchemaError(key, "overlaps or touches the workpiece; leave a gap (the workpiece moves, the "
                                       "coils do not)")
                 for other, box in placed:
-                    if _boxes_meet(w, box, touching=False):
+                    if boxes_meet(w, box, touching=False):
                         raise SchemaError(key, f"overlaps {other}")
                 placed.append((f"coils[{i}].windings[{j}]", w))
+        placed += check_cores(path, self.cores, placed, work)
         corners = [abs(x) for _, b in placed for x in b] + [abs(x) for x in work]
-        _check_open_boundary(path, max(corners), self.air_radius, self.shell_radius, "coils/workpiece")
+        _check_open_boundary(path, max(corners), self.air_radius, self.shell_radius, "coils/workpiece/cores")
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 from pulseform.solvers.getdp.bh_curve import BHCurve
 
+from .em_cores import check_core_materials
 from .flow import check_increasing
 from .schema import SchemaError, spec
 
@@ -60,16 +61,20 @@ def bh_curve(table: BHCurveTable | None) -> BHCurve | None:
 
 def magnetic_keywords(material) -> dict:
     """A material's ``mu_r`` and ``bh_curve`` as the keywords of a GetDP conductor
-    (:class:`pulseform.solvers.getdp.model.Conductor`)."""
+    (:class:`pulseform.solvers.getdp.model.Conductor`, :class:`~pulseform.solvers.getdp.model.MagneticCore`)."""
     return {"mu_r": material.relative_permeability, "bh_curve": bh_curve(material.bh_curve)}
 
 
 def check_magnetic_em(case) -> None:
-    """Magnetic materials of a coupled case's bodies: on pulseform's own decks (not a user deck, whose materials
-    are its own), no applied field (its reduced-field source needs μ0 everywhere), and a B–H curve runs getdp per
-    step (one line naming the key otherwise)."""
-    keys = [(f"materials.{b.material}", case.materials[b.material]) for b in case.bodies
-            if b.material in case.materials]
+    """Magnetic materials of a coupled case's bodies and cores (``[[geometry.cores]]``, whose materials must be
+    magnetic): on pulseform's own decks (not a user deck, whose materials are its own), no applied field (its
+    reduced-field source needs μ0 everywhere), and a B–H curve runs getdp per step (one line naming the key
+    otherwise)."""
+    check_core_materials(case)
+    cores = getattr(case.geometry, "cores", ()) or ()
+    keys = [(f"materials.{m}", case.materials[m]) for m in [b.material for b in case.bodies] + [c.material
+                                                                                             for c in cores]
+            if m in case.materials]
     magnetic = [(k, m) for k, m in keys if m.bh_curve is not None or m.relative_permeability != 1.0]
     if not magnetic:
         return

@@ -8,6 +8,7 @@ from pathlib import Path
 
 from pulseform.solvers.getdp import (AppliedField, Circuit, Coil, Conductor, CurrentTable, DampedSine, EMModel,
                                      GetDPSolver)
+from pulseform.solvers.getdp.model import MagneticCore
 from pulseform.solvers.getdp.persistent_process import FactorReuse
 
 from ..case.conductivity import conductivity_law
@@ -119,7 +120,10 @@ def em_model(case: Case, shell: tuple[float, float] | None) -> EMModel:
             raise ValueError(f"materials.{body.material}.electrical_conductivity must be > 0 for the {role}")
         conductors.append(Conductor(sigma=sigma, name=body.name, conductivity_law=law,
                                     initial_temperature=mat.initial_temperature, **magnetic_keywords(mat)))
+    cores = [MagneticCore(name=c.name, **magnetic_keywords(case.materials[c.material]))   # one per box (the mesh's)
+             for c in getattr(g, "cores", ()) or () for _ in c.boxes]
     return EMModel(axisymmetric=not g.planar, coils=coils, conductors=conductors, circuit=circuit, shell=shell,
+                   cores=cores,
                    applied_field=applied_field(case.em.applied_field), newton_tolerance=case.em.newton_tolerance,
                    newton_max_iterations=case.em.newton_max_iterations)
 

@@ -16,6 +16,7 @@ from typing import Callable
 import numpy as np
 
 from pulseform.solvers.getdp import EMMesh, Rect, coil_conductor_mesh, coil_tag, conductor_tag
+from pulseform.solvers.getdp.mesh import core_tag
 from pulseform.solvers.getdp.runner import ChildCall
 
 from ..case.em_model import CoaxialCoils
@@ -124,9 +125,12 @@ def start_em_geometry(g: Geometry, time_limit: float | None = None) -> PendingEM
         coils = coaxial_coil_turns(g)
         names = {coil_tag(k): c.name for k, c in enumerate(g.coils, start=1)}
         names[conductor_tag(1)] = "workpiece"
+        cores = [(c.name if len(c.boxes) == 1 else f"{c.name}_{j}", Rect(*box))   # core k: physical 800 + k
+                 for c in g.cores for j, box in enumerate(c.boxes, start=1)]
+        names.update({core_tag(k): name for k, (name, _) in enumerate(cores, start=1)})
         _require_sizes([g.workpiece.mesh_size])
         call = ChildCall(coil_conductor_mesh, coils, [Rect(*g.workpiece.box)], h_conductor=[g.workpiece.mesh_size],
-                         names=names, **common)
+                         names=names, cores=[r for _, r in cores], **common)
 
         def finish_coaxial(mesh: EMMesh) -> EMGeometry:
             log.info("EM mesh (%s): %d nodes, %d triangles, %d coils, groups %s", g.type, mesh.n_nodes,
