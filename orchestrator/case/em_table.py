@@ -137,9 +137,6 @@ class EM:
                 raise SchemaError(f"{path}.coil_initial_temperature",
                                   f"got {self.coil_initial_temperature:g}; must be below the coil's melting "
                                   f"temperature {cc.melting_temperature or COPPER_MELTING_K:g} (K)")
-        if cc is not None and self.getdp_process == "persistent":
-            raise SchemaError(f"{path}.getdp_process", "got 'persistent'; a conductivity that follows temperature "
-                              "runs getdp per step: set getdp_process = 'auto' or 'per_step'")
         if self.shots is not None and not self.has_bank:
             raise SchemaError(f"{path}.shots", "repeated shots are capacitor-bank discharges: give em.circuit or a "
                                                "'bank' source")
