@@ -14,6 +14,9 @@ conductors (equal to the whole-domain ½ (ν curl a, curl a) of the discrete sol
 conductors' Joule power, and the per-element force integrals; the conductor force is their sum,
 the coil's Joule power (N_s I / S_c)² / σ × V_coil (uniform current density), the coil force is
 not computed (NaN).  B and Joule power per element are fetched only when read (a field output).
+
+With σ(T) laws (:mod:`.conductivity`) each step message also carries σ of every element of the regions with a law,
+and the coil's Joule power is taken at the step's σ.
 """
 from __future__ import annotations
 
