@@ -128,3 +128,14 @@ def test_check_melting_names_the_cell_furthest_past_its_melting_temperature():
     assert (err.value.body, err.value.cell, err.value.temperature) == ("b", 0, 905.0)
     assert "body 'b' melts: cell 0 at (0.333333, 0.333333) m reached 905 K >= its melting temperature 900 K " \
            "at t = 1.5e-05 s" in str(err.value)
+
+
+def test_check_melting_in_3d_names_the_tetrahedron_centroid():
+    body = _Body([300.0, 1000.0])
+    body.x = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 1.0, 1.0]])
+    body.cells = np.array([[0, 1, 2, 3], [1, 2, 3, 4]])
+    solver = type("S", (), {"time": 2e-6, "bodies": {"tube": body}})()
+    with pytest.raises(MeltingReached) as err:
+        check_melting(solver, {"tube": 925.0}, MPI.COMM_SELF)
+    np.testing.assert_allclose(err.value.centroid, [0.5, 0.5, 0.5])
+    assert "body 'tube' melts: cell 1 at (0.5, 0.5, 0.5) m reached 1000 K" in str(err.value)
