@@ -285,7 +285,8 @@ class PersistentGetDPSolver(GetDPSolver):
             cond_force = np.zeros((0, 2))
         current = ans.coil[:, 0]
         if m.has_conductivity_laws:   # the coils' σ of this step (σ(T)): P = V (N / S)² I² / σ
-            coil_power = self.coil_joule * np.array([c.sigma for c in m.coils]) / np.array(self.coil_sigma) * current ** 2
+            scale = np.array([c.sigma for c in m.coils]) / np.array(self.coil_sigma)
+            coil_power = self.coil_joule * scale * current ** 2
             p_start = start_power(state, self.coil_sigma)
         else:
             coil_power = self.coil_joule * current ** 2

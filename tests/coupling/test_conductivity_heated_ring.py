@@ -160,7 +160,8 @@ def test_joule_heat_to_the_melting_temperature_stops_the_run(tmp_path):
     (case / "case.toml").write_text(CASE.replace("end = 2.0e-4", "end = 5.0e-5")
                                     .replace("field_interval = 1.0e-4", "field_interval = 2.5e-5"))
     out = tmp_path / "run"
-    r = pulseform_cli(["run", str(case), "--out", str(out), "--quiet", "--set", "materials.al.melting_temperature=293.45"])
+    r = pulseform_cli(["run", str(case), "--out", str(out), "--quiet",
+                       "--set", "materials.al.melting_temperature=293.45"])
     assert r.returncode == 1, r.stderr[-3000:]
     assert len(r.stderr.strip().splitlines()) == 1, r.stderr
     assert "hot_ring: body 'ring' melts: cell" in r.stderr and "melting temperature 293.45 K" in r.stderr, r.stderr

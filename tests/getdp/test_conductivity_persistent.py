@@ -140,8 +140,8 @@ def test_kept_factors_and_a_resume_with_conductivity_per_element(work):
     kept_c, state_c = _march(PersistentGetDPSolver(constant, work / "kept_c", factor_reuse=keep), mesh, bulge)
     resumed, _ = _march(PersistentGetDPSolver(MODEL, work / "resumed", factor_reuse=keep), mesh, bulge, restart_at=6)
     print(f"\nkept factors vs a factorisation per step: σ(T) {_rel(fresh, kept):.1e} ({state.factorisations} "
-          f"factorisations, {state.corrections} corrections in {len(TIMES)} steps); constant σ {_rel(fresh_c, kept_c):.1e} "
-          f"({state_c.factorisations}, {state_c.corrections})")
+          f"factorisations, {state.corrections} corrections in {len(TIMES)} steps); constant σ "
+          f"{_rel(fresh_c, kept_c):.1e} ({state_c.factorisations}, {state_c.corrections})")
     assert state.factorisations == 1 and state.corrections > 0
     assert 0 < _rel(fresh, kept) < 3.0 * _rel(fresh_c, kept_c)
     assert all(np.array_equal(a, b) for a, b in zip(resumed, kept))
