@@ -65,8 +65,8 @@ class EM:
     coil_conductivity_curve: ConductivityCurve | None = spec(
         None, doc="[em.coil_conductivity_curve] σ(T) of the coil in place of the constant coil_conductivity: "
                   "type = 'table' or 'linear_resistivity' (σ_ref = coil_conductivity); the coil is one lumped body "
-                  "heated adiabatically during a shot, its resistance follows its temperature every EM step (2D, "
-                  "getdp per step; docs/guide/em.md)")
+                  "heated adiabatically during a shot, its resistance follows its temperature every EM step (2D; "
+                  "docs/guide/em.md)")
     coil_initial_temperature: float = spec(293.15, unit="K", gt=0.0, doc="the coil's temperature at the start "
                                                                          "(its σ(T); shots: cooled towards ambient)")
     shots: Shots | None = spec(None, doc="[em.shots] repeated discharges with cooling between them (count, pause, "
@@ -137,9 +137,6 @@ class EM:
                 raise SchemaError(f"{path}.coil_initial_temperature",
                                   f"got {self.coil_initial_temperature:g}; must be below the coil's melting "
                                   f"temperature {cc.melting_temperature or COPPER_MELTING_K:g} (K)")
-        if cc is not None and self.getdp_process == "persistent":
-            raise SchemaError(f"{path}.getdp_process", "got 'persistent'; a conductivity that follows temperature "
-                              "runs getdp per step: set getdp_process = 'auto' or 'per_step'")
         if self.shots is not None and not self.has_bank:
             raise SchemaError(f"{path}.shots", "repeated shots are capacitor-bank discharges: give em.circuit or a "
                                                "'bank' source")

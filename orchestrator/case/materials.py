@@ -54,11 +54,15 @@ class MaterialTable:
                                        "adiabatically by β × the plastic work; unset: no temperature")
     taylor_quinney: float = spec(0.9, unit="-", ge=0.0, le=1.0, doc="β, the share of the plastic work that heats")
     initial_temperature: float = spec(293.15, unit="K", gt=0.0, doc="temperature of every cell at the start")
+    melting_temperature: float | None = spec(
+        None, unit="K", gt=0.0, doc="the run stops in one line when a cell of a body of this material reaches it "
+                                    "(default: the Johnson–Cook flow curve's T_melt, else the conductivity_curve's; "
+                                    "needs specific_heat)")
     conductivity_curve: ConductivityCurve | None = spec(
         None, doc="[materials.<name>.conductivity_curve] σ(T) of a conductor body in place of the constant "
                   "electrical_conductivity: type = 'table' (temperatures, conductivities) or 'linear_resistivity' "
                   "(ρ = ρ_ref (1 + α (T − T_ref))); GetDP gets σ per element from the cells' temperatures every EM "
-                  "step (needs specific_heat; 2D, getdp per step; docs/guide/em.md)")
+                  "step (needs specific_heat; 2D; docs/guide/em.md)")
     relative_permeability: float = spec(
         1.0, unit="-", gt=0.0, le=1e6, doc="μ_r of the material's EM regions (conductor bodies, 2D and 3D), constant; "
                                            "1: vacuum (the default)")
@@ -85,10 +89,21 @@ class MaterialTable:
             raise SchemaError(f"{path}.rate_law", "the flow_curve has its own strain-rate term (Johnson–Cook, or "
                                                   "curves per strain rate); remove rate_law")
         cc = self.conductivity_curve
+        if self.melting_temperature is not None:
+            if self.specific_heat is None:
+                raise SchemaError(f"{path}.melting_temperature", "needs specific_heat (J/(kg·K)): without a "
+                                                                 "temperature per cell no cell can reach it")
+            if not self.initial_temperature < self.melting_temperature:
+                raise SchemaError(f"{path}.initial_temperature",
+                                  f"got {self.initial_temperature:g}; must be below melting_temperature = "
+                                  f"{self.melting_temperature:g} (K)")
         if cc is not None:
-            melt = cc.melting_temperature if cc.melting_temperature is not None else (
-                fc.melting_temperature if isinstance(fc, JohnsonCookFlowTable) else None)
+            melt = cc.melting_temperature if cc.melting_temperature is not None else self.melting_limit
             check_below_melting(cc, f"{path}.conductivity_curve", melt)
+            if cc.melting_temperature is not None and not self.initial_temperature < cc.melting_temperature:
+                raise SchemaError(f"{path}.initial_temperature",
+                                  f"got {self.initial_temperature:g}; must be below the conductivity_curve's "
+                                  f"melting_temperature = {cc.melting_temperature:g} (K)")
             if self.specific_heat is None:
                 raise SchemaError(f"{path}.conductivity_curve", "needs specific_heat (J/(kg·K)): σ follows the "
                                                                 "temperature of the cells")
@@ -102,6 +117,17 @@ class MaterialTable:
             raise SchemaError(f"{path}.initial_temperature",
                               f"got {self.initial_temperature:g}; must be below the flow curve's melting_temperature "
                               f"= {fc.melting_temperature:g} (K)")
+
+    @property
+    def melting_limit(self) -> float | None:
+        """The temperature (K) at which a cell counts as molten and the run stops: ``melting_temperature``, else
+        the Johnson–Cook flow curve's T_melt, else the conductivity curve's melting temperature; None: none."""
+        if self.melting_temperature is not None:
+            return self.melting_temperature
+        if isinstance(self.flow_curve, JohnsonCookFlowTable):
+            return self.flow_curve.melting_temperature
+        cc = self.conductivity_curve
+        return cc.melting_temperature if cc is not None else None
 
     @property
     def initial_yield_stress(self) -> float:

@@ -458,8 +458,8 @@ def _choices(names) -> str:
 
 
 def _check_temperature_em(case: "Case") -> None:
-    """A conductivity that follows temperature and repeated shots: 2D, on the built-in deck, getdp per step
-    (one line naming the key otherwise)."""
+    """A conductivity that follows temperature and repeated shots: 2D, on the built-in deck (one line naming the
+    key otherwise)."""
     em = case.em
     curves = [f"materials.{b.material}.conductivity_curve" for b in case.bodies
               if case.materials[b.material].conductivity_curve is not None]

@@ -301,8 +301,10 @@ class StaggeredLoop:
         elif change < 0.25 * o.adapt_tol and c.n < o.n_max:
             c.n = min(o.n_max, 2 * c.n)
 
-    def run_until(self, t_stop: float, on_em_step=None) -> None:
-        """EM steps until the mechanics reaches ``t_stop`` exactly; ``on_em_step(row)`` after each."""
+    def run_until(self, t_stop: float, on_em_step=None, after_steps=None) -> None:
+        """EM steps until the mechanics reaches ``t_stop`` exactly; ``on_em_step(row)`` after each, and
+        ``after_steps()`` once the rows of an EM step (or of a compiled block of them) are delivered (a check
+        of the state that may stop the run: it raises)."""
         while self.mech.time < t_stop * (1.0 - 1e-12):
             rows = self._block(t_stop)
             if not rows and (rows is None or rows.error is None):
@@ -312,6 +314,8 @@ class StaggeredLoop:
                     on_em_step(row)
             if getattr(rows, "error", None) is not None:
                 raise rows.error
+            if after_steps is not None:
+                after_steps()
 
     def _block(self, t_stop: float) -> "_Rows | None":
         """EM steps run by the load provider's compiled block (see ``LoopOptions.block``), with the

@@ -46,6 +46,7 @@ from .em_fields3d import STEM as EM3D_STEM
 from .extremes import body_extremes
 from .extremes3d import contact_columns_3d, contact_metrics_3d
 from .shots import ShotSequence
+from .temperature import MeltingReached, check_melting, melting_limits
 from .history import History
 from .impulse import impulse_metrics
 from .output_times import default_interval, fixed_em_step, landing_note, milestones
@@ -108,6 +109,7 @@ class CaseDriver:
         self.analyses = [create_analysis(name, case) for name in case.analysis]
         self.analysis_names = list(case.analysis)
         self.flc = forming_limit_monitor(case, self.solver)  # None without a material's forming_limit
+        self.melting = melting_limits(case) if self.solver is not None else {}  # body -> T_melt (K)
         if self.flc is not None:  # it records, reports and checkpoints as an analysis does
             self.analyses.append(self.flc)
             self.analysis_names.append("forming_limit")
@@ -242,6 +244,15 @@ class CaseDriver:
         if signum:
             raise interrupt.StopRequested(signum)
 
+    def _check_melting(self) -> None:
+        """Stop when a cell reaches its material's melting temperature, the step's history row recorded."""
+        try:
+            check_melting(self.solver, self.melting, self.comm)
+        except MeltingReached:
+            if self._since_record:
+                self.record(self._last_row)
+            raise
+
     # ----------------------------------------------------------------- loop
     def run(self, quiet: bool) -> MechanicsRun:
         """Integrate to ``time.end``; fields, history and checkpoint at every milestone."""
@@ -285,7 +296,7 @@ class CaseDriver:
                         continue
                     if self.shots is not None and shot > 1 and s.time <= self.shots.start(shot) * (1.0 + 1e-12):
                         self.shots.begin(shot, self.load, self.solver, self.results.root, self.comm.rank == 0)
-                    self.loop.run_until(stop, on_step)
+                    self.loop.run_until(stop, on_step, self._check_melting if self.melting else None)
                     if self.history.rows[-1][0] != s.time:
                         self.record(self._last_row)  # the values of the step that reached the milestone
                     # the milestone itself, not the sum of steps that reached it (6.0000000000000035e-05)
@@ -307,7 +318,8 @@ class CaseDriver:
             log.info("interrupted at t = %.6g s (step %d); checkpoint written", s.time, s.step_count)
             raise
         except Exception as exc:
-            exc.add_note(f"at t = {s.time:.6g} s")
+            if not isinstance(exc, MeltingReached):  # its line names the time
+                exc.add_note(f"at t = {s.time:.6g} s")
             if self.comm.rank == 0:
                 try:
                     self.history.flush()  # keep what was computed up to the failure

@@ -12,6 +12,8 @@ Joule heat so far over m c_p), so its σ is one number per EM step (``Coil_sigma
 σ is one value per element, ``Cond_SigmaList_k() = {element tag, σ, ...}`` read by the built-in deck with
 ``InterpolationLinear[ElementNum[]]`` (exact at the listed tags: no grouping of elements into bins).
 Both are evaluated at the step's start temperatures (explicit in temperature, like the mechanics' heating).
+The persistent getdp cannot read a new ``run.pro`` per step: its step messages carry σ of every element of the
+regions with a law (:func:`message_sigma`, :func:`persistent_numbers`; ``decks/Lib_Persistent.pro``).
 """
 
 from __future__ import annotations
@@ -29,7 +31,8 @@ if TYPE_CHECKING:
     from .model import EMModel, EMState
 
 __all__ = ["ConductivityTable", "LinearResistivity", "ConductivityLaw", "law_from_dict", "element_list_line",
-           "coil_mass_cp", "coil_temperature", "step_inputs", "checked_temperatures", "start_power", "check_deck"]
+           "coil_mass_cp", "coil_temperature", "step_sigma", "step_inputs", "persistent_numbers", "message_sigma",
+           "checked_temperatures", "start_power", "check_deck"]
 
 
 @dataclass(frozen=True)
@@ -126,24 +129,25 @@ def coil_temperature(model: "EMModel", mesh: EMMesh, state: "EMState") -> np.nda
     return t0 + heat / coil_mass_cp(model, mesh) if len(model.coils) else t0
 
 
-def step_inputs(model: "EMModel", mesh: EMMesh, state: "EMState", dt: float,
-                elem_temperature: tuple[np.ndarray, np.ndarray] | None) -> tuple[dict[str, float], list[str]]:
-    """The numbers and ``run.pro`` lines of the σ(T) laws for a step of ``dt`` (s) from ``state`` on ``mesh``.
+def step_sigma(model: "EMModel", mesh: EMMesh, state: "EMState", dt: float,
+               elem_temperature: tuple[np.ndarray, np.ndarray] | None
+               ) -> tuple[dict[int, float], list[tuple[int, np.ndarray, np.ndarray]]]:
+    """The σ (S/m) of the σ(T) laws for a step of ``dt`` (s) from ``state`` on ``mesh``: {coil k: σ} and
+    [(conductor k, its EM triangle rows, σ per row)], only for the coils and conductors with a law.
 
-    Each coil with a law: ``Coil_sigma_k`` at its lumped temperature predicted for the step's middle,
-    T + P dt / (2 m c_p), P its Joule power at the step's start (``state.coil_power``; 0 from rest). Each
-    conductor with a law: ``Cond_SigmaElem_k = 1`` and the list ``Cond_SigmaList_k`` of σ per element at the
+    Each coil: σ at its lumped temperature predicted for the step's middle, T + P dt / (2 m c_p), P its Joule
+    power at the step's start (``state.coil_power``; 0 from rest). Each conductor: σ per element at the
     temperatures ``elem_temperature`` = (EM triangle rows, K), an element not listed at the conductor's
-    ``initial_temperature``. Nothing without a law.
+    ``initial_temperature``.
     """
-    numbers: dict[str, float] = {}
-    lines: list[str] = []
+    coils: dict[int, float] = {}
     if any(c.conductivity_law is not None for c in model.coils):
         power = np.asarray(state.coil_power if state.coil_power is not None else [0.0] * len(model.coils), float)
         temp = coil_temperature(model, mesh, state) + 0.5 * dt * power / coil_mass_cp(model, mesh)
         for k, c in enumerate(model.coils, start=1):
             if c.conductivity_law is not None:
-                numbers[f"Coil_sigma_{k}"] = float(c.conductivity_law(temp[k - 1]))
+                coils[k] = float(c.conductivity_law(temp[k - 1]))
+    conductors = []
     for k, c in enumerate(model.conductors, start=1):
         if c.conductivity_law is None:
             continue
@@ -154,9 +158,52 @@ def step_inputs(model: "EMModel", mesh: EMMesh, state: "EMState", dt: float,
             lookup[elem_temperature[0]] = elem_temperature[1]
             given = lookup[rows]
             temp = np.where(np.isnan(given), temp, given)
+        conductors.append((k, rows, np.asarray(c.conductivity_law(temp), float)))
+    return coils, conductors
+
+
+def step_inputs(model: "EMModel", mesh: EMMesh, state: "EMState", dt: float,
+                elem_temperature: tuple[np.ndarray, np.ndarray] | None) -> tuple[dict[str, float], list[str]]:
+    """The numbers and ``run.pro`` lines of the σ(T) laws for a step of ``dt`` (s) from ``state`` (getdp per
+    step; :func:`step_sigma`): ``Coil_sigma_k`` per coil with a law; per conductor with a law
+    ``Cond_SigmaElem_k = 1`` and the list ``Cond_SigmaList_k`` of σ per element. Nothing without a law.
+    """
+    coils, conductors = step_sigma(model, mesh, state, dt, elem_temperature)
+    numbers: dict[str, float] = {f"Coil_sigma_{k}": s for k, s in coils.items()}
+    lines: list[str] = []
+    for k, rows, sigma in conductors:
         numbers[f"Cond_SigmaElem_{k}"] = 1
-        lines.append(element_list_line(f"Cond_SigmaList_{k}", rows + 1, c.conductivity_law(temp)))
+        lines.append(element_list_line(f"Cond_SigmaList_{k}", rows + 1, sigma))
     return numbers, lines
+
+
+def persistent_numbers(model: "EMModel") -> dict[str, float]:
+    """The ``-setnumber`` values of a persistent getdp whose step messages carry σ per element
+    (``decks/Lib_Persistent.pro``, ``PF_SigmaElem``): ``Coil_SigmaElem_k`` / ``Cond_SigmaElem_k`` = 2 for each coil
+    and conductor with a law; empty without a law."""
+    if not model.has_conductivity_laws:
+        return {}
+    out = {"PF_SigmaElem": 1.0}
+    out.update({f"Coil_SigmaElem_{k}": 2.0 for k, c in enumerate(model.coils, start=1) if c.conductivity_law})
+    out.update({f"Cond_SigmaElem_{k}": 2.0 for k, c in enumerate(model.conductors, start=1) if c.conductivity_law})
+    return out
+
+
+def message_sigma(model: "EMModel", mesh: EMMesh, coils: dict[int, float],
+                  conductors: list[tuple[int, np.ndarray, np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:
+    """(element tags, σ S/m) of every element of the regions with a law, for a persistent getdp's step message:
+    a coil's elements all at its σ, a conductor's at their own (:func:`step_sigma`'s values)."""
+    tags, values = [], []
+    for k, sigma in coils.items():
+        rows = np.flatnonzero(mesh.tri_tags == coil_tag(k))
+        tags.append(rows + 1)
+        values.append(np.full(len(rows), sigma))
+    for _, rows, sigma in conductors:
+        tags.append(rows + 1)
+        values.append(sigma)
+    if not tags:
+        return np.zeros(0, np.int64), np.zeros(0)
+    return np.concatenate(tags).astype(np.int64), np.concatenate(values).astype(float)
 
 
 def checked_temperatures(elements: np.ndarray, temperature: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

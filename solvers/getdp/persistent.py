@@ -14,6 +14,9 @@ conductors (equal to the whole-domain ½ (ν curl a, curl a) of the discrete sol
 conductors' Joule power, and the per-element force integrals; the conductor force is their sum,
 the coil's Joule power (N_s I / S_c)² / σ × V_coil (uniform current density), the coil force is
 not computed (NaN).  B and Joule power per element are fetched only when read (a field output).
+
+With σ(T) laws (:mod:`.conductivity`) each step message also carries σ of every element of the regions with a law,
+and the coil's Joule power is taken at the step's σ.
 """
 from __future__ import annotations
 
@@ -26,6 +29,7 @@ from typing import Sequence
 import numpy as np
 
 from .bdf2 import match_rows, trapezoid_mean
+from .conductivity import message_sigma, persistent_numbers, start_power, step_sigma
 from .files import element_volumes, init_list_line, read_element_table
 from .mesh import EMMesh, coil_tag, conductor_tag
 from .model import EMModel, EMState, EMStepResult
@@ -82,9 +86,6 @@ class PersistentGetDPSolver(GetDPSolver):
             raise ValueError("the persistent getdp implements time_scheme='bdf2' only")
         super().__init__(model, work_dir, executable=executable, petsc_args=petsc_args, timeout=timeout, deck=deck,
                          extra_numbers=extra_numbers, preamble=preamble, time_scheme="bdf2")
-        if self.model.has_conductivity_laws:   # its messages carry the geometry only, not a σ per step
-            raise ValueError("the persistent getdp has no conductivity that follows temperature: run getdp per "
-                             "step (em.getdp_process = 'per_step')")
         if self.model.is_nonlinear:   # Lib_PersistentStep.pro solves each step once (and may keep LU factors)
             raise ValueError("the persistent getdp has no Newton iterations for a B-H curve: run getdp per step "
                              "(em.getdp_process = 'per_step')")
@@ -99,6 +100,7 @@ class PersistentGetDPSolver(GetDPSolver):
         self.replay_log: ReplayLog | None = None  # the running segment's seed and messages
         self._pending: ReplayLog | None = None  # a checkpoint's log, replayed at the first step
         self.replayed_steps = 0
+        self._replay_sigma: tuple | None = None  # (coil σ, element σ) of a replayed step (its log's, not recomputed)
 
     # ------------------------------------------------------------------ processes
     def make_process(self, mesh: EMMesh, material: np.ndarray, state: EMState, run_dir: Path,
@@ -109,7 +111,7 @@ class PersistentGetDPSolver(GetDPSolver):
         m = self.model
         numbers = self.run_numbers(mesh)
         numbers.update(Flag_ElemOut=0, PF_GlobalsSet=LEAN_GLOBALS, PF_T1=state.t, PF_Step0=state.step_index,
-                       PF_DtPrev=0.0, PF_Seed=1, **self.factor_reuse.numbers())
+                       PF_DtPrev=0.0, PF_Seed=1, **self.factor_reuse.numbers(), **persistent_numbers(m))
         lines = [f'PulseformPersistentLib = "{PERSISTENT_LIB}";'] + self.preamble + self._table_lines()
         if m.circuit is not None:
             numbers["Init_Vc"], numbers["Init_I"] = state.capacitor_voltage, state.current
@@ -131,7 +133,7 @@ class PersistentGetDPSolver(GetDPSolver):
         numbers.update(extra_numbers or {})
         return PersistentProcess(run_dir, mesh, numbers, lines, self.deck, executable=self.executable,
                                  petsc_args=self.factor_reuse.solver_args(self.petsc_args), time_limit=self.timeout,
-                                 verbosity=self.verbosity)
+                                 verbosity=self.verbosity, element_values=m.has_conductivity_laws)
 
     def _start(self, mesh: EMMesh, material: np.ndarray, state: EMState) -> None:
         """A new process on ``mesh`` from ``state`` (fresh, or seeded with its BDF2 history)."""
@@ -148,6 +150,7 @@ class PersistentGetDPSolver(GetDPSolver):
         self.coil_joule = np.array([self._volume(mesh, coil_tag(k), True) / c.sigma
                                     * (c.turns / self._volume(mesh, coil_tag(k), False)) ** 2
                                     for k, c in enumerate(m.coils, start=1)])  # P = this * I^2 (W/A^2)
+        self.coil_sigma = [c.sigma for c in m.coils]  # σ of this step's coils (S/m; a σ(T) law's per step)
         self.elements = None
         self._a_index = None  # (node -> unknown of system A, number of unknowns), read at the first state query
         self._f_prev = None
@@ -220,7 +223,8 @@ class PersistentGetDPSolver(GetDPSolver):
             self._start(mesh, mat, full)
         else:
             self._start(mesh, mat, state)
-        self.replay_log.add(mesh.points, t_end, state.step_index, field_output)
+        sigma = self._step_sigma(mesh, state, float(t_end))
+        self.replay_log.add(mesh.points, t_end, state.step_index, field_output, sigma)
         if redo:
             self._f_prev, self.elements = self._hist["f_prev"], self._hist["elements"]
         else:
@@ -235,12 +239,30 @@ class PersistentGetDPSolver(GetDPSolver):
                             coil_heat=result.coil_heat.tolist(), dt_prev=result.dt,
                             capacitor_voltage_prev=state.capacitor_voltage, current_prev=state.current,
                             coil_power=result.coil_power[-1].tolist(),
+                            coil_sigma=list(self.coil_sigma) if self.model.has_conductivity_laws else None,
                             factorisations=state.factorisations + int(ans.factorised),
                             corrections=state.corrections + ans.corrections)
         if self.model.applied_field is not None:
             new_state.applied_f = float(self.model.applied_field.unit_f(float(t_end)))
             new_state.applied_f_prev = float(state.applied_f)
         return result, new_state
+
+    def _step_sigma(self, mesh: EMMesh, state: EMState, t_end: float) -> tuple[list[float], np.ndarray] | None:
+        """With σ(T) laws: this step's σ into the message (:func:`.conductivity.step_sigma` at the element
+        temperatures given, or a replayed step's logged values) and ``self.coil_sigma``; (coil σ, element σ) for
+        the replay log. None without a law."""
+        m = self.model
+        if not m.has_conductivity_laws:
+            return None
+        coils, conductors = step_sigma(m, mesh, state, t_end - state.t, self._elem_temperature)
+        tags, values = message_sigma(m, mesh, coils, conductors)
+        coil_sigma = [coils.get(k, c.sigma) for k, c in enumerate(m.coils, start=1)]
+        if self._replay_sigma is not None:
+            coil_sigma, values = self._replay_sigma
+            self._replay_sigma = None
+        self.proc.set_element_values(tags, values)
+        self.coil_sigma = list(coil_sigma)
+        return self.coil_sigma, np.array(values, float)
 
     def _result_of(self, ans: StepAnswer, mesh: EMMesh, mat: np.ndarray, state: EMState, t_end: float,
                    field_output: bool) -> PersistentStepResult:
@@ -262,8 +284,13 @@ class PersistentGetDPSolver(GetDPSolver):
             self._tags = np.zeros(0, np.int64)
             cond_force = np.zeros((0, 2))
         current = ans.coil[:, 0]
-        coil_power = self.coil_joule * current ** 2
-        p_start = np.asarray(state.coil_power if state.coil_power is not None else np.zeros(len(m.coils)), float)
+        if m.has_conductivity_laws:   # the coils' σ of this step (σ(T)): P = V (N / S)² I² / σ
+            scale = np.array([c.sigma for c in m.coils]) / np.array(self.coil_sigma)
+            coil_power = self.coil_joule * scale * current ** 2
+            p_start = start_power(state, self.coil_sigma)
+        else:
+            coil_power = self.coil_joule * current ** 2
+            p_start = np.asarray(state.coil_power if state.coil_power is not None else np.zeros(len(m.coils)), float)
         heat = np.asarray(state.coil_heat or [0.0] * len(m.coils), float) + trapezoid_mean(p_start, coil_power[None]) * dt
         if not (np.all(np.isfinite(force)) and np.all(np.isfinite(current)) and np.isfinite(ans.glob[0])):
             raise GetDPError(f"non-finite EM results at t = {t_end:.6g} s", log_path=self.proc.log_path,
@@ -374,7 +401,8 @@ class PersistentGetDPSolver(GetDPSolver):
             return
         states = {rec.seed.step_index: rec.seed}
         new = rec.seed
-        for points, t_end, base, fields in zip(rec.points, rec.t_end, rec.base, rec.fields):
+        for i, (points, t_end, base, fields) in enumerate(zip(rec.points, rec.t_end, rec.base, rec.fields)):
+            self._replay_sigma = (rec.coil_sigma[i], rec.sigma[i]) if rec.sigma else None
             _, new = self.step(mesh.with_points(points), states[base], t_end, material_points=rec.material,
                                field_output=fields)
             states[new.step_index] = new

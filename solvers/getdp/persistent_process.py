@@ -171,8 +171,10 @@ class PersistentProcess:
     def __init__(self, run_dir: Path, mesh: EMMesh | Mesh3D, argv_numbers: dict[str, float], lines: list[str],
                  deck: Path, *, executable: str = "getdp", petsc_args: Sequence[str] = DEFAULT_PETSC_ARGS,
                  time_limit: float | None = None, verbosity: int = 2, resolution: str = RESOLUTION,
-                 u_system: int = 1) -> None:
+                 u_system: int = 1, element_values: bool = False) -> None:
         self.run_dir = Path(run_dir).resolve()
+        self.element_values = bool(element_values)  # U also holds one value per element (PF_SigmaElem)
+        self.s_index: dict[int, int] = {}
         self.time_limit = float(time_limit) if time_limit else 600.0
         rd = self.run_dir
         if rd.exists():
@@ -233,13 +235,17 @@ class PersistentProcess:
         rows = read_pre_dofs(self.run_dir / "em.pre", self.u_system)
         ntypes = np.unique(rows[:, 0])
         dim = self.points.shape[1]
-        if len(ntypes) != dim:
-            raise RuntimeError(f"displacement system U: expected {dim} basis functions, found {ntypes}")
+        if len(ntypes) != dim + int(self.element_values):
+            raise RuntimeError(f"displacement system U: expected {dim} basis functions"
+                               f"{' and one per element' if self.element_values else ''}, found {ntypes}")
         self.n_u = int(rows[:, 4].max())
         self.u_index = np.full((self.mesh.n_nodes, dim), -1, np.int64)
-        for comp, nt in enumerate(ntypes):  # X (defined first: the smaller number), then Y (and Z)
+        for comp, nt in enumerate(ntypes[:dim]):  # X (defined first: the smaller number), then Y (and Z)
             sel = rows[:, 0] == nt
             self.u_index[rows[sel, 1] - 1, comp] = rows[sel, 4] - 1
+        if self.element_values:  # the per-element values (PF_H_s, defined after PF_H_u): element tag -> unknown
+            sel = rows[:, 0] == ntypes[dim]
+            self.s_index = dict(zip(rows[sel, 1].tolist(), (rows[sel, 4] - 1).tolist()))
         self._has_u = self.u_index >= 0
         self._vec = np.zeros(self.n_u)
         return time.perf_counter() - c0
@@ -308,6 +314,18 @@ class PersistentProcess:
             raise ValueError("a node without a displacement dof moved")
         self._vec[self.u_index[self._has_u]] = du[self._has_u]
         return du
+
+    def set_element_values(self, tags: np.ndarray, values: np.ndarray) -> None:
+        """The per-element values (e.g. σ, S/m) the next step messages carry (``decks/Lib_Persistent.pro``,
+        ``PF_SigmaElem``): one per element tag of the regions that have them, each of those tags once."""
+        tags = np.asarray(tags, np.int64)
+        if len(tags) != len(self.s_index) or len(np.unique(tags)) != len(tags):
+            raise ValueError(f"per-element values: got {len(tags)} element tags, getdp has {len(self.s_index)}")
+        try:
+            idx = np.fromiter((self.s_index[t] for t in tags.tolist()), np.int64, len(tags))
+        except KeyError as exc:
+            raise ValueError(f"per-element values: element {exc.args[0]} has no value in getdp") from None
+        self._vec[idx] = np.asarray(values, float)
 
     def prime(self, points: np.ndarray, dtime: float) -> StepAnswer:
         """Move getdp's nodes to ``points`` and, with ``dtime`` > 0, factorise the system matrix of that

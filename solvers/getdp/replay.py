@@ -64,6 +64,9 @@ class ReplayLog:
         ``step_index`` of the state each step started from (a redo repeats the previous one).
     fields : list of bool
         Whether the step computed the field outputs (the same message flags on replay).
+    coil_sigma, sigma : list of list of float, list of ndarray
+        With σ(T) laws: each step's coil conductivities and the per-element conductivities its message carried
+        (S/m; the element temperatures behind them are gone at a resume); empty without.
     """
 
     seed: EMState
@@ -73,9 +76,16 @@ class ReplayLog:
     t_end: list[float] = field(default_factory=list)
     base: list[int] = field(default_factory=list)
     fields: list[bool] = field(default_factory=list)
+    coil_sigma: list[list[float]] = field(default_factory=list)
+    sigma: list[np.ndarray] = field(default_factory=list)
 
-    def add(self, points: np.ndarray, t_end: float, base: int, fields: bool) -> None:
-        """Record one step message (a copy of the node positions)."""
+    def add(self, points: np.ndarray, t_end: float, base: int, fields: bool,
+            sigma: tuple[list[float], np.ndarray] | None = None) -> None:
+        """Record one step message (a copy of the node positions; ``sigma``: its coil and element
+        conductivities, with σ(T) laws)."""
+        if sigma is not None:
+            self.coil_sigma.append([float(v) for v in sigma[0]])
+            self.sigma.append(np.array(sigma[1], float))
         self.points.append(np.array(points, float))
         self.t_end.append(float(t_end))
         self.base.append(int(base))
@@ -91,7 +101,9 @@ class ReplayLog:
         return {"seed_json": np.frombuffer(seed, np.uint8), "material": self.material.copy(), "signature": self.signature.copy(),
                 "points": np.array(self.points, float).reshape(len(self), n, 2),
                 "t_end": np.array(self.t_end, float), "base": np.array(self.base, np.int64),
-                "fields": np.array(self.fields, bool)}
+                "fields": np.array(self.fields, bool),
+                **({"coil_sigma": np.array(self.coil_sigma, float), "sigma": np.array(self.sigma, float)}
+                   if self.sigma else {})}
 
     @classmethod
     def from_arrays(cls, d: dict[str, np.ndarray]) -> "ReplayLog":
@@ -102,6 +114,9 @@ class ReplayLog:
         log.t_end = [float(t) for t in d["t_end"]]
         log.base = [int(b) for b in d["base"]]
         log.fields = [bool(f) for f in d["fields"]]
+        if "sigma" in d:
+            log.coil_sigma = [[float(v) for v in row] for row in d["coil_sigma"]]
+            log.sigma = [np.array(row, float) for row in d["sigma"]]
         return log
 
     def ends_at(self) -> tuple[int, float] | None:

@@ -186,7 +186,7 @@ def test_shots_resume_bitwise(tmp_path):
                        capture_output=True, text=True, timeout=900)
     assert r.returncode == 0, r.stderr[-3000:]
     proc, err, _, resumed = sigint_then_resume([EXE, "run", str(tmp_path / "case.toml"), "--out", str(out),
-                                                "--quiet"], out, delay=1.0)
+                                                "--quiet"], out, delay=0.05)
     assert proc.returncode == 130, err[-2000:]
     assert resumed.returncode == 0, resumed.stderr[-3000:]
     assert (out / "history.csv").read_bytes() == (ref / "history.csv").read_bytes()

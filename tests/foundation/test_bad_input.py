@@ -222,6 +222,11 @@ BAD_FILES = [
      [(("materials", "paper_al", "specific_heat"), 900.0),
       (("materials", "paper_al", "conductivity_curve"), {"type": "linear_resistivity", "temperature_coefficient": -4e-3})],
      "materials.paper_al.conductivity_curve.temperature_coefficient"),
+    ("melting_without_specific_heat", [(("materials", "paper_al", "melting_temperature"), 900.0)],
+     "materials.paper_al.melting_temperature"),
+    ("initial_temperature_above_own_melting", [(("materials", "paper_al", "specific_heat"), 900.0),
+                                               (("materials", "paper_al", "melting_temperature"), 280.0)],
+     "materials.paper_al.initial_temperature"),
     ("flow_type_unknown", [(("materials", "paper_al", "yield_stress"), _DELETE),
                            (("materials", "paper_al", "flow_curve"), {"type": "zerilli_armstrong"})],
      "materials.paper_al.flow_curve.type"),
@@ -320,9 +325,6 @@ BAD_COUPLED = [
     ("shots_without_bank", "two_coils_plate", ["em.shots={count = 2, pause = 1.0}"], "em.shots"),
     ("shots_in_3d", "emf_sheet_bulge_3d", ["em.shots={count = 2, pause = 1.0}"], "em.shots"),
     ("shots_on_a_user_deck", "user_deck_sheet_bulge", ["em.shots={count = 2, pause = 1.0}"], "em.shots"),
-    ("coil_curve_on_persistent", "emf_sheet_bulge",
-     ["em.coil_conductivity_curve={type = 'linear_resistivity', temperature_coefficient = 3.9e-3}",
-      "em.time_scheme='bdf2'", "em.getdp_process='persistent'"], "em.getdp_process"),
 ]
 
 
@@ -333,6 +335,14 @@ def test_bad_coupled_override(capsys, name, case, sets, key):
         args += ["--set", s]
     rc = main(args)
     _assert_one_line_error(capsys, rc, key, "case.toml")
+
+
+def test_conductivity_curve_on_the_persistent_getdp_is_accepted(capsys):
+    """σ(T) runs on the persistent getdp too (its step messages carry σ per element): no longer refused."""
+    rc = main(["check", str(REPO / "cases" / "emf_sheet_bulge"), "--set",
+               "em.coil_conductivity_curve={type = 'linear_resistivity', temperature_coefficient = 3.9e-3}",
+               "--set", "em.time_scheme='bdf2'", "--set", "em.getdp_process='persistent'"])
+    assert rc == 0, capsys.readouterr().err
 
 
 def _write(tmp_path: Path, data: dict, name: str = "case.toml") -> Path:
