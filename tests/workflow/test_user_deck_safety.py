@@ -141,7 +141,7 @@ def test_parameters_may_not_shadow_a_number_the_runner_sets(case, capsys, name):
     code, line = check(case, capsys=capsys)
     assert code == 2
     assert f"geometry.parameters.{name}:" in line and "case.toml" in line
-    assert "Reserved: Phys_*, Pulseform{Lib,HarmonicLib,PersistentLib}, C_bank" in line and len(line) <= 320
+    assert "Reserved: Phys_*, Pulseform{Lib,HarmonicLib,NewtonLib,PersistentLib}, C_bank" in line and len(line) <= 320
 
 
 @pytest.mark.parametrize("value", [float("inf"), float("nan"), "5", True, 10 ** 400, [1, 2]])
