@@ -132,7 +132,7 @@ def floor(mesh, pts, times, work: Path) -> tuple[float, float, float]:
     """(LU + solve, one solve) (s) of GetDP's system of step 2 (bench/solve_floor.py), its unknowns."""
     work.mkdir(parents=True, exist_ok=True)
     persistent(mesh, pts[:2], times[:2], work, petsc_args=DEFAULT_PETSC_ARGS + view_args(work))
-    f = floor_times(work, "umfpack")
+    f = floor_times(work, KEPT.solver_args(DEFAULT_PETSC_ARGS))   # getdp's solver, as the kept steps run it
     return f["factor_solve"], f["solve"], f["n"]
 
 

@@ -20,7 +20,7 @@ Variants (N steps each; ``--repeat`` trials interleaved, medians printed):
                its factorisations and corrections printed
   continuous   solve_transient3d(time_scheme="bdf2"): one getdp running N equal steps on the fixed mesh
                with the same per-step tables, per step = getdp's own time-loop timer / N: the physics alone
-  floor        GetDP's own matrix and right-hand side of step 2 (bench/solve_floor.py): MUMPS LU + solve
+  floor        GetDP's own matrix and right-hand side of step 2 (bench/solve_floor.py): LU + solve with getdp's own solver (UMFPACK, METIS ordering)
                in petsc4py ("LU"), one more solve with those factors ("solve"): the linear algebra alone
 
 The speed targets (issue 31): kept <= 180 ms per step (median) at ~26k tetrahedra; the last line prints the
@@ -153,7 +153,7 @@ def floor(mesh, pts, times, work):
     """(LU + solve, one solve) (s) of GetDP's system of step 2 (bench/solve_floor.py), its unknowns."""
     work.mkdir(parents=True, exist_ok=True)
     persistent(mesh, pts[:2], times[:2], work, petsc_args=DEFAULT_PETSC_ARGS_3D + view_args(work))
-    f = floor_times(work, "mumps")
+    f = floor_times(work, KEPT.solver_args(DEFAULT_PETSC_ARGS_3D))   # getdp's solver, as the kept steps run it
     return f["factor_solve"], f["solve"], f["n"]
 
 

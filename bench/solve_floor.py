@@ -29,25 +29,44 @@ def _load(path: Path, kind):
     return obj
 
 
-def floor_times(folder: Path, package: str, repeat: int = 3) -> dict[str, float]:
-    """Median wall times (s) on the system written by :func:`view_args` into ``folder``: ``factor_solve``
-    (LU factorisation with ``package`` + one solve, the fresh step's linear algebra), ``solve`` (one more
-    solve with those factors), ``matvec`` (one product A x: a residual), and ``n`` the unknowns."""
+def _options(petsc_args) -> dict[str, str]:
+    """``-name value`` pairs of getdp's PETSc command line (a flag without a value gets "")."""
+    args, out, i = list(petsc_args), {}, 0
+    while i < len(args):
+        name = args[i].lstrip("-")
+        value = args[i + 1] if i + 1 < len(args) and not args[i + 1].startswith("-") else ""
+        out[name] = value
+        i += 2 if value else 1
+    return out
+
+
+def floor_times(folder: Path, petsc_args, repeat: int = 3) -> dict[str, float]:
+    """Median wall times (s) on the system written by :func:`view_args` into ``folder``, with getdp's own
+    direct solver and its options (``petsc_args``, e.g. ``DEFAULT_PETSC_ARGS_3D``): ``factor_solve`` (the LU
+    factorisation + one solve, the fresh step's linear algebra), ``solve`` (one more solve with those factors,
+    of a dense right-hand side: what a GCR iteration applies; the system's own b is sparse, and a direct
+    solver's iterative refinement stops at once on it), ``matvec`` (one product A x: a residual), and ``n``
+    the unknowns."""
     A = _load(Path(folder) / "A.bin", PETSc.Mat)
     b = _load(Path(folder) / "b.bin", PETSc.Vec)
     x = b.duplicate()
+    dense = b.duplicate()
+    dense.setRandom()
+    opts = PETSc.Options()
+    given = _options(petsc_args)
     out: dict[str, list[float]] = {"factor_solve": [], "solve": [], "matvec": []}
     for _ in range(repeat):
+        for name, value in given.items():
+            opts[name] = value
         ksp = PETSc.KSP().create(MPI.COMM_SELF)
         ksp.setOperators(A)
-        ksp.setType("preonly")
-        pc = ksp.getPC()
-        pc.setType("lu")
-        pc.setFactorSolverType(package)
+        ksp.setFromOptions()
+        for name in given:
+            opts.delValue(name)
         c0 = time.perf_counter()
         ksp.solve(b, x)
         c1 = time.perf_counter()
-        ksp.solve(b, x)
+        ksp.solve(dense, x)
         c2 = time.perf_counter()
         A.mult(x, b.duplicate())
         c3 = time.perf_counter()
