@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 from .schema import SchemaError, spec
 
-__all__ = ["Box4", "CoaxialCore", "check_box", "boxes_meet", "check_cores", "check_core_materials"]
+__all__ = ["Box4", "CoaxialCore", "check_box", "boxes_meet", "check_placed", "check_cores", "check_core_materials"]
 
 Box4 = tuple[float, float, float, float]
 
@@ -44,30 +44,38 @@ class CoaxialCore:
                                                  "may touch each other and the coils, not overlap)")
 
 
-def check_cores(path: str, cores: tuple[CoaxialCore, ...], placed: list[tuple[str, Box4]],
-                work: Box4) -> list[tuple[str, Box4]]:
-    """One line for a core's box that is no rectangle, overlaps another box or a coil's winding, or touches the
-    workpiece (it moves, the cores do not); the cores' boxes with their keys. ``placed``: the coils' windings
-    (key, box); ``work``: the workpiece's box."""
+def check_placed(path: str, kind: str, items, boxes_of: str, placed: list[tuple[str, Box4]],
+                 work: Box4) -> list[tuple[str, Box4]]:
+    """One line for ``kind`` entries (``coils`` or ``cores``) with a repeated name or no boxes, or a box (the
+    field ``boxes_of``: ``windings``, ``boxes``) that is no rectangle, overlaps another placed box, or touches the
+    workpiece (it moves, coils and cores do not); the entries' boxes with their keys. ``placed``: the boxes
+    placed before (key, box); ``work``: the workpiece's box."""
     names: list[str] = []
     out: list[tuple[str, Box4]] = []
-    for i, c in enumerate(cores):
+    for i, c in enumerate(items):
         if c.name in names:
-            raise SchemaError(f"{path}.cores[{i}].name", f"got {c.name!r}; core names must be unique")
+            raise SchemaError(f"{path}.{kind}[{i}].name", f"got {c.name!r}; {kind[:-1]} names must be unique")
         names.append(c.name)
-        if not c.boxes:
-            raise SchemaError(f"{path}.cores[{i}].boxes", "got an empty list; give at least one [r0, z0, r1, z1]")
-        for j, box in enumerate(c.boxes):
-            key = f"{path}.cores[{i}].boxes[{j}]"
+        boxes = getattr(c, boxes_of)
+        if not boxes:
+            raise SchemaError(f"{path}.{kind}[{i}].{boxes_of}", "got an empty list; give at least one [r0, z0, r1, z1]")
+        for j, box in enumerate(boxes):
+            key = f"{path}.{kind}[{i}].{boxes_of}[{j}]"
             check_box(box, key)
             if boxes_meet(box, work, touching=True):
-                raise SchemaError(key, "overlaps or touches the workpiece; leave a gap (the workpiece moves, the "
-                                       "cores do not)")
+                raise SchemaError(key, f"overlaps or touches the workpiece; leave a gap (the workpiece moves, the "
+                                       f"{kind} do not)")
             for other, b in placed + out:
                 if boxes_meet(box, b, touching=False):
                     raise SchemaError(key, f"overlaps {other}")
-            out.append((f"cores[{i}].boxes[{j}]", box))
+            out.append((f"{kind}[{i}].{boxes_of}[{j}]", box))
     return out
+
+
+def check_cores(path: str, cores: tuple[CoaxialCore, ...], placed: list[tuple[str, Box4]],
+                work: Box4) -> list[tuple[str, Box4]]:
+    """:func:`check_placed` for the cores' boxes (after the coils' windings, ``placed``)."""
+    return check_placed(path, "cores", cores, "boxes", placed, work)
 
 
 def check_core_materials(case) -> None:

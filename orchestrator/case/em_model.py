@@ -7,7 +7,7 @@ from operator import attrgetter
 from typing import ClassVar, Literal
 
 from .deck_files import remesh_air_error
-from .em_cores import Box4, CoaxialCore, boxes_meet, check_box, check_cores
+from .em_cores import Box4, CoaxialCore, check_box, check_cores, check_placed
 from .geometry3d import GeometryFile3D
 from .schema import SchemaError, spec
 
@@ -267,25 +267,8 @@ class CoaxialCoils(_ConductorRoles):
     def validate(self, path: str) -> None:
         if not self.coils:
             raise SchemaError(f"{path}.coils", "got an empty list; give at least one [[geometry.coils]] entry")
-        names: list[str] = []
-        placed: list[tuple[str, Box4]] = []
         work = self.workpiece.box
-        for i, c in enumerate(self.coils):
-            if c.name in names:
-                raise SchemaError(f"{path}.coils[{i}].name", f"got {c.name!r}; coil names must be unique")
-            names.append(c.name)
-            if not c.windings:
-                raise SchemaError(f"{path}.coils[{i}].windings", "got an empty list; give at least one [r0, z0, r1, z1]")
-            for j, w in enumerate(c.windings):
-                key = f"{path}.coils[{i}].windings[{j}]"
-                check_box(w, key)
-                if boxes_meet(w, work, touching=True):
-                    raise SchemaError(key, "overlaps or touches the workpiece; leave a gap (the workpiece moves, the "
-                                      "coils do not)")
-                for other, box in placed:
-                    if boxes_meet(w, box, touching=False):
-                        raise SchemaError(key, f"overlaps {other}")
-                placed.append((f"coils[{i}].windings[{j}]", w))
+        placed = check_placed(path, "coils", self.coils, "windings", [], work)
         placed += check_cores(path, self.cores, placed, work)
         corners = [abs(x) for _, b in placed for x in b] + [abs(x) for x in work]
         _check_open_boundary(path, max(corners), self.air_radius, self.shell_radius, "coils/workpiece/cores")

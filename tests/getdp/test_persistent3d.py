@@ -160,6 +160,21 @@ def test_moving_mesh_same_as_per_step(work):
     assert abs(per[-1, 0] / fixed[-1, 0] - 1) > 1e-3
 
 
+def _equal_steps_on_the_bulging_disk(work):
+    """The model, the moved meshes (k, t) -> mesh (each made once) and 7 equal steps of 0.5 us on the bulging,
+    sliding disk: the kept-factor tests' run."""
+    mesh = _mesh(work / "disk.msh")
+    bulge = Bulge(mesh, work)
+    moved = {}
+
+    def meshes(k, t):
+        if k not in moved:
+            moved[k] = bulge(k, t)
+        return moved[k]
+
+    return _model(), meshes, 0.5e-6 * np.arange(1, 8)
+
+
 def test_kept_factors_solve_each_steps_system_and_resume_bitwise(work):
     """Kept LU factors (FactorReuse, decks/Lib_PersistentStep.pro): each step's own system solved by GCR
     preconditioned with an earlier step's factors to a relative residual of 1e-10 gives the fresh factorisation's
@@ -168,17 +183,7 @@ def test_kept_factors_solve_each_steps_system_and_resume_bitwise(work):
     that factorised), and a new process seeded from it (a resume) rebuilds them (the prime messages) and
     repeats the uninterrupted run bit for bit, which goes on with its factors: no factorisation but the
     first in the run. Equal steps of 0.5 us on the bulging, sliding disk."""
-    mesh = _mesh(work / "disk.msh")
-    model = _model()
-    bulge = Bulge(mesh, work)
-    times = 0.5e-6 * np.arange(1, 8)
-    moved = {}
-
-    def meshes(k, t):
-        if k not in moved:
-            moved[k] = bulge(k, t)
-        return moved[k]
-
+    model, meshes, times = _equal_steps_on_the_bulging_disk(work)
     keep = FactorReuse(tol=1e-10)
     fresh, f_state = _march(PersistentEM3DStepper(model, work / "fresh"), meshes, times)
     s = PersistentEM3DStepper(model, work / "kept", factor_reuse=keep)
@@ -205,17 +210,7 @@ def test_history_directions_save_solves_with_the_kept_factors(work):
     with the factors: fewer of them in the same steps (7 steps of 0.5 us on the bulging disk: 55 vs 64
     measured). A product with A each instead of a triangular solve: Fischer's projection for successive
     right-hand sides, decks/Lib_PersistentStep.pro."""
-    mesh = _mesh(work / "disk.msh")
-    model = _model()
-    bulge = Bulge(mesh, work)
-    times = 0.5e-6 * np.arange(1, 8)
-    moved = {}
-
-    def meshes(k, t):
-        if k not in moved:
-            moved[k] = bulge(k, t)
-        return moved[k]
-
+    model, meshes, times = _equal_steps_on_the_bulging_disk(work)
     fresh, _ = _march(PersistentEM3DStepper(model, work / "fresh"), meshes, times)
     runs = {}
     for hist in (0, 2):
