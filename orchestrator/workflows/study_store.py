@@ -28,7 +28,7 @@ import re
 from pathlib import Path
 
 from ..case.io import case_to_toml, load_case
-from ..run.results import atomic_write_text, read_metrics, write_csv
+from ..run.results import MARKER_NAME, atomic_write_text, read_metrics, write_csv
 from ..run.warm import MEMBER_DEFAULTS
 
 log = logging.getLogger(__name__)
@@ -102,6 +102,15 @@ def write_record(member) -> None:
     atomic_write_text(member.out / RECORD, json.dumps(record, indent=1) + "\n")
 
 
+def clear_lone_record(member) -> None:
+    """Before a member runs from the start: a folder that holds only the study's own record (its run stopped or
+    failed before it made its results folder) is given back empty, so that the run may take it (a run replaces
+    only folders it made, marked by MARKER_NAME; the record is the study's file)."""
+    folder = member.out
+    if folder.is_dir() and not (folder / MARKER_NAME).exists() and [p.name for p in folder.iterdir()] == [RECORD]:
+        (folder / RECORD).unlink()
+
+
 def read_record(folder: Path) -> dict | None:
     """A member folder's record, or None (none yet, or unreadable: the member runs again)."""
     try:
@@ -126,6 +135,10 @@ def member_state(member) -> str:
             member.returncode, member.error, member.log_tail = 0, "", ""
             write_record(member)
             return "done"
+        if record["returncode"] in _STOPPED and not stopped:   # a stop (Ctrl-C, SIGTERM) before its first checkpoint
+            log.info("member %d (%s): stopped before a checkpoint; runs again from the start", member.index,
+                     member.out.name)
+            return "new"
         if not stopped:
             return "failed"
     elif _status(member.out) == "ok":  # its run ended well but its study did not record it (killed, a remote worker)

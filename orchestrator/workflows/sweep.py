@@ -207,6 +207,8 @@ def _plan(todo: list[Member], retry_failed: bool) -> list[Member]:
         if state == "done" or (state == "failed" and not retry_failed):
             continue
         m.resume = state == "stopped"
+        if not m.resume:
+            store.clear_lone_record(m)
         if state != "new" or m.returncode is not None:
             log.info("member %d (%s): %s", m.index, m.out.name,
                      "continues from its checkpoint" if m.resume else "runs again (it failed)")

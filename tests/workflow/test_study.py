@@ -170,6 +170,8 @@ def test_without_dask_the_dask_backend_is_refused_in_one_line(tmp_path, monkeypa
     (0, "ok", False, "done"),
     (1, "failed", False, "failed"),
     (-9, "interrupted", False, "failed"),             # killed without a checkpoint
+    (130, None, False, "new"),                        # Ctrl-C before it wrote anything: runs again, not a failure
+    (143, "interrupted", False, "new"),               # SIGTERM before its first checkpoint: runs again from the start
     (143, "interrupted", True, "stopped"),            # SIGTERM: continues from its checkpoint
     (-2, "ok", False, "done"),                        # SIGINT after its run ended
     (0, "ok", False, "new"),                          # ... but the record of another case (hash): runs again
@@ -181,7 +183,7 @@ def test_what_a_member_folder_says(tmp_path, record, status, checkpoint, state):
     m = Member(0, {"time.cfl": "0.5"}, tmp_path / "m", digest="abc")
     m.out.mkdir()
     if record is not None:
-        other = state == "new"
+        other = state == "new" and record not in (130, 143)
         (m.out / "member.json").write_text(json.dumps({"hash": "xyz" if other else "abc", "returncode": record}))
         if other:
             status = None
@@ -220,3 +222,24 @@ def test_a_member_whose_getdp_fails_fails_alone(tmp_path):
     assert rows["5e-5"]["returncode"] == "0" and float(rows["5e-5"]["max_deflection_mm"]) > 0
     assert rows["4.4e-5"]["returncode"] == "1" and "getdp" in rows["4.4e-5"]["error"], rows["4.4e-5"]
     assert "Traceback" not in r.stderr
+
+
+def test_a_lone_record_is_cleared_before_its_member_runs_again(tmp_path):
+    """A member stopped (Ctrl-C) before its run made its results folder leaves only the study's member.json there;
+    run again from the start, the folder must be empty for `pulseform run --force` (which replaces only folders
+    it made). Anything else in the folder stays (a user's folder is never deleted)."""
+    from pulseform.orchestrator.run.results import MARKER_NAME
+    from pulseform.orchestrator.workflows.study_store import RECORD, clear_lone_record
+    from pulseform.orchestrator.workflows.sweep import Member
+
+    lone, other, made = (Member(i, {"time.cfl": "0.5"}, tmp_path / n, digest="abc") for i, n in
+                         enumerate(("lone", "other", "made")))
+    for m, extra in ((lone, None), (other, "notes.txt"), (made, MARKER_NAME)):
+        m.out.mkdir()
+        (m.out / RECORD).write_text("{}")
+        if extra:
+            (m.out / extra).write_text("x")
+        clear_lone_record(m)
+    assert list(lone.out.iterdir()) == []
+    assert sorted(p.name for p in other.out.iterdir()) == sorted([RECORD, "notes.txt"])
+    assert sorted(p.name for p in made.out.iterdir()) == sorted([RECORD, MARKER_NAME])
