@@ -116,8 +116,8 @@ class PersistentGetDPSolver(GetDPSolver):
         (m). ``extra_numbers`` go last (bench/em_step.py sets the self-clocked baseline's ``PF_Self*``)."""
         m = self.model
         numbers = self.run_numbers(mesh)
-        numbers.update(Flag_ElemOut=0, PF_GlobalsSet=NONLINEAR_GLOBALS if m.is_nonlinear else LEAN_GLOBALS, PF_T1=state.t, PF_Step0=state.step_index,
-                       PF_DtPrev=0.0, PF_Seed=1, **self.factor_reuse.numbers(), **persistent_numbers(m))
+        numbers.update(Flag_ElemOut=0, PF_GlobalsSet=NONLINEAR_GLOBALS if m.is_nonlinear else LEAN_GLOBALS,
+                       PF_T1=state.t, PF_Step0=state.step_index, PF_DtPrev=0.0, PF_Seed=1, **self.factor_reuse.numbers(), **persistent_numbers(m))
         lines = [f'PulseformPersistentLib = "{PERSISTENT_LIB}";'] + self.preamble + self._table_lines()
         if m.circuit is not None:
             numbers["Init_Vc"], numbers["Init_I"] = state.capacitor_voltage, state.current
