@@ -95,8 +95,8 @@ class EM:
         1e-10, unit="-", ge=0.0, lt=1e-3,
         doc="persistent getdp: each EM step assembles its own system and solves it by GCR preconditioned with "
             "the LU factors of an earlier step until |b − A x| ≤ tol |b| (the same system's answer to that "
-            "residual; docs/getdp.md, Kept factors); 0 factorises every step. History: em_factorisations, "
-            "em_corrections")
+            "residual; docs/getdp.md, Kept factors); 0 factorises every step; not used with a B–H curve (each "
+            "Newton iteration factorises). History: em_factorisations, em_corrections")
     factor_reuse_max_corrections: int = spec(
         20, ge=1, le=50, doc="GCR iterations before an EM step factorises its own matrix (and the next one does "
                              "when a step needed more than 3/4 of them); each keeps two vectors in getdp")

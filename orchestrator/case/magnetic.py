@@ -68,8 +68,8 @@ def magnetic_keywords(material) -> dict:
 def check_magnetic_em(case) -> None:
     """Magnetic materials of a coupled case's bodies and cores (``[[geometry.cores]]``, whose materials must be
     magnetic): on pulseform's own decks (not a user deck, whose materials are its own), no applied field (its
-    reduced-field source needs μ0 everywhere), and a B–H curve runs getdp per step (one line naming the key
-    otherwise)."""
+    reduced-field source needs μ0 everywhere) (one line naming the key otherwise). A B–H curve runs on either
+    getdp (per step or persistent: Newton's iterations in each EM step)."""
     check_core_materials(case)
     cores = getattr(case.geometry, "cores", ()) or ()
     keys = [(f"materials.{m}", case.materials[m]) for m in [b.material for b in case.bodies] + [c.material
@@ -87,7 +87,3 @@ def check_magnetic_em(case) -> None:
     if case.em.applied_field is not None:
         raise SchemaError(key, "a magnetic material and em.applied_field: the applied field's reduced-field source "
                                "is exact only with μ0 everywhere; drive the field with a coil instead")
-    nonlinear = [k for k, m in magnetic if m.bh_curve is not None]
-    if nonlinear and case.em.getdp_process == "persistent":
-        raise SchemaError("em.getdp_process", f"got 'persistent'; a B-H curve ({nonlinear[0]}.bh_curve) runs "
-                                              "getdp per step: set getdp_process = 'auto' or 'per_step'")

@@ -283,10 +283,10 @@ class GetDPLoad(EMSnapshots, LoadCapabilities):
         process per EM step factorises every one of its ``em_substeps`` sub-steps. With a B–H curve
         ``em_newton_iterations``: the most linear solves (first + Newton's) of a sub-step of ``result``."""
         s = self.state
-        if hasattr(self.solver, "factor_reuse"):
-            return {"em_factorisations": float(s.factorisations), "em_corrections": float(s.corrections)}
         nl = {"em_newton_iterations": float(max(result.newton_iterations)) if result is not None else 0.0} \
             if self.solver.model.is_nonlinear else {}
+        if hasattr(self.solver, "factor_reuse"):
+            return {"em_factorisations": float(s.factorisations), "em_corrections": float(s.corrections), **nl}
         return {"em_factorisations": float(s.step_index * self.em_substeps), "em_corrections": 0.0, **nl}
 
     def _coil_values(self, result, getdp_total: np.ndarray) -> dict[str, float]:

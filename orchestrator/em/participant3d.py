@@ -130,8 +130,7 @@ class GetDPLoad3D(LoadCapabilities):
             raise ValueError(f"getdp_process is 'auto', 'persistent' or 'per_step', got {getdp_process!r}")
         if getdp_process == "persistent" and time_scheme != "bdf2":
             raise ValueError("the persistent getdp implements time_scheme='bdf2' only")
-        self.persistent = getdp_process == "persistent" or (getdp_process == "auto" and time_scheme == "bdf2"
-                                                              and not model.is_nonlinear)   # Newton: per step
+        self.persistent = getdp_process == "persistent" or (getdp_process == "auto" and time_scheme == "bdf2")
         stepper = PersistentEM3DStepper if self.persistent else EM3DStepper
         self.stepper = stepper(model, self.work_dir, time_scheme=time_scheme, timeout=getdp_timeout,
                                **({"factor_reuse": factor_reuse} if self.persistent else {}))

@@ -143,12 +143,7 @@ def make_em_solver(model: EMModel, work_dir: Path, time_scheme: str, getdp_proce
         raise ValueError(f"getdp_process must be 'auto', 'persistent' or 'per_step', got {getdp_process!r}")
     if getdp_process == "persistent" and time_scheme != "bdf2":
         raise ValueError("the persistent getdp implements time_scheme='bdf2' only")
-    if model.is_nonlinear and getdp_process == "persistent":
-        raise ValueError("a B-H curve runs getdp per step (Newton's iterations in every EM step): "
-                         "em.getdp_process must be 'auto' or 'per_step'")
-    if model.is_nonlinear and getdp_process == "auto" and time_scheme == "bdf2":
-        log.info("a B-H curve: getdp runs per EM step (the persistent getdp has no Newton iterations)")
-    if getdp_process != "per_step" and time_scheme == "bdf2" and not model.is_nonlinear:
+    if getdp_process != "per_step" and time_scheme == "bdf2":
         from pulseform.solvers.getdp.persistent import PersistentGetDPSolver
 
         return PersistentGetDPSolver(model, work_dir, factor_reuse=factor_reuse, **kw)

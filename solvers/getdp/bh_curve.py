@@ -18,12 +18,15 @@ Each region's choice reaches the deck as ``Cond_Mag_k`` / ``Core_Mag_k`` (0 vacu
 """
 from __future__ import annotations
 
+import logging
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 import numpy as np
 
 from .runner import GetDPError
+
+log = logging.getLogger(__name__)
 
 MU0 = 4e-7 * math.pi   # H/m, as the decks' mu0 = 4e-7 * Pi
 #: points per segment of the curve in the deck's |b|² table
@@ -32,6 +35,7 @@ SUBDIVISIONS = 64
 TAIL_H = 1e9
 
 __all__ = ["MU0", "BHCurve", "check_relative_permeability", "magnetic_inputs", "read_newton", "NewtonFailed",
+           "newton_factor_reuse", "step_newton",
            "MagneticRegions", "model_magnetic"]
 
 
@@ -140,16 +144,24 @@ class NewtonFailed(GetDPError):
 
 
 def read_newton(out_dir: Path, tol_rel: float, tol_abs: float, max_iter: int, *,
-                log_path: Path | None = None) -> list[int]:
+                log_path: Path | None = None, last: bool = False) -> list[int]:
     """The linear solves of every time step of a run (first solve + Newton iterations) from
     ``out_dir/newton.txt`` (``decks/Lib_Newton.pro``: time, iterations, residual norm, right-hand side's norm;
     [] without a nonlinear material). NewtonFailed when a step stopped with its residual above ``tol_rel`` times
-    the right-hand side's norm and above ``tol_abs``."""
+    the right-hand side's norm and above ``tol_abs``. ``last``: only the file's last line, read from its end (the
+    persistent getdp appends one line per EM step to the same file: :mod:`.persistent`)."""
     path = Path(out_dir) / "newton.txt"
     if not path.is_file():
         return []
+    if last:
+        with open(path, "rb") as f:
+            f.seek(max(0, f.seek(0, 2) - 4096))
+            lines = f.read().decode().split("\n")
+        rows = np.array([[float(x) for x in ln.split()] for ln in lines if ln.strip()][-1:]).reshape(-1, 4)
+    else:
+        rows = np.loadtxt(path, ndmin=2)
     counts = []
-    for t, it, res, rhs in np.loadtxt(path, ndmin=2):
+    for t, it, res, rhs in rows:
         if not (res <= tol_abs or res <= tol_rel * rhs):
             raise NewtonFailed(f"Newton's iterations stopped at t = {t:.6g} s with a residual "
                                f"{res / rhs if rhs > 0 else math.inf:.2g} of the right-hand side after {int(it)} "
@@ -158,6 +170,26 @@ def read_newton(out_dir: Path, tol_rel: float, tol_abs: float, max_iter: int, *,
         counts.append(int(it) + 1)
     return counts
 
+
+def newton_factor_reuse(model, factor_reuse):
+    """A persistent getdp's :class:`~.persistent_process.FactorReuse` for ``model``: with a B–H curve every
+    Newton iteration factorises its own Jacobian (``decks/Lib_PersistentStep.pro``), so no factors are kept
+    (``tol`` 0; logged when the case asked for them); unchanged for a linear model."""
+    if not model.is_nonlinear or factor_reuse.tol <= 0.0:
+        return factor_reuse
+    log.info("a B-H curve: every Newton iteration factorises its Jacobian, no LU factors are kept across EM steps "
+             "(em.factor_reuse_tol %g not used)", factor_reuse.tol)
+    return replace(factor_reuse, tol=0.0)
+
+
+def step_newton(model, proc) -> list[int] | None:
+    """The linear solves (first + Newton's) of the step a persistent getdp process ``proc``
+    (:class:`~.persistent_process.PersistentProcess`) has just answered: the last line of its ``newton.txt``
+    (:func:`read_newton`; NewtonFailed above the tolerance). None for a linear model."""
+    if not model.is_nonlinear:
+        return None
+    return read_newton(proc.out_dir, model.newton_tolerance, 0.0, model.newton_max_iterations,
+                       log_path=proc.log_path, last=True)
 
 
 def model_magnetic(model) -> tuple[dict[str, float], list[str]]:

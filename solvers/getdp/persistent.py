@@ -11,12 +11,17 @@ The process and its message protocol (FIFOs, binary ``.res`` messages, failures)
 Only what the loop needs is computed each step (``PF_GlobalsSet`` = 37): the coil current and
 voltage and the circuit (global unknowns), the magnetic energy as ½ (j, a) over coils and
 conductors (equal to the whole-domain ½ (ν curl a, curl a) of the discrete solution), the
-conductors' Joule power, and the per-element force integrals; the conductor force is their sum,
+conductors' Joule power, and the per-element force integrals (with a B–H curve the energy is the
+whole-domain ∫ w(b): :data:`NONLINEAR_GLOBALS`); the conductor force is their sum,
 the coil's Joule power (N_s I / S_c)² / σ × V_coil (uniform current density), the coil force is
 not computed (NaN).  B and Joule power per element are fetched only when read (a field output).
 
 With σ(T) laws (:mod:`.conductivity`) each step message also carries σ of every element of the regions with a law,
 and the coil's Joule power is taken at the step's σ.
+
+With a B–H curve (``model.is_nonlinear``) each step is Newton's method of ``decks/Lib_Newton.pro`` (every iteration
+factorises: no kept factors); the step's linear solves are its result's ``newton_iterations``
+(:func:`.bh_curve.step_newton`).
 """
 from __future__ import annotations
 
@@ -34,6 +39,7 @@ from .files import element_volumes, init_list_line, read_element_table
 from .mesh import EMMesh, coil_tag, conductor_tag
 from .model import EMModel, EMState, EMStepResult
 from .persistent_data import nodal_dof_map, read_binary_res
+from .bh_curve import newton_factor_reuse, step_newton
 from .persistent_process import (FLAG_COND_FIELDS, FLAG_ELEM, FLAG_FIELDS, FLAG_STATE, LEAN_GLOBALS, PERSISTENT_LIB,
                                  FactorReuse, PersistentProcess, StepAnswer)
 from .replay import ReplayLog, connectivity_signature, segment_length
@@ -41,6 +47,9 @@ from .runner import GetDPError, RunInfo, log_tail
 from .solver import CASE_DECK, DEFAULT_PETSC_ARGS, GetDPSolver
 
 log = logging.getLogger(__name__)
+#: ``PF_GlobalsSet`` with a B–H curve: the magnetic energy is the whole domain's ∫ w(b) (2), not ½ (j, a) over the
+#: sources (32), which equals the stored energy ½ (ν curl a, curl a) only for a linear ν
+NONLINEAR_GLOBALS = LEAN_GLOBALS - 32 + 2
 
 
 class PersistentStepResult(EMStepResult):
@@ -86,11 +95,8 @@ class PersistentGetDPSolver(GetDPSolver):
             raise ValueError("the persistent getdp implements time_scheme='bdf2' only")
         super().__init__(model, work_dir, executable=executable, petsc_args=petsc_args, timeout=timeout, deck=deck,
                          extra_numbers=extra_numbers, preamble=preamble, time_scheme="bdf2")
-        if self.model.is_nonlinear:   # Lib_PersistentStep.pro solves each step once (and may keep LU factors)
-            raise ValueError("the persistent getdp has no Newton iterations for a B-H curve: run getdp per step "
-                             "(em.getdp_process = 'per_step')")
         self.verbosity = verbosity
-        self.factor_reuse = factor_reuse  # kept LU factors across steps (Lib_PersistentStep.pro)
+        self.factor_reuse = newton_factor_reuse(self.model, factor_reuse)  # kept LU factors (Lib_PersistentStep.pro)
         self.proc: PersistentProcess | None = None
         self.segment = 0
         self.startup_s = 0.0  # wall time of the process starts (s)
@@ -110,8 +116,8 @@ class PersistentGetDPSolver(GetDPSolver):
         (m). ``extra_numbers`` go last (bench/em_step.py sets the self-clocked baseline's ``PF_Self*``)."""
         m = self.model
         numbers = self.run_numbers(mesh)
-        numbers.update(Flag_ElemOut=0, PF_GlobalsSet=LEAN_GLOBALS, PF_T1=state.t, PF_Step0=state.step_index,
-                       PF_DtPrev=0.0, PF_Seed=1, **self.factor_reuse.numbers(), **persistent_numbers(m))
+        numbers.update(Flag_ElemOut=0, PF_GlobalsSet=NONLINEAR_GLOBALS if m.is_nonlinear else LEAN_GLOBALS,
+                       PF_T1=state.t, PF_Step0=state.step_index, PF_DtPrev=0.0, PF_Seed=1, **self.factor_reuse.numbers(), **persistent_numbers(m))
         lines = [f'PulseformPersistentLib = "{PERSISTENT_LIB}";'] + self.preamble + self._table_lines()
         if m.circuit is not None:
             numbers["Init_Vc"], numbers["Init_I"] = state.capacitor_voltage, state.current
@@ -233,6 +239,7 @@ class PersistentGetDPSolver(GetDPSolver):
         flags = FLAG_ELEM | (FLAG_FIELDS | FLAG_COND_FIELDS if field_output else 0)
         ans = self.proc.step(mesh.points, float(t_end), flags, redo=redo)
         result = self._result_of(ans, mesh, mat, state, float(t_end), field_output)
+        result.newton_iterations = step_newton(self.model, self.proc)
         new_state = EMState(t=float(t_end), step_index=state.step_index + 1,
                             capacitor_voltage=float(ans.glob[1]) if self.model.circuit is not None else 0.0,
                             current=float(ans.glob[3]) if self.model.circuit is not None else 0.0,
@@ -240,7 +247,8 @@ class PersistentGetDPSolver(GetDPSolver):
                             capacitor_voltage_prev=state.capacitor_voltage, current_prev=state.current,
                             coil_power=result.coil_power[-1].tolist(),
                             coil_sigma=list(self.coil_sigma) if self.model.has_conductivity_laws else None,
-                            factorisations=state.factorisations + int(ans.factorised),
+                            factorisations=state.factorisations + (sum(result.newton_iterations or ())
+                                                                   or int(ans.factorised)),   # Newton: each
                             corrections=state.corrections + ans.corrections)
         if self.model.applied_field is not None:
             new_state.applied_f = float(self.model.applied_field.unit_f(float(t_end)))

@@ -30,7 +30,8 @@ factors. Where no record can be made (no kept factors, or a move that floating p
 increments are exact: getdp's coordinates are the mechanics' positions bit for bit wherever an increment
 can land there (so a new process started from a mesh file at those positions has the same).
 Each step's state counts the factorisations and corrections (``timers["getdp_factorisations"]``,
-``timers["getdp_corrections"]``).
+``timers["getdp_corrections"]``). With a B–H curve each step is Newton's method (``decks/Lib_Newton.pro``,
+every iteration a factorisation: no kept factors), its linear solves in the result's ``newton_iterations``.
 
 The outputs are the library's own PostOperations (``EM_Step3D`` with the magnetic energy from the
 sources, ``Flag_WSources``; ``EM_ElemF3D``, ``EM_Field3D``), read with :func:`~.solver3d.read_results3d`
@@ -48,6 +49,7 @@ from typing import Sequence
 
 import numpy as np
 
+from .bh_curve import newton_factor_reuse, step_newton
 from .files import read_element_table
 from .mesh import coil_tag
 from .mesh3d import Mesh3D
@@ -128,10 +130,7 @@ class PersistentEM3DStepper:
                  timeout: float | None = None, verbosity: int = 2, factor_reuse: FactorReuse = FactorReuse()) -> None:
         if time_scheme != "bdf2":
             raise ValueError("the persistent 3D getdp implements time_scheme='bdf2' only")
-        if model.is_nonlinear:   # Lib_Persistent3D.pro solves each step once (and may keep LU factors)
-            raise ValueError("the persistent getdp has no Newton iterations for a B-H curve: run getdp per step "
-                             "(em.getdp_process = 'per_step')")
-        self.factor_reuse = factor_reuse
+        self.factor_reuse = newton_factor_reuse(model, factor_reuse)   # a B-H curve: Newton, no kept factors
         self._factorise_next = False   # the step after a checkpoint factorises (module docstring)
         self._factors: tuple[np.ndarray, float] | None = None   # getdp's nodes and gamma dt of the last factorisation
         self._refactor_next = True     # the process's next step factorises anyway
@@ -159,7 +158,8 @@ class PersistentEM3DStepper:
         self.segment += 1
         self._factors, self._refactor_next = None, True   # a new process has no factors (or primes them below)
         numbers, lines = model_numbers(self.model, mesh)
-        numbers.update(PF_T1=float(state.t), PF_Step0=int(state.steps), PF_DtPrev=0.0, PF_Seed=1, Flag_WSources=1)
+        numbers.update(PF_T1=float(state.t), PF_Step0=int(state.steps), PF_DtPrev=0.0, PF_Seed=1,
+                       Flag_WSources=0 if self.model.is_nonlinear else 1)   # a B-H curve: ∫ w(b), not ½ (j, a)
         numbers.update(self.factor_reuse.numbers())
         if self.model.applied_field is not None:   # the unit time function of the seed states (0 at rest)
             numbers["Field_F1"], numbers["Field_F2"] = applied_state_values(self.model, state.t, state.steps, state.dt_prev)
@@ -253,6 +253,7 @@ class PersistentEM3DStepper:
         c1 = time.perf_counter()
         res = read_results3d(self.model, mesh, p.out_dir, 1, 2 if nk else 0, element_fields=field_output)
         res = PersistentEM3DResult(**{f.name: getattr(res, f.name) for f in fields(res)})
+        res.newton_iterations = step_newton(self.model, p)   # a B-H curve: this step's linear solves
         if nk and not field_output:
             res._fetch = self._conductor_fields_of(p.k, mesh, res)
         if field_output:
@@ -277,7 +278,8 @@ class PersistentEM3DStepper:
         tm["getdp_pre_s"] += startup
         tm["getdp_loop_s"] += ans.wall
         tm["res_io_s"] += time.perf_counter() - c1
-        tm["getdp_factorisations"] = tm.get("getdp_factorisations", 0.0) + float(ans.factorised)   # (a state of
+        tm["getdp_factorisations"] = tm.get("getdp_factorisations", 0.0) + float(sum(res.newton_iterations or ())
+                                                                                 or ans.factorised)   # (a state of
         tm["getdp_corrections"] = tm.get("getdp_corrections", 0.0) + float(ans.corrections)   # an older checkpoint)
         return res, new
 
