@@ -63,12 +63,15 @@ def test_interrupted_and_resumed_study_runs_each_member_once(reference, tmp_path
     assert proc.returncode == 128 + signal.SIGINT, stderr[-3000:]
     stopped = len(list(out.glob("*/member.json")))
     assert 10 <= stopped < 32
+    # a member stopped before its run made its results folder (no .pulseform marker: the Ctrl-C came while it
+    # was starting) did no work and runs again from the start; every other member's run starts once
+    unstarted = {str(p.parent) for p in out.glob("*/member.json") if not (p.parent / ".pulseform").exists()}
     r = _sweep(out, *LHS32, "--resume")
     assert r.returncode == 0, r.stderr[-3000:]
     assert _table(out) == _table(reference)
     # each member's run started from the beginning once (a stopped one continued from its checkpoint)
     starts = Counter(re.findall(r"pulseform run \S+ --out (\S+) --force", (out / "warm.log").read_text()))
-    assert len(starts) == 32 and set(starts.values()) == {1}, starts
+    assert len(starts) == 32 and all(n == (2 if f in unstarted else 1) for f, n in starts.items()), (starts, unstarted)
 
 
 def test_the_dask_backend_gives_the_same_table(reference, tmp_path):
