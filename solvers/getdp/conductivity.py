@@ -32,8 +32,8 @@ if TYPE_CHECKING:
     from .model import EMModel, EMState
 
 __all__ = ["ConductivityTable", "LinearResistivity", "ConductivityLaw", "law_from_dict", "element_list_line",
-           "has_laws", "coil_mass_cp", "coil_heat_step", "coil_temperature", "step_sigma", "step_inputs", "persistent_numbers", "message_sigma",
-           "checked_temperatures", "start_power", "check_deck"]
+           "has_laws", "coil_mass_cp", "coil_heat_step", "coil_temperature", "step_sigma", "step_inputs",
+           "persistent_numbers", "message_sigma", "checked_temperatures", "start_power", "check_deck"]
 
 
 @dataclass(frozen=True)

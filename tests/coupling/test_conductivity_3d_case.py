@@ -10,6 +10,9 @@ which GetDP would take if the laws did not reach it. The run must equal the run 
 (2.5e7 and 5.8e7 S/m, no law) on the per-step getdp: every physical column of history.csv to 1e-12 (the same
 matrix entries: ``InterpolationLinear[ElementNum[]]`` at a listed tag is exact), where the unused values alone
 would change the coil current by tens of percent.
+
+And a run with linear laws stopped by SIGINT after its first checkpoint and resumed equals the uninterrupted run
+bit for bit (the coil's lumped heat is part of the checkpoint: without it the resumed coil is cold again).
 """
 
 from __future__ import annotations
@@ -63,3 +66,24 @@ def test_flat_laws_equal_constant_conductivities_in_3d(tmp_path):
     print(f"\n{len(const.column('time_s'))} rows; worst relative difference {worst:.1e}; sheet up to "
           f"{t_max.max():.4f} K")
     assert t_max.max() > 293.15   # the cells heated: their temperatures went to GetDP every step
+
+
+def test_sigma_of_t_in_3d_resumes_bitwise(tmp_path):
+    """Linear laws on the sheet and on a coil that heats fast (its heat capacity 1/50 of copper's), stopped by SIGINT
+    after the first checkpoint and resumed: the outputs equal the uninterrupted run's bit for bit (the checkpoint
+    keeps the coil's heat and last power and σ, the cells keep their temperatures)."""
+    from .resume_check import assert_coupled3d_outputs_bitwise, sigint_then_resume
+
+    sets = ["materials.al_blank.conductivity_curve={type = 'linear_resistivity', temperature_coefficient = 4e-3}",
+            "em.coil_conductivity_curve={type = 'linear_resistivity', temperature_coefficient = 3.9e-3}",
+            "em.coil_heat_capacity=7.7"]
+    ref = tmp_path / "ref"
+    h = _run(ref, sets)
+    assert h.column("coil_joule_heat_J")[-1] > 0
+    args = [EXE, "run", str(REPO / "cases/emf_sheet_bulge_3d"), "--out", str(tmp_path / "out"), "--quiet", *COMMON]
+    for s in sets:
+        args += ["--set", s]
+    proc, err, _, resumed = sigint_then_resume(args, tmp_path / "out", delay=0.05)
+    assert proc.returncode == 130, err[-2000:]
+    assert resumed.returncode == 0, resumed.stderr[-3000:]
+    assert_coupled3d_outputs_bitwise(ref, tmp_path / "out")
