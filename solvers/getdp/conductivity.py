@@ -12,6 +12,8 @@ Joule heat so far over m c_p), so its σ is one number per EM step (``Coil_sigma
 σ is one value per element, ``Cond_SigmaList_k() = {element tag, σ, ...}`` read by the built-in deck with
 ``InterpolationLinear[ElementNum[]]`` (exact at the listed tags: no grouping of elements into bins).
 Both are evaluated at the step's start temperatures (explicit in temperature, like the mechanics' heating).
+The same functions serve the 3D per-step getdp (a :class:`~.mesh3d.Mesh3D`: tetrahedra keyed by their gmsh
+numbers, the coil's m c_p and heat those of the modelled sector; ``em_case3d.pro``).
 The persistent getdp cannot read a new ``run.pro`` per step: its step messages carry σ of every element of the
 regions with a law (:func:`message_sigma`, :func:`persistent_numbers`; ``decks/Lib_Persistent.pro``).
 """
