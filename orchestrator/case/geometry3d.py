@@ -212,9 +212,10 @@ def validate_geometry_3d(case) -> None:
         regions.append(b.region)
         if b.rigid:
             _check_rigid_3d(case, i, b)
-        if b.material in case.materials and case.materials[b.material].electrical_conductivity <= 0.0:
+        if b.material in case.materials and case.materials[b.material].electrical_conductivity <= 0.0 \
+                and case.materials[b.material].conductivity_curve is None:
             raise SchemaError(f"materials.{b.material}.electrical_conductivity", "got 0; a body of a 3D geometry "
-                              "file is a conductor: give its conductivity (S/m)")
+                              "file is a conductor: give its conductivity (S/m) or its conductivity_curve")
         for j, f in enumerate(b.fixed):
             if f.where is None and f.group is None:
                 raise SchemaError(f"{key}.fixed[{j}]", "give where (a box) or group (a physical surface group)")

@@ -56,7 +56,7 @@ from ..coupling.interfaces import LoadCapabilities, LoadStep
 from ..coupling.transfer3d import tet_force_integral, tet_nodal_forces
 from ..mesh.motion3d import MeshMover3D
 from ..mesh.shared3d import ConductorMesh3D
-from .joule_heat import JouleHeat
+from .joule_heat import JouleHeat, element_temperatures
 
 log = logging.getLogger(__name__)
 
@@ -110,7 +110,7 @@ class GetDPLoad3D(LoadCapabilities):
         The EM time scheme.
     getdp_process : {"auto", "persistent", "per_step"}
         One persistent getdp for the run (BDF2 only) or a getdp process per EM step; ``"auto"``:
-        persistent with BDF2, per step with implicit Euler.
+        persistent with BDF2, per step with implicit Euler, a B-H curve or a σ(T) law.
     getdp_timeout : float or None
         Wall-time limit of each getdp answer (persistent) or run (per step), s; None: the runner's default.
     factor_reuse : FactorReuse
@@ -130,7 +130,8 @@ class GetDPLoad3D(LoadCapabilities):
             raise ValueError(f"getdp_process is 'auto', 'persistent' or 'per_step', got {getdp_process!r}")
         if getdp_process == "persistent" and time_scheme != "bdf2":
             raise ValueError("the persistent getdp implements time_scheme='bdf2' only")
-        self.persistent = getdp_process == "persistent" or (getdp_process == "auto" and time_scheme == "bdf2")
+        self.persistent = getdp_process == "persistent" or (getdp_process == "auto" and time_scheme == "bdf2"
+                                                              and not model.has_conductivity_laws)   # σ(T): per step
         stepper = PersistentEM3DStepper if self.persistent else EM3DStepper
         self.stepper = stepper(model, self.work_dir, time_scheme=time_scheme, timeout=getdp_timeout,
                                **({"factor_reuse": factor_reuse} if self.persistent else {}))
@@ -160,6 +161,9 @@ class GetDPLoad3D(LoadCapabilities):
         self._last_step: tuple | None = None        # (t1, current, x_em, result) of the last step
         self._last_snapshot: tuple | None = None    # its sheet snapshot, made when first asked for
         self.joule = JouleHeat()   # the Joule heat per mechanical cell of the bodies with a temperature
+        #: a conductor's σ follows its cells' temperatures (:mod:`pulseform.solvers.getdp.conductivity`)
+        self.conductivity_follows_temperature = any(c.conductivity_law is not None for c in model.conductors)
+        self._elem_t: tuple[np.ndarray, np.ndarray] | None = None   # (EM tet rows, K) of the last step's σ(T)
         sub = self.bodies[0].sub
         self._sheet_pos = np.full(len(mesh.tets), -1, dtype=np.int64)
         self._sheet_pos[sub.rows] = np.arange(len(sub.rows))
@@ -184,6 +188,9 @@ class GetDPLoad3D(LoadCapabilities):
         if abs(self.state.t - t0) > 1e-9 * max(t1, 1e-300):
             raise RuntimeError(f"EM state at t = {self.state.t:.9g} s, but the step starts at {t0:.9g} s")
         c0 = time.perf_counter()
+        if self.conductivity_follows_temperature:   # σ(T) per EM tetrahedron from its mechanical cell's T at t0
+            self._elem_t = element_temperatures(mechanics, self.bodies, self.mesh.tets, self.mesh.tet_tags)
+            self.stepper.set_element_temperatures(*self._elem_t)
         if self.persistent:  # getdp moves its own mesh: no file
             result, self.state = self.stepper.step(replace(self.mesh, points=x_em), self.state, t1)
         else:
@@ -294,6 +301,13 @@ class GetDPLoad3D(LoadCapabilities):
         nodes, inverse = np.unique(self.mesh.tets[rows], return_inverse=True)
         k = result.element_tags - CONDUCTOR_BASE
         sigma = np.array([c.sigma for c in self.model.conductors])[k - 1]
+        if self._elem_t is not None:   # σ(T): each element's σ of the step (its temperature at the step's start)
+            temp = np.full(len(self.mesh.tets), np.nan)
+            temp[self._elem_t[0]] = self._elem_t[1]
+            for i, c in enumerate(self.model.conductors, start=1):
+                if c.conductivity_law is not None and np.any(k == i):
+                    mine = temp[rows[k == i]]
+                    sigma[k == i] = c.conductivity_law(np.where(np.isnan(mine), c.initial_temperature, mine))
         f = result.force_density[-1]
         cells = {"force_density_N_m3": f, "force_density_magnitude_N_m3": np.linalg.norm(f, axis=1),
                  "conductor": k.astype(float)}
@@ -371,7 +385,7 @@ class GetDPLoad3D(LoadCapabilities):
         if st.res_path is not None:
             dofdata, t_res, x = read_res_vector(st.res_path)
             out.update({"x": x, "x_dofdata": np.int64(int(dofdata)), "x_time": np.float64(t_res)})
-        for key in ("x_prev", "force_density", "circuit", "circuit_prev"):
+        for key in ("x_prev", "force_density", "circuit", "circuit_prev", "coil_heat", "coil_power", "coil_sigma"):
             value = getattr(st, key)
             if value is not None:
                 out[key] = np.asarray(value, dtype=float)
@@ -411,6 +425,7 @@ class GetDPLoad3D(LoadCapabilities):
                                factors=FactorRecord(opt("factor_points"), float(state["factor_dtime"]),
                                                     opt("factor_current")) if "factor_points" in state else None,
                                x_older=tuple(opt(f"x_older_{i}") for i in range(2) if f"x_older_{i}" in state),
+                               **{k: opt(k).tolist() for k in ("coil_heat", "coil_power", "coil_sigma") if k in state},
                                timers=dict(zip(self.state.timers, timers[len(self.timers):])))
         self.impulse_device, self.coil_heat, self.peak_current, self.min_quality = (float(v) for v in state["sums"])
         if "body_impulse" in state:   # checkpoints before 2026-11-28 have none

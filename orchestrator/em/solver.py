@@ -78,13 +78,35 @@ def coil_drives(case: Case, names: list[str | None]) -> tuple[list[tuple[DampedS
     return drives, circuit
 
 
+def coil_keywords(case: Case) -> dict:
+    """The coils' material of ``[em]`` as keywords of a 2D or 3D coil: σ (S/m), density (kg/m³), heat capacity
+    (J/(kg·K)), σ(T) law and initial temperature (K)."""
+    em = case.em
+    return {"sigma": em.coil_conductivity, "density": em.coil_density, "heat_capacity": em.coil_heat_capacity,
+            "conductivity_law": conductivity_law(em.coil_conductivity_curve, em.coil_conductivity),
+            "initial_temperature": em.coil_initial_temperature}
+
+
+def conductor_of(case: Case, material: str, name: str, role: str, deck_own: bool = False) -> Conductor:
+    """The GetDP conductor of a body (or fixed conductor) ``name`` of ``materials.<material>`` in ``role``: its σ
+    (a table law alone: its σ at the initial temperature), σ(T) law, initial temperature and magnetic keywords;
+    σ must be > 0 unless the deck has its own (``deck_own``)."""
+    mat = case.materials[material]
+    sigma = mat.electrical_conductivity
+    law = conductivity_law(mat.conductivity_curve, sigma)
+    if sigma <= 0.0 and law is not None:   # a table law alone: its σ at the initial temperature
+        sigma = float(law(mat.initial_temperature))
+    if sigma <= 0.0 and not deck_own:
+        raise ValueError(f"materials.{material}.electrical_conductivity must be > 0 for the {role}")
+    return Conductor(sigma=sigma, name=name, conductivity_law=law, initial_temperature=mat.initial_temperature,
+                     **magnetic_keywords(mat))
+
+
 def _coils(case: Case) -> tuple[list[Coil], Circuit | None]:
     """The coils of a coupled case in the mesh's coil order (coil k is physical 100 + k: the order of
     ``[[geometry.coils]]`` where the geometry names its coils), and the circuit (None without a bank)."""
     em, g = case.em, case.geometry
-    kw = {"sigma": em.coil_conductivity, "density": em.coil_density, "heat_capacity": em.coil_heat_capacity,
-          "conductivity_law": conductivity_law(em.coil_conductivity_curve, em.coil_conductivity),
-          "initial_temperature": em.coil_initial_temperature}
+    kw = coil_keywords(case)
     if not em.sources:  # em.circuit or em.current: the geometry's one coil
         drives, circuit = coil_drives(case, [None])
         return [Coil(turns=g.turns, waveform=drives[0][0], **kw)], circuit
@@ -111,15 +133,7 @@ def em_model(case: Case, shell: tuple[float, float] | None) -> EMModel:
     deck_own = getattr(g, "library", "pulseform") == "getdp_template"  # 0: the deck's own (user_deck.user_em_model)
     for role in g.conductor_roles():
         body = next(b for b in case.bodies if b.region == role)
-        mat = case.materials[body.material]
-        sigma = mat.electrical_conductivity
-        law = conductivity_law(mat.conductivity_curve, sigma)
-        if sigma <= 0.0 and law is not None:   # a table law alone: its σ at the initial temperature
-            sigma = float(law(mat.initial_temperature))
-        if sigma <= 0.0 and not deck_own:
-            raise ValueError(f"materials.{body.material}.electrical_conductivity must be > 0 for the {role}")
-        conductors.append(Conductor(sigma=sigma, name=body.name, conductivity_law=law,
-                                    initial_temperature=mat.initial_temperature, **magnetic_keywords(mat)))
+        conductors.append(conductor_of(case, body.material, body.name, role, deck_own))
     cores = [MagneticCore(name=c.name, **magnetic_keywords(case.materials[c.material]))   # one per box (the mesh's)
              for c in getattr(g, "cores", ()) or () for _ in c.boxes]
     return EMModel(axisymmetric=not g.planar, coils=coils, conductors=conductors, circuit=circuit, shell=shell,

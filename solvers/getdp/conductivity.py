@@ -12,6 +12,8 @@ Joule heat so far over m c_p), so its σ is one number per EM step (``Coil_sigma
 σ is one value per element, ``Cond_SigmaList_k() = {element tag, σ, ...}`` read by the built-in deck with
 ``InterpolationLinear[ElementNum[]]`` (exact at the listed tags: no grouping of elements into bins).
 Both are evaluated at the step's start temperatures (explicit in temperature, like the mechanics' heating).
+The same functions serve the 3D per-step getdp (a :class:`~.mesh3d.Mesh3D`: tetrahedra keyed by their gmsh
+numbers, the coil's m c_p and heat those of the modelled sector; ``em_case3d.pro``).
 The persistent getdp cannot read a new ``run.pro`` per step: its step messages carry σ of every element of the
 regions with a law (:func:`message_sigma`, :func:`persistent_numbers`; ``decks/Lib_Persistent.pro``).
 """
@@ -24,6 +26,7 @@ from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 
+from .bdf2 import trapezoid_mean
 from .files import element_volumes
 from .mesh import EMMesh, coil_tag, conductor_tag
 
@@ -31,8 +34,8 @@ if TYPE_CHECKING:
     from .model import EMModel, EMState
 
 __all__ = ["ConductivityTable", "LinearResistivity", "ConductivityLaw", "law_from_dict", "element_list_line",
-           "coil_mass_cp", "coil_temperature", "step_sigma", "step_inputs", "persistent_numbers", "message_sigma",
-           "checked_temperatures", "start_power", "check_deck"]
+           "has_laws", "coil_mass_cp", "coil_heat_step", "coil_temperature", "step_sigma", "step_inputs",
+           "persistent_numbers", "message_sigma", "checked_temperatures", "start_power", "check_deck"]
 
 
 @dataclass(frozen=True)
@@ -114,12 +117,47 @@ def element_list_line(name: str, tags: Sequence[int] | np.ndarray, sigma: Sequen
     return f"{name}() = {{\n  {body}}};"
 
 
+def has_laws(model) -> bool:
+    """True when a coil or a conductor of ``model`` (2D or 3D) has a σ(T) law."""
+    return any(c.conductivity_law is not None for c in list(model.coils) + list(model.conductors))
+
+
+# The EM mesh is a 2D EMMesh (triangles, element tag = row + 1) or a 3D Mesh3D (tetrahedra with their gmsh ids):
+# the helpers below are the only places that tell them apart.
+def _cell_tags(mesh) -> np.ndarray:
+    """The physical id of every EM cell (triangle or tetrahedron)."""
+    return mesh.tet_tags if hasattr(mesh, "tet_tags") else mesh.tri_tags
+
+
+def _element_ids(mesh, rows: np.ndarray) -> np.ndarray:
+    """GetDP's element numbers (``ElementNum[]``) of the cells ``rows``."""
+    return np.asarray(mesh.tet_ids)[rows] if hasattr(mesh, "tet_ids") else rows + 1
+
+
+def _region_volume(model, mesh, tag: int) -> float:
+    """Volume (m³) of region ``tag``: 2πr-weighted in axisymmetry, per metre in planar, the modelled part in 3D."""
+    rows = np.flatnonzero(_cell_tags(mesh) == tag)
+    if hasattr(mesh, "tet_tags"):
+        return float(mesh.volumes(rows).sum())
+    return float(element_volumes(mesh, rows, model.axisymmetric).sum())
+
+
 def coil_mass_cp(model: "EMModel", mesh: EMMesh) -> np.ndarray:
     """m c_p (J/K) of every coil of ``model``: density × heat capacity × the coil region's volume (2πr-weighted in
-    axisymmetry, per metre in planar)."""
-    return np.array([c.density * c.heat_capacity
-                     * element_volumes(mesh, np.flatnonzero(mesh.tri_tags == coil_tag(k)), model.axisymmetric).sum()
+    axisymmetry, per metre in planar; in 3D the modelled sector's, whose Joule power is the sector's too)."""
+    return np.array([c.density * c.heat_capacity * _region_volume(model, mesh, coil_tag(k))
                      for k, c in enumerate(model.coils, start=1)])
+
+
+def coil_heat_step(state: "EMState", coil_sigma: Sequence[float], power_end: np.ndarray, dt: float,
+                   bdf2: bool) -> np.ndarray:
+    """The coils' Joule heat (J) after a step of ``dt`` s from ``state`` whose end power is ``power_end`` (W):
+    the heat so far plus the rectangle rule (implicit Euler) or the trapezoid from :func:`start_power` (BDF2)."""
+    power_end = np.asarray(power_end, float)
+    heat = np.asarray(state.coil_heat or [0.0] * len(power_end), float)
+    if not bdf2:
+        return heat + power_end * dt
+    return heat + trapezoid_mean(start_power(state, coil_sigma), power_end[None, :]) * dt
 
 
 def coil_temperature(model: "EMModel", mesh: EMMesh, state: "EMState") -> np.ndarray:
@@ -133,12 +171,12 @@ def step_sigma(model: "EMModel", mesh: EMMesh, state: "EMState", dt: float,
                elem_temperature: tuple[np.ndarray, np.ndarray] | None
                ) -> tuple[dict[int, float], list[tuple[int, np.ndarray, np.ndarray]]]:
     """The σ (S/m) of the σ(T) laws for a step of ``dt`` (s) from ``state`` on ``mesh``: {coil k: σ} and
-    [(conductor k, its EM triangle rows, σ per row)], only for the coils and conductors with a law.
+    [(conductor k, its EM cell rows, σ per row)], only for the coils and conductors with a law.
 
     Each coil: σ at its lumped temperature predicted for the step's middle, T + P dt / (2 m c_p), P its Joule
     power at the step's start (``state.coil_power``; 0 from rest). Each conductor: σ per element at the
-    temperatures ``elem_temperature`` = (EM triangle rows, K), an element not listed at the conductor's
-    ``initial_temperature``.
+    temperatures ``elem_temperature`` = (EM cell rows: triangles in 2D, tetrahedra in 3D; K), an element not
+    listed at the conductor's ``initial_temperature``.
     """
     coils: dict[int, float] = {}
     if any(c.conductivity_law is not None for c in model.coils):
@@ -151,10 +189,11 @@ def step_sigma(model: "EMModel", mesh: EMMesh, state: "EMState", dt: float,
     for k, c in enumerate(model.conductors, start=1):
         if c.conductivity_law is None:
             continue
-        rows = np.flatnonzero(mesh.tri_tags == conductor_tag(k))
+        tags = _cell_tags(mesh)
+        rows = np.flatnonzero(tags == conductor_tag(k))
         temp = np.full(len(rows), float(c.initial_temperature))
         if elem_temperature is not None:
-            lookup = np.full(len(mesh.triangles), np.nan)
+            lookup = np.full(len(tags), np.nan)
             lookup[elem_temperature[0]] = elem_temperature[1]
             given = lookup[rows]
             temp = np.where(np.isnan(given), temp, given)
@@ -173,7 +212,7 @@ def step_inputs(model: "EMModel", mesh: EMMesh, state: "EMState", dt: float,
     lines: list[str] = []
     for k, rows, sigma in conductors:
         numbers[f"Cond_SigmaElem_{k}"] = 1
-        lines.append(element_list_line(f"Cond_SigmaList_{k}", rows + 1, sigma))
+        lines.append(element_list_line(f"Cond_SigmaList_{k}", _element_ids(mesh, rows), sigma))
     return numbers, lines
 
 
@@ -195,11 +234,11 @@ def message_sigma(model: "EMModel", mesh: EMMesh, coils: dict[int, float],
     a coil's elements all at its σ, a conductor's at their own (:func:`step_sigma`'s values)."""
     tags, values = [], []
     for k, sigma in coils.items():
-        rows = np.flatnonzero(mesh.tri_tags == coil_tag(k))
-        tags.append(rows + 1)
+        rows = np.flatnonzero(_cell_tags(mesh) == coil_tag(k))
+        tags.append(_element_ids(mesh, rows))
         values.append(np.full(len(rows), sigma))
     for _, rows, sigma in conductors:
-        tags.append(rows + 1)
+        tags.append(_element_ids(mesh, rows))
         values.append(sigma)
     if not tags:
         return np.zeros(0, np.int64), np.zeros(0)

@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, Sequence
 import numpy as np
 
 from .bh_curve import BHCurve, MagneticRegions, check_relative_permeability
-from .conductivity import ConductivityLaw, law_from_dict
+from .conductivity import ConductivityLaw, has_laws, law_from_dict
 from .mesh import EMMesh
 from .runner import RunInfo
 
@@ -204,7 +204,7 @@ class EMModel(MagneticRegions):
     @property
     def has_conductivity_laws(self) -> bool:
         """True when a coil or a conductor has a σ(T) law (:mod:`.conductivity`)."""
-        return any(c.conductivity_law is not None for c in list(self.coils) + list(self.conductors))
+        return has_laws(self)
 
     def to_dict(self) -> dict:
         return asdict(self)

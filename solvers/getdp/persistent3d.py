@@ -60,7 +60,7 @@ from .runner import GetDPError, RunInfo, log_tail
 from .solver import DECK_DIR
 from .solver3d import (DECK3D, DEFAULT_PETSC_ARGS_3D, EM3DModel, EM3DResult, applied_state_values, model_numbers,
                        read_conductor_fields3d, read_results3d)
-from .stepper3d import EM3DState, FactorRecord, read_res_vector, write_res_vector
+from .stepper3d import EM3DState, FactorRecord, carry_coil_heat, read_res_vector, write_res_vector
 
 log = logging.getLogger(__name__)
 
@@ -130,6 +130,9 @@ class PersistentEM3DStepper:
                  timeout: float | None = None, verbosity: int = 2, factor_reuse: FactorReuse = FactorReuse()) -> None:
         if time_scheme != "bdf2":
             raise ValueError("the persistent 3D getdp implements time_scheme='bdf2' only")
+        if model.has_conductivity_laws:
+            raise ValueError("the persistent 3D getdp has no conductivity that follows temperature yet: run getdp per "
+                             "step (em.getdp_process = 'per_step')")
         self.factor_reuse = newton_factor_reuse(model, factor_reuse)   # a B-H curve: Newton, no kept factors
         self._factorise_next = False   # the step after a checkpoint factorises (module docstring)
         self._factors: tuple[np.ndarray, float] | None = None   # getdp's nodes and gamma dt of the last factorisation
@@ -273,6 +276,7 @@ class PersistentEM3DStepper:
                         (float(res.capacitor_voltage[-1]), float(res.circuit_current[-1])),
                         circuit_prev=state.circuit, dt_prev=float(dt), force_density=f_end, steps=state.steps + 1,
                         timers=dict(state.timers))
+        carry_coil_heat(self.model, state, new, {}, res.coil_power[-1], float(dt), True)
         tm = new.timers
         tm["getdp_process_s"] += ans.wall + startup
         tm["getdp_pre_s"] += startup

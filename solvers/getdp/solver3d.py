@@ -28,6 +28,7 @@ from .applied_field import AppliedField, planes_of_faces
 from .mesh3d import (CUT_BASE, ELEC_IN_BASE, ELEC_OUT_BASE, SKIN_BASE, SYM_A, SYM_H, Mesh3D, cut_orientation, cut_tag,
                      physical_surface_area, read_msh22_triangles, skin_tag)
 from .bh_curve import MagneticRegions, model_magnetic, read_newton
+from .conductivity import ConductivityLaw, has_laws, law_from_dict
 from .model import Circuit, Conductor, CurrentTable, DampedSine, MagneticCore, table_lines
 from .runner import RunInfo, run_getdp
 
@@ -68,6 +69,9 @@ class Coil3D:
     (x1 - x0) x (x2 - x0) of the cut's triangles as written in the mesh file (:func:`~.mesh3d.cut_orientation`).
     ``waveform`` without a circuit (A); ``sign`` +1 or -1;
     ``name`` names its history columns when a model has several coils.
+    ``conductivity_law``, ``initial_temperature`` (K), ``density`` (kg/m³), ``heat_capacity`` (J/(kg·K)): σ(T) of a
+    lumped coil, as :class:`~.model.Coil`'s (:mod:`.conductivity`; m c_p and the Joule heat of the modelled sector,
+    so the same temperature as the whole coil's).
     """
 
     turns: int
@@ -79,8 +83,13 @@ class Coil3D:
     section: float | None = None
     name: str = ""
     cut_normal: tuple[float, float, float] | None = None
+    density: float = 8960.0
+    heat_capacity: float = 385.0
+    conductivity_law: ConductivityLaw | None = None
+    initial_temperature: float = 293.15
 
     def __post_init__(self) -> None:
+        self.conductivity_law = law_from_dict(self.conductivity_law)
         if self.sign not in (1, -1):
             raise ValueError(f"a coil's sign is +1 or -1, got {self.sign!r}")
         if self.direction not in DIRECTIONS:
@@ -147,6 +156,11 @@ class EM3DModel(MagneticRegions):
             if self.circuit is None and c.waveform is None:
                 raise ValueError("without a circuit every coil needs a waveform")
         self.check_magnetic()
+
+    @property
+    def has_conductivity_laws(self) -> bool:
+        """True when a coil or a conductor has a σ(T) law (:mod:`.conductivity`)."""
+        return has_laws(self)
 
 
 @dataclass
@@ -327,7 +341,7 @@ def solve_transient3d(model: EM3DModel, mesh: Mesh3D, t_end: float, n_steps: int
                       direction_output: bool = False,
                       restart_res: str | Path | None = None, circuit_state: tuple[float, float] | None = None,
                       time_scheme: str = "euler", extra_numbers: dict[str, float] | None = None,
-                      applied_start: float | None = None, executable: str = "getdp",
+                      applied_start: float | None = None, extra_lines: Sequence[str] = (), executable: str = "getdp",
                       petsc_args: Sequence[str] = DEFAULT_PETSC_ARGS_3D, timeout: float | None = None) -> EM3DResult:
     """Run the 3D deck from ``t0`` to ``t_end`` (s) in ``n_steps`` implicit Euler steps.
 
@@ -340,7 +354,8 @@ def solve_transient3d(model: EM3DModel, mesh: Mesh3D, t_end: float, n_steps: int
     ``element_output``: ``"all"`` (per-tetrahedron tables every step), ``"last"`` or ``"none"``;
     ``field_output``: also B on every tetrahedron after the last step (``b_cells``);
     ``direction_output``: the coils' unit current direction per tetrahedron (``coil_dir``).
-    ``extra_numbers``: more ``-setnumber`` inputs of the deck (e.g. ``Flag_SaveInit``).
+    ``extra_numbers``: more ``-setnumber`` inputs of the deck (e.g. ``Flag_SaveInit``); ``extra_lines``: more lines
+    of the run's wrapper deck (e.g. σ per element, :func:`.conductivity.step_inputs`).
     ``time_scheme``: ``"euler"`` (implicit Euler) or ``"bdf2"`` (second order, equal steps, the first one
     implicit Euler; from zero fields only: no ``restart_res``).
     ``applied_start``: with an applied field, its unit time function of the start state (``Field_F1``;
@@ -380,7 +395,7 @@ def solve_transient3d(model: EM3DModel, mesh: Mesh3D, t_end: float, n_steps: int
             raise ValueError("circuit_state given but the model has no circuit")
         numbers.update(Init_Vc=float(circuit_state[0]), Init_I=float(circuit_state[1]))
     wrapper = run_dir / "run3d.pro"
-    wrapper.write_text("\n".join(lines + [f'Include "{DECK3D}";', ""]))
+    wrapper.write_text("\n".join(lines + list(extra_lines) + [f'Include "{DECK3D}";', ""]))
     resolution = RESOLUTION3D if time_scheme == "euler" else RESOLUTION3D + "_BDF2"
     info = run_getdp(wrapper, mesh.path, run_dir, resolution=resolution, numbers=numbers,
                      strings={"OutDir": str(out_dir) + "/"}, extra_args=restart + list(petsc_args),

@@ -28,12 +28,23 @@ from pathlib import Path
 import numpy as np
 
 from .bdf2 import bdf2_coefficients
+from .conductivity import checked_temperatures, coil_heat_step, step_inputs
 from .mesh3d import Mesh3D
 from .solver3d import EM3DModel, EM3DResult, applied_state_values, solve_transient3d
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["EM3DState", "EM3DStepper", "FactorRecord", "read_res_vector", "write_res_vector"]
+__all__ = ["EM3DState", "EM3DStepper", "FactorRecord", "read_res_vector", "write_res_vector", "carry_coil_heat"]
+
+
+def carry_coil_heat(model: EM3DModel, state: "EM3DState", new: "EM3DState", numbers: dict[str, float],
+                    power_end: np.ndarray, dt: float, bdf2: bool) -> None:
+    """Fill ``new``'s coil heat, power and (with a σ(T) law) σ from the step of ``dt`` s from ``state`` whose numbers
+    were ``numbers`` (a coil's ``Coil_sigma_k`` where a law set it) and end power ``power_end`` (W per coil)."""
+    sigma = [float(numbers.get(f"Coil_sigma_{k}", c.sigma)) for k, c in enumerate(model.coils, start=1)]
+    new.coil_heat = coil_heat_step(state, sigma, power_end, dt, bdf2).tolist()
+    new.coil_power = np.asarray(power_end, float).tolist()
+    new.coil_sigma = sigma if model.has_conductivity_laws else None
 
 
 def read_res_vector(path: str | Path, block: int = -1) -> tuple[str, float, np.ndarray]:
@@ -83,6 +94,9 @@ class EM3DState:
     getdp's next step uses (:class:`FactorRecord`; None: that step factorises its own matrix);
     ``x_older``: x_{n-2}, x_{n-3} as far as a persistent getdp's kept-factor solves use them (their history
     directions, decks/Lib_PersistentStep.pro; empty: none), so that a process seeded from this state repeats them.
+    ``coil_heat``: each coil's Joule heat so far (J, the modelled sector's; implicit Euler: Σ P_end dt, BDF2: the
+    trapezoid), ``coil_power`` its power at t_n (W), ``coil_sigma`` (with a σ(T) law) its σ of the last step (S/m):
+    the lumped coil temperature of :mod:`.conductivity` (None: 0 J, from rest).
     """
 
     t: float = 0.0
@@ -95,6 +109,9 @@ class EM3DState:
     steps: int = 0
     factors: FactorRecord | None = None
     x_older: tuple[np.ndarray, ...] = ()
+    coil_heat: list | None = None
+    coil_power: list | None = None
+    coil_sigma: list | None = None
     timers: dict[str, float] = field(default_factory=lambda: {"getdp_process_s": 0.0, "getdp_pre_s": 0.0,
                                                               "getdp_loop_s": 0.0, "res_io_s": 0.0,
                                                               "getdp_factorisations": 0.0,
@@ -120,6 +137,12 @@ class EM3DStepper:
         self.model, self.time_scheme = model, time_scheme
         self.work_dir = Path(work_dir).resolve()
         self.run_kwargs = run_kwargs
+        self._elem_temperature: tuple[np.ndarray, np.ndarray] | None = None   # (EM tet rows, K) for σ(T)
+
+    def set_element_temperatures(self, elements: np.ndarray, temperature: np.ndarray) -> None:
+        """Temperatures (K) of EM tetrahedra (rows of the mesh's ``tets``) for the conductors' σ(T) laws at the
+        next steps (:func:`.conductivity.step_inputs`; an element not listed is at its ``initial_temperature``)."""
+        self._elem_temperature = checked_temperatures(elements, temperature)
 
     def initial_state(self) -> EM3DState:
         """The state at t = 0: fields at rest, the bank charged (``Circuit.V0``), no current."""
@@ -153,9 +176,13 @@ class EM3DStepper:
                 circuit = (c1 * circuit[0] - c2 * prev[0], c1 * circuit[1] - c2 * prev[1])
         c1_ = time.perf_counter()
         first_bdf2 = self.time_scheme == "bdf2" and state.res_path is None
+        numbers, lines = step_inputs(self.model, mesh, state, dt, self._elem_temperature) \
+            if self.model.has_conductivity_laws else ({}, [])
+        if first_bdf2:
+            numbers["Flag_SaveInit"] = 1
         res = solve_transient3d(self.model, mesh, t1, 1, run_dir, t0=t0, element_output="last",
                                 field_output=field_output, restart_res=restart, circuit_state=circuit,
-                                extra_numbers={"Flag_SaveInit": 1} if first_bdf2 else None,
+                                extra_numbers=numbers or None, extra_lines=lines,
                                 applied_start=applied_start if self.model.applied_field is not None else None,
                                 **self.run_kwargs)
         c2_ = time.perf_counter()
@@ -172,6 +199,7 @@ class EM3DStepper:
                                                                              float(res.circuit_current[-1])),
                         circuit_prev=state.circuit, dt_prev=float(dt), force_density=f_end, steps=k,
                         timers=dict(state.timers))
+        carry_coil_heat(self.model, state, new, numbers, res.coil_power[-1], float(dt), self.time_scheme == "bdf2")
         tm = new.timers
         tm["getdp_process_s"] += res.run.wall_time if res.run is not None else c2_ - c1_
         tm["getdp_pre_s"] += res.wall_pre if np.isfinite(res.wall_pre) else 0.0
