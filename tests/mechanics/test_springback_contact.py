@@ -6,17 +6,9 @@ geometry: the inner tube's bore is pushed out past yield (a prescribed radial mo
 tube through the soft-contact layer of eq. (5); springback with contact kept releases the bore and leaves the
 residual contact pressure p. A second springback from that state with contact removed gives each tube's free
 radii; the two elastic rings pressed together by the interference of those radii are Lame's shrink fit (plane
-strain), here with the contact layer's law p = k (1/h - 1/h0) in series:
-
-    inner tube a < r < b_i under external pressure p:     u(b_i) = -p C_i,
-        C_i = b_i (1 + nu) ((1 - 2 nu) b_i^2 + a^2) / (E (b_i^2 - a^2))
-    outer tube b_o < r < c under internal pressure p b_i / b_o (the same force per unit length):
-        u(b_o) = p (b_i / b_o) C_o,   C_o = b_o (1 + nu) ((1 - 2 nu) b_o^2 + c^2) / (E (c^2 - b_o^2))
-    gap h = (b_o + p (b_i / b_o) C_o) - (b_i - p C_i),   p = k (1 / h - 1 / h0).
-
-(Timoshenko & Goodier, Theory of Elasticity, sec. 28, with E -> E / (1 - nu^2), nu -> nu / (1 - nu) for plane
-strain.) The release between the two states is elastic (checked: no plastic strain added), so superposition holds
-and the estimate is independent of the residual stresses the forming left.
+strain) with the contact layer's law in series (tests/shrink_fit.py). The release between the two states is
+elastic (checked: no plastic strain added), so superposition holds and the estimate is independent of the residual
+stresses the forming left.
 """
 import math
 
@@ -24,32 +16,14 @@ import numpy as np
 import pytest
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
-from scipy.optimize import brentq
 
 from pulseform.solvers.dolfinx import BodySpec, ContactPairSpec, Material
 from pulseform.solvers.dolfinx.implicit import ImplicitOptions, ImplicitSolver
 from pulseform.solvers.dolfinx.springback import springback
+from shrink_fit import lame_shrink_fit_pressure, released_interference_check, surface_radius
 
 STEEL = Material(7800.0, 76.923e9, 166.667e9, 300e6, 0.0)     # paper sec. 6: E = 200 GPa, nu = 0.3, 300 MPa
 R0, R1, ROUT, H0, K = 0.0105, 0.0125, 0.025, 5.0e-5, 2.0e6     # cases/tube_press_fit: radii, contact layer (m, Pa m)
-
-
-def lame_shrink_fit_pressure(a: float, b_i: float, b_o: float, c: float, E: float, nu: float, k: float,
-                             h0: float) -> float:
-    """Residual contact pressure (Pa, on the inner tube's outer surface) of an inner tube a < r < b_i and an outer
-    tube b_o < r < c (free radii, m) pressed together through the soft-contact layer (k, Pa m; h0, m); plane
-    strain (module docstring). 0 if the free gap b_o - b_i is at least h0."""
-    ci = b_i * (1 + nu) * ((1 - 2 * nu) * b_i ** 2 + a ** 2) / (E * (b_i ** 2 - a ** 2))
-    co = b_o * (1 + nu) * ((1 - 2 * nu) * b_o ** 2 + c ** 2) / (E * (c ** 2 - b_o ** 2))
-    if b_o - b_i >= h0:
-        return 0.0
-
-    def f(p):
-        h = (b_o + p * b_i / b_o * co) - (b_i - p * ci)
-        return p - k * (1.0 / h - 1.0 / h0)
-
-    hi = (h0 - (b_o - b_i)) / (ci + b_i / b_o * co)     # the pressure that closes the interference: h = h0 there
-    return brentq(f, 0.0, hi, xtol=1e-6, rtol=1e-12)
 
 
 def _tubes(clearance: float, push: float, n_inner: int = 8, cell: float = 5e-4):
@@ -74,25 +48,6 @@ def _tubes(clearance: float, push: float, n_inner: int = 8, cell: float = 5e-4):
                           contact_pairs=[ContactPairSpec("inner", "outer", K, H0)], comm=MPI.COMM_SELF)
 
 
-def _surface_radius(body, r_ref: float) -> float:
-    """Mean current radius (m) of the nodes at reference radius ``r_ref``."""
-    return float(body.x[np.isclose(body.X0[:, 0], r_ref), 0].mean())
-
-
-def released_interference_check(sb):
-    """Release ``sb`` (a springback with contact kept) once more with contact removed; return the kept mean contact
-    pressure (Pa), the Lame estimate from the free radii (Pa) and the plastic strain the release added."""
-    _, _, p, _ = sb.contact_pressure(0)
-    free = springback(sb, supports="kept", contact="removed")
-    fi, fo = free.bodies["inner"], free.bodies["outer"]
-    r2 = float(fo.X0[:, 0].min())
-    a, b_i = _surface_radius(fi, R0), _surface_radius(fi, R1)
-    b_o, c = _surface_radius(fo, r2), _surface_radius(fo, ROUT)
-    lame = lame_shrink_fit_pressure(a, b_i, b_o, c, STEEL.youngs_modulus, STEEL.poisson_ratio, K, H0)
-    added = max(float(np.abs(free.bodies[n].eps_p - sb.bodies[n].eps_p).max()) for n in ("inner", "outer"))
-    return float(p.mean()), lame, added, len(p)
-
-
 def test_press_fit_residual_pressure_matches_lame_shrink_fit():
     """Inner tube pushed out by 0.2 mm past a clearance of 0.5 % R0 (10 static steps), released with contact
     kept: a residual contact pressure on every node of the contact surface, within 1 % of the Lame shrink-fit
@@ -103,7 +58,7 @@ def test_press_fit_residual_pressure_matches_lame_shrink_fit():
     _, _, p_loaded, _ = s.contact_pressure(0)
     sb = springback(s, supports="kept", contact="kept", steps=2)
     assert sb.source_pairs == [0]
-    p, lame, added, closed = released_interference_check(sb)
+    p, lame, added, closed = released_interference_check(sb, R0, R1, ROUT, STEEL, K, H0)
     print(f"loaded contact pressure {p_loaded.mean() / 1e6:.2f} MPa; residual after springback {p / 1e6:.4f} MPa "
           f"on {closed} nodes; Lame shrink fit of the free radii {lame / 1e6:.4f} MPa ({100 * (p / lame - 1):+.3f} %); "
           f"plastic strain added by the release {added:.2e}")
@@ -124,7 +79,7 @@ def test_springback_contact_removed_separates_the_parts():
     assert sb.source_pairs == [] and not sb.contact_pairs
     fi, fo = sb.bodies["inner"], sb.bodies["outer"]
     r2 = float(fo.X0[:, 0].min())
-    assert _surface_radius(fo, r2) - _surface_radius(fi, R1) < H0   # interference: the layer would push
+    assert surface_radius(fo, r2) - surface_radius(fi, R1) < H0   # interference: the layer would push
     with pytest.raises(ValueError, match="contact must be one of"):
         springback(s, contact="yes")
     with pytest.raises(ValueError, match="walls must be one of"):
