@@ -21,7 +21,7 @@ log = logging.getLogger(__name__)
 __all__ = ["run_springback", "contact_metrics"]
 
 
-def run_springback(case: Case, solver, fields_prefix: str) -> dict[str, float]:
+def run_springback(case: Case, solver, fields_prefix: str, analyses=()) -> dict[str, float]:
     """Spring the case's bodies back from ``solver``'s state and write ``fields/springback/<name>_<body>.xdmf``
     (one output: the final shape, residual stress and plastic strain at the run's end time; a folder of its own,
     so that the run's field series, ``fields/*.h5``, stays the forming run's).
@@ -34,6 +34,8 @@ def run_springback(case: Case, solver, fields_prefix: str) -> dict[str, float]:
         The run's deformable bodies at the end of the run (one process).
     fields_prefix : str
         Path prefix of the run's field files (``fields/<case name>[_partN]``): its folder holds ``springback/``.
+    analyses : sequence
+        The run's analyses: their ``springback_metrics(sb)`` join the metrics.
 
     Returns
     -------
@@ -69,6 +71,8 @@ def run_springback(case: Case, solver, fields_prefix: str) -> dict[str, float]:
         log.info("springback of %s: largest displacement %.4g m, largest residual von Mises stress %.4g Pa",
                  n, out[f"{n}_springback_max_m"], out[f"{n}_residual_von_mises_max_Pa"])
     out.update(contact_metrics(sb))
+    for a in analyses:
+        out.update(a.springback_metrics(sb))
     for p in case.probes:
         if p.quantity != "displacement" or p.body not in names:
             continue

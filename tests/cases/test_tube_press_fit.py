@@ -53,6 +53,9 @@ def test_residual_pressure_positive_at_small_clearance_and_gone_at_6_percent(sma
         assert r["energy_error_rel"] < 0.02
         assert math.isfinite(r["max_radial_displacement_inner_mm"])
         assert (Path(r["_out"]) / "plots" / "press_fit_displacements.png").is_file()
+    # the case's springback with contact kept (after the relaxation): the same residual pressure, none at 6 %
+    assert m["c0.6"]["springback_residual_contact_pressure_MPa"] == pytest.approx(p06, rel=0.01)
+    assert m["c6"]["springback_contact0_closed_nodes"] == 0.0
     # a larger clearance lets the inner tube fly further before it is stopped (mm)
     assert m["c6"]["max_radial_displacement_inner_mm"] > m["c0.6"]["max_radial_displacement_inner_mm"]
 
