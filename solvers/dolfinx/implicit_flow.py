@@ -78,6 +78,8 @@ def flow_stress(material: Material, eps_p: np.ndarray, rate: Optional[np.ndarray
     if material.flow_curve is not None:
         T = material.initial_temperature if temperature is None else temperature
         sy, slope = curve_stress(material.flow_curve, eps_p, rate, T)
+        if material.rate_law is None:   # (no factor: inf * (1 + 0j) would be nan)
+            return sy, slope
         return sy * fac, slope * fac
     sy = (material.yield_stress + material.hardening_modulus * eps_p) * fac
     slope = material.hardening_modulus * fac * np.ones_like(eps_p)
