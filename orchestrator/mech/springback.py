@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import logging
 from pathlib import Path
+from typing import Sequence
 
 import numpy as np
 
@@ -21,7 +22,7 @@ log = logging.getLogger(__name__)
 __all__ = ["run_springback", "contact_metrics"]
 
 
-def run_springback(case: Case, solver, fields_prefix: str, analyses=()) -> dict[str, float]:
+def run_springback(case: Case, solver, fields_prefix: str, analyses: Sequence = ()) -> dict[str, float]:
     """Spring the case's bodies back from ``solver``'s state and write ``fields/springback/<name>_<body>.xdmf``
     (one output: the final shape, residual stress and plastic strain at the run's end time; a folder of its own,
     so that the run's field series, ``fields/*.h5``, stays the forming run's).

@@ -131,7 +131,9 @@ def springback(source, supports: str = "kept", steps: int = 1, newton_tol: float
     -------
     ImplicitSolver or ImplicitSolver3D
         The static solver after springback: its bodies hold the final shape (``x``), the residual stresses
-        and plastic strain; ``springback_displacement[name]`` (N, dim), m, is the motion of springback.
+        and plastic strain; ``springback_displacement[name]`` (N, dim), m, is the motion of springback;
+        ``contact_pressure(i)`` the residual contact of kept pair ``i``, ``source_pairs[i]`` its index in
+        ``source.contact_pairs``.
 
     Raises
     ------
