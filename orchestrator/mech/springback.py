@@ -1,12 +1,14 @@
 """The case's ``[springback]``: after the run, release the deformable bodies from the solver's final state
-(:func:`pulseform.solvers.dolfinx.springback.springback`: static implicit steps, loads, contact and walls off,
-supports kept or minimal) and report what came out of the die: the springback fields, the largest springback
-displacement per body and at the displacement probes, the residual stresses."""
+(:func:`pulseform.solvers.dolfinx.springback.springback`: static implicit steps, loads off, supports kept or
+minimal, contact pairs and walls kept or removed) and report what came out of the die: the springback fields, the
+largest springback displacement per body and at the displacement probes, the residual stresses and, with contact
+kept, the residual contact pressure of every kept pair (a press fit's quality)."""
 
 from __future__ import annotations
 
 import logging
 from pathlib import Path
+from typing import Sequence
 
 import numpy as np
 
@@ -17,10 +19,10 @@ from ..case.model import Case
 
 log = logging.getLogger(__name__)
 
-__all__ = ["run_springback"]
+__all__ = ["run_springback", "contact_metrics"]
 
 
-def run_springback(case: Case, solver, fields_prefix: str) -> dict[str, float]:
+def run_springback(case: Case, solver, fields_prefix: str, analyses: Sequence = ()) -> dict[str, float]:
     """Spring the case's bodies back from ``solver``'s state and write ``fields/springback/<name>_<body>.xdmf``
     (one output: the final shape, residual stress and plastic strain at the run's end time; a folder of its own,
     so that the run's field series, ``fields/*.h5``, stays the forming run's).
@@ -33,17 +35,23 @@ def run_springback(case: Case, solver, fields_prefix: str) -> dict[str, float]:
         The run's deformable bodies at the end of the run (one process).
     fields_prefix : str
         Path prefix of the run's field files (``fields/<case name>[_partN]``): its folder holds ``springback/``.
+    analyses : sequence
+        The run's analyses: their ``springback_metrics(sb)`` join the metrics.
 
     Returns
     -------
     dict
         Metrics: ``<body>_springback_max_m`` (largest springback displacement, m), ``<body>_springback_max_<c>_m``
         (largest |component|, m), ``<body>_residual_von_mises_max_Pa``, ``<body>_residual_plastic_strain_max``,
-        ``<probe>_springback_<c>_m`` for the displacement probes on those bodies (m), ``springback_newton_iterations``.
+        ``<probe>_springback_<c>_m`` for the displacement probes on those bodies (m), ``springback_newton_iterations``;
+        with ``contact = "kept"``, per kept pair (``i``: its index in ``[[contact]]``)
+        ``springback_contact<i>_pressure_mean_Pa`` (mean over the slave nodes in contact, 0 if none),
+        ``springback_contact<i>_pressure_max_Pa`` and ``springback_contact<i>_closed_nodes``.
     """
     cfg = case.springback
     names = list(cfg.bodies) or list(solver.bodies)
-    sb = springback(solver, supports=cfg.supports, steps=cfg.steps, bodies=names)
+    sb = springback(solver, supports=cfg.supports, steps=cfg.steps, bodies=names, contact=cfg.contact,
+                    walls=cfg.walls)
     folder = Path(fields_prefix).parent / "springback"
     folder.mkdir(exist_ok=True)
     writer = mech.FieldWriter(sb, str(folder / case.case.name))
@@ -63,6 +71,9 @@ def run_springback(case: Case, solver, fields_prefix: str) -> dict[str, float]:
         out[f"{n}_residual_plastic_strain_max"] = float(b.eps_p.max()) if len(b.cells) else 0.0
         log.info("springback of %s: largest displacement %.4g m, largest residual von Mises stress %.4g Pa",
                  n, out[f"{n}_springback_max_m"], out[f"{n}_residual_von_mises_max_Pa"])
+    out.update(contact_metrics(sb))
+    for a in analyses:
+        out.update(a.springback_metrics(sb))
     for p in case.probes:
         if p.quantity != "displacement" or p.body not in names:
             continue
@@ -71,4 +82,20 @@ def run_springback(case: Case, solver, fields_prefix: str) -> dict[str, float]:
         i = int(np.argmin(np.linalg.norm(b.X0 - point, axis=1)))
         for c in range(b.gdim):
             out[f"{p.name}_springback_{comps[c]}_m"] = float(sb.springback_displacement[p.body][i, c])
+    return out
+
+
+def contact_metrics(sb) -> dict[str, float]:
+    """The residual contact pressure of the springback solver ``sb``'s kept pairs (named by their index in the
+    source's pairs, ``sb.source_pairs``): ``springback_contact<i>_pressure_mean_Pa`` (mean over the slave nodes in
+    contact; 0 if none), ``..._pressure_max_Pa`` and ``..._closed_nodes``."""
+    out: dict[str, float] = {}
+    for k, i in enumerate(sb.source_pairs):
+        _, _, p, _ = sb.contact_pressure(k)
+        key = f"springback_contact{i}"
+        out[f"{key}_pressure_mean_Pa"] = float(p.mean()) if len(p) else 0.0
+        out[f"{key}_pressure_max_Pa"] = float(p.max()) if len(p) else 0.0
+        out[f"{key}_closed_nodes"] = float(len(p))
+        log.info("springback: contact pair %d keeps a mean pressure %.4g Pa on %d nodes", i,
+                 out[f"{key}_pressure_mean_Pa"], len(p))
     return out

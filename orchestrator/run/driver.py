@@ -350,7 +350,8 @@ class CaseDriver:
             metrics.update(a.metrics(self.solver, self.history))
         if self.shots is not None:
             metrics.update(self.shots.metrics())
-        metrics.update(run_springback(case, self.solver, str(prefix)) if case.springback and self.solver else {})
+        metrics.update(run_springback(case, self.solver, str(prefix), self.analyses)
+                       if case.springback and self.solver else {})
         self.load.close()  # old getdp run folders are deleted in the background: wait for them
         return MechanicsRun(self.solver, self.history, metrics, self.shapes, self.analyses, self.wall_before_s)
 

@@ -31,7 +31,7 @@ from typing import Optional
 
 import numpy as np
 
-from .implicit_flow import flow_stress
+from .implicit_flow import flow_stress, is_linear, needs_rate
 from .kernels import MODE_AXISYMMETRIC, MODE_PLANE_STRESS
 from .material import Material
 from .tet_kernel import MODE_SOLID
@@ -170,14 +170,10 @@ def _radial_return(T: np.ndarray, st: CellState, rate: Optional[np.ndarray]):
     # plastic beyond rounding only: a cell left on the yield surface by the last step (q = sy to rounding) starts
     # the next one with the elastic tangent — an unloading step's tangent, and loading is found at the next iterate
     plastic = np.real(f) > 1e-12 * np.real(sy)
-    dep = np.where(plastic, f / (3.0 * G + slope), 0.0)
-    if plastic.any() and not _linear(st.material):
-        for _ in range(50):
-            sy, slope = flow_stress(st.material, st.eps_p + dep, rate)
-            r = np.where(plastic, q - 3.0 * G * dep - sy, 0.0)
-            dep = dep + r / (3.0 * G + slope)
-            if np.all(np.abs(r) <= 1e-13 * np.abs(sy)):
-                break
+    if plastic.any() and not is_linear(st.material):
+        dep = _nonlinear_return(q, G, st, rate, plastic)
+    else:
+        dep = np.where(plastic, f / (3.0 * G + slope), 0.0)
     sy_new, _ = flow_stress(st.material, st.eps_p + dep, rate)
     qs = np.where(plastic, q, 1.0)
     fac = np.where(plastic, 1.0 - 3.0 * G * dep / qs, 1.0)
@@ -187,9 +183,40 @@ def _radial_return(T: np.ndarray, st: CellState, rate: Optional[np.ndarray]):
     return out, dep, sy_new
 
 
-def _linear(m: Material) -> bool:
-    """The flow law is linear in eps_p at fixed rate (the return is exact in one step)."""
-    return True  # the Material law today; a nonlinear flow curve returns False here
+def _nonlinear_return(q: np.ndarray, G: float, st: CellState, rate: Optional[np.ndarray],
+                      plastic: np.ndarray) -> np.ndarray:
+    """The plastic strain increment of a nonlinear flow law: the root of q - 3 G d - sigma_s(eps_p + d) on the
+    real parts, by Newton's method kept inside the bracket [0, q / 3G] (bisection where a step leaves it or the
+    slope is not finite: a power law starting vertically), to round-off (as the compiled
+    :func:`.flow_curves.plastic_return`); then one Newton step in the complex arguments from that root, which
+    carries a complex step's derivative exactly (the root's sensitivity d = -f_x / f_d)."""
+    ep = np.real(st.eps_p)
+    qr = np.real(q)
+    rr = None if rate is None else np.real(rate)
+    g3 = 3.0 * G
+    lo, hi = np.zeros_like(qr), np.where(plastic, qr / g3, 0.0)
+    sy, h = flow_stress(st.material, ep, rr)
+    den = g3 + h
+    d = np.where(plastic & np.isfinite(den), (qr - sy) / np.where(np.isfinite(den), den, 1.0), 0.5 * hi)
+    d = np.where((d > lo) & (d < hi), d, 0.5 * (lo + hi))
+    for _ in range(200):
+        sy, h = flow_stress(st.material, ep + d, rr)
+        f = np.where(plastic, qr - g3 * d - sy, 0.0)
+        lo = np.where(f > 0.0, d, lo)
+        hi = np.where(f < 0.0, d, hi)
+        den = g3 + h
+        dn = d + f / np.where(np.isfinite(den), den, 1.0)
+        dn = np.where(np.isfinite(den) & (dn > lo) & (dn < hi), dn, 0.5 * (lo + hi))
+        dn = np.where(plastic & (f != 0.0), dn, d)
+        done = (np.abs(dn - d) <= 4e-16 * np.abs(dn) + 1e-300) | (hi - lo <= 4e-16 * hi)
+        d = dn
+        if np.all(done | ~plastic):
+            break
+    sy, h = flow_stress(st.material, ep + d, rate) if np.iscomplexobj(q) or np.iscomplexobj(rate) else (None, None)
+    if sy is None:
+        return np.where(plastic, d, 0.0)
+    r = np.where(plastic, q - g3 * d - sy, 0.0)
+    return np.where(plastic, d + r / np.where(plastic, g3 + h, 1.0), 0.0)
 
 
 def _update_stress(Sr: np.ndarray, E: np.ndarray, st: CellState):
@@ -202,7 +229,7 @@ def _update_stress(Sr: np.ndarray, E: np.ndarray, st: CellState):
     for i in range(3):
         T[:, i, i] += lam * tr
     rate = None
-    if st.material.rate_law is not None:
+    if needs_rate(st.material):
         e = E.copy()
         for i in range(3):
             e[:, i, i] -= tr / 3.0

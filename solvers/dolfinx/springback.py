@@ -7,10 +7,14 @@ or is released onto a statically determinate set of supports that stops its rigi
 loading it (``supports="minimal"``: one node held in every component, a second one across the line
 between them, in 3D a third one across their plane — the 3-2-1 rule; :func:`minimal_supports`). The
 unbalanced internal forces of the stressed state are released over ``steps`` static steps (the external
-force −(1 − k/steps) f_int^0 at step k), so that reverse yielding is followed in increments.
+force (1 − k/steps) (f_int^0 − f_c^0) at step k, f_c^0 the contact forces of the start state), so that reverse
+yielding is followed in increments.
 
-Not done yet: contact between the parts (a press fit's residual contact pressure), dies kept as rigid
-walls, MPI (the implicit solver's limits).
+Contact pairs between released bodies and rigid walls are kept (``contact="kept"``, ``walls="kept"``: a press
+fit's parts stay in contact and the residual contact pressure is that of the released equilibrium; a part stays
+in its die) or removed (the default: the shape out of the die). A kept pair keeps the elastic law of eq. (5) and
+loses its friction and viscosity (velocity-dependent: a static release has no velocity). Not done yet: friction
+in a kept contact, MPI (the implicit solver's limits).
 """
 from __future__ import annotations
 
@@ -24,12 +28,14 @@ from .implicit import ImplicitSolver, ImplicitSolver3D
 from .implicit_options import ImplicitOptions
 from .tet_kernel import MODE_SOLID
 
-__all__ = ["springback", "minimal_supports", "SUPPORTS"]
+__all__ = ["springback", "minimal_supports", "SUPPORTS", "KEEP"]
 
 log = logging.getLogger(__name__)
 
 #: how a part is held during springback
 SUPPORTS = ("kept", "minimal")
+#: what happens to contact pairs and rigid walls during springback
+KEEP = ("kept", "removed")
 
 
 def minimal_supports(x: np.ndarray) -> tuple:
@@ -60,6 +66,32 @@ def minimal_supports(x: np.ndarray) -> tuple:
     return tuple(fixed)
 
 
+def _kept_pairs(source, names: Sequence[str]) -> tuple:
+    """``source``'s contact pairs between bodies of ``names``, with the elastic law only (friction and viscosity
+    0: a static release has no velocity)."""
+    out = []
+    for i, cp in enumerate(source.contact_pairs):
+        if not {cp.slave, cp.master} <= set(names):
+            log.info("springback: contact pair %d (%s -> %s) removed: a body of it is not released", i, cp.slave,
+                     cp.master)
+            continue
+        if cp.friction > 0 or cp.viscosity > 0:
+            log.info("springback: contact pair %d keeps the elastic law of eq. (5); its friction and viscosity "
+                     "are dropped", i)
+        out.append(replace(cp, friction=0.0, viscosity=0.0))
+    return tuple(out)
+
+
+def _kept_walls(source, names: Sequence[str]) -> tuple:
+    """``source``'s rigid walls restricted to the bodies of ``names`` (a wall acting on none of them is dropped)."""
+    out = []
+    for w in source.rigid_walls:
+        on = list(names) if w.bodies is None else [n for n in w.bodies if n in names]
+        if on:
+            out.append(replace(w, bodies=tuple(on)))
+    return tuple(out)
+
+
 def _node_marker(p: np.ndarray):
     """Marker of the node at ``p`` (m) in coordinates given as (3, N)."""
     p = np.asarray(p, float)
@@ -72,7 +104,8 @@ def _node_marker(p: np.ndarray):
 
 
 def springback(source, supports: str = "kept", steps: int = 1, newton_tol: float = 1e-8,
-               newton_max: int = 25, max_cuts: int = 6, bodies: Optional[Sequence[str]] = None):
+               newton_max: int = 25, max_cuts: int = 6, bodies: Optional[Sequence[str]] = None,
+               contact: str = "removed", walls: str = "removed"):
     """The springback of ``source``'s bodies: a static implicit solver started from their state, released.
 
     Parameters
@@ -88,12 +121,19 @@ def springback(source, supports: str = "kept", steps: int = 1, newton_tol: float
         Newton settings of the static steps (:class:`~.implicit_options.ImplicitOptions`).
     bodies : sequence of str, optional
         The bodies to release (default: all).
+    contact : {"removed", "kept"}
+        Keep ``source``'s contact pairs between released bodies (elastic law of eq. (5), friction and viscosity
+        dropped) or remove every pair.
+    walls : {"removed", "kept"}
+        Keep ``source``'s rigid walls (on the released bodies they act on) or remove them.
 
     Returns
     -------
     ImplicitSolver or ImplicitSolver3D
         The static solver after springback: its bodies hold the final shape (``x``), the residual stresses
-        and plastic strain; ``springback_displacement[name]`` (N, dim), m, is the motion of springback.
+        and plastic strain; ``springback_displacement[name]`` (N, dim), m, is the motion of springback;
+        ``contact_pressure(i)`` the residual contact of kept pair ``i``, ``source_pairs[i]`` its index in
+        ``source.contact_pairs``.
 
     Raises
     ------
@@ -104,6 +144,9 @@ def springback(source, supports: str = "kept", steps: int = 1, newton_tol: float
     """
     if supports not in SUPPORTS:
         raise ValueError(f"supports must be one of {SUPPORTS}, got {supports!r}")
+    for key, val in (("contact", contact), ("walls", walls)):
+        if val not in KEEP:
+            raise ValueError(f"{key} must be one of {KEEP}, got {val!r}")
     if int(steps) != steps or steps < 1:
         raise ValueError(f"steps must be a positive integer, got {steps!r}")
     names = list(source.bodies) if bodies is None else list(bodies)
@@ -119,11 +162,17 @@ def springback(source, supports: str = "kept", steps: int = 1, newton_tol: float
         specs.append(replace(spec, fixed=fixed, motion=(), initial_velocity=zero, sliding=()))
     options = ImplicitOptions(dt=1.0, scheme="static", newton_tol=newton_tol, newton_max=newton_max,
                               max_cuts=max_cuts)
+    pairs = _kept_pairs(source, names) if contact == "kept" else ()
+    kept_walls = _kept_walls(source, names) if walls == "kept" else ()
     if source.mode == MODE_SOLID:
-        sb = ImplicitSolver3D(specs, options, comm=source.comm)
+        sb = ImplicitSolver3D(specs, options, comm=source.comm, contact_pairs=pairs, rigid_walls=kept_walls)
     else:
         sb = ImplicitSolver(specs, options, formulation=source.formulation,
-                            thickness=float(next(iter(source.bodies.values())).thickness), comm=source.comm)
+                            thickness=float(next(iter(source.bodies.values())).thickness), comm=source.comm,
+                            contact_pairs=pairs, rigid_walls=kept_walls)
+    #: the source's index of each kept pair (the springback solver's pair i is the source's source_pairs[i])
+    sb.source_pairs = [i for i, cp in enumerate(source.contact_pairs) if {cp.slave, cp.master} <= set(names)] \
+        if pairs else []
     for n in names:
         src, dst = source.bodies[n], sb.bodies[n]
         dst.x[...] = src.x
@@ -132,8 +181,10 @@ def springback(source, supports: str = "kept", steps: int = 1, newton_tol: float
     sb.time = float(source.time)
     sb._restart_from_state()
     start = {n: sb.bodies[n].x.copy() for n in names}
-    f0 = {n: sb._fint[n].copy() for n in names}
-    for n in names:   # the present state is in equilibrium with its own internal forces: cut steps ramp from them
+    # the present state is in equilibrium with its internal and contact forces: the removed loads (and the inertia
+    # of a dynamic state) are f_int - f_c; cut steps ramp from them
+    f0 = {n: sb._fint[n] - sb._fcon[n] for n in names}
+    for n in names:
         sb._f_from[n][...] = f0[n]
     for k in range(1, int(steps) + 1):
         frac = 1.0 - k / steps

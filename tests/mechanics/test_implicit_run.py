@@ -172,6 +172,8 @@ def test_springback_after_the_run(tmp_path):
     ({"springback": {"supports": "loose"}}, "springback.supports"),
     ({"springback": {"bodies": ["die"]}}, "springback.bodies[0]"),
     ({"springback": {"steps": 0}}, "springback.steps"),
+    ({"springback": {"contact": "yes"}}, "springback.contact"),
+    ({"springback": {"walls": True}}, "springback.walls"),
 ])
 def test_bad_springback_keys_are_one_line(tmp_path, capsys, edit, key):
     """Bad springback keys: exit 2, one line naming the file and the key."""

@@ -8,6 +8,9 @@ An analysis is a class with
   to reuse instead of computing them again (None: compute them),
 * ``metrics(self, solver, history) -> dict[str, float]``: added to ``metrics.json``,
 * ``plots(self, history, shapes, folder) -> None``: PNGs into ``plots/``,
+* ``springback_metrics(self, sb) -> dict[str, float]``: with ``[springback]``, metrics of the springback
+  solver ``sb`` (its bodies after springback; contact pair ``i`` of the case is ``sb.source_pairs.index(i)``
+  there, if kept); :class:`Analysis` gives none,
 * ``state_dict(self) -> dict[str, np.ndarray]`` / ``load_state_dict(self, state)``: its restart
   state (what it accumulates over the run), saved in the checkpoint under
   ``analysis/<name>/<key>``; :class:`Analysis` gives the defaults (no state).
@@ -35,6 +38,10 @@ class Analysis:
 
     def load_state_dict(self, state: dict) -> None:
         """Take back :meth:`state_dict` from a checkpoint (before the first ``record``)."""
+
+    def springback_metrics(self, sb) -> dict:
+        """Metrics of the springback solver ``sb`` (``[springback]``, after the run); none by default."""
+        return {}
 
 
 def create(name: str, case):

@@ -10,7 +10,8 @@ History columns (means over the surface's nodes, reference configuration picks t
   nodes (0 where open), ``contact_pressure_max_Pa`` its maximum; ``contact_closed_fraction``.
 
 Metrics: ``residual_contact_pressure_MPa`` (mean contact stress at the end of the run, after the
-final relaxation), ``max_radial_displacement_inner_mm`` (largest bore displacement over time),
+final relaxation), with ``[springback] contact = "kept"`` also ``springback_residual_contact_pressure_MPa`` (the
+same mean after the static springback) and ``springback_inner_outer_ur_mm``, ``max_radial_displacement_inner_mm`` (largest bore displacement over time),
 residual radial displacements, the first-contact time in t* = R0 / sqrt(sigma_s0 / rho), and the
 end-state kinetic-to-elastic energy ratio (rest check). Serial runs only.
 """
@@ -90,12 +91,12 @@ class TubePressFit(Analysis):
             "outer_inner": np.flatnonzero(np.abs(o.X0[: o.n_owned, 0] - self.R2) < tol),
         }
 
-    def record(self, solver, row: dict[str, float] | None = None) -> dict[str, float]:
+    def record(self, solver, row: dict[str, float] | None = None, pair: int | None = None) -> dict[str, float]:
         if self._nodes is None:
             self._setup(solver)
         i, o = solver.bodies["inner"], solver.bodies["outer"]
         n = self._nodes
-        gids, _, p, _ = solver.contact_pressure(self.pair)
+        gids, _, p, _ = solver.contact_pressure(self.pair if pair is None else pair)
         n_surf = max(len(n["inner_outer"]), 1)
         return {
             "inner_bore_ur_m": float(i.u[n["bore"], 0].mean()),
@@ -125,6 +126,17 @@ class TubePressFit(Analysis):
             "t_star_s": self.t_star,
             "final_kinetic_to_elastic": e["kinetic_J"] / max(e["elastic_J"], 1e-300),
         }
+
+    def springback_metrics(self, sb) -> dict[str, float]:
+        """The residual contact pressure after springback with contact kept (the mean over the inner tube's outer
+        surface, 0 where open, as ``residual_contact_pressure_MPa``) and the contact surfaces' radial displacements,
+        from the springback solver ``sb``; none if the pair was not kept."""
+        if self.pair not in getattr(sb, "source_pairs", []):
+            return {}
+        r = self.record(sb, pair=sb.source_pairs.index(self.pair))
+        return {"springback_residual_contact_pressure_MPa": r["contact_pressure_mean_Pa"] / 1e6,
+                "springback_inner_outer_ur_mm": r["inner_outer_ur_m"] * 1e3,
+                "springback_outer_inner_ur_mm": r["outer_inner_ur_m"] * 1e3}
 
     def plots(self, history, shapes, folder) -> None:
         import matplotlib
