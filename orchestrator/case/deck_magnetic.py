@@ -69,9 +69,8 @@ def deck_magnetic_problem(deck: Path) -> str | None:
     for file, tokens in deck_files_tokens(deck):
         for i, (kind, tok, line) in enumerate(tokens):
             if kind == "id" and tok == "Vol_NL_Mag" and _assigned(tokens, i):
-                return (f"{_shown(deck, file)}:{line} assigns Vol_NL_Mag: a B-H curve of the deck's own runs Newton's "
-                        "iterations whose convergence the runner does not check; give the curve in the case file "
-                        f"(materials.<name>.bh_curve) and Include {MAGNETIC_LIB} in place of the deck's nu[]")
+                return (f"{_shown(deck, file)}:{line} assigns Vol_NL_Mag (Newton's iterations the runner does not "
+                        f"check): give the curve as materials.<name>.bh_curve and Include {MAGNETIC_LIB}")
     sites = assignment_sites(deck, _BLOCK_NUMBERS)
     if sites:
         name, file, line, _ = sites[0]
@@ -95,7 +94,7 @@ def magnetic_deck_refusal(g, key: str) -> str | None:
                 f"the deck on PulseformLib and Include {MAGNETIC_LIB}")
     if not _includes_block(deck):
         own = own_nu_sites(deck)
-        where = f" (its nu[] at {own[0]} would run this material in vacuum)" if own else ""
-        return (f"deck {deck.name} has no Include {MAGNETIC_LIB}{where}: write it after the deck's Group block in "
-                "place of its nu[]")
+        where = f" (its nu[] at {own[0]} runs this material in vacuum)" if own else ""
+        return f"deck {deck.name} has no Include {MAGNETIC_LIB}{where}: write it in place of its nu[]"
+
     return None
