@@ -141,7 +141,7 @@ def test_the_check_reads_newtons_table(tmp_path):
 @pytest.mark.slow
 @pytest.mark.getdp
 def test_user_deck_with_a_steel_die_matches_the_builtin_case(tmp_path):
-    """(Slow, ~40 s: two coupled runs with Newton's iterations in every EM step.) The example's die (with_die.toml)
+    """(Slow, ~30 s: two coupled runs with Newton's iterations in every EM step.) The example's die (with_die.toml)
     with a 1010 steel B-H curve against the built-in cases/emf_sheet_die with the same curve: the force impulse,
     peak current and sheet speed within 1 % (the meshes differ; the vacuum pair agrees as closely:
     test_user_deck.py::test_user_deck_with_a_die_matches_the_builtin_case), Newton's counts in both histories, the
