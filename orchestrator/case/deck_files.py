@@ -1,7 +1,8 @@
 """A user's own EM deck (``[geometry] type = "user_deck"``) as the case loader sees it, before any gmsh
 or getdp run: ``mesh`` / ``pro`` resolved against the case folder (and refused outside it unless
 ``allow_outside = true``), ``parameters`` checked (identifiers, finite numbers, none of the names the
-runner sets), decks that run programs refused unless ``allow_system_calls = true``.
+runner sets), decks that run programs refused unless ``allow_system_calls = true``, a deck's misuse of the
+magnetic names refused (:mod:`.deck_magnetic`).
 Meshing and running the deck: :mod:`pulseform.orchestrator.em.user_deck`."""
 
 from __future__ import annotations
@@ -42,6 +43,12 @@ def resolve_deck_paths(data: dict[str, Any], file: Path, source: str) -> None:
         g[key] = str(p)
     check_parameters(g.get("parameters"), source)
     check_template_deck(g, source, WRAPPER_NAMES)
+    if g.get("library", "pulseform") != "getdp_template" and isinstance(g.get("pro"), str):
+        from .deck_magnetic import deck_magnetic_problem   # (it reads decks with this module's scanner)
+
+        problem = deck_magnetic_problem(Path(g["pro"]))
+        if problem is not None:
+            raise CaseError(source, "geometry.pro", problem)
     if g.get("allow_system_calls") is True:
         return
     for key, language in (("mesh", "geo"), ("pro", "pro")):
@@ -191,7 +198,8 @@ def _file_argument(tokens: list, i: int) -> str | None:
 
 
 #: names of the runner's own deck libraries (absolute paths the runner defines) a .pro may Include
-RUNNER_LIBRARIES = ("PulseformLib", "PulseformPersistentLib", "PulseformHarmonicLib", "PulseformNewtonLib")
+RUNNER_LIBRARIES = ("PulseformLib", "PulseformPersistentLib", "PulseformHarmonicLib", "PulseformNewtonLib",
+                    "PulseformMagneticLib")
 #: most files one deck scan reads (a deck with more cannot be checked)
 MAX_DECK_FILES = 1000
 

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 from pulseform.solvers.getdp.bh_curve import BHCurve
 
+from .deck_magnetic import magnetic_deck_refusal
 from .em_cores import check_core_materials
 from .flow import check_increasing
 from .schema import SchemaError, spec
@@ -67,8 +68,9 @@ def magnetic_keywords(material) -> dict:
 
 def check_magnetic_em(case) -> None:
     """Magnetic materials of a coupled case's bodies and cores (``[[geometry.cores]]``, whose materials must be
-    magnetic): on pulseform's own decks (not a user deck, whose materials are its own), no applied field (its
-    reduced-field source needs μ0 everywhere) (one line naming the key otherwise). A B–H curve runs on either
+    magnetic): on pulseform's own decks or a user deck that includes the runner's magnetic block
+    (:func:`.deck_magnetic.magnetic_deck_refusal`), no applied field (its reduced-field source needs μ0
+    everywhere) (one line naming the key otherwise). A B–H curve runs on either
     getdp (per step or persistent: Newton's iterations in each EM step)."""
     check_core_materials(case)
     cores = getattr(case.geometry, "cores", ()) or ()
@@ -82,8 +84,9 @@ def check_magnetic_em(case) -> None:
     key += ".bh_curve" if mat.bh_curve is not None else ".relative_permeability"
     g = case.geometry
     if getattr(g, "type", None) == "user_deck":
-        raise SchemaError(key, "a magnetic material needs pulseform's own GetDP decks (a user_deck geometry has "
-                               "its own materials: set nu[] in the deck)")
+        refusal = magnetic_deck_refusal(g, key)
+        if refusal is not None:
+            raise SchemaError(key, refusal)
     if case.em.applied_field is not None:
         raise SchemaError(key, "a magnetic material and em.applied_field: the applied field's reduced-field source "
                                "is exact only with μ0 everywhere; drive the field with a coil instead")

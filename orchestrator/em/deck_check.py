@@ -177,6 +177,7 @@ def check_deck(solver: GetDPSolver, mesh: EMMesh, work: Path, time_limit: float,
     names = names or DeckNames()
     first, state1 = _run(check, mesh, state0, dt, 1, work.name, deck, names=names)
     report = _solves_the_model(check, mesh, work / "out", deck)
+    _newton_table(check, work / "out", deck)
     report.argv = list(first.run.argv)
     two, state2 = _run(check, mesh, state0, 2 * dt, 2, f"{work.name}/two_steps", deck, names=names)
     for path in carry_paths:
@@ -369,6 +370,20 @@ def _contract_tables(solver: GetDPSolver, run_dir: Path, deck: Path) -> None:
     if not (run_dir / "em.res").is_file():
         raise DeckContractError(f"deck {deck.name} breaks the deck contract: no em.res (Resolution {RESOLUTION} must "
                                 "SaveSolution its system every sub-step; the runner passes -name)")
+
+
+def _newton_table(solver: GetDPSolver, out: Path, deck: Path) -> None:
+    """Newton's table ``newton.txt`` (``Lib_Newton.pro``) after one step exists exactly when the case has a B–H
+    curve: one without it runs Newton's iterations the runner would not read (a ``Vol_NL_Mag`` of the deck's
+    own), a curve without it never reached the deck (no ``Include PulseformMagneticLib``); else one line."""
+    has = (out / "newton.txt").is_file()
+    if has and not solver.model.is_nonlinear:
+        raise DeckContractError(f"deck {deck.name} runs Newton's iterations (newton.txt: a Vol_NL_Mag of its own) but "
+                                "the case has no B-H curve: give it in the case file (materials.<name>.bh_curve) and "
+                                "Include PulseformMagneticLib in place of the deck's nu[]")
+    if solver.model.is_nonlinear and not has:
+        raise DeckContractError(f"deck {deck.name} does not run the case's B-H curve (no newton.txt after one step): "
+                                "Include PulseformMagneticLib in place of its nu[], and Include PulseformLib")
 
 
 def _read_rows(path: Path) -> np.ndarray:

@@ -38,7 +38,7 @@ import numpy as np
 
 from pulseform.solvers.getdp import EMMesh, coil_tag
 from pulseform.solvers.getdp.runner import run_logged
-from pulseform.solvers.getdp.solver import DECK_DIR
+from pulseform.solvers.getdp.solver import DECK_DIR, MAGNETIC_BLOCK_LINE
 from pulseform.solvers.getdp.contract import (CIRCUIT_TABLES, CURVE_ROLES, OPTIONAL_ROLES, REQUIRED_TABLES,  # noqa: F401
                                               ROLE_IDS, ROLE_NUMBERS, SURFACE_ROLES, coil_number_name)
 
@@ -277,7 +277,8 @@ def user_em_model(case, deck_values: dict | None = None, bank: bool = False):
 
 
 def make_solver(case, model, work_dir: Path, getdp_process: str = "per_step", deck_ids: dict[int, int] | None = None):
-    """The EM solver on the user's deck (role ids, the case's parameters and ``PulseformLib``): one
+    """The EM solver on the user's deck (role ids, the case's parameters, ``PulseformLib`` and the magnetic
+    block ``PulseformMagneticLib``, ``decks/em_magnetic.pro``): one
     getdp process per EM step, or with ``getdp_process = "persistent"`` one for the run (the deck
     needs Resolution ``EM_Persistent``, which a deck on ``PulseformLib`` has). Coil k's id is
     ``Phys_Coil_<k>`` = 100 + k (``Phys_Coil_1`` = 101 for ``regions.coil`` or the first of
@@ -292,9 +293,10 @@ def make_solver(case, model, work_dir: Path, getdp_process: str = "per_step", de
     if deck_ids is not None:  # a deck on GetDP's template: pulseform's wrapper, the deck's own ids
         return template_solver(case, model, work_dir, deck_ids, numbers)
     lib = (DECK_DIR / "Lib_PulsedForming.pro").resolve()
+    preamble = [f'PulseformLib = "{lib}";', f'PulseformNewtonLib = "{lib.parent / "Lib_Newton.pro"}";',
+                MAGNETIC_BLOCK_LINE]
     return make_em_solver(model, work_dir, case.em.time_scheme, getdp_process, deck=g.pro, extra_numbers=numbers,
-                          preamble=[f'PulseformLib = "{lib}";', f'PulseformNewtonLib = "{lib.parent / "Lib_Newton.pro"}";'],
-                          factor_reuse=factor_reuse(case))
+                          preamble=preamble, factor_reuse=factor_reuse(case))
 
 
 def deck_names(case, deck_ids: dict[int, int] | None = None) -> DeckNames:

@@ -62,8 +62,13 @@ def coil_tables(k: int) -> dict[str, str]:
 
 # ----------------------------------------------------------------------------- names a run sets
 #: lists ``run.pro`` defines before the deck is included: the Init path's nodal values
-#: (:meth:`GetDPSolver.step`) and the coil current tables (:meth:`GetDPSolver._table_lines`)
-RUN_PRO_LISTS = ("InitA_List", "InitA2_List", "Coil_Table_<k>", "PulseformPersistentLib", "PulseformHarmonicLib")
+#: (:meth:`GetDPSolver.step`), the coil current tables (:meth:`GetDPSolver._table_lines`), the B–H curves'
+#: tables (:func:`.bh_curve.model_magnetic`) and the libraries' paths
+RUN_PRO_LISTS = ("InitA_List", "InitA2_List", "Coil_Table_<k>", "Cond_BH_<k>", "Cond_BHw_<k>", "Core_BH_<k>",
+                 "Core_BHw_<k>", "PulseformPersistentLib", "PulseformHarmonicLib", "PulseformMagneticLib")
+#: the library decks whose ``DefineConstant`` inputs a run may set: the formulation, the persistent getdp, Newton's
+#: constants and the magnetic block (``em_magnetic.pro``, a user deck's ``PulseformMagneticLib``)
+RUNNER_DECKS = ("Lib_PulsedForming.pro", "Lib_Persistent.pro", "Lib_Newton.pro", "em_magnetic.pro")
 
 
 def _indexed(name: str) -> str:
@@ -76,8 +81,7 @@ def runner_number_names() -> tuple[str, ...]:
     """Every name a :class:`GetDPSolver` run defines in getdp, sorted; indexed families once as
     ``Coil_Ns_<k>`` (``<k>`` = 1, 2, ...).
 
-    The union of (1) the ``DefineConstant`` inputs of the library decks ``Lib_PulsedForming.pro``
-    and ``Lib_Persistent.pro``
+    The union of (1) the ``DefineConstant`` inputs of the library decks :data:`RUNNER_DECKS`
     (the numbers and strings a step passes with ``-setnumber`` / ``-setstring``: ``TimeInit``,
     ``NbSteps``, ``Flag_*``, ``C_bank``, ``OutDir``, ...), (2) the numbers :func:`.deck_numbers.model_deck_numbers`
     computes from a model and mesh (evaluated here on small models with every option on: a
@@ -87,7 +91,7 @@ def runner_number_names() -> tuple[str, ...]:
     any of them (``pulseform.orchestrator.case.deck_files``).
     """
     names = set()
-    for deck in ("Lib_PulsedForming.pro", "Lib_Persistent.pro"):
+    for deck in RUNNER_DECKS:
         lib = re.sub(r"//[^\n]*", "", (DECK_DIR / deck).read_text())
         for block in re.findall(r"DefineConstant\s*\[(.*?)\]\s*;", lib, flags=re.S):
             names.update(_indexed(n) for n in re.findall(r"([A-Za-z_]\w*(?:~\{\w+\})?)\s*=", block))

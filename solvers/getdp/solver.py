@@ -23,6 +23,9 @@ DECK_DIR = Path(__file__).resolve().parent / "decks"
 #: PETSc options on getdp's command line: LU with UMFPACK (as MUMPS to round-off, ~30 % less wall time per run here)
 DEFAULT_PETSC_ARGS = ("-ksp_type", "preonly", "-pc_type", "lu", "-pc_factor_mat_solver_type", "umfpack")
 CASE_DECK = DECK_DIR / "em_case.pro"
+#: the ``run.pro`` line that names the magnetic block (``decks/em_magnetic.pro``: nu[] of every region from the
+#: model's materials) for a deck other than the built-in one, which then does ``Include PulseformMagneticLib;``
+MAGNETIC_BLOCK_LINE = f'PulseformMagneticLib = "{(DECK_DIR / "em_magnetic.pro").resolve()}";'
 RESOLUTION = "EM_Transient"
 #: time schemes of :class:`GetDPSolver`: GetDP's theta-scheme loop (theta from the ``TimeTheta``
 #: number, 1 = implicit Euler), or BDF2 as one shifted implicit-Euler step per run (:mod:`.bdf2`)
@@ -73,8 +76,9 @@ class GetDPSolver:
         self.reuse_pre = reuse_pre
         self._runs: list[Path] = []
         check_deck(model, self.deck, CASE_DECK)   # σ(T) needs the built-in deck
-        if model.is_magnetic and self.deck != CASE_DECK.resolve():
-            raise ValueError("a magnetic material (mu_r or a B-H curve) needs the built-in deck (em_case.pro): "
+        if model.is_magnetic and self.deck != CASE_DECK.resolve() and MAGNETIC_BLOCK_LINE not in self.preamble:
+            raise ValueError("a magnetic material (mu_r or a B-H curve) needs the built-in deck (em_case.pro) or a "
+                             f"deck that includes PulseformMagneticLib (preamble {MAGNETIC_BLOCK_LINE!r}): "
                              f"{self.deck.name} does not read them")
         self._elem_temperature: tuple[np.ndarray, np.ndarray] | None = None   # (EM triangle rows, K) for σ(T)
 

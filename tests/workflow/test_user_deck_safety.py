@@ -141,7 +141,8 @@ def test_parameters_may_not_shadow_a_number_the_runner_sets(case, capsys, name):
     code, line = check(case, capsys=capsys)
     assert code == 2
     assert f"geometry.parameters.{name}:" in line and "case.toml" in line
-    assert "Reserved: Phys_*, Pulseform{Lib,HarmonicLib,NewtonLib,PersistentLib}, C_bank" in line and len(line) <= 320
+    assert "Reserved: Phys_*, Pulseform{Lib,HarmonicLib,MagneticLib,NewtonLib,PersistentLib}, C_bank" in line
+    assert len(line) <= 320
 
 
 @pytest.mark.parametrize("value", [float("inf"), float("nan"), "5", True, 10 ** 400, [1, 2]])
@@ -163,7 +164,8 @@ def test_the_docs_list_every_reserved_name():
 def test_names_that_only_look_like_runner_numbers_pass():
     for ok in ("Coil_Gap", "Coil_Ns", "C_bank2", "Phys_Coil_x", "Coil_Split", "TimeEnd", "Lc_Sheet"):
         assert not user_deck.is_reserved_parameter(ok), ok
-    for bad in ("Coil_Ns_12", "Cond_sigma_1", "Val_Rint", "Phys_Coil_9"):  # Phys_Coil_<k>: coil k's id
+    for bad in ("Coil_Ns_12", "Cond_sigma_1", "Val_Rint", "Phys_Coil_9",  # Phys_Coil_<k>: coil k's id
+                "Cond_MuR_2", "Cond_BH_1", "NL_tol_rel", "NbCores", "PulseformMagneticLib"):  # the magnetic block's
         assert user_deck.is_reserved_parameter(bad), bad
 
 
