@@ -15,6 +15,32 @@ from .model import CurrentTable, DampedSine, EMModel
 __all__ = ["model_deck_numbers"]
 
 
+
+def waveform_numbers(k: int, waveform) -> dict[str, float]:
+    """The deck numbers of coil ``k``'s prescribed current (both dimensions' decks): a damped sine's
+    ``Coil_Wave_k = 0`` with I0 (A), beta (1/s), omega (rad/s), phase (rad), t_on (s); a table's 1 (its values
+    as a deck function, :func:`~.model.table_lines`); none for a coil on the circuit."""
+    if isinstance(waveform, DampedSine):
+        return {f"Coil_Wave_{k}": 0, f"Coil_I0_{k}": waveform.I0, f"Coil_beta_{k}": waveform.beta,
+                f"Coil_omega_{k}": waveform.omega, f"Coil_phase_{k}": waveform.phase, f"Coil_ton_{k}": waveform.t_on}
+    if isinstance(waveform, CurrentTable):
+        return {f"Coil_Wave_{k}": 1, f"Coil_I0_{k}": 1.0}
+    return {}
+
+
+def body_numbers(model, tags: np.ndarray) -> dict[str, float]:
+    """``Cond_sigma_k`` (S/m) of each conductor; a conductor or magnetic core whose region has no element in the
+    mesh (``tags``: the element tags, triangles or tetrahedra) is refused."""
+    nb = {}
+    for k, c in enumerate(model.conductors, start=1):
+        if not np.any(tags == conductor_tag(k)):
+            raise ValueError(f"conductor {k}: region {conductor_tag(k)} is empty in the mesh")
+        nb[f"Cond_sigma_{k}"] = c.sigma
+    for k in range(1, len(model.cores) + 1):
+        if not np.any(tags == core_tag(k)):
+            raise ValueError(f"magnetic core {k}: region {core_tag(k)} is empty in the mesh")
+    return nb
+
 def model_deck_numbers(model: EMModel, mesh: EMMesh, extra_numbers: Mapping[str, float]) -> dict[str, float]:
     """``{name: value}`` for the run deck: the model ``model`` on ``mesh`` (``extra_numbers``: the solver's own,
     e.g. ``TimeTheta``). ValueError: a mesh without the axis or a Dirichlet boundary, an empty coil or conductor
@@ -40,19 +66,8 @@ def model_deck_numbers(model: EMModel, mesh: EMMesh, extra_numbers: Mapping[str,
         nb[f"Coil_sigma_{k}"] = c.sigma
         if c.sign != 1:  # the deck's default is +1
             nb[f"Coil_Sign_{k}"] = c.sign
-        if isinstance(c.waveform, DampedSine):
-            nb.update({f"Coil_Wave_{k}": 0, f"Coil_I0_{k}": c.waveform.I0,
-                       f"Coil_beta_{k}": c.waveform.beta, f"Coil_omega_{k}": c.waveform.omega,
-                       f"Coil_phase_{k}": c.waveform.phase, f"Coil_ton_{k}": c.waveform.t_on})
-        elif isinstance(c.waveform, CurrentTable):
-            nb.update({f"Coil_Wave_{k}": 1, f"Coil_I0_{k}": 1.0})
-    for k, c in enumerate(m.conductors, start=1):
-        if not np.any(mesh.tri_tags == conductor_tag(k)):
-            raise ValueError(f"conductor {k}: region {conductor_tag(k)} is empty in the mesh")
-        nb[f"Cond_sigma_{k}"] = c.sigma
-    for k in range(1, len(m.cores) + 1):
-        if not np.any(mesh.tri_tags == core_tag(k)):
-            raise ValueError(f"magnetic core {k}: region {core_tag(k)} is empty in the mesh")
+        nb.update(waveform_numbers(k, c.waveform))
+    nb.update(body_numbers(m, mesh.tri_tags))
     nb.update(model_magnetic(m)[0])
     if m.circuit is not None:
         nb.update(C_bank=m.circuit.C, R_ext=m.circuit.R_ext, L_ext=m.circuit.L_ext)

@@ -23,13 +23,14 @@ from typing import Sequence
 import numpy as np
 
 from .files import read_element_table, read_table
-from .mesh import AIR, COIL_BASE, CONDUCTOR_BASE, CORE_BASE, OUTER, SHELL, coil_tag, conductor_tag, core_tag
+from .mesh import AIR, COIL_BASE, CONDUCTOR_BASE, CORE_BASE, OUTER, SHELL, coil_tag
 from .applied_field import AppliedField, planes_of_faces
 from .mesh3d import (CUT_BASE, ELEC_IN_BASE, ELEC_OUT_BASE, SKIN_BASE, SYM_A, SYM_H, Mesh3D, cut_orientation, cut_tag,
                      physical_surface_area, read_msh22_triangles, skin_tag)
 from .bh_curve import MagneticRegions, model_magnetic, read_newton
 from .conductivity import ConductivityLaw, has_laws, law_from_dict
 from .model import Circuit, Conductor, CurrentTable, DampedSine, MagneticCore, table_lines
+from .deck_numbers import body_numbers, waveform_numbers
 from .runner import RunInfo, run_getdp
 
 logger = logging.getLogger(__name__)
@@ -262,19 +263,8 @@ def model_numbers(model: EM3DModel, mesh: Mesh3D) -> tuple[dict[str, float], lis
                    f"Coil_Cx_{k}": c.axis[0], f"Coil_Cy_{k}": c.axis[1]})
         if c.direction == "cut":   # checks the cut (triangles, orientation) and orients it
             nb[f"Coil_CutSign_{k}"] = cut_orientation(mesh.path, cut_tag(k), c.cut_normal)
-        if isinstance(c.waveform, DampedSine):
-            w = c.waveform
-            nb.update({f"Coil_Wave_{k}": 0, f"Coil_I0_{k}": w.I0, f"Coil_beta_{k}": w.beta,
-                       f"Coil_omega_{k}": w.omega, f"Coil_phase_{k}": w.phase, f"Coil_ton_{k}": w.t_on})
-        elif isinstance(c.waveform, CurrentTable):
-            nb.update({f"Coil_Wave_{k}": 1, f"Coil_I0_{k}": 1.0})
-    for k, c in enumerate(model.conductors, start=1):
-        if not np.any(mesh.tet_tags == conductor_tag(k)):
-            raise ValueError(f"conductor {k}: region {conductor_tag(k)} is empty in the mesh")
-        nb[f"Cond_sigma_{k}"] = c.sigma
-    for k in range(1, len(model.cores) + 1):
-        if not np.any(mesh.tet_tags == core_tag(k)):
-            raise ValueError(f"magnetic core {k}: region {core_tag(k)} is empty in the mesh")
+        nb.update(waveform_numbers(k, c.waveform))
+    nb.update(body_numbers(model, mesh.tet_tags))
     if model.circuit is not None:
         nb.update(C_bank=model.circuit.C, R_ext=model.circuit.R_ext, L_ext=model.circuit.L_ext,
                   Init_Vc=model.circuit.V0, Init_I=0.0)

@@ -18,14 +18,14 @@ import json
 import numpy as np
 import pytest
 
-from pulseform.orchestrator.mesh.motion import MeshMover
 from pulseform.solvers.getdp import Circuit, Coil, Conductor, EMModel, EMState, GetDPSolver, Rect, coil_conductor_mesh
 from pulseform.solvers.getdp.conductivity import ConductivityTable, LinearResistivity
-from pulseform.solvers.getdp.mesh import OUTER, SHELL, conductor_tag
+from pulseform.solvers.getdp.mesh import conductor_tag
 from pulseform.solvers.getdp.persistent import PersistentGetDPSolver
 from pulseform.solvers.getdp.persistent_process import FactorReuse
 
 from getdp_testlib import needs_getdp
+from test_persistent import Bulge   # the bulging disk, the air following harmonically
 
 pytestmark = [pytest.mark.getdp, needs_getdp]
 
@@ -45,25 +45,6 @@ TIMES = np.cumsum(np.where(np.arange(10) % 5 == 3, 0.37e-6, np.where(np.arange(1
 def _mesh():
     return coil_conductor_mesh([TURNS], [DISK], r_domain=0.15, r_shell=0.1875, h_fine=2e-3, h_coarse=3e-2,
                                h_conductor=1e-3)
-
-
-class Bulge:
-    """The disk bulges, u_z = 1 mm (t / 6 us)^2 (1 - (r / 50 mm)^2), the air follows harmonically."""
-
-    def __init__(self, mesh):
-        self.mesh, self.x0 = mesh, mesh.points.copy()
-        tri = mesh.triangles
-        self.disk = np.unique(tri[mesh.tri_tags == conductor_tag(1)])
-        fixed = np.unique(np.concatenate([tri[(mesh.tri_tags == 101) | (mesh.tri_tags == SHELL)].ravel(),
-                                          mesh.lines[mesh.line_tags == OUTER].ravel(), self.disk]))
-        axis = np.unique(mesh.lines[mesh.line_tags == 11].ravel())
-        self.mover = MeshMover(self.x0, tri, (np.union1d(fixed, axis), fixed))
-
-    def __call__(self, t):
-        u = np.zeros_like(self.x0)
-        r = self.x0[self.disk, 0]
-        u[self.disk, 1] = 1e-3 * (t / 6e-6) ** 2 * np.clip(1 - (r / 0.05) ** 2, 0, None)
-        return self.mesh.with_points(self.mover.moved(u))
 
 
 def _temperatures(mesh, k):
