@@ -74,9 +74,14 @@ _armed = False
 
 
 @contextmanager
-def signals_stop_run() -> Iterator[None]:
+def signals_stop_run(leaving_after_stop: bool = False) -> Iterator[None]:
     """Within the block, SIGINT / SIGTERM request a stop at the next safe point (main thread only;
-    elsewhere a no-op). The previous handlers come back afterwards."""
+    elsewhere a no-op). The previous handlers come back afterwards.
+
+    ``leaving_after_stop`` (a process that exits when its run ends: the CLI, a study's member): after a stop,
+    SIGTERM stays ignored instead: the run has unwound, written its checkpoint and metrics, and the process only
+    leaves with 128 + n; a further SIGTERM (a study's stop to its members, after a Ctrl-C to the process group
+    reached them too) must not turn that exit into a kill (-15)."""
     global _armed
     if threading.current_thread() is not threading.main_thread():
         yield
@@ -92,6 +97,8 @@ def signals_stop_run() -> Iterator[None]:
         yield
     finally:
         _armed = False
+        ignore_term = leaving_after_stop and bool(_pending)
         for s, h in old.items():
-            signal.signal(s, h if h is not None else signal.SIG_DFL)
+            signal.signal(s, signal.SIG_IGN if ignore_term and s == signal.SIGTERM
+                          else (h if h is not None else signal.SIG_DFL))
         _pending.clear()

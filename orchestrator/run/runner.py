@@ -138,7 +138,8 @@ def run_case(case: Case, out: Path, *, force: bool = False, resume: bool = False
     """Run ``case`` and write its results folder ``out``.
 
     With ``native_stderr_to_log`` (the CLI), what C libraries print to descriptor 2 goes to the
-    run's log (:func:`native_stderr_to`).
+    run's log (:func:`native_stderr_to`), and a run stopped by a signal leaves SIGTERM ignored (the process exits
+    next: :func:`~.interrupt.signals_stop_run`).
 
     Returns
     -------
@@ -170,7 +171,7 @@ def run_case(case: Case, out: Path, *, force: bool = False, resume: bool = False
     if results is None:
         results = ResultsFolder(out, resume=True, lock=False)
     try:
-        with interrupt.signals_stop_run(), \
+        with interrupt.signals_stop_run(leaving_after_stop=native_stderr_to_log), \
                 native_stderr_to(results.log_file) if native_stderr_to_log and comm.rank == 0 else _nullcontext():
             return _run_in(case, results, resume=resume, quiet=quiet, comm=comm, filled=filled)
     finally:

@@ -198,3 +198,29 @@ def test_signal_while_drawing_the_pictures(tmp_path, sig):
     assert not (out / "plots" / "deformed_von_mises.png").exists()  # the renderer was stopped
     assert not (out / "plots" / "time_step.png").exists()  # the groups after the signal were skipped
     assert (out / "plots" / "energies.png").is_file()  # the group that was running finished
+
+
+_AFTER_STOP = """
+import os, signal, sys
+from pulseform.orchestrator.run import interrupt
+leaving = sys.argv[1] == "1"
+with interrupt.signals_stop_run(leaving_after_stop=leaving):
+    os.kill(os.getpid(), signal.SIGINT)   # the stop: recorded, honoured at the next safe point
+    try:
+        interrupt.check()
+    except interrupt.StopRequested as exc:
+        print("stopped", exc.signum, flush=True)
+os.kill(os.getpid(), signal.SIGTERM)       # a study's SIGTERM reaching the member on its way out
+sys.exit(128 + signal.SIGINT)
+"""
+
+
+@pytest.mark.parametrize("leaving", [True, False], ids=["leaving process", "library use"])
+def test_a_sigterm_after_a_stop_does_not_kill_a_leaving_process(leaving):
+    """The race of a Ctrl-C to a sweep's process group (test_warm's SIGINT case, lost under load): the member stops at
+    a safe point, writes its checkpoint and metrics, and the sweep's SIGTERM reaches it while it leaves. The CLI's run
+    (``leaving_after_stop``) exits 130 as a stopped run; a library caller gets its previous SIGTERM handler back."""
+    done = subprocess.run([sys.executable, "-c", _AFTER_STOP, "1" if leaving else "0"], capture_output=True, text=True,
+                          timeout=120)
+    assert done.stdout.strip() == f"stopped {int(signal.SIGINT)}", done.stderr[-2000:]
+    assert done.returncode == (128 + signal.SIGINT if leaving else -signal.SIGTERM), done.stderr[-2000:]
