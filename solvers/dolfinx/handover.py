@@ -73,4 +73,4 @@ def carry_state(source, dest, velocities: str = "kept", bodies=None, clock: bool
         dest.time = float(source.time)
         dest.step_count = int(source.step_count)
     restart(dest)
-    log.info("state handed over at t = %.6g s (step %d), velocities %s", dest.time, dest.step_count, velocities)
+    log.debug("state handed over at t = %.6g s (step %d), velocities %s", dest.time, dest.step_count, velocities)
