@@ -27,6 +27,8 @@ from .parts import (Box, BodyTable, ContactPair, EndStopTable, FixedBoundary, Po
                     Vec, Vec2, rigid_moves, validate_rigid)
 from .rigid_steps import check_rigid_time_scale
 from .schema import SchemaError, spec
+from .springback import SpringbackTable
+from .stages import StageTable, check_implicit_reach, check_stages
 from .solid3d import SolidBox, SolidCylinder, SymmetryPlane, validate_dimension
 
 __all__ = ["Box", "Rectangle", "Polygon", "SolidBox", "SolidCylinder", "SymmetryPlane", "Shape", "CowperSymondsTable", "JohnsonCookTable", "FormingLimitTable", "MaterialTable", "FixedBoundary",
@@ -234,25 +236,6 @@ class Output:
 
 
 @dataclass(frozen=True, kw_only=True)
-class SpringbackTable:
-    """Springback after the run: a static equilibrium with the loads off, from the state at time.end."""
-
-    supports: Literal["kept", "minimal"] = spec(
-        "kept", doc="'kept': the bodies keep their [[bodies.fixed]] boundaries (clamps); 'minimal': they are "
-                    "released onto statically determinate supports that stop rigid motion only (3-2-1 rule). "
-                    "Loads are removed either way")
-    contact: Literal["removed", "kept"] = spec(
-        "removed", doc="'kept': the [[contact]] pairs between released bodies stay (elastic law of eq. (5), friction "
-                       "and viscosity dropped): a press fit's residual contact pressure (springback_contact<i>_* "
-                       "metrics); 'removed': the parts are separated")
-    walls: Literal["removed", "kept"] = spec(
-        "removed", doc="'kept': the [[walls]] stay (a part released inside its die); 'removed': out of the die")
-    steps: int = spec(1, unit="-", ge=1, le=1000, doc="static steps over which the internal forces left "
-                                                       "unbalanced by the removed loads and supports are released")
-    bodies: tuple[str, ...] = spec((), doc="the bodies that spring back (default: every deformable body)")
-
-
-@dataclass(frozen=True, kw_only=True)
 class Limits:
     """Guards against runs that would exhaust the machine (orchestrator/case/guards.py says how they are estimated)."""
 
@@ -290,6 +273,8 @@ class Case:
     analysis: tuple[str, ...] = spec((), doc="case-specific analyses (extra history columns, metrics, plots)")
     springback: SpringbackTable | None = spec(None, doc="[springback] after the run (fields/springback/<name>_<body>, "
                                               "<body>_springback_* metrics; docs/mechanics.md)")
+    stages: tuple[StageTable, ...] = spec((), doc="[[stages]] a chained run: quasi-static preform, pulses, springbacks "
+                                          "on one time axis, one history (docs/guide/case-files.md)")
     limits: Limits = spec(Limits(), doc="[limits] resource guards")
 
     def validate(self, path: str) -> None:
@@ -320,6 +305,7 @@ class Case:
                 raise SchemaError(f"loads[{i}].body", f"got {ld.body!r}; allowed: {_choices(names)}")
         self._validate_coupled()
         self._validate_integrator()
+        check_stages(self)
         if self.springback is not None:
             for i, n in enumerate(self.springback.bodies):
                 if n not in names or self.body(n).rigid:
@@ -422,19 +408,9 @@ class Case:
             raise SchemaError("bodies", "each geometry region may be used by one body only")
 
     def _validate_integrator(self) -> None:
-        """The implicit integrator's present reach: deformable bodies; contact pairs with the elastic law of eq. (5)
-        only (no friction or viscosity), rigid walls."""
-        if self.mechanics.integrator != "implicit":
-            return
-        for i, c in enumerate(self.contact):
-            for key in ("friction", "viscosity"):
-                if getattr(c, key) > 0:
-                    raise SchemaError(f"contact[{i}].{key}", f"got {getattr(c, key)!r}; the implicit integrator has "
-                                      "the elastic law of eq. (5) only: set 0 or use mechanics.integrator = 'explicit'")
-        for i, b in enumerate(self.bodies):
-            if b.rigid:
-                raise SchemaError(f"bodies[{i}].rigid", "rigid bodies run with the explicit integrator only (for now); "
-                                  "use mechanics.integrator = 'explicit'")
+        """The implicit integrator's present reach (:func:`.stages.check_implicit_reach`)."""
+        if self.mechanics.integrator == "implicit":
+            check_implicit_reach(self)
 
     def rigid_moves(self, b: BodyTable) -> tuple[int, ...]:
         """The free translation components of rigid body ``b`` (see :func:`.parts.rigid_moves`)."""

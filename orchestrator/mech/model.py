@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import logging
+from dataclasses import replace
 
 from mpi4py import MPI
 
 from pulseform.solvers import dolfinx as mech
-from pulseform.solvers.dolfinx.implicit import ImplicitOptions, ImplicitSolver
+from pulseform.solvers.dolfinx.implicit import ImplicitOptions, ImplicitSolver, ImplicitSolver3D
 
 from ..case.flow import FlowCurveTable, LudwikTable, SwiftTable, TableFlowTable, VoceTable
 from ..case.model import Case, CowperSymondsTable, MaterialTable
@@ -55,7 +56,8 @@ def solver_material(m: MaterialTable) -> "mech.Material":
 def implicit_options(case: Case) -> ImplicitOptions:
     """The case's ``[mechanics.implicit]`` table -> the implicit solver's options (alpha only for 'hht'). A coupled
     case without ``coupling.iterate`` gets a warning: its staggered loop gains energy when the implicit step is not
-    small against the parts' periods (docs/mechanics.md, *Coupled runs*)."""
+    small against the parts' periods (docs/mechanics.md, *Coupled runs*). A stage's own step and scheme enter
+    through the case of the stage (:func:`stage_case`)."""
     mo = case.mechanics
     if case.case.kind == "coupled" and not case.coupling.iterate:
         log.warning("implicit mechanics in a coupled run without coupling.iterate: the staggered loop gains energy "
@@ -66,13 +68,56 @@ def implicit_options(case: Case) -> ImplicitOptions:
                            newton_tol=im.newton_tol, newton_max=im.newton_max, max_cuts=im.max_cuts)
 
 
+def stage_case(case: Case, stage) -> Case:
+    """``case`` with the mechanics of a timed ``[[stages]]`` entry: its integrator, its implicit step (``dt``) and,
+    for a ``quasi_static`` stage, the static scheme."""
+    from ..case.stages import stage_integrator
+
+    mo = case.mechanics
+    integrator = stage_integrator(case, stage)
+    implicit = mo.implicit
+    if integrator == "implicit":
+        implicit = replace(implicit, dt=stage.dt or implicit.dt,
+                           scheme="static" if stage.kind == "quasi_static" else implicit.scheme)
+    return replace(case, mechanics=replace(mo, integrator=integrator, implicit=implicit))
+
+
+def rebuild_solver(case: Case, source) -> "mech.ExplicitSolver":
+    """A new solver of ``case``'s mechanics (integrator, implicit options, explicit settings) on the bodies of
+    ``source`` (its meshes, materials and supports), with its contact pairs and walls; in the initial state (carry
+    ``source``'s state over with :func:`pulseform.solvers.dolfinx.handover.carry_state`)."""
+    specs = [b.spec for b in source.bodies.values()]
+    return make_solver(case, specs, source.contact_pairs, source.rigid_walls, source.comm)
+
+
+def make_solver(case: Case, bodies, pairs, walls, comm: MPI.Comm, compiled_steps: bool = True):
+    """The solver of ``case``'s mechanics (2D or 3D, explicit or implicit) over the solver's ``bodies``
+    (:class:`~pulseform.solvers.dolfinx.BodySpec`), contact ``pairs`` and rigid ``walls``."""
+    mo = case.mechanics
+    three = mo.formulation == "3d"
+    if mo.integrator == "implicit":
+        if three:
+            return ImplicitSolver3D(bodies, implicit_options(case), comm=comm, contact_pairs=pairs, rigid_walls=walls)
+        return ImplicitSolver(bodies, implicit_options(case), formulation=mo.formulation, thickness=mo.thickness,
+                              comm=comm, contact_pairs=pairs, rigid_walls=walls)
+    if three:
+        return mech.ExplicitSolver3D(bodies, rigid_walls=walls, contact_pairs=pairs, cfl=case.time.cfl,
+                                     bulk_viscosity=mo.bulk_viscosity, bulk_linear=mo.bulk_viscosity_linear,
+                                     bulk_quadratic=mo.bulk_viscosity_quadratic, comm=comm, threads=mo.threads)
+    return mech.ExplicitSolver(bodies, formulation=mo.formulation, contact_pairs=pairs, rigid_walls=walls,
+                               cfl=case.time.cfl, bulk_viscosity=mo.bulk_viscosity,
+                               bulk_linear=mo.bulk_viscosity_linear, bulk_quadratic=mo.bulk_viscosity_quadratic,
+                               thickness=mo.thickness, comm=comm, compiled_steps=compiled_steps,
+                               threads=mo.threads)
+
+
 def build_solver(case: Case, comm: MPI.Comm = MPI.COMM_WORLD,
                  region_meshes: dict | None = None, compiled_steps: bool = True) -> "mech.ExplicitSolver":
     """Mesh every deformable body (or take its region's mesh, cut from the EM mesh) and build the
     solver (``compiled_steps``: the solver's compiled block path, else its Python step loop; the implicit
     solver when ``mechanics.integrator = "implicit"``); rigid bodies are not the solver's (:mod:`.mixed`)."""
     if case.mechanics.formulation == "3d":  # tetrahedra (mechanics-only cases for now)
-        return build_solver_3d(case, comm, solver_material, implicit_options)
+        return build_solver_3d(case, comm, solver_material, make_solver)
     bodies = []
     for b in case.bodies:
         if b.rigid:
@@ -89,12 +134,4 @@ def build_solver(case: Case, comm: MPI.Comm = MPI.COMM_WORLD,
                   for c in case.contact)
     walls = tuple(mech.RigidWallSpec(point=tuple(w.point), normal=tuple(w.normal),
                                      bodies=tuple(w.bodies) or None, sliding=w.sliding) for w in case.walls)
-    mo = case.mechanics
-    if mo.integrator == "implicit":
-        return ImplicitSolver(bodies, implicit_options(case), formulation=mo.formulation, thickness=mo.thickness,
-                              comm=comm, contact_pairs=pairs, rigid_walls=walls)
-    return mech.ExplicitSolver(bodies, formulation=mo.formulation, contact_pairs=pairs, rigid_walls=walls,
-                               cfl=case.time.cfl, bulk_viscosity=mo.bulk_viscosity,
-                               bulk_linear=mo.bulk_viscosity_linear, bulk_quadratic=mo.bulk_viscosity_quadratic,
-                               thickness=mo.thickness, comm=comm, compiled_steps=compiled_steps,
-                               threads=mo.threads)
+    return make_solver(case, bodies, pairs, walls, comm, compiled_steps)

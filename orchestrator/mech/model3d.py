@@ -11,7 +11,6 @@ import numpy as np
 from mpi4py import MPI
 
 from pulseform.solvers import dolfinx as mech
-from pulseform.solvers.dolfinx.implicit import ImplicitSolver3D
 from pulseform.solvers.dolfinx.solver3d import ExplicitSolver3D
 
 from ..case.model import Case
@@ -32,11 +31,11 @@ def plane_marker(plane: SymmetryPlane, tol: float) -> Callable[[np.ndarray], np.
 
 def build_solver_3d(case: Case, comm: MPI.Comm = MPI.COMM_WORLD,
                     solver_material: Callable | None = None,
-                    implicit_options: Callable | None = None) -> ExplicitSolver3D:
+                    make_solver: Callable | None = None) -> ExplicitSolver3D:
     """Mesh every body with tetrahedra and build the 3D solver: symmetry planes hold the normal
     velocity of the nodes on them at zero (each body's own planes), walls are the case's
-    (``solver_material``: case material table -> solver material; ``implicit_options``: the case
-    -> the implicit solver's options, used when ``mechanics.integrator = "implicit"``)."""
+    (``solver_material``: case material table -> solver material; ``make_solver``: (case, bodies, pairs, walls,
+    comm) -> the explicit or implicit solver, :func:`.model.make_solver`)."""
     bodies = []
     for b in case.bodies:
         mesh = mesh_solid(b.shape, b.mesh_size, comm, name=b.name, time_limit=case.limits.gmsh_time_limit_s)
@@ -55,9 +54,4 @@ def build_solver_3d(case: Case, comm: MPI.Comm = MPI.COMM_WORLD,
     pairs = tuple(mech.ContactPairSpec(slave=c.slave, master=c.master, stiffness=c.stiffness, h0=c.h0,
                                        friction=c.friction, viscosity=c.viscosity, two_pass=c.two_pass)
                   for c in case.contact)
-    mo = case.mechanics
-    if mo.integrator == "implicit":
-        return ImplicitSolver3D(bodies, implicit_options(case), comm=comm, contact_pairs=pairs, rigid_walls=walls)
-    return ExplicitSolver3D(bodies, rigid_walls=walls, contact_pairs=pairs, cfl=case.time.cfl, bulk_viscosity=mo.bulk_viscosity,
-                            bulk_linear=mo.bulk_viscosity_linear, bulk_quadratic=mo.bulk_viscosity_quadratic,
-                            comm=comm, threads=mo.threads)
+    return make_solver(case, bodies, pairs, walls, comm)

@@ -19,7 +19,7 @@ from ..case.model import Case
 
 log = logging.getLogger(__name__)
 
-__all__ = ["run_springback", "contact_metrics"]
+__all__ = ["run_springback", "spring_back", "contact_metrics"]
 
 
 def run_springback(case: Case, solver, fields_prefix: str, analyses: Sequence = ()) -> dict[str, float]:
@@ -48,13 +48,26 @@ def run_springback(case: Case, solver, fields_prefix: str, analyses: Sequence = 
         ``springback_contact<i>_pressure_mean_Pa`` (mean over the slave nodes in contact, 0 if none),
         ``springback_contact<i>_pressure_max_Pa`` and ``springback_contact<i>_closed_nodes``.
     """
-    cfg = case.springback
+    return spring_back(case, solver, Path(fields_prefix).parent / "springback", case.case.name, case.springback,
+                       analyses)[1]
+
+
+def spring_back(case: Case, solver, folder: Path, name: str, cfg, analyses: Sequence = ()) -> tuple:
+    """Spring ``solver``'s bodies back as ``cfg`` (a :class:`~..case.springback.SpringbackTable`: the case's
+    ``[springback]``, or a springback stage's) says, write ``folder/<name>_<body>.xdmf`` and report.
+
+    Returns
+    -------
+    (springback solver, dict)
+        The static solver after springback (its bodies hold the released state) and the metrics of
+        :func:`run_springback`.
+    """
     names = list(cfg.bodies) or list(solver.bodies)
     sb = springback(solver, supports=cfg.supports, steps=cfg.steps, bodies=names, contact=cfg.contact,
                     walls=cfg.walls)
-    folder = Path(fields_prefix).parent / "springback"
+    folder = Path(folder)
     folder.mkdir(exist_ok=True)
-    writer = mech.FieldWriter(sb, str(folder / case.case.name))
+    writer = mech.FieldWriter(sb, str(folder / name))
     try:
         writer.write(solver.time)
     finally:
@@ -82,7 +95,9 @@ def run_springback(case: Case, solver, fields_prefix: str, analyses: Sequence = 
         i = int(np.argmin(np.linalg.norm(b.X0 - point, axis=1)))
         for c in range(b.gdim):
             out[f"{p.name}_springback_{comps[c]}_m"] = float(sb.springback_displacement[p.body][i, c])
-    return out
+    return sb, out
+
+
 
 
 def contact_metrics(sb) -> dict[str, float]:

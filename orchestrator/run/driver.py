@@ -29,7 +29,7 @@ from ..em.time_scale import rigid_mechanical_step
 from ..em.user_deck import build_user_geometry, user_deck_load
 from ..mech import probes as probe_mod
 from ..mech.forming_limit import forming_limit_monitor
-from ..mech.model import build_solver
+from ..mech.model import build_solver, stage_case
 from ..mech.mixed import MixedMechanics, rigid_bodies, rigid_metrics
 from ..mech.participants import DolfinxMechanics, PressurePulses
 from ..mech.rigid import RigidMechanics
@@ -49,9 +49,11 @@ from .shots import ShotSequence
 from .temperature import MeltingReached, check_melting, melting_limits
 from .history import History
 from .impulse import impulse_metrics
+from .mech_metrics import mech_metrics
 from .output_times import default_interval, fixed_em_step, landing_note, milestones
 from .progress import Progress
 from .participants3d import participants_3d
+from .stages import StagedRun
 from .results import ResultsFolder
 
 log = logging.getLogger(__name__)
@@ -89,14 +91,18 @@ class CaseDriver:
         self.rigid: RigidMechanics | None = None  # the rigid bodies (coupled cases), None without
         # a coupled 3D case: any 3D geometry file (run/participants3d.py), its first body's EM fields in fields/em3d
         self.three_d = case.case.kind == "coupled" and case.mechanics.formulation == "3d"
+        self.staged: StagedRun | None = None
+        built = case
+        if case.stages:  # the solver of the first timed stage (its integrator); the stages hand the state on
+            built = stage_case(case, next(s for s in case.stages if s.kind != "springback"))
         if self.three_d:
             self.solver, self.rigid, load, options, _ = participants_3d(case, results.root / "em")
         elif case.case.kind == "coupled":
-            self.solver, load, self.rigid = _coupled_participants(case, results, comm, em_geometry)
+            self.solver, load, self.rigid = _coupled_participants(built, results, comm, em_geometry)
             options = LoopOptions.from_coupling(cp)
         else:
             # the explicit mechanics alone has no step-ratio limit: full steps, one shorter step at a milestone
-            self.solver, options = build_solver(case, comm), LoopOptions(n=1, n_max=1, landing="last",
+            self.solver, options = build_solver(built, comm), LoopOptions(n=1, n_max=1, landing="last",
                                                                        block=case.output.history_every)
             load = _pressure_pulses(case)
         deformable = DolfinxMechanics(self.solver) if self.solver is not None else None
@@ -124,15 +130,26 @@ class CaseDriver:
         self.stops = milestones(case.time.end, interval)
         self.shots = ShotSequence.of_case(case)  # em.shots: the window time.end again after cooling pauses, or None
         self.landing_note = landing_note(self.stops, self.em_step)  # said at the start of run()
+        if case.stages:
+            self.staged = StagedRun(self)
+
+    def set_solver(self, solver) -> None:
+        """Make ``solver`` (on the same bodies) the run's mechanics: a stage's own (:mod:`.stages`)."""
+        self.solver = solver
+        self.mechanics = DolfinxMechanics(solver)
+        self.loop.mech = self.mechanics
+        if self.flc is not None:
+            self.flc.solver = solver
 
     # ----------------------------------------------------------------- records
     def record(self, step_row: dict[str, float] | None = None) -> None:
         """Append the current state to the history."""
         s, m = self.solver, self.mechanics
-        row = {"time_s": m.time, "step": float(m.step_count),
+        row = {"time_s": m.time} if self.staged is None else {"time_s": m.time, "stage": self.staged.number}
+        row.update({"step": float(m.step_count),
                "dt_s": step_row["dt_s"] if step_row else 0.0,
                "substeps": step_row.get("substeps", 0.0) if step_row else 0.0,
-               "iterations": step_row.get("iterations", 0.0) if step_row else 0.0}
+               "iterations": step_row.get("iterations", 0.0) if step_row else 0.0})
         row.update({f"energy_{k}": float(v) for k, v in self.energies().items()})
         if s is not None:
             row.update(probe_mod.sample(s, self.probes, self.comm))
@@ -150,6 +167,8 @@ class CaseDriver:
     def energies(self) -> dict[str, float]:
         """The run's energy ledger (J): the explicit solver's, with the rigid bodies' added."""
         e = self.solver.energies() if self.solver is not None else None
+        if self.staged is not None:  # the earlier stages' totals
+            return self.staged.ledger(e)
         return e if self.rigid is None else self.mechanics.energies(e)
 
     def initial_row(self) -> dict[str, float]:
@@ -203,6 +222,8 @@ class CaseDriver:
                 "wall_time_s": self.wall_before_s + _time.perf_counter() - self.wall_start}
         if self.shots is not None:
             meta["shots"] = self.shots.state(self.load)
+        if self.staged is not None:
+            meta["stages"] = self.staged.state()
         save_checkpoint(self.results.root / self._rank_file(), arrays, meta)
         if self.comm.rank == 0:
             self.history.flush()
@@ -219,6 +240,8 @@ class CaseDriver:
         for name, a in zip(self.analysis_names, self.analyses):
             pre = [f"analysis/{name}/", f"solver/analysis/{name}/"]
             a.load_state_dict({k[len(p):]: v for k, v in arrays.items() for p in pre if k.startswith(p)})
+        if self.staged is not None:  # the solver of the stage that wrote the checkpoint
+            self.staged.before_restore(meta.get("stages"))
         self.mechanics.load_state_dict({k[7:]: v for k, v in arrays.items()
                                         if k.startswith("solver/") and not k.startswith("solver/analysis/")})
         self.loop.counters.load_state_dict({k[5:]: v for k, v in arrays.items() if k.startswith("loop/")})
@@ -255,7 +278,10 @@ class CaseDriver:
 
     # ----------------------------------------------------------------- loop
     def run(self, quiet: bool) -> MechanicsRun:
-        """Integrate to ``time.end``; fields, history and checkpoint at every milestone."""
+        """Integrate to ``time.end``; fields, history and checkpoint at every milestone (a case with ``[[stages]]``:
+        :meth:`.stages.StagedRun.run`)."""
+        if self.staged is not None:
+            return self.staged.run(quiet)
         s, case = self.mechanics, self.case
         # elements coarse for the skin depth: a warning on the console (run.log only with --quiet, where a
         # failing run must stay one line), and the run goes on
@@ -330,6 +356,20 @@ class CaseDriver:
             writer.close()
             if sys.exc_info()[0] is not None:
                 self.load.close()  # a failed or interrupted run ends its persistent getdp too
+        metrics = self.run_metrics()
+        metrics.update(run_springback(case, self.solver, str(prefix), self.analyses)
+                       if case.springback and self.solver else {})
+        self.load.close()  # old getdp run folders are deleted in the background: wait for them
+        return self.finish(metrics)
+
+    def finish(self, metrics: dict[str, float]) -> MechanicsRun:
+        """What the run hands back to the runner, with its ``metrics``."""
+        return MechanicsRun(self.solver, self.history, metrics, self.shapes, self.analyses, self.wall_before_s)
+
+    def run_metrics(self) -> dict[str, float]:
+        """The metrics of the run's end: steps and times, impulse, the mechanics' scalars, the load's, the rigid
+        bodies', the analyses' and the shots'."""
+        s, case = self.mechanics, self.case
         c = self.loop.counters
         log.info("mechanics: %d steps to t = %.4g s in %.2f s", s.step_count, s.time, c.mech_time_s)
         metrics = {"mech_steps": float(s.step_count), "em_steps": float(c.em_steps), "n_final": float(c.n),
@@ -350,10 +390,7 @@ class CaseDriver:
             metrics.update(a.metrics(self.solver, self.history))
         if self.shots is not None:
             metrics.update(self.shots.metrics())
-        metrics.update(run_springback(case, self.solver, str(prefix), self.analyses)
-                       if case.springback and self.solver else {})
-        self.load.close()  # old getdp run folders are deleted in the background: wait for them
-        return MechanicsRun(self.solver, self.history, metrics, self.shapes, self.analyses, self.wall_before_s)
+        return metrics
 
 
 
@@ -444,57 +481,3 @@ def run_case_loop(case: Case, results: ResultsFolder, *, quiet: bool = False, re
     if resume:
         driver.restore()
     return driver.run(quiet)
-
-
-def energy_scale(history: History, e: dict[str, float]) -> float:
-    """The energy (J) ``energy_error_rel`` is relative to: the largest of the initial kinetic energy and the
-    external work over the run (``history``'s column, ``e`` the ledger at the end; the same as the work at the
-    end while the loads only put energy in). Not the external work at the end alone: under an AC force the
-    loads take back what they put in, the net work of a body in a converged periodic motion is near zero and
-    any residual divided by it read as ~100 % (issue 32)."""
-    w = history.column("energy_external_work_J") if "energy_external_work_J" in history.columns else np.zeros(0)
-    largest = float(np.abs(w).max()) if len(w) else 0.0
-    return max(history.column("energy_kinetic_J")[0], abs(e.get("external_work_J", 0.0)), largest, 1e-300)
-
-
-def mech_metrics(solver, case: Case, history: History, e: dict[str, float]) -> dict[str, float]:
-    """Scalars every mechanics run reports: energy balance (``e``: the run's energy ledger, J), peak
-    stresses, contact figures; the rigid bodies' travel, speed and force (:func:`rigid_metrics`)."""
-    out = {
-        "energy_error_rel": abs(e["balance_error_J"]) / energy_scale(history, e),
-        "kinetic_energy_final_J": e["kinetic_J"],
-    }
-    if "plastic_J" in e:  # deformable bodies
-        out["plastic_work_J"] = e["plastic_J"]
-    if solver is None:
-        return out
-    local = max((float(np.max(b.von_mises)) for b in solver.bodies.values() if len(b.von_mises)), default=0.0)
-    out["von_mises_final_max_MPa"] = solver.comm.allreduce(local, op=MPI.MAX) / 1e6
-    for b in case.bodies:
-        if b.rigid:
-            continue
-        out[f"{b.name}_max_ux_mm"] = float(history.column(f"{b.name}_max_ux_m").max()) * 1e3
-        out[f"{b.name}_max_uy_mm"] = float(history.column(f"{b.name}_max_uy_m").max()) * 1e3
-        for c in ("z", "r"):   # 3D bodies: the z and radial (about the z-axis) displacements too
-            if f"{b.name}_max_u{c}_m" in history.columns:
-                out[f"{b.name}_max_u{c}_mm"] = float(history.column(f"{b.name}_max_u{c}_m").max()) * 1e3
-        out[f"{b.name}_max_speed_m_s"] = float(history.column(f"{b.name}_max_speed_m_s").max())
-        out[f"{b.name}_max_von_mises_MPa"] = float(history.column(f"{b.name}_max_von_mises_Pa").max()) / 1e6
-        for q in ("max", "mean"):   # a body that carries a temperature: its largest cell and mean at the end
-            if f"{b.name}_temperature_{q}_K" in history.columns:
-                out[f"{b.name}_temperature_{q}_final_K"] = float(history.column(f"{b.name}_temperature_{q}_K")[-1])
-        if b.region == "workpiece" and case.geometry is not None:
-            if case.geometry.type == "flat_coil_sheet":  # the axial displacement: z in 3D, y in r-z
-                out["max_deflection_mm"] = out.get(f"{b.name}_max_uz_mm", out[f"{b.name}_max_uy_mm"])
-            elif case.geometry.type == "solenoid_tube":
-                out["max_radial_displacement_mm"] = out[f"{b.name}_max_ux_mm"]
-    for p in case.probes:
-        if p.quantity in ("contact_pressure", "wall_pressure"):
-            t = history.column("time_s")
-            s = history.column(f"{p.name}_{p.quantity}_Pa")
-            try:
-                out.update(mech.contact_stress_metrics(t, s))
-            except ValueError as exc:  # no contact, or not ended: say so in the log, report what is known
-                log.warning("contact metrics of probe %s: %s", p.name, exc)
-            break
-    return out

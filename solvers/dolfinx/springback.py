@@ -178,6 +178,7 @@ def springback(source, supports: str = "kept", steps: int = 1, newton_tol: float
         dst.x[...] = src.x
         dst.cell_stress[...] = src.cell_stress
         dst.eps_p[...] = src.eps_p
+        dst.temperature[...] = src.temperature
     sb.time = float(source.time)
     sb._restart_from_state()
     start = {n: sb.bodies[n].x.copy() for n in names}
