@@ -478,10 +478,6 @@ def _check_temperature_em(case: "Case") -> None:
         if em.shots is not None:
             raise SchemaError("em.shots", "repeated shots are 2D only for now (planar or axisymmetric): remove "
                                           "[em.shots] for a 3d case")
-        if curves and em.getdp_process == "persistent":
-            raise SchemaError("em.getdp_process", f"got 'persistent'; a conductivity that follows temperature "
-                                                  f"({curves[0]}) runs getdp per step in 3D: set getdp_process = "
-                                                  "'auto' or 'per_step'")
     if case.geometry.type == "user_deck":
         raise SchemaError(keys[0], "needs the built-in GetDP deck (a user_deck geometry has its own conductivities)")
     if em.shots is not None and any(b.rigid for b in case.bodies):

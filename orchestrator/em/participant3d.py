@@ -110,7 +110,7 @@ class GetDPLoad3D(LoadCapabilities):
         The EM time scheme.
     getdp_process : {"auto", "persistent", "per_step"}
         One persistent getdp for the run (BDF2 only) or a getdp process per EM step; ``"auto"``:
-        persistent with BDF2, per step with implicit Euler, a B-H curve or a σ(T) law.
+        persistent with BDF2, per step with implicit Euler.
     getdp_timeout : float or None
         Wall-time limit of each getdp answer (persistent) or run (per step), s; None: the runner's default.
     factor_reuse : FactorReuse
@@ -130,8 +130,7 @@ class GetDPLoad3D(LoadCapabilities):
             raise ValueError(f"getdp_process is 'auto', 'persistent' or 'per_step', got {getdp_process!r}")
         if getdp_process == "persistent" and time_scheme != "bdf2":
             raise ValueError("the persistent getdp implements time_scheme='bdf2' only")
-        self.persistent = getdp_process == "persistent" or (getdp_process == "auto" and time_scheme == "bdf2"
-                                                              and not model.has_conductivity_laws)   # σ(T): per step
+        self.persistent = getdp_process == "persistent" or (getdp_process == "auto" and time_scheme == "bdf2")
         stepper = PersistentEM3DStepper if self.persistent else EM3DStepper
         self.stepper = stepper(model, self.work_dir, time_scheme=time_scheme, timeout=getdp_timeout,
                                **({"factor_reuse": factor_reuse} if self.persistent else {}))
@@ -394,6 +393,8 @@ class GetDPLoad3D(LoadCapabilities):
         if st.factors is not None:   # the kept factors a resumed process rebuilds (FactorRecord)
             out.update({"factor_points": st.factors.points, "factor_dtime": np.float64(st.factors.dtime),
                         "factor_current": st.factors.current})
+            if st.factors.sigma is not None:   # σ(T): the conductivities the factors were made with
+                out["factor_sigma"] = np.asarray(st.factors.sigma, dtype=float)
         return out
 
     def load_state_dict(self, state: dict[str, np.ndarray]) -> None:
@@ -423,7 +424,8 @@ class GetDPLoad3D(LoadCapabilities):
                                circuit_prev=None if circ_prev is None else (float(circ_prev[0]), float(circ_prev[1])),
                                dt_prev=float(state["dt_prev"]), force_density=opt("force_density"), steps=steps,
                                factors=FactorRecord(opt("factor_points"), float(state["factor_dtime"]),
-                                                    opt("factor_current")) if "factor_points" in state else None,
+                                                    opt("factor_current"), opt("factor_sigma"))
+                               if "factor_points" in state else None,
                                x_older=tuple(opt(f"x_older_{i}") for i in range(2) if f"x_older_{i}" in state),
                                **{k: opt(k).tolist() for k in ("coil_heat", "coil_power", "coil_sigma") if k in state},
                                timers=dict(zip(self.state.timers, timers[len(self.timers):])))
