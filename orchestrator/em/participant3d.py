@@ -397,6 +397,7 @@ class GetDPLoad3D(LoadCapabilities):
         begin_model_shot(self.model, voltage, coil_temperature)
         self.state = replace(self.stepper.initial_state(), t=float(t0))
         self._moved = None
+        self.coil_heat = 0.0   # the history's coil_joule_heat_J counts from the shot's start (as in 2D)
         for old in self._runs:   # the last shot's per-step runs (their step numbers start again)
             discard_folder(old)
         self._runs = []
