@@ -65,8 +65,8 @@ class EM:
     coil_conductivity_curve: ConductivityCurve | None = spec(
         None, doc="[em.coil_conductivity_curve] σ(T) of the coil in place of the constant coil_conductivity: "
                   "type = 'table' or 'linear_resistivity' (σ_ref = coil_conductivity); the coil is one lumped body "
-                  "heated adiabatically during a shot, its resistance follows its temperature every EM step (2D, "
-                  "and 3D on getdp per step; docs/guide/em.md)")
+                  "heated adiabatically during a shot, its resistance follows its temperature every EM step (2D "
+                  "and 3D, on either getdp; docs/guide/em.md)")
     coil_initial_temperature: float = spec(293.15, unit="K", gt=0.0, doc="the coil's temperature at the start "
                                                                          "(its σ(T); shots: cooled towards ambient)")
     shots: Shots | None = spec(None, doc="[em.shots] repeated discharges with cooling between them (count, pause, "

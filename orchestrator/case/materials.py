@@ -62,7 +62,7 @@ class MaterialTable:
         None, doc="[materials.<name>.conductivity_curve] σ(T) of a conductor body in place of the constant "
                   "electrical_conductivity: type = 'table' (temperatures, conductivities) or 'linear_resistivity' "
                   "(ρ = ρ_ref (1 + α (T − T_ref))); GetDP gets σ per element from the cells' temperatures every EM "
-                  "step (needs specific_heat; 2D, and 3D on getdp per step; docs/guide/em.md)")
+                  "step (needs specific_heat; 2D and 3D, on either getdp; docs/guide/em.md)")
     relative_permeability: float = spec(
         1.0, unit="-", gt=0.0, le=1e6, doc="μ_r of the material's EM regions (conductor bodies, 2D and 3D), constant; "
                                            "1: vacuum (the default)")

@@ -440,8 +440,8 @@ def _choices(names) -> str:
 
 
 def _check_temperature_em(case: "Case") -> None:
-    """A conductivity that follows temperature and repeated shots: on the built-in deck, in 3D per step and without
-    shots (one line naming the key otherwise)."""
+    """A conductivity that follows temperature and repeated shots: on the built-in deck, shots with deformable bodies
+    only (one line naming the key otherwise)."""
     em = case.em
     curves = [f"materials.{b.material}.conductivity_curve" for b in case.bodies
               if case.materials[b.material].conductivity_curve is not None]
@@ -450,14 +450,6 @@ def _check_temperature_em(case: "Case") -> None:
     keys = curves + (["em.shots"] if em.shots is not None else [])
     if not keys:
         return
-    if case.mechanics.formulation == "3d":
-        if em.shots is not None:
-            raise SchemaError("em.shots", "repeated shots are 2D only for now (planar or axisymmetric): remove "
-                                          "[em.shots] for a 3d case")
-        if curves and em.getdp_process == "persistent":
-            raise SchemaError("em.getdp_process", f"got 'persistent'; a conductivity that follows temperature "
-                                                  f"({curves[0]}) runs getdp per step in 3D: set getdp_process = "
-                                                  "'auto' or 'per_step'")
     if case.geometry.type == "user_deck":
         raise SchemaError(keys[0], "needs the built-in GetDP deck (a user_deck geometry has its own conductivities)")
     if em.shots is not None and any(b.rigid for b in case.bodies):

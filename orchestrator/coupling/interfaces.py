@@ -164,6 +164,9 @@ class LoadCapabilities:
     columns: tuple[str, ...] = ("force_x_N", "force_y_N")
     #: the provider has EM fields to write (:meth:`snapshot`, :meth:`request_fields`, :meth:`take_peak_snapshot`)
     em_fields: bool = False
+    #: the model's symmetry planes (3D: :class:`~pulseform.orchestrator.mesh.geometry3d.PlaneSpec`), whose faces are
+    #: no outer surface (the cooling between repeated shots, :mod:`pulseform.orchestrator.run.shots`); none in 2D
+    symmetry_planes: tuple = ()
 
     def initial(self, mechanics: Mechanics) -> LoadStep | None:
         """The load at t = 0 (see :meth:`LoadProvider.initial`); None: the history's first row gets zeros."""

@@ -49,6 +49,7 @@ from ..mesh.remesh import remesh_around
 from ..mesh.triangles import region_surface
 from ..mesh.shared import ConductorBody, ConductorMesh  # noqa: F401  (ConductorBody: the participant's API)
 from .joule_heat import JouleHeat, element_temperatures
+from .shot_model import begin_model_shot, load_model_shot_state, model_shot_state
 from .snapshots import EMSnapshots
 from .solver import make_em_solver
 
@@ -400,29 +401,18 @@ class GetDPLoad(EMSnapshots, LoadCapabilities):
     def begin_shot(self, t0: float, voltage: float, coil_temperature: np.ndarray) -> None:
         """Start a new discharge at ``t0`` (s): the EM state at rest, the bank charged to ``voltage`` (V), the coils
         at ``coil_temperature`` (K; their Joule heat counts from here)."""
-        m = self.solver.model
-        if m.circuit is None:
-            raise ValueError("a new shot needs a capacitor bank")
-        m.circuit.V0 = float(voltage)
-        for c, temp in zip(m.coils, np.asarray(coil_temperature, float)):
-            c.initial_temperature = float(temp)
+        begin_model_shot(self.solver.model, voltage, coil_temperature)
         self.state = self.solver.initial_state(t0)
         self._moved = None
         self._rise = []
 
     def shot_state(self) -> dict:
         """What a checkpoint keeps of the current shot: the bank's voltage and the coils' start temperatures."""
-        m = self.solver.model
-        return {"v0": m.circuit.V0 if m.circuit is not None else 0.0,
-                "coil_t0": [c.initial_temperature for c in m.coils]}
+        return model_shot_state(self.solver.model)
 
     def load_shot_state(self, d: dict) -> None:
         """Restore :meth:`shot_state`."""
-        m = self.solver.model
-        if m.circuit is not None:
-            m.circuit.V0 = float(d["v0"])
-        for c, temp in zip(m.coils, d["coil_t0"]):
-            c.initial_temperature = float(temp)
+        load_model_shot_state(self.solver.model, d)
 
     def close(self) -> None:
         """End a persistent getdp and wait until the old run folders are deleted (call once the run is

@@ -43,9 +43,10 @@ from pathlib import Path
 
 import numpy as np
 
+from pulseform.solvers.getdp.conductivity import coil_mass_cp, coil_temperature
 from pulseform.solvers.getdp.files import discard_folder
 from pulseform.solvers.getdp.magnetic_force import model_magnetisation_forces, no_surface
-from pulseform.solvers.getdp.mesh import CONDUCTOR_BASE
+from pulseform.solvers.getdp.mesh import CONDUCTOR_BASE, coil_tag
 from pulseform.solvers.getdp.mesh3d import Mesh3D
 from pulseform.solvers.getdp.persistent3d import PersistentEM3DStepper
 from pulseform.solvers.getdp.persistent_process import FactorReuse
@@ -54,15 +55,18 @@ from pulseform.solvers.getdp.stepper3d import EM3DState, EM3DStepper, FactorReco
 
 from ..coupling.interfaces import LoadCapabilities, LoadStep
 from ..coupling.transfer3d import tet_force_integral, tet_nodal_forces
+from ..mesh.geometry3d import boundary_faces, outer_area
 from ..mesh.motion3d import MeshMover3D
 from ..mesh.shared3d import ConductorMesh3D
 from .joule_heat import JouleHeat, element_temperatures
+from .shot_model import begin_model_shot, load_model_shot_state, model_shot_state
 
 log = logging.getLogger(__name__)
 
 #: history columns of the 3D GetDP load (sector values unless ``device_``)
 LOAD_COLUMNS_3D = ("force_x_N", "force_y_N", "force_z_N", "conservation_error_rel", "coil_current_A",
-                   "coil_current_abs_max_A", "capacitor_voltage_V", "coil_joule_heat_J", "magnetic_energy_J",
+                   "coil_current_abs_max_A", "capacitor_voltage_V", "coil_joule_heat_J", "coil_temperature_rise_K",
+                   "magnetic_energy_J",
                    "workpiece_joule_power_W", "getdp_force_z_N", "device_force_z_N", "device_impulse_z_Ns",
                    "em_mesh_min_quality", "em_factorisations", "em_corrections")
 #: per-body history columns (prefixed ``<name>_``) of a load with several bodies
@@ -110,7 +114,7 @@ class GetDPLoad3D(LoadCapabilities):
         The EM time scheme.
     getdp_process : {"auto", "persistent", "per_step"}
         One persistent getdp for the run (BDF2 only) or a getdp process per EM step; ``"auto"``:
-        persistent with BDF2, per step with implicit Euler, a B-H curve or a σ(T) law.
+        persistent with BDF2, per step with implicit Euler.
     getdp_timeout : float or None
         Wall-time limit of each getdp answer (persistent) or run (per step), s; None: the runner's default.
     factor_reuse : FactorReuse
@@ -130,8 +134,7 @@ class GetDPLoad3D(LoadCapabilities):
             raise ValueError(f"getdp_process is 'auto', 'persistent' or 'per_step', got {getdp_process!r}")
         if getdp_process == "persistent" and time_scheme != "bdf2":
             raise ValueError("the persistent getdp implements time_scheme='bdf2' only")
-        self.persistent = getdp_process == "persistent" or (getdp_process == "auto" and time_scheme == "bdf2"
-                                                              and not model.has_conductivity_laws)   # σ(T): per step
+        self.persistent = getdp_process == "persistent" or (getdp_process == "auto" and time_scheme == "bdf2")
         stepper = PersistentEM3DStepper if self.persistent else EM3DStepper
         self.stepper = stepper(model, self.work_dir, time_scheme=time_scheme, timeout=getdp_timeout,
                                **({"factor_reuse": factor_reuse} if self.persistent else {}))
@@ -143,7 +146,7 @@ class GetDPLoad3D(LoadCapabilities):
         self.coil_names = [c.name or f"coil_{k}" for k, c in enumerate(model.coils, start=1)] \
             if len(model.coils) > 1 else []
         self.columns = tuple(self.columns) + tuple(f"{n}_{q}" for n in self.coil_names
-                                                   for q in ("current_A", "joule_power_W")) \
+                                                   for q in ("current_A", "joule_power_W", "temperature_rise_K")) \
             + (("em_newton_iterations",) if model.is_nonlinear else ())
         self.min_quality = float(mover.q_ref.min())
         self._moved: tuple[float, np.ndarray] | None = None
@@ -244,9 +247,12 @@ class GetDPLoad3D(LoadCapabilities):
                   **self._solve_counts(), **per_body}
         if result.newton_iterations:   # a B–H curve: the linear solves of the step (first + Newton's)
             values["em_newton_iterations"] = float(max(result.newton_iterations))
-        for k, name in enumerate(self.coil_names):   # several coils: each one's current and power (whole device)
+        rise = self.coil_temperatures() - np.array([c.initial_temperature for c in self.model.coils])
+        values["coil_temperature_rise_K"] = float(rise[0]) if len(rise) else 0.0
+        for k, name in enumerate(self.coil_names):   # several coils: each one's current, power (whole device), rise
             values[f"{name}_current_A"] = float(result.coil_current[-1, k])
             values[f"{name}_joule_power_W"] = s * float(result.coil_power[-1, k])
+            values[f"{name}_temperature_rise_K"] = float(rise[k])
         heat = self.joule.heat(mechanics, self.bodies, result, self.mesh.tets, t1 - t0)
         self.last = (x_em, result)   # the moved nodes and GetDP's result of the last step
         self._last_step, self._last_snapshot = (t1, current, x_em, result), None
@@ -325,7 +331,8 @@ class GetDPLoad3D(LoadCapabilities):
     def initial(self, mechanics) -> LoadStep:
         """The load at t = 0: no force, the bank charged to V0 (the history's first row)."""
         c = self.model.circuit
-        return LoadStep({}, None, {"capacitor_voltage_V": float(c.V0) if c is not None else 0.0})
+        return LoadStep({}, None, {"capacitor_voltage_V": float(c.V0) if c is not None else 0.0,
+                                   "coil_temperature_rise_K": 0.0})
 
     def snapshot(self) -> tuple | None:
         """(sheet node positions m, tetrahedra, cell data) at the end of the last EM step, None before."""
@@ -351,6 +358,7 @@ class GetDPLoad3D(LoadCapabilities):
                 "coil_current_peak_kA": float(np.abs(history.column("coil_current_abs_max_A")).max()) / 1e3,
                 "force_peak_N": float(np.abs(history.column("device_force_z_N")).max()),
                 "coil_joule_heat_J": self.coil_heat, "conservation_error_rel": float(counters.ledger_max),
+                "coil_temperature_rise_K": float(history.column("coil_temperature_rise_K")[-1]),
                 "em_time_s": float(counters.em_time_s), "em_min_quality": self.min_quality,
                 "symmetry_factor": float(self.model.symmetry_factor),
                 "em_tets": float(self.mesh.n_tets), "em_nodes": float(self.mesh.n_nodes),
@@ -369,6 +377,38 @@ class GetDPLoad3D(LoadCapabilities):
         for old in self._runs[:-2]:
             discard_folder(old)
         self._runs = self._runs[-2:]
+
+    # ------------------------------------------------------------------ repeated shots (run/shots.py)
+    def coil_temperatures(self) -> np.ndarray:
+        """The coils' lumped temperatures now (K): their initial temperature + the sector's Joule heat / the
+        sector's m c_p (:func:`~pulseform.solvers.getdp.conductivity.coil_temperature`)."""
+        return coil_temperature(self.model, self.mesh, self.state)
+
+    def coil_heat_paths(self) -> tuple[np.ndarray, np.ndarray]:
+        """(outer surface m², m c_p J/K) of every coil, the modelled sector's (the faces on the symmetry planes left
+        out), for their cooling between shots."""
+        area = np.array([outer_area(self.mesh.points, boundary_faces(self.mesh.tets, self.mesh.tet_tags == coil_tag(k)),
+                                    self.symmetry_planes) for k in range(1, len(self.model.coils) + 1)])
+        return area, coil_mass_cp(self.model, self.mesh)
+
+    def begin_shot(self, t0: float, voltage: float, coil_temperature: np.ndarray) -> None:
+        """Start a new discharge at ``t0`` (s): the EM state at rest (a persistent getdp starts a new process), the
+        bank charged to ``voltage`` (V), the coils at ``coil_temperature`` (K; their Joule heat counts from here)."""
+        begin_model_shot(self.model, voltage, coil_temperature)
+        self.state = replace(self.stepper.initial_state(), t=float(t0))
+        self._moved = None
+        self.coil_heat = 0.0   # the history's coil_joule_heat_J counts from the shot's start (as in 2D)
+        for old in self._runs:   # the last shot's per-step runs (their step numbers start again)
+            discard_folder(old)
+        self._runs = []
+
+    def shot_state(self) -> dict:
+        """What a checkpoint keeps of the current shot: the bank's voltage and the coils' start temperatures."""
+        return model_shot_state(self.model)
+
+    def load_shot_state(self, d: dict) -> None:
+        """Restore :meth:`shot_state`."""
+        load_model_shot_state(self.model, d)
 
     def close(self) -> None:
         """End the persistent getdp (if any); idempotent."""
@@ -394,6 +434,8 @@ class GetDPLoad3D(LoadCapabilities):
         if st.factors is not None:   # the kept factors a resumed process rebuilds (FactorRecord)
             out.update({"factor_points": st.factors.points, "factor_dtime": np.float64(st.factors.dtime),
                         "factor_current": st.factors.current})
+            if st.factors.sigma is not None:   # σ(T): the conductivities the factors were made with
+                out["factor_sigma"] = np.asarray(st.factors.sigma, dtype=float)
         return out
 
     def load_state_dict(self, state: dict[str, np.ndarray]) -> None:
@@ -423,7 +465,8 @@ class GetDPLoad3D(LoadCapabilities):
                                circuit_prev=None if circ_prev is None else (float(circ_prev[0]), float(circ_prev[1])),
                                dt_prev=float(state["dt_prev"]), force_density=opt("force_density"), steps=steps,
                                factors=FactorRecord(opt("factor_points"), float(state["factor_dtime"]),
-                                                    opt("factor_current")) if "factor_points" in state else None,
+                                                    opt("factor_current"), opt("factor_sigma"))
+                               if "factor_points" in state else None,
                                x_older=tuple(opt(f"x_older_{i}") for i in range(2) if f"x_older_{i}" in state),
                                **{k: opt(k).tolist() for k in ("coil_heat", "coil_power", "coil_sigma") if k in state},
                                timers=dict(zip(self.state.timers, timers[len(self.timers):])))

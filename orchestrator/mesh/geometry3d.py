@@ -90,6 +90,23 @@ def triangle_area(points: np.ndarray, tris: np.ndarray) -> float:
     return float(0.5 * np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1).sum())
 
 
+def outer_area(points: np.ndarray, tris: np.ndarray, planes: Sequence[PlaneSpec], rel_tol: float = 1e-7) -> float:
+    """Area (m^2) of the triangles ``tris`` (node rows of ``points``) less those lying in one of the symmetry
+    ``planes`` (all three nodes within ``rel_tol`` x the largest coordinate of ``points`` of the plane): a modelled
+    part's outer surface, without the faces where the mirror images join it."""
+    tris = np.asarray(tris, np.int64)
+    if len(tris) == 0:
+        return 0.0
+    x = np.asarray(points, float)
+    tol = rel_tol * max(float(np.abs(x).max()), 1e-300)
+    inside = np.zeros(len(tris), bool)
+    for p in planes:
+        n = np.asarray(p.normal, float) / np.linalg.norm(p.normal)
+        on = np.abs((x - np.asarray(p.point, float)) @ n) <= tol
+        inside |= on[tris].all(axis=1)
+    return triangle_area(x, tris[~inside]) if np.any(~inside) else 0.0
+
+
 def shell_radii(x: np.ndarray, tets: np.ndarray, tet_tags: np.ndarray, centre) -> tuple[float, float]:
     """(R_int, R_ext) (m) of the shell region about ``centre`` as the mesh has it: R_ext the largest node
     radius, R_int the smallest distance from the centre to the planes of the shell's inner faces (their chords

@@ -139,6 +139,7 @@ def participants_3d(case: Case, work: Path):
     else:
         load = FreezingGetDPLoad3D(*args, freeze=g.on_mesh_break == "freeze", **kw)
     load.device_axes = device_axes(planes)
+    load.symmetry_planes = tuple(planes)   # no outer surface: the cooling between shots
     options = loop_options_3d(case, dt_mech if solver is not None else None)
     log.info("3D geometry: %d EM tets, bodies %s, mechanical step %.3g s, n = %d", mesh.n_tets,
              {b.name: len(subs[b.region].cells) for b in case.bodies}, dt_mech, options.n)

@@ -7,8 +7,9 @@ two shots:
 * the coil and every deformable body with a temperature cool towards ``ambient_temperature`` by Newton's law,
   lumped per body: dT/dt = −h A (T − T_amb) / (m c_p) over the ``pause``, i.e. every cell (and the coil)
   T ← T_amb + (T − T_amb) exp(−h A pause / (m c_p)), with A the body's (the coil's) current outer surface (the
-  2π r-weighted boundary in axisymmetry; per metre of depth in planar models, the faces along the depth left out)
-  and m c_p its whole heat capacity. There is no conduction inside a body: its temperature differences only
+  2π r-weighted boundary in axisymmetry; per metre of depth in planar models, the faces along the depth left out;
+  in 3D the modelled part's boundary triangles less those on the symmetry planes, :func:`outer_surface`) and m c_p
+  its heat capacity (the modelled part's in 3D, like A: their ratio is the whole body's). There is no conduction inside a body: its temperature differences only
   shrink in proportion;
 * the deformed shape, the stresses and the plastic strain carry over, the velocities and accelerations are set to
   rest (the pause is taken as long enough for the body to come to rest; its elastic stresses are kept as they
@@ -26,14 +27,16 @@ import csv
 import logging
 import math
 from pathlib import Path
+from typing import Sequence
 
 import numpy as np
 
+from ..mesh.geometry3d import PlaneSpec, outer_area
 from .temperature import temperature_columns
 
 log = logging.getLogger(__name__)
 
-__all__ = ["cooling_factor", "ShotSequence"]
+__all__ = ["cooling_factor", "outer_surface", "ShotSequence"]
 
 
 def cooling_factor(h: float, area: float, mass_cp: float, pause: float) -> float:
@@ -42,6 +45,15 @@ def cooling_factor(h: float, area: float, mass_cp: float, pause: float) -> float
     if mass_cp <= 0:
         raise ValueError("cooling_factor: m c_p must be > 0 (J/K)")
     return math.exp(-h * area * pause / mass_cp)
+
+
+def outer_surface(body, planes: Sequence[PlaneSpec] = ()) -> float:
+    """The outer surface (m²) of a mechanical solver body at its current positions: in 2D its boundary's tributary
+    areas (2π r-weighted in axisymmetry, per metre of depth in planar); in 3D its exterior triangles less those on
+    the symmetry ``planes`` (:func:`~..mesh.geometry3d.outer_area`)."""
+    if body.segments.shape[1] == 3:
+        return outer_area(body.x, body.segments, planes)
+    return float(body.tributary_areas(body.segments, body.x).sum())
 
 
 class ShotSequence:
@@ -96,9 +108,10 @@ class ShotSequence:
         return min(self.count, max(1, math.ceil(t / self.window * (1.0 - 1e-12))))
 
     # ------------------------------------------------------------------ hand-over
-    def cool_bodies(self, solver) -> dict[str, float]:
+    def cool_bodies(self, solver, planes: Sequence[PlaneSpec] = ()) -> dict[str, float]:
         """Cool every deformable body with a temperature over the pause (lumped, every cell), set its nodes to
-        rest; returns the factor exp(−h A t/(m c_p)) per body."""
+        rest; returns the factor exp(−h A t/(m c_p)) per body (A: :func:`outer_surface`, 3D less the faces on the
+        symmetry ``planes``)."""
         s = self.spec
         factors = {}
         if solver is None:
@@ -108,7 +121,7 @@ class ShotSequence:
             b.a[:] = 0.0
             if not b.material.thermal:
                 continue
-            area = float(b.tributary_areas(b.segments, b.x).sum())
+            area = outer_surface(b, planes)
             mass_cp = b.total_mass() * float(b.material.specific_heat)
             f = cooling_factor(s.body_heat_transfer, area, mass_cp, s.pause)
             b.temperature[:] = s.ambient_temperature + (b.temperature - s.ambient_temperature) * f
@@ -143,7 +156,7 @@ class ShotSequence:
         the EM ``load`` (``shots.csv`` in ``root`` rewritten when ``write``)."""
         coil = self.cool_coil(load.coil_temperatures(), *load.coil_heat_paths())
         self.set_after_pause(n - 1, coil)
-        self.cool_bodies(solver)
+        self.cool_bodies(solver, load.symmetry_planes)
         load.begin_shot(self.start(n), self.voltages[n - 1], coil)
         if write:
             self.write(root / "shots.csv")

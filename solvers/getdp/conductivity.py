@@ -14,8 +14,8 @@ Joule heat so far over m c_p), so its σ is one number per EM step (``Coil_sigma
 Both are evaluated at the step's start temperatures (explicit in temperature, like the mechanics' heating).
 The same functions serve the 3D per-step getdp (a :class:`~.mesh3d.Mesh3D`: tetrahedra keyed by their gmsh
 numbers, the coil's m c_p and heat those of the modelled sector; ``em_case3d.pro``).
-The persistent getdp cannot read a new ``run.pro`` per step: its step messages carry σ of every element of the
-regions with a law (:func:`message_sigma`, :func:`persistent_numbers`; ``decks/Lib_Persistent.pro``).
+The persistent getdp (2D and 3D) cannot read a new ``run.pro`` per step: its step messages carry σ of every element
+of the regions with a law (:func:`message_sigma`, :func:`persistent_numbers`; ``decks/Lib_PersistentSigma.pro``).
 """
 
 from __future__ import annotations
@@ -35,7 +35,7 @@ if TYPE_CHECKING:
 
 __all__ = ["ConductivityTable", "LinearResistivity", "ConductivityLaw", "law_from_dict", "element_list_line",
            "has_laws", "coil_mass_cp", "coil_heat_step", "coil_temperature", "step_sigma", "step_inputs",
-           "persistent_numbers", "message_sigma", "checked_temperatures", "start_power", "check_deck"]
+           "persistent_numbers", "message_tags", "message_sigma", "checked_temperatures", "start_power", "check_deck"]
 
 
 @dataclass(frozen=True)
@@ -218,7 +218,7 @@ def step_inputs(model: "EMModel", mesh: EMMesh, state: "EMState", dt: float,
 
 def persistent_numbers(model: "EMModel") -> dict[str, float]:
     """The ``-setnumber`` values of a persistent getdp whose step messages carry σ per element
-    (``decks/Lib_Persistent.pro``, ``PF_SigmaElem``): ``Coil_SigmaElem_k`` / ``Cond_SigmaElem_k`` = 2 for each coil
+    (``decks/Lib_PersistentSigma.pro``, ``PF_SigmaElem``): ``Coil_SigmaElem_k`` / ``Cond_SigmaElem_k`` = 2 for each coil
     and conductor with a law; empty without a law."""
     if not model.has_conductivity_laws:
         return {}
@@ -228,21 +228,28 @@ def persistent_numbers(model: "EMModel") -> dict[str, float]:
     return out
 
 
+def message_tags(model: "EMModel", mesh: EMMesh) -> np.ndarray:
+    """Element tags (``ElementNum[]``) of every element of the regions with a law, in the order of
+    :func:`message_sigma`'s values: the coils with a law, then the conductors with one, each by number."""
+    tags = [_element_ids(mesh, np.flatnonzero(_cell_tags(mesh) == coil_tag(k)))
+            for k, c in enumerate(model.coils, start=1) if c.conductivity_law is not None]
+    tags += [_element_ids(mesh, np.flatnonzero(_cell_tags(mesh) == conductor_tag(k)))
+             for k, c in enumerate(model.conductors, start=1) if c.conductivity_law is not None]
+    return np.concatenate(tags).astype(np.int64) if tags else np.zeros(0, np.int64)
+
+
 def message_sigma(model: "EMModel", mesh: EMMesh, coils: dict[int, float],
                   conductors: list[tuple[int, np.ndarray, np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:
-    """(element tags, σ S/m) of every element of the regions with a law, for a persistent getdp's step message:
-    a coil's elements all at its σ, a conductor's at their own (:func:`step_sigma`'s values)."""
-    tags, values = [], []
-    for k, sigma in coils.items():
-        rows = np.flatnonzero(_cell_tags(mesh) == coil_tag(k))
-        tags.append(_element_ids(mesh, rows))
-        values.append(np.full(len(rows), sigma))
-    for _, rows, sigma in conductors:
-        tags.append(_element_ids(mesh, rows))
-        values.append(sigma)
-    if not tags:
-        return np.zeros(0, np.int64), np.zeros(0)
-    return np.concatenate(tags).astype(np.int64), np.concatenate(values).astype(float)
+    """(element tags, σ S/m) of every element of the regions with a law, for a persistent getdp's step message
+    (:func:`message_tags`' order): a coil's elements all at its σ, a conductor's at their own (:func:`step_sigma`'s
+    values)."""
+    values = [np.full(int(np.count_nonzero(_cell_tags(mesh) == coil_tag(k))), sigma) for k, sigma in coils.items()]
+    values += [np.asarray(sigma, float) for _, _, sigma in conductors]
+    values = np.concatenate(values).astype(float) if values else np.zeros(0)
+    tags = message_tags(model, mesh)
+    if len(tags) != len(values):
+        raise ValueError("message_sigma: the σ given are not those of every coil and conductor with a law")
+    return tags, values
 
 
 def checked_temperatures(elements: np.ndarray, temperature: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

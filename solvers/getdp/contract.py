@@ -68,7 +68,8 @@ RUN_PRO_LISTS = ("InitA_List", "InitA2_List", "Coil_Table_<k>", "Cond_BH_<k>", "
                  "Core_BHw_<k>", "PulseformPersistentLib", "PulseformHarmonicLib", "PulseformMagneticLib")
 #: the library decks whose ``DefineConstant`` inputs a run may set: the formulation, the persistent getdp, Newton's
 #: constants and the magnetic block (``em_magnetic.pro``, a user deck's ``PulseformMagneticLib``)
-RUNNER_DECKS = ("Lib_PulsedForming.pro", "Lib_Persistent.pro", "Lib_Newton.pro", "em_magnetic.pro")
+RUNNER_DECKS = ("Lib_PulsedForming.pro", "Lib_Persistent.pro", "Lib_PersistentSigma.pro", "Lib_Newton.pro",
+                "em_magnetic.pro")
 
 
 def _indexed(name: str) -> str:

@@ -30,7 +30,13 @@ factors. Where no record can be made (no kept factors, or a move that floating p
 increments are exact: getdp's coordinates are the mechanics' positions bit for bit wherever an increment
 can land there (so a new process started from a mesh file at those positions has the same).
 Each step's state counts the factorisations and corrections (``timers["getdp_factorisations"]``,
-``timers["getdp_corrections"]``). With a B–H curve each step is Newton's method (``decks/Lib_Newton.pro``,
+``timers["getdp_corrections"]``).
+
+A conductivity that follows temperature (σ(T), :mod:`.conductivity`): each step message carries σ of every element
+of the coils and conductors with a law (``decks/Lib_PersistentSigma.pro``, as in 2D), at the element temperatures
+of :meth:`PersistentEM3DStepper.set_element_temperatures` and the coil's lumped temperature; the kept factors' GCR
+solves each step's own matrix (assembled with its σ), and a :class:`~.stepper3d.FactorRecord` keeps the σ of the
+step that factorised, which the new process's prime message carries. With a B–H curve each step is Newton's method (``decks/Lib_Newton.pro``,
 every iteration a factorisation: no kept factors), its linear solves in the result's ``newton_iterations``.
 
 The outputs are the library's own PostOperations (``EM_Step3D`` with the magnetic energy from the
@@ -50,6 +56,7 @@ from typing import Sequence
 import numpy as np
 
 from .bh_curve import newton_factor_reuse, step_newton
+from .conductivity import checked_temperatures, message_sigma, message_tags, persistent_numbers, step_sigma
 from .files import read_element_table
 from .mesh import coil_tag
 from .mesh3d import Mesh3D
@@ -130,12 +137,11 @@ class PersistentEM3DStepper:
                  timeout: float | None = None, verbosity: int = 2, factor_reuse: FactorReuse = FactorReuse()) -> None:
         if time_scheme != "bdf2":
             raise ValueError("the persistent 3D getdp implements time_scheme='bdf2' only")
-        if model.has_conductivity_laws:
-            raise ValueError("the persistent 3D getdp has no conductivity that follows temperature yet: run getdp per "
-                             "step (em.getdp_process = 'per_step')")
         self.factor_reuse = newton_factor_reuse(model, factor_reuse)   # a B-H curve: Newton, no kept factors
         self._factorise_next = False   # the step after a checkpoint factorises (module docstring)
-        self._factors: tuple[np.ndarray, float] | None = None   # getdp's nodes and gamma dt of the last factorisation
+        #: getdp's nodes, gamma dt and (σ(T)) the element σ of the message of the last factorisation
+        self._factors: tuple[np.ndarray, float, np.ndarray | None] | None = None
+        self._elem_temperature: tuple[np.ndarray, np.ndarray] | None = None   # (EM tet rows, K) for σ(T)
         self._refactor_next = True     # the process's next step factorises anyway
         self.model, self.time_scheme = model, time_scheme
         self.work_dir = Path(work_dir).resolve()
@@ -147,6 +153,11 @@ class PersistentEM3DStepper:
         self.proc: PersistentProcess | None = None
         self.segment = 0
         self.startup_s = 0.0  # wall time of the process starts (s)
+
+    def set_element_temperatures(self, elements: np.ndarray, temperature: np.ndarray) -> None:
+        """Temperatures (K) of EM tetrahedra (rows of the mesh's ``tets``) for the conductors' σ(T) laws at the
+        next steps (:func:`.conductivity.step_sigma`; an element not listed is at its ``initial_temperature``)."""
+        self._elem_temperature = checked_temperatures(elements, temperature)
 
     def initial_state(self) -> EM3DState:
         """The state at t = 0: fields at rest, the bank charged (``Circuit.V0``), no current."""
@@ -164,6 +175,7 @@ class PersistentEM3DStepper:
         numbers.update(PF_T1=float(state.t), PF_Step0=int(state.steps), PF_DtPrev=0.0, PF_Seed=1,
                        Flag_WSources=0 if self.model.is_nonlinear else 1)   # a B-H curve: ∫ w(b), not ½ (j, a)
         numbers.update(self.factor_reuse.numbers())
+        numbers.update(persistent_numbers(self.model))   # σ(T): the messages carry σ per element
         if self.model.applied_field is not None:   # the unit time function of the seed states (0 at rest)
             numbers["Field_F1"], numbers["Field_F2"] = applied_state_values(self.model, state.t, state.steps, state.dt_prev)
         seed = None
@@ -184,7 +196,8 @@ class PersistentEM3DStepper:
         proc = PersistentProcess(self.work_dir / f"persistent3d_{self.segment:03d}", mesh, numbers, lines, DECK3D,
                                  executable=self.executable, petsc_args=self.factor_reuse.solver_args(self.petsc_args),
                                  time_limit=self.timeout,
-                                 verbosity=self.verbosity, resolution=RESOLUTION_PERSISTENT3D, u_system=self.u_system)
+                                 verbosity=self.verbosity, resolution=RESOLUTION_PERSISTENT3D, u_system=self.u_system,
+                                 element_values=self.model.has_conductivity_laws)
         self.proc = proc
         startup = proc.start(state.steps, state.t)
         self.n_dofs = pre_dof_count(proc.run_dir / "em.pre", self.a_system)
@@ -197,9 +210,11 @@ class PersistentEM3DStepper:
                        (self.a_system, state.t, 0.0, 2, seed[1]),
                        *((self.a_system, state.t, 0.0, 3, x) for x in seed[2:])])   # x_n-2, x_n-3 (history)
             if prime is not None:   # the interrupted process's kept factors, rebuilt bit for bit
+                if prime.sigma is not None:   # σ(T): the conductivities the factorised matrix was assembled with
+                    proc.set_element_values(message_tags(self.model, mesh), prime.sigma)
                 proc.prime(prime.points, prime.dtime)
                 proc.prime(prime.current, 0.0)
-                self._factors, self._refactor_next = (np.array(prime.points, float), prime.dtime), False
+                self._factors, self._refactor_next = (np.array(prime.points, float), prime.dtime, prime.sigma), False
             startup += time.perf_counter() - c0
         coils = np.isin(mesh.tet_tags, [coil_tag(k) for k in range(1, len(self.model.coils) + 1)])
         self._coil_nodes = np.unique(mesh.tets[coils])
@@ -245,13 +260,14 @@ class PersistentEM3DStepper:
                              "directions once (coils are fixed)")
         for old in p.out_dir.glob("*.txt"):  # getdp appends (File >)
             old.unlink()
+        coil_sigma, sigma = self._step_sigma(mesh, state, float(dt))
         nk = len(self.model.conductors)
         flags = (FLAG_ELEM if nk else 0) | (FLAG_FIELDS | (FLAG_COND_FIELDS if nk else 0) if field_output else 0) | \
             (FLAG_FACTORISE if self._factorise_next else 0)
         ans = p.step(mesh.points, float(t1), flags)
         self._factorise_next = False
         if ans.factorised:
-            self._factors = (p.points.copy(), ans.dtime)
+            self._factors = (p.points.copy(), ans.dtime, sigma)
         self._refactor_next = ans.refactor_next
         c1 = time.perf_counter()
         res = read_results3d(self.model, mesh, p.out_dir, 1, 2 if nk else 0, element_fields=field_output)
@@ -276,7 +292,7 @@ class PersistentEM3DStepper:
                         (float(res.capacitor_voltage[-1]), float(res.circuit_current[-1])),
                         circuit_prev=state.circuit, dt_prev=float(dt), force_density=f_end, steps=state.steps + 1,
                         timers=dict(state.timers))
-        carry_coil_heat(self.model, state, new, {}, res.coil_power[-1], float(dt), True)
+        carry_coil_heat(self.model, state, new, coil_sigma, res.coil_power[-1], float(dt), True)
         tm = new.timers
         tm["getdp_process_s"] += ans.wall + startup
         tm["getdp_pre_s"] += startup
@@ -286,6 +302,18 @@ class PersistentEM3DStepper:
                                                                                  or ans.factorised)   # (a state of
         tm["getdp_corrections"] = tm.get("getdp_corrections", 0.0) + float(ans.corrections)   # an older checkpoint)
         return res, new
+
+    def _step_sigma(self, mesh: Mesh3D, state: EM3DState, dt: float) -> tuple[dict[str, float], np.ndarray | None]:
+        """With σ(T) laws: this step's σ (:func:`.conductivity.step_sigma` at the element temperatures given) into
+        the message; ({``Coil_sigma_k``: σ} of the coils with a law, σ per element of the message). Without a law
+        ({}, None)."""
+        m = self.model
+        if not m.has_conductivity_laws:
+            return {}, None
+        coils, conductors = step_sigma(m, mesh, state, dt, self._elem_temperature)
+        tags, values = message_sigma(m, mesh, coils, conductors)
+        self.proc.set_element_values(tags, values)
+        return {f"Coil_sigma_{k}": v for k, v in coils.items()}, values
 
     def _conductor_fields_of(self, k: int, mesh: Mesh3D, res: EM3DResult):
         """The fetch of step ``k``'s Joule power and b on the conductor elements (a query of the running
@@ -332,13 +360,14 @@ class PersistentEM3DStepper:
         shrank by orders of magnitude, say, cannot land on the finer grid of the smaller value)."""
         if self.factor_reuse.tol <= 0.0 or self._factors is None or self._refactor_next:
             return None
-        points, dtime = self._factors
+        points, dtime, sigma = self._factors
         moved = points + exact_increment(points, current)   # what the new process's second prime message does
         if not np.array_equal(moved, current):
             log.info("kept factors not recorded at the checkpoint (a node cannot move back exactly from the "
                      "factorisation's coordinates): the next EM step factorises")
             return None
-        return FactorRecord(points=points.copy(), dtime=float(dtime), current=current.copy())
+        return FactorRecord(points=points.copy(), dtime=float(dtime), current=current.copy(),
+                            sigma=None if sigma is None else np.array(sigma, float))
 
     def with_model(self, **changes) -> "PersistentEM3DStepper":
         """A stepper of the same kind on a changed model (its own process)."""

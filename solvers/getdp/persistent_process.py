@@ -316,7 +316,7 @@ class PersistentProcess:
         return du
 
     def set_element_values(self, tags: np.ndarray, values: np.ndarray) -> None:
-        """The per-element values (e.g. σ, S/m) the next step messages carry (``decks/Lib_Persistent.pro``,
+        """The per-element values (e.g. σ, S/m) the next step messages carry (``decks/Lib_PersistentSigma.pro``,
         ``PF_SigmaElem``): one per element tag of the regions that have them, each of those tags once."""
         tags = np.asarray(tags, np.int64)
         if len(tags) != len(self.s_index) or len(np.unique(tags)) != len(tags):

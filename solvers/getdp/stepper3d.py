@@ -73,13 +73,16 @@ class FactorRecord:
     """Which LU factors the next step of a persistent getdp with kept factors uses, so that a process
     started from the state rebuilds them (:meth:`~.persistent3d.PersistentEM3DStepper.complete_state`):
     ``points`` (n, 3) m, getdp's node coordinates at the step that factorised, ``dtime`` (s) its
-    implicit-Euler time step gamma dt (the matrix depends on both only), ``current`` (n, 3) m, getdp's
+    implicit-Euler time step gamma dt (the matrix depends on both only, and on σ), ``current`` (n, 3) m, getdp's
     node coordinates at the state (a new process starts at ``points``, factorises there and moves to
-    ``current``: recorded only where that move is exact in floating point)."""
+    ``current``: recorded only where that move is exact in floating point); ``sigma`` (S/m), with σ(T) laws, the σ
+    per element of the factorising step's message (:func:`.conductivity.message_sigma`'s order; None without a
+    law), which the new process's prime message carries."""
 
     points: np.ndarray
     dtime: float
     current: np.ndarray
+    sigma: np.ndarray | None = None
 
 
 @dataclass

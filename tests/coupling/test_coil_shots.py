@@ -109,19 +109,26 @@ def _turn_surface() -> float:
     return area
 
 
-def _ode_shots(L: float, r_ref: float, mcp: float, times: np.ndarray) -> tuple[list[float], list[float]]:
-    """Peak |I| (at the history's step times of a shot) and the coil temperature at the end of each shot."""
+def ode_shots(L: float, r_ref: float, mcp: float, times: np.ndarray, *, c: float = C, v0: float = V0,
+              r_ext: float = R_EXT, l_ext: float = L_EXT, area: float | None = None, shots: int = SHOTS,
+              window: float = WINDOW) -> tuple[list[float], list[float]]:
+    """Peak |I| (at the history's step times of a shot, ``times``) and the coil temperature at the end of each of
+    ``shots`` shots of ``window`` s of the lumped R(T)-L-C circuit (the module docstring's ODE): coil inductance ``L``
+    (H), resistance ``r_ref`` at T_REF (Ω), heat capacity ``mcp`` (J/K) and outer surface ``area`` (m²; None: the
+    five revolved turns, :func:`_turn_surface`), the bank ``c`` (F) at ``v0`` (V) with ``r_ext``, ``l_ext``; the
+    law's ALPHA, T_REF and the cooling's H, PAUSE, T_AMB of this module (tests/coupling/test_coil_shots3d.py runs
+    the same circuit in 3D)."""
     from scipy.integrate import solve_ivp
 
     def rhs(_t, y):
         v, i, temp = y
-        r = R_EXT + r_ref * (1 + ALPHA * (temp - T_REF))
-        return [-i / C, (v - r * i) / (L_EXT + L), r_ref * (1 + ALPHA * (temp - T_REF)) * i * i / mcp]
+        r = r_ext + r_ref * (1 + ALPHA * (temp - T_REF))
+        return [-i / c, (v - r * i) / (l_ext + L), r_ref * (1 + ALPHA * (temp - T_REF)) * i * i / mcp]
 
-    decay = math.exp(-H * _turn_surface() * PAUSE / mcp)
+    decay = math.exp(-H * (_turn_surface() if area is None else area) * PAUSE / mcp)
     temp, peaks, ends = T_REF, [], []
-    for _ in range(SHOTS):
-        sol = solve_ivp(rhs, (0.0, WINDOW), [V0, 0.0, temp], method="DOP853", rtol=1e-10, atol=1e-12,
+    for _ in range(shots):
+        sol = solve_ivp(rhs, (0.0, window), [v0, 0.0, temp], method="DOP853", rtol=1e-10, atol=1e-12,
                         dense_output=True)
         peaks.append(float(np.abs(sol.sol(times)[1]).max()))
         ends.append(float(sol.y[2, -1]))
@@ -146,7 +153,7 @@ def test_five_shots_match_a_lumped_rlc_with_r_of_t(tmp_path):
     r_ref = 2 * heat[1] / (i[1] ** 2 * (t[1] - t[0]))           # first BDF2 step from rest, σ at T_ref
     mcp = heat[k] / rise[k]
     times = t[first]
-    peaks, ends = _ode_shots(L, r_ref, mcp, times)
+    peaks, ends = ode_shots(L, r_ref, mcp, times)
     with open(out / "shots.csv") as fh:
         rows = list(csv.DictReader(fh))
     assert [int(row["shot"]) for row in rows] == list(range(1, SHOTS + 1))

@@ -20,10 +20,13 @@ two other meshes), its Joule power likewise. In the persistent process (a cut co
 the results equal the one-process BDF2 run's to 2e-14. Two disjoint turns in one coil region
 (a free constant per turn in the pre-solve): B_z +1.6e-3 and energy +8.4e-4 vs azimuthal.
 """
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from pulseform.solvers.getdp import Circuit, Conductor, DampedSine, Rect
+from pulseform.solvers.getdp.conductivity import LinearResistivity
 from pulseform.solvers.getdp.mesh3d import cut_orientation, cut_tag, physical_surface_area, read_surface_triangles
 from pulseform.solvers.getdp.solver3d import Coil3D, EM3DModel, ball_average, model_numbers, solve_transient3d
 
@@ -249,3 +252,19 @@ def test_cut_coil_in_the_persistent_process(work):
           f"I {ref[:, 1]} A, F_z {ref[:, 0]} N")
     assert ref[-1, 1] > 0 and ref[-1, 0] > 0           # the bank drives a positive current: repulsion
     assert rel < 1e-12
+    # the coil's σ(T) through the step messages (a law held at 293.15 K: σ_ref = the constant's 5.8e7 S/m): the
+    # pre-solve of the cut reads sigma[] before the first message (PF_InitSigma, Lib_PersistentSigma.pro), the
+    # steps the messages' σ; the same doubles as the constant run
+    law = replace(model, coils=[Coil3D(1, direction="cut", cut_normal=(0.0, 1.0, 0.0), heat_capacity=1e300,
+                                       conductivity_law=LinearResistivity(5.8e7, 3.9e-3, 293.15))])
+    stepper = PersistentEM3DStepper(law, work / "persistent_law")
+    state, rows_law = stepper.initial_state(), []
+    try:
+        for k in range(1, n + 1):
+            r, state = stepper.step(mesh, state, k * t_end / n)
+            rows_law.append([r.conductor_force[-1, 0, 2], r.coil_current[-1, 0], r.capacitor_voltage[-1],
+                             r.magnetic_energy[-1]])
+    finally:
+        stepper.close()
+    assert state.coil_sigma == [5.8e7]
+    assert np.array_equal(np.array(rows_law), np.array(rows))
