@@ -12,6 +12,7 @@ All quantities in SI units: lengths m, currents A, inductances H, resistances Oh
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from typing import Callable
@@ -55,9 +56,18 @@ def mutual_inductance_gradient(a, b, z):
     return -MU0 * z * k / (4.0 * np.sqrt(a * b) * (1.0 - m)) * ((2.0 - m) * ellipe(m) - 2.0 * (1.0 - m) * ellipk(m))
 
 
+@functools.lru_cache(maxsize=16)
+def _legendre(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Gauss–Legendre points and weights on [-1, 1] (numpy's, computed once per n: an eigenvalue problem each)."""
+    g, w = np.polynomial.legendre.leggauss(n)
+    g.flags.writeable = False
+    w.flags.writeable = False
+    return g, w
+
+
 def _gauss_points(rect: tuple[float, float, float, float], n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Radii, heights and weights (summing to 1) of n x n Gauss points on (r0, z0, r1, z1) (m)."""
-    g, w = np.polynomial.legendre.leggauss(n)
+    g, w = _legendre(n)
     r0, z0, r1, z1 = rect
     r = 0.5 * (r0 + r1) + 0.5 * (r1 - r0) * g
     z = 0.5 * (z0 + z1) + 0.5 * (z1 - z0) * g
@@ -74,11 +84,15 @@ def section_mutual_inductance(coil: tuple[float, float, float, float], ring: tup
     (its current density falls as 1/r)."""
     ra, za, wa = _gauss_points(coil, n)
     rb, zb, wb = _gauss_points(ring, n)
+    # every pair at once (row i: the coil's point i), each row summed alone and the rows added in turn: the
+    # same sums, bit for bit, as a loop over the coil's points (a check of a case calls this per pair of turns)
+    w = wa[:, None] * wb[None, :]
+    dz = zb[None, :] - za[:, None]
     m = dm = 0.0
-    for r1, z1, w1 in zip(ra, za, wa):
-        w = w1 * wb
-        m += float(np.sum(w * mutual_inductance(r1, rb, zb - z1)))
-        dm += float(np.sum(w * mutual_inductance_gradient(r1, rb, zb - z1)))
+    for row_m, row_dm in zip(np.sum(w * mutual_inductance(ra[:, None], rb[None, :], dz), axis=1),
+                             np.sum(w * mutual_inductance_gradient(ra[:, None], rb[None, :], dz), axis=1)):
+        m += float(row_m)
+        dm += float(row_dm)
     return m, dm
 
 
@@ -99,12 +113,36 @@ def coil_inductance(turns: list[tuple[float, float, float, float]], counts: list
     current uniformly over its section: Σ_a n_a² L_a + Σ_(a≠b) n_a n_b M_ab, with Rosa's self-inductance
     of each section and Maxwell's mutual inductance averaged over the sections."""
     n = [1.0] * len(turns) if counts is None else [float(c) for c in counts]
+    pairs = [(i, j) for i in range(len(turns)) for j in range(i + 1, len(turns))]
+    mutual = iter(_pair_mutuals([turns[i] for i, _ in pairs], [turns[j] for _, j in pairs], 4))
     total = 0.0
     for i, a in enumerate(turns):
         total += n[i] ** 2 * ring_self_inductance(0.5 * (a[0] + a[2]), a[2] - a[0], a[3] - a[1])
         for j in range(i + 1, len(turns)):
-            total += 2.0 * n[i] * n[j] * section_mutual_inductance(a, turns[j], n=4)[0]
+            total += 2.0 * n[i] * n[j] * next(mutual)
     return total
+
+
+def _pair_mutuals(coils: list, rings: list, n: int) -> list[float]:
+    """:func:`section_mutual_inductance`'s M (H) of each pair ``(coils[p], rings[p])`` on n x n points, all pairs
+    in one evaluation, summed in the same order (bit for bit the same values)."""
+    if not coils:
+        return []
+    pts = [(_gauss_points(c, n), _gauss_points(r, n)) for c, r in zip(coils, rings)]
+    ra = np.array([a[0] for a, _ in pts])[:, :, None]
+    za = np.array([a[1] for a, _ in pts])[:, :, None]
+    wa = np.array([a[2] for a, _ in pts])[:, :, None]
+    rb = np.array([b[0] for _, b in pts])[:, None, :]
+    zb = np.array([b[1] for _, b in pts])[:, None, :]
+    wb = np.array([b[2] for _, b in pts])[:, None, :]
+    rows = np.sum((wa * wb) * mutual_inductance(ra, rb, zb - za), axis=2)
+    out = []
+    for pair in rows:
+        m = 0.0
+        for row in pair:
+            m += float(row)
+        out.append(m)
+    return out
 
 
 def ring_resistance(radius: float, width: float, height: float, sigma: float) -> float:
