@@ -184,6 +184,11 @@ class FormingLimitMonitor:
     def plots(self, history, shapes, folder) -> None:
         """Nothing: the forming limit diagram is drawn from the field files (``run/pictures_flc.py``)."""
 
+    def springback_metrics(self, sb) -> dict[str, float]:
+        """Nothing after a springback (``[springback]``, a springback stage): the margin is the forming's, the worst
+        over the run so far (its history columns and metrics); a springback's elastic release does not form."""
+        return {}
+
     def state_dict(self) -> dict[str, np.ndarray]:
         """The worst cells so far, for the checkpoint."""
         return {name: w.copy() for name, w in self.worst.items()}

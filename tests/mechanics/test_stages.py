@@ -35,7 +35,10 @@ CASE = {
     "time": {"end": 2.0e-3},
     "mechanics": {"formulation": "plane_stress", "thickness": 0.01},
     "materials": {"al": {"density": 2700.0, "shear_modulus": 26.0e9, "bulk_modulus": 70.0e9,
-                         "yield_stress": 100.0e6, "hardening_modulus": 500.0e6}},
+                         "yield_stress": 100.0e6, "hardening_modulus": 500.0e6,
+                         # a forming-limit check rides along through every springback (the demo's, which has one,
+                         # stopped in its first springback stage: the monitor had no springback_metrics)
+                         "forming_limit": {"minor_strain": [-0.2, 0.0, 0.2], "major_strain": [0.3, 0.2, 0.25]}}},
     "bodies": [{"name": "beam", "material": "al",
                 "shape": {"type": "rectangle", "origin": [0.0, 0.0], "width": 0.1, "height": 0.005},
                 "mesh_size": 0.0025, "fixed": [{"where": {"xmax": 1e-9}, "components": [0, 1]}]}],
