@@ -3,11 +3,14 @@
 loaded by a transverse tip force P (-z), on a box mesh of ``create_box`` bricks (six tetrahedra each) with a
 chosen number of elements through the thickness.
 
-Half the width is modelled (the plane y = 0 is a symmetry plane: u_y = 0 there). The root face x = 0 holds
-u_x = u_z = 0 and leaves u_y free, so that the strip contracts sideways at the root as anywhere else (a root
-that also held u_y would stiffen a boundary layer of the width's length by up to 1 / (1 - nu^2)). The tip
-force is spread over the tip face by tributary area; the tip deflection is the area-weighted mean of -u_z
-over that face.
+Half the width is modelled (the plane y = 0 is a symmetry plane: u_y = 0 there). The root is beam theory's
+built-in end: the root face x = 0 holds u_x = 0 (its plane section stays plane and upright) and the root nodes
+nearest the mid-thickness hold u_z = 0 (the line at z = t / 2 of a ten-node body of an odd number of layers; the
+two lines beside it of a linear one); nothing else, so that the root contracts sideways and through the
+thickness as the rest of the strip does. A root face held in z too keeps its through-thickness strain at zero:
+plane strain in a boundary layer about t long, which raises the plastic moment there by up to 2 / sqrt(3) and
+moves the hinge off the root. The tip force is spread over the tip face by tributary area; the tip deflection
+is the area-weighted mean of -u_z over that face.
 
 Beam theory (Euler-Bernoulli, with Timoshenko's shear term; Cowper's shear coefficient of a rectangle
 kappa = 10 (1 + nu) / (12 + 11 nu)): delta = P L^3 / (3 E I) + P L / (kappa G b t), I = b t^3 / 12. The
@@ -46,8 +49,15 @@ def strip_body(strip: Strip, material: Material, element: str = "tet4", name: st
                                                                    strip.thickness])],
                            [strip.n_length, strip.n_width, strip.n_thick])
     tol = 1e-9 * strip.length
-    fixed = ((lambda x: np.abs(x[0]) < tol, (0, 2)),
-             (lambda x: np.abs(x[1]) < tol, (1,)))
+
+    def root(x):
+        return np.abs(x[0]) < tol
+
+    def root_axis(x):
+        dz = np.abs(x[2] - 0.5 * strip.thickness)
+        return root(x) & (dz <= dz[root(x)].min() + tol)
+
+    fixed = ((root, (0,)), (root_axis, (2,)), (lambda x: np.abs(x[1]) < tol, (1,)))
     return BodySpec(name, msh, material, initial_velocity=(0.0, 0.0, 0.0), fixed=fixed, element=element)
 
 

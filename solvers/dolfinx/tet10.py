@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = ["EDGES", "QP_WEIGHTS", "QP_DERIVATIVES", "N_QP", "quadratic_cells", "shape_derivatives",
-           "hrz_lumped_mass", "split_faces", "corner_share"]
+           "hrz_lumped_mass", "split_faces", "corner_share", "qp_jacobians", "qp_volumes", "critical_step_factor"]
 
 #: corner pairs of the edge nodes 4..9
 EDGES = ((0, 1), (1, 2), (0, 2), (0, 3), (1, 3), (2, 3))
@@ -122,3 +122,45 @@ def qp_volumes(cells10: np.ndarray, x: np.ndarray) -> np.ndarray:
     volume)."""
     J = qp_jacobians(x[cells10])
     return (QP_WEIGHTS * np.linalg.det(J)).ravel()
+
+
+def critical_step_factor(cells10: np.ndarray, X: np.ndarray, shear_modulus: float, bulk_modulus: float) -> float:
+    """The ratio of the ten-node cells' critical step to the linear kernel's estimate, smallest over the cells
+    (dimensionless): 2 / omega_e, omega_e the largest frequency of the cell's elastic stiffness under its HRZ mass
+    (an upper bound of the mesh's by the element eigenvalue inequality), over h_e / c, h_e the corner
+    tetrahedron's smallest altitude and c = sqrt((K + 4 G / 3) / rho) (the density cancels).
+
+    Parameters
+    ----------
+    cells10 : int array (nc, 10)
+        Ten-node cells.
+    X : ndarray (N, 3)
+        Node positions (reference configuration), m.
+    shear_modulus, bulk_modulus : float
+        G and K, Pa.
+    """
+    G, K = float(shear_modulus), float(bulk_modulus)
+    lam = K - 2.0 * G / 3.0
+    c2 = K + 4.0 * G / 3.0                       # rho c^2 (rho = 1: it cancels)
+    share = np.concatenate([np.full(4, corner_share), np.full(6, (1.0 - 4.0 * corner_share) / 6.0)])
+    worst = np.inf
+    for s in range(0, len(cells10), 4096):
+        xe = X[cells10[s:s + 4096]]
+        J = qp_jacobians(xe)
+        det = np.linalg.det(J)
+        g = np.einsum("qaj,cqji->cqai", QP_DERIVATIVES, np.linalg.inv(J))
+        vq = QP_WEIGHTS * det                    # (nc, 4)
+        gg = np.einsum("cq,cqai,cqbi->cab", vq, g, g)
+        Kij = (lam * np.einsum("cq,cqai,cqbj->caibj", vq, g, g) + G * np.einsum("cq,cqaj,cqbi->caibj", vq, g, g))
+        Kij += G * np.einsum("cab,ij->caibj", gg, np.eye(3))
+        nc = len(xe)
+        Kf = Kij.reshape(nc, 30, 30)
+        m = np.repeat(vq.sum(axis=1)[:, None] * share, 3, axis=1).reshape(nc, 30)   # HRZ, rho = 1
+        s_m = 1.0 / np.sqrt(m)
+        lam_max = np.linalg.eigvalsh(s_m[:, :, None] * Kf * s_m[:, None, :])[:, -1]
+        a, b, cc = (xe[:, k] - xe[:, 0] for k in (1, 2, 3))
+        n1, n2, n3 = np.cross(b, cc), np.cross(cc, a), np.cross(a, b)
+        area = np.max(np.stack([np.einsum("ni,ni->n", n, n) for n in (n1 + n2 + n3, n1, n2, n3)]), axis=0)
+        h = np.einsum("ni,ni->n", a, n1) / np.sqrt(area)
+        worst = min(worst, float(np.min(2.0 / np.sqrt(lam_max) / (h / np.sqrt(c2)))))
+    return worst
