@@ -220,6 +220,13 @@ class Body3D(Body):
         """Von Mises stress per owned cell, Pa."""
         return tet_von_mises(self.cell_stress)
 
+    def cell_means(self, arr: np.ndarray) -> np.ndarray:
+        """Per-cell values of a per-row array (``cell_stress``, ``eps_p``, ...): itself for linear cells, the
+        mean over each cell's Gauss points for ten-node cells."""
+        if self.element == "tet10":
+            return arr.reshape((len(self.cells), N_QP) + arr.shape[1:]).mean(axis=1)
+        return arr
+
     def cell_volumes(self) -> np.ndarray:
         """Current cell volumes, m^3; ten-node cells: the volume of each quadrature point (the rows of
         ``cell_stress``)."""
