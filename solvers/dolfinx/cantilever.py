@@ -34,7 +34,8 @@ __all__ = ["Strip", "strip_body", "tip_load", "tip_deflection", "beam_deflection
 @dataclass(frozen=True)
 class Strip:
     """The strip's dimensions (m) and mesh: ``n_length`` x ``n_width`` (of the half width) x ``n_thick``
-    bricks."""
+    bricks; ``grading`` p > 1 crowds the bricks towards the root (x = L s^p, s uniform in [0, 1]), where a
+    plastic hinge concentrates the curvature."""
 
     length: float = 0.04
     width: float = 0.005
@@ -42,6 +43,7 @@ class Strip:
     n_length: int = 40
     n_width: int = 2
     n_thick: int = 3
+    grading: float = 1.0
 
 
 def strip_body(strip: Strip, material: Material, element: str = "tet4", name: str = "strip") -> BodySpec:
@@ -49,6 +51,9 @@ def strip_body(strip: Strip, material: Material, element: str = "tet4", name: st
     msh = dmesh.create_box(MPI.COMM_SELF, [np.zeros(3), np.array([strip.length, 0.5 * strip.width,
                                                                    strip.thickness])],
                            [strip.n_length, strip.n_width, strip.n_thick])
+    if strip.grading != 1.0:
+        gx = msh.geometry.x
+        gx[:, 0] = strip.length * (gx[:, 0] / strip.length) ** strip.grading
     tol = 1e-9 * strip.length
 
     def root(x):
