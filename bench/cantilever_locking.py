@@ -3,11 +3,13 @@
 P L^3 / (3 E I) (and with Timoshenko's shear term), for linear (tet4) and ten-node (tet10) tetrahedra on
 ``create_box`` meshes of n_length x n_width (half width) x n_thick bricks (six tetrahedra each), by the implicit
 static solver (one Newton step: elastic); ``--explicit`` adds the explicit solver with kinetic damping (dynamic
-relaxation to rest; slow: ~10^5 steps for the 40 mm strip). Also the elastic-perfectly plastic strip's tip
-deflection along a load ramp against beam theory's (``--plastic``).
+relaxation to rest; slow: ~10^5 steps for the 40 mm strip). ``--plastic`` adds the elastic-perfectly plastic
+strip (sigma_y 250 MPa) under static load steps of 0.005 P_p from 0.97 to 1.03 P_p (P_p = M_p / L): its tip
+deflections and the load at which the compliance d delta / dP reaches ten times the elastic one (the tip
+deflection runs away), beside beam theory's (:func:`~pulseform.solvers.dolfinx.cantilever.beam_plastic_deflection`).
 
 Usage: .venv/bin/python bench/cantilever_locking.py [--meshes "40,2,3 80,4,6"] [--elements tet4 tet10]
-[--length 0.04] [--explicit] [--plastic]
+[--length 0.04] [--width 0.005] [--grading 1] [--explicit] [--plastic]
 """
 from __future__ import annotations
 
@@ -16,11 +18,10 @@ import math
 import time
 
 import numpy as np
-from scipy.integrate import quad
 
 from pulseform.solvers.dolfinx import ExplicitSolver3D, ImplicitOptions, ImplicitSolver3D, Material
-from pulseform.solvers.dolfinx.cantilever import (Strip, beam_deflection, hinge_load, strip_body, tip_deflection,
-                                                  tip_load)
+from pulseform.solvers.dolfinx.cantilever import (Strip, beam_deflection, beam_plastic_deflection, hinge_load,
+                                                  strip_body, tip_deflection, tip_load)
 from pulseform.solvers.dolfinx.implicit import ImplicitConvergenceError
 
 E, NU = 200e9, 0.3
@@ -59,20 +60,19 @@ def explicit_relaxed(strip: Strip, material: Material, element: str, P: float) -
     return d, s.step_count
 
 
-def beam_plastic_deflection(strip: Strip, material: Material, P: float) -> float:
-    """Beam theory's tip deflection (m) of the elastic-perfectly plastic strip under P < M_p / L (the rectangle's
-    moment-curvature law kappa = kappa_y / sqrt(3 - 2 M / M_y) past first yield)."""
-    d_el = beam_deflection(strip, material, 1.0, shear=False)          # m per N: L^3 / (3 E I)
-    L = strip.length
-    My = material.yield_stress * strip.width * strip.thickness ** 2 / 6.0
-    EI = L ** 3 / (3.0 * d_el)
-
-    def kappa(x):
-        M = P * (L - x)
-        return M / EI if M <= My else My / EI / math.sqrt(3.0 - 2.0 * M / My)
-
-    pts = [L * (1.0 - My / (P * L))] if P * L > My else None
-    return quad(lambda x: kappa(x) * (L - x), 0.0, L, points=pts, limit=200)[0]
+def runaway(f0: float, df: float, d) -> float:
+    """The load fraction (of P_p) at which the tip's compliance (difference quotient of the deflections ``d``, in
+    units of the elastic deflection at P_p, at the fractions f0, f0 + df, ...) first reaches 10 times the elastic
+    one (linear interpolation between the quotients at the interval midpoints); nan if it does not."""
+    q = np.diff(np.asarray(d, dtype=float)) / df
+    mid = f0 + df * (np.arange(len(q)) + 0.5)
+    k = np.flatnonzero(q >= 10.0)
+    if not len(k):
+        return float("nan")
+    k = int(k[0])
+    if k == 0:
+        return float(mid[0])
+    return float(mid[k - 1] + (10.0 - q[k - 1]) / (q[k] - q[k - 1]) * df)
 
 
 def main() -> None:
@@ -80,13 +80,15 @@ def main() -> None:
     ap.add_argument("--meshes", default="40,2,3 80,4,6")
     ap.add_argument("--elements", nargs="+", default=["tet4", "tet10"])
     ap.add_argument("--length", type=float, default=0.04)
+    ap.add_argument("--width", type=float, default=0.005)
+    ap.add_argument("--grading", type=float, default=1.0)
     ap.add_argument("--explicit", action="store_true")
     ap.add_argument("--plastic", action="store_true")
     a = ap.parse_args()
     elastic = Material(7800.0, G, K, 1e12, 0.0)
     for m in a.meshes.split():
         nl, nw, nt = (int(v) for v in m.split(","))
-        st = Strip(length=a.length, n_length=nl, n_width=nw, n_thick=nt)
+        st = Strip(length=a.length, width=a.width, n_length=nl, n_width=nw, n_thick=nt, grading=a.grading)
         eb = beam_deflection(st, elastic, 1.0, shear=False)
         tim = beam_deflection(st, elastic, 1.0)
         for el in a.elements:
@@ -102,15 +104,16 @@ def main() -> None:
         if a.plastic:
             mat = Material(7800.0, G, K, 250e6, 0.0)
             Pp = hinge_load(st, mat)
-            fr = [0.8, 0.9, 0.95, 0.98, 0.99, 1.0, 1.01, 1.02, 1.04, 1.07]
+            fr = np.round(np.arange(0.97, 1.0301, 0.005), 4)
             d_el = beam_deflection(st, mat, Pp, shear=False)
+            beam = [beam_plastic_deflection(st, mat, f * Pp) / d_el for f in np.round(np.arange(0.97, 0.9976, 0.0005),
+                                                                                     5)]
+            print(f"beam theory: compliance 10x the elastic one at P / P_p = {runaway(0.97, 0.0005, beam):.4f}")
             for el in a.elements:
-                ds = implicit_static(st, mat, el, [f * Pp for f in fr])
-                for f, d in zip(fr, ds):
-                    beam = beam_plastic_deflection(st, mat, f * Pp) / d_el if f < 1 else (
-                        20.0 / 27.0 * 2.0 if f == 1 else np.inf)
-                    print(f"{el:5s} {nl}x{nw}x{nt} P / P_p {f:.3f}: d / d_el(P_p) "
-                          f"{'failed' if d is None else f'{d / d_el:.4f}'}  beam theory {beam:.4f}", flush=True)
+                ds = [d / d_el if d is not None else np.nan for d in implicit_static(st, mat, el, [f * Pp for f in fr])]
+                print(f"{el:5s} {nl}x{nw}x{nt} bricks (b {st.width * 1e3:g} mm, grading {st.grading:g}): d / "
+                      f"d_el(P_p) at P / P_p {' '.join(f'{f:g}:{d:.4f}' for f, d in zip(fr, ds))}; compliance 10x "
+                      f"the elastic one at P / P_p = {runaway(fr[0], 0.005, ds):.4f}", flush=True)
 
 
 if __name__ == "__main__":

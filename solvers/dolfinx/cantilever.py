@@ -21,14 +21,18 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import math
+
 import numpy as np
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
+from scipy.integrate import quad
 
 from .body import BodySpec
 from .material import Material
 
-__all__ = ["Strip", "strip_body", "tip_load", "tip_deflection", "beam_deflection", "hinge_load"]
+__all__ = ["Strip", "strip_body", "tip_load", "tip_deflection", "beam_deflection", "hinge_load",
+           "beam_plastic_deflection"]
 
 
 @dataclass(frozen=True)
@@ -106,3 +110,24 @@ def hinge_load(strip: Strip, material: Material) -> float:
     """The tip force (N) of the plastic hinge at the root of an elastic-perfectly plastic strip,
     M_p / L = sigma_y b t^2 / (4 L)."""
     return material.yield_stress * strip.width * strip.thickness ** 2 / (4.0 * strip.length)
+
+
+def beam_plastic_deflection(strip: Strip, material: Material, force: float) -> float:
+    """Beam theory's tip deflection (m, Euler-Bernoulli, small deflections) of the elastic-perfectly plastic
+    strip under a tip force ``force`` < M_p / L (N): the rectangle's moment-curvature law, kappa = M / E I up to
+    M_y = sigma_y b t^2 / 6 and kappa_y / sqrt(3 - 2 M / M_y) beyond, integrated as delta = int kappa (L - x) dx.
+    The deflection at the hinge load is finite (40/27 of the elastic one there); the compliance d delta / dP grows
+    without bound as the load approaches it."""
+    L = strip.length
+    EI = L ** 3 / (3.0 * beam_deflection(strip, material, 1.0, shear=False))
+    My = material.yield_stress * strip.width * strip.thickness ** 2 / 6.0
+    P = float(force)
+    if P * L >= 1.5 * My:
+        raise ValueError(f"tip force {P} N is not below the hinge load {1.5 * My / L} N")
+
+    def kappa(x: float) -> float:
+        M = P * (L - x)
+        return M / EI if M <= My else My / EI / math.sqrt(3.0 - 2.0 * M / My)
+
+    pts = [L * (1.0 - My / (P * L))] if P * L > My else None
+    return quad(lambda x: kappa(x) * (L - x), 0.0, L, points=pts, limit=200)[0]
