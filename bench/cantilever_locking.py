@@ -46,7 +46,7 @@ def implicit_static(strip: Strip, material: Material, element: str, loads) -> li
 
 def explicit_relaxed(strip: Strip, material: Material, element: str, P: float) -> tuple:
     """Tip deflection (m) at rest under the tip force ``P`` (N) by kinetic damping, and the steps taken."""
-    s = ExplicitSolver3D([strip_body(strip, material, element)], cfl=0.9)
+    s = ExplicitSolver3D([strip_body(strip, material, element)], cfl=0.8)
     s.kinetic_damping = True
     b = s.bodies["strip"]
     f = {"strip": tip_load(b, strip, P)}
