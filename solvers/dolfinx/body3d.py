@@ -14,7 +14,7 @@ from dolfinx import mesh as dmesh
 from dolfinx.fem.petsc import assemble_vector
 from petsc4py import PETSc
 
-from .body import Body, BodySpec
+from .body import ELEMENTS, Body, BodySpec
 from .sliding import SlidingPlanes
 from .tet10 import N_QP, hrz_lumped_mass, qp_volumes, quadratic_cells, split_faces
 from .tet_fields import tet_elastic_energy_density, tet_volumes, tet_von_mises
@@ -56,8 +56,8 @@ class Body3D(Body):
         if spec.initial_stress is not None and len(spec.initial_stress) != 6:
             raise ValueError(f"body {spec.name!r}: initial_stress needs 6 components in 3D "
                              "[xx, yy, zz, xy, yz, xz]")
-        if spec.element not in ("tet4", "tet10"):
-            raise ValueError(f"body {spec.name!r}: element must be 'tet4' or 'tet10', got {spec.element!r}")
+        if spec.element not in ELEMENTS:
+            raise ValueError(f"body {spec.name!r}: element must be one of {ELEMENTS}, got {spec.element!r}")
         if spec.element == "tet10" and msh.comm.size > 1:
             raise ValueError(f"body {spec.name!r}: element 'tet10' runs on one process (MPI: not done yet)")
         self.name = spec.name

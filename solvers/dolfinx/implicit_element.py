@@ -1,5 +1,6 @@
 """The element update of the implicit solver and its exact tangent, on numpy arrays over the cells
-(P1 triangles in plane stress / plane strain / axisymmetry, P1 tetrahedra in 3D).
+(P1 triangles in plane stress / plane strain / axisymmetry, P1 tetrahedra in 3D; ten-node tetrahedra
+(:mod:`.tet10`) with the same update at each of their four Gauss points, their stress rows ``4 c + q``).
 
 The update is the explicit kernels' finite-strain treatment written for a displacement increment
 ``du`` over a step instead of ``dt * v^{n+1/2}`` (:mod:`.element_math`, :mod:`.tet_kernel`):

@@ -77,7 +77,8 @@ class _QuadraticKernel:
 
 
 class ExplicitSolver3D(ExplicitSolver):
-    """Explicit elastic-plastic dynamics of 3D bodies (P1 tetrahedra) with rigid walls.
+    """Explicit elastic-plastic dynamics of 3D bodies (P1 tetrahedra, or ten-node ones per body:
+    ``BodySpec.element = "tet10"``, :mod:`.tet10_kernel`, serial) with rigid walls.
 
     Central differences with velocities at half steps, row-sum lumped mass, updated Lagrangian
     with a Jaumann (Hughes-Winget) objective stress update, J2 radial return with linear
