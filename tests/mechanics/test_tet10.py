@@ -191,3 +191,31 @@ def test_cantilever_plastic_hinge_three_layers():
     beam = [beam_plastic_deflection(st, mat, f * Pp) / d_el for f in fb]
     assert d[2] == pytest.approx(beam_plastic_deflection(st, mat, 0.98 * Pp), rel=0.02)
     assert _runaway(fr, np.array(d) / d_el) == pytest.approx(_runaway(fb, beam), rel=0.02)
+
+
+def test_element_choice_is_checked_and_fields_are_written(tmp_path):
+    """An unknown element and a ten-node element in 2D are refused in one line; a ten-node body's field file holds
+    its ten-node cells and per-cell means of the Gauss points' stress."""
+    import h5py
+    from dolfinx import mesh as dmesh
+    from mpi4py import MPI
+
+    from pulseform.solvers.dolfinx import BodySpec, ExplicitSolver, FieldWriter
+
+    st = Strip(length=0.004, n_length=2, n_width=1, n_thick=1)
+    spec = strip_body(st, ELASTIC, "tet10")
+    with pytest.raises(ValueError, match="element must be one of"):
+        ExplicitSolver3D([BodySpec("s", spec.mesh, ELASTIC, (0.0, 0.0, 0.0), element="hex8")])
+    sq = dmesh.create_unit_square(MPI.COMM_SELF, 2, 2)
+    with pytest.raises(ValueError, match="is for 3D bodies"):
+        ExplicitSolver([BodySpec("p", sq, ELASTIC, element="tet10")])
+    s = ExplicitSolver3D([spec])
+    b = s.bodies["strip"]
+    b.cell_stress[:] = np.arange(b.cell_stress.size, dtype=float).reshape(b.cell_stress.shape)
+    with FieldWriter(s, tmp_path / "f") as fw:
+        fw.write(0.0)
+    with h5py.File(tmp_path / "f_strip.h5") as h:
+        assert h["Mesh/tetrahedra10"].shape == (len(b.cells), 10)
+        assert h["Mesh/points"].shape == (len(b.x), 3)
+        stress = h["Step_0000/stress_Pa"][...]
+    assert np.allclose(stress, b.cell_stress.reshape(-1, 4, 6).mean(axis=1))
