@@ -143,6 +143,10 @@ def _validate_3d(case) -> None:
         if b.shape is not None and b.shape.type not in SOLID_TYPES:
             raise SchemaError(f"bodies[{i}].shape.type", f"got {b.shape.type!r}, a 2D shape; a 3D case "
                               f"(mechanics.formulation = '3d') allows: {', '.join(map(repr, SOLID_TYPES))}")
+        if b.element == "tet10" and case.case.kind == "coupled":
+            raise SchemaError(f"bodies[{i}].element", "got 'tet10'; ten-node tetrahedra run in mechanics-only 3D "
+                              "cases for now (a coupled case's bodies share their nodes with the EM mesh): allowed "
+                              "here: 'tet4'")
         if b.fixed and not file3d:
             raise SchemaError(f"bodies[{i}].fixed", "a key of 2D cases and 3D geometry files (geometry.type = "
                               "'geometry_3d'); in this 3D case hold the body with [[symmetry]] planes or [[walls]]")
@@ -198,6 +202,9 @@ def _validate_2d(case) -> None:
             raise SchemaError(f"bodies[{i}].shape.type", f"got {b.shape.type!r}, a 3D shape; with "
                               f"mechanics.formulation = {f!r} allowed: 'rectangle', 'polygon' (or set "
                               "mechanics.formulation = '3d')")
+        if b.element != "tet4":
+            raise SchemaError(f"bodies[{i}].element", f"got {b.element!r}, a 3D element; with mechanics.formulation "
+                              f"= {f!r} bodies are P1 triangles: allowed 'tet4' (or set mechanics.formulation = '3d')")
         if len(b.initial_velocity) != 2:
             raise SchemaError(f"bodies[{i}].initial_velocity", f"got 3 components, a 3D vector; with "
                               f"mechanics.formulation = {f!r} give [vx, vy] (m/s)")
