@@ -143,6 +143,10 @@ def _validate_3d(case) -> None:
         if b.shape is not None and b.shape.type not in SOLID_TYPES:
             raise SchemaError(f"bodies[{i}].shape.type", f"got {b.shape.type!r}, a 2D shape; a 3D case "
                               f"(mechanics.formulation = '3d') allows: {', '.join(map(repr, SOLID_TYPES))}")
+        if b.element == "tet10" and case.case.kind == "coupled":
+            raise SchemaError(f"bodies[{i}].element", "got 'tet10'; ten-node tetrahedra run in mechanics-only 3D "
+                              "cases for now (a coupled case's bodies share their nodes with the EM mesh): allowed "
+                              "here: 'tet4'")
         if b.fixed and not file3d:
             raise SchemaError(f"bodies[{i}].fixed", "a key of 2D cases and 3D geometry files (geometry.type = "
                               "'geometry_3d'); in this 3D case hold the body with [[symmetry]] planes or [[walls]]")
@@ -157,6 +161,7 @@ def _validate_3d(case) -> None:
     for i, p in enumerate(case.probes):
         if len(p.point) != 3:
             raise SchemaError(f"probes[{i}].point", f"got {len(p.point)} components; a 3D case needs [x, y, z] (m)")
+    _check_quadratic_bodies(case)
     names = [b.name for b in case.bodies]
     for i, s in enumerate(case.symmetry):
         for j, n in enumerate(s.bodies):
@@ -164,6 +169,26 @@ def _validate_3d(case) -> None:
                 raise SchemaError(f"symmetry[{i}].bodies[{j}]", f"got {n!r}; allowed: "
                                   + ", ".join(repr(x) for x in names))
         _check_plane_touches(case, i, s)
+
+
+def _check_quadratic_bodies(case) -> None:
+    """Ten-node bodies take no rigid walls or contact pairs yet: a pressure on a six-node face is not shared by
+    its nodes as by their lumped masses (a corner carries 1/36 of a cell's mass and none of the consistent load),
+    so the per-node reactions chatter (the 3D bar on a wall: probe 32 MPa instead of 70)."""
+    quad = {b.name for b in case.bodies if b.element == "tet10"}
+    if not quad:
+        return
+    for i, w in enumerate(case.walls):
+        hit = sorted(quad & set(w.bodies or quad))
+        if hit:
+            raise SchemaError(f"walls[{i}]", f"acts on {hit[0]!r}, a body of element 'tet10'; ten-node bodies take no "
+                              "rigid walls yet (node reactions of six-node faces): set its element = 'tet4' or the "
+                              "wall's bodies")
+    for i, c in enumerate(case.contact):
+        for side in ("slave", "master"):
+            if getattr(c, side) in quad:
+                raise SchemaError(f"contact[{i}].{side}", f"got {getattr(c, side)!r}, a body of element 'tet10'; "
+                                  "ten-node bodies take no contact yet: set its element = 'tet4'")
 
 
 def _check_plane_touches(case, i: int, plane: SymmetryPlane) -> None:
@@ -198,6 +223,9 @@ def _validate_2d(case) -> None:
             raise SchemaError(f"bodies[{i}].shape.type", f"got {b.shape.type!r}, a 3D shape; with "
                               f"mechanics.formulation = {f!r} allowed: 'rectangle', 'polygon' (or set "
                               "mechanics.formulation = '3d')")
+        if b.element != "tet4":
+            raise SchemaError(f"bodies[{i}].element", f"got {b.element!r}, a 3D element; with mechanics.formulation "
+                              f"= {f!r} bodies are P1 triangles: allowed 'tet4' (or set mechanics.formulation = '3d')")
         if len(b.initial_velocity) != 2:
             raise SchemaError(f"bodies[{i}].initial_velocity", f"got 3 components, a 3D vector; with "
                               f"mechanics.formulation = {f!r} give [vx, vy] (m/s)")

@@ -13,6 +13,7 @@ from mpi4py import MPI
 from pulseform.solvers import dolfinx as mech
 from pulseform.solvers.dolfinx.solver3d import ExplicitSolver3D
 
+from ..case.schema import SchemaError
 from ..case.model import Case
 from ..case.solid3d import SymmetryPlane
 from ..mesh.solids import mesh_solid
@@ -37,7 +38,10 @@ def build_solver_3d(case: Case, comm: MPI.Comm = MPI.COMM_WORLD,
     (``solver_material``: case material table -> solver material; ``make_solver``: (case, bodies, pairs, walls,
     comm) -> the explicit or implicit solver, :func:`.model.make_solver`)."""
     bodies = []
-    for b in case.bodies:
+    for i, b in enumerate(case.bodies):
+        if b.element == "tet10" and comm.size > 1:
+            raise SchemaError(f"bodies[{i}].element", f"got 'tet10' under MPI ({comm.size} processes); ten-node "
+                              "tetrahedra run on one process for now: run without mpirun or set element = 'tet4'")
         mesh = mesh_solid(b.shape, b.mesh_size, comm, name=b.name, time_limit=case.limits.gmsh_time_limit_s)
         tol = 1e-9 * max(float(comm.allreduce(np.abs(mesh.geometry.x).max(initial=0.0), op=MPI.MAX)), 1.0)
         own = [s for s in case.symmetry if not s.bodies or b.name in s.bodies]
@@ -48,7 +52,7 @@ def build_solver_3d(case: Case, comm: MPI.Comm = MPI.COMM_WORLD,
         sliding = () if aligned else tuple((plane_marker(s, tol), tuple(s.normal)) for s in own)
         v0 = tuple(b.initial_velocity) if len(b.initial_velocity) == 3 else (0.0, 0.0, 0.0)
         bodies.append(mech.BodySpec(name=b.name, mesh=mesh, material=solver_material(case.materials[b.material]),
-                                    initial_velocity=v0, fixed=fixed, sliding=sliding))
+                                    initial_velocity=v0, fixed=fixed, sliding=sliding, element=b.element))
     walls = tuple(mech.RigidWallSpec(point=tuple(w.point), normal=tuple(w.normal),
                                      bodies=tuple(w.bodies) or None, sliding=w.sliding) for w in case.walls)
     pairs = tuple(mech.ContactPairSpec(slave=c.slave, master=c.master, stiffness=c.stiffness, h0=c.h0,

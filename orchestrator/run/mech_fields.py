@@ -78,7 +78,8 @@ def _read_file(path: Path):
         body = str(f.attrs["body"])
         form = str(f.attrs["formulation"])
         pts = f["Mesh/points"][...]
-        tris = f["Mesh/triangles" if "Mesh/triangles" in f else "Mesh/tetrahedra"][...]
+        cells = next(k for k in ("triangles", "tetrahedra", "tetrahedra10") if f"Mesh/{k}" in f)
+        tris = f[f"Mesh/{cells}"][...][:, :4 if cells == "tetrahedra10" else None]   # ten-node cells: their corners
         steps = sorted((float(f[g].attrs["time"]), g) for g in f if g.startswith("Step_"))
     return body, form, pts, tris, steps
 

@@ -19,7 +19,7 @@ from dolfinx.la import ScatterMode
 from . import cell_fields
 from .material import Material
 
-__all__ = ["BodySpec", "Body"]
+__all__ = ["BodySpec", "Body", "ELEMENTS"]
 
 log = logging.getLogger(__name__)
 
@@ -52,6 +52,10 @@ class BodySpec:
     sliding : sequence
         3D only: symmetry planes of any orientation ``(marker, normal)``; the marked nodes slide in
         the plane (:mod:`.sliding`).
+    element : {"tet4", "tet10"}
+        3D only: linear tetrahedra on the mesh's vertices (default), or quadratic ten-node tetrahedra with a
+        node at the middle of every edge (:mod:`.tet10`: thin parts that bend, one process). 2D bodies take
+        "tet4" (P1 triangles) only.
     """
 
     name: str
@@ -62,6 +66,11 @@ class BodySpec:
     motion: Sequence = ()
     initial_stress: Optional[tuple] = None
     sliding: Sequence = ()
+    element: str = "tet4"
+
+
+#: the elements of :attr:`BodySpec.element` (3D bodies; 2D bodies are P1 triangles)
+ELEMENTS = ("tet4", "tet10")
 
 
 class Body:
@@ -75,6 +84,9 @@ class Body:
             raise ValueError(f"body {spec.name!r}: need a 2D triangle mesh")
         if spec.sliding:
             raise ValueError(f"body {spec.name!r}: sliding planes are for 3D bodies (use fixed components in 2D)")
+        if spec.element != "tet4":
+            raise ValueError(f"body {spec.name!r}: element {spec.element!r} is for 3D bodies (2D bodies are P1 "
+                             "triangles: element 'tet4')")
         if msh.geometry.cmap.degree != 1:
             raise ValueError(f"body {spec.name!r}: need an affine (P1) geometry")
         self.name = spec.name

@@ -14,8 +14,9 @@ from dolfinx import mesh as dmesh
 from dolfinx.fem.petsc import assemble_vector
 from petsc4py import PETSc
 
-from .body import Body, BodySpec
+from .body import ELEMENTS, Body, BodySpec
 from .sliding import SlidingPlanes
+from .tet10 import N_QP, hrz_lumped_mass, qp_volumes, quadratic_cells, split_faces
 from .tet_fields import tet_elastic_energy_density, tet_volumes, tet_von_mises
 
 __all__ = ["Body3D"]
@@ -28,14 +29,18 @@ class Body3D(Body):
 
     Attributes
     ----------
-    cells : int32 array (nc, 4)
-        Owned tetrahedra as node rows, positively oriented in the reference configuration.
+    element : {"tet4", "tet10"}
+        The element (:attr:`~.body.BodySpec.element`).
+    cells : int32 array (nc, 4) or (nc, 10)
+        Owned tetrahedra as node rows, positively oriented in the reference configuration (ten-node cells:
+        corners, then edge nodes, :mod:`.tet10`; the edge nodes are the rows after the mesh's vertices).
     segments : int32 array (nf, 3)
         Owned exterior facets (triangles) as node rows, ordered so that
         (x1 - x0) x (x2 - x0) points out of the body (the name is the 2D body's: the boundary
-        pieces that walls and loads use).
-    cell_stress : float64 array (nc, 6)
-        Cauchy stress [xx, yy, zz, xy, yz, xz], Pa.
+        pieces that walls and loads use; a ten-node body's faces are cut in four).
+    cell_stress : float64 array (nc, 6) or (nc * 4, 6)
+        Cauchy stress [xx, yy, zz, xy, yz, xz], Pa, per cell (tet4) or per quadrature point (tet10, cell-major;
+        so are ``eps_p`` and ``temperature``).
     """
 
     def __init__(self, spec: BodySpec):  # noqa: D107 (Body's __init__ is for 2D meshes)
@@ -51,8 +56,13 @@ class Body3D(Body):
         if spec.initial_stress is not None and len(spec.initial_stress) != 6:
             raise ValueError(f"body {spec.name!r}: initial_stress needs 6 components in 3D "
                              "[xx, yy, zz, xy, yz, xz]")
+        if spec.element not in ELEMENTS:
+            raise ValueError(f"body {spec.name!r}: element must be one of {ELEMENTS}, got {spec.element!r}")
+        if spec.element == "tet10" and msh.comm.size > 1:
+            raise ValueError(f"body {spec.name!r}: element 'tet10' runs on one process (MPI: not done yet)")
         self.name = spec.name
         self.spec = spec
+        self.element = spec.element
         self.gdim = 3
         self.mesh = msh
         self.material = spec.material
@@ -73,11 +83,14 @@ class Body3D(Body):
         # round-off (1e-15 m) that depends on which cell, hence on the partition
         X = np.empty((self.n_local, 3))
         X[dofs.ravel()] = msh.geometry.x[msh.geometry.dofmap.array.reshape(-1, 4).ravel(), :3]
-        self._init_state(spec, cells, X, tet_volumes(cells, X), 6)
-        nc = cells.shape[0]
+        if self.element == "tet10":
+            self._init_quadratic(spec, cells, X, dofs)
+        else:
+            self._init_state(spec, cells, X, tet_volumes(cells, X), 6)
+            self.segments = self._exterior_triangles(dofs)
+        nc = self.cells.shape[0]
         if np.any(self.mass <= 0):
             raise ValueError(f"body {spec.name!r}: non-positive lumped mass")
-        self.segments = self._exterior_triangles(dofs)
         self._constraints = self._build_constraints()
         self.sliding = SlidingPlanes(self.X0, spec.sliding) if spec.sliding else None
         self.axis_nodes = np.zeros(0, dtype=np.int64)
@@ -85,8 +98,33 @@ class Body3D(Body):
                  self.name, self.n_owned, nc, len(self.segments), self.total_mass())
 
     # ------------------------------------------------------------------ setup helpers
+    def _init_quadratic(self, spec: BodySpec, cells: np.ndarray, X: np.ndarray, dofs: np.ndarray) -> None:
+        """The ten-node body (one process): the linear cells oriented, a node at every edge's middle appended
+        after the vertices, the state per quadrature point, the boundary faces cut in four."""
+        vol = tet_volumes(cells, X)
+        if np.any(vol == 0.0):
+            raise ValueError(f"body {spec.name!r}: degenerate cell")
+        neg = vol < 0
+        cells[neg, 1], cells[neg, 2] = cells[neg, 2].copy(), cells[neg, 1].copy()
+        corner_tris = self._exterior_triangles_of(dofs, X)
+        cells10, X10, edges = quadratic_cells(cells, X)
+        self.n_vertices = len(X)
+        self.n_owned = self.n_local = len(X10)
+        self.global_ids = np.arange(len(X10), dtype=np.int64)
+        self._init_state(spec, cells10, X10, np.abs(vol), 6)
+        nq = len(cells10) * N_QP
+        self.cell_stress = np.repeat(self.cell_stress, N_QP, axis=0) if len(cells10) else np.zeros((0, 6))
+        self.eps_p = np.zeros(nq)
+        self.temperature = np.full(nq, float(spec.material.initial_temperature))
+        edge_node = {(int(a), int(b)): len(X) + k for k, (a, b) in enumerate(edges)}
+        self.segments = split_faces(corner_tris, edge_node)
+
     def _lumped_mass(self) -> np.ndarray:
-        """Row-sum lumped mass via DOLFINx assembly, kg (each node gets rho V / 4 of its cells)."""
+        """Row-sum lumped mass via DOLFINx assembly, kg (each node gets rho V / 4 of its cells); ten-node
+        cells: HRZ (:func:`.tet10.hrz_lumped_mass`)."""
+        if self.element == "tet10":
+            return hrz_lumped_mass(self.cells, tet_volumes(self.cells, self.X0), self.material.density,
+                                   self.n_local)
         w = ufl.TestFunction(self.V)
         one = ufl.as_vector((1.0, 1.0, 1.0))
         form = fem.form(self.material.density * ufl.inner(one, w) * ufl.dx)
@@ -100,6 +138,11 @@ class Body3D(Body):
 
     def _exterior_triangles(self, dofs: np.ndarray) -> np.ndarray:
         """Exterior facets of the owned cells as (n, 3) node rows, outward oriented."""
+        return self._exterior_triangles_of(dofs, self.X0)
+
+    def _exterior_triangles_of(self, dofs: np.ndarray, X0: np.ndarray) -> np.ndarray:
+        """Exterior facets of the owned cells as (n, 3) vertex rows, outward oriented for vertex positions
+        ``X0`` (m)."""
         msh = self.mesh
         top = msh.topology
         top.create_connectivity(2, 3)
@@ -119,7 +162,7 @@ class Body3D(Body):
         cd = dofs[cell]
         # the cell's fourth node: the node of the cell that is not on the facet
         fourth = cd[~(cd[:, :, None] == tris[:, None, :]).any(axis=2)]
-        p0, p1, p2, p3 = self.X0[tris[:, 0]], self.X0[tris[:, 1]], self.X0[tris[:, 2]], self.X0[fourth]
+        p0, p1, p2, p3 = X0[tris[:, 0]], X0[tris[:, 1]], X0[tris[:, 2]], X0[fourth]
         inward = np.einsum("ij,ij->i", np.cross(p1 - p0, p2 - p0), p3 - p0) > 0
         tris[inward] = tris[inward][:, [0, 2, 1]]
         return np.ascontiguousarray(tris)
@@ -177,8 +220,18 @@ class Body3D(Body):
         """Von Mises stress per owned cell, Pa."""
         return tet_von_mises(self.cell_stress)
 
+    def cell_means(self, arr: np.ndarray) -> np.ndarray:
+        """Per-cell values of a per-row array (``cell_stress``, ``eps_p``, ...): itself for linear cells, the
+        mean over each cell's Gauss points for ten-node cells."""
+        if self.element == "tet10":
+            return arr.reshape((len(self.cells), N_QP) + arr.shape[1:]).mean(axis=1)
+        return arr
+
     def cell_volumes(self) -> np.ndarray:
-        """Current cell volumes, m^3."""
+        """Current cell volumes, m^3; ten-node cells: the volume of each quadrature point (the rows of
+        ``cell_stress``)."""
+        if self.element == "tet10":
+            return qp_volumes(self.cells, self.x)
         return tet_volumes(self.cells, self.x)
 
     def elastic_energy(self) -> float:
@@ -191,4 +244,4 @@ class Body3D(Body):
         """Write the current node positions into ``mesh.geometry.x``."""
         gdofs = self.mesh.geometry.dofmap.array.reshape(-1, 4)
         vd = self.V.dofmap.list.array.reshape(-1, 4)
-        self.mesh.geometry.x[gdofs.ravel(), :3] = self.x[vd.ravel()]
+        self.mesh.geometry.x[gdofs.ravel(), :3] = self.x[vd.ravel()]   # the vertices: the first rows

@@ -487,7 +487,8 @@ class ImplicitSolver(ImplicitSteps, ExplicitSolver):
 
 
 class ImplicitSolver3D(ImplicitSteps, ExplicitSolver3D):
-    """Implicit dynamics of 3D bodies on P1 tetrahedra (the options of :class:`ImplicitSolver`)."""
+    """Implicit dynamics of 3D bodies on linear or ten-node tetrahedra (``BodySpec.element``; the options of
+    :class:`ImplicitSolver`)."""
 
     def __init__(self, bodies: Sequence[BodySpec], options: ImplicitOptions, comm=MPI.COMM_WORLD,
                  contact_pairs: Sequence[ContactPairSpec] = (), rigid_walls: Sequence[RigidWallSpec] = ()):

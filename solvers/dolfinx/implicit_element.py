@@ -1,5 +1,6 @@
 """The element update of the implicit solver and its exact tangent, on numpy arrays over the cells
-(P1 triangles in plane stress / plane strain / axisymmetry, P1 tetrahedra in 3D).
+(P1 triangles in plane stress / plane strain / axisymmetry, P1 tetrahedra in 3D; ten-node tetrahedra
+(:mod:`.tet10`) with the same update at each of their four Gauss points, their stress rows ``4 c + q``).
 
 The update is the explicit kernels' finite-strain treatment written for a displacement increment
 ``du`` over a step instead of ``dt * v^{n+1/2}`` (:mod:`.element_math`, :mod:`.tet_kernel`):
@@ -34,6 +35,7 @@ import numpy as np
 from .implicit_flow import flow_stress, is_linear, needs_rate
 from .kernels import MODE_AXISYMMETRIC, MODE_PLANE_STRESS
 from .material import Material
+from .tet10 import N_QP, QP_DERIVATIVES, QP_WEIGHTS, qp_jacobians
 from .tet_kernel import MODE_SOLID
 
 __all__ = ["CellState", "CellResult", "cell_update", "cell_tangent", "voigt_to_tensor", "tensor_to_voigt"]
@@ -253,6 +255,8 @@ def cell_update(st: CellState, du: np.ndarray) -> CellResult:
     CellResult
     """
     nc, nn, dim = du.shape
+    if nn == 10:
+        return _quadratic_update(st, du)
     xm = st.x + 0.5 * du
     x1 = st.x + du
     gm, detm, badm = _gradients(xm)
@@ -282,6 +286,37 @@ def cell_update(st: CellState, du: np.ndarray) -> CellResult:
     volm = _measure(xm, detm, st)
     bad = badm | bad1
     return CellResult(f, tensor_to_voigt(S, st.stress.shape[1]), dep, sy * dep * volm, bad)
+
+
+def _qp_gradients(x: np.ndarray):
+    """Shape-function gradients g[c, q, a, i] = d N_a / d x_i (nc, 4, 10, 3) of ten-node cells ``x`` (nc, 10, 3)
+    at their Gauss points, the Jacobian determinants (nc, 4) and the cells with one not positive."""
+    nc = x.shape[0]
+    J = qp_jacobians(x).reshape(-1, 3, 3)
+    adj, det = _adjugate(J)
+    bad = (np.real(det) <= 0.0).reshape(nc, N_QP)
+    inv = (adj / np.where(np.real(det) <= 0.0, 1.0, det)[:, None, None]).reshape(nc, N_QP, 3, 3)
+    g = np.einsum("qaj,cqji->cqai", QP_DERIVATIVES, inv)
+    return g, det.reshape(nc, N_QP), bad.any(axis=1)
+
+
+def _quadratic_update(st: CellState, du: np.ndarray) -> CellResult:
+    """:func:`cell_update` of ten-node tetrahedra (:mod:`.tet10`): the same kinematics and stress update at each
+    of the four Gauss points (state rows ``4 c + q``), the forces by the Gauss rule on x^{n+1}."""
+    nc = du.shape[0]
+    gm, detm, badm = _qp_gradients(st.x + 0.5 * du)
+    g1, det1, bad1 = _qp_gradients(st.x + du)
+    H = np.einsum("cai,cqaj->cqij", du, gm).reshape(-1, 3, 3)     # per Gauss point, cell-major
+    E = 0.5 * (H + np.swapaxes(H, 1, 2))
+    A = 0.25 * (H - np.swapaxes(H, 1, 2))                          # A = W / 2
+    aa = A[:, 0, 1] ** 2 + A[:, 0, 2] ** 2 + A[:, 1, 2] ** 2
+    Q = np.eye(3) + (2.0 / (1.0 + aa))[:, None, None] * (A + A @ A)
+    S0 = voigt_to_tensor(st.stress)
+    S, dep, sy = _update_stress(Q @ S0 @ np.swapaxes(Q, 1, 2), E, st)
+    vol1 = QP_WEIGHTS * det1                                       # (nc, 4)
+    f = np.einsum("cq,cqij,cqaj->cai", vol1, S.reshape(nc, N_QP, 3, 3), g1)
+    volm = (QP_WEIGHTS * detm).ravel()
+    return CellResult(f, tensor_to_voigt(S, 6), dep, sy * dep * volm, badm | bad1)
 
 
 def _plane_stress(Sr: np.ndarray, E: np.ndarray, st: CellState):

@@ -7,7 +7,10 @@ File layout (``<prefix>_<body>.h5``; h5py reads it by name, no XDMF needed)::
     /Mesh/points          (N, 3) float64, m: reference coordinates (x, y, 0); x = r, y = z in axisymmetry
     /Mesh/triangles       (C, 3) int64: node indices of each triangle (2D bodies), or
     /Mesh/tetrahedra      (C, 4) int64: node indices of each tetrahedron (3D bodies,
-                          formulation "3d", coordinates "x y z", points (x, y, z))
+                          formulation "3d", coordinates "x y z", points (x, y, z)), or
+    /Mesh/tetrahedra10    (C, 10) int64: of each ten-node tetrahedron (``element = "tet10"``; corners, then
+                          the edge nodes of edges 01 12 02 03 13 23: VTK's and XDMF's order); its cell
+                          fields are the means over the cell's four Gauss points
     /times                (T,) float64, s: the output times (exact: milestones rounded to 12 digits)
     /Step_0000/           attrs: time (s); one group per output time, in time order
         displacement_m    (N, 3) at nodes: (u_x, u_y, 0) = current - reference position ((u_x, u_y, u_z) in 3D)
@@ -77,7 +80,7 @@ def _tensor6(s: np.ndarray) -> np.ndarray:
 
 
 #: cell dataset and XDMF topology by vertices per cell
-_CELLS = {3: ("triangles", "Triangle"), 4: ("tetrahedra", "Tetrahedron")}
+_CELLS = {3: ("triangles", "Triangle"), 4: ("tetrahedra", "Tetrahedron"), 10: ("tetrahedra10", "Tetrahedron_10")}
 
 
 class _BodyFile:
@@ -214,7 +217,7 @@ class FieldWriter:
             self._gids[n] = own
             parts = self.comm.gather((own, b.X0[: b.n_owned], b.global_ids[b.cells]), root=0)
             if self.comm.rank == 0:
-                n_glob = b.V.dofmap.index_map.size_global
+                n_glob = len(b.X0) if getattr(b, "element", "tet4") == "tet10" else b.V.dofmap.index_map.size_global
                 X = np.zeros((n_glob, b.X0.shape[1]))
                 for gid, x, _ in parts:
                     X[gid] = x
@@ -229,8 +232,9 @@ class FieldWriter:
         for n, b in self.solver.bodies.items():
             own = slice(0, b.n_owned)
             extra = self.cell_fields(n, b) if self.cell_fields is not None else {}
-            local = (self._gids[n], b.u[own], b.v[own], b.cell_stress, b.von_mises, b.eps_p, extra,
-                     b.temperature if b.material.thermal else None)
+            cm = getattr(b, "cell_means", lambda a: a)      # per cell (a ten-node body: its Gauss points' means)
+            local = (self._gids[n], b.u[own], b.v[own], cm(b.cell_stress), cm(b.von_mises), cm(b.eps_p), extra,
+                     cm(b.temperature) if b.material.thermal else None)
             parts = self.comm.gather(local, root=0)
             if self.comm.rank != 0:
                 continue

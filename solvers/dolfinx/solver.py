@@ -177,10 +177,15 @@ class ExplicitSolver(PythonSteps):
     #: the compiled critical time step of one body's cells (s): triangles here, tetrahedra in 3D
     _element_dt = staticmethod(element_critical_dt)
 
+    def _body_dt(self, name: str) -> float:
+        """The smallest critical step of body ``name``'s cells at rest (CFL 1), s; -1 if one is inverted."""
+        b = self.bodies[name]
+        return self._element_dt(b.cells, b.x, self._prm[name])
+
     def _initial_dt_crit(self) -> float:
         dmin = np.inf
-        for n, b in self.bodies.items():
-            d = self._element_dt(b.cells, b.x, self._prm[n])
+        for n in self.bodies:
+            d = self._body_dt(n)
             if d < 0:
                 raise ValueError(f"body {n!r}: inverted cell in the initial mesh")
             dmin = min(dmin, d)

@@ -23,6 +23,8 @@ from .contact3d import soft_contact_pass_3d
 from .kernels import pack_parameters
 from .soft_plane import SoftPlaneSpec, soft_plane_forces
 from .solver import ExplicitSolver
+from .tet10 import QP_DERIVATIVES, QP_WEIGHTS, critical_step_factor
+from .tet10_kernel import tet10_critical_dt, tet10_step
 from .tet_batch import TET_WORK_SIZE, batched_material, tet_step_batched
 from .tet_kernel import MODE_SOLID, tet_chunk_size, tet_critical_dt, tet_step
 from .tet_threads import TetThreadArrays, tet_step_threaded, tet_thread_arrays
@@ -57,8 +59,26 @@ class _ThreadedKernel:
         return tet_step_threaded(cells, x, v, dt, prm, stress, eps_p, f_int, acc, self.arrays, temp)
 
 
+class _QuadraticKernel:
+    """The element kernel of a ten-node body (:mod:`.tet10_kernel`, serial): the linear kernel's signature, with
+    the body's critical-step factor (:func:`.tet10.critical_step_factor`)."""
+
+    def __init__(self, factor: float):
+        self.factor = float(factor)
+
+    def __call__(self, cells, x, v, dt, prm, stress, eps_p, f_int, acc, work=None, temp=None) -> float:
+        temp = _NO_TEMP if temp is None else temp
+        return tet10_step(cells, x, v, dt, prm, stress, eps_p, f_int, acc, temp, QP_DERIVATIVES, QP_WEIGHTS,
+                          self.factor)
+
+    def critical_dt(self, cells, x, prm) -> float:
+        """The cells' smallest critical step at rest (CFL 1), s; -1 if one is inverted."""
+        return tet10_critical_dt(cells, x, prm, self.factor)
+
+
 class ExplicitSolver3D(ExplicitSolver):
-    """Explicit elastic-plastic dynamics of 3D bodies (P1 tetrahedra) with rigid walls.
+    """Explicit elastic-plastic dynamics of 3D bodies (P1 tetrahedra, or ten-node ones per body:
+    ``BodySpec.element = "tet10"``, :mod:`.tet10_kernel`, serial) with rigid walls.
 
     Central differences with velocities at half steps, row-sum lumped mass, updated Lagrangian
     with a Jaumann (Hughes-Winget) objective stress update, J2 radial return with linear
@@ -126,9 +146,12 @@ class ExplicitSolver3D(ExplicitSolver):
         self._prm = {n: pack_parameters(b.material, MODE_SOLID, 1.0, bulk_linear, bulk_quadratic,
                                         bulk_viscosity)
                      for n, b in self.bodies.items()}
-        # a body of one chunk (tet_chunk_size) keeps the serial kernel: the same bits, no threads
+        # a body of one chunk (tet_chunk_size) keeps the serial kernel: the same bits, no threads; a ten-node
+        # body its serial kernel
         self._kernels: dict[str, Callable] = {
-            n: _ThreadedKernel(tet_thread_arrays(b.cells, len(b.x)), self.threads)
+            n: _QuadraticKernel(critical_step_factor(b.cells, b.X0, b.material.shear_modulus,
+                                                     b.material.bulk_modulus)) if b.element == "tet10"
+            else _ThreadedKernel(tet_thread_arrays(b.cells, len(b.x)), self.threads)
             if self.threads > 1 and tet_chunk_size(len(b.cells)) < len(b.cells) else _tet_kernel
             for n, b in self.bodies.items()}
         self._cidx = {n: np.flatnonzero(b.constrained_mask().ravel())
@@ -167,6 +190,14 @@ class ExplicitSolver3D(ExplicitSolver):
                  self.threads, self.stable_time_step())
 
     _element_dt = staticmethod(tet_critical_dt)
+
+    def _body_dt(self, name: str) -> float:
+        """The smallest critical step of body ``name``'s cells at rest (CFL 1), s; -1 if one is inverted."""
+        b = self.bodies[name]
+        k = self._kernels[name]
+        if isinstance(k, _QuadraticKernel):
+            return k.critical_dt(b.cells, b.x, self._prm[name])
+        return self._element_dt(b.cells, b.x, self._prm[name])
 
     def _body_kernel(self, name: str) -> Callable:
         """The element kernel of body ``name``: the serial one, or on ``threads`` threads."""

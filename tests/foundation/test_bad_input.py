@@ -324,6 +324,11 @@ BAD_COUPLED = [
     ("shots_pause_zero", "emf_sheet_bulge", ["em.shots={count = 3, pause = 0.0}"], "em.shots.pause"),
     ("shots_without_bank", "two_coils_plate", ["em.shots={count = 2, pause = 1.0}"], "em.shots"),
     ("shots_on_a_user_deck", "user_deck_sheet_bulge", ["em.shots={count = 2, pause = 1.0}"], "em.shots"),
+    # issue 34 item 4: ten-node tetrahedra in mechanics-only 3D cases without walls or contact, for now
+    ("tet10_in_2d", "bar_impact", ["bodies[0].element='tet10'"], "bodies[0].element"),
+    ("tet10_coupled", "emf_sheet_bulge_3d", ["bodies[0].element='tet10'"], "bodies[0].element"),
+    ("tet10_on_a_wall", "bar_impact_3d", ["bodies[0].element='tet10'"], "walls[0]"),
+    ("element_unknown", "bar_impact_3d", ["bodies[0].element='hex8'"], "bodies[0].element"),
 ]
 
 

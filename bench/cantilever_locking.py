@@ -1,0 +1,120 @@
+"""Bending locking of 3D elements (issue 34, item 4): the static tip deflection of a cantilever strip
+(:mod:`pulseform.solvers.dolfinx.cantilever`: 40 x 5 x 1 mm, built in at x = 0, a tip force) over beam theory's
+P L^3 / (3 E I) (and with Timoshenko's shear term), for linear (tet4) and ten-node (tet10) tetrahedra on
+``create_box`` meshes of n_length x n_width (half width) x n_thick bricks (six tetrahedra each), by the implicit
+static solver (one Newton step: elastic); ``--explicit`` adds the explicit solver with kinetic damping (dynamic
+relaxation to rest; slow: ~10^5 steps for the 40 mm strip). ``--plastic`` adds the elastic-perfectly plastic
+strip (sigma_y 250 MPa) under static load steps of 0.005 P_p from 0.97 to 1.03 P_p (P_p = M_p / L): its tip
+deflections and the load at which the compliance d delta / dP reaches ten times the elastic one (the tip
+deflection runs away), beside beam theory's (:func:`~pulseform.solvers.dolfinx.cantilever.beam_plastic_deflection`).
+
+Usage: .venv/bin/python bench/cantilever_locking.py [--meshes "40,2,3 80,4,6"] [--elements tet4 tet10]
+[--length 0.04] [--width 0.005] [--grading 1] [--explicit] [--plastic]
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import time
+
+import numpy as np
+
+from pulseform.solvers.dolfinx import ExplicitSolver3D, ImplicitOptions, ImplicitSolver3D, Material
+from pulseform.solvers.dolfinx.cantilever import (Strip, beam_deflection, beam_plastic_deflection, hinge_load,
+                                                  strip_body, tip_deflection, tip_load)
+from pulseform.solvers.dolfinx.implicit import ImplicitConvergenceError
+
+E, NU = 200e9, 0.3
+G, K = E / (2 * (1 + NU)), E / (3 * (1 - 2 * NU))
+
+
+def implicit_static(strip: Strip, material: Material, element: str, loads) -> list:
+    """Tip deflections (m) of static steps to the tip forces ``loads`` (N), in order (None after a failure)."""
+    s = ImplicitSolver3D([strip_body(strip, material, element)], ImplicitOptions(dt=1.0, scheme="static",
+                                                                                 max_cuts=4))
+    b = s.bodies["strip"]
+    out = []
+    for P in loads:
+        try:
+            s.advance(1.0, 1, {"strip": tip_load(b, strip, P)})
+        except ImplicitConvergenceError:
+            out.extend([None] * (len(loads) - len(out)))
+            break
+        out.append(tip_deflection(b, strip))
+    return out
+
+
+def explicit_relaxed(strip: Strip, material: Material, element: str, P: float) -> tuple:
+    """Tip deflection (m) at rest under the tip force ``P`` (N) by kinetic damping, and the steps taken."""
+    s = ExplicitSolver3D([strip_body(strip, material, element)], cfl=0.8)
+    s.kinetic_damping = True
+    b = s.bodies["strip"]
+    f = {"strip": tip_load(b, strip, P)}
+    prev, d = math.inf, 0.0
+    for _ in range(2000):
+        s.advance(s.stable_time_step(), 500, f)
+        d = tip_deflection(b, strip)
+        if abs(d - prev) < 1e-5 * abs(d) and s.energies()["kinetic_J"] < 1e-9:
+            break
+        prev = d
+    return d, s.step_count
+
+
+def runaway(f0: float, df: float, d) -> float:
+    """The load fraction (of P_p) at which the tip's compliance (difference quotient of the deflections ``d``, in
+    units of the elastic deflection at P_p, at the fractions f0, f0 + df, ...) first reaches 10 times the elastic
+    one (linear interpolation between the quotients at the interval midpoints); nan if it does not."""
+    q = np.diff(np.asarray(d, dtype=float)) / df
+    mid = f0 + df * (np.arange(len(q)) + 0.5)
+    k = np.flatnonzero(q >= 10.0)
+    if not len(k):
+        return float("nan")
+    k = int(k[0])
+    if k == 0:
+        return float(mid[0])
+    return float(mid[k - 1] + (10.0 - q[k - 1]) / (q[k] - q[k - 1]) * df)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--meshes", default="40,2,3 80,4,6")
+    ap.add_argument("--elements", nargs="+", default=["tet4", "tet10"])
+    ap.add_argument("--length", type=float, default=0.04)
+    ap.add_argument("--width", type=float, default=0.005)
+    ap.add_argument("--grading", type=float, default=1.0)
+    ap.add_argument("--explicit", action="store_true")
+    ap.add_argument("--plastic", action="store_true")
+    a = ap.parse_args()
+    elastic = Material(7800.0, G, K, 1e12, 0.0)
+    for m in a.meshes.split():
+        nl, nw, nt = (int(v) for v in m.split(","))
+        st = Strip(length=a.length, width=a.width, n_length=nl, n_width=nw, n_thick=nt, grading=a.grading)
+        eb = beam_deflection(st, elastic, 1.0, shear=False)
+        tim = beam_deflection(st, elastic, 1.0)
+        for el in a.elements:
+            t0 = time.perf_counter()
+            d = implicit_static(st, elastic, el, [1.0])[0]
+            line = (f"{el:5s} {nl}x{nw}x{nt} bricks: implicit d / EB {d / eb:.4f}  d / Timoshenko {d / tim:.4f}"
+                    f"  ({time.perf_counter() - t0:.1f} s)")
+            if a.explicit:
+                t0 = time.perf_counter()
+                de, n = explicit_relaxed(st, elastic, el, 1.0)
+                line += f"; explicit d / EB {de / eb:.4f} ({n} steps, {time.perf_counter() - t0:.0f} s)"
+            print(line, flush=True)
+        if a.plastic:
+            mat = Material(7800.0, G, K, 250e6, 0.0)
+            Pp = hinge_load(st, mat)
+            fr = np.round(np.arange(0.97, 1.0301, 0.005), 4)
+            d_el = beam_deflection(st, mat, Pp, shear=False)
+            beam = [beam_plastic_deflection(st, mat, f * Pp) / d_el for f in np.round(np.arange(0.97, 0.9976, 0.0005),
+                                                                                     5)]
+            print(f"beam theory: compliance 10x the elastic one at P / P_p = {runaway(0.97, 0.0005, beam):.4f}")
+            for el in a.elements:
+                ds = [d / d_el if d is not None else np.nan for d in implicit_static(st, mat, el, [f * Pp for f in fr])]
+                print(f"{el:5s} {nl}x{nw}x{nt} bricks (b {st.width * 1e3:g} mm, grading {st.grading:g}): d / "
+                      f"d_el(P_p) at P / P_p {' '.join(f'{f:g}:{d:.4f}' for f, d in zip(fr, ds))}; compliance 10x "
+                      f"the elastic one at P / P_p = {runaway(fr[0], 0.005, ds):.4f}", flush=True)
+
+
+if __name__ == "__main__":
+    main()

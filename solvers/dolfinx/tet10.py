@@ -1,0 +1,166 @@
+"""The quadratic (10-node) tetrahedron of the 3D bodies (``BodySpec.element = "tet10"``, issue 34 item 4): the
+element that bends without locking.
+
+A linear tetrahedron has a constant strain: a sheet two or three of them thick is far too stiff in bending
+(shear locking: bench/cantilever_locking.py measures a 1 mm strip with three through its thickness, and
+docs/mechanics.md gives the figures). Nodal-averaged pressure and F-bar cure the volumetric locking of nearly
+incompressible plastic flow, not this; the quadratic tetrahedron carries a linear strain and bends.
+
+Conventions
+-----------
+* Nodes 0-3 are the corners (the linear mesh's vertices, in its orientation), nodes 4-9 the edge midpoints of
+  the edges (0, 1), (1, 2), (0, 2), (0, 3), (1, 3), (2, 3) (:data:`EDGES`). The body numbers the vertices
+  first (the rows of the linear body, unchanged), then one node per mesh edge.
+* Isoparametric: positions and velocities interpolate with the same ten shape functions; the edge nodes move
+  freely, so a deformed element is curved.
+* Four-point Gauss rule (degree 2: exact for the stiffness of a straight element). The stress, plastic strain
+  and temperature live at the quadrature points: a body of ``nc`` cells carries ``nc * 4`` rows, cell-major
+  (row ``4 e + q``).
+* Lumped mass by HRZ (Hinton, Rock and Zienkiewicz 1976): the consistent mass's diagonal scaled to the
+  element's mass, a corner 1/36 and an edge node 4/27 of it (row sums would give the corners -1/20).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["EDGES", "QP_WEIGHTS", "QP_DERIVATIVES", "N_QP", "quadratic_cells", "shape_derivatives",
+           "hrz_lumped_mass", "split_faces", "corner_share", "qp_jacobians", "qp_volumes", "critical_step_factor"]
+
+#: corner pairs of the edge nodes 4..9
+EDGES = ((0, 1), (1, 2), (0, 2), (0, 3), (1, 3), (2, 3))
+#: quadrature points per cell
+N_QP = 4
+_A, _B = 0.5854101966249685, 0.1381966011250105
+#: barycentric coordinates (L0, L1, L2, L3) of the four Gauss points (degree 2)
+QP_BARY = np.array([[_A, _B, _B, _B], [_B, _A, _B, _B], [_B, _B, _A, _B], [_B, _B, _B, _A]])
+#: their weights on the reference tetrahedron (volume 1/6): the volume of a cell is sum_q w_q det J_q
+QP_WEIGHTS = np.full(N_QP, 1.0 / 24.0)
+#: HRZ share of a corner node in the element mass (an edge node: (1 - 4 share) / 6 = 4/27)
+corner_share = 1.0 / 36.0
+
+
+def shape_derivatives(bary: np.ndarray) -> np.ndarray:
+    """Derivatives of the ten shape functions with respect to the reference coordinates (xi, eta, zeta) =
+    (L1, L2, L3) at points of barycentric coordinates ``bary`` (n, 4): (n, 10, 3)."""
+    L = np.asarray(bary, dtype=float)
+    # dL_k / dxi_j: L0 = 1 - xi - eta - zeta
+    dL = np.array([[-1.0, -1.0, -1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
+    out = np.zeros((L.shape[0], 10, 3))
+    for k in range(4):                       # corner: L (2 L - 1)
+        out[:, k, :] = (4.0 * L[:, k] - 1.0)[:, None] * dL[k]
+    for m, (i, j) in enumerate(EDGES):       # edge: 4 L_i L_j
+        out[:, 4 + m, :] = 4.0 * (L[:, i, None] * dL[j] + L[:, j, None] * dL[i])
+    return out
+
+
+#: shape-function derivatives at the Gauss points, (4, 10, 3)
+QP_DERIVATIVES = shape_derivatives(QP_BARY)
+
+
+def quadratic_cells(cells: np.ndarray, X: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The ten-node cells of a linear tetrahedral mesh: one new node at the middle of every edge.
+
+    Parameters
+    ----------
+    cells : int array (nc, 4)
+        Positively oriented linear tetrahedra (node rows of ``X``).
+    X : ndarray (N, 3)
+        Vertex positions, m.
+
+    Returns
+    -------
+    cells10 : int32 array (nc, 10)
+        Corners then the edge nodes of :data:`EDGES`; the edge nodes are rows ``N ..`` in the order of their
+        first appearance.
+    X10 : ndarray (N + n_edges, 3)
+        Vertex positions followed by the edge midpoints, m.
+    edges : int64 array (n_edges, 2)
+        The vertices of each edge node.
+    """
+    pairs = np.stack([np.sort(cells[:, [i, j]], axis=1) for i, j in EDGES], axis=1)   # (nc, 6, 2)
+    flat = pairs.reshape(-1, 2).astype(np.int64)
+    _, first, inverse = np.unique(flat[:, 0] * (len(X) + 1) + flat[:, 1], return_index=True, return_inverse=True)
+    order = np.argsort(first)                # number the edges by first appearance (deterministic, local)
+    rank = np.empty_like(order)
+    rank[order] = np.arange(len(order))
+    edges = flat[first[order]]
+    cells10 = np.concatenate([cells, len(X) + rank[inverse].reshape(-1, 6)], axis=1).astype(np.int32)
+    X10 = np.concatenate([X, 0.5 * (X[edges[:, 0]] + X[edges[:, 1]])], axis=0)
+    return cells10, X10, edges
+
+
+def hrz_lumped_mass(cells10: np.ndarray, volumes: np.ndarray, density: float, n_nodes: int) -> np.ndarray:
+    """HRZ lumped nodal masses (kg) of straight ten-node cells of ``volumes`` (m^3): a corner 1/36, an edge
+    node 4/27 of rho V (all positive; their sum is the body's mass)."""
+    m = density * np.asarray(volumes, dtype=float)
+    share = np.concatenate([np.full(4, corner_share), np.full(6, (1.0 - 4.0 * corner_share) / 6.0)])
+    return np.bincount(cells10.ravel(), weights=(m[:, None] * share).ravel(), minlength=n_nodes)
+
+
+def split_faces(tris: np.ndarray, edge_node: dict) -> np.ndarray:
+    """The boundary of a ten-node body as linear triangles: each six-node face (corners ``tris`` (nf, 3),
+    outward oriented) cut into four (three at the corners, one in the middle) with the orientation of the face,
+    so that walls, pressure loads and contact see every boundary node. ``edge_node`` maps a sorted vertex pair
+    to its edge node row."""
+    out = np.empty((4 * len(tris), 3), dtype=np.int32)
+    for f, (a, b, c) in enumerate(tris):
+        ab = edge_node[(min(a, b), max(a, b))]
+        bc = edge_node[(min(b, c), max(b, c))]
+        ca = edge_node[(min(c, a), max(c, a))]
+        out[4 * f:4 * f + 4] = ((a, ab, ca), (ab, b, bc), (ca, bc, c), (ab, bc, ca))
+    return out
+
+
+def qp_jacobians(x: np.ndarray) -> np.ndarray:
+    """Jacobians J[c, q, i, j] = d x_i / d xi_j (nc, 4, 3, 3) of ten-node cells at positions ``x`` (nc, 10, 3),
+    m (real, or complex under a complex step)."""
+    return np.einsum("cai,qaj->cqij", x, QP_DERIVATIVES)
+
+
+def qp_volumes(cells10: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """The volume of each quadrature point, w_q det J_q (nc * 4,), m^3, cell-major (their sum over a cell is its
+    volume)."""
+    J = qp_jacobians(x[cells10])
+    return (QP_WEIGHTS * np.linalg.det(J)).ravel()
+
+
+def critical_step_factor(cells10: np.ndarray, X: np.ndarray, shear_modulus: float, bulk_modulus: float) -> float:
+    """The ratio of the ten-node cells' critical step to the linear kernel's estimate, smallest over the cells
+    (dimensionless): 2 / omega_e, omega_e the largest frequency of the cell's elastic stiffness under its HRZ mass
+    (an upper bound of the mesh's by the element eigenvalue inequality), over h_e / c, h_e the corner
+    tetrahedron's smallest altitude and c = sqrt((K + 4 G / 3) / rho) (the density cancels).
+
+    Parameters
+    ----------
+    cells10 : int array (nc, 10)
+        Ten-node cells.
+    X : ndarray (N, 3)
+        Node positions (reference configuration), m.
+    shear_modulus, bulk_modulus : float
+        G and K, Pa.
+    """
+    G, K = float(shear_modulus), float(bulk_modulus)
+    lam = K - 2.0 * G / 3.0
+    c2 = K + 4.0 * G / 3.0                       # rho c^2 (rho = 1: it cancels)
+    share = np.concatenate([np.full(4, corner_share), np.full(6, (1.0 - 4.0 * corner_share) / 6.0)])
+    worst = np.inf
+    for s in range(0, len(cells10), 4096):
+        xe = X[cells10[s:s + 4096]]
+        J = qp_jacobians(xe)
+        det = np.linalg.det(J)
+        g = np.einsum("qaj,cqji->cqai", QP_DERIVATIVES, np.linalg.inv(J))
+        vq = QP_WEIGHTS * det                    # (nc, 4)
+        gg = np.einsum("cq,cqai,cqbi->cab", vq, g, g)
+        Kij = (lam * np.einsum("cq,cqai,cqbj->caibj", vq, g, g) + G * np.einsum("cq,cqaj,cqbi->caibj", vq, g, g))
+        Kij += G * np.einsum("cab,ij->caibj", gg, np.eye(3))
+        nc = len(xe)
+        Kf = Kij.reshape(nc, 30, 30)
+        m = np.repeat(vq.sum(axis=1)[:, None] * share, 3, axis=1).reshape(nc, 30)   # HRZ, rho = 1
+        s_m = 1.0 / np.sqrt(m)
+        lam_max = np.linalg.eigvalsh(s_m[:, :, None] * Kf * s_m[:, None, :])[:, -1]
+        a, b, cc = (xe[:, k] - xe[:, 0] for k in (1, 2, 3))
+        n1, n2, n3 = np.cross(b, cc), np.cross(cc, a), np.cross(a, b)
+        area = np.max(np.stack([np.einsum("ni,ni->n", n, n) for n in (n1 + n2 + n3, n1, n2, n3)]), axis=0)
+        h = np.einsum("ni,ni->n", a, n1) / np.sqrt(area)
+        worst = min(worst, float(np.min(2.0 / np.sqrt(lam_max) / (h / np.sqrt(c2)))))
+    return worst
