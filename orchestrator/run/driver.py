@@ -190,6 +190,22 @@ class CaseDriver:
             self._since_record = 0
             self.record(row)
 
+    def reach(self, stop: float, on_step, writer, em_writer) -> float:
+        """Integrate to the output time ``stop`` (s) and write its outputs: the history row of the step that reached
+        it, the fields, the kept shape, the EM snapshot; returns the output's time (the milestone itself, not the
+        sum of the steps that reached it: 6.0000000000000035e-05)."""
+        s = self.mechanics
+        self.loop.run_until(stop, on_step, self._check_melting if self.melting else None)
+        if self.history.rows[-1][0] != s.time:
+            self.record(self._last_row)  # the values of the step that reached the milestone
+        t_out = stop if abs(s.time - stop) <= 1e-9 * stop else s.time
+        writer.write(t_out)
+        self._keep_shape()
+        snap = self.load.snapshot() if em_writer is not None else None
+        if snap is not None:
+            em_writer.write(t_out, *snap)
+        return t_out
+
     def _keep_shape(self) -> None:
         """Gather every body's owned node positions on rank 0 (for the shapes plot)."""
         local = {n: b.x[: b.n_owned].copy() for n, b in self.solver.bodies.items()} if self.solver is not None else {}
@@ -322,16 +338,7 @@ class CaseDriver:
                         continue
                     if self.shots is not None and shot > 1 and s.time <= self.shots.start(shot) * (1.0 + 1e-12):
                         self.shots.begin(shot, self.load, self.solver, self.results.root, self.comm.rank == 0)
-                    self.loop.run_until(stop, on_step, self._check_melting if self.melting else None)
-                    if self.history.rows[-1][0] != s.time:
-                        self.record(self._last_row)  # the values of the step that reached the milestone
-                    # the milestone itself, not the sum of steps that reached it (6.0000000000000035e-05)
-                    t_out = stop if abs(s.time - stop) <= 1e-9 * stop else s.time
-                    writer.write(t_out)
-                    self._keep_shape()
-                    snap = self.load.snapshot() if em_writer is not None else None
-                    if snap is not None:
-                        em_writer.write(t_out, *snap)
+                    self.reach(stop, on_step, writer, em_writer)
                     if self.shots is not None and stop == self.shots.start(shot) + self.stops[-1]:
                         self.shots.end(shot, self.history, self.load, self.solver, self.results.root,
                                        self.comm.rank == 0)

@@ -259,15 +259,7 @@ class StagedRun:
             for stop in st.stops:
                 if s.time >= stop * (1.0 - 1e-12):
                     continue
-                d.loop.run_until(stop, on_step, d._check_melting if d.melting else None)
-                if d.history.rows[-1][0] != s.time:
-                    d.record(d._last_row)
-                t_out = stop if abs(s.time - stop) <= 1e-9 * stop else s.time
-                writer.write(t_out)
-                d._keep_shape()
-                snap = d.load.snapshot() if em_writer is not None else None
-                if snap is not None:
-                    em_writer.write(t_out, *snap)
+                d.reach(stop, on_step, writer, em_writer)
                 if stop != st.stops[-1]:
                     d.checkpoint()
                     interrupt.rearm()
