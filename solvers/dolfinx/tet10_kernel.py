@@ -47,15 +47,22 @@ def _inverse(J, out):
 
 
 @numba.njit(cache=True, error_model="numpy", fastmath=FM)
-def _gradients(xe, dN, q, J, Ji, g):
-    """Shape-function gradients ``g`` (10, 3) at Gauss point ``q`` of the cell at ``xe`` (10, 3); returns
-    det J (not positive: inverted, ``g`` unset)."""
+def _nodal_gradient(fe, dN, q, out):
+    """``out[i, j]`` = Σ_a fe[a, i] dN[q, a, j]: the gradient at Gauss point ``q`` of the nodal field ``fe`` (10, 3)
+    for the shape-function derivatives ``dN`` (reference ones: the Jacobian; physical ones: a velocity gradient)."""
     for i in range(3):
         for j in range(3):
             s = 0.0
             for a in range(10):
-                s += xe[a, i] * dN[q, a, j]
-            J[i, j] = s
+                s += fe[a, i] * dN[q, a, j]
+            out[i, j] = s
+
+
+@numba.njit(cache=True, error_model="numpy", fastmath=FM)
+def _gradients(xe, dN, q, J, Ji, g):
+    """Shape-function gradients ``g`` (10, 3) at Gauss point ``q`` of the cell at ``xe`` (10, 3); returns
+    det J (not positive: inverted, ``g`` unset)."""
+    _nodal_gradient(xe, dN, q, J)
     det = _inverse(J, Ji)
     if not det > 0.0:
         return det
@@ -217,12 +224,7 @@ def tet10_step(cells, x, v, dt, prm, stress, eps_p, f_int, acc, temp, dN, wq, fa
         le = _corner_length(xe)
         xi_max = 0.0
         for q in range(4):
-            for i in range(3):
-                for j in range(3):
-                    s = 0.0
-                    for a in range(10):
-                        s += ve[a, i] * gm[q, a, j]
-                    Lg[i, j] = s
+            _nodal_gradient(ve, gm, q, Lg)
             r = 4 * e + q
             dep, sy, hr, trd = _point(stress, eps_p, temp, r, Lg, dt, prm)
             qb = 0.0

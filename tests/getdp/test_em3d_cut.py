@@ -224,19 +224,12 @@ def test_disk_above_closed_ring_force_vs_azimuthal(work):
 
 
 # ------------------------------------------------------------------ persistent getdp
-@pytest.mark.getdp
-@needs_getdp
-def test_cut_coil_in_the_persistent_process(work):
-    """A cut coil on the capacitor bank in the persistent 3D process (its pre-solve's system after U) equals
-    the one-process BDF2 run on the fixed mesh to round-off (the bound of test_persistent3d)."""
+def _persistent_rows(model, mesh, n: int, t_end: float, folder):
+    """F_z (N), coil current (A), capacitor voltage (V), magnetic energy (J) of ``n`` equal steps to ``t_end`` (s) of
+    the persistent 3D process on the fixed ``mesh``, and its last state."""
     from pulseform.solvers.getdp.persistent3d import PersistentEM3DStepper
 
-    mesh = closed_ring_mesh(work / "disk.msh", RING, disk=DISK, h_coil=3e-3, h_disk=4e-3, h_air=0.04, h_centre=None)
-    model = EM3DModel(coils=[Coil3D(1, direction="cut", cut_normal=(0.0, 1.0, 0.0))], conductors=[Conductor(3.5e7)],
-                      circuit=Circuit(50e-6, 6e3, 0.01, 2e-6), shell=(0.1, 0.125))
-    n, t_end = 3, 3e-6
-    full = solve_transient3d(model, mesh, t_end, n, work / "full", time_scheme="bdf2", element_output="none")
-    stepper = PersistentEM3DStepper(model, work / "persistent")
+    stepper = PersistentEM3DStepper(model, folder)
     state, rows = stepper.initial_state(), []
     try:
         for k in range(1, n + 1):
@@ -245,6 +238,20 @@ def test_cut_coil_in_the_persistent_process(work):
                          r.magnetic_energy[-1]])
     finally:
         stepper.close()
+    return rows, state
+
+
+@pytest.mark.getdp
+@needs_getdp
+def test_cut_coil_in_the_persistent_process(work):
+    """A cut coil on the capacitor bank in the persistent 3D process (its pre-solve's system after U) equals
+    the one-process BDF2 run on the fixed mesh to round-off (the bound of test_persistent3d)."""
+    mesh = closed_ring_mesh(work / "disk.msh", RING, disk=DISK, h_coil=3e-3, h_disk=4e-3, h_air=0.04, h_centre=None)
+    model = EM3DModel(coils=[Coil3D(1, direction="cut", cut_normal=(0.0, 1.0, 0.0))], conductors=[Conductor(3.5e7)],
+                      circuit=Circuit(50e-6, 6e3, 0.01, 2e-6), shell=(0.1, 0.125))
+    n, t_end = 3, 3e-6
+    full = solve_transient3d(model, mesh, t_end, n, work / "full", time_scheme="bdf2", element_output="none")
+    rows, _ = _persistent_rows(model, mesh, n, t_end, work / "persistent")
     ref = np.column_stack([full.conductor_force[:, 0, 2], full.coil_current[:, 0], full.capacitor_voltage,
                            full.magnetic_energy])
     rel = (np.abs(np.array(rows) - ref).max(axis=0) / np.abs(ref).max(axis=0)).max()
@@ -257,14 +264,6 @@ def test_cut_coil_in_the_persistent_process(work):
     # steps the messages' σ; the same doubles as the constant run
     law = replace(model, coils=[Coil3D(1, direction="cut", cut_normal=(0.0, 1.0, 0.0), heat_capacity=1e300,
                                        conductivity_law=LinearResistivity(5.8e7, 3.9e-3, 293.15))])
-    stepper = PersistentEM3DStepper(law, work / "persistent_law")
-    state, rows_law = stepper.initial_state(), []
-    try:
-        for k in range(1, n + 1):
-            r, state = stepper.step(mesh, state, k * t_end / n)
-            rows_law.append([r.conductor_force[-1, 0, 2], r.coil_current[-1, 0], r.capacitor_voltage[-1],
-                             r.magnetic_energy[-1]])
-    finally:
-        stepper.close()
+    rows_law, state = _persistent_rows(law, mesh, n, t_end, work / "persistent_law")
     assert state.coil_sigma == [5.8e7]
     assert np.array_equal(np.array(rows_law), np.array(rows))
