@@ -1,12 +1,12 @@
 """Bending locking of 3D elements (issue 34, item 4): the static tip deflection of a cantilever strip
-(:mod:`pulseform.solvers.dolfinx.cantilever`: 40 x 5 x 1 mm, built in at x = 0, a tip force) over beam theory's
+(tests/mechanics/cantilever_strip.py, the strip its tests check: 40 x 5 x 1 mm, built in at x = 0, a tip force) over beam theory's
 P L^3 / (3 E I) (and with Timoshenko's shear term), for linear (tet4) and ten-node (tet10) tetrahedra on
 ``create_box`` meshes of n_length x n_width (half width) x n_thick bricks (six tetrahedra each), by the implicit
 static solver (one Newton step: elastic); ``--explicit`` adds the explicit solver with kinetic damping (dynamic
 relaxation to rest; slow: ~10^5 steps for the 40 mm strip). ``--plastic`` adds the elastic-perfectly plastic
 strip (sigma_y 250 MPa) under static load steps of 0.005 P_p from 0.97 to 1.03 P_p (P_p = M_p / L): its tip
 deflections and the load at which the compliance d delta / dP reaches ten times the elastic one (the tip
-deflection runs away), beside beam theory's (:func:`~pulseform.solvers.dolfinx.cantilever.beam_plastic_deflection`).
+deflection runs away), beside beam theory's (``beam_plastic_deflection`` there).
 
 Usage: .venv/bin/python bench/cantilever_locking.py [--meshes "40,2,3 80,4,6"] [--elements tet4 tet10]
 [--length 0.04] [--width 0.005] [--grading 1] [--explicit] [--plastic]
@@ -15,13 +15,16 @@ from __future__ import annotations
 
 import argparse
 import math
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
 from pulseform.solvers.dolfinx import ExplicitSolver3D, ImplicitOptions, ImplicitSolver3D, Material
-from pulseform.solvers.dolfinx.cantilever import (Strip, beam_deflection, beam_plastic_deflection, hinge_load,
-                                                  strip_body, tip_deflection, tip_load)
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "mechanics"))  # the tests' strip: one home
+from cantilever_strip import (Strip, beam_deflection, beam_plastic_deflection, hinge_load,  # noqa: E402
+                              strip_body, tip_deflection, tip_load)
 from pulseform.solvers.dolfinx.implicit import ImplicitConvergenceError
 
 E, NU = 200e9, 0.3

@@ -1,7 +1,7 @@
 """Ten-node tetrahedra (``BodySpec.element = "tet10"``, issue 34 item 4): the element's pieces (shape functions,
 HRZ mass, the explicit kernel against the implicit update, the tangent, the critical step against the mesh's
 largest frequency, the ledger of a free vibration) and the bending it was chosen for: a cantilever strip with
-three elements through its thickness against beam theory (:mod:`pulseform.solvers.dolfinx.cantilever`; the
+three elements through its thickness against beam theory (tests/mechanics/cantilever_strip.py; the
 figures of linear tetrahedra and the reasons are in docs/mechanics.md and bench/cantilever_locking.py)."""
 import math
 
@@ -10,7 +10,7 @@ import pytest
 import scipy.linalg as sla
 
 from pulseform.solvers.dolfinx import ExplicitSolver3D, ImplicitOptions, ImplicitSolver3D, Material
-from pulseform.solvers.dolfinx.cantilever import (Strip, beam_deflection, beam_plastic_deflection, hinge_load,
+from cantilever_strip import (Strip, beam_deflection, beam_plastic_deflection, hinge_load,
                                                   strip_body, tip_deflection, tip_load)
 from pulseform.solvers.dolfinx.implicit_element import CellState, cell_tangent, cell_update
 from pulseform.solvers.dolfinx.kernels import pack_parameters

@@ -28,8 +28,8 @@ from dolfinx import mesh as dmesh
 from mpi4py import MPI
 from scipy.integrate import quad
 
-from .body import BodySpec
-from .material import Material
+from pulseform.solvers.dolfinx.body import BodySpec
+from pulseform.solvers.dolfinx.material import Material
 
 __all__ = ["Strip", "strip_body", "tip_load", "tip_deflection", "beam_deflection", "hinge_load",
            "beam_plastic_deflection"]
