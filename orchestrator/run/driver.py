@@ -195,7 +195,16 @@ class CaseDriver:
         it, the fields, the kept shape, the EM snapshot; returns the output's time (the milestone itself, not the
         sum of the steps that reached it: 6.0000000000000035e-05)."""
         s = self.mechanics
-        self.loop.run_until(stop, on_step, self._check_melting if self.melting else None)
+
+        def after_steps() -> None:
+            """Checks once the rows of an EM step, or of a whole compiled block of them, are recorded: a stop
+            raised between a block's rows would checkpoint the block's end state with its history row missing."""
+            if self.melting:
+                self._check_melting()
+            if self.comm.size == 1 and interrupt.pending() is not None and s.time < stop * (1.0 - 1e-12):
+                interrupt.check()  # a step that reaches a milestone first writes its outputs
+
+        self.loop.run_until(stop, on_step, after_steps)
         if self.history.rows[-1][0] != s.time:
             self.record(self._last_row)  # the values of the step that reached the milestone
         t_out = stop if abs(s.time - stop) <= 1e-9 * stop else s.time
@@ -324,8 +333,6 @@ class CaseDriver:
         def on_step(row: dict[str, float]) -> None:
             self._on_em_step(row)
             bar.update_to(s.time)
-            if self.comm.size == 1 and interrupt.pending() is not None and s.time < stop * (1.0 - 1e-12):
-                interrupt.check()  # a step that reaches a milestone first writes its outputs
 
         log.debug("loop from t = %.6g s", s.time)  # bench/sweep_split.py: set-up ends, the loop starts
         try:

@@ -246,13 +246,10 @@ class StagedRun:
                  st.t1, st.case.mechanics.integrator)
         name = f"{d.case.case.name}_{st.spec.name}" + (f"_part{d.part}" if self.resumed and d.part else "")
         writer = mech.FieldWriter(d.solver, str(d.results.fields / name), d.flc and d.flc.cell_fields)
-        stop = st.t1
 
         def on_step(row: dict[str, float]) -> None:
             d._on_em_step(row)
             bar.update_to(d.mechanics.time)
-            if d.comm.size == 1 and interrupt.pending() is not None and d.mechanics.time < stop * (1.0 - 1e-12):
-                interrupt.check()
 
         try:
             writer.write(s.time)
