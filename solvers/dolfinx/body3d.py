@@ -215,14 +215,22 @@ class Body3D(Body):
     def contact_pressures(self, rows: np.ndarray, pressure: np.ndarray,
                           x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The contact stress (Pa) of the nodes ``rows`` in soft contact as read on this body: the law's nodal
-        value; a ten-node body: the six-node faces' field whose consistent loads are the nodal contact forces
-        p A (A: the node's share of its quarter triangles, :meth:`tributary_areas`;
-        :func:`.tet10.recover_face_pressure`), at every node of the loaded faces. Returns (rows, pressures)."""
+        value; a ten-node body: read on its six-node faces whose six nodes are all in contact
+        (:func:`.tet10.recover_face_pressure`) from the nodal contact forces p A, A the node's share of those
+        faces' quarter triangles (a contact area: faces beside the contact, e.g. a side of the body at an
+        edge node, give it nothing), the law's value at a node on no such face. Returns (rows, pressures)."""
         if self.element != "tet10":
             return rows, pressure
-        f = np.zeros(len(x))
-        f[rows] = pressure * self.tributary_areas(self.segments, x)[rows]
-        return recover_face_pressure(self.faces6, x, f)
+        inside = np.zeros(len(x), dtype=bool)
+        inside[rows] = True
+        faces = self.faces6[np.all(inside[self.faces6], axis=1)]
+        law = np.full(len(x), np.nan)
+        law[rows] = pressure
+        f = np.nan_to_num(law) * self.tributary_areas(split_faces(faces), x)
+        nodes, p = recover_face_pressure(faces, x, f)
+        law[nodes] = p
+        out = np.union1d(rows, nodes)
+        return out, law[out]
 
     def pressure_forces(self, facet_marker, pressure: float) -> np.ndarray:
         """Consistent nodal forces (N) of a uniform follower pressure (Pa, positive pushes into
