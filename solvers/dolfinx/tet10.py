@@ -125,8 +125,9 @@ def split_faces(faces6: np.ndarray) -> np.ndarray:
 def recover_face_pressure(faces6: np.ndarray, x: np.ndarray, force: np.ndarray,
                           normal: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Nodal pressures on six-node faces from nodal normal forces, read face by face: each node's force is shared
-    among its loaded faces (those of ``faces6`` with a node of non-zero force and a positive area) in proportion
-    to their areas, a face's pressure is the sum of its nodes' shares over
+    among its loaded faces (those of ``faces6`` with a node of non-zero force and, on a wall, facing it: a
+    projected area over half their area, so that a side face through a loaded edge does not count) in
+    proportion to their areas, a face's pressure is the sum of its nodes' shares over
     its area, and a node's pressure the area-weighted mean of its loaded faces' pressures.
 
     A uniform pressure is read exactly at corners and edge nodes alike, whether its nodal forces are the
@@ -146,7 +147,7 @@ def recover_face_pressure(faces6: np.ndarray, x: np.ndarray, force: np.ndarray,
         Normal force on each node, N (compressive positive; zero where nothing acts).
     normal : (3,) array, optional
         A rigid wall's unit normal (into the body's side): the face areas are then projected on the wall,
-        A_f max(0, -n_f . normal), as the wall's pressure is per projected area.
+        -A_f n_f . normal, as the wall's pressure is per projected area.
 
     Returns
     -------
@@ -159,8 +160,9 @@ def recover_face_pressure(faces6: np.ndarray, x: np.ndarray, force: np.ndarray,
     force = np.asarray(force, dtype=float)
     tri = split_faces(faces6).reshape(-1, 4, 3)
     av = 0.5 * np.cross(x[tri[:, :, 1]] - x[tri[:, :, 0]], x[tri[:, :, 2]] - x[tri[:, :, 0]]).sum(axis=1)
-    w = np.linalg.norm(av, axis=1) if normal is None else np.maximum(0.0, -(av @ np.asarray(normal, float)))
-    sel = (w > 0.0) & np.any(force[faces6] != 0.0, axis=1)
+    area = np.linalg.norm(av, axis=1)
+    w = area if normal is None else -(av @ np.asarray(normal, float))
+    sel = (w > 0.5 * area) & np.any(force[faces6] != 0.0, axis=1)
     if not sel.any():
         return np.zeros(0, np.int64), np.zeros(0)
     f6, w = faces6[sel], w[sel]
