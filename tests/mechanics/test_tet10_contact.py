@@ -110,8 +110,7 @@ def test_ten_node_bar_on_a_wall(where):
 def test_ten_node_bars_in_soft_contact(where):
     """The paper's own set-up, two ten-node quarter bars across the soft layer (k = 1e8 Pa m, h0 = 0.01 m): the
     contact stress at the face's centre and mid-face within 3 % of rho c v / 2 (measured 69.1 and 69.7 MPa; the
-    law's nodal value read 26 and 88 MPa), the contact 2 L / c within 4 % at mid-face (1.646 ms), the energy
-    balance within 1 %."""
+    law's nodal value read 26 and 88 MPa), the energy balance within 1 %."""
     r = bar_impact_3d(nx=20, ny=5, element="tet10", probe=where, two_body=True)
     m = r["metrics"]
     assert m["contact_stress_plateau_MPa"] == pytest.approx(RHO_C_V_2 / 1e6, rel=0.03)
