@@ -360,7 +360,9 @@ def render_fields(results_dir: Path) -> list[Path]:
                          mapper=next(iter(p.renderers[0].actors.values())).mapper)
         paths.append(_screenshot(p, folder / f"deformed_{stem}.png"))
         p.close()
-    return paths
+    from .pictures_springback3d import render_springback3d
+
+    return paths + render_springback3d(root)
 
 
 def _colour_scale(values: np.ndarray, title: str) -> tuple[tuple[float, float], str]:

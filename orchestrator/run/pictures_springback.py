@@ -1,7 +1,7 @@
 """``plots/springback_<body>.png``: a planar or axisymmetric body before springback (its last field output at
 time.end, grey) and after it (``fields/springback/``, coloured by the springback displacement), 1:1, with the
 springback also drawn magnified when it is too small to see; from the field files, so ``pulseform plot`` draws it
-again. 3D bodies: not yet (their pictures are the 3D renderer's)."""
+again. 3D bodies: :mod:`.pictures_springback3d` (drawn by the 3D renderer with the other pyvista pictures)."""
 
 from __future__ import annotations
 
@@ -15,11 +15,17 @@ from .pictures_mech import _save_fig, boundary_edges
 
 log = logging.getLogger(__name__)
 
-__all__ = ["draw_springback"]
+__all__ = ["draw_springback", "magnification"]
 
 #: the springback is drawn magnified when its largest value is below VISIBLE of the body's size, by the power of
 #: ten that makes it at least SHOWN of it
 VISIBLE, SHOWN = 0.005, 0.02
+
+
+def magnification(size: float, dmax: float) -> float:
+    """The factor the springback is drawn with: 1 when its largest value ``dmax`` is at least VISIBLE of the body's
+    ``size`` (both m), else the power of ten that makes it at least SHOWN of it."""
+    return 1.0 if dmax >= VISIBLE * size or dmax == 0.0 else float(10 ** np.ceil(np.log10(SHOWN * size / dmax)))
 
 
 def draw_springback(results_dir: Path, case=None) -> list[Path]:
@@ -37,16 +43,17 @@ def draw_springback(results_dir: Path, case=None) -> list[Path]:
     before = read_fields(root)
     out = []
     for name, a in after.items():
-        if a.solid or name not in before:
-            log.info("pictures: no springback picture of %s (3D body, or no field file before springback)", name)
+        if a.solid:
+            continue  # the 3D renderer's (pictures_springback3d)
+        if name not in before:
+            log.info("pictures: no springback picture of %s (no field file before springback)", name)
             continue
         b = before[name]
         x0 = b.current(len(b.times) - 1)
         x1 = a.current(len(a.times) - 1)
         d = x1 - x0
-        size = float(np.ptp(x0, axis=0).max())
         dmax = float(np.linalg.norm(d, axis=1).max())
-        gain = 1.0 if dmax >= VISIBLE * size or dmax == 0.0 else float(10 ** np.ceil(np.log10(SHOWN * size / dmax)))
+        gain = magnification(float(np.ptp(x0, axis=0).max()), dmax)
         edges, _ = boundary_edges(b.triangles)
         fig, ax = plt.subplots(figsize=(9.0, 5.0))
         ax.add_collection(LineCollection(x0[edges] * 1e3, colors="0.5", linewidths=1.0, linestyles="dashed",

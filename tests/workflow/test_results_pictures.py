@@ -242,3 +242,25 @@ def test_impulse_metrics_per_formulation():
     axi = impulse_metrics(np.array([1.7, -0.01]), "axisymmetric")
     assert axi == {"force_impulse_Ns": 0.01, "force_impulse_z_Ns": -0.01, "radial_load_impulse_Ns": 1.7}
     assert impulse_metrics(np.array([1.0, 2.0, 2.0]), "3d")["force_impulse_Ns"] == pytest.approx(3.0, rel=1e-15)
+
+
+def test_springback_picture_of_a_3d_body(tmp_path):
+    """``plots/springback_<body>.png`` of a 3D body (orchestrator/run/pictures_springback3d.py): the quarter bar of
+    cases/bar_impact_3d, yielding (sigma_y 50 MPa under the paper's 70 MPa wave), released after 1.6 ms. Its
+    springback (1.6 mm at most on a 4 m bar) is drawn x 100 (magnification: the power of ten that makes it 2 % of
+    the body); the picture shows the springback colours (viridis' top, yellow, at the largest value) and the
+    translucent grey surface before springback."""
+    from PIL import Image
+
+    from pulseform.orchestrator.run.pictures_springback import magnification
+
+    assert magnification(4.0, 1.6e-3) == 100.0 and magnification(4.0, 0.03) == 1.0 and magnification(1.0, 0.0) == 1.0
+    out = tmp_path / "bar3d"
+    _run("bar_impact_3d", out, "--quiet", "--set", "bodies.bar.mesh_size=0.5", "--set", "time.end=1.6e-3",
+         "--set", 'springback.supports="minimal"', "--set", "materials.paper_al.yield_stress=0.05e9")
+    m = json.loads((out / "metrics.json").read_text())
+    assert 1e-4 < m["bar_springback_max_m"] < 4.0 * 0.005  # drawn magnified
+    img = np.asarray(Image.open(out / "plots" / "springback_bar.png").convert("RGB")).astype(int)
+    yellow = (np.abs(img - [253, 231, 37]).sum(axis=2) < 60).sum()     # viridis at the largest springback
+    dark = (np.abs(img - [68, 1, 84]).sum(axis=2) < 60).sum()          # ... and at zero (the colour bar at least)
+    assert yellow > 500 and dark > 100, (yellow, dark)
