@@ -94,6 +94,11 @@ def read_folder(folder: Path) -> dict[str, BodyFields]:
     files = sorted(folder.glob("*.h5")) if folder.is_dir() else []
     if not files:
         raise FieldFileError(f"{folder}: no field files (*.h5)")
+    return read_files(files)
+
+
+def read_files(files: list[Path]) -> dict[str, BodyFields]:
+    """Every body's fields in the field files ``files``: a body's files are parts of one series, by time."""
     parts: dict[str, list] = {}
     for path in files:
         body, form, pts, tris, steps = _read_file(path)

@@ -1,6 +1,6 @@
-"""``plots/springback_<body>.png`` of a 3D body (tetrahedra): its exterior surface before springback (the last field
-output, translucent grey) and after it (``fields/springback/``, coloured by the springback displacement, mm), in the
-3/4 view of the other 3D pictures, the springback magnified when it is too small to see
+"""``plots/springback_[<stage>_]<body>.png`` of a 3D body (tetrahedra): its exterior surface before springback (the
+output it started from, translucent grey) and after it (``fields/springback/``, coloured by the springback
+displacement, mm), in the 3/4 view of the other 3D pictures, the springback magnified when it is too small to see
 (:func:`.pictures_springback.magnification`, said in the title). Rendered with pyvista by the 3D renderer
 (:func:`.pictures_mech.render_fields`); the 2D bodies' picture is :mod:`.pictures_springback`'s."""
 
@@ -11,37 +11,28 @@ from pathlib import Path
 
 import numpy as np
 
-from .mech_fields import BodyFields, read_fields, read_folder
 from .pictures_solid import boundary_faces, solid_camera
-from .pictures_springback import magnification
+from .pictures_springback import magnification, springback_states
 
 log = logging.getLogger(__name__)
 
 __all__ = ["render_springback3d"]
 
 
-def _positions(b: BodyFields) -> np.ndarray:
-    """(N, 3) node positions at the body's last output, m."""
-    return b.points + b.read(len(b.times) - 1, ("displacement_m",))["displacement_m"]
-
-
 def render_springback3d(results_dir: Path) -> list[Path]:
-    """Draw ``plots/springback_<body>.png`` for every 3D body of ``fields/springback/`` that has field files before
-    springback; returns the pictures (none without ``fields/springback/``)."""
+    """Draw ``plots/springback_[<stage>_]<body>.png`` for every 3D body that sprang back
+    (:func:`.pictures_springback.springback_states`); returns the pictures."""
     root = Path(results_dir)
-    folder = root / "fields" / "springback"
-    if not any(folder.glob("*.h5")):
+    states = [st for st in springback_states(root) if st[1].solid]
+    if not states:
         return []
     import pyvista as pv
 
     from .pictures_mech import _screenshot
 
-    after, before = read_folder(folder), read_fields(root)
     out = []
-    for name, a in after.items():
-        if not a.solid or name not in before:
-            continue
-        x0, x1 = _positions(before[name]), _positions(a)
+    for picture, a, x0, x1 in states:
+        name = a.body
         d = x1 - x0
         norm = np.linalg.norm(d, axis=1)
         dmax = float(norm.max())
@@ -66,9 +57,9 @@ def render_springback3d(results_dir: Path) -> list[Path]:
         p.add_axes(color="black", xlabel="x", ylabel="y", zlabel="z")
         drawn = f", drawn x {gain:g}" if gain != 1.0 else ""
         p.add_text(f"{name}: springback, largest {dmax * 1e3:.3g} mm{drawn}\n"
-                   "grey: before springback (last output); coloured: after (mm)", position="upper_left",
+                   "grey: before springback; coloured: after (mm)", position="upper_left",
                    font_size=11, color="black", render=False)
-        out.append(_screenshot(p, root / "plots" / f"springback_{name}.png"))
+        out.append(_screenshot(p, root / "plots" / picture))
         p.close()
         log.info("pictures: springback of %s drawn (largest %.3g mm%s)", name, dmax * 1e3, drawn)
     return out

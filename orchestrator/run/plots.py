@@ -281,7 +281,8 @@ def draw_all(results_dir: Path, *, case=None, history: History | None = None, sh
         from .pictures_flc import draw_fld
 
         attempt("forming limit diagram", draw_fld, root, case)
-    if case is not None and deformable and getattr(case, "springback", None) is not None:
+    if case is not None and deformable and (getattr(case, "springback", None) is not None
+                                            or any(st.kind == "springback" for st in getattr(case, "stages", ()))):
         from .pictures_springback import draw_springback
 
         attempt("springback", draw_springback, root, case)

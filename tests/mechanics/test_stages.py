@@ -111,6 +111,22 @@ def test_two_pulses_each_followed_by_springback(chain):
     assert h[-1, cols.index("energy_stage_released_J")] > 0
 
 
+def test_a_picture_per_springback_stage(chain):
+    """plots/springback_<stage>_<body>.png (orchestrator/run/pictures_springback.py) for each springback stage: the
+    state before is the output the stage started from (the end of the pulse before it, not the next pulse's start at
+    the same time, which is the released state), so the largest springback drawn is the stage's metric."""
+    from pulseform.orchestrator.run.pictures_springback import draw_springback, springback_states
+
+    m = json.loads((chain / "metrics.json").read_text())
+    states = springback_states(chain)
+    assert [s[0] for s in states] == ["springback_release1_beam.png", "springback_release2_beam.png"]
+    for picture, _, x0, x1 in states:
+        stage = picture.split("_")[1]
+        drawn = float(np.linalg.norm(x1 - x0, axis=1).max())
+        assert drawn == pytest.approx(m[f"stage_{stage}_beam_springback_max_m"], rel=1e-12, abs=0.0), stage
+    assert [p.name for p in draw_springback(chain)] == ["springback_release1_beam.png", "springback_release2_beam.png"]
+
+
 def test_one_pulse_chain_is_the_plain_run(tmp_path):
     """A chain of one pulse stage is today's run bit for bit (history.csv but the stage column); pulse + springback
     stages give the plain run's [springback] metrics bit for bit."""
