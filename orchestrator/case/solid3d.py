@@ -143,10 +143,6 @@ def _validate_3d(case) -> None:
         if b.shape is not None and b.shape.type not in SOLID_TYPES:
             raise SchemaError(f"bodies[{i}].shape.type", f"got {b.shape.type!r}, a 2D shape; a 3D case "
                               f"(mechanics.formulation = '3d') allows: {', '.join(map(repr, SOLID_TYPES))}")
-        if b.element == "tet10" and case.case.kind == "coupled":
-            raise SchemaError(f"bodies[{i}].element", "got 'tet10'; ten-node tetrahedra run in mechanics-only 3D "
-                              "cases for now (a coupled case's bodies share their nodes with the EM mesh): allowed "
-                              "here: 'tet4'")
         if b.fixed and not file3d:
             raise SchemaError(f"bodies[{i}].fixed", "a key of 2D cases and 3D geometry files (geometry.type = "
                               "'geometry_3d'); in this 3D case hold the body with [[symmetry]] planes or [[walls]]")
@@ -172,9 +168,10 @@ def _validate_3d(case) -> None:
 
 
 def _check_quadratic_bodies(case) -> None:
-    """Ten-node bodies take no rigid walls or contact pairs yet: a pressure on a six-node face is not shared by
-    its nodes as by their lumped masses (a corner carries 1/36 of a cell's mass and none of the consistent load),
-    so the per-node reactions chatter (the 3D bar on a wall: probe 32 MPa instead of 70)."""
+    """Ten-node bodies take no rigid walls, contact pairs or pressure pulses yet: a pressure on a six-node face is
+    not shared by its nodes as by their lumped masses (a corner carries 1/36 of a cell's mass and none of the
+    consistent load), so the per-node reactions chatter (the 3D bar on a wall: probe 32 MPa instead of 70). The EM
+    force of a coupled case is a volume force, shared as the masses (docs/coupling.md): it is taken."""
     quad = {b.name for b in case.bodies if b.element == "tet10"}
     if not quad:
         return
@@ -184,6 +181,11 @@ def _check_quadratic_bodies(case) -> None:
             raise SchemaError(f"walls[{i}]", f"acts on {hit[0]!r}, a body of element 'tet10'; ten-node bodies take no "
                               "rigid walls yet (node reactions of six-node faces): set its element = 'tet4' or the "
                               "wall's bodies")
+    for i, ld in enumerate(case.loads):
+        if getattr(ld, "body", None) in quad:
+            raise SchemaError(f"loads[{i}].body", f"got {ld.body!r}, a body of element 'tet10'; ten-node bodies take no "
+                              "pressure pulses yet (node loads of six-node faces): set its element = 'tet4' or drive "
+                              "the case by getdp (coupling.load = 'getdp')")
     for i, c in enumerate(case.contact):
         for side in ("slave", "master"):
             if getattr(c, side) in quad:
