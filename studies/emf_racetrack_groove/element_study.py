@@ -1,0 +1,124 @@
+"""Linear against ten-node tetrahedra in the coupled racetrack (issue 34 item 4: "the racetrack's plastic strain
+shows no element-to-element checkerboard").
+
+Runs ``pulseform run cases/emf_racetrack_groove`` with the sheet's ``element`` = "tet4" and "tet10" on the same
+meshes, to ``T_END`` = 30 µs: before the first contact (38.3 µs on the coarse linear mesh, later on the finer ones,
+whose sheets move less), so the runs leave out ``[[contact]]`` (``--set contact=[]``: ten-node bodies take no
+contact yet) and equal the case's own runs up to there. For each run: the sheet's largest draw ``sheet_max_uz_m``
+at T_END, the plastic work, and the checkerboard index of its cell plastic strain over the plastically strained
+cells (:func:`pulseform.orchestrator.mech.checkerboard.checkerboard_index`), printed as a table and written to
+``reference/element_study.json``; the picture pair ``docs/assets/racetrack_plastic_strain_tet4_tet10.png`` (the
+sheet's lower face and the section y = 0 of the coarse mesh, both elements).
+
+Meshes: ``coarse`` (the tests' sizes, element sizes x 2: sheet 1.6k tetrahedra, 2 through the thickness) and
+``design`` (the case file's: 3 through the thickness). Usage::
+
+    .venv/bin/python studies/emf_racetrack_groove/element_study.py OUT_FOLDER [coarse design ...]
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from pulseform.orchestrator.mech.checkerboard import checkerboard_index
+from pulseform.orchestrator.run.mech_fields import read_fields
+
+HERE = Path(__file__).resolve().parent
+REPO = HERE.parents[1]
+T_END = 30e-6
+MESHES = {"coarse": ["geometry.parameters.h_sheet=4e-3", "geometry.parameters.sheet_layers=2",
+                     "geometry.parameters.h_coil=6e-3", "geometry.parameters.h_die=8e-3"],
+          "design": []}
+
+
+def run(out: Path, mesh: str, element: str) -> Path:
+    """The run of ``mesh`` with the sheet's ``element`` in ``out/<mesh>_<element>`` (kept if already there)."""
+    folder = out / f"{mesh}_{element}"
+    if (folder / "metrics.json").exists():
+        return folder
+    sets = [*MESHES[mesh], f"time.end={T_END}", "output.field_interval=10e-6", "contact=[]",
+            f"bodies.sheet.element='{element}'"]
+    argv = [str(Path(sys.executable).with_name("pulseform")), "run", str(REPO / "cases/emf_racetrack_groove"),
+            "--out", str(folder), "--quiet"] + [a for s in sets for a in ("--set", s)]
+    subprocess.run(argv, check=True, timeout=3600)
+    return folder
+
+
+def figures(folder: Path) -> dict[str, float]:
+    """The run's draw (m), plastic work (J, device), sheet cells and the checkerboard index at T_END."""
+    m = json.loads((folder / "metrics.json").read_text())
+    sheet = read_fields(folder)["sheet"]
+    k = int(np.argmin(np.abs(sheet.times - T_END)))
+    p = sheet.read(k, ("plastic_strain",))["plastic_strain"]
+    return {"sheet_max_uz_mm": float(m["sheet_max_uz_mm"]), "plastic_work_J": float(m["plastic_work_J"]),
+            "sheet_tets": float(len(sheet.triangles)), "plastic_cells": float((p > 0).sum()),
+            "plastic_strain_max": float(p.max()),
+            "checkerboard_index": checkerboard_index(sheet.points, sheet.triangles, p)}
+
+
+def picture(folders: dict[str, Path], path: Path) -> None:
+    """The sheet's cell plastic strain at T_END on its lower face (z = 0) and in the section y = 0, per element."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.collections import PolyCollection
+
+    sys.path.insert(0, str(HERE))
+    from racetrack_pictures import plane_faces
+
+    fig, axes = plt.subplots(2, 2, figsize=(12, 7.5), gridspec_kw={"height_ratios": [3, 1]}, constrained_layout=True)
+    data = {}
+    for element, folder in folders.items():
+        sheet = read_fields(folder)["sheet"]
+        k = int(np.argmin(np.abs(sheet.times - T_END)))
+        data[element] = (sheet, sheet.read(k, ("plastic_strain", "displacement_m")))
+    top = max(float(d["plastic_strain"].max()) for _, d in data.values())
+    for col, (element, (sheet, d)) in enumerate(data.items()):
+        x = sheet.points + d["displacement_m"][:len(sheet.points)]
+        for row, (axis, value, ij) in enumerate(((2, 0.0, (0, 1)), (1, 0.0, (0, 2)))):
+            faces, owner = plane_faces(sheet.points, sheet.triangles, axis, value)
+            ax = axes[row, col]
+            pc = PolyCollection(x[faces][:, :, ij] * 1e3, array=d["plastic_strain"][owner], cmap="viridis",
+                                edgecolors="face", linewidths=0.2)
+            pc.set_clim(0.0, top)
+            ax.add_collection(pc)
+            ax.autoscale_view()
+            ax.set_aspect("equal")
+            ax.set_xlabel("x [mm]")
+            ax.set_ylabel("y [mm]" if row == 0 else "z [mm]")
+            index = checkerboard_index(sheet.points, sheet.triangles, d["plastic_strain"])
+            ax.set_title(f"{element}: " + ("lower face z = 0" if row == 0 else "section y = 0")
+                         + (f" (checkerboard index {index:.2f})" if row == 0 else ""))
+    fig.colorbar(pc, ax=axes, label=f"equivalent plastic strain at {T_END * 1e6:.0f} µs [-]", shrink=0.8)
+    fig.suptitle("Coupled racetrack, coarse mesh: the sheet's cell plastic strain, linear vs ten-node tetrahedra")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def main(argv: list[str]) -> None:
+    out = Path(argv[0])
+    meshes = argv[1:] or ["coarse", "design"]
+    table = {}
+    for mesh in meshes:
+        for element in ("tet4", "tet10"):
+            table[f"{mesh}_{element}"] = figures(run(out, mesh, element))
+    print(f"{'run':16s} {'draw mm':>9s} {'plastic J':>10s} {'tets':>6s} {'plastic cells':>13s} {'checkerboard':>12s}")
+    for name, f in table.items():
+        print(f"{name:16s} {f['sheet_max_uz_mm']:9.4f} {f['plastic_work_J']:10.4f} {f['sheet_tets']:6.0f} "
+              f"{f['plastic_cells']:13.0f} {f['checkerboard_index']:12.3f}")
+    (HERE / "reference").mkdir(exist_ok=True)
+    (HERE / "reference" / "element_study.json").write_text(json.dumps({"t_end_s": T_END, "runs": table}, indent=1))
+    if "coarse" in meshes:
+        picture({e: out / f"coarse_{e}" for e in ("tet4", "tet10")},
+                REPO / "docs/assets/racetrack_plastic_strain_tet4_tet10.png")
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
