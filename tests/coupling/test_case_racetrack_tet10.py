@@ -9,12 +9,15 @@ element_study.py): the ten-node sheet's must be below half the linear one's; (2)
 cells thick, is too stiff in bending (the cantilever of docs/mechanics.md: 0.41 of beam theory with three through
 the thickness, ten-node 0.999), so it must draw less than the ten-node one, by no more than the locking allows
 (measured: 0.777 mm against 0.993 mm; a finer linear mesh moves towards the ten-node figure: the study);
-(3) the ledgers (force transfer, energy) of the ten-node run at round-off / the mechanics' balance; (4) a SIGINT
-then ``--resume`` of a short ten-node run equals the uninterrupted one bit for bit.
+(3) the ledgers (force transfer, energy) of the ten-node run at round-off / the mechanics' balance; (4) a short
+ten-node run whose air is meshed again before EM steps 3 and 4 (forced, tests/coupling/forced_remesh_run.py), stopped
+by SIGINT after step 3 and resumed, equals the uninterrupted one bit for bit (the remesh carries the ten-node body:
+its cells' EM tetrahedra matched again).
 """
 from __future__ import annotations
 
 import json
+import subprocess
 import sys
 from pathlib import Path
 
@@ -25,13 +28,13 @@ from pulseform.orchestrator.mech.checkerboard import checkerboard_index
 from pulseform.orchestrator.run.mech_fields import read_fields
 
 from .racetrack_coarse import CASE, COARSE_SIZES
-from .resume_check import assert_coupled3d_outputs_bitwise, sigint_then_resume
+from .resume_check import assert_coupled3d_outputs_bitwise, checkpoint_arrays, interrupted_run
 from warm_cli import pulseform_cli
 
 pytestmark = [pytest.mark.slow, pytest.mark.getdp]
 
 T_END = 30e-6
-EXE = str(Path(sys.executable).with_name("pulseform"))
+HELPER = str(Path(__file__).with_name("forced_remesh_run.py"))
 
 
 def _args(out: Path, element: str, t_end: float, *extra: str) -> list[str]:
@@ -85,13 +88,26 @@ def test_ten_node_sheet_draws_more_than_the_locking_linear_one(runs):
         assert f["Mesh/tetrahedra10"].shape[1] == 10
 
 
-def test_ten_node_sigint_then_resume_equals_the_uninterrupted_run(tmp_path):
+def _remesh_argv(out: Path, *flags: str, sigint_in_step: int = 0) -> list[str]:
+    """A 4 µs ten-node run whose air is meshed again before EM steps 3 and 4 (tests/coupling/forced_remesh_run.py),
+    optionally stopping itself as step ``sigint_in_step`` starts (``flags``: e.g. ``--resume``)."""
+    signal_at = [f"--sigint-in-step={sigint_in_step}"] if sigint_in_step else []
+    return [sys.executable, HELPER, "3,4", *signal_at] + _args(out, "tet10", 4e-6, "output.plots=false",
+                                                              "output.field_interval=1e-6") + list(flags)
+
+
+def test_ten_node_run_remeshes_its_air_and_resumes_bit_for_bit(tmp_path):
     ref = tmp_path / "ref"
-    r = pulseform_cli(_args(ref, "tet10", 3e-6, "output.plots=false", "output.field_interval=1e-6"))
+    r = subprocess.run(_remesh_argv(ref), capture_output=True, text=True, timeout=900)
     assert r.returncode == 0, r.stderr[-3000:]
+    m = json.loads((ref / "metrics.json").read_text())
+    assert m["status"] == "ok" and m["em_remeshes"] == 2.0
+    assert m["conservation_error_rel"] < 1e-12 and m["sheet_ledger_rel"] < 1e-12
     out = tmp_path / "cut"
-    args = [EXE] + _args(out, "tet10", 3e-6, "output.plots=false", "output.field_interval=1e-6")
-    proc, err, stopped, resumed = sigint_then_resume(args, out)
-    assert proc.returncode == 130, err
-    assert resumed.returncode == 0, resumed.stderr[-3000:]
-    assert_coupled3d_outputs_bitwise(ref, out)
+    interrupted_run(_remesh_argv(out, sigint_in_step=3), out)   # stops after step 3, whose start remeshed
+    assert int(checkpoint_arrays(out)["load/remesh/count"]) == 1
+    r = subprocess.run(_remesh_argv(out, "--resume"), capture_output=True, text=True, timeout=900)
+    assert r.returncode == 0, r.stderr[-3000:]
+    got = assert_coupled3d_outputs_bitwise(ref, out)
+    print(f"\nten-node sheet, air remeshed at 2 and 3 us: ledger {m['conservation_error_rel']:.1e}; stopped at 3 us "
+          f"and resumed: draw {got['sheet_max_uz_mm']!r} mm (bitwise the uninterrupted run's)")
