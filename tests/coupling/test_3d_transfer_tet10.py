@@ -11,7 +11,9 @@ rigidly: no strain). The HRZ shares do so exactly (F_i / m_i = f / rho to round-
 free body under them stores no elastic energy (round-off of the kinetic); the consistent quadratic weights
 (∫ N_i dV / V: a corner -1/20, an edge node 1/5) accelerate the corners backwards (-1.8 f / rho) and the same run
 stores a large fraction of its kinetic energy as strain (printed); (3) the loop: the EM mesh's body nodes are the
-body's vertex rows after every step (round-off), the ledger of every EM step at round-off.
+body's vertex rows after every step (round-off), the ledger of every EM step at round-off; (4) Joule heat: the EM
+elements match the body's corner cells one to one, and a cell's heat e raises its Gauss points by e / (rho c_p)
+(the adiabatic law, to round-off).
 """
 import math
 
@@ -137,3 +139,27 @@ def test_loop_moves_the_em_mesh_with_the_vertex_rows(ring, tmp_path):
     assert len(rows) >= 2 and loop.counters.ledger_max < 1e-12
     assert dev < 1e-15 and u_edge > 0.0
     assert fake.last_forces["disk"].shape == body.x.shape
+
+
+def test_joule_heat_reaches_the_gauss_points_of_a_ten_node_body(ring):
+    """A ten-node body with a temperature: the EM elements match its corner cells, a cell's heat (J/m^3) raises each
+    of its four Gauss points by e / (rho c_p), and its temperature for σ(T) is their mean."""
+    from pulseform.orchestrator.em.joule_heat import cell_of_elements
+
+    mesh, sub, _, _ = ring
+    material = mech.Material(density=RHO, shear_modulus=26.3e9, bulk_modulus=68.6e9, yield_stress=1e12,
+                             hardening_modulus=0.0, specific_heat=900.0)
+    solver = ExplicitSolver3D([mech.BodySpec(name="disk", mesh=to_dolfinx3d(sub, MPI.COMM_SELF), material=material,
+                                             initial_velocity=(0.0, 0.0, 0.0), element="tet10")], comm=MPI.COMM_SELF)
+    body = solver.bodies["disk"]
+    nodes = match_nodes3d(body.X0[:body.n_vertices], mesh.points, 1e-12)
+    m = DolfinxMechanics(solver)
+    cells = m.heated_cells()["disk"]
+    assert cells.shape == (len(body.cells), 4)
+    match = cell_of_elements(mesh.tets[sub.rows], nodes, cells)
+    assert np.all(match >= 0) and len(np.unique(match)) == len(match)
+    e = np.linspace(1e6, 2e6, len(body.cells))   # J/m^3 per cell
+    t0 = body.temperature.copy()
+    m.add_heat({"disk": e})
+    np.testing.assert_allclose(body.temperature - t0, np.repeat(e, 4) / (RHO * 900.0), rtol=0.0, atol=1e-12)   # K: round-off of 293 K
+    np.testing.assert_allclose(m.cell_temperatures()["disk"], t0[::4] + e / (RHO * 900.0), rtol=1e-15, atol=0.0)
