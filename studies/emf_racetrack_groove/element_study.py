@@ -8,7 +8,7 @@ contact yet) and equal the case's own runs up to there. For each run: the sheet'
 at T_END, the plastic work, and the checkerboard index of its cell plastic strain over the plastically strained
 cells (:func:`pulseform.orchestrator.mech.checkerboard.checkerboard_index`), printed as a table and written to
 ``reference/element_study.json``; the picture pair ``docs/assets/racetrack_plastic_strain_tet4_tet10.png`` (the
-sheet's lower face and the section y = 0 of the coarse mesh, both elements).
+sheet's lower face and the section y = 0 on the design mesh, both elements).
 
 Meshes: ``coarse`` (the tests' sizes, element sizes x 2: sheet 1.6k tetrahedra, 2 through the thickness),
 ``design`` (the case file's: 8.9k, 3 through the thickness) and ``design6`` (6 through the thickness: 17.8k; its EM
@@ -35,6 +35,8 @@ from pulseform.orchestrator.run.mech_fields import read_fields
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parents[1]
 T_END = 30e-6
+#: the sections' thickness drawn this many times its length scale
+SECTION_STRETCH = 4.0
 MESHES = {"coarse": ["geometry.parameters.h_sheet=4e-3", "geometry.parameters.sheet_layers=2",
                      "geometry.parameters.h_coil=6e-3", "geometry.parameters.h_die=8e-3"],
           "design": [],
@@ -66,8 +68,9 @@ def figures(folder: Path) -> dict[str, float]:
             "checkerboard_index": checkerboard_index(sheet.points, sheet.triangles, p)}
 
 
-def picture(folders: dict[str, Path], path: Path) -> None:
-    """The sheet's cell plastic strain at T_END on its lower face (z = 0) and in the section y = 0, per element."""
+def picture(folders: dict[str, Path], path: Path, mesh: str) -> None:
+    """The sheet's cell plastic strain at T_END on its lower face (z = 0) and in the section y = 0 (thickness
+    stretched :data:`SECTION_STRETCH` times), per element, of the runs on ``mesh``."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -77,7 +80,7 @@ def picture(folders: dict[str, Path], path: Path) -> None:
     sys.path.insert(0, str(HERE))
     from racetrack_pictures import plane_faces
 
-    fig, axes = plt.subplots(2, 2, figsize=(12, 7.5), gridspec_kw={"height_ratios": [3, 1]}, constrained_layout=True)
+    fig, axes = plt.subplots(2, 2, figsize=(12, 8.5), gridspec_kw={"height_ratios": [3, 1]}, constrained_layout=True)
     data = {}
     for element, folder in folders.items():
         sheet = read_fields(folder)["sheet"]
@@ -94,14 +97,14 @@ def picture(folders: dict[str, Path], path: Path) -> None:
             pc.set_clim(0.0, top)
             ax.add_collection(pc)
             ax.autoscale_view()
-            ax.set_aspect("equal")
+            ax.set_aspect("equal" if row == 0 else SECTION_STRETCH)
             ax.set_xlabel("x [mm]")
-            ax.set_ylabel("y [mm]" if row == 0 else "z [mm]")
+            ax.set_ylabel("y [mm]" if row == 0 else f"z [mm], drawn x {SECTION_STRETCH:g}")
             index = checkerboard_index(sheet.points, sheet.triangles, d["plastic_strain"])
             ax.set_title(f"{element}: " + ("lower face z = 0" if row == 0 else "section y = 0")
                          + (f" (checkerboard index {index:.2f})" if row == 0 else ""))
     fig.colorbar(pc, ax=axes, label=f"equivalent plastic strain at {T_END * 1e6:.0f} µs [-]", shrink=0.8)
-    fig.suptitle("Coupled racetrack, coarse mesh: the sheet's cell plastic strain, linear vs ten-node tetrahedra")
+    fig.suptitle(f"Coupled racetrack, {mesh} mesh: the sheet's cell plastic strain, linear vs ten-node tetrahedra")
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -121,9 +124,9 @@ def main(argv: list[str]) -> None:
               f"{f['plastic_cells']:13.0f} {f['checkerboard_index']:12.3f}")
     (HERE / "reference").mkdir(exist_ok=True)
     (HERE / "reference" / "element_study.json").write_text(json.dumps({"t_end_s": T_END, "runs": table}, indent=1))
-    if "coarse" in meshes:
-        picture({e: out / f"coarse_{e}" for e in ("tet4", "tet10")},
-                REPO / "docs/assets/racetrack_plastic_strain_tet4_tet10.png")
+    if "design" in meshes:
+        picture({e: out / f"design_{e}" for e in ("tet4", "tet10")},
+                REPO / "docs/assets/racetrack_plastic_strain_tet4_tet10.png", "design")
 
 
 if __name__ == "__main__":
