@@ -297,6 +297,16 @@ class Body:
         :class:`~.body3d.Body3D` projects it on the wall."""
         return self.tributary_areas(self.segments, x)
 
+    def wall_pressures(self, rows: np.ndarray, force: np.ndarray, x: np.ndarray,
+                       normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """A rigid wall's pressures from its normal forces ``force`` (N, compressive positive) on the nodes
+        ``rows`` at positions ``x`` (m): each force over its node's wall area (:meth:`wall_tributary_areas`,
+        completed over the ranks: a collective under MPI). Returns (node rows, pressures Pa); a ten-node body
+        reads them from its six-node faces (:meth:`.body3d.Body3D.wall_pressures`)."""
+        area = self.wall_tributary_areas(x, normal)
+        area = self.complete_nodal(np.repeat(area[:, None], self.gdim, axis=1))[:, 0]
+        return rows, force / area[rows]
+
     def pressure_forces(self, facet_marker, pressure: float) -> np.ndarray:
         """Consistent nodal forces (N) of a uniform follower pressure (Pa, positive pushes into
         the body) on the exterior facets whose two vertices satisfy ``facet_marker`` (evaluated on

@@ -16,7 +16,8 @@ from petsc4py import PETSc
 
 from .body import ELEMENTS, Body, BodySpec
 from .sliding import SlidingPlanes
-from .tet10 import N_QP, hrz_lumped_mass, qp_volumes, quadratic_cells, split_faces
+from .tet10 import (N_QP, hrz_lumped_mass, qp_volumes, quadratic_cells, recover_face_pressure, six_node_faces,
+                    split_faces)
 from .tet_fields import tet_elastic_energy_density, tet_volumes, tet_von_mises
 
 __all__ = ["Body3D"]
@@ -38,6 +39,9 @@ class Body3D(Body):
         Owned exterior facets (triangles) as node rows, ordered so that
         (x1 - x0) x (x2 - x0) points out of the body (the name is the 2D body's: the boundary
         pieces that walls and loads use; a ten-node body's faces are cut in four).
+    faces6 : int32 array (nf, 6)
+        Ten-node bodies only: the six-node boundary faces (:func:`.tet10.six_node_faces`); ``segments`` row
+        ``4 f + k`` is a quarter of face ``f``.
     cell_stress : float64 array (nc, 6) or (nc * 4, 6)
         Cauchy stress [xx, yy, zz, xy, yz, xz], Pa, per cell (tet4) or per quadrature point (tet10, cell-major;
         so are ``eps_p`` and ``temperature``).
@@ -117,7 +121,8 @@ class Body3D(Body):
         self.eps_p = np.zeros(nq)
         self.temperature = np.full(nq, float(spec.material.initial_temperature))
         edge_node = {(int(a), int(b)): len(X) + k for k, (a, b) in enumerate(edges)}
-        self.segments = split_faces(corner_tris, edge_node)
+        self.faces6 = six_node_faces(corner_tris, edge_node)
+        self.segments = split_faces(self.faces6)
 
     def _lumped_mass(self) -> np.ndarray:
         """Row-sum lumped mass via DOLFINx assembly, kg (each node gets rho V / 4 of its cells); ten-node
@@ -195,6 +200,37 @@ class Body3D(Body):
         return (np.bincount(tris[:, 0], weights=a, minlength=n)
                 + np.bincount(tris[:, 1], weights=a, minlength=n)
                 + np.bincount(tris[:, 2], weights=a, minlength=n))
+
+    def wall_pressures(self, rows: np.ndarray, force: np.ndarray, x: np.ndarray,
+                       normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`.body.Body.wall_pressures`; a ten-node body: the pressure field on its six-node faces whose
+        consistent loads are the wall's forces (:func:`.tet10.recover_face_pressure`, areas projected on the
+        wall), at every node of the loaded faces (a corner's own reaction of a uniform pressure is ~0)."""
+        if self.element != "tet10":
+            return super().wall_pressures(rows, force, x, normal)
+        f = np.zeros(len(x))
+        f[rows] = force
+        return recover_face_pressure(self.faces6, x, f, normal)
+
+    def contact_pressures(self, rows: np.ndarray, pressure: np.ndarray,
+                          x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The contact stress (Pa) of the nodes ``rows`` in soft contact as read on this body: the law's nodal
+        value; a ten-node body: read on its six-node faces whose six nodes are all in contact
+        (:func:`.tet10.recover_face_pressure`) from the nodal contact forces p A, A the node's share of those
+        faces' quarter triangles (a contact area: faces beside the contact, e.g. a side of the body at an
+        edge node, give it nothing), the law's value at a node on no such face. Returns (rows, pressures)."""
+        if self.element != "tet10":
+            return rows, pressure
+        inside = np.zeros(len(x), dtype=bool)
+        inside[rows] = True
+        faces = self.faces6[np.all(inside[self.faces6], axis=1)]
+        law = np.full(len(x), np.nan)
+        law[rows] = pressure
+        f = np.nan_to_num(law) * self.tributary_areas(split_faces(faces), x)
+        nodes, p = recover_face_pressure(faces, x, f)
+        law[nodes] = p
+        out = np.union1d(rows, nodes)
+        return out, law[out]
 
     def pressure_forces(self, facet_marker, pressure: float) -> np.ndarray:
         """Consistent nodal forces (N) of a uniform follower pressure (Pa, positive pushes into

@@ -72,15 +72,14 @@ class WallSet:
 
     def pressures(self, reaction: Mapping[str, np.ndarray], x: Mapping[str, np.ndarray]) -> List[dict]:
         """Per wall, body -> (rows, wall pressure Pa) of its held nodes (as the explicit solver's
-        ``_wall_out[iw]["p"]``)."""
+        ``_wall_out[iw]["p"]``; a ten-node body: every node of its loaded faces, :meth:`~.body.Body.wall_pressures`)."""
         out: List[dict] = [dict() for _ in self.solver.rigid_walls]
         for iw, w, n, b in self._walls():
             nrm = w.unit_normal()
             rows = np.array(sorted(r for r, h in self.held[n].items() if iw in h), dtype=np.int64)
             if rows.size == 0:
                 continue
-            area = b.wall_tributary_areas(x[n], nrm)
-            out[iw].setdefault("p", {})[n] = (rows, (reaction[n][rows] @ nrm) / area[rows])
+            out[iw].setdefault("p", {})[n] = b.wall_pressures(rows, reaction[n][rows] @ nrm, x[n], nrm)
         return out
 
     def wall_force(self, reaction: Mapping[str, np.ndarray]) -> Dict[str, np.ndarray]:

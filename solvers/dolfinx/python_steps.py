@@ -105,7 +105,8 @@ class PythonSteps:
 
     def _wall_pressures(self) -> None:
         """The wall reactions per unit area (Pa) of the nodes the last step found pushed into the
-        walls, on the current positions (those of that step's forces). The steps do not need them:
+        walls (:meth:`~.body.Body.wall_pressures`: a ten-node body's at every node of its loaded faces), on the
+        current positions (those of that step's forces). The steps do not need them:
         they are computed once, at the end of :meth:`advance` (the boundary areas cost as much as
         the rest of a 3D step's Python part); the same bits as at every step."""
         for iw, w in enumerate(self.rigid_walls):
@@ -113,9 +114,7 @@ class PythonSteps:
             nrm = w.unit_normal()
             for n, (rows, fn) in out.pop("fn", {}).items():
                 b = self.bodies[n]
-                area = b.wall_tributary_areas(b.x, nrm)
-                area = b.complete_nodal(np.repeat(area[:, None], b.gdim, axis=1))[:, 0]
-                out.setdefault("p", {})[n] = (rows, -fn / area[rows])
+                out.setdefault("p", {})[n] = b.wall_pressures(rows, -fn, b.x, nrm)
 
     def _body_kernel(self, name: str):
         """The element kernel of body ``name`` (the solver's ``_kernel``; the 3D solver's

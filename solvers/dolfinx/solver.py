@@ -320,13 +320,15 @@ class ExplicitSolver(PythonSteps):
         pressure : (M,) array
             Normal contact stress k (1/h - 1/h0) plus the viscous term, Pa.
         gap : (M,) array
-            Distance h to the master surface, m.
+            Distance h to the master surface, m (a ten-node slave: NaN at the nodes of its loaded faces that are
+            outside the layer, which read the face's pressure field).
         """
         out = self._contact_out[pair_index]
         s = self._surf[self.contact_pairs[pair_index].slave]
         if out is None:
             return np.zeros(0, np.int64), np.zeros((0, 2)), np.zeros(0), np.zeros(0)
-        p, h, X = out
+        _, h, X = out
+        p = self._slave_pressures(pair_index)
         m = np.isfinite(p)
         return s.gids[m], X[m], p[m], h[m]
 
@@ -336,10 +338,16 @@ class ExplicitSolver(PythonSteps):
         cp = self.contact_pairs[pair_index]
         s = self._surf[cp.slave]
         i = int(np.argmin(np.linalg.norm(s.X0 - np.asarray(point, float), axis=1)))
-        out = self._contact_out[pair_index]
-        if out is None or not np.isfinite(out[0][i]):
+        p = self._slave_pressures(pair_index)
+        if p is None or not np.isfinite(p[i]):
             return 0.0
-        return float(out[0][i])
+        return float(p[i])
+
+    def _slave_pressures(self, pair_index: int):
+        """The contact stress (Pa) of every slave surface node of a pair (NaN out of contact), or None before
+        the pair's first evaluation; the 3D solver reads a ten-node slave's on its six-node faces."""
+        out = self._contact_out[pair_index]
+        return None if out is None else out[0]
 
     def wall_pressure(self, wall_index: int, body: str):
         """Wall reaction per unit area on the body's nodes pressed on the wall at the current time.

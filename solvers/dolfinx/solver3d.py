@@ -287,7 +287,25 @@ class ExplicitSolver3D(ExplicitSolver):
 
     def soft_plane_pressure(self, plane_index: int, body: str):
         """Contact stress of eq. (5) on the body's nodes inside the layer of a soft plane at the
-        current time: (local node rows, reference coords (M, 3), pressure Pa) on this rank."""
+        current time: (local node rows, reference coords (M, 3), pressure Pa) on this rank (a ten-node
+        body: at every node of its loaded faces, :meth:`~.body3d.Body3D.contact_pressures`)."""
         rows, p = self._soft_out[plane_index].get(body, (np.zeros(0, int), np.zeros(0)))
-        return rows, self.bodies[body].X0[rows], p
+        b = self.bodies[body]
+        rows, p = b.contact_pressures(rows, p, b.x)
+        return rows, b.X0[rows], p
+
+    def _slave_pressures(self, pair_index: int):
+        """The solver's slave pressures; a ten-node slave (serial: its rows are its global ids) reads them on its
+        six-node faces (:meth:`~.body3d.Body3D.contact_pressures`), NaN off its loaded faces."""
+        p = super()._slave_pressures(pair_index)
+        name = self.contact_pairs[pair_index].slave
+        b = self.bodies[name]
+        if p is None or b.element != "tet10":
+            return p
+        s = self._surf[name]
+        inside = np.flatnonzero(np.isfinite(p))
+        nodes, pr = b.contact_pressures(s.gids[inside], p[inside], b.x)
+        out = np.full_like(p, np.nan)
+        out[np.searchsorted(s.gids, nodes)] = pr
+        return out
 

@@ -4,7 +4,7 @@
 from __future__ import annotations
 
 import logging
-from typing import Dict, Optional
+from typing import Dict, Optional, Sequence
 
 import numpy as np
 from dolfinx import mesh as dmesh
@@ -103,6 +103,7 @@ def bar_impact_3d(nx: int = 40, ny: int = 10, quarter: bool = True, t_end: Optio
                   two_body: bool = False, stiffness: float = 1e8, viscosity: float = 0.0,
                   cfl: float = 0.5, bulk_viscosity: bool = True,
                   comm=MPI.COMM_WORLD, material: Material = PAPER_BAR_MATERIAL,
+                  element: str = "tet4", probe: Optional[Sequence[float]] = None,
                   ) -> Dict[str, object]:
     """Paper section 4 in 3D, the rigid-wall form: a bar 4 m long (x) with a 2 m x 2 m cross
     section (the paper's 2 m x 4 m bodies given a 2 m depth) at 5 m/s hits a frictionless rigid
@@ -127,6 +128,11 @@ def bar_impact_3d(nx: int = 40, ny: int = 10, quarter: bool = True, t_end: Optio
         The paper's own set-up: the bar at 2 x ``speed`` hits an equal bar at rest across a soft
         layer (node to face, ``stiffness``, ``h0``, ``viscosity``), the second bar starting at
         x = 4 + h0; the stress is the contact stress at the first bar's face centre.
+    element : {"tet4", "tet10"}
+        The bars' element (:attr:`.body.BodySpec.element`).
+    probe : (3,) floats, optional
+        Where the stress is read (the node nearest it in the reference configuration), m; default the
+        middle of the contact face, (4, 0, 0) for the quarter, (4, 1, 1) for the full section.
 
     Returns
     -------
@@ -153,7 +159,7 @@ def bar_impact_3d(nx: int = 40, ny: int = 10, quarter: bool = True, t_end: Optio
     if two_body:
         right = _box(comm, [4.0 + h0, 0.0, 0.0], [8.0 + h0, side, side], [nx, ny, ny])
         bodies.append(BodySpec("right", right, material, initial_velocity=(0.0, 0.0, 0.0),
-                               fixed=fixed))
+                               fixed=fixed, element=element))
         pairs = (ContactPairSpec("bar", "right", stiffness=stiffness, h0=h0, viscosity=viscosity),)
     elif soft_plane:
         planes = (SoftPlaneSpec(point=(4.0 + h0, 0.0, 0.0), normal=(-1.0, 0.0, 0.0),
@@ -163,11 +169,13 @@ def bar_impact_3d(nx: int = 40, ny: int = 10, quarter: bool = True, t_end: Optio
                                sliding=True),)
     v0 = 2.0 * speed if two_body else speed
     solver = ExplicitSolver3D([BodySpec("bar", msh, material, initial_velocity=(v0, 0.0, 0.0),
-                                        fixed=fixed)] + bodies, rigid_walls=walls,
+                                        fixed=fixed, element=element)] + bodies, rigid_walls=walls,
                               soft_planes=planes, contact_pairs=pairs, cfl=cfl,
                               bulk_viscosity=bulk_viscosity, comm=comm)
     ke0 = solver.energies()["kinetic_J"]
-    probe = np.array([4.0, 0.0, 0.0] if quarter else [4.0, 1.0, 1.0])
+    if probe is None:
+        probe = [4.0, 0.0, 0.0] if quarter else [4.0, 1.0, 1.0]
+    probe = np.asarray(probe, dtype=float)
     b = solver.bodies["bar"]
     d = np.linalg.norm(b.X0[: b.n_owned] - probe, axis=1)
     cand = comm.allgather((float(d.min()) if d.size else np.inf, comm.rank))
