@@ -1,18 +1,19 @@
 """The coupled racetrack with a ten-node sheet (``bodies.sheet.element = "tet10"``, issue 34 item 4) against the
 same case on linear tetrahedra, through ``pulseform run`` on the coarse mesh (tests/coupling/racetrack_coarse.py's
-sizes: 2 tetrahedra through the sheet) to 30 µs, before the first contact (38.3 µs on linear tetrahedra):
-``contact=[]`` (ten-node bodies take no contact yet), which leaves the runs equal to the case's own up to there.
+sizes: 2 tetrahedra through the sheet), the whole case: 60 µs, the sheet drawn into the die's groove through soft
+contact (explicit; first contact 35.5 µs ten-node, 38.2 µs linear).
 
 References: (1) the checkerboard index of the sheet's cell plastic strain over its plastically strained cells
-(orchestrator/mech/checkerboard.py; measured 0.499 linear, 0.212 ten-node, studies/emf_racetrack_groove/
-element_study.py): the ten-node sheet's must be below half the linear one's; (2) locking: the linear sheet, two
-cells thick, is too stiff in bending (the cantilever of docs/mechanics.md: 0.41 of beam theory with three through
-the thickness, ten-node 0.999), so it must draw less than the ten-node one, by no more than the locking allows
-(measured: 0.777 mm against 0.993 mm; a finer linear mesh moves towards the ten-node figure: the study);
-(3) the ledgers (force transfer, energy) of the ten-node run at round-off / the mechanics' balance; (4) a short
-ten-node run whose air is meshed again before EM steps 3 and 4 (forced, tests/coupling/forced_remesh_run.py), stopped
-by SIGINT after step 3 and resumed, equals the uninterrupted one bit for bit (the remesh carries the ten-node body:
-its cells' EM tetrahedra matched again).
+(orchestrator/mech/checkerboard.py; measured at 60 µs 0.276 linear, 0.130 ten-node; studies/emf_racetrack_groove/
+element_study.py): the ten-node sheet's must be below 0.6 of the linear one's; (2) locking and convergence: the
+linear sheet, two cells thick, is far too stiff in bending (the cantilever of docs/mechanics.md: 0.41 of beam theory
+with three through the thickness, ten-node 0.999), so it draws less than the ten-node one (2.46 mm against 4.04 mm),
+and the ten-node coarse draw must be nearer the draw of the case's design mesh on linear tetrahedra (4.394 mm,
+studies/emf_racetrack_groove/reference/racetrack_metrics.json: 4.5x the cells, 3 through the thickness) than the
+linear coarse draw is; (3) the ledgers of the ten-node run (force transfer at round-off, the mechanics' energy
+balance below 1e-3 of the external work); (4) a short ten-node run whose air is meshed again before EM steps 3 and
+4 (forced, tests/coupling/forced_remesh_run.py), stopped by SIGINT after step 3 and resumed, equals the
+uninterrupted one bit for bit (the remesh carries the ten-node body: its cells' EM tetrahedra matched again).
 """
 from __future__ import annotations
 
@@ -33,13 +34,16 @@ from warm_cli import pulseform_cli
 
 pytestmark = [pytest.mark.slow, pytest.mark.getdp]
 
-T_END = 30e-6
+T_END = 60e-6
+#: the case's draw on its design mesh, linear tetrahedra (the study's reference run)
+DESIGN_DRAW_MM = json.loads((Path(__file__).resolve().parents[2] / "studies/emf_racetrack_groove/reference/"
+                             "racetrack_metrics.json").read_text())["max_deflection_into_groove_mm"]
 HELPER = str(Path(__file__).with_name("forced_remesh_run.py"))
 
 
 def _args(out: Path, element: str, t_end: float, *extra: str) -> list[str]:
-    sets = [*COARSE_SIZES, f"time.end={t_end}", "output.field_interval=10e-6", "contact=[]",
-            f"bodies.sheet.element='{element}'", *extra]
+    sets = [*COARSE_SIZES, f"time.end={t_end}", "output.field_interval=10e-6", f"bodies.sheet.element='{element}'",
+            *extra]
     return ["run", str(CASE), "--out", str(out), "--quiet"] + [a for s in sets for a in ("--set", s)]
 
 
@@ -69,19 +73,21 @@ def test_ten_node_sheet_shows_no_checkerboard(runs):
         index[element] = checkerboard_index(sheet.points, sheet.triangles, p)
     print(f"\ncheckerboard index of the sheet's plastic strain at {T_END * 1e6:.0f} us: linear {index['tet4']:.3f}, "
           f"ten-node {index['tet10']:.3f}")
-    assert index["tet10"] < 0.5 * index["tet4"]
+    assert index["tet10"] < 0.6 * index["tet4"]
 
 
 def test_ten_node_sheet_draws_more_than_the_locking_linear_one(runs):
     m = {e: json.loads((f / "metrics.json").read_text()) for e, f in runs.items()}
     draw = {e: v["sheet_max_uz_mm"] for e, v in m.items()}
     q = m["tet10"]
-    print(f"\ndraw at {T_END * 1e6:.0f} us: linear {draw['tet4']:.4f} mm, ten-node {draw['tet10']:.4f} mm "
-          f"(+{draw['tet10'] / draw['tet4'] - 1:.1%}); ten-node ledgers: transfer {q['conservation_error_rel']:.1e}, "
-          f"energy {q['energy_error_rel']:.1e}")
-    assert 1.0 < draw["tet10"] / draw["tet4"] < 1.5
+    fine = DESIGN_DRAW_MM
+    print(f"\ndraw at {T_END * 1e6:.0f} us: linear {draw['tet4']:.4f} mm, ten-node {draw['tet10']:.4f} mm; the design "
+          f"mesh's linear {fine:.4f} mm; ten-node ledgers: transfer {q['conservation_error_rel']:.1e}, energy "
+          f"{q['energy_error_rel']:.1e}; first contact {q['first_contact_s'] * 1e6:.1f} us")
+    assert draw["tet10"] > draw["tet4"]
+    assert abs(draw["tet10"] - fine) < abs(draw["tet4"] - fine)
     assert q["status_ok"] == 1.0 and q["conservation_error_rel"] < 1e-13 and q["sheet_ledger_rel"] < 1e-13
-    assert abs(q["energy_error_rel"]) < 1e-4
+    assert abs(q["energy_error_rel"]) < 1e-3 and q["first_contact_s"] < T_END
     import h5py
 
     with h5py.File(next(Path(runs["tet10"], "fields").glob("*_sheet.h5"))) as f:
