@@ -14,9 +14,9 @@ written to ``reference/element_study.json``; the picture pairs ``docs/assets/rac
 Meshes: ``coarse`` (the tests' sizes, element sizes x 2: sheet 1.6k tetrahedra, 2 through the thickness),
 ``design`` (the case file's: 8.9k, 3 through the thickness) and ``design6`` (6 through the thickness: 17.8k; its EM
 is the design mesh's to 0.02 % in the peak force, reference/em_convergence_6_layers.json, so what changes is the
-mechanics' resolution of the bending); ``coarse_full`` and ``design_full`` the whole case. Usage::
+mechanics' resolution of the bending); ``coarse_full``, ``design_full`` and ``design6_full`` the whole case. Usage::
 
-    .venv/bin/python studies/emf_racetrack_groove/element_study.py OUT_FOLDER [coarse design design6:tet4 ...]
+    .venv/bin/python studies/emf_racetrack_groove/element_study.py OUT_FOLDER [coarse design design6_full:tet4 ...]
 
 (``mesh:element`` runs one element only; without names: all of :data:`MESHES`; runs already in OUT_FOLDER are
 kept.)
@@ -46,7 +46,8 @@ COARSE = ["geometry.parameters.h_sheet=4e-3", "geometry.parameters.sheet_layers=
 #: run name -> (--set overrides, end time s, with the case's [[contact]])
 MESHES = {"coarse": (COARSE, T_END, False), "design": ([], T_END, False),
           "design6": (["geometry.parameters.sheet_layers=6"], T_END, False),
-          "coarse_full": (COARSE, T_FULL, True), "design_full": ([], T_FULL, True)}
+          "coarse_full": (COARSE, T_FULL, True), "design_full": ([], T_FULL, True),
+          "design6_full": (["geometry.parameters.sheet_layers=6"], T_FULL, True)}
 
 
 def run(out: Path, mesh: str, element: str) -> Path:
