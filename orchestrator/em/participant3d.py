@@ -3,11 +3,11 @@
 Each EM step [t0, t1] (:mod:`pulseform.orchestrator.coupling.loop`):
 
 1. ``follow``: the 3D EM mesh follows the mechanics: the conductor bodies' nodes take the mechanical
-   positions (the meshes share them; a ten-node body's vertex rows, its edge nodes follow the mechanics only), coil, shell and outer boundary stay, nodes on the symmetry
-   planes slide in them, the rest of the air is moved harmonically
-   (:class:`~pulseform.orchestrator.mesh.motion3d.MeshMover3D`); a tetrahedron that inverts or whose
-   quality falls below the threshold raises a clear message (its subclasses mesh the air again or freeze:
-   :mod:`.remesh3d`, :mod:`.frozen3d`);
+   positions (the meshes share them; a ten-node body's vertex rows, its edge nodes follow the mechanics
+   only), coil, shell and outer boundary stay, nodes on the symmetry planes slide in them, the rest of
+   the air is moved harmonically (:class:`~pulseform.orchestrator.mesh.motion3d.MeshMover3D`); a
+   tetrahedron that inverts or whose quality falls below the threshold raises a clear message (its
+   subclasses mesh the air again or freeze: :mod:`.remesh3d`, :mod:`.frozen3d`);
 2. ``load``: getdp advances one step from the carried state on the moved nodes (same connectivity):
    by default one persistent getdp process for the run whose mesh is moved by ``DeformMesh``
    (:class:`~pulseform.solvers.getdp.persistent3d.PersistentEM3DStepper`, BDF2), or

@@ -35,7 +35,7 @@ from ..case.model import Case
 from ..coupling.loop import LoopOptions
 from ..em.frozen3d import FreezingGetDPLoad3D
 from ..em.model3d import em_model3d
-from ..em.participant3d import ConductorBody3D
+from ..em.conductor3d import ConductorBody3D
 from ..em.solver import factor_reuse
 from ..em.remesh3d import RemeshingGetDPLoad3D
 from ..mech.mixed import rigid_bodies

@@ -24,7 +24,7 @@ from mpi4py import MPI
 from pulseform.orchestrator.coupling.fakes import AnalyticLorentz3D
 from pulseform.orchestrator.coupling.loop import LoopOptions, StaggeredLoop
 from pulseform.orchestrator.coupling.transfer3d import TEN_NODE_SHARES, body_forces, ten_node_forces, tet_force_integral
-from pulseform.orchestrator.em.participant3d import ConductorBody3D
+from pulseform.orchestrator.em.conductor3d import ConductorBody3D
 from pulseform.orchestrator.mech.participants import DolfinxMechanics
 from pulseform.orchestrator.mesh.motion3d import MeshMover3D, nodes_on_plane
 from pulseform.orchestrator.mesh.shared3d import conductor_submesh3d, match_nodes3d, to_dolfinx3d
