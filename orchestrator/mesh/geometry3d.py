@@ -58,7 +58,8 @@ class Geometry3D:
     ``mesh`` the :class:`Mesh3D` (``sector_deg`` = 360 / symmetry factor); ``conductors`` name -> k
     (physical 200 + k: the bodies then the fixed conductors); ``coils`` name -> k (100 + k);
     ``surface_nodes`` physical surface group name -> its node rows (supports), ``surface_tris`` -> its triangles
-    (node rows; a ten-node body's supports hold the edge nodes on them too); ``shell`` (R_int, R_ext) m or None; ``planes`` the symmetry planes; ``groups`` the file's group listing (messages, ``check``).
+    (node rows; a ten-node body's supports hold the edge nodes on them too); ``shell`` (R_int, R_ext) m or None;
+    ``planes`` the symmetry planes; ``groups`` the file's group listing (messages, ``check``).
     """
 
     mesh: Mesh3D
