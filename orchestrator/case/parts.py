@@ -122,8 +122,8 @@ class BodyTable:
     mesh_size: float | None = spec(None, unit="m", gt=0.0, doc="target element size (with shape)")
     element: Literal["tet4", "tet10"] = spec("tet4", doc="3D bodies' element: 'tet4' linear tetrahedra, 'tet10' "
                                              "ten-node tetrahedra (a node mid-edge), which bend without locking "
-                                             "(thin parts; mechanics-only 3D cases, one process; soft contact with the "
-                                             "explicit integrator only)")
+                                             "(thin parts; mechanics-only and coupled 3D cases, one process; soft "
+                                             "contact with the explicit integrator only; no pressure pulses)")
     initial_velocity: Vec = spec((0.0, 0.0), unit="m/s", doc="uniform initial velocity ([vx, vy, vz] in 3D)")
     fixed: tuple[FixedBoundary, ...] = spec((), doc="clamped boundary parts")
     rigid: bool = spec(False, doc="a rigid body (coupled cases, with region): it translates without deforming "

@@ -10,7 +10,7 @@ from typing import Callable
 import numpy as np
 
 from .interfaces import LoadCapabilities, LoadStep, Mechanics, plain_total
-from .transfer3d import tet_force_integral, tet_nodal_forces
+from .transfer3d import body_forces, tet_force_integral
 
 
 class RigidAxialBody:
@@ -119,8 +119,8 @@ class AnalyticLorentz3D(LoadCapabilities):
     :meth:`follow` moves the EM mesh (the bodies' nodes where the mechanics has them, the air by ``mover``:
     :class:`~pulseform.orchestrator.mesh.motion3d.MeshMover3D`); :meth:`load` evaluates ``density`` at the
     centroids of the bodies' moved tetrahedra at ``t_mid`` (the loop's hold point) and spreads it on their
-    nodes as the GetDP load does (``tet_nodal_forces``: f V / 4 per node), the reference integral Σ f V for the
-    loop's ledger. Keeps ``last_forces`` (per body, N) and ``x_em`` (the moved EM nodes, m).
+    nodes as the GetDP load does (:func:`~.transfer3d.body_forces`: f V / 4 per node, a ten-node body's HRZ
+    shares), the reference integral Σ f V for the loop's ledger. Keeps ``last_forces`` (per body, N) and ``x_em`` (the moved EM nodes, m).
 
     Parameters
     ----------
@@ -147,7 +147,7 @@ class AnalyticLorentz3D(LoadCapabilities):
         positions = mechanics.positions()
         u = np.zeros_like(self.mesh.points)
         for b in self.bodies:
-            u[b.body_to_em] = positions[b.name][:, :3] - self.mesh.points[b.body_to_em]
+            u[b.body_to_em] = b.vertices(positions[b.name]) - self.mesh.points[b.body_to_em]
         self.x_em = self.mover.moved(u)
         self._moved_at = t0
 
@@ -159,8 +159,7 @@ class AnalyticLorentz3D(LoadCapabilities):
         rows = np.concatenate([b.sub.rows for b in self.bodies])
         tets = self.mesh.tets[rows]
         f = np.asarray(self.density(x[tets].mean(axis=1), t_mid), dtype=float)
-        nodal = tet_nodal_forces(x, tets, f)
-        forces = {b.name: nodal[b.body_to_em] for b in self.bodies}
+        forces = body_forces(self.bodies, x, self.mesh.tets, rows, f)
         self.last_forces = forces
         values = {"force_density_max_N_m3": float(np.abs(f).max()),
                   "em_mesh_min_quality": float(self.mover.last_min_quality)}

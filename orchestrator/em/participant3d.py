@@ -3,11 +3,11 @@
 Each EM step [t0, t1] (:mod:`pulseform.orchestrator.coupling.loop`):
 
 1. ``follow``: the 3D EM mesh follows the mechanics: the conductor bodies' nodes take the mechanical
-   positions (the meshes share them), coil, shell and outer boundary stay, nodes on the symmetry
-   planes slide in them, the rest of the air is moved harmonically
-   (:class:`~pulseform.orchestrator.mesh.motion3d.MeshMover3D`); a tetrahedron that inverts or whose
-   quality falls below the threshold raises a clear message (its subclasses mesh the air again or freeze:
-   :mod:`.remesh3d`, :mod:`.frozen3d`);
+   positions (the meshes share them; a ten-node body's vertex rows, its edge nodes follow the mechanics
+   only), coil, shell and outer boundary stay, nodes on the symmetry planes slide in them, the rest of
+   the air is moved harmonically (:class:`~pulseform.orchestrator.mesh.motion3d.MeshMover3D`); a
+   tetrahedron that inverts or whose quality falls below the threshold raises a clear message (its
+   subclasses mesh the air again or freeze: :mod:`.remesh3d`, :mod:`.frozen3d`);
 2. ``load``: getdp advances one step from the carried state on the moved nodes (same connectivity):
    by default one persistent getdp process for the run whose mesh is moved by ``DeformMesh``
    (:class:`~pulseform.solvers.getdp.persistent3d.PersistentEM3DStepper`, BDF2), or
@@ -15,7 +15,8 @@ Each EM step [t0, t1] (:mod:`pulseform.orchestrator.coupling.loop`):
    moved mesh written anew (``Mesh3D.moved``; :class:`~pulseform.solvers.getdp.stepper3d.EM3DStepper`:
    implicit Euler by ``-restart``, BDF2 from x~) -- the same results to round-off;
 3. the per-tetrahedron force density held over the step (BDF2: the trapezoid of the start and end
-   values) becomes consistent nodal forces f V / 4 on the shared nodes
+   values) becomes consistent nodal forces f V / 4 on the shared nodes, or on a ten-node body
+   (``element = "tet10"``) f V shared by its cell's ten nodes as their HRZ masses
    (:mod:`~pulseform.orchestrator.coupling.transfer3d`); the ledger compares their sum with Σ f V.
 
 Several bodies (e.g. a sheet and a conducting die): each is one EM conductor region; each gets the
@@ -38,7 +39,7 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -54,10 +55,10 @@ from pulseform.solvers.getdp.solver3d import EM3DModel
 from pulseform.solvers.getdp.stepper3d import EM3DState, EM3DStepper, FactorRecord, read_res_vector, write_res_vector
 
 from ..coupling.interfaces import LoadCapabilities, LoadStep
-from ..coupling.transfer3d import tet_force_integral, tet_nodal_forces
+from ..coupling.transfer3d import body_forces, tet_force_integral
 from ..mesh.geometry3d import boundary_faces, outer_area
 from ..mesh.motion3d import MeshMover3D
-from ..mesh.shared3d import ConductorMesh3D
+from .conductor3d import ConductorBody3D
 from .joule_heat import JouleHeat, element_temperatures
 from .shot_model import begin_model_shot, load_model_shot_state, model_shot_state
 
@@ -71,18 +72,6 @@ LOAD_COLUMNS_3D = ("force_x_N", "force_y_N", "force_z_N", "conservation_error_re
                    "em_mesh_min_quality", "em_factorisations", "em_corrections")
 #: per-body history columns (prefixed ``<name>_``) of a load with several bodies
 BODY_COLUMNS_3D = ("force_x_N", "force_y_N", "force_z_N", "ledger_rel", "getdp_force_z_N", "joule_power_W")
-
-
-@dataclass
-class ConductorBody3D:
-    """A mechanical 3D body that is an EM conductor region (shared nodes): its ``name``, EM physical
-    id ``tag`` (201, ...), the region cut from the EM mesh ``sub`` and ``body_to_em``, the EM node of
-    each of the body's local nodes."""
-
-    name: str
-    tag: int
-    sub: ConductorMesh3D
-    body_to_em: np.ndarray
 
 
 def _check_bodies(bodies: list[ConductorBody3D]) -> None:
@@ -177,7 +166,7 @@ class GetDPLoad3D(LoadCapabilities):
         positions = mechanics.positions()
         u = np.zeros_like(self.mesh.points)
         for b in self.bodies:
-            u[b.body_to_em] = positions[b.name][:, :3] - self.mesh.points[b.body_to_em]
+            u[b.body_to_em] = b.vertices(positions[b.name]) - self.mesh.points[b.body_to_em]
         x_em = self.mover.moved(u)   # raises MeshQualityError (a remeshing load meshes the air again)
         self.min_quality = min(self.min_quality, float(self.mover.last_min_quality))
         self._moved = (t0, x_em)
@@ -206,13 +195,14 @@ class GetDPLoad3D(LoadCapabilities):
         keep = np.isin(result.element_tags, self.tags)
         f = result.force_density_mean[keep]
         tets = self.mesh.tets[result.elements[keep]]
-        f_em = tet_nodal_forces(x_em, tets, f)
+        forces = body_forces(self.bodies, x_em, self.mesh.tets, result.elements[keep], f)
         integral = tet_force_integral(x_em, tets, f)
         mag = model_magnetisation_forces(self.model, x_em, self.mesh.tets, result, no_surface(self.mesh)) \
             if self.model.is_magnetic else None
-        if mag is not None:   # magnetised bodies: their surface force joins the Lorentz force
-            f_em, integral = f_em + mag, integral + mag.sum(axis=0)
-        forces = {b.name: f_em[b.body_to_em] for b in self.bodies}
+        if mag is not None:   # magnetised bodies: their surface force joins the Lorentz force (on the vertex rows)
+            integral = integral + mag.sum(axis=0)
+            for b in self.bodies:
+                forces[b.name][:len(b.body_to_em)] += mag[b.body_to_em]
         per_body = {}
         if len(self.bodies) > 1:
             tags = result.element_tags[keep]

@@ -151,7 +151,7 @@ class RemeshingGetDPLoad3D(FreezingGetDPLoad3D):
         folder = self.work_dir / f"remesh_{k:03d}"
         x = np.array(self._last_valid, float)
         for b in self.bodies:
-            x[b.body_to_em] = positions[b.name][:, :3]
+            x[b.body_to_em] = b.vertices(positions[b.name])
         try:
             new, old_to_new = remesh_air3d(self.mesh, x, folder / "mesh.msh", self.planes, air_tags=self.air_tags,
                                            reference=self.plane_air)
@@ -188,6 +188,7 @@ class RemeshingGetDPLoad3D(FreezingGetDPLoad3D):
         for b in self.bodies:
             b.body_to_em = np.asarray(body_to_em[b.name], dtype=np.int64)
             b.sub = conductor_submesh3d(mesh, b.tag)
+            b.match_cells()   # a ten-node body: its cells' EM tetrahedra (renumbered, node for node the same)
         self.mesh, self._surface = mesh, surface
         self.mover = self.make_mover(mesh)
         self.mover.min_quality = self.threshold

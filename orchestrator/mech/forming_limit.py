@@ -138,7 +138,8 @@ class FormingLimitMonitor:
         done = self._cache[1]
         if name not in done:
             b, curve = self.solver.bodies[name], self.curves[name]
-            minor, major = sheet_strains(b.X0, b.x, b.cells, self.solver.formulation, self.normals[name])
+            minor, major = sheet_strains(b.X0, b.x, b.cells[:, :b.x.shape[1] + 1],   # a ten-node cell: corners
+                                         self.solver.formulation, self.normals[name])
             margin = curve.margin(minor, major)
             done[name] = {"minor_strain": minor, "major_strain": major, "flc_margin": margin,
                           "flc_zone": curve.zone(margin)}

@@ -85,17 +85,23 @@ class DolfinxMechanics:
         return {n: b.x for n, b in self.solver.bodies.items()}
 
     def heated_cells(self) -> dict[str, np.ndarray]:
-        """The cells (node rows, (nc, 3) or (nc, 4)) of every body that carries a temperature, by name."""
-        return {n: b.cells for n, b in self.solver.bodies.items() if b.material.thermal}
+        """The cells (vertex rows, (nc, 3) or (nc, 4): a ten-node cell's corners) of every body that carries a
+        temperature, by name."""
+        return {n: b.cells[:, :b.gdim + 1] for n, b in self.solver.bodies.items() if b.material.thermal}
 
     def cell_temperatures(self) -> dict[str, np.ndarray]:
-        """The temperature per cell (K, a view) of every body that carries one, by name (its cells in the order
-        of :meth:`heated_cells`)."""
-        return {n: b.temperature for n, b in self.solver.bodies.items() if b.material.thermal}
+        """The temperature per cell (K) of every body that carries one, by name (its cells in the order of
+        :meth:`heated_cells`; a ten-node cell's: the mean of its Gauss points')."""
+        return {n: _cell_values(b, b.temperature) for n, b in self.solver.bodies.items() if b.material.thermal}
 
     def add_heat(self, heat: dict[str, np.ndarray]) -> None:
-        """Heat the cells of bodies adiabatically: body name -> J/m^3 per cell (``ExplicitSolver.add_heat``)."""
+        """Heat the cells of bodies adiabatically: body name -> J/m^3 per cell (``ExplicitSolver.add_heat``; a
+        ten-node cell's heat goes to each of its Gauss points)."""
         for name, e in heat.items():
+            b = self.solver.bodies[name]
+            e = np.asarray(e, dtype=float)
+            if getattr(b, "element", "tet4") == "tet10":
+                e = np.repeat(e, len(b.temperature) // max(len(b.cells), 1))
             self.solver.add_heat(name, e)
 
     def impulse_window(self, t0: float, dt: float, k: int) -> float:
@@ -311,3 +317,9 @@ def _add(forces: dict[str, np.ndarray], more: dict[str, np.ndarray]) -> None:
     """Add nodal forces (N) per body into ``forces``, in ``more``'s body order."""
     for name, f in more.items():
         forces[name] = forces[name] + f if name in forces else f
+
+
+def _cell_values(b, arr: np.ndarray) -> np.ndarray:
+    """Per cell the values of a per-row array of body ``b`` (a ten-node body's rows are its Gauss points)."""
+    means = getattr(b, "cell_means", None)
+    return means(arr) if means is not None else arr

@@ -57,8 +57,9 @@ class Geometry3D:
 
     ``mesh`` the :class:`Mesh3D` (``sector_deg`` = 360 / symmetry factor); ``conductors`` name -> k
     (physical 200 + k: the bodies then the fixed conductors); ``coils`` name -> k (100 + k);
-    ``surface_nodes`` physical surface group name -> its node rows (supports); ``shell`` (R_int, R_ext) m
-    or None; ``planes`` the symmetry planes; ``groups`` the file's group listing (messages, ``check``).
+    ``surface_nodes`` physical surface group name -> its node rows (supports), ``surface_tris`` -> its triangles
+    (node rows; a ten-node body's supports hold the edge nodes on them too); ``shell`` (R_int, R_ext) m or None;
+    ``planes`` the symmetry planes; ``groups`` the file's group listing (messages, ``check``).
     """
 
     mesh: Mesh3D
@@ -69,6 +70,7 @@ class Geometry3D:
     planes: list[PlaneSpec]
     groups: str
     coil_sections: dict[int, float] = field(default_factory=dict)
+    surface_tris: dict[str, np.ndarray] = field(default_factory=dict)
 
 
 def boundary_faces(tets: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
@@ -248,7 +250,8 @@ def map_roles(raw: RawGroups, g, bodies: Sequence[tuple[str, str]], planes: Sequ
     log.debug("3D geometry %s: %d tetrahedra, %d nodes; coils %s, conductors %s", label, mesh.n_tets, mesh.n_nodes,
              coils, conductors)
     return Geometry3D(mesh=mesh, conductors=conductors, coils=coils, surface_nodes=surface_nodes, shell=shell,
-                      planes=list(planes), groups=raw.listing(), coil_sections=sections)
+                      planes=list(planes), groups=raw.listing(), coil_sections=sections,
+                      surface_tris=dict(surfs))
 
 
 def plane_specs(symmetry) -> list[PlaneSpec]:

@@ -2,7 +2,8 @@
 path for every 3D geometry (issue 29).
 
 The EM mesh (:func:`~..mesh.geometry3d.build_geometry3d`) holds every conductor body's tetrahedra; each body's
-mechanical mesh is cut from it (shared nodes, :mod:`~..mesh.shared3d`) and held by the case's supports:
+mechanical mesh is cut from it (shared nodes, :mod:`~..mesh.shared3d`; a ten-node body, ``element = "tet10"``,
+shares its vertices and adds a node on every edge) and held by the case's supports:
 ``[[symmetry]]`` planes as rollers (axis-aligned: the normal component held; with an oblique plane every plane of
 the body slides), ``[[bodies.fixed]]`` boxes (3D bounds, every node inside) or physical surface groups; soft
 contact from ``[[contact]]``. The air follows the bodies harmonically (:class:`~..mesh.motion3d.MeshMover3D`:
@@ -34,7 +35,7 @@ from ..case.model import Case
 from ..coupling.loop import LoopOptions
 from ..em.frozen3d import FreezingGetDPLoad3D
 from ..em.model3d import em_model3d
-from ..em.participant3d import ConductorBody3D
+from ..em.conductor3d import ConductorBody3D
 from ..em.solver import factor_reuse
 from ..em.remesh3d import RemeshingGetDPLoad3D
 from ..mech.mixed import rigid_bodies
@@ -51,18 +52,30 @@ from ..mesh.shared3d import conductor_submesh3d, match_nodes3d, to_dolfinx3d
 log = logging.getLogger(__name__)
 
 
-def _supports(case: Case, name: str, fixed, geo: Geometry3D, tol: float) -> tuple[tuple, tuple]:
+def _supports(case: Case, name: str, fixed, geo: Geometry3D, tol: float, quadratic: bool = False) -> tuple[tuple, tuple]:
     """(fixed, sliding) of a body's :class:`~pulseform.solvers.dolfinx.BodySpec`: its symmetry planes (module
-    docstring) then its ``[[bodies.fixed]]`` supports."""
+    docstring) then its ``[[bodies.fixed]]`` supports (a surface group: its nodes, and for a ``quadratic`` body the
+    middles of its triangles' edges, where the ten-node body's edge nodes are)."""
     own = [s for s in case.symmetry if not s.bodies or name in s.bodies]
     aligned = all(s.axis_aligned() for s in own)
     held = tuple((plane_marker(s, tol), (s.component(),)) for s in own) if aligned else ()
     sliding = () if aligned else tuple((plane_marker(s, tol), tuple(s.normal)) for s in own)
     for f in fixed:
         marker = box_marker(f.where, tol) if f.where is not None else \
-            points_marker(geo.mesh.points[geo.surface_nodes[f.group]], tol)
+            points_marker(_group_points(geo, f.group, quadratic), tol)
         held += ((marker, tuple(f.components)),)
     return held, sliding
+
+
+def _group_points(geo: Geometry3D, group: str, quadratic: bool) -> np.ndarray:
+    """The points (n, 3) m of a physical surface group's nodes, with its triangles' edge middles if ``quadratic``."""
+    x = geo.mesh.points
+    pts = x[geo.surface_nodes[group]]
+    if not quadratic:
+        return pts
+    tri = geo.surface_tris[group]
+    edges = np.unique(np.sort(tri[:, [[0, 1], [1, 2], [2, 0]]].reshape(-1, 2), axis=1), axis=0)
+    return np.concatenate([pts, 0.5 * (x[edges[:, 0]] + x[edges[:, 1]])])
 
 
 def air_mover3d(mesh: Mesh3D, planes: list[PlaneSpec], tol: float) -> MeshMover3D:
@@ -99,11 +112,11 @@ def participants_3d(case: Case, work: Path):
         sub = subs[b.region] = conductor_submesh3d(mesh, conductor_tag(k))
         if b.rigid:
             continue
-        held, sliding = _supports(case, b.name, b.fixed, geo, tol)
+        held, sliding = _supports(case, b.name, b.fixed, geo, tol, quadratic=b.element == "tet10")
         v0 = tuple(b.initial_velocity) if len(b.initial_velocity) == 3 else (0.0, 0.0, 0.0)
         specs.append(mech.BodySpec(name=b.name, mesh=to_dolfinx3d(sub, MPI.COMM_SELF),
                                    material=solver_material(case.materials[b.material]), initial_velocity=v0,
-                                   fixed=held, sliding=sliding))
+                                   fixed=held, sliding=sliding, element=b.element))
     pairs = tuple(mech.ContactPairSpec(slave=c.slave, master=c.master, stiffness=c.stiffness, h0=c.h0,
                                        friction=c.friction, viscosity=c.viscosity, two_pass=c.two_pass)
                   for c in case.contact)
@@ -125,8 +138,13 @@ def participants_3d(case: Case, work: Path):
     bodies = []
     for k, b in enumerate(case.bodies, start=1):
         sub = subs[b.region]
-        nodes = sub.em_nodes if b.rigid else match_nodes3d(solver.bodies[b.name].X0, mesh.points, tol)
-        bodies.append(ConductorBody3D(b.name, conductor_tag(k), sub, nodes))
+        if b.rigid:
+            bodies.append(ConductorBody3D(b.name, conductor_tag(k), sub, sub.em_nodes))
+            continue
+        body = solver.bodies[b.name]   # a ten-node body: its vertex rows first, then the edge nodes (no EM node)
+        quadratic = body.element == "tet10"
+        nodes = match_nodes3d(body.X0[:body.n_vertices] if quadratic else body.X0, mesh.points, tol)
+        bodies.append(ConductorBody3D(b.name, conductor_tag(k), sub, nodes, cells10=body.cells if quadratic else None))
     planes = geo.planes
     mover = air_mover3d(mesh, planes, tol)
     mover.min_quality = g.break_quality * float(mover.q_ref.min())

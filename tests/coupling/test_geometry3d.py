@@ -479,3 +479,27 @@ def test_iterated_and_adaptive_coupling_on_a_users_geometry(case_dir, run, tmp_p
     m = json.loads((out / "metrics.json").read_text())
     print(f"\nadaptive: {m['em_steps']:.0f} EM steps, final n {m['n_final']:.0f}; ledger {m['conservation_error_rel']:.1e}")
     assert m["status"] == "ok" and m["conservation_error_rel"] < 1e-12 and m["n_final"] != 3
+
+
+def test_a_surface_group_holds_a_ten_node_bodys_edge_nodes_on_it(case_dir, tmp_path):
+    """``[[bodies.fixed]]`` by a physical surface group on a ten-node body (issue 34 item 4): every node of the body
+    on the group's triangles is held -- their vertices and the edge nodes at the middles of their edges -- and no
+    other (the edge nodes are no EM nodes: the group's node list alone would leave them free)."""
+    from pulseform.orchestrator.case.io import load_case
+    from pulseform.orchestrator.run.participants3d import participants_3d
+
+    case, _ = load_case(case_dir, ["bodies.plate.element='tet10'"])
+    solver, rigid, load, _, geo = participants_3d(case, tmp_path)
+    load.close()
+    body = solver.bodies["plate"]
+    x = geo.mesh.points
+    tri = geo.surface_tris["plate_ends"]
+    edges = np.unique(np.sort(tri[:, [[0, 1], [1, 2], [2, 0]]].reshape(-1, 2), axis=1), axis=0)
+    on_group = np.concatenate([x[np.unique(tri)], 0.5 * (x[edges[:, 0]] + x[edges[:, 1]])])
+    scale = float(np.abs(x).max())
+    dist = np.min(np.linalg.norm(body.X0[:, None, :] - on_group[None, :, :], axis=2), axis=1)
+    expected = dist <= 1e-9 * scale
+    held = body.constrained_mask().all(axis=1)
+    edge = np.arange(len(body.X0)) >= body.n_vertices
+    print(f"\nten-node plate: {held.sum()} held nodes ({(held & edge).sum()} edge nodes) of {len(held)}")
+    assert (held & edge).sum() > 0 and np.array_equal(held, expected)

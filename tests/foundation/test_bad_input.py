@@ -324,10 +324,13 @@ BAD_COUPLED = [
     ("shots_pause_zero", "emf_sheet_bulge", ["em.shots={count = 3, pause = 0.0}"], "em.shots.pause"),
     ("shots_without_bank", "two_coils_plate", ["em.shots={count = 2, pause = 1.0}"], "em.shots"),
     ("shots_on_a_user_deck", "user_deck_sheet_bulge", ["em.shots={count = 2, pause = 1.0}"], "em.shots"),
-    # issue 34 item 4: ten-node tetrahedra in mechanics-only 3D cases (walls and contact too: see
-    # test_tet10_walls_and_contact_are_accepted)
+    # issue 34 item 4: ten-node tetrahedra in 3D cases, mechanics-only and coupled (walls and contact too: see
+    # test_tet10_walls_and_contact_are_accepted), not yet under pressure pulses
     ("tet10_in_2d", "bar_impact", ["bodies[0].element='tet10'"], "bodies[0].element"),
-    ("tet10_coupled", "emf_sheet_bulge_3d", ["bodies[0].element='tet10'"], "bodies[0].element"),
+    ("tet10_pressure_pulse", "emf_sheet_bulge_3d", ["bodies[0].element='tet10'", 'coupling.load="pressure"',
+                                                    'loads=[{type="pulse_sin2", body="sheet", surface={zmin=1.4999e-3, '
+                                                    'zmax=1.5001e-3}, amplitude=8.7e6, beta=8.9e3, omega=9.3e4, '
+                                                    't_end=60e-6}]'], "loads[0].body"),
     ("element_unknown", "bar_impact_3d", ["bodies[0].element='hex8'"], "bodies[0].element"),
 ]
 
