@@ -18,7 +18,7 @@ import math
 
 import numba
 
-__all__ = ["cell_update", "batch_update", "rate_factor_at", "BATCH", "ROW", "IN_ROWS", "OUT_ROWS",
+__all__ = ["cell_update", "point_update", "batch_update", "rate_factor_at", "BATCH", "ROW", "IN_ROWS", "OUT_ROWS",
            "MODE_PLANE_STRESS", "MODE_PLANE_STRAIN", "MODE_AXISYMMETRIC", "FM", "N_PRM"]
 
 from .flow_curves import plastic_return
@@ -137,30 +137,14 @@ def heated(T, sy, dep, prm):
 
 
 @numba.njit(cache=True, error_model="numpy", fastmath=FM)
-def cell_update(x0, y0, x1, y1, x2, y2, vx0, vy0, vx1, vy1, vx2, vy2, sxx, syy, szz, sxy, ep,
-                dt, prm, out, T=-1.0):
-    """One cell's update, scalar (any rate law and flow curve; the plane-stress secant iteration).
-
-    Parameters
-    ----------
-    x0 ... y2 : float
-        End-of-step node positions, m.
-    vx0 ... vy2 : float
-        Half-step node velocities, m/s.
-    sxx, syy, szz, sxy : float
-        Cauchy stress at the start of the step, Pa.
-    ep : float
-        Equivalent plastic strain at the start of the step.
-    dt : float
-        Step, s.
-    prm : float64 array
-        Kernel parameters (:func:`.kernels.pack_parameters`).
-    out : float64 array (OUT_ROWS,)
-        Receives the cell's outputs in the order of the scratch rows out (see ``OUT_ROWS``).
-    T : float
-        Temperature at the start of the step, K (negative: the material's initial temperature).
-    """
-    rho = prm[P_RHO]
+def point_update(sxx, syy, szz, sxy, ep, T, dxx, dyy, dzz, dxy, w, dt, prm):
+    """The stress update of one 2D point (a linear triangle, or a Gauss point of a six-node one): the
+    Hughes-Winget rotation of the old stress (Pa) by the spin ``w`` (1/s), the elastic predictor with the rate
+    of deformation (dxx, dyy, dzz, dxy) (1/s; dzz the hoop rate in axisymmetry, 0 in plane strain, the elastic
+    estimate in plane stress), the J2 return at the plastic strain ``ep`` and temperature ``T`` (K, negative:
+    the material's initial one), and in plane stress the secant iteration on d_zz so that sigma_zz = 0 after
+    the return. Returns (sxx, syy, szz, sxy, deps_p, yield stress (Pa), hardening (Pa) of the linear law's
+    dissipation, the final dzz (1/s))."""
     G = prm[P_G]
     K = prm[P_K]
     lam = K - 2.0 * G / 3.0
@@ -169,47 +153,8 @@ def cell_update(x0, y0, x1, y1, x2, y2, vx0, vy0, vx1, vy1, vx2, vy2, sxx, syy, 
     rid = int(prm[P_RATE])
     r1 = prm[P_R1]
     r2 = prm[P_R2]
-    b1 = prm[P_B1]
-    b2 = prm[P_B2]
-    bulk = prm[P_BULK]
-    thick = prm[P_THICK]
     mode = int(prm[P_MODE])
-    c = math.sqrt((K + 4.0 * G / 3.0) / rho)
-    twopi = 2.0 * math.pi
     hdt = 0.5 * dt
-    mx0 = x0 - hdt * vx0
-    my0 = y0 - hdt * vy0
-    mx1 = x1 - hdt * vx1
-    my1 = y1 - hdt * vy1
-    mx2 = x2 - hdt * vx2
-    my2 = y2 - hdt * vy2
-    ta = (mx1 - mx0) * (my2 - my0) - (mx2 - mx0) * (my1 - my0)
-    tn = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0)
-    if ta <= 0.0 or tn <= 0.0:
-        out[15] = ST_INVERTED
-        return
-    inv = 1.0 / ta
-    bx0 = (my1 - my2) * inv
-    bx1 = (my2 - my0) * inv
-    bx2 = (my0 - my1) * inv
-    by0 = (mx2 - mx1) * inv
-    by1 = (mx0 - mx2) * inv
-    by2 = (mx1 - mx0) * inv
-    lxx = vx0 * bx0 + vx1 * bx1 + vx2 * bx2
-    lxy = vx0 * by0 + vx1 * by1 + vx2 * by2
-    lyx = vy0 * bx0 + vy1 * bx1 + vy2 * bx2
-    lyy = vy0 * by0 + vy1 * by1 + vy2 * by2
-    dxx = lxx
-    dyy = lyy
-    dxy = 0.5 * (lxy + lyx)
-    w = 0.5 * (lxy - lyx)
-    if mode == MODE_AXISYMMETRIC:
-        rm = (mx0 + mx1 + mx2) / 3.0
-        dzz = (vx0 + vx1 + vx2) / (3.0 * rm)
-    elif mode == MODE_PLANE_STRAIN:
-        dzz = 0.0
-    else:
-        dzz = -lam / (lam + 2.0 * G) * (dxx + dyy)
     # Hughes-Winget (Cayley) rotation of the old stress: Jaumann objective update
     a = hdt * w
     den = 1.0 / (1.0 + a * a)
@@ -259,6 +204,82 @@ def cell_update(x0, y0, x1, y1, x2, y2, vx0, vy0, vx1, vy1, vx2, vy2, sxx, syy, 
                 z1 = z2
             dzz = z1
         nzz = 0.0
+    return nxx, nyy, nzz, nxy, dep, sy, hr, dzz
+
+
+@numba.njit(cache=True, error_model="numpy", fastmath=FM)
+def cell_update(x0, y0, x1, y1, x2, y2, vx0, vy0, vx1, vy1, vx2, vy2, sxx, syy, szz, sxy, ep,
+                dt, prm, out, T=-1.0):
+    """One cell's update, scalar (any rate law and flow curve; the plane-stress secant iteration).
+
+    Parameters
+    ----------
+    x0 ... y2 : float
+        End-of-step node positions, m.
+    vx0 ... vy2 : float
+        Half-step node velocities, m/s.
+    sxx, syy, szz, sxy : float
+        Cauchy stress at the start of the step, Pa.
+    ep : float
+        Equivalent plastic strain at the start of the step.
+    dt : float
+        Step, s.
+    prm : float64 array
+        Kernel parameters (:func:`.kernels.pack_parameters`).
+    out : float64 array (OUT_ROWS,)
+        Receives the cell's outputs in the order of the scratch rows out (see ``OUT_ROWS``).
+    T : float
+        Temperature at the start of the step, K (negative: the material's initial temperature).
+    """
+    rho = prm[P_RHO]
+    G = prm[P_G]
+    K = prm[P_K]
+    lam = K - 2.0 * G / 3.0
+    b1 = prm[P_B1]
+    b2 = prm[P_B2]
+    bulk = prm[P_BULK]
+    thick = prm[P_THICK]
+    mode = int(prm[P_MODE])
+    c = math.sqrt((K + 4.0 * G / 3.0) / rho)
+    twopi = 2.0 * math.pi
+    hdt = 0.5 * dt
+    mx0 = x0 - hdt * vx0
+    my0 = y0 - hdt * vy0
+    mx1 = x1 - hdt * vx1
+    my1 = y1 - hdt * vy1
+    mx2 = x2 - hdt * vx2
+    my2 = y2 - hdt * vy2
+    ta = (mx1 - mx0) * (my2 - my0) - (mx2 - mx0) * (my1 - my0)
+    tn = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0)
+    if ta <= 0.0 or tn <= 0.0:
+        out[15] = ST_INVERTED
+        return
+    inv = 1.0 / ta
+    bx0 = (my1 - my2) * inv
+    bx1 = (my2 - my0) * inv
+    bx2 = (my0 - my1) * inv
+    by0 = (mx2 - mx1) * inv
+    by1 = (mx0 - mx2) * inv
+    by2 = (mx1 - mx0) * inv
+    lxx = vx0 * bx0 + vx1 * bx1 + vx2 * bx2
+    lxy = vx0 * by0 + vx1 * by1 + vx2 * by2
+    lyx = vy0 * bx0 + vy1 * bx1 + vy2 * bx2
+    lyy = vy0 * by0 + vy1 * by1 + vy2 * by2
+    dxx = lxx
+    dyy = lyy
+    dxy = 0.5 * (lxy + lyx)
+    w = 0.5 * (lxy - lyx)
+    if mode == MODE_AXISYMMETRIC:
+        rm = (mx0 + mx1 + mx2) / 3.0
+        dzz = (vx0 + vx1 + vx2) / (3.0 * rm)
+    elif mode == MODE_PLANE_STRAIN:
+        dzz = 0.0
+    else:
+        dzz = -lam / (lam + 2.0 * G) * (dxx + dyy)
+    if T < 0.0:
+        T = prm[P_T0]
+    nxx, nyy, nzz, nxy, dep, sy, hr, dzz = point_update(sxx, syy, szz, sxy, ep, T, dxx, dyy, dzz, dxy, w, dt,
+                                                        prm)
     out[0] = nxx
     out[1] = nyy
     out[2] = nzz
