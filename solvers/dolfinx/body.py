@@ -349,8 +349,15 @@ class Body:
     def pressure_forces(self, facet_marker, pressure: float) -> np.ndarray:
         """Consistent nodal forces (N) of a uniform follower pressure (Pa, positive pushes into
         the body) on the exterior facets whose two vertices satisfy ``facet_marker`` (evaluated on
-        current coordinates (3, N)); complete on every local row (ghosts too)."""
+        current coordinates (3, N)); complete on every local row (ghosts too). Six-node bodies: on their
+        three-node edges (:func:`.tri6.edge_pressure_forces`)."""
         b = self
+        if self.element == "tri6":     # integrated on the three-node edges whose corners are marked
+            x3 = np.zeros((3, b.n_local))
+            x3[:2] = b.x.T
+            mark = np.asarray(facet_marker(x3), dtype=bool)
+            e = self.edges3[mark[self.edges3[:, 0]] & mark[self.edges3[:, 1]]]
+            return tri6.edge_pressure_forces(e, b.x, pressure, bool(b.axisymmetric), float(b.thickness))
         segs = b.segments
         f = np.zeros((b.n_local, 2))
         if segs.shape[0]:

@@ -340,10 +340,11 @@ def _quadratic_update(st: CellState, du: np.ndarray, el) -> CellResult:
     Q = np.eye(3) + (2.0 / (1.0 + aa))[:, None, None] * (A + A @ A)
     S0 = voigt_to_tensor(st.stress)
     Sr = Q @ S0 @ np.swapaxes(Q, 1, 2)
-    if st.mode == MODE_PLANE_STRESS:
-        S, dep, sy = _plane_stress(Sr, E, st)
+    pts = CellState(np.zeros((len(st.eps_p), 0)), st.stress, st.eps_p, st.material, st.mode, st.thickness, st.dt)
+    if st.mode == MODE_PLANE_STRESS:                                   # the Gauss points' state (rows)
+        S, dep, sy = _plane_stress(Sr, E, pts)
     else:
-        S, dep, sy = _update_stress(Sr, E, st)
+        S, dep, sy = _update_stress(Sr, E, pts)
     vol1 = _qp_measure(x1, det1, st, el)                                # (nc, nq)
     Sq = S.reshape(nc, nq, 3, 3)
     f = np.einsum("cq,cqij,cqaj->cai", vol1, Sq[:, :, :dim, :dim], g1)
