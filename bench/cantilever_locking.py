@@ -8,8 +8,11 @@ strip (sigma_y 250 MPa) under static load steps of 0.005 P_p from 0.97 to 1.03 P
 deflections and the load at which the compliance d delta / dP reaches ten times the elastic one (the tip
 deflection runs away), beside beam theory's (``beam_plastic_deflection`` there).
 
+``--plane``: the same strip in 2D plane stress (the solver's thickness the width b; ``--meshes "40,3 80,6"``:
+n_length x n_thick squares of two triangles), linear (tet4) and six-node (tri6) triangles.
+
 Usage: .venv/bin/python bench/cantilever_locking.py [--meshes "40,2,3 80,4,6"] [--elements tet4 tet10]
-[--length 0.04] [--width 0.005] [--grading 1] [--explicit] [--plastic]
+[--length 0.04] [--width 0.005] [--grading 1] [--explicit] [--plastic] [--plane]
 """
 from __future__ import annotations
 
@@ -21,20 +24,26 @@ from pathlib import Path
 
 import numpy as np
 
-from pulseform.solvers.dolfinx import ExplicitSolver3D, ImplicitOptions, ImplicitSolver3D, Material
+from pulseform.solvers.dolfinx import (ExplicitSolver, ExplicitSolver3D, ImplicitOptions, ImplicitSolver,
+                                      ImplicitSolver3D, Material)
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "mechanics"))  # the tests' strip: one home
 from cantilever_strip import (Strip, beam_deflection, beam_plastic_deflection, hinge_load,  # noqa: E402
-                              strip_body, tip_deflection, tip_load)
+                              plane_strip_body, strip_body, tip_deflection, tip_load)
 from pulseform.solvers.dolfinx.implicit import ImplicitConvergenceError
 
 E, NU = 200e9, 0.3
+PLANE = False   # the 2D plane-stress strip (--plane)
 G, K = E / (2 * (1 + NU)), E / (3 * (1 - 2 * NU))
 
 
 def implicit_static(strip: Strip, material: Material, element: str, loads) -> list:
     """Tip deflections (m) of static steps to the tip forces ``loads`` (N), in order (None after a failure)."""
-    s = ImplicitSolver3D([strip_body(strip, material, element)], ImplicitOptions(dt=1.0, scheme="static",
-                                                                                 max_cuts=4))
+    opts = ImplicitOptions(dt=1.0, scheme="static", max_cuts=4)
+    if PLANE:
+        s = ImplicitSolver([plane_strip_body(strip, material, element)], opts, formulation="plane_stress",
+                           thickness=strip.width)
+    else:
+        s = ImplicitSolver3D([strip_body(strip, material, element)], opts)
     b = s.bodies["strip"]
     out = []
     for P in loads:
@@ -49,7 +58,9 @@ def implicit_static(strip: Strip, material: Material, element: str, loads) -> li
 
 def explicit_relaxed(strip: Strip, material: Material, element: str, P: float) -> tuple:
     """Tip deflection (m) at rest under the tip force ``P`` (N) by kinetic damping, and the steps taken."""
-    s = ExplicitSolver3D([strip_body(strip, material, element)], cfl=0.8)
+    s = (ExplicitSolver([plane_strip_body(strip, material, element)], cfl=0.8, formulation="plane_stress",
+                        thickness=strip.width) if PLANE else ExplicitSolver3D([strip_body(strip, material, element)],
+                                                                              cfl=0.8))
     s.kinetic_damping = True
     b = s.bodies["strip"]
     f = {"strip": tip_load(b, strip, P)}
@@ -87,17 +98,25 @@ def main() -> None:
     ap.add_argument("--grading", type=float, default=1.0)
     ap.add_argument("--explicit", action="store_true")
     ap.add_argument("--plastic", action="store_true")
+    ap.add_argument("--plane", action="store_true")
     a = ap.parse_args()
+    global PLANE
+    PLANE = a.plane
+    if a.plane and a.meshes == ap.get_default("meshes"):
+        a.meshes = "40,3 80,6"
+    if a.plane and a.elements == ap.get_default("elements"):
+        a.elements = ["tet4", "tri6"]
     elastic = Material(7800.0, G, K, 1e12, 0.0)
     for m in a.meshes.split():
-        nl, nw, nt = (int(v) for v in m.split(","))
+        nl, nw, nt = (int(v) for v in m.split(",")) if not a.plane else (int(m.split(",")[0]), 1, int(m.split(",")[1]))
         st = Strip(length=a.length, width=a.width, n_length=nl, n_width=nw, n_thick=nt, grading=a.grading)
         eb = beam_deflection(st, elastic, 1.0, shear=False)
         tim = beam_deflection(st, elastic, 1.0)
         for el in a.elements:
             t0 = time.perf_counter()
             d = implicit_static(st, elastic, el, [1.0])[0]
-            line = (f"{el:5s} {nl}x{nw}x{nt} bricks: implicit d / EB {d / eb:.4f}  d / Timoshenko {d / tim:.4f}"
+            mesh = f"{nl}x{nt} squares" if a.plane else f"{nl}x{nw}x{nt} bricks"
+            line = (f"{el:5s} {mesh}: implicit d / EB {d / eb:.4f}  d / Timoshenko {d / tim:.4f}"
                     f"  ({time.perf_counter() - t0:.1f} s)")
             if a.explicit:
                 t0 = time.perf_counter()
@@ -114,7 +133,7 @@ def main() -> None:
             print(f"beam theory: compliance 10x the elastic one at P / P_p = {runaway(0.97, 0.0005, beam):.4f}")
             for el in a.elements:
                 ds = [d / d_el if d is not None else np.nan for d in implicit_static(st, mat, el, [f * Pp for f in fr])]
-                print(f"{el:5s} {nl}x{nw}x{nt} bricks (b {st.width * 1e3:g} mm, grading {st.grading:g}): d / "
+                print(f"{el:5s} {nl}x{nt if a.plane else f'{nw}x{nt}'} (b {st.width * 1e3:g} mm, grading {st.grading:g}): d / "
                       f"d_el(P_p) at P / P_p {' '.join(f'{f:g}:{d:.4f}' for f, d in zip(fr, ds))}; compliance 10x "
                       f"the elastic one at P / P_p = {runaway(fr[0], 0.005, ds):.4f}", flush=True)
 

@@ -120,10 +120,12 @@ class BodyTable:
                   "'workpiece', 'die', 'outer_tube' of the built-in geometries, a physical volume group of a 3D "
                   "geometry file")
     mesh_size: float | None = spec(None, unit="m", gt=0.0, doc="target element size (with shape)")
-    element: Literal["tet4", "tet10"] = spec("tet4", doc="3D bodies' element: 'tet4' linear tetrahedra, 'tet10' "
-                                             "ten-node tetrahedra (a node mid-edge), which bend without locking "
-                                             "(thin parts; mechanics-only and coupled 3D cases, one process; soft "
-                                             "contact with the explicit integrator only; no pressure pulses)")
+    element: Literal["tet4", "tet10", "tri6"] = spec(
+        "tet4", doc="the body's element: 'tet4' linear cells (tetrahedra in 3D, triangles in 2D); 'tet10' (3D) "
+                    "ten-node tetrahedra, 'tri6' (2D) six-node triangles (a node mid-edge), which bend without "
+                    "locking (thin parts; one process; 'tet10': mechanics-only and coupled 3D cases, soft contact "
+                    "with the explicit integrator only, no pressure pulses; 'tri6': mechanics-only cases, no walls, "
+                    "contact or forming-limit check yet)")
     initial_velocity: Vec = spec((0.0, 0.0), unit="m/s", doc="uniform initial velocity ([vx, vy, vz] in 3D)")
     fixed: tuple[FixedBoundary, ...] = spec((), doc="clamped boundary parts")
     rigid: bool = spec(False, doc="a rigid body (coupled cases, with region): it translates without deforming "

@@ -143,6 +143,9 @@ def _validate_3d(case) -> None:
         if b.shape is not None and b.shape.type not in SOLID_TYPES:
             raise SchemaError(f"bodies[{i}].shape.type", f"got {b.shape.type!r}, a 2D shape; a 3D case "
                               f"(mechanics.formulation = '3d') allows: {', '.join(map(repr, SOLID_TYPES))}")
+        if b.element == "tri6":
+            raise SchemaError(f"bodies[{i}].element", "got 'tri6', a 2D element; with mechanics.formulation = '3d' "
+                              "allowed: 'tet4', 'tet10'")
         if b.fixed and not file3d:
             raise SchemaError(f"bodies[{i}].fixed", "a key of 2D cases and 3D geometry files (geometry.type = "
                               "'geometry_3d'); in this 3D case hold the body with [[symmetry]] planes or [[walls]]")
@@ -217,6 +220,26 @@ def _check_plane_touches(case, i: int, plane: SymmetryPlane) -> None:
                       f"(box faces along {'xyz'[c]}: {'; '.join(faces)} m): move it onto a face or set its bodies")
 
 
+def _check_six_node(case, i: int, b) -> None:
+    """Six-node triangles run in 2D mechanics-only cases without walls, contact or a forming-limit check for now
+    (one line naming the key and what is allowed)."""
+    key = f"bodies[{i}].element"
+    if case.case.kind == "coupled":
+        raise SchemaError(key, "got 'tri6'; six-node triangles run in mechanics-only cases for now (a coupled case's "
+                          "bodies share their nodes with the EM mesh): allowed here: 'tet4'")
+    for j, w in enumerate(case.walls):
+        if not w.bodies or b.name in w.bodies:
+            raise SchemaError(key, f"got 'tri6' for body {b.name!r}, which walls[{j}] acts on; six-node triangles "
+                              "take no rigid walls yet: allowed with walls: 'tet4'")
+    for j, c in enumerate(case.contact):
+        if b.name in (c.slave, c.master):
+            raise SchemaError(key, f"got 'tri6' for body {b.name!r} of contact[{j}]; six-node triangles take no "
+                              "contact yet: allowed with contact: 'tet4'")
+    if case.materials[b.material].forming_limit is not None:
+        raise SchemaError(key, f"got 'tri6' for body {b.name!r}, whose material has a forming_limit; the forming-"
+                          "limit check reads linear triangles: allowed with it: 'tet4'")
+
+
 def _validate_2d(case) -> None:
     f = case.mechanics.formulation
     if case.symmetry:
@@ -227,9 +250,12 @@ def _validate_2d(case) -> None:
             raise SchemaError(f"bodies[{i}].shape.type", f"got {b.shape.type!r}, a 3D shape; with "
                               f"mechanics.formulation = {f!r} allowed: 'rectangle', 'polygon' (or set "
                               "mechanics.formulation = '3d')")
-        if b.element != "tet4":
-            raise SchemaError(f"bodies[{i}].element", f"got {b.element!r}, a 3D element; with mechanics.formulation "
-                              f"= {f!r} bodies are P1 triangles: allowed 'tet4' (or set mechanics.formulation = '3d')")
+        if b.element == "tet10":
+            raise SchemaError(f"bodies[{i}].element", f"got 'tet10', a 3D element; with mechanics.formulation = "
+                              f"{f!r} allowed: 'tet4' (linear triangles), 'tri6' (six-node triangles) (or set "
+                              "mechanics.formulation = '3d')")
+        if b.element == "tri6":
+            _check_six_node(case, i, b)
         if len(b.initial_velocity) != 2:
             raise SchemaError(f"bodies[{i}].initial_velocity", f"got 3 components, a 3D vector; with "
                               f"mechanics.formulation = {f!r} give [vx, vy] (m/s)")

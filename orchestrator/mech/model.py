@@ -10,6 +10,7 @@ from mpi4py import MPI
 from pulseform.solvers import dolfinx as mech
 from pulseform.solvers.dolfinx.implicit import ImplicitOptions, ImplicitSolver, ImplicitSolver3D
 
+from ..case.schema import SchemaError
 from ..case.flow import FlowCurveTable, LudwikTable, SwiftTable, TableFlowTable, VoceTable
 from ..case.model import Case, CowperSymondsTable, MaterialTable
 from ..mesh.shapes import mesh_shape
@@ -119,16 +120,19 @@ def build_solver(case: Case, comm: MPI.Comm = MPI.COMM_WORLD,
     if case.mechanics.formulation == "3d":  # tetrahedra (mechanics-only cases for now)
         return build_solver_3d(case, comm, solver_material, make_solver)
     bodies = []
-    for b in case.bodies:
+    for i, b in enumerate(case.bodies):
         if b.rigid:
             continue
+        if b.element == "tri6" and comm.size > 1:
+            raise SchemaError(f"bodies[{i}].element", f"got 'tri6' under MPI ({comm.size} processes); six-node "
+                              "triangles run on one process for now: run without mpirun or set element = 'tet4'")
         if b.region is not None:
             mesh = (region_meshes or {})[b.region]
         else:
             mesh = mesh_shape(b.shape, b.mesh_size, comm, name=b.name, time_limit=case.limits.gmsh_time_limit_s)
         fixed = tuple((box_marker(f.where), tuple(f.components)) for f in b.fixed)
         bodies.append(mech.BodySpec(name=b.name, mesh=mesh, material=solver_material(case.materials[b.material]),
-                                    initial_velocity=tuple(b.initial_velocity), fixed=fixed))
+                                    initial_velocity=tuple(b.initial_velocity), fixed=fixed, element=b.element))
     pairs = tuple(mech.ContactPairSpec(slave=c.slave, master=c.master, stiffness=c.stiffness, h0=c.h0,
                                        friction=c.friction, viscosity=c.viscosity, two_pass=c.two_pass)
                   for c in case.contact)

@@ -78,8 +78,9 @@ def _read_file(path: Path):
         body = str(f.attrs["body"])
         form = str(f.attrs["formulation"])
         pts = f["Mesh/points"][...]
-        cells = next(k for k in ("triangles", "tetrahedra", "tetrahedra10") if f"Mesh/{k}" in f)
-        tris = f[f"Mesh/{cells}"][...][:, :4 if cells == "tetrahedra10" else None]   # ten-node cells: their corners
+        cells = next(k for k in ("triangles", "tetrahedra", "tetrahedra10", "triangles6") if f"Mesh/{k}" in f)
+        corners = {"tetrahedra10": 4, "triangles6": 3}.get(cells)
+        tris = f[f"Mesh/{cells}"][...][:, :corners]               # quadratic cells: their corners
         steps = sorted((float(f[g].attrs["time"]), g) for g in f if g.startswith("Step_"))
     return body, form, pts, tris, steps
 

@@ -31,6 +31,8 @@ def block_supported(solver: "ExplicitSolver") -> str:
     if solver.comm.size > 1:
         return "MPI (ghost exchange per step)"
     for b in solver.bodies.values():
+        if getattr(b, "element", "tet4") == "tri6":
+            return f"body {b.name!r}: six-node triangles (their kernel runs in the Python step loop)"
         if b.spec.motion:
             return f"body {b.name!r}: prescribed motions (Python callables)"
         for kind, _, _, val in b._constraints:

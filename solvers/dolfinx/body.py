@@ -16,10 +16,11 @@ from petsc4py import PETSc
 from dolfinx import mesh as dmesh
 from dolfinx.la import ScatterMode
 
-from . import cell_fields
+from . import cell_fields, tri6
 from .material import Material
+from .tet10 import quadratic_cells
 
-__all__ = ["BodySpec", "Body", "ELEMENTS"]
+__all__ = ["BodySpec", "Body", "ELEMENTS", "ELEMENTS_2D", "ELEMENTS_3D"]
 
 log = logging.getLogger(__name__)
 
@@ -52,10 +53,10 @@ class BodySpec:
     sliding : sequence
         3D only: symmetry planes of any orientation ``(marker, normal)``; the marked nodes slide in
         the plane (:mod:`.sliding`).
-    element : {"tet4", "tet10"}
-        3D only: linear tetrahedra on the mesh's vertices (default), or quadratic ten-node tetrahedra with a
-        node at the middle of every edge (:mod:`.tet10`: thin parts that bend, one process). 2D bodies take
-        "tet4" (P1 triangles) only.
+    element : {"tet4", "tet10", "tri6"}
+        The element: "tet4" (default) the linear cells on the mesh's vertices (P1 tetrahedra in 3D, P1 triangles
+        in 2D); "tet10" (3D) quadratic ten-node tetrahedra, "tri6" (2D) quadratic six-node triangles, with a node
+        at the middle of every edge (:mod:`.tet10`, :mod:`.tri6`: thin parts that bend, one process).
     """
 
     name: str
@@ -69,8 +70,10 @@ class BodySpec:
     element: str = "tet4"
 
 
-#: the elements of :attr:`BodySpec.element` (3D bodies; 2D bodies are P1 triangles)
-ELEMENTS = ("tet4", "tet10")
+#: the elements of :attr:`BodySpec.element`, of 3D and of 2D bodies
+ELEMENTS_3D = ("tet4", "tet10")
+ELEMENTS_2D = ("tet4", "tri6")
+ELEMENTS = ("tet4", "tet10", "tri6")
 
 
 class Body:
@@ -84,13 +87,17 @@ class Body:
             raise ValueError(f"body {spec.name!r}: need a 2D triangle mesh")
         if spec.sliding:
             raise ValueError(f"body {spec.name!r}: sliding planes are for 3D bodies (use fixed components in 2D)")
-        if spec.element != "tet4":
-            raise ValueError(f"body {spec.name!r}: element {spec.element!r} is for 3D bodies (2D bodies are P1 "
-                             "triangles: element 'tet4')")
+        if spec.element == "tet10":
+            raise ValueError(f"body {spec.name!r}: element 'tet10' is for 3D bodies (2D bodies: {ELEMENTS_2D})")
+        if spec.element not in ELEMENTS_2D:
+            raise ValueError(f"body {spec.name!r}: element must be one of {ELEMENTS_2D} in 2D, got {spec.element!r}")
+        if spec.element == "tri6" and msh.comm.size > 1:
+            raise ValueError(f"body {spec.name!r}: element 'tri6' runs on one process (MPI: not done yet)")
         if msh.geometry.cmap.degree != 1:
             raise ValueError(f"body {spec.name!r}: need an affine (P1) geometry")
         self.name = spec.name
         self.spec = spec
+        self.element = spec.element
         self.gdim = 2
         self.mesh = msh
         self.material = spec.material
@@ -111,19 +118,45 @@ class Body:
         xe = X[cells]
         area2 = ((xe[:, 1, 0] - xe[:, 0, 0]) * (xe[:, 2, 1] - xe[:, 0, 1])
                  - (xe[:, 2, 0] - xe[:, 0, 0]) * (xe[:, 1, 1] - xe[:, 0, 1]))
-        self._init_state(spec, cells, X, area2, 4)
-        nc = cells.shape[0]
+        if self.element == "tri6":
+            self._init_quadratic(spec, cells, X, area2, dofs)
+        else:
+            self._init_state(spec, cells, X, area2, 4)
+            self.segments = self._exterior_segments(dofs)
+        nc = self.cells.shape[0]
         if np.any(self.mass <= 0):
             raise ValueError(f"body {spec.name!r}: non-positive lumped mass (nodes on the axis with "
                              "no adjacent cell?)")
-        self.segments = self._exterior_segments(dofs)
         self._constraints = self._build_constraints()
+        X = self.X0
         self.axis_nodes = (np.flatnonzero(np.abs(X[:, 0]) <= 1e-12 * max(1.0, np.abs(X).max()))
                            if axisymmetric else np.zeros(0, dtype=np.int64))
         log.info("body %s: %d owned nodes, %d cells, mass %.6g kg", self.name, self.n_owned, nc,
                  self.total_mass())
 
     # ------------------------------------------------------------------ setup helpers
+    def _init_quadratic(self, spec: BodySpec, cells: np.ndarray, X: np.ndarray, area2: np.ndarray,
+                        dofs: np.ndarray) -> None:
+        """The six-node body (one process, :mod:`.tri6`): the linear cells oriented, a node at every edge's middle
+        appended after the vertices, the state per Gauss point, the boundary's three-node edges cut in two."""
+        if np.any(area2 == 0.0):
+            raise ValueError(f"body {spec.name!r}: degenerate cell")
+        neg = area2 < 0
+        cells[neg, 1], cells[neg, 2] = cells[neg, 2].copy(), cells[neg, 1].copy()
+        corner_segments = self._exterior_segments(dofs, X)
+        cells6, X6, edges = quadratic_cells(cells, X, tri6.EDGES)
+        self.n_vertices = len(X)
+        self.n_owned = self.n_local = len(X6)
+        self.global_ids = np.arange(len(X6), dtype=np.int64)
+        self._init_state(spec, cells6, X6, np.abs(area2), 4)
+        nq = len(cells6) * tri6.N_QP
+        self.cell_stress = np.repeat(self.cell_stress, tri6.N_QP, axis=0)
+        self.eps_p = np.zeros(nq)
+        self.temperature = np.full(nq, float(spec.material.initial_temperature))
+        edge_node = {(int(a), int(b)): len(X) + k for k, (a, b) in enumerate(edges)}
+        self.edges3 = tri6.three_node_edges(corner_segments, edge_node)
+        self.segments = tri6.split_edges(self.edges3)
+
     def _init_state(self, spec: BodySpec, cells: np.ndarray, X: np.ndarray, signed: np.ndarray,
                     n_stress: int) -> None:
         """Orient the cells (``signed``: their signed area or volume; vertices 1 and 2 of a negative one
@@ -152,7 +185,11 @@ class Body:
         self.mass = self._lumped_mass()
 
     def _lumped_mass(self) -> np.ndarray:
-        """Row-sum lumped mass via DOLFINx assembly (r-weighted with 2 pi in axisymmetry), kg."""
+        """Row-sum lumped mass via DOLFINx assembly (r-weighted with 2 pi in axisymmetry), kg; six-node cells: HRZ
+        (:func:`.tri6.hrz_lumped_mass`)."""
+        if self.element == "tri6":
+            return tri6.hrz_lumped_mass(self.cells, self.X0, self.material.density, bool(self.axisymmetric),
+                                        float(self.thickness))
         w = ufl.TestFunction(self.V)
         xs = ufl.SpatialCoordinate(self.mesh)
         weight = 2.0 * np.pi * xs[0] if self.axisymmetric else fem.Constant(self.mesh, self.thickness)
@@ -166,9 +203,11 @@ class Body:
         vec.destroy()
         return m
 
-    def _exterior_segments(self, dofs: np.ndarray) -> np.ndarray:
-        """Owned exterior facets as (n, 2) node rows, oriented with the body on the left, so that
-        the outward normal of segment a->b is (yb - ya, xa - xb) / length."""
+    def _exterior_segments(self, dofs: np.ndarray, X0: Optional[np.ndarray] = None) -> np.ndarray:
+        """Owned exterior facets as (n, 2) node rows, oriented with the body on the left (for the vertex
+        positions ``X0``, m; default the body's), so that the outward normal of segment a->b is
+        (yb - ya, xa - xb) / length."""
+        X0 = self.X0 if X0 is None else X0
         msh = self.mesh
         top = msh.topology
         top.create_connectivity(1, 2)
@@ -185,7 +224,7 @@ class Body:
         third = np.array([[d for d in row if d not in sg][0] for row, sg in zip(cd, segs)],
                          dtype=np.int64)
         if len(facets):
-            pa, pb, pc = self.X0[segs[:, 0]], self.X0[segs[:, 1]], self.X0[third]
+            pa, pb, pc = X0[segs[:, 0]], X0[segs[:, 1]], X0[third]
             cross = ((pb[:, 0] - pa[:, 0]) * (pc[:, 1] - pa[:, 1])
                      - (pb[:, 1] - pa[:, 1]) * (pc[:, 0] - pa[:, 0]))
             flip = cross < 0
@@ -310,8 +349,15 @@ class Body:
     def pressure_forces(self, facet_marker, pressure: float) -> np.ndarray:
         """Consistent nodal forces (N) of a uniform follower pressure (Pa, positive pushes into
         the body) on the exterior facets whose two vertices satisfy ``facet_marker`` (evaluated on
-        current coordinates (3, N)); complete on every local row (ghosts too)."""
+        current coordinates (3, N)); complete on every local row (ghosts too). Six-node bodies: on their
+        three-node edges (:func:`.tri6.edge_pressure_forces`)."""
         b = self
+        if self.element == "tri6":     # integrated on the three-node edges whose corners are marked
+            x3 = np.zeros((3, b.n_local))
+            x3[:2] = b.x.T
+            mark = np.asarray(facet_marker(x3), dtype=bool)
+            e = self.edges3[mark[self.edges3[:, 0]] & mark[self.edges3[:, 1]]]
+            return tri6.edge_pressure_forces(e, b.x, pressure, bool(b.axisymmetric), float(b.thickness))
         segs = b.segments
         f = np.zeros((b.n_local, 2))
         if segs.shape[0]:
@@ -344,11 +390,21 @@ class Body:
 
     @property
     def von_mises(self) -> np.ndarray:
-        """Von Mises stress per owned cell, Pa."""
+        """Von Mises stress per owned cell (six-node cells: per Gauss point), Pa."""
         return cell_fields.von_mises(self.cell_stress)
 
+    def cell_means(self, arr: np.ndarray) -> np.ndarray:
+        """Per-cell values of a per-row array (``cell_stress``, ``eps_p``, ...): itself for linear cells, the
+        mean over each cell's Gauss points for six-node cells."""
+        if self.element == "tri6":
+            return arr.reshape((len(self.cells), tri6.N_QP) + arr.shape[1:]).mean(axis=1)
+        return arr
+
     def cell_volumes(self) -> np.ndarray:
-        """Current cell volumes (planar: area x thickness; axisymmetric: 2 pi r_c area), m^3."""
+        """Current cell volumes (planar: area x thickness; axisymmetric: 2 pi r_c area), m^3; six-node cells: the
+        volume of each Gauss point (the rows of ``cell_stress``)."""
+        if self.element == "tri6":
+            return tri6.qp_measures(self.cells, self.x, bool(self.axisymmetric), float(self.thickness))
         return cell_fields.cell_volumes(self.cells, self.x, bool(self.axisymmetric),
                                         float(self.thickness))
 
@@ -364,4 +420,4 @@ class Body:
         gdofs = self.mesh.geometry.dofmap.array.reshape(-1, 3)
         vd = self.V.dofmap.list.array.reshape(-1, 3)
         gx = self.mesh.geometry.x
-        gx[gdofs.ravel(), :2] = self.x[vd.ravel()]
+        gx[gdofs.ravel(), :2] = self.x[vd.ravel()]       # the vertices: the first rows (six-node bodies too)

@@ -14,7 +14,7 @@ from dolfinx import mesh as dmesh
 from dolfinx.fem.petsc import assemble_vector
 from petsc4py import PETSc
 
-from .body import ELEMENTS, Body, BodySpec
+from .body import ELEMENTS_3D, Body, BodySpec
 from .sliding import SlidingPlanes
 from .tet10 import (N_QP, hrz_lumped_mass, qp_volumes, quadratic_cells, recover_face_pressure, six_node_faces,
                     split_faces)
@@ -60,8 +60,10 @@ class Body3D(Body):
         if spec.initial_stress is not None and len(spec.initial_stress) != 6:
             raise ValueError(f"body {spec.name!r}: initial_stress needs 6 components in 3D "
                              "[xx, yy, zz, xy, yz, xz]")
-        if spec.element not in ELEMENTS:
-            raise ValueError(f"body {spec.name!r}: element must be one of {ELEMENTS}, got {spec.element!r}")
+        if spec.element == "tri6":
+            raise ValueError(f"body {spec.name!r}: element 'tri6' is for 2D bodies (3D bodies: {ELEMENTS_3D})")
+        if spec.element not in ELEMENTS_3D:
+            raise ValueError(f"body {spec.name!r}: element must be one of {ELEMENTS_3D}, got {spec.element!r}")
         if spec.element == "tet10" and msh.comm.size > 1:
             raise ValueError(f"body {spec.name!r}: element 'tet10' runs on one process (MPI: not done yet)")
         self.name = spec.name

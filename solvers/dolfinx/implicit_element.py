@@ -1,6 +1,7 @@
 """The element update of the implicit solver and its exact tangent, on numpy arrays over the cells
 (P1 triangles in plane stress / plane strain / axisymmetry, P1 tetrahedra in 3D; ten-node tetrahedra
-(:mod:`.tet10`) with the same update at each of their four Gauss points, their stress rows ``4 c + q``).
+(:mod:`.tet10`) and six-node triangles (:mod:`.tri6`) with the same update at each of their Gauss points, their
+stress rows ``4 c + q`` and ``3 c + q``).
 
 The update is the explicit kernels' finite-strain treatment written for a displacement increment
 ``du`` over a step instead of ``dt * v^{n+1/2}`` (:mod:`.element_math`, :mod:`.tet_kernel`):
@@ -35,7 +36,7 @@ import numpy as np
 from .implicit_flow import flow_stress, is_linear, needs_rate
 from .kernels import MODE_AXISYMMETRIC, MODE_PLANE_STRESS
 from .material import Material
-from .tet10 import N_QP, QP_DERIVATIVES, QP_WEIGHTS, qp_jacobians
+from . import tet10, tri6
 from .tet_kernel import MODE_SOLID
 
 __all__ = ["CellState", "CellResult", "cell_update", "cell_tangent", "voigt_to_tensor", "tensor_to_voigt"]
@@ -255,8 +256,8 @@ def cell_update(st: CellState, du: np.ndarray) -> CellResult:
     CellResult
     """
     nc, nn, dim = du.shape
-    if nn == 10:
-        return _quadratic_update(st, du)
+    if (nn, dim) in _QUADRATIC:
+        return _quadratic_update(st, du, _QUADRATIC[nn, dim])
     xm = st.x + 0.5 * du
     x1 = st.x + du
     gm, detm, badm = _gradients(xm)
@@ -288,35 +289,69 @@ def cell_update(st: CellState, du: np.ndarray) -> CellResult:
     return CellResult(f, tensor_to_voigt(S, st.stress.shape[1]), dep, sy * dep * volm, bad)
 
 
-def _qp_gradients(x: np.ndarray):
-    """Shape-function gradients g[c, q, a, i] = d N_a / d x_i (nc, 4, 10, 3) of ten-node cells ``x`` (nc, 10, 3)
-    at their Gauss points, the Jacobian determinants (nc, 4) and the cells with one not positive."""
-    nc = x.shape[0]
-    J = qp_jacobians(x).reshape(-1, 3, 3)
+#: the quadratic elements by (nodes, dimension): their Gauss rules (N_QP, QP_WEIGHTS, QP_DERIVATIVES, QP_VALUES)
+_QUADRATIC = {(10, 3): tet10, (6, 2): tri6}
+
+
+def _qp_gradients(x: np.ndarray, el):
+    """Shape-function gradients g[c, q, a, i] = d N_a / d x_i (nc, nq, nn, dim) of quadratic cells ``x``
+    (nc, nn, dim) at the Gauss points of the element module ``el``, the Jacobian determinants (nc, nq) and the cells
+    with one not positive."""
+    nc, _, dim = x.shape
+    J = np.einsum("cai,qaj->cqij", x, el.QP_DERIVATIVES).reshape(-1, dim, dim)
     adj, det = _adjugate(J)
-    bad = (np.real(det) <= 0.0).reshape(nc, N_QP)
-    inv = (adj / np.where(np.real(det) <= 0.0, 1.0, det)[:, None, None]).reshape(nc, N_QP, 3, 3)
-    g = np.einsum("qaj,cqji->cqai", QP_DERIVATIVES, inv)
-    return g, det.reshape(nc, N_QP), bad.any(axis=1)
+    bad = (np.real(det) <= 0.0).reshape(nc, el.N_QP)
+    inv = (adj / np.where(np.real(det) <= 0.0, 1.0, det)[:, None, None]).reshape(nc, el.N_QP, dim, dim)
+    g = np.einsum("qaj,cqji->cqai", el.QP_DERIVATIVES, inv)
+    return g, det.reshape(nc, el.N_QP), bad.any(axis=1)
 
 
-def _quadratic_update(st: CellState, du: np.ndarray) -> CellResult:
-    """:func:`cell_update` of ten-node tetrahedra (:mod:`.tet10`): the same kinematics and stress update at each
-    of the four Gauss points (state rows ``4 c + q``), the forces by the Gauss rule on x^{n+1}."""
-    nc = du.shape[0]
-    gm, detm, badm = _qp_gradients(st.x + 0.5 * du)
-    g1, det1, bad1 = _qp_gradients(st.x + du)
-    H = np.einsum("cai,cqaj->cqij", du, gm).reshape(-1, 3, 3)     # per Gauss point, cell-major
-    E = 0.5 * (H + np.swapaxes(H, 1, 2))
-    A = 0.25 * (H - np.swapaxes(H, 1, 2))                          # A = W / 2
+def _qp_measure(x: np.ndarray, det: np.ndarray, st: CellState, el) -> np.ndarray:
+    """The volume of each Gauss point (nc, nq), m^3: w_q det J_q, times the thickness (planar) or 2 pi r_q
+    (axisymmetric, r at the Gauss point of the cells ``x``)."""
+    w = el.QP_WEIGHTS * det
+    if st.mode == MODE_SOLID:
+        return w
+    if st.mode == MODE_AXISYMMETRIC:
+        return w * (2.0 * np.pi) * np.einsum("qa,ca->cq", el.QP_VALUES, x[:, :, 0])
+    return w * st.thickness
+
+
+def _quadratic_update(st: CellState, du: np.ndarray, el) -> CellResult:
+    """:func:`cell_update` of quadratic cells (ten-node tetrahedra :mod:`.tet10`, six-node triangles :mod:`.tri6`,
+    the module ``el``): the same kinematics and stress update at each Gauss point (state rows ``nq c + q``; the
+    hoop strain increment of axisymmetry du_r / r at the Gauss point of the mid-step configuration), the forces by
+    the Gauss rule on x^{n+1} (axisymmetry: with 2 pi r_q, and the hoop term 2 pi sigma_zz N_a)."""
+    nc, nn, dim = du.shape
+    nq = el.N_QP
+    xm, x1 = st.x + 0.5 * du, st.x + du
+    gm, detm, badm = _qp_gradients(xm, el)
+    g1, det1, bad1 = _qp_gradients(x1, el)
+    H = np.einsum("cai,cqaj->cqij", du, gm).reshape(-1, dim, dim)     # per Gauss point, cell-major
+    dtype = np.result_type(du, st.stress)
+    E = np.zeros((nc * nq, 3, 3), dtype=dtype)
+    A = np.zeros((nc * nq, 3, 3), dtype=dtype)
+    E[:, :dim, :dim] = 0.5 * (H + np.swapaxes(H, 1, 2))
+    A[:, :dim, :dim] = 0.25 * (H - np.swapaxes(H, 1, 2))              # A = W / 2
+    if st.mode == MODE_AXISYMMETRIC:
+        N = el.QP_VALUES
+        E[:, 2, 2] = (np.einsum("qa,ca->cq", N, du[:, :, 0]) / np.einsum("qa,ca->cq", N, xm[:, :, 0])).ravel()
     aa = A[:, 0, 1] ** 2 + A[:, 0, 2] ** 2 + A[:, 1, 2] ** 2
     Q = np.eye(3) + (2.0 / (1.0 + aa))[:, None, None] * (A + A @ A)
     S0 = voigt_to_tensor(st.stress)
-    S, dep, sy = _update_stress(Q @ S0 @ np.swapaxes(Q, 1, 2), E, st)
-    vol1 = QP_WEIGHTS * det1                                       # (nc, 4)
-    f = np.einsum("cq,cqij,cqaj->cai", vol1, S.reshape(nc, N_QP, 3, 3), g1)
-    volm = (QP_WEIGHTS * detm).ravel()
-    return CellResult(f, tensor_to_voigt(S, 6), dep, sy * dep * volm, badm | bad1)
+    Sr = Q @ S0 @ np.swapaxes(Q, 1, 2)
+    pts = CellState(np.zeros((len(st.eps_p), 0)), st.stress, st.eps_p, st.material, st.mode, st.thickness, st.dt)
+    if st.mode == MODE_PLANE_STRESS:                                   # the Gauss points' state (rows)
+        S, dep, sy = _plane_stress(Sr, E, pts)
+    else:
+        S, dep, sy = _update_stress(Sr, E, pts)
+    vol1 = _qp_measure(x1, det1, st, el)                                # (nc, nq)
+    Sq = S.reshape(nc, nq, 3, 3)
+    f = np.einsum("cq,cqij,cqaj->cai", vol1, Sq[:, :, :dim, :dim], g1)
+    if st.mode == MODE_AXISYMMETRIC:
+        f[:, :, 0] += 2.0 * np.pi * np.einsum("cq,cq,qa->ca", el.QP_WEIGHTS * det1, Sq[:, :, 2, 2], el.QP_VALUES)
+    volm = _qp_measure(xm, detm, st, el).ravel()
+    return CellResult(f, tensor_to_voigt(S, st.stress.shape[1]), dep, sy * dep * volm, badm | bad1)
 
 
 def _plane_stress(Sr: np.ndarray, E: np.ndarray, st: CellState):

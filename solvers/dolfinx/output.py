@@ -11,6 +11,9 @@ File layout (``<prefix>_<body>.h5``; h5py reads it by name, no XDMF needed)::
     /Mesh/tetrahedra10    (C, 10) int64: of each ten-node tetrahedron (``element = "tet10"``; corners, then
                           the edge nodes of edges 01 12 02 03 13 23: VTK's and XDMF's order); its cell
                           fields are the means over the cell's four Gauss points
+    /Mesh/triangles6      (C, 6) int64: of each six-node triangle (``element = "tri6"``; corners, then the
+                          edge nodes of edges 01 12 20: VTK's and XDMF's ``Triangle_6``); cell fields: the means
+                          over the cell's three Gauss points
     /times                (T,) float64, s: the output times (exact: milestones rounded to 12 digits)
     /Step_0000/           attrs: time (s); one group per output time, in time order
         displacement_m    (N, 3) at nodes: (u_x, u_y, 0) = current - reference position ((u_x, u_y, u_z) in 3D)
@@ -80,7 +83,8 @@ def _tensor6(s: np.ndarray) -> np.ndarray:
 
 
 #: cell dataset and XDMF topology by vertices per cell
-_CELLS = {3: ("triangles", "Triangle"), 4: ("tetrahedra", "Tetrahedron"), 10: ("tetrahedra10", "Tetrahedron_10")}
+_CELLS = {3: ("triangles", "Triangle"), 4: ("tetrahedra", "Tetrahedron"), 10: ("tetrahedra10", "Tetrahedron_10"),
+          6: ("triangles6", "Triangle_6")}
 
 
 class _BodyFile:
@@ -217,7 +221,7 @@ class FieldWriter:
             self._gids[n] = own
             parts = self.comm.gather((own, b.X0[: b.n_owned], b.global_ids[b.cells]), root=0)
             if self.comm.rank == 0:
-                n_glob = len(b.X0) if getattr(b, "element", "tet4") == "tet10" else b.V.dofmap.index_map.size_global
+                n_glob = len(b.X0) if getattr(b, "element", "tet4") in ("tet10", "tri6") else b.V.dofmap.index_map.size_global
                 X = np.zeros((n_glob, b.X0.shape[1]))
                 for gid, x, _ in parts:
                     X[gid] = x

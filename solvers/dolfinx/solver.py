@@ -19,6 +19,8 @@ from .kernel_threads import run_steps_threaded
 from .block_data import BlockData, block_supported
 from .python_steps import PythonSteps
 from .reference_kernel import element_step_numpy
+from .tri6 import critical_step_factor as tri6_step_factor
+from .tri6_kernel import Tri6Kernel
 
 __all__ = ["ExplicitSolver"]
 
@@ -112,6 +114,14 @@ class ExplicitSolver(PythonSteps):
         self._prm = {n: pack_parameters(b.material, self.mode, thickness, bulk_linear,
                                         bulk_quadratic, bulk_viscosity)
                      for n, b in self.bodies.items()}
+        # six-node bodies: their own kernel (serial, the Python step loop), with their critical-step factor
+        self._kernels = {n: Tri6Kernel(tri6_step_factor(b.cells, b.X0, b.material.shear_modulus,
+                                                        b.material.bulk_modulus))
+                         for n, b in self.bodies.items() if b.element == "tri6"}
+        quad = sorted(self._kernels)
+        if quad and (contact_pairs or rigid_walls):
+            raise ValueError(f"body {quad[0]!r}: six-node triangles (element 'tri6') take no contact pairs or "
+                             "rigid walls yet")
         # flat indices of the constrained velocity components (a = 0 there)
         self._cidx = {n: np.flatnonzero(b.constrained_mask().ravel())
                       for n, b in self.bodies.items()}
@@ -180,7 +190,13 @@ class ExplicitSolver(PythonSteps):
     def _body_dt(self, name: str) -> float:
         """The smallest critical step of body ``name``'s cells at rest (CFL 1), s; -1 if one is inverted."""
         b = self.bodies[name]
+        if name in self._kernels:
+            return self._kernels[name].critical_dt(b.cells, b.x, self._prm[name])
         return self._element_dt(b.cells, b.x, self._prm[name])
+
+    def _body_kernel(self, name: str):
+        """The element kernel of body ``name``: the solver's, or a six-node body's own (:mod:`.tri6_kernel`)."""
+        return self._kernels.get(name, self._kernel)
 
     def _initial_dt_crit(self) -> float:
         dmin = np.inf

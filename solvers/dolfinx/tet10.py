@@ -29,7 +29,7 @@ import numpy as np
 
 __all__ = ["EDGES", "QP_WEIGHTS", "QP_DERIVATIVES", "N_QP", "quadratic_cells", "shape_derivatives",
            "hrz_lumped_mass", "six_node_faces", "split_faces", "recover_face_pressure", "corner_share",
-           "qp_jacobians", "qp_volumes", "critical_step_factor"]
+           "qp_jacobians", "qp_volumes", "critical_step_factor", "largest_eigenvalues"]
 
 #: corner pairs of the edge nodes 4..9
 EDGES = ((0, 1), (1, 2), (0, 2), (0, 3), (1, 3), (2, 3))
@@ -62,34 +62,39 @@ def shape_derivatives(bary: np.ndarray) -> np.ndarray:
 QP_DERIVATIVES = shape_derivatives(QP_BARY)
 
 
-def quadratic_cells(cells: np.ndarray, X: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The ten-node cells of a linear tetrahedral mesh: one new node at the middle of every edge.
+def quadratic_cells(cells: np.ndarray, X: np.ndarray,
+                    edges_of_cell: tuple = EDGES) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The quadratic cells of a linear simplex mesh: one new node at the middle of every edge (ten-node
+    tetrahedra; six-node triangles with ``edges_of_cell`` = :data:`.tri6.EDGES`).
 
     Parameters
     ----------
-    cells : int array (nc, 4)
-        Positively oriented linear tetrahedra (node rows of ``X``).
-    X : ndarray (N, 3)
+    cells : int array (nc, 4) or (nc, 3)
+        Positively oriented linear tetrahedra or triangles (node rows of ``X``).
+    X : ndarray (N, dim)
         Vertex positions, m.
+    edges_of_cell : tuple of (int, int)
+        The corner pairs of the cell's edge nodes, in their order (default :data:`EDGES`).
 
     Returns
     -------
-    cells10 : int32 array (nc, 10)
-        Corners then the edge nodes of :data:`EDGES`; the edge nodes are rows ``N ..`` in the order of their
+    cells_q : int32 array (nc, 10) or (nc, 6)
+        Corners then the edge nodes of ``edges_of_cell``; the edge nodes are rows ``N ..`` in the order of their
         first appearance.
-    X10 : ndarray (N + n_edges, 3)
+    X_q : ndarray (N + n_edges, dim)
         Vertex positions followed by the edge midpoints, m.
     edges : int64 array (n_edges, 2)
         The vertices of each edge node.
     """
-    pairs = np.stack([np.sort(cells[:, [i, j]], axis=1) for i, j in EDGES], axis=1)   # (nc, 6, 2)
+    ne = len(edges_of_cell)
+    pairs = np.stack([np.sort(cells[:, [i, j]], axis=1) for i, j in edges_of_cell], axis=1)   # (nc, ne, 2)
     flat = pairs.reshape(-1, 2).astype(np.int64)
     _, first, inverse = np.unique(flat[:, 0] * (len(X) + 1) + flat[:, 1], return_index=True, return_inverse=True)
     order = np.argsort(first)                # number the edges by first appearance (deterministic, local)
     rank = np.empty_like(order)
     rank[order] = np.arange(len(order))
     edges = flat[first[order]]
-    cells10 = np.concatenate([cells, len(X) + rank[inverse].reshape(-1, 6)], axis=1).astype(np.int32)
+    cells10 = np.concatenate([cells, len(X) + rank[inverse].reshape(-1, ne)], axis=1).astype(np.int32)
     X10 = np.concatenate([X, 0.5 * (X[edges[:, 0]] + X[edges[:, 1]])], axis=0)
     return cells10, X10, edges
 
@@ -186,6 +191,41 @@ def qp_volumes(cells10: np.ndarray, x: np.ndarray) -> np.ndarray:
     return (QP_WEIGHTS * np.linalg.det(J)).ravel()
 
 
+def largest_eigenvalues(xe: np.ndarray, dN: np.ndarray, wq: np.ndarray, share: np.ndarray, shear_modulus: float,
+                        bulk_modulus: float) -> np.ndarray:
+    """The largest eigenvalue omega^2 (1/s^2, density 1 kg/m^3) of each cell's small-strain elastic stiffness
+    under its HRZ lumped mass, for isoparametric cells of any dimension (ten-node tetrahedra, six-node triangles:
+    plane strain, the stiffest planar model).
+
+    Parameters
+    ----------
+    xe : ndarray (nc, nn, dim)
+        The cells' node positions, m.
+    dN : ndarray (nq, nn, dim)
+        Shape-function derivatives at the quadrature points (reference coordinates).
+    wq : ndarray (nq,)
+        Quadrature weights on the reference cell.
+    share : ndarray (nn,)
+        Each node's HRZ share of the cell's mass.
+    shear_modulus, bulk_modulus : float
+        G and K, Pa.
+    """
+    G, K = float(shear_modulus), float(bulk_modulus)
+    lam = K - 2.0 * G / 3.0
+    nc, nn, dim = xe.shape
+    J = np.einsum("cai,qaj->cqij", xe, dN)
+    det = np.linalg.det(J)
+    g = np.einsum("qaj,cqji->cqai", dN, np.linalg.inv(J))
+    vq = wq * det
+    gg = np.einsum("cq,cqai,cqbi->cab", vq, g, g)
+    Kij = lam * np.einsum("cq,cqai,cqbj->caibj", vq, g, g) + G * np.einsum("cq,cqaj,cqbi->caibj", vq, g, g)
+    Kij += G * np.einsum("cab,ij->caibj", gg, np.eye(dim))
+    Kf = Kij.reshape(nc, nn * dim, nn * dim)
+    m = np.repeat(vq.sum(axis=1)[:, None] * share, dim, axis=1).reshape(nc, nn * dim)   # HRZ, rho = 1
+    s_m = 1.0 / np.sqrt(m)
+    return np.linalg.eigvalsh(s_m[:, :, None] * Kf * s_m[:, None, :])[:, -1]
+
+
 def critical_step_factor(cells10: np.ndarray, X: np.ndarray, shear_modulus: float, bulk_modulus: float) -> float:
     """The ratio of the ten-node cells' critical step to the linear kernel's estimate, smallest over the cells
     (dimensionless): 2 / omega_e, omega_e the largest frequency of the cell's elastic stiffness under its HRZ mass
@@ -201,25 +241,12 @@ def critical_step_factor(cells10: np.ndarray, X: np.ndarray, shear_modulus: floa
     shear_modulus, bulk_modulus : float
         G and K, Pa.
     """
-    G, K = float(shear_modulus), float(bulk_modulus)
-    lam = K - 2.0 * G / 3.0
-    c2 = K + 4.0 * G / 3.0                       # rho c^2 (rho = 1: it cancels)
+    c2 = float(bulk_modulus) + 4.0 * float(shear_modulus) / 3.0      # rho c^2 (rho = 1: it cancels)
     share = np.concatenate([np.full(4, corner_share), np.full(6, (1.0 - 4.0 * corner_share) / 6.0)])
     worst = np.inf
     for s in range(0, len(cells10), 4096):
         xe = X[cells10[s:s + 4096]]
-        J = qp_jacobians(xe)
-        det = np.linalg.det(J)
-        g = np.einsum("qaj,cqji->cqai", QP_DERIVATIVES, np.linalg.inv(J))
-        vq = QP_WEIGHTS * det                    # (nc, 4)
-        gg = np.einsum("cq,cqai,cqbi->cab", vq, g, g)
-        Kij = (lam * np.einsum("cq,cqai,cqbj->caibj", vq, g, g) + G * np.einsum("cq,cqaj,cqbi->caibj", vq, g, g))
-        Kij += G * np.einsum("cab,ij->caibj", gg, np.eye(3))
-        nc = len(xe)
-        Kf = Kij.reshape(nc, 30, 30)
-        m = np.repeat(vq.sum(axis=1)[:, None] * share, 3, axis=1).reshape(nc, 30)   # HRZ, rho = 1
-        s_m = 1.0 / np.sqrt(m)
-        lam_max = np.linalg.eigvalsh(s_m[:, :, None] * Kf * s_m[:, None, :])[:, -1]
+        lam_max = largest_eigenvalues(xe, QP_DERIVATIVES, QP_WEIGHTS, share, shear_modulus, bulk_modulus)
         a, b, cc = (xe[:, k] - xe[:, 0] for k in (1, 2, 3))
         n1, n2, n3 = np.cross(b, cc), np.cross(cc, a), np.cross(a, b)
         area = np.max(np.stack([np.einsum("ni,ni->n", n, n) for n in (n1 + n2 + n3, n1, n2, n3)]), axis=0)

@@ -332,6 +332,15 @@ BAD_COUPLED = [
                                                     'zmax=1.5001e-3}, amplitude=8.7e6, beta=8.9e3, omega=9.3e4, '
                                                     't_end=60e-6}]'], "loads[0].body"),
     ("element_unknown", "bar_impact_3d", ["bodies[0].element='hex8'"], "bodies[0].element"),
+    # the 2D half: six-node triangles in mechanics-only 2D cases without walls or contact
+    ("tri6_in_3d", "bar_impact_3d", ["bodies[0].element='tri6'"], "bodies[0].element"),
+    ("tri6_coupled", "emf_sheet_bulge", ["bodies[0].element='tri6'"], "bodies[0].element"),
+    ("tri6_contact", "bar_impact", ["bodies[0].element='tri6'"], "bodies[0].element"),
+    ("tri6_wall", "bar_impact_wall", ["bodies[0].element='tri6'"], "bodies[0].element"),
+    ("tri6_forming_limit", "cantilever_two_pulses",
+     ["bodies[0].element='tri6'",
+      "materials.al.forming_limit={minor_strain = [-0.2, 0.0, 0.2], major_strain = [0.3, 0.2, 0.3]}"],
+     "bodies[0].element"),
 ]
 
 
@@ -354,6 +363,15 @@ def test_tet10_walls_and_contact_are_accepted():
     case, _ = load_case(REPO / "cases" / "bar_impact_3d" / "two_bodies.toml",
                         ["bodies[0].element='tet10'", "bodies[1].element='tet10'"])
     assert {b.element for b in case.bodies} == {"tet10"} and case.contact
+
+
+def test_tri6_is_accepted_in_a_mechanics_only_2d_case():
+    """Six-node triangles (issue 34 item 4, the 2D half) pass the validation of a 2D mechanics-only case with
+    pressure pulses (its bodies take them on their three-node edges)."""
+    from pulseform.orchestrator.case.io import load_case
+
+    case, _ = load_case(REPO / "cases" / "cantilever_two_pulses", ["bodies[0].element='tri6'"])
+    assert case.bodies[0].element == "tri6" and case.loads
 
 
 def test_tet10_soft_contact_with_the_implicit_integrator_is_refused():

@@ -32,7 +32,7 @@ from pulseform.solvers.dolfinx.body import BodySpec
 from pulseform.solvers.dolfinx.material import Material
 
 __all__ = ["Strip", "strip_body", "tip_load", "tip_deflection", "beam_deflection", "hinge_load",
-           "beam_plastic_deflection"]
+           "beam_plastic_deflection", "plane_strip_body"]
 
 
 @dataclass(frozen=True)
@@ -72,6 +72,26 @@ def strip_body(strip: Strip, material: Material, element: str = "tet4", name: st
     return BodySpec(name, msh, material, initial_velocity=(0.0, 0.0, 0.0), fixed=fixed, element=element)
 
 
+def plane_strip_body(strip: Strip, material: Material, element: str = "tet4", name: str = "strip") -> BodySpec:
+    """The strip's 2D body (plane stress; ``element`` "tet4" linear or "tri6" six-node triangles): a rectangle
+    L x t of n_length x n_thick squares cut in two (one process), the root supports."""
+    msh = dmesh.create_rectangle(MPI.COMM_SELF, [np.zeros(2), np.array([strip.length, strip.thickness])],
+                                 [strip.n_length, strip.n_thick])
+    if strip.grading != 1.0:
+        gx = msh.geometry.x
+        gx[:, 0] = strip.length * (gx[:, 0] / strip.length) ** strip.grading
+    tol = 1e-9 * strip.length
+
+    def root(x):
+        return np.abs(x[0]) < tol
+
+    def root_axis(x):
+        dy = np.abs(x[1] - 0.5 * strip.thickness)
+        return root(x) & (dy <= dy[root(x)].min() + tol)
+
+    return BodySpec(name, msh, material, fixed=((root, (0,)), (root_axis, (1,))), element=element)
+
+
 def _tip_weights(body, strip: Strip) -> np.ndarray:
     """Tributary area (m^2) of every node on the tip face x = L (zero elsewhere)."""
     tol = 1e-9 * strip.length
@@ -80,17 +100,22 @@ def _tip_weights(body, strip: Strip) -> np.ndarray:
 
 
 def tip_load(body, strip: Strip, force: float) -> np.ndarray:
-    """Nodal forces (N, 3), N, of a tip force ``force`` (N, on the whole width; -z) on the half strip."""
+    """Nodal forces (N, 3), N, of a tip force ``force`` (N, on the whole width; -z) on the half strip (2D: (N, 2),
+    along -y)."""
     w = _tip_weights(body, strip)
     f = np.zeros_like(body.x)
-    f[:, 2] = -0.5 * force * w / w.sum()
+    if body.gdim == 2:                      # the whole width: the solver's thickness
+        f[:, 1] = -force * w / w.sum()
+    else:
+        f[:, 2] = -0.5 * force * w / w.sum()
     return f
 
 
 def tip_deflection(body, strip: Strip) -> float:
-    """The tip's deflection (m, positive down): the area-weighted mean of -u_z over the tip face."""
+    """The tip's deflection (m, positive down): the area-weighted mean of -u_z (2D: -u_y) over the tip face."""
     w = _tip_weights(body, strip)
-    return float(-np.dot(w, body.x[:, 2] - body.X0[:, 2]) / w.sum())
+    k = body.gdim - 1
+    return float(-np.dot(w, body.x[:, k] - body.X0[:, k]) / w.sum())
 
 
 def beam_deflection(strip: Strip, material: Material, force: float, shear: bool = True) -> float:
