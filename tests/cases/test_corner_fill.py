@@ -54,7 +54,8 @@ def test_yielded_volume_fraction():
     cells = np.array([[0, 1, 2], [1, 3, 2], [1, 3, 4]])  # areas 0.5, 0.5, 1.0
     from pulseform.solvers.dolfinx.body import Body
 
-    body = SimpleNamespace(x=x, cells=cells, axisymmetric=False, thickness=1.0, eps_p=np.array([0.0, 0.0, 1e-3]))
+    body = SimpleNamespace(x=x, cells=cells, axisymmetric=False, thickness=1.0, eps_p=np.array([0.0, 0.0, 1e-3]),
+                           element="tet4")  # linear triangles
     body.cell_volumes = lambda: Body.cell_volumes(body)
     assert _yielded_fraction(body) == pytest.approx(0.5)
 
