@@ -160,7 +160,6 @@ def _validate_3d(case) -> None:
     for i, p in enumerate(case.probes):
         if len(p.point) != 3:
             raise SchemaError(f"probes[{i}].point", f"got {len(p.point)} components; a 3D case needs [x, y, z] (m)")
-    _check_quadratic_loads(case)
     _check_quadratic_contact(case)
     names = [b.name for b in case.bodies]
     for i, s in enumerate(case.symmetry):
@@ -169,18 +168,6 @@ def _validate_3d(case) -> None:
                 raise SchemaError(f"symmetry[{i}].bodies[{j}]", f"got {n!r}; allowed: "
                                   + ", ".join(repr(x) for x in names))
         _check_plane_touches(case, i, s)
-
-
-def _check_quadratic_loads(case) -> None:
-    """Ten-node bodies take no pressure pulses yet: a uniform pressure on a six-node face is shared by its quarter
-    triangles (1/12 at a corner, 1/4 at an edge node) instead of the consistent 0 and 1/3 (docs/mechanics.md). The
-    EM force of a coupled case is a volume force, shared as the masses (docs/coupling.md): it is taken."""
-    quad = {b.name for b in case.bodies if b.element == "tet10"}
-    for i, ld in enumerate(case.loads):
-        if getattr(ld, "body", None) in quad:
-            raise SchemaError(f"loads[{i}].body", f"got {ld.body!r}, a body of element 'tet10'; ten-node bodies take no "
-                              "pressure pulses yet (node loads of six-node faces): set its element = 'tet4' or drive "
-                              "the case by getdp (coupling.load = 'getdp')")
 
 
 def _check_quadratic_contact(case) -> None:

@@ -16,8 +16,8 @@ from petsc4py import PETSc
 
 from .body import ELEMENTS_3D, Body, BodySpec
 from .sliding import SlidingPlanes
-from .tet10 import (N_QP, hrz_lumped_mass, qp_volumes, quadratic_cells, recover_face_pressure, six_node_faces,
-                    split_faces)
+from .tet10 import (N_QP, face_pressure_forces, hrz_lumped_mass, qp_volumes, quadratic_cells, recover_face_pressure,
+                    six_node_faces, split_faces)
 from .tet_fields import tet_elastic_energy_density, tet_volumes, tet_von_mises
 
 __all__ = ["Body3D"]
@@ -237,8 +237,13 @@ class Body3D(Body):
     def pressure_forces(self, facet_marker, pressure: float) -> np.ndarray:
         """Consistent nodal forces (N) of a uniform follower pressure (Pa, positive pushes into
         the body) on the exterior triangles whose three vertices satisfy ``facet_marker``
-        (evaluated on current coordinates (3, N)): -p A n / 3 per vertex; complete on every local
+        (evaluated on current coordinates (3, N)): -p A n / 3 per vertex; a ten-node body: on its six-node faces
+        whose corners satisfy it, consistently (:func:`.tet10.face_pressure_forces`); complete on every local
         row (ghosts too)."""
+        if self.element == "tet10":  # the six-node faces' consistent loads (0 at the corners, A / 3 at edge nodes)
+            mark = np.asarray(facet_marker(self.x.T.copy()), dtype=bool)
+            faces = self.faces6[np.all(mark[self.faces6[:, :3]], axis=1)]
+            return self.complete_nodal(face_pressure_forces(faces, self.x, pressure)[: self.n_local])
         tris = self.segments
         f = np.zeros((self.n_local, 3))
         if tris.shape[0]:

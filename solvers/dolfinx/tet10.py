@@ -28,7 +28,7 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = ["EDGES", "QP_WEIGHTS", "QP_DERIVATIVES", "N_QP", "quadratic_cells", "shape_derivatives",
-           "hrz_lumped_mass", "six_node_faces", "split_faces", "recover_face_pressure", "corner_share",
+           "hrz_lumped_mass", "six_node_faces", "split_faces", "recover_face_pressure", "face_pressure_forces", "corner_share",
            "qp_jacobians", "qp_volumes", "critical_step_factor", "largest_eigenvalues"]
 
 #: corner pairs of the edge nodes 4..9
@@ -176,6 +176,49 @@ def recover_face_pressure(faces6: np.ndarray, x: np.ndarray, force: np.ndarray,
     pf = np.sum(force[f6] / wn[f6], axis=1)                                  # face force / face area
     nodes = np.unique(f6)
     return nodes, np.bincount(f6.ravel(), weights=np.repeat(pf * w, 6), minlength=n)[nodes] / wn[nodes]
+
+
+#: a six-point rule of degree 4 on the reference triangle (Dunavant 1985; weights sum to its area 1/2): exact for a
+#: curved six-node face's int N_a (x_r x x_s) (degree 2 times degree 2)
+_FACE_A, _FACE_B = 0.445948490915965, 0.091576213509771
+FACE_QP = np.array([[_FACE_A, _FACE_A], [1 - 2 * _FACE_A, _FACE_A], [_FACE_A, 1 - 2 * _FACE_A],
+                    [_FACE_B, _FACE_B], [1 - 2 * _FACE_B, _FACE_B], [_FACE_B, 1 - 2 * _FACE_B]])
+FACE_WEIGHTS = 0.5 * np.array([0.223381589678011] * 3 + [0.109951743655322] * 3)
+
+
+def _face_shapes(rs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Six-node triangle (corners a b c, then ab bc ca) at reference points ``rs`` (q, 2): N (q, 6), dN/dr, dN/ds."""
+    r, t = rs[:, 0], rs[:, 1]
+    L = np.stack([1.0 - r - t, r, t], axis=1)
+    dL = np.array([[-1.0, 1.0, 0.0], [-1.0, 0.0, 1.0]])            # dL_a / dr, dL_a / ds
+    pairs = ((0, 1), (1, 2), (2, 0))
+    N = np.concatenate([L * (2 * L - 1), np.stack([4 * L[:, a] * L[:, b] for a, b in pairs], axis=1)], axis=1)
+    d = []
+    for k in range(2):
+        dc = (4 * L - 1) * dL[k]
+        de = np.stack([4 * (dL[k, a] * L[:, b] + L[:, a] * dL[k, b]) for a, b in pairs], axis=1)
+        d.append(np.concatenate([dc, de], axis=1))
+    return N, d[0], d[1]
+
+
+_FACE_N, _FACE_DR, _FACE_DS = _face_shapes(FACE_QP)
+
+
+def face_pressure_forces(faces6: np.ndarray, x: np.ndarray, pressure: float) -> np.ndarray:
+    """Consistent nodal forces (N, 3), N, of a uniform follower pressure (Pa, positive pushes into the body) on
+    six-node faces (:func:`six_node_faces`, outward oriented) at positions ``x`` (m): f_a = -p int N_a n dA over
+    each (possibly curved) face, by a six-point rule of degree 4 (exact). A straight face's: 0 at the corners and
+    -p A n / 3 at each edge node (Zienkiewicz & Taylor, vol. 1, the six-node triangle's load vector): the loads under
+    which a ten-node body carries a uniform stress exactly (the patch test)."""
+    f6 = np.asarray(faces6, dtype=np.int64).reshape(-1, 6)
+    xe = x[f6]                                                                       # (n, 6, 3)
+    xr = np.einsum("qk,nki->nqi", _FACE_DR, xe)
+    xs = np.einsum("qk,nki->nqi", _FACE_DS, xe)
+    fk = -pressure * np.einsum("q,qk,nqi->nki", FACE_WEIGHTS, _FACE_N, np.cross(xr, xs))
+    out = np.zeros((len(x), 3))
+    for c in range(3):
+        out[:, c] = np.bincount(f6.ravel(), weights=fk[:, :, c].ravel(), minlength=len(x))
+    return out
 
 
 def qp_jacobians(x: np.ndarray) -> np.ndarray:

@@ -325,12 +325,8 @@ BAD_COUPLED = [
     ("shots_without_bank", "two_coils_plate", ["em.shots={count = 2, pause = 1.0}"], "em.shots"),
     ("shots_on_a_user_deck", "user_deck_sheet_bulge", ["em.shots={count = 2, pause = 1.0}"], "em.shots"),
     # issue 34 item 4: ten-node tetrahedra in 3D cases, mechanics-only and coupled (walls and contact too: see
-    # test_tet10_walls_and_contact_are_accepted), not yet under pressure pulses
+    # test_tet10_walls_and_contact_are_accepted; pressure pulses: test_tet10_pressure_pulses_are_accepted)
     ("tet10_in_2d", "bar_impact", ["bodies[0].element='tet10'"], "bodies[0].element"),
-    ("tet10_pressure_pulse", "emf_sheet_bulge_3d", ["bodies[0].element='tet10'", 'coupling.load="pressure"',
-                                                    'loads=[{type="pulse_sin2", body="sheet", surface={zmin=1.4999e-3, '
-                                                    'zmax=1.5001e-3}, amplitude=8.7e6, beta=8.9e3, omega=9.3e4, '
-                                                    't_end=60e-6}]'], "loads[0].body"),
     ("element_unknown", "bar_impact_3d", ["bodies[0].element='hex8'"], "bodies[0].element"),
     # the 2D half: six-node triangles in mechanics-only 2D cases without walls or contact
     ("tri6_in_3d", "bar_impact_3d", ["bodies[0].element='tri6'"], "bodies[0].element"),
@@ -363,6 +359,18 @@ def test_tet10_walls_and_contact_are_accepted():
     case, _ = load_case(REPO / "cases" / "bar_impact_3d" / "two_bodies.toml",
                         ["bodies[0].element='tet10'", "bodies[1].element='tet10'"])
     assert {b.element for b in case.bodies} == {"tet10"} and case.contact
+
+
+def test_tet10_pressure_pulses_are_accepted():
+    """Pressure pulses on a ten-node body (refused before the six-node faces took their consistent loads,
+    tests/mechanics/test_tet10_pressure.py): the case's validation passes."""
+    from pulseform.orchestrator.case.io import load_case
+
+    case, _ = load_case(REPO / "cases" / "emf_sheet_bulge_3d", [
+        "bodies[0].element='tet10'", 'coupling.load="pressure"',
+        'loads=[{type="pulse_sin2", body="sheet", surface={zmin=1.4999e-3, zmax=1.5001e-3}, amplitude=8.7e6, '
+        'beta=8.9e3, omega=9.3e4, t_end=60e-6}]'])
+    assert case.bodies[0].element == "tet10" and case.loads
 
 
 def test_tri6_is_accepted_in_a_mechanics_only_2d_case():
