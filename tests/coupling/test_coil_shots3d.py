@@ -16,6 +16,7 @@
 from __future__ import annotations
 
 import csv
+import json
 import math
 import subprocess
 import sys
@@ -124,3 +125,39 @@ def test_three_3d_shots_match_a_lumped_rlc_with_r_of_t(tmp_path):
     assert got_end[-1] > got_end[0] + 50.0 and got_peak[1] < got_peak[0] * 0.997   # warmer, higher R, lower peak
     # the coil's resistance at T_ref: N² V / (σ S_c²) of the five rectangles (the sector's chords: 1e-3)
     assert r_ref == pytest.approx(TURNS ** 2 * _coil_volume() / (1e7 * (TURNS * W * HT) ** 2), rel=1e-3)
+
+
+@pytest.mark.slow
+@pytest.mark.getdp
+def test_3d_shots_resume_bitwise(tmp_path):
+    """Two 3D shots (the circuit above, 6 us windows, a checkpoint every 2 us), stopped by SIGINT in the second shot
+    (after shot 1's row of shots.csv is written) and resumed: shots.csv, history.csv and every metric but the timers
+    equal the uninterrupted run's bit for bit (the 3D checkpoint carries the shots so far, the bank and the coil's
+    start temperature, as test_coil_shots.py::test_shots_resume_bitwise checks in 2D)."""
+    import signal
+    import time
+
+    from .resume_check import assert_coupled3d_outputs_bitwise
+
+    over = [s for s in SHOTS3D if not s.startswith("em.shots=")] + [
+        f"em.shots={{count=2, pause={PAUSE}, coil_heat_transfer={H}, ambient_temperature={T_AMB}, "
+        "body_heat_transfer=20.0}", "time.end=6e-6", "output.field_interval=2e-6", "output.plots=false",
+        "geometry.em_step=0.5e-6"]
+    ref, out = tmp_path / "ref", tmp_path / "out"
+    argv = [EXE, "run", str(CASE), "--quiet", *sets(over)]
+    r = subprocess.run(argv + ["--out", str(ref)], capture_output=True, text=True, timeout=1800)
+    assert r.returncode == 0, r.stderr[-3000:]
+    proc = subprocess.Popen(argv + ["--out", str(out)], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    deadline = time.time() + 600
+    while not (out / "shots.csv").exists() and proc.poll() is None and time.time() < deadline:
+        time.sleep(0.005)
+    time.sleep(0.5)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=600)
+    assert proc.returncode == 130, err[-2000:]
+    stopped = json.loads((out / "metrics.json").read_text())
+    assert 6e-6 < stopped["end_time_s"] < 12e-6, stopped["end_time_s"]          # in the second shot
+    resumed = subprocess.run(argv + ["--out", str(out), "--resume"], capture_output=True, text=True, timeout=1800)
+    assert resumed.returncode == 0, resumed.stderr[-3000:]
+    assert (out / "shots.csv").read_bytes() == (ref / "shots.csv").read_bytes()
+    assert_coupled3d_outputs_bitwise(ref, out)
