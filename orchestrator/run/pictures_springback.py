@@ -16,7 +16,7 @@ from .pictures_mech import _run_name, _save_fig, boundary_edges
 
 log = logging.getLogger(__name__)
 
-__all__ = ["draw_springback", "magnification", "springback_states"]
+__all__ = ["draw_springback", "magnification", "springback_states", "stage_of"]
 
 #: the springback is drawn magnified when its largest value is below VISIBLE of the body's size, by the power of
 #: ten that makes it at least SHOWN of it
@@ -27,6 +27,11 @@ def magnification(size: float, dmax: float) -> float:
     """The factor the springback is drawn with: 1 when its largest value ``dmax`` is at least VISIBLE of the body's
     ``size`` (both m), else the power of ten that makes it at least SHOWN of it."""
     return 1.0 if dmax >= VISIBLE * size or dmax == 0.0 else float(10 ** np.ceil(np.log10(SHOWN * size / dmax)))
+
+
+def stage_of(picture: str, body: str) -> str:
+    """The springback stage a picture ``springback_[<stage>_]<body>.png`` shows ('' for the case's ``[springback]``)."""
+    return picture[len("springback_"):-len(body) - len(".png")].rstrip("_")
 
 
 def _positions(b: BodyFields, k: int) -> np.ndarray:
@@ -110,7 +115,7 @@ def draw_springback(results_dir: Path, case=None) -> list[Path]:
         axi = a.axisymmetric
         ax.set_xlabel("r [mm]" if axi else "x [mm]")
         ax.set_ylabel("z [mm]" if axi else "y [mm]")
-        stage = picture[len("springback_"):-len(name) - 5].rstrip("_")
+        stage = stage_of(picture, name)
         ax.set_title(f"{name}: springback{f' ({stage})' if stage else ''}, largest {dmax * 1e3:.3g} mm", fontsize=10)
         ax.legend(fontsize=8, loc="best")
         ax.grid(alpha=0.3)

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from .pictures_solid import boundary_faces, solid_camera
-from .pictures_springback import magnification, springback_states
+from .pictures_springback import magnification, springback_states, stage_of
 
 log = logging.getLogger(__name__)
 
@@ -56,7 +56,8 @@ def render_springback3d(results_dir: Path) -> list[Path]:
         p.camera.zoom(0.85)  # room for the colour bar on the right
         p.add_axes(color="black", xlabel="x", ylabel="y", zlabel="z")
         drawn = f", drawn x {gain:g}" if gain != 1.0 else ""
-        p.add_text(f"{name}: springback, largest {dmax * 1e3:.3g} mm{drawn}\n"
+        stage = stage_of(picture, name)
+        p.add_text(f"{name}: springback{f' ({stage})' if stage else ''}, largest {dmax * 1e3:.3g} mm{drawn}\n"
                    "grey: before springback; coloured: after (mm)", position="upper_left",
                    font_size=11, color="black", render=False)
         out.append(_screenshot(p, root / "plots" / picture))
