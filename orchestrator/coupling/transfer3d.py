@@ -19,11 +19,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from pulseform.solvers.dolfinx.tet10 import corner_share
+from pulseform.solvers.dolfinx.tet10 import HRZ_SHARES
 from pulseform.solvers.getdp.mesh3d import tet_volumes
 
 #: the share of a ten-node cell's force on its nodes (corners 0-3, then edge nodes 4-9): the HRZ mass proportions
-TEN_NODE_SHARES = np.concatenate([np.full(4, corner_share), np.full(6, (1.0 - 4.0 * corner_share) / 6.0)])
+TEN_NODE_SHARES = HRZ_SHARES
 
 
 def tet_nodal_forces(x: np.ndarray, cells: np.ndarray, f_cell: np.ndarray) -> np.ndarray:

@@ -28,8 +28,9 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = ["EDGES", "QP_WEIGHTS", "QP_DERIVATIVES", "N_QP", "quadratic_cells", "shape_derivatives",
-           "hrz_lumped_mass", "six_node_faces", "split_faces", "recover_face_pressure", "face_pressure_forces", "corner_share",
-           "qp_jacobians", "qp_volumes", "critical_step_factor", "largest_eigenvalues"]
+           "hrz_lumped_mass", "six_node_faces", "split_faces", "recover_face_pressure", "face_pressure_forces",
+           "corner_share", "HRZ_SHARES", "qp_jacobians", "qp_volumes", "critical_step_factor", "largest_eigenvalues",
+           "step_factor"]
 
 #: corner pairs of the edge nodes 4..9
 EDGES = ((0, 1), (1, 2), (0, 2), (0, 3), (1, 3), (2, 3))
@@ -42,6 +43,8 @@ QP_BARY = np.array([[_A, _B, _B, _B], [_B, _A, _B, _B], [_B, _B, _A, _B], [_B, _
 QP_WEIGHTS = np.full(N_QP, 1.0 / 24.0)
 #: HRZ share of a corner node in the element mass (an edge node: (1 - 4 share) / 6 = 4/27)
 corner_share = 1.0 / 36.0
+#: each node's HRZ share of a straight cell's mass (corners 0-3, then edge nodes 4-9)
+HRZ_SHARES = np.concatenate([np.full(4, corner_share), np.full(6, (1.0 - 4.0 * corner_share) / 6.0)])
 
 
 def shape_derivatives(bary: np.ndarray) -> np.ndarray:
@@ -103,8 +106,7 @@ def hrz_lumped_mass(cells10: np.ndarray, volumes: np.ndarray, density: float, n_
     """HRZ lumped nodal masses (kg) of straight ten-node cells of ``volumes`` (m^3): a corner 1/36, an edge
     node 4/27 of rho V (all positive; their sum is the body's mass)."""
     m = density * np.asarray(volumes, dtype=float)
-    share = np.concatenate([np.full(4, corner_share), np.full(6, (1.0 - 4.0 * corner_share) / 6.0)])
-    return np.bincount(cells10.ravel(), weights=(m[:, None] * share).ravel(), minlength=n_nodes)
+    return np.bincount(cells10.ravel(), weights=(m[:, None] * HRZ_SHARES).ravel(), minlength=n_nodes)
 
 
 def six_node_faces(tris: np.ndarray, edge_node: dict) -> np.ndarray:
@@ -284,15 +286,27 @@ def critical_step_factor(cells10: np.ndarray, X: np.ndarray, shear_modulus: floa
     shear_modulus, bulk_modulus : float
         G and K, Pa.
     """
+    return step_factor(cells10, X, QP_DERIVATIVES, QP_WEIGHTS, HRZ_SHARES, shear_modulus, bulk_modulus,
+                       _corner_altitude, 4096)
+
+
+def _corner_altitude(xe: np.ndarray) -> np.ndarray:
+    """The smallest altitude (m) of each cell's corner tetrahedron (xe (nc, >= 4, 3))."""
+    a, b, cc = (xe[:, k] - xe[:, 0] for k in (1, 2, 3))
+    n1, n2, n3 = np.cross(b, cc), np.cross(cc, a), np.cross(a, b)
+    area = np.max(np.stack([np.einsum("ni,ni->n", n, n) for n in (n1 + n2 + n3, n1, n2, n3)]), axis=0)
+    return np.einsum("ni,ni->n", a, n1) / np.sqrt(area)
+
+
+def step_factor(cells: np.ndarray, X: np.ndarray, dN: np.ndarray, wq: np.ndarray, share: np.ndarray,
+                shear_modulus: float, bulk_modulus: float, altitude, chunk: int) -> float:
+    """The smallest ratio over ``cells`` of 2 / omega_e (:func:`largest_eigenvalues`) to h_e / c, h_e =
+    ``altitude(xe)`` (m) the linear kernel's length of the corner cell and c = sqrt((K + 4 G / 3) / rho) (the density
+    cancels); cells taken ``chunk`` at a time. The quadratic elements' critical-step factor (tet10, tri6)."""
     c2 = float(bulk_modulus) + 4.0 * float(shear_modulus) / 3.0      # rho c^2 (rho = 1: it cancels)
-    share = np.concatenate([np.full(4, corner_share), np.full(6, (1.0 - 4.0 * corner_share) / 6.0)])
     worst = np.inf
-    for s in range(0, len(cells10), 4096):
-        xe = X[cells10[s:s + 4096]]
-        lam_max = largest_eigenvalues(xe, QP_DERIVATIVES, QP_WEIGHTS, share, shear_modulus, bulk_modulus)
-        a, b, cc = (xe[:, k] - xe[:, 0] for k in (1, 2, 3))
-        n1, n2, n3 = np.cross(b, cc), np.cross(cc, a), np.cross(a, b)
-        area = np.max(np.stack([np.einsum("ni,ni->n", n, n) for n in (n1 + n2 + n3, n1, n2, n3)]), axis=0)
-        h = np.einsum("ni,ni->n", a, n1) / np.sqrt(area)
-        worst = min(worst, float(np.min(2.0 / np.sqrt(lam_max) / (h / np.sqrt(c2)))))
+    for s in range(0, len(cells), chunk):
+        xe = X[cells[s:s + chunk]]
+        lam_max = largest_eigenvalues(xe, dN, wq, share, shear_modulus, bulk_modulus)
+        worst = min(worst, float(np.min(2.0 / np.sqrt(lam_max) / (altitude(xe) / np.sqrt(c2)))))
     return worst

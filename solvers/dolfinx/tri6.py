@@ -1,6 +1,6 @@
 """The quadratic (six-node) triangle of the 2D bodies (``BodySpec.element = "tri6"``, issue 34 item 4): the
 element that bends without locking in plane stress, plane strain and axisymmetry — the 2D counterpart of
-:mod:`.tet10`, whose helpers it shares (:func:`.tet10.quadratic_cells`, :func:`.tet10.largest_eigenvalues`).
+:mod:`.tet10`, whose helpers it shares (:func:`.tet10.quadratic_cells`, :func:`.tet10.step_factor`).
 
 A linear triangle has a constant strain: a sheet two or three of them thick is far too stiff in bending (shear
 locking: docs/mechanics.md gives the figures of a plane-stress cantilever). The six-node triangle carries a linear
@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .tet10 import largest_eigenvalues
+from .tet10 import step_factor
 
 __all__ = ["EDGES", "N_QP", "QP_WEIGHTS", "QP_DERIVATIVES", "QP_VALUES", "shape_values", "shape_derivatives",
            "hrz_lumped_mass", "three_node_edges", "split_edges", "edge_pressure_forces", "qp_measures",
@@ -170,15 +170,14 @@ def critical_step_factor(cells6: np.ndarray, X: np.ndarray, shear_modulus: float
     shear_modulus, bulk_modulus : float
         G and K, Pa.
     """
-    c2 = float(bulk_modulus) + 4.0 * float(shear_modulus) / 3.0      # rho c^2 (rho = 1: it cancels)
     share = np.array([1.0 / 19.0] * 3 + [16.0 / 57.0] * 3)          # HRZ of a straight planar cell
-    worst = np.inf
-    for s in range(0, len(cells6), 8192):
-        xe = X[cells6[s:s + 8192]]
-        lam_max = largest_eigenvalues(xe, QP_DERIVATIVES, QP_WEIGHTS, share, shear_modulus, bulk_modulus)
-        a, b = xe[:, 1] - xe[:, 0], xe[:, 2] - xe[:, 0]
-        area2 = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
-        lmax = np.sqrt(np.max(np.stack([np.sum(a * a, 1), np.sum(b * b, 1), np.sum((b - a) ** 2, 1)]), axis=0))
-        h = area2 / lmax
-        worst = min(worst, float(np.min(2.0 / np.sqrt(lam_max) / (h / np.sqrt(c2)))))
-    return worst
+    return step_factor(cells6, X, QP_DERIVATIVES, QP_WEIGHTS, share, shear_modulus, bulk_modulus,
+                       _corner_altitude, 8192)
+
+
+def _corner_altitude(xe: np.ndarray) -> np.ndarray:
+    """The altitude (m) of each cell's corner triangle on its longest edge (xe (nc, >= 3, 2))."""
+    a, b = xe[:, 1] - xe[:, 0], xe[:, 2] - xe[:, 0]
+    area2 = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+    lmax = np.sqrt(np.max(np.stack([np.sum(a * a, 1), np.sum(b * b, 1), np.sum((b - a) ** 2, 1)]), axis=0))
+    return area2 / lmax
