@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from held_bar import run_held_bar
 from warm_cli import pulseform_cli
 
 CASE = """
@@ -70,19 +71,7 @@ field_interval = 5.0e-4
 def test_held_bar_of_ten_node_tetrahedra(tmp_path):
     import h5py
 
-    (tmp_path / "case").mkdir()
-    (tmp_path / "case" / "case.toml").write_text(CASE)
-    out = tmp_path / "out"
-    r = pulseform_cli(["run", str(tmp_path / "case"), "--out", str(out), "--quiet"])
-    assert r.returncode == 0, r.stderr[-2000:]
-    rows = list(csv.DictReader((out / "history.csv").open()))
-    t = np.array([float(x["time_s"]) for x in rows])
-    vm = np.array([float(x["mid_von_mises_Pa"]) for x in rows])
-    window = (t > 0.6e-3) & (t < 1.1e-3)
-    assert window.sum() > 50
-    assert vm[window].mean() == pytest.approx(2800.0 * 5000.0 * 5.0, rel=0.10)
-    m = json.loads((out / "metrics.json").read_text())
-    assert m["status_ok"] == 1.0
+    out = run_held_bar(CASE, tmp_path)
     with h5py.File(next(Path(out, "fields").glob("*_bar.h5"))) as f:
         assert f["Mesh/tetrahedra10"].shape[1] == 10
 

@@ -32,7 +32,7 @@ from pulseform.solvers.dolfinx.body import BodySpec
 from pulseform.solvers.dolfinx.material import Material
 
 __all__ = ["Strip", "strip_body", "tip_load", "tip_deflection", "beam_deflection", "hinge_load",
-           "beam_plastic_deflection", "plane_strip_body"]
+           "beam_plastic_deflection", "plane_strip_body", "relax_to_rest", "runaway"]
 
 
 @dataclass(frozen=True)
@@ -156,3 +156,31 @@ def beam_plastic_deflection(strip: Strip, material: Material, force: float) -> f
 
     pts = [L * (1.0 - My / (P * L))] if P * L > My else None
     return quad(lambda x: kappa(x) * (L - x), 0.0, L, points=pts, limit=200)[0]
+
+
+def relax_to_rest(solver, strip: Strip, force: float, reference: float, rounds: int) -> float:
+    """The tip deflection (m) of ``solver``'s strip under the tip ``force`` (N), relaxed to rest by the explicit
+    solver's kinetic damping: up to ``rounds`` rounds of 500 stable steps, until a round changes the deflection by
+    less than 1e-5 of ``reference`` (m) and the kinetic energy is below 1e-9 J (dynamic relaxation)."""
+    solver.kinetic_damping = True
+    b = solver.bodies["strip"]
+    f = {"strip": tip_load(b, strip, force)}
+    prev = math.inf
+    for _ in range(rounds):
+        solver.advance(solver.stable_time_step(), 500, f)
+        d = tip_deflection(b, strip)
+        if abs(d - prev) < 1e-5 * reference and solver.energies()["kinetic_J"] < 1e-9:
+            break
+        prev = d
+    return d
+
+
+def runaway(fractions, deflections, ratio: float = 10.0) -> float:
+    """The load fraction at which the compliance (difference quotients of ``deflections`` over ``fractions``, in the
+    units of their ratio) first reaches ``ratio``, interpolated linearly between interval midpoints."""
+    f = np.asarray(fractions, float)
+    q = np.diff(np.asarray(deflections, float)) / np.diff(f)
+    mid = 0.5 * (f[1:] + f[:-1])
+    k = int(np.flatnonzero(q >= ratio)[0])
+    assert k > 0, "the compliance is already past the ratio at the first load step"
+    return mid[k - 1] + (ratio - q[k - 1]) / (q[k] - q[k - 1]) * (mid[k] - mid[k - 1])

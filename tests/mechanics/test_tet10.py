@@ -10,8 +10,8 @@ import pytest
 import scipy.linalg as sla
 
 from pulseform.solvers.dolfinx import ExplicitSolver3D, ImplicitOptions, ImplicitSolver3D, Material
-from cantilever_strip import (Strip, beam_deflection, beam_plastic_deflection, hinge_load,
-                                                  strip_body, tip_deflection, tip_load)
+from cantilever_strip import (Strip, beam_deflection, beam_plastic_deflection, hinge_load, relax_to_rest, runaway,
+                              strip_body, tip_deflection, tip_load)
 from pulseform.solvers.dolfinx.implicit_element import CellState, cell_tangent, cell_update
 from pulseform.solvers.dolfinx.kernels import pack_parameters
 from pulseform.solvers.dolfinx.tet10 import (QP_DERIVATIVES, QP_WEIGHTS, hrz_lumped_mass, qp_volumes,
@@ -141,29 +141,9 @@ def test_cantilever_explicit_elastic_three_layers():
     si.advance(1.0, 1, {"strip": tip_load(bi, st, 1.0)})
     d_implicit = tip_deflection(bi, st)
     s = ExplicitSolver3D([strip_body(st, ELASTIC, "tet10")], cfl=0.8)
-    s.kinetic_damping = True
-    b = s.bodies["strip"]
-    f = {"strip": tip_load(b, st, 1.0)}
-    prev = math.inf
-    for _ in range(200):
-        s.advance(s.stable_time_step(), 500, f)
-        d = tip_deflection(b, st)
-        if abs(d - prev) < 1e-5 * d_implicit and s.energies()["kinetic_J"] < 1e-9:
-            break
-        prev = d
+    d = relax_to_rest(s, st, 1.0, d_implicit, 200)
     assert d == pytest.approx(d_implicit, rel=3e-3)
     assert d == pytest.approx(beam_deflection(st, ELASTIC, 1.0), rel=0.02)
-
-
-def _runaway(fractions, deflections, ratio=10.0):
-    """The load fraction at which the compliance (difference quotients of ``deflections`` over ``fractions``,
-    in the units of their ratio) first reaches ``ratio``, interpolated linearly between interval midpoints."""
-    f = np.asarray(fractions, float)
-    q = np.diff(np.asarray(deflections, float)) / np.diff(f)
-    mid = 0.5 * (f[1:] + f[:-1])
-    k = int(np.flatnonzero(q >= ratio)[0])
-    assert k > 0, "the compliance is already past the ratio at the first load step"
-    return mid[k - 1] + (ratio - q[k - 1]) / (q[k] - q[k - 1]) * (mid[k] - mid[k - 1])
 
 
 @pytest.mark.slow
@@ -190,7 +170,7 @@ def test_cantilever_plastic_hinge_three_layers():
     fb = np.round(np.arange(0.97, 0.9976, 0.0005), 5)
     beam = [beam_plastic_deflection(st, mat, f * Pp) / d_el for f in fb]
     assert d[2] == pytest.approx(beam_plastic_deflection(st, mat, 0.98 * Pp), rel=0.02)
-    assert _runaway(fr, np.array(d) / d_el) == pytest.approx(_runaway(fb, beam), rel=0.02)
+    assert runaway(fr, np.array(d) / d_el) == pytest.approx(runaway(fb, beam), rel=0.02)
 
 
 def test_element_choice_is_checked_and_fields_are_written(tmp_path):

@@ -13,7 +13,7 @@ from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
 from cantilever_strip import (Strip, beam_deflection, beam_plastic_deflection, hinge_load, plane_strip_body,
-                              tip_deflection, tip_load)
+                              relax_to_rest, runaway, tip_deflection, tip_load)
 from mech_helpers import central_difference_tangent
 from pulseform.solvers.dolfinx import BodySpec, ExplicitSolver, ImplicitOptions, ImplicitSolver, Material
 from pulseform.solvers.dolfinx.implicit_element import CellState, cell_tangent, cell_update
@@ -221,29 +221,9 @@ def test_cantilever_explicit_with_kinetic_damping():
     d_implicit = tip_deflection(bi, st)
     s = ExplicitSolver([plane_strip_body(st, ELASTIC, "tri6")], cfl=0.8, formulation="plane_stress",
                        thickness=st.width)
-    s.kinetic_damping = True
-    b = s.bodies["strip"]
-    f = {"strip": tip_load(b, st, 1.0)}
-    prev = math.inf
-    for _ in range(400):
-        s.advance(s.stable_time_step(), 500, f)
-        d = tip_deflection(b, st)
-        if abs(d - prev) < 1e-5 * d_implicit and s.energies()["kinetic_J"] < 1e-9:
-            break
-        prev = d
+    d = relax_to_rest(s, st, 1.0, d_implicit, 400)
     assert d == pytest.approx(d_implicit, rel=3e-3)
     assert d == pytest.approx(beam_deflection(st, ELASTIC, 1.0), rel=0.02)
-
-
-def _runaway(fractions, deflections, ratio=10.0):
-    """The load fraction at which the compliance (difference quotients of ``deflections`` over ``fractions``) first
-    reaches ``ratio``, interpolated linearly between interval midpoints."""
-    f = np.asarray(fractions, float)
-    q = np.diff(np.asarray(deflections, float)) / np.diff(f)
-    mid = 0.5 * (f[1:] + f[:-1])
-    k = int(np.flatnonzero(q >= ratio)[0])
-    assert k > 0, "the compliance is already past the ratio at the first load step"
-    return mid[k - 1] + (ratio - q[k - 1]) / (q[k] - q[k - 1]) * (mid[k] - mid[k - 1])
 
 
 @pytest.mark.slow
@@ -266,4 +246,4 @@ def test_cantilever_plastic_hinge_plane_stress():
     fb = np.round(np.arange(0.97, 0.9976, 0.0005), 5)
     beam = [beam_plastic_deflection(st, mat, f * Pp) / d_el for f in fb]
     assert d[2] == pytest.approx(beam_plastic_deflection(st, mat, 0.98 * Pp), rel=0.02)
-    assert _runaway(fr, np.array(d) / d_el) == pytest.approx(_runaway(fb, beam), rel=0.02)
+    assert runaway(fr, np.array(d) / d_el) == pytest.approx(runaway(fb, beam), rel=0.02)
