@@ -123,8 +123,8 @@ class BodyTable:
     element: Literal["tet4", "tet10", "tri6"] = spec(
         "tet4", doc="the body's element: 'tet4' linear cells (tetrahedra in 3D, triangles in 2D); 'tet10' (3D) "
                     "ten-node tetrahedra, 'tri6' (2D) six-node triangles (a node mid-edge), which bend without "
-                    "locking (thin parts; one process; 'tet10': mechanics-only and coupled 3D cases, soft contact "
-                    "with the explicit integrator only; 'tri6': mechanics-only cases, no walls, "
+                    "locking (thin parts; one process; 'tet10': mechanics-only and coupled 3D cases, walls and soft "
+                    "contact; 'tri6': mechanics-only cases, no walls, "
                     "contact or forming-limit check yet)")
     initial_velocity: Vec = spec((0.0, 0.0), unit="m/s", doc="uniform initial velocity ([vx, vy, vz] in 3D)")
     fixed: tuple[FixedBoundary, ...] = spec((), doc="clamped boundary parts")

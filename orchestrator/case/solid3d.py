@@ -160,7 +160,6 @@ def _validate_3d(case) -> None:
     for i, p in enumerate(case.probes):
         if len(p.point) != 3:
             raise SchemaError(f"probes[{i}].point", f"got {len(p.point)} components; a 3D case needs [x, y, z] (m)")
-    _check_quadratic_contact(case)
     names = [b.name for b in case.bodies]
     for i, s in enumerate(case.symmetry):
         for j, n in enumerate(s.bodies):
@@ -168,21 +167,6 @@ def _validate_3d(case) -> None:
                 raise SchemaError(f"symmetry[{i}].bodies[{j}]", f"got {n!r}; allowed: "
                                   + ", ".join(repr(x) for x in names))
         _check_plane_touches(case, i, s)
-
-
-def _check_quadratic_contact(case) -> None:
-    """Ten-node bodies take walls in both integrators, soft contact in the explicit one only: the implicit Newton
-    iterations stall on a ten-node contact pair (two blocks pressed through the layer: the residual stays at
-    1e-4..1e-5, docs/mechanics.md)."""
-    if case.mechanics.integrator != "implicit":
-        return
-    quad = {b.name for b in case.bodies if b.element == "tet10"}
-    for i, c in enumerate(case.contact):
-        for side in ("slave", "master"):
-            if getattr(c, side) in quad:
-                raise SchemaError(f"contact[{i}].{side}", f"got {getattr(c, side)!r}, a body of element 'tet10', with "
-                                  "mechanics.integrator = 'implicit'; ten-node bodies take soft contact in the "
-                                  "explicit integrator only: set integrator = 'explicit' or its element = 'tet4'")
 
 
 def _check_plane_touches(case, i: int, plane: SymmetryPlane) -> None:

@@ -22,7 +22,7 @@ from typing import Optional
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .contact import ContactPairSpec, ContactResult, libm_log
+from .contact import ContactPairSpec, ContactResult, choose_faces, libm_log
 
 __all__ = ["soft_contact_pass_3d", "triangle_contact_areas"]
 
@@ -86,7 +86,8 @@ def soft_contact_pass_3d(Xs: np.ndarray, Vs: np.ndarray, slave_tris: np.ndarray,
                          weight: float = 1.0, xi_tol: float = 0.02,
                          Ms: Optional[np.ndarray] = None, Mm: Optional[np.ndarray] = None,
                          dt: float = 0.0, previous: Optional[tuple] = None,
-                         tri_key: Optional[np.ndarray] = None) -> ContactResult:
+                         tri_key: Optional[np.ndarray] = None,
+                         prefer: Optional[tuple] = None) -> ContactResult:
     """Node-to-face soft contact of slave surface nodes against master triangles.
 
     Parameters
@@ -105,6 +106,8 @@ def soft_contact_pass_3d(Xs: np.ndarray, Vs: np.ndarray, slave_tris: np.ndarray,
         As in :func:`.contact.soft_contact_pass` (``xi_tol``: accepted barycentric undershoot).
     tri_key : (Tm,) int array, optional
         Canonical order of the master faces for ties (equal |h| to 1e-9 h0).
+    prefer : (slave indices, face indices), optional
+        Pairs of a previous evaluation, kept near shared edges (:func:`.contact.choose_faces`).
 
     Returns
     -------
@@ -157,12 +160,10 @@ def soft_contact_pass_3d(Xs: np.ndarray, Vs: np.ndarray, slave_tris: np.ndarray,
     if not ok.any():
         return empty
     si, mj, xi, nrm, h = si[ok], mj[ok], xi[ok], nrm[ok], h[ok]
-    over = np.maximum(-xi.min(axis=1), 0.0) * np.sqrt(two_area[ok])
-    hq = np.round(np.abs(h) / (1e-9 * h0))
-    oq = np.round(over / (1e-9 * h0))
+    size = np.sqrt(two_area[ok])
+    over = np.maximum(-xi.min(axis=1), 0.0) * size
     key = tri_key[mj] if tri_key is not None else mj
-    order = np.lexsort((key, hq, oq, si))
-    first = order[np.unique(si[order], return_index=True)[1]]
+    first = choose_faces(si, mj, h, over, size, h0, key, prefer)
     si, mj, xi, nrm, h = si[first], mj[first], xi[first], nrm[first], h[first]
     if np.any(h <= 0.0):
         k = int(np.argmin(h))

@@ -36,10 +36,9 @@ infinity (1 + alpha) / (1 - alpha)). The energy ledger adds ``internal_work_J`` 
 work of the internal forces) and ``algorithmic_dissipation_J`` = external work - change of kinetic
 energy - internal work: zero to the Newton tolerance for the trapezoidal rule, the energy HHT removes.
 
-Contact pairs (eq. (5), elastic law) join the residual with their tangent (:mod:`.implicit_contact`);
-rigid walls are exact constraints on an active set (:mod:`.implicit_walls`). Not done yet (the solver
-refuses them in one line): contact friction and viscosity, soft planes, oblique sliding planes, MPI (one
-process), bulk viscosity (not needed: HHT damps the high modes).
+Contact pairs (eq. (5), elastic law) join the residual with their tangent (:mod:`.implicit_contact`); rigid walls
+are exact constraints on an active set (:mod:`.implicit_walls`). Not done yet (the solver refuses them in one line):
+contact friction and viscosity, soft planes, oblique sliding planes, MPI (one process), bulk viscosity (not needed).
 """
 from __future__ import annotations
 
@@ -293,7 +292,9 @@ class ImplicitSteps(ImplicitLedger):
         iterate ``du`` (all components; the wall and support reactions are R at their components)."""
         o = self.options
         trial = _Trial(du)
-        trial.contact = evaluate_contact(self, {n: b.x + du[n] for n, b in self.bodies.items()}, self._offsets)
+        trial.contact = evaluate_contact(self, {n: b.x + du[n] for n, b in self.bodies.items()}, self._offsets,
+                                         getattr(self, "_last_pairs", None))
+        self._last_pairs = trial.contact.active
         R_parts, scale_parts = [], [0.0, 0.0, 0.0, 0.0]
         for n, b in self.bodies.items():
             res = self._cells(n, b, du[n][b.cells], dt)
@@ -336,7 +337,7 @@ class ImplicitSteps(ImplicitLedger):
         target = {n: np.where(self._mask[n], self._prescribed(n, b, dt), 0.0) for n, b in self.bodies.items()}
         walls = WallSet(self)
         residuals: List[float] = []
-        self.last_residuals = residuals
+        self.last_residuals, self._last_pairs = residuals, None
         last, halvings = None, 0
         for it in range(o.newton_max + 1):
             try:

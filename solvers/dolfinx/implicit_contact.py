@@ -17,7 +17,7 @@ are refused by the implicit solver (a static springback has no velocity).
 """
 from __future__ import annotations
 
-from typing import Dict, List, Mapping, Sequence, Tuple
+from typing import Dict, List, Mapping, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -133,8 +133,11 @@ class ContactEval:
 
 
 
-def evaluate_contact(solver, x: Mapping[str, np.ndarray], offsets: Mapping[str, int]) -> ContactEval:
-    """The contact forces of ``solver``'s pairs with the bodies at positions ``x`` (name -> (N, d), m).
+def evaluate_contact(solver, x: Mapping[str, np.ndarray], offsets: Mapping[str, int],
+                     prefer: Optional[Mapping[tuple, tuple]] = None) -> ContactEval:
+    """The contact forces of ``solver``'s pairs with the bodies at positions ``x`` (name -> (N, d), m);
+    ``prefer``: the active pairs of the previous Newton iterate (:attr:`ContactEval.active`), kept by a node
+    near an edge between two master faces (:func:`.contact.choose_faces`).
 
     Raises
     ------
@@ -160,11 +163,14 @@ def evaluate_contact(solver, x: Mapping[str, np.ndarray], offsets: Mapping[str, 
             ss, ms = solver._surf[sn], solver._surf[mn]
             zs, zm = np.zeros_like(Xs), np.zeros_like(Xm)
             prev = solver._active.get((ip, kp))
+            pref = prefer.get((ip, kp)) if prefer is not None else prev
             if Xs.shape[1] == 2:
                 geo = ss.geometry(Xs)
-                res = soft_contact_pass(Xs, zs, geo, Xm, zm, ms.seg, cp, wgt, previous=prev, seg_key=ms.seg_key)
+                res = soft_contact_pass(Xs, zs, geo, Xm, zm, ms.seg, cp, wgt, previous=prev, seg_key=ms.seg_key,
+                                        prefer=pref)
             else:
-                res = soft_contact_pass_3d(Xs, zs, ss.seg, Xm, zm, ms.seg, cp, wgt, previous=prev, tri_key=ms.seg_key)
+                res = soft_contact_pass_3d(Xs, zs, ss.seg, Xm, zm, ms.seg, cp, wgt, previous=prev, tri_key=ms.seg_key,
+                                           prefer=pref)
             if res.penetration is not None:
                 i, h = res.penetration
                 raise ContactCrossed(f"node {int(ss.gids[i])} of body {sn!r} reached h={h:.3e} m <= 0 against body "
