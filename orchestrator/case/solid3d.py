@@ -192,20 +192,12 @@ def _check_plane_touches(case, i: int, plane: SymmetryPlane) -> None:
 
 
 def _check_six_node(case, i: int, b) -> None:
-    """Six-node triangles run in 2D mechanics-only cases without walls, contact or a forming-limit check for now
-    (one line naming the key and what is allowed)."""
+    """Six-node triangles run in 2D mechanics-only cases (walls and contact too) without a forming-limit check for
+    now (one line naming the key and what is allowed)."""
     key = f"bodies[{i}].element"
     if case.case.kind == "coupled":
         raise SchemaError(key, "got 'tri6'; six-node triangles run in mechanics-only cases for now (a coupled case's "
                           "bodies share their nodes with the EM mesh): allowed here: 'tet4'")
-    for j, w in enumerate(case.walls):
-        if not w.bodies or b.name in w.bodies:
-            raise SchemaError(key, f"got 'tri6' for body {b.name!r}, which walls[{j}] acts on; six-node triangles "
-                              "take no rigid walls yet: allowed with walls: 'tet4'")
-    for j, c in enumerate(case.contact):
-        if b.name in (c.slave, c.master):
-            raise SchemaError(key, f"got 'tri6' for body {b.name!r} of contact[{j}]; six-node triangles take no "
-                              "contact yet: allowed with contact: 'tet4'")
     if case.materials[b.material].forming_limit is not None:
         raise SchemaError(key, f"got 'tri6' for body {b.name!r}, whose material has a forming_limit; the forming-"
                           "limit check reads linear triangles: allowed with it: 'tet4'")

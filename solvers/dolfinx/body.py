@@ -74,6 +74,8 @@ class BodySpec:
 ELEMENTS_3D = ("tet4", "tet10")
 ELEMENTS_2D = ("tet4", "tri6")
 ELEMENTS = ("tet4", "tet10", "tri6")
+#: the quadratic elements: pressures on their boundary are read face by face (:meth:`Body.read_faces`)
+QUADRATIC = ("tet10", "tri6")
 
 
 class Body:
@@ -340,11 +342,53 @@ class Body:
                        normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """A rigid wall's pressures from its normal forces ``force`` (N, compressive positive) on the nodes
         ``rows`` at positions ``x`` (m): each force over its node's wall area (:meth:`wall_tributary_areas`,
-        completed over the ranks: a collective under MPI). Returns (node rows, pressures Pa); a ten-node body
-        reads them from its six-node faces (:meth:`.body3d.Body3D.wall_pressures`)."""
+        completed over the ranks: a collective under MPI). Returns (node rows, pressures Pa); a quadratic body
+        (six-node triangles, ten-node tetrahedra) reads them on its loaded faces, at every node of them
+        (:meth:`read_faces`: a corner's own reaction of a uniform pressure is ~0 there)."""
+        if self.element in QUADRATIC:
+            f = np.zeros(len(x))
+            f[rows] = force
+            return self.read_faces(self.quadratic_faces, x, f, normal)
         area = self.wall_tributary_areas(x, normal)
         area = self.complete_nodal(np.repeat(area[:, None], self.gdim, axis=1))[:, 0]
         return rows, force / area[rows]
+
+    def contact_pressures(self, rows: np.ndarray, pressure: np.ndarray,
+                          x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The contact stress (Pa) of the nodes ``rows`` in soft contact as read on this body: the law's nodal
+        value; a quadratic body: read on its boundary faces whose nodes are all in contact (:meth:`read_faces`)
+        from the nodal contact forces p A, A the node's share of those faces' split pieces (a contact area: faces
+        beside the contact, e.g. a side of the body at an edge node, give it nothing), the law's value at a node
+        on no such face. Returns (rows, pressures)."""
+        if self.element not in QUADRATIC:
+            return rows, pressure
+        inside = np.zeros(len(x), dtype=bool)
+        inside[rows] = True
+        faces = self.quadratic_faces[np.all(inside[self.quadratic_faces], axis=1)]
+        law = np.full(len(x), np.nan)
+        law[rows] = pressure
+        f = np.nan_to_num(law) * self.tributary_areas(self.split_faces(faces), x)
+        nodes, p = self.read_faces(faces, x, f)
+        law[nodes] = p
+        out = np.union1d(rows, nodes)
+        return out, law[out]
+
+    @property
+    def quadratic_faces(self) -> np.ndarray:
+        """A six-node body's three-node boundary edges (:func:`.tri6.three_node_edges`)."""
+        return self.edges3
+
+    @staticmethod
+    def split_faces(faces: np.ndarray) -> np.ndarray:
+        """Quadratic boundary faces as the linear pieces of :attr:`segments` (:func:`.tri6.split_edges`)."""
+        return tri6.split_edges(faces)
+
+    def read_faces(self, faces: np.ndarray, x: np.ndarray, force: np.ndarray,
+                   normal: Optional[np.ndarray] = None) -> tuple[np.ndarray, np.ndarray]:
+        """Pressures (Pa) read face by face from nodal normal forces (N) on quadratic boundary faces
+        (:func:`.tri6.recover_edge_pressure`; areas projected on a wall of unit ``normal``). Returns (nodes,
+        pressures)."""
+        return tri6.recover_edge_pressure(faces, x, force, bool(self.axisymmetric), float(self.thickness), normal)
 
     def pressure_forces(self, facet_marker, pressure: float) -> np.ndarray:
         """Consistent nodal forces (N) of a uniform follower pressure (Pa, positive pushes into

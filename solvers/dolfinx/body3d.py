@@ -5,6 +5,7 @@ then ghosts); the boundary is a set of outward-oriented triangles."""
 from __future__ import annotations
 
 import logging
+from typing import Optional
 
 import numpy as np
 import ufl
@@ -203,36 +204,20 @@ class Body3D(Body):
                 + np.bincount(tris[:, 1], weights=a, minlength=n)
                 + np.bincount(tris[:, 2], weights=a, minlength=n))
 
-    def wall_pressures(self, rows: np.ndarray, force: np.ndarray, x: np.ndarray,
-                       normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """:meth:`.body.Body.wall_pressures`; a ten-node body: the pressure field on its six-node faces whose
-        consistent loads are the wall's forces (:func:`.tet10.recover_face_pressure`, areas projected on the
-        wall), at every node of the loaded faces (a corner's own reaction of a uniform pressure is ~0)."""
-        if self.element != "tet10":
-            return super().wall_pressures(rows, force, x, normal)
-        f = np.zeros(len(x))
-        f[rows] = force
-        return recover_face_pressure(self.faces6, x, f, normal)
+    @property
+    def quadratic_faces(self) -> np.ndarray:
+        """A ten-node body's six-node boundary faces (:func:`.tet10.six_node_faces`)."""
+        return self.faces6
 
-    def contact_pressures(self, rows: np.ndarray, pressure: np.ndarray,
-                          x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The contact stress (Pa) of the nodes ``rows`` in soft contact as read on this body: the law's nodal
-        value; a ten-node body: read on its six-node faces whose six nodes are all in contact
-        (:func:`.tet10.recover_face_pressure`) from the nodal contact forces p A, A the node's share of those
-        faces' quarter triangles (a contact area: faces beside the contact, e.g. a side of the body at an
-        edge node, give it nothing), the law's value at a node on no such face. Returns (rows, pressures)."""
-        if self.element != "tet10":
-            return rows, pressure
-        inside = np.zeros(len(x), dtype=bool)
-        inside[rows] = True
-        faces = self.faces6[np.all(inside[self.faces6], axis=1)]
-        law = np.full(len(x), np.nan)
-        law[rows] = pressure
-        f = np.nan_to_num(law) * self.tributary_areas(split_faces(faces), x)
-        nodes, p = recover_face_pressure(faces, x, f)
-        law[nodes] = p
-        out = np.union1d(rows, nodes)
-        return out, law[out]
+    @staticmethod
+    def split_faces(faces: np.ndarray) -> np.ndarray:
+        """Six-node faces as the quarter triangles of :attr:`segments` (:func:`.tet10.split_faces`)."""
+        return split_faces(faces)
+
+    def read_faces(self, faces: np.ndarray, x: np.ndarray, force: np.ndarray,
+                   normal: Optional[np.ndarray] = None) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`.body.Body.read_faces` on six-node faces (:func:`.tet10.recover_face_pressure`)."""
+        return recover_face_pressure(faces, x, force, normal)
 
     def pressure_forces(self, facet_marker, pressure: float) -> np.ndarray:
         """Consistent nodal forces (N) of a uniform follower pressure (Pa, positive pushes into

@@ -8,7 +8,7 @@ import numba
 import numpy as np
 from mpi4py import MPI
 
-from .body import Body, BodySpec
+from .body import QUADRATIC, Body, BodySpec
 from .contact import ContactPairSpec, ContactPenetrationError, RigidWallSpec, Surface
 from .kernels import (MODE_AXISYMMETRIC, MODE_PLANE_STRAIN, MODE_PLANE_STRESS,
                       WORK_SIZE, element_critical_dt, element_step, pack_parameters)
@@ -118,10 +118,6 @@ class ExplicitSolver(PythonSteps):
         self._kernels = {n: Tri6Kernel(tri6_step_factor(b.cells, b.X0, b.material.shear_modulus,
                                                         b.material.bulk_modulus))
                          for n, b in self.bodies.items() if b.element == "tri6"}
-        quad = sorted(self._kernels)
-        if quad and (contact_pairs or rigid_walls):
-            raise ValueError(f"body {quad[0]!r}: six-node triangles (element 'tri6') take no contact pairs or "
-                             "rigid walls yet")
         # flat indices of the constrained velocity components (a = 0 there)
         self._cidx = {n: np.flatnonzero(b.constrained_mask().ravel())
                       for n, b in self.bodies.items()}
@@ -361,9 +357,19 @@ class ExplicitSolver(PythonSteps):
 
     def _slave_pressures(self, pair_index: int):
         """The contact stress (Pa) of every slave surface node of a pair (NaN out of contact), or None before
-        the pair's first evaluation; the 3D solver reads a ten-node slave's on its six-node faces."""
+        the pair's first evaluation; a quadratic slave (serial: its rows are its global ids) reads them on its
+        boundary faces (:meth:`~.body.Body.contact_pressures`), NaN off its loaded faces."""
         out = self._contact_out[pair_index]
-        return None if out is None else out[0]
+        p = None if out is None else out[0]
+        b = self.bodies[self.contact_pairs[pair_index].slave]
+        if p is None or b.element not in QUADRATIC:
+            return p
+        s = self._surf[b.name]
+        inside = np.flatnonzero(np.isfinite(p))
+        nodes, pr = b.contact_pressures(s.gids[inside], p[inside], b.x)
+        out = np.full_like(p, np.nan)
+        out[np.searchsorted(s.gids, nodes)] = pr
+        return out
 
     def wall_pressure(self, wall_index: int, body: str):
         """Wall reaction per unit area on the body's nodes pressed on the wall at the current time.

@@ -294,18 +294,3 @@ class ExplicitSolver3D(ExplicitSolver):
         rows, p = b.contact_pressures(rows, p, b.x)
         return rows, b.X0[rows], p
 
-    def _slave_pressures(self, pair_index: int):
-        """The solver's slave pressures; a ten-node slave (serial: its rows are its global ids) reads them on its
-        six-node faces (:meth:`~.body3d.Body3D.contact_pressures`), NaN off its loaded faces."""
-        p = super()._slave_pressures(pair_index)
-        name = self.contact_pairs[pair_index].slave
-        b = self.bodies[name]
-        if p is None or b.element != "tet10":
-            return p
-        s = self._surf[name]
-        inside = np.flatnonzero(np.isfinite(p))
-        nodes, pr = b.contact_pressures(s.gids[inside], p[inside], b.x)
-        out = np.full_like(p, np.nan)
-        out[np.searchsorted(s.gids, nodes)] = pr
-        return out
-

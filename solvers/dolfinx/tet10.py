@@ -27,6 +27,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .face_pressure import read_face_pressures
+
 __all__ = ["EDGES", "QP_WEIGHTS", "QP_DERIVATIVES", "N_QP", "quadratic_cells", "shape_derivatives",
            "hrz_lumped_mass", "six_node_faces", "split_faces", "recover_face_pressure", "face_pressure_forces",
            "corner_share", "HRZ_SHARES", "qp_jacobians", "qp_volumes", "critical_step_factor", "largest_eigenvalues",
@@ -131,18 +133,13 @@ def split_faces(faces6: np.ndarray) -> np.ndarray:
 
 def recover_face_pressure(faces6: np.ndarray, x: np.ndarray, force: np.ndarray,
                           normal: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Nodal pressures on six-node faces from nodal normal forces, read face by face: each node's force is shared
-    among its loaded faces (those of ``faces6`` with a node of non-zero force and, on a wall, facing it: a
-    projected area over half their area, so that a side face through a loaded edge does not count) in
-    proportion to their areas, a face's pressure is the sum of its nodes' shares over
-    its area, and a node's pressure the area-weighted mean of its loaded faces' pressures.
+    """Nodal pressures on six-node faces from nodal normal forces, read face by face
+    (:func:`.face_pressure.read_face_pressures`).
 
     A uniform pressure is read exactly at corners and edge nodes alike, whether its nodal forces are the
     quadratic face's consistent ones (0 at the corners, 1/3 of a face's force at each edge node: a force over a
     node area would read ~0 at a corner and 4/3 of the pressure at an edge node) or a quarter-triangle split
-    (1/12 and 1/4); the loaded faces' pressures times their areas sum to the total force. Local and smoothing:
-    the exact inverse of the faces' consistent matrix also reads quadratic fields, but amplifies the noise of a
-    dynamic reaction at the corners (the 3D bar on a wall: +24 % at the face's centre, measured).
+    (1/12 and 1/4).
 
     Parameters
     ----------
@@ -164,20 +161,11 @@ def recover_face_pressure(faces6: np.ndarray, x: np.ndarray, force: np.ndarray,
         Their pressures, Pa.
     """
     faces6 = np.asarray(faces6, dtype=np.int64).reshape(-1, 6)
-    force = np.asarray(force, dtype=float)
     tri = split_faces(faces6).reshape(-1, 4, 3)
     av = 0.5 * np.cross(x[tri[:, :, 1]] - x[tri[:, :, 0]], x[tri[:, :, 2]] - x[tri[:, :, 0]]).sum(axis=1)
     area = np.linalg.norm(av, axis=1)
-    w = area if normal is None else -(av @ np.asarray(normal, float))
-    sel = (w > 0.5 * area) & np.any(force[faces6] != 0.0, axis=1)
-    if not sel.any():
-        return np.zeros(0, np.int64), np.zeros(0)
-    f6, w = faces6[sel], w[sel]
-    n = len(x)
-    wn = np.bincount(f6.ravel(), weights=np.repeat(w, 6), minlength=n)      # loaded face area at each node
-    pf = np.sum(force[f6] / wn[f6], axis=1)                                  # face force / face area
-    nodes = np.unique(f6)
-    return nodes, np.bincount(f6.ravel(), weights=np.repeat(pf * w, 6), minlength=n)[nodes] / wn[nodes]
+    facing = area if normal is None else -(av @ np.asarray(normal, float))
+    return read_face_pressures(faces6, area, facing, force)
 
 
 #: a six-point rule of degree 4 on the reference triangle (Dunavant 1985; weights sum to its area 1/2): exact for a

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .face_pressure import read_face_pressures
 from .tet10 import step_factor
 
 __all__ = ["EDGES", "N_QP", "QP_WEIGHTS", "QP_DERIVATIVES", "QP_VALUES", "shape_values", "shape_derivatives",
@@ -125,6 +126,47 @@ def split_edges(edges3: np.ndarray) -> np.ndarray:
     (m, b) (rows ``2 k`` and ``2 k + 1``), oriented as the edge (the body on the left)."""
     e = np.asarray(edges3, dtype=np.int32).reshape(-1, 3)
     return np.stack([e[:, [0, 2]], e[:, [2, 1]]], axis=1).reshape(-1, 2)
+
+
+def recover_edge_pressure(edges3: np.ndarray, x: np.ndarray, force: np.ndarray, axisymmetric: bool,
+                          thickness: float, normal: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Nodal pressures on three-node edges from nodal normal forces, read edge by edge
+    (:func:`.face_pressure.read_face_pressures`): a uniform pressure is read exactly at corners and middle nodes
+    alike, whether its nodal forces are the quadratic edge's consistent ones (1/6, 1/6, 2/3 of its force on a
+    straight planar edge: a force over a node's tributary area would read 2/3 of the pressure at a corner and
+    4/3 at the middle) or a half-segment split (1/4, 1/4, 1/2).
+
+    Parameters
+    ----------
+    edges3 : int array (ne, 3)
+        Three-node edges (:func:`three_node_edges`), node rows of ``x``, the body on the left of a -> b.
+    x : ndarray (N, 2)
+        Node positions, m (an edge's area: the sum of its two half segments', times ``thickness`` or 2 pi r).
+    force : ndarray (N,)
+        Normal force on each node, N (compressive positive; zero where nothing acts).
+    axisymmetric : bool
+        Areas of the full 2 pi ring (x[:, 0] = r) instead of ``thickness`` (m) times length.
+    thickness : float
+        Out-of-plane thickness of a planar body, m.
+    normal : (2,) array, optional
+        A rigid wall's unit normal (into the body's side): areas projected on the wall.
+
+    Returns
+    -------
+    nodes : int64 array (M,)
+        The nodes of the loaded edges, sorted.
+    pressure : ndarray (M,)
+        Their pressures, Pa.
+    """
+    e = np.asarray(edges3, dtype=np.int64).reshape(-1, 3)
+    seg = split_edges(e).reshape(-1, 2, 2)
+    pa, pb = x[seg[:, :, 0]], x[seg[:, :, 1]]                      # (ne, 2 halves, 2)
+    t = pb - pa
+    w = np.pi * (pa[:, :, 0] + pb[:, :, 0]) if axisymmetric else np.full(t.shape[:2], float(thickness))
+    av = (np.stack([t[:, :, 1], -t[:, :, 0]], axis=2) * w[:, :, None]).sum(axis=1)   # outward area vectors
+    area = (np.linalg.norm(t, axis=2) * w).sum(axis=1)
+    facing = area if normal is None else -(av @ np.asarray(normal, float))
+    return read_face_pressures(e, area, facing, force)
 
 
 #: three-point Gauss rule on an edge's parameter s in [0, 1] (degree 5): points and weights

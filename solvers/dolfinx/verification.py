@@ -28,11 +28,13 @@ def bar_impact(nx: int = 40, ny: int = 20, formulation: str = "plane_stress",
                rigid_wall: bool = False, t_end: Optional[float] = None, stiffness: float = 1e8,
                h0: float = 0.01, viscosity: float = 0.0, cfl: float = 0.5,
                bulk_viscosity: bool = True, comm=MPI.COMM_WORLD,
-               material: Material = PAPER_BAR_MATERIAL, wall_sliding: bool = False) -> Dict[str, object]:
+               material: Material = PAPER_BAR_MATERIAL, wall_sliding: bool = False,
+               element: str = "tet4") -> Dict[str, object]:
     """Paper section 4: bars 4 m (x) by 2 m (y); the left one at 10 m/s hits the resting right one
     across a soft layer of width h0 (initial gap h0), or, with ``rigid_wall``, one bar at 5 m/s
     hits a rigid wall at x0 = 4 + h0/2 (contact then starts at t = h0 / (2 x 5 m/s) = 1 ms).
-    ``t_end`` defaults to 2 ms after the first contact.
+    ``t_end`` defaults to 2 ms after the first contact; ``element``: the bars' ("tet4": linear triangles,
+    "tri6": six-node ones, one process).
 
     Returns
     -------
@@ -45,14 +47,14 @@ def bar_impact(nx: int = 40, ny: int = 20, formulation: str = "plane_stress",
     if t_end is None:
         t_end = 2.0e-3 + (0.5 * h0 / 5.0 if rigid_wall else 0.0)
     left = dmesh.create_rectangle(comm, [np.array([0.0, 0.0]), np.array([4.0, 2.0])], [nx, ny])
-    bodies = [BodySpec("left", left, material, initial_velocity=(5.0 if rigid_wall else 10.0, 0.0))]
+    bodies = [BodySpec("left", left, material, initial_velocity=(5.0 if rigid_wall else 10.0, 0.0), element=element)]
     pairs, walls = (), ()
     if rigid_wall:
         walls = (RigidWallSpec(point=(4.0 + 0.5 * h0, 0.0), normal=(-1.0, 0.0), sliding=wall_sliding),)
     else:
         right = dmesh.create_rectangle(comm, [np.array([4.0 + h0, 0.0]),
                                               np.array([8.0 + h0, 2.0])], [nx, ny])
-        bodies.append(BodySpec("right", right, material))
+        bodies.append(BodySpec("right", right, material, element=element))
         pairs = (ContactPairSpec("left", "right", stiffness=stiffness, h0=h0,
                                  viscosity=viscosity),)
     solver = ExplicitSolver(bodies, formulation=formulation, contact_pairs=pairs,

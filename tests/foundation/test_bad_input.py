@@ -328,11 +328,10 @@ BAD_COUPLED = [
     # test_tet10_walls_and_contact_are_accepted; pressure pulses: test_tet10_pressure_pulses_are_accepted)
     ("tet10_in_2d", "bar_impact", ["bodies[0].element='tet10'"], "bodies[0].element"),
     ("element_unknown", "bar_impact_3d", ["bodies[0].element='hex8'"], "bodies[0].element"),
-    # the 2D half: six-node triangles in mechanics-only 2D cases without walls or contact
+    # the 2D half: six-node triangles in mechanics-only 2D cases (walls and contact too: see
+    # test_tri6_walls_and_contact_are_accepted)
     ("tri6_in_3d", "bar_impact_3d", ["bodies[0].element='tri6'"], "bodies[0].element"),
     ("tri6_coupled", "emf_sheet_bulge", ["bodies[0].element='tri6'"], "bodies[0].element"),
-    ("tri6_contact", "bar_impact", ["bodies[0].element='tri6'"], "bodies[0].element"),
-    ("tri6_wall", "bar_impact_wall", ["bodies[0].element='tri6'"], "bodies[0].element"),
     ("tri6_forming_limit", "cantilever_two_pulses",
      ["bodies[0].element='tri6'",
       "materials.al.forming_limit={minor_strain = [-0.2, 0.0, 0.2], major_strain = [0.3, 0.2, 0.3]}"],
@@ -382,16 +381,26 @@ def test_tri6_is_accepted_in_a_mechanics_only_2d_case():
     assert case.bodies[0].element == "tri6" and case.loads
 
 
-def test_tet10_soft_contact_with_the_implicit_integrator_is_refused():
-    """The implicit integrator's Newton iterations do not converge on ten-node soft contact (corners at the layer's
-    edge): refused in one line naming the pair's key and the way out."""
-    from pulseform.orchestrator.case.errors import CaseError
+def test_tri6_walls_and_contact_are_accepted():
+    """Six-node bodies on rigid walls and in contact pairs (refused before; tests/mechanics/test_tri6_contact.py):
+    the case's validation, where the refusal was, passes for the bar on its wall and the two bars in contact."""
     from pulseform.orchestrator.case.io import load_case
 
-    with pytest.raises(CaseError) as err:
-        load_case(REPO / "cases" / "bar_impact_3d" / "two_bodies.toml",
-                  ["bodies[0].element='tet10'", "mechanics.integrator='implicit'", "mechanics.implicit.dt=1e-5"])
-    assert "contact[0]" in str(err.value) and "explicit" in str(err.value) and "\n" not in str(err.value)
+    case, _ = load_case(REPO / "cases" / "bar_impact_wall", ["bodies[0].element='tri6'"])
+    assert case.bodies[0].element == "tri6" and case.walls
+    case, _ = load_case(REPO / "cases" / "bar_impact", ["bodies[0].element='tri6'", "bodies[1].element='tri6'"])
+    assert {b.element for b in case.bodies} == {"tri6"} and case.contact
+
+
+def test_tet10_soft_contact_with_the_implicit_integrator_is_accepted():
+    """Ten-node soft contact with the implicit integrator (refused while its Newton iterations stalled; they
+    converge since a node keeps its master face near shared edges: tests/mechanics/test_implicit_contact.py):
+    the case's validation passes."""
+    from pulseform.orchestrator.case.io import load_case
+
+    case, _ = load_case(REPO / "cases" / "bar_impact_3d" / "two_bodies.toml",
+                        ["bodies[0].element='tet10'", "mechanics.integrator='implicit'", "mechanics.implicit.dt=1e-5"])
+    assert case.bodies[0].element == "tet10" and case.contact and case.mechanics.integrator == "implicit"
 
 
 def test_conductivity_curve_in_3d_is_accepted(capsys):
