@@ -16,7 +16,7 @@ from .names import check_file_name
 from .schema import SchemaError, spec
 from .springback import SpringbackTable
 
-__all__ = ["StageTable", "check_stages", "check_implicit_reach", "stage_integrator", "TIMED"]
+__all__ = ["StageTable", "check_stages", "check_implicit_reach", "check_adaptive", "stage_integrator", "TIMED"]
 
 #: the stage kinds that take time
 TIMED = ("pulse", "quasi_static")
@@ -73,6 +73,25 @@ def check_implicit_reach(case, where: str = "", remedy: str = "mechanics.integra
         if b.rigid:
             raise SchemaError(f"bodies[{i}].rigid", f"{where}rigid bodies run with the explicit integrator only (for "
                               f"now); use {remedy}")
+
+
+def check_adaptive(case) -> None:
+    """``mechanics.implicit.adaptive`` with the rest of ``case`` (raise :class:`SchemaError` otherwise): the step
+    chooses the EM step too, one mechanical step per EM step (coupling.n = 1, not coupling.adaptive), and
+    time.dt_max (the largest step) not below the first step."""
+    im = case.mechanics.implicit
+    if case.mechanics.integrator != "implicit" or not im.adaptive:
+        return
+    if case.case.kind == "coupled":
+        if case.coupling.n != 1:
+            raise SchemaError("coupling.n", f"got {case.coupling.n}; adaptive implicit steps take one mechanical "
+                              "step per EM step: set 1")
+        if case.coupling.adaptive:
+            raise SchemaError("coupling.adaptive", "got true; with mechanics.implicit.adaptive the mechanics "
+                              "chooses the step: set false")
+    if case.time.dt_max is not None and case.time.dt_max < im.dt:
+        raise SchemaError("time.dt_max", f"got {case.time.dt_max!r} s; the largest adaptive step must not be below "
+                          f"the first, mechanics.implicit.dt = {im.dt!r} s")
 
 
 def check_stages(case) -> None:
