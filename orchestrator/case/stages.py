@@ -61,18 +61,20 @@ def stage_integrator(case, stage: StageTable) -> str:
 
 
 def check_implicit_reach(case, where: str = "", remedy: str = "mechanics.integrator = 'explicit'") -> None:
-    """The implicit integrator's present reach (raise :class:`SchemaError` otherwise): deformable bodies, contact
-    pairs with the elastic law of eq. (5) only (no friction or viscosity), rigid walls. ``where``: the stage that
+    """The implicit integrator's present reach (raise :class:`SchemaError` otherwise): deformable bodies, rigid
+    bodies (not in static steps), contact pairs with the elastic law of eq. (5) only (no friction or viscosity),
+    rigid walls. ``where``: the stage that
     asks for it (a prefix of the message), ``remedy``: what to set instead."""
     for i, c in enumerate(case.contact):
         for key in ("friction", "viscosity"):
             if getattr(c, key) > 0:
                 raise SchemaError(f"contact[{i}].{key}", f"got {getattr(c, key)!r}; {where}the implicit integrator "
                                   f"has the elastic law of eq. (5) only: set 0 or use {remedy}")
-    for i, b in enumerate(case.bodies):
-        if b.rigid:
-            raise SchemaError(f"bodies[{i}].rigid", f"{where}rigid bodies run with the explicit integrator only (for "
-                              f"now); use {remedy}")
+    if case.mechanics.implicit.scheme == "static":
+        for i, b in enumerate(case.bodies):
+            if b.rigid:
+                raise SchemaError(f"bodies[{i}].rigid", f"{where}a rigid body has no static equilibrium under its "
+                                  "forces: with rigid bodies use mechanics.implicit.scheme = 'trapezoidal' or 'hht'")
 
 
 def check_adaptive(case) -> None:
