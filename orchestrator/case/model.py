@@ -172,7 +172,7 @@ class MechanicsTable:
     integrator: Literal["explicit", "implicit"] = spec(
         "explicit", doc="'explicit': central differences at the stable step (forming pulses, µs); 'implicit': "
                         "Newmark / HHT-α / static steps of mechanics.implicit.dt with Newton iterations (slow "
-                        "motions, ms to s; contact (no friction or viscosity) and walls, no rigid bodies yet; coupled runs: coupling.n = 1, and "
+                        "motions, ms to s; contact (no friction or viscosity) and walls, rigid bodies (not in static steps); coupled runs: coupling.n = 1, and "
                         "coupling.iterate = true for steps near the parts' periods; docs/mechanics.md)")
     implicit: ImplicitTable = spec(ImplicitTable(), doc="[mechanics.implicit] table")
     threads: int = spec(1, unit="-", ge=1,

@@ -191,6 +191,10 @@ def _check_timed_stage(case, s: StageTable, path: str, i: int, last_end: float, 
             raise SchemaError("mechanics.kinetic_damping_until", f"kinetic damping is the explicit integrator's; "
                               f"{path} is implicit: use a 'quasi_static' stage instead")
         check_implicit_reach(case, f"{path} is implicit: ", f"integrator = 'explicit' in {path}")
+        im, first = case.mechanics.implicit, s.dt or case.mechanics.implicit.dt
+        if im.adaptive and s.kind == "pulse" and not ((im.dt_min or 0.0) <= first <= (case.time.dt_max or first)):
+            raise SchemaError(f"{path}.dt", f"got {first!r} s; the first adaptive step must lie within "
+                              "mechanics.implicit.dt_min and time.dt_max")
     elif s.dt is not None:
         raise SchemaError(f"{path}.dt", "the explicit integrator takes its stable step: remove dt, or set "
                           "integrator = 'implicit'")
