@@ -84,6 +84,9 @@ def check_adaptive(case) -> None:
     im = case.mechanics.implicit
     if case.mechanics.integrator != "implicit" or not im.adaptive:
         return
+    if all(b.rigid for b in case.bodies):
+        raise SchemaError("mechanics.implicit.adaptive", "got true; the adaptive step is chosen from the deformable "
+                          "bodies' error (rigid bodies move exactly): this case has none, set false")
     if case.case.kind == "coupled":
         if case.coupling.n != 1:
             raise SchemaError("coupling.n", f"got {case.coupling.n}; adaptive implicit steps take one mechanical "

@@ -54,15 +54,20 @@ def test_sheet_and_rigid_die_share_the_impulse_and_resume_bitwise(tmp_path):
                           np.loadtxt(ref / "history.csv", delimiter=",", skiprows=1))
 
 
-def test_static_steps_refuse_rigid_bodies_in_one_line():
-    """A rigid body has no static equilibrium: scheme = 'static' with a rigid body is one line naming the key."""
+@pytest.mark.parametrize("key, value, named, says", [
+    ("scheme", "static", "bodies[0].rigid", "no static equilibrium"),
+    ("adaptive", "true", "mechanics.implicit.adaptive", "this case has none"),
+])
+def test_what_rigid_bodies_cannot_do_implicitly_is_one_line(key, value, named, says):
+    """A rigid body has no static equilibrium (scheme = 'static'), and an all-rigid case has no deformable body to
+    choose an adaptive step from: one line naming the key each."""
     r = subprocess.run([EXE, "check", str(REPO / "cases/emf_actuator_disk"), "--set", "mechanics.integrator=implicit",
-                        "--set", "mechanics.implicit.dt=1e-6", "--set", "mechanics.implicit.scheme=static"],
+                        "--set", "mechanics.implicit.dt=1e-6", "--set", f"mechanics.implicit.{key}={value}"],
                        capture_output=True, text=True, timeout=300)
     lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
     print(r.stderr)
     assert r.returncode == 2 and len(lines) == 1 and "Traceback" not in r.stderr
-    assert "bodies[0].rigid" in lines[0] and "no static equilibrium" in lines[0]
+    assert named in lines[0] and says in lines[0]
 
 
 @pytest.mark.getdp
