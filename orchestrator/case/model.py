@@ -28,7 +28,7 @@ from .parts import (Box, BodyTable, ContactPair, EndStopTable, FixedBoundary, Po
 from .rigid_steps import check_rigid_time_scale
 from .schema import SchemaError, spec
 from .springback import SpringbackTable
-from .stages import StageTable, check_implicit_reach, check_stages
+from .stages import StageTable, check_adaptive, check_implicit_reach, check_stages
 from .solid3d import SolidBox, SolidCylinder, SymmetryPlane, validate_dimension
 
 __all__ = ["Box", "Rectangle", "Polygon", "SolidBox", "SolidCylinder", "SymmetryPlane", "Shape", "CowperSymondsTable", "JohnsonCookTable", "FormingLimitTable", "MaterialTable", "FixedBoundary",
@@ -133,6 +133,19 @@ class ImplicitTable:
     max_cuts: int = spec(6, unit="-", ge=0, le=30,
                          doc="a step that does not converge is retried as two half steps, at most this many times "
                              "in a row; then the run stops in one line with the results so far")
+    adaptive: bool = spec(False, doc="choose each step from a local error estimate (Zienkiewicz & Xie: dt²(β − 1/6)"
+                                     "(a₁ − a₀)): dt is the first step, time.dt_max the largest (set it below the "
+                                     "shortest load feature: a step longer than a pulse steps over it); not with "
+                                     "scheme = 'static'; coupled runs: coupling.n = 1, not coupling.adaptive")
+    error_tol: float = spec(1e-3, unit="-", gt=0.0, lt=1.0,
+                            doc="adaptive: the accepted local error per step relative to the largest displacement "
+                                "so far (a free vibration: (ω dt)³/12 per step)")
+    error_atol: float = spec(1e-9, unit="m", ge=0.0,
+                             doc="adaptive: the accepted local error per step added to error_tol times the "
+                                 "displacement (root mean square over the nodes; keeps a start from rest from "
+                                 "taking ever shorter steps)")
+    dt_min: float | None = spec(None, unit="s", gt=0.0,
+                                doc="adaptive: the shortest step (accepted whatever its error; default dt/1000)")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -159,7 +172,7 @@ class MechanicsTable:
     integrator: Literal["explicit", "implicit"] = spec(
         "explicit", doc="'explicit': central differences at the stable step (forming pulses, µs); 'implicit': "
                         "Newmark / HHT-α / static steps of mechanics.implicit.dt with Newton iterations (slow "
-                        "motions, ms to s; contact (no friction or viscosity) and walls, no rigid bodies yet; coupled runs: coupling.n = 1, and "
+                        "motions, ms to s; contact (no friction or viscosity) and walls, rigid bodies (not in static steps); coupled runs: coupling.n = 1, and "
                         "coupling.iterate = true for steps near the parts' periods; docs/mechanics.md)")
     implicit: ImplicitTable = spec(ImplicitTable(), doc="[mechanics.implicit] table")
     threads: int = spec(1, unit="-", ge=1,
@@ -178,6 +191,13 @@ class MechanicsTable:
             if self.kinetic_damping_until > 0.0:
                 raise SchemaError(f"{path}.kinetic_damping_until", "kinetic damping is the explicit integrator's; "
                                   "with integrator = 'implicit' use implicit.scheme = 'static' (or 'hht') instead")
+            im = self.implicit
+            if im.adaptive and im.scheme == "static":
+                raise SchemaError(f"{path}.implicit.adaptive", "adaptive steps need scheme = 'trapezoidal' or 'hht' "
+                                  "(static steps have no time-integration error to estimate)")
+            if im.adaptive and im.dt_min is not None and im.dt_min > im.dt:
+                raise SchemaError(f"{path}.implicit.dt_min", f"got {im.dt_min!r} s; the shortest adaptive step must "
+                                  f"not exceed the first, implicit.dt = {im.dt!r} s")
 
 
 #: default EM steps per period of an all-rigid run's source (docs/mechanics.md: the jumping ring's first peak
@@ -411,6 +431,7 @@ class Case:
         """The implicit integrator's present reach (:func:`.stages.check_implicit_reach`)."""
         if self.mechanics.integrator == "implicit":
             check_implicit_reach(self)
+            check_adaptive(self)
 
     def rigid_moves(self, b: BodyTable) -> tuple[int, ...]:
         """The free translation components of rigid body ``b`` (see :func:`.parts.rigid_moves`)."""

@@ -16,7 +16,7 @@ from .names import check_file_name
 from .schema import SchemaError, spec
 from .springback import SpringbackTable
 
-__all__ = ["StageTable", "check_stages", "check_implicit_reach", "stage_integrator", "TIMED"]
+__all__ = ["StageTable", "check_stages", "check_implicit_reach", "check_adaptive", "stage_integrator", "TIMED"]
 
 #: the stage kinds that take time
 TIMED = ("pulse", "quasi_static")
@@ -61,18 +61,42 @@ def stage_integrator(case, stage: StageTable) -> str:
 
 
 def check_implicit_reach(case, where: str = "", remedy: str = "mechanics.integrator = 'explicit'") -> None:
-    """The implicit integrator's present reach (raise :class:`SchemaError` otherwise): deformable bodies, contact
-    pairs with the elastic law of eq. (5) only (no friction or viscosity), rigid walls. ``where``: the stage that
+    """The implicit integrator's present reach (raise :class:`SchemaError` otherwise): deformable bodies, rigid
+    bodies (not in static steps), contact pairs with the elastic law of eq. (5) only (no friction or viscosity),
+    rigid walls. ``where``: the stage that
     asks for it (a prefix of the message), ``remedy``: what to set instead."""
     for i, c in enumerate(case.contact):
         for key in ("friction", "viscosity"):
             if getattr(c, key) > 0:
                 raise SchemaError(f"contact[{i}].{key}", f"got {getattr(c, key)!r}; {where}the implicit integrator "
                                   f"has the elastic law of eq. (5) only: set 0 or use {remedy}")
-    for i, b in enumerate(case.bodies):
-        if b.rigid:
-            raise SchemaError(f"bodies[{i}].rigid", f"{where}rigid bodies run with the explicit integrator only (for "
-                              f"now); use {remedy}")
+    if case.mechanics.implicit.scheme == "static":
+        for i, b in enumerate(case.bodies):
+            if b.rigid:
+                raise SchemaError(f"bodies[{i}].rigid", f"{where}a rigid body has no static equilibrium under its "
+                                  "forces: with rigid bodies use mechanics.implicit.scheme = 'trapezoidal' or 'hht'")
+
+
+def check_adaptive(case) -> None:
+    """``mechanics.implicit.adaptive`` with the rest of ``case`` (raise :class:`SchemaError` otherwise): the step
+    chooses the EM step too, one mechanical step per EM step (coupling.n = 1, not coupling.adaptive), and
+    time.dt_max (the largest step) not below the first step."""
+    im = case.mechanics.implicit
+    if case.mechanics.integrator != "implicit" or not im.adaptive:
+        return
+    if all(b.rigid for b in case.bodies):
+        raise SchemaError("mechanics.implicit.adaptive", "got true; the adaptive step is chosen from the deformable "
+                          "bodies' error (rigid bodies move exactly): this case has none, set false")
+    if case.case.kind == "coupled":
+        if case.coupling.n != 1:
+            raise SchemaError("coupling.n", f"got {case.coupling.n}; adaptive implicit steps take one mechanical "
+                              "step per EM step: set 1")
+        if case.coupling.adaptive:
+            raise SchemaError("coupling.adaptive", "got true; with mechanics.implicit.adaptive the mechanics "
+                              "chooses the step: set false")
+    if case.time.dt_max is not None and case.time.dt_max < im.dt:
+        raise SchemaError("time.dt_max", f"got {case.time.dt_max!r} s; the largest adaptive step must not be below "
+                          f"the first, mechanics.implicit.dt = {im.dt!r} s")
 
 
 def check_stages(case) -> None:
@@ -170,6 +194,10 @@ def _check_timed_stage(case, s: StageTable, path: str, i: int, last_end: float, 
             raise SchemaError("mechanics.kinetic_damping_until", f"kinetic damping is the explicit integrator's; "
                               f"{path} is implicit: use a 'quasi_static' stage instead")
         check_implicit_reach(case, f"{path} is implicit: ", f"integrator = 'explicit' in {path}")
+        im, first = case.mechanics.implicit, s.dt or case.mechanics.implicit.dt
+        if im.adaptive and s.kind == "pulse" and not ((im.dt_min or 0.0) <= first <= (case.time.dt_max or first)):
+            raise SchemaError(f"{path}.dt", f"got {first!r} s; the first adaptive step must lie within "
+                              "mechanics.implicit.dt_min and time.dt_max")
     elif s.dt is not None:
         raise SchemaError(f"{path}.dt", "the explicit integrator takes its stable step: remove dt, or set "
                           "integrator = 'implicit'")

@@ -64,8 +64,19 @@ class StepBlock:
     error: Exception | None = None
 
 
+class RetryStep(Exception):
+    """Raised by a mechanics' ``advance`` that chooses its own step (the adaptive implicit step) and rejected the
+    one it was given, its state unchanged: the loop repeats the EM step from its start with a step of at most
+    ``dt`` (s), the load evaluated again for it."""
+
+    def __init__(self, dt: float, why: str = "") -> None:
+        self.dt = float(dt)
+        super().__init__(f"retry with a step of {dt:.6g} s" + (f" ({why})" if why else ""))
+
+
 class Mechanics(Protocol):
-    """A mechanical participant."""
+    """A mechanical participant. One whose ``advance`` may raise :class:`RetryStep` says so with a true
+    ``retries_steps`` attribute (the loop then keeps the load's state at every EM step, to evaluate it again)."""
 
     time: float
     step_count: int

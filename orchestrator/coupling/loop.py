@@ -37,7 +37,7 @@ from typing import Any
 
 import numpy as np
 
-from .interfaces import LoadProvider, Mechanics
+from .interfaces import LoadProvider, Mechanics, RetryStep
 from .transfer import ledger_error
 
 log = logging.getLogger(__name__)
@@ -134,17 +134,20 @@ class LoopCounters:
     last_values: dict[str, float] = field(default_factory=dict)
     last_resultant: np.ndarray = field(default_factory=lambda: np.zeros(2))
     last_em_step: float = 0.0  # length of the last EM step (s); 0 before the first
+    retries: int = 0  # EM steps repeated shorter because the mechanics rejected its step (RetryStep)
 
     def state_dict(self) -> dict[str, np.ndarray]:
         """As arrays, for checkpoints."""
         return {"counters": np.array([self.em_steps, self.ledger_max, self.em_time_s, self.mech_time_s, self.n,
-                                      self.iterations, self.iterations_max, self.unconverged, self.f_scale]),
+                                      self.iterations, self.iterations_max, self.unconverged, self.f_scale,
+                                      self.retries]),
                 "impulse": self.impulse.copy(), "last_resultant": self.last_resultant.copy(),
                 "last_em_step": np.array([self.last_em_step])}
 
     def load_state_dict(self, d: dict[str, np.ndarray]) -> None:
         """Restore :meth:`state_dict`."""
-        k, lm, et, mt, n, it, itm, unc, fs = d["counters"]
+        k, lm, et, mt, n, it, itm, unc, fs = d["counters"][:9]
+        self.retries = int(d["counters"][9]) if len(d["counters"]) > 9 else 0  # older checkpoints: none
         self.em_steps, self.ledger_max, self.em_time_s, self.mech_time_s = int(k), float(lm), float(et), float(mt)
         self.n, self.iterations, self.iterations_max, self.unconverged = int(n), int(it), int(itm), int(unc)
         self.f_scale = float(fs)
@@ -179,8 +182,9 @@ class StaggeredLoop:
         """Current number of mechanical steps per EM step."""
         return self.counters.n
 
-    def substeps(self, t_stop: float) -> tuple[float, int]:
-        """(dt_mech, number of substeps) of the next EM step, landing exactly on ``t_stop``.
+    def substeps(self, t_stop: float, cap: float | None = None) -> tuple[float, int]:
+        """(dt_mech, number of substeps) of the next EM step, landing exactly on ``t_stop``; ``cap`` (s): the
+        step a mechanics that rejected its step asks for (:class:`~.interfaces.RetryStep`), an upper bound.
 
         A function of the current time, stable step, n and the previous EM step's length only
         (all in the checkpoint), so a resumed run takes the same steps.
@@ -188,6 +192,8 @@ class StaggeredLoop:
         dt = self.mech.stable_time_step()
         if self.dt_max is not None:
             dt = min(dt, self.dt_max)
+        if cap is not None:
+            dt = min(dt, cap)
         remaining = t_stop - self.mech.time
         if self.options.landing == "last":
             if self.n * dt >= remaining * (1.0 - 1e-12):
@@ -208,25 +214,23 @@ class StaggeredLoop:
         return step / k, k
 
     def em_step(self, t_stop: float) -> dict[str, float]:
-        """One EM step followed by its mechanical substeps; returns the step's scalars."""
-        dt, k = self.substeps(t_stop)
-        t0 = self.mech.time
-        t1 = t0 + dt * k
-        t_mid = self._load_time(t0, dt, k)
+        """One EM step followed by its mechanical substeps; returns the step's scalars. A mechanics that rejects
+        the step it was given (:class:`~.interfaces.RetryStep`: the adaptive implicit step) gets the EM step
+        again from its start, at most as long as it asks, with the load evaluated again (its state restored)."""
         c = self.counters
-        saved = (self.mech.state_dict(), self.load.state_dict()) if self.options.iterate else None
-        c0 = time.perf_counter()
-        self._follow(t0)
-        step = self.load.load(t0, t1, t_mid, self.mech)
-        c1 = time.perf_counter()
-        resultant = self.mech.total_force(step.forces)
-        self.mech.advance(dt, k, step.forces)
-        c2 = time.perf_counter()
-        c.em_time_s += c1 - c0
-        c.mech_time_s += c2 - c1
-        iterations = 1
-        if saved is not None:
-            step, resultant, iterations = self._iterate(saved, step, resultant, dt, k, t0, t1, t_mid)
+        cap = None
+        while True:
+            dt, k = self.substeps(t_stop, cap)
+            t0 = self.mech.time
+            t1 = t0 + dt * k
+            t_mid = self._load_time(t0, dt, k)
+            try:
+                step, resultant, iterations = self._attempt(dt, k, t0, t1, t_mid)
+                break
+            except RetryStep as exc:
+                c.retries += 1
+                cap = exc.dt
+                log.debug("t = %.6g s: %s", t0, exc)
         if step.heat:   # the step's Joule heat, once the mechanics has gone through the step
             self.mech.add_heat(step.heat)
         err = ledger_error(resultant[None, :], step.reference_integral) if step.reference_integral is not None else 0.0
@@ -247,6 +251,32 @@ class StaggeredLoop:
         c.last_values = dict(step.values)
         c.last_resultant = resultant
         return row
+
+    def _attempt(self, dt: float, k: int, t0: float, t1: float, t_mid: float):
+        """The load and the mechanics' substeps of one EM step (iterated when asked); on
+        :class:`~.interfaces.RetryStep` the load's state is restored (the mechanics' is unchanged) and it goes on."""
+        c = self.counters
+        saved = (self.mech.state_dict(), self.load.state_dict()) if self.options.iterate else None
+        load_state = saved[1] if saved is not None else (
+            self.load.state_dict() if getattr(self.mech, "retries_steps", False) else None)
+        c0 = time.perf_counter()
+        self._follow(t0)
+        step = self.load.load(t0, t1, t_mid, self.mech)
+        c1 = time.perf_counter()
+        c.em_time_s += c1 - c0
+        resultant = self.mech.total_force(step.forces)
+        try:
+            try:
+                self.mech.advance(dt, k, step.forces)
+            finally:
+                c.mech_time_s += time.perf_counter() - c1
+            iterations = 1
+            if saved is not None:
+                step, resultant, iterations = self._iterate(saved, step, resultant, dt, k, t0, t1, t_mid)
+        except RetryStep:
+            self.load.load_state_dict(load_state)
+            raise
+        return step, resultant, iterations
 
     def _load_time(self, t0: float, dt: float, k: int) -> float:
         """Where the load of an EM step of ``k`` mechanical steps of ``dt`` from ``t0`` is evaluated (s): the

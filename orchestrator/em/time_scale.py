@@ -102,7 +102,11 @@ def steps_per_period(case: Case) -> float | None:
 def rigid_mechanical_step(case: Case) -> float:
     """The mechanical step (s) of a run whose bodies are all rigid: a period of the shortest-period source over
     ``coupling.steps_per_period`` EM steps of ``coupling.n`` mechanical steps each, capped by ``time.dt_max``
-    (which alone sets it when no source has a period: the case model has made sure it is given)."""
+    (which alone sets it when no source has a period: the case model has made sure it is given); an implicit run
+    (``mechanics.integrator = "implicit"``): its ``mechanics.implicit.dt``, capped by ``time.dt_max``."""
+    im = case.mechanics.implicit
+    if case.mechanics.integrator == "implicit" and im.dt is not None:
+        return im.dt if case.time.dt_max is None else min(im.dt, case.time.dt_max)
     try:
         dt = source_period(case) / (case.coupling.steps_per_period * case.coupling.n)
     except ValueError:

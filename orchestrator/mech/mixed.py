@@ -22,6 +22,7 @@ import numpy as np
 
 from pulseform.solvers.getdp.mesh3d import tet_volumes
 from pulseform.solvers.dolfinx.rigid import EndStop, RigidBody
+from pulseform.solvers.dolfinx.rigid_held import HeldRigidBody
 
 from ..case.model import Case
 from ..coupling.interfaces import plain_total
@@ -63,8 +64,11 @@ def region_centroid(sub: ConductorMesh) -> np.ndarray:
 
 
 def rigid_bodies(case: Case, subs: dict[str, ConductorMesh]) -> list[RigidBody]:
-    """The case's rigid bodies on their regions' meshes ``subs`` (role -> the region cut from the EM mesh)."""
+    """The case's rigid bodies on their regions' meshes ``subs`` (role -> the region cut from the EM mesh): stepped
+    by central differences (:class:`RigidBody`), or exactly under the force held over each step in implicit runs
+    (:class:`~pulseform.solvers.dolfinx.rigid_held.HeldRigidBody`)."""
     out = []
+    kind = HeldRigidBody if case.mechanics.integrator == "implicit" else RigidBody
     axisymmetric = case.mechanics.formulation == "axisymmetric"
     for b in case.bodies:
         if not b.rigid:
@@ -80,7 +84,7 @@ def rigid_bodies(case: Case, subs: dict[str, ConductorMesh]) -> list[RigidBody]:
         def vec(v):
             return None if v is None or (not any(v) and len(v) != dim) else tuple(v)
 
-        out.append(RigidBody(b.name, sub.points, mass, free=tuple(i in moves for i in range(dim)),
+        out.append(kind(b.name, sub.points, mass, free=tuple(i in moves for i in range(dim)),
                              gravity=vec(gravity), offset=vec(b.offset), velocity=vec(b.initial_velocity), stops=stops,
                              reference=tuple(region_centroid(sub)[:dim])))
     return out
@@ -139,6 +143,18 @@ class MixedMechanics:
         """The deformable bodies' stable step (s); the rigid bodies' configured step without them."""
         return self.deformable.stable_time_step() if self.deformable is not None else self.rigid.stable_time_step()
 
+    @property
+    def retries_steps(self) -> bool:
+        """Whether :meth:`advance` may reject its step (the deformable bodies' adaptive implicit step)."""
+        return bool(getattr(self.deformable, "retries_steps", False))
+
+    def impulse_window(self, t0: float, dt: float, k: int) -> float:
+        """Where the loop evaluates the load of ``k`` steps of ``dt`` from ``t0`` (s): the deformable bodies' window
+        (:meth:`DolfinxMechanics.impulse_window`), else the rigid bodies' (:meth:`RigidMechanics.impulse_window`)."""
+        if self.deformable is not None:
+            return self.deformable.impulse_window(t0, dt, k)
+        return self.rigid.impulse_window(t0, dt, k)
+
     def _split(self, forces: dict[str, np.ndarray] | None) -> tuple[dict | None, dict | None]:
         if forces is None:
             return None, None
@@ -146,7 +162,8 @@ class MixedMechanics:
         return {n: f for n, f in forces.items() if n not in self.rigid.bodies}, rigid
 
     def advance(self, dt: float, n_steps: int, forces: dict[str, np.ndarray] | None) -> None:
-        """``n_steps`` steps of ``dt`` (s) of every body with held nodal forces (N)."""
+        """``n_steps`` steps of ``dt`` (s) of every body with held nodal forces (N); the deformable bodies first (an
+        adaptive implicit step that rejects its step raises before any body moved)."""
         deformable, rigid = self._split(forces)
         if self.deformable is not None:
             self.deformable.advance(dt, n_steps, deformable)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import logging
+import math
 from dataclasses import replace
 
 from mpi4py import MPI
@@ -65,8 +66,11 @@ def implicit_options(case: Case) -> ImplicitOptions:
                     "when mechanics.implicit.dt is not small against the parts' periods (set coupling.iterate = "
                     "true, or take a short step; docs/mechanics.md)")
     im = mo.implicit
+    adaptive = im.adaptive and im.scheme != "static"   # (a quasi-static stage's steps: fixed)
     return ImplicitOptions(dt=im.dt, scheme=im.scheme, alpha=im.alpha if im.scheme == "hht" else 0.0,
-                           newton_tol=im.newton_tol, newton_max=im.newton_max, max_cuts=im.max_cuts)
+                           newton_tol=im.newton_tol, newton_max=im.newton_max, max_cuts=im.max_cuts,
+                           adaptive=adaptive, error_tol=im.error_tol, error_atol=im.error_atol, dt_min=im.dt_min,
+                           dt_max=case.time.dt_max if case.time.dt_max is not None and adaptive else math.inf)
 
 
 def stage_case(case: Case, stage) -> Case:

@@ -13,8 +13,10 @@ from typing import Protocol
 import numpy as np
 from mpi4py import MPI
 
+from pulseform.solvers.dolfinx.implicit_adapt import StepRejected
+
 from ..case.model import Load
-from ..coupling.interfaces import LoadCapabilities, LoadStep, Mechanics, StepBlock
+from ..coupling.interfaces import LoadCapabilities, LoadStep, Mechanics, RetryStep, StepBlock
 from .pulse_block import PulseBlock, PulseProgram, block_plan, run_pulse_block
 from ..mesh.markers import box_marker
 from .pulses import pulse_pressure, pulse_table
@@ -76,9 +78,23 @@ class DolfinxMechanics:
         """Stable step (s), cfl included, from the current mesh."""
         return self.solver.stable_time_step()
 
+    @property
+    def retries_steps(self) -> bool:
+        """Whether :meth:`advance` may reject its step (the adaptive implicit step: :class:`RetryStep`)."""
+        return bool(getattr(getattr(self.solver, "options", None), "adaptive", False))
+
     def advance(self, dt: float, n_steps: int, forces: dict[str, np.ndarray] | None) -> None:
-        """``n_steps`` central-difference steps with held nodal forces (N)."""
-        self.solver.advance(dt, n_steps, forces)
+        """``n_steps`` steps (central differences, or implicit) with held nodal forces (N).
+
+        Raises
+        ------
+        RetryStep
+            The adaptive implicit step rejected the step (the solver's state unchanged): the step it asks for.
+        """
+        try:
+            self.solver.advance(dt, n_steps, forces)
+        except StepRejected as exc:
+            raise RetryStep(exc.dt, exc.why) from None
 
     def positions(self) -> dict[str, np.ndarray]:
         """Current node coordinates per body (m), this rank's nodes (ghosts included)."""

@@ -14,6 +14,7 @@ import math
 import numpy as np
 
 from pulseform.solvers.dolfinx.rigid import RigidBody
+from pulseform.solvers.dolfinx.rigid_held import HeldRigidBody
 
 from ..coupling.interfaces import plain_total
 
@@ -51,6 +52,13 @@ class RigidMechanics:
     def stable_time_step(self) -> float:
         """The configured step (s): rigid bodies have no stability limit."""
         return self.dt
+
+    def impulse_window(self, t0: float, dt: float, k: int) -> float:
+        """Where the loop evaluates the load of ``k`` steps of ``dt`` from ``t0`` (s): the centre of the window over
+        which the bodies take a held force's impulse: t0 + k·dt/2 when they hold it over each step (implicit runs,
+        :class:`~pulseform.solvers.dolfinx.rigid_held.HeldRigidBody`), central differences' t0 + (k − 1)·dt/2."""
+        held = any(isinstance(b, HeldRigidBody) for b in self.bodies.values())
+        return t0 + 0.5 * (k if held else k - 1) * dt
 
     def advance(self, dt: float, n_steps: int, forces: dict[str, np.ndarray] | None) -> None:
         """``n_steps`` steps of ``dt`` (s); each body under the resultant (N) of its nodal forces."""

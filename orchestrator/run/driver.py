@@ -390,6 +390,7 @@ class CaseDriver:
                    "coupling_iterations_total": float(c.iterations),
                    "coupling_iterations_max": float(c.iterations_max),
                    "coupling_unconverged_steps": float(c.unconverged),
+                   **({"mech_rejected_steps": float(c.retries)} if getattr(s, "retries_steps", False) else {}),
                    "end_time_s": float(s.time), "setup_time_s": self.setup_s,
                    "mech_time_s": c.mech_time_s, "load_time_s": c.em_time_s}
         if case.loads or case.case.kind == "coupled":

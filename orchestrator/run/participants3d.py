@@ -190,7 +190,10 @@ def device_axes(planes: list[PlaneSpec]) -> np.ndarray:
 
 def rigid_step_3d(case: Case) -> float:
     """The mechanical step (s) of a 3D case whose bodies are all rigid: geometry.em_step / coupling.n, capped
-    by time.dt_max (which alone sets it without an EM step)."""
+    by time.dt_max (which alone sets it without an EM step); an implicit run: its mechanics.implicit.dt, capped."""
+    im = case.mechanics.implicit
+    if case.mechanics.integrator == "implicit" and im.dt is not None:
+        return im.dt if case.time.dt_max is None else min(im.dt, case.time.dt_max)
     em_step = case.geometry.em_step
     dt = em_step / case.coupling.n if em_step is not None else case.time.dt_max
     return dt if case.time.dt_max is None else min(dt, case.time.dt_max)

@@ -57,7 +57,7 @@ RULES: tuple[tuple[str, Unit], ...] = (
     (r"dt_s", _u("s", "µs", 1e6)),                          # mechanical time step
     (r"status", _u("text")),                                # metrics.json: ok / failed / interrupted
     (r"(step|substeps|iterations|em_remeshes|mech_steps|em_steps|n_final|coupling_iterations_(total|max)"
-     r"|coupling_unconverged_steps|em_(getdp_)?(factorisations|corrections))", COUNT),
+     r"|coupling_unconverged_steps|mech_rejected_steps|em_(getdp_)?(factorisations|corrections))", COUNT),
     (r".*_(iterations|closed_nodes)", COUNT),               # em_newton_iterations, springback_contact<i>_closed_nodes
     (r"status_ok", DIMENSIONLESS),                          # 1 / 0
     # ratios, fractions, qualities, plastic strains; optionally followed by qualifiers (_max, _end, ...)

@@ -35,6 +35,7 @@ Accuracy: second order in dt for the trapezoidal rule (no amplitude error, perio
 infinity (1 + alpha) / (1 - alpha)). The energy ledger adds ``internal_work_J`` (the trapezoidal
 work of the internal forces) and ``algorithmic_dissipation_J`` = external work - change of kinetic
 energy - internal work: zero to the Newton tolerance for the trapezoidal rule, the energy HHT removes.
+``options.adaptive``: each step chosen from a local error estimate, :mod:`.implicit_adapt`.
 
 Contact pairs (eq. (5), elastic law) join the residual with their tangent (:mod:`.implicit_contact`); rigid walls
 are exact constraints on an active set (:mod:`.implicit_walls`). Not done yet (the solver refuses them in one line):
@@ -57,27 +58,20 @@ from .implicit_element import CellState, cell_tangent, cell_update
 from .implicit_flow import unsupported_material
 from .implicit_ledger import ImplicitLedger
 from .implicit_linear import SingularSystemError, solve_sparse
+from .implicit_adapt import AdaptiveSteps, StepRejected
 from .implicit_options import SCHEMES, ImplicitConvergenceError, ImplicitOptions
+from .implicit_options import NotConverged as _NotConverged
 from .implicit_walls import WallSet, check_static_supports, reduced_basis
 from .solver import ExplicitSolver
 from .solver3d import ExplicitSolver3D
 
 __all__ = ["ImplicitOptions", "ImplicitSolver", "ImplicitSolver3D", "ImplicitConvergenceError",
-           "SingularSystemError", "SCHEMES"]
+           "SingularSystemError", "SCHEMES", "StepRejected"]
 
 log = logging.getLogger(__name__)
 
 #: halvings of a Newton update that crossed a contact layer before the step is cut
 _BACKTRACKS = 8
-
-
-class _NotConverged(Exception):
-    """A Newton solve failed (iterations exhausted, a cell inverted, a non-finite residual)."""
-
-    def __init__(self, why: str, residuals: Sequence[float]):
-        self.why = why
-        self.residuals = list(residuals)
-        super().__init__(why)
 
 
 class _Trial:
@@ -93,7 +87,7 @@ class _Trial:
         self.scale = 0.0
 
 
-class ImplicitSteps(ImplicitLedger):
+class ImplicitSteps(AdaptiveSteps, ImplicitLedger):
     """The implicit step, a part of :class:`ImplicitSolver` and :class:`ImplicitSolver3D` (the bodies,
     mass, constraints, ledger and restart are those of the explicit solver they extend)."""
 
@@ -131,6 +125,7 @@ class ImplicitSteps(ImplicitLedger):
         self._iacc = {"internal_work_J": 0.0, "support_work_J": 0.0, "contact_work_J": 0.0, "wall_work_J": 0.0}
         self._restart_from_state()
         self._supported: Optional[bool] = None
+        self._adapt_init()
         log.info("implicit integrator: %s (alpha %g), dt %.4g s, Newton tol %.1e, at most %d iterations, "
                  "%d cuts", options.scheme, options.alpha, options.dt, options.newton_tol, options.newton_max,
                  options.max_cuts)
@@ -165,8 +160,8 @@ class ImplicitSteps(ImplicitLedger):
 
     # ------------------------------------------------------------------ the loop's view
     def stable_time_step(self) -> float:
-        """The implicit step (s): ``options.dt`` (no stability limit)."""
-        return self.options.dt
+        """The implicit step (s): ``options.dt``, or the adaptive step's proposal (no stability limit)."""
+        return getattr(self, "_dt_next", self.options.dt) if self.options.adaptive else self.options.dt
 
     def impulse_window(self, t0: float, dt: float, k: int) -> float:
         """Where the loop evaluates the load of ``k`` steps of ``dt`` from ``t0`` (s): dynamic schemes hold the
@@ -199,6 +194,8 @@ class ImplicitSteps(ImplicitLedger):
             Newton did not converge on the smallest step allowed (``max_cuts`` halvings).
         SingularSystemError
             A static step of a body its supports leave free to move rigidly, or a zero pivot.
+        StepRejected
+            ``options.adaptive``: the step's error is above ``error_tol`` (nothing changed; retry with its ``dt``).
         """
         if not (np.isfinite(dt) and dt > 0):
             raise ValueError(f"dt must be a positive number, got {dt!r}")
@@ -208,6 +205,7 @@ class ImplicitSteps(ImplicitLedger):
             unknown = set(external_forces) - set(self.bodies)
             if unknown:
                 raise ValueError(f"external_forces for unknown bodies {sorted(unknown)}")
+        held = self._held_forces() if self.options.adaptive else None
         for n, b in self.bodies.items():
             f = np.zeros_like(b.x)
             if external_forces is not None and n in external_forces:
@@ -223,6 +221,8 @@ class ImplicitSteps(ImplicitLedger):
             self._fext_nonzero[n] = bool(np.any(f))
         if self.options.scheme == "static" and not self._supported:
             self._supported = check_static_supports(self)
+        if held is not None:
+            return self._adaptive_step(dt, n_steps, held)
         for _ in range(int(n_steps)):
             self._step_with_cuts(dt, 0, 0.0, 1.0)
             for n in self.bodies:   # static: the state is now in equilibrium with the held force

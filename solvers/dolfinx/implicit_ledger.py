@@ -30,8 +30,8 @@ class ImplicitLedger:
         return e
 
     def state_dict(self) -> Dict[str, np.ndarray]:
-        """The explicit solver's state plus the internal, contact and wall forces of the last step and the
-        implicit ledger."""
+        """The explicit solver's state plus the internal, contact and wall forces of the last step, the
+        implicit ledger and the adaptive step's controller."""
         d = super().state_dict()
         for n in self.bodies:
             d[f"{n}/implicit_fint"] = self._fint[n].copy()
@@ -39,6 +39,7 @@ class ImplicitLedger:
             d[f"{n}/implicit_fwall"] = self._fwall[n].copy()
             d[f"{n}/implicit_f_from"] = self._f_from[n].copy()
         d["implicit/acc"] = np.array([self._iacc[k] for k in IACC_KEYS] + [self._KE0])
+        d["implicit/adapt"] = self.adapt_state()
         return d
 
     def load_state_dict(self, d: Mapping[str, np.ndarray]) -> None:
@@ -53,3 +54,5 @@ class ImplicitLedger:
         for k, v in zip(IACC_KEYS, acc):
             self._iacc[k] = v
         self._KE0 = acc[-1]
+        if "implicit/adapt" in d:   # (checkpoints before the adaptive step: the fixed step)
+            self.load_adapt_state(d["implicit/adapt"])
