@@ -167,11 +167,45 @@ def bar_off_wall2d() -> dict:
     return out
 
 
+def errors() -> dict:
+    """The one-line stops on every rank: a static step of an unsupported plate (SingularSystemError from the
+    gathered rigid-motion check), a plastic static step allowed one Newton iteration and one cut
+    (ImplicitConvergenceError), and the distributed LU of a zero tangent (SingularSystemError from MUMPS). Per
+    error, the messages of all ranks (rank order) and whether the state stayed at t = 0."""
+    import scipy.sparse as sp
+
+    from pulseform.solvers.dolfinx.implicit import ImplicitConvergenceError, SingularSystemError
+
+    def _stop(s, call):
+        try:
+            call()
+            msg = None
+        except (SingularSystemError, ImplicitConvergenceError) as exc:
+            msg = f"{type(exc).__name__}: {exc}"
+        return {"messages": COMM.allgather(msg), "time": s.time, "steps": s.step_count}
+
+    msh = dmesh.create_rectangle(COMM, [np.array([0.0, 0.0]), np.array([L, H])], [10, 2],
+                                 diagonal=dmesh.DiagonalType.crossed)
+    free = ImplicitSolver([BodySpec("plate", msh, PLASTIC)], ImplicitOptions(dt=1.0, scheme="static"),
+                          formulation="plane_strain", thickness=T, comm=COMM)
+    out = {"unsupported": _stop(free, lambda: free.advance(1.0, 1))}
+    s = _plate(ImplicitOptions(dt=1e-3, scheme="static", newton_max=1, max_cuts=1))
+    f = s.pressure_nodal_forces("plate", _reference(s, "plate", 1, H), 2e6)
+    out["newton"] = _stop(s, lambda: s.advance(1e-3, 1, {"plate": f}))
+    lin = s._linear
+    n = s._ndof
+    lin.reduce(sp.identity(n, format="csr"), np.zeros(n), np.ones(n))
+    out["zero_pivot"] = _stop(s, lambda: lin.solve(sp.csr_matrix((n, n)), 0.0, "a zero tangent"))
+    return out
+
+
 CASES = {"plate": plate, "plate_restart": plate_restart, "cylinder_hht": cylinder, "cantilever3d_static": cantilever3d,
          "block_on_wall3d": block_on_wall3d, "bar_off_wall2d": bar_off_wall2d}
+#: run by name only (not part of the default set)
+EXTRA = {"errors": errors}
 
 if __name__ == "__main__":
     names = sys.argv[1:] or list(CASES)
-    result = {n: CASES[n]() for n in names}
+    result = {n: {**CASES, **EXTRA}[n]() for n in names}
     if COMM.rank == 0:
         json.dump(result, sys.stdout)

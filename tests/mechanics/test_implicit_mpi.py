@@ -16,6 +16,7 @@ A restart under MPI continues to round-off, not to the same bits: MUMPS's parall
 work dynamically, so two parallel runs of the same step differ by ~1e-15 relative (measured); one process: the
 same bits.
 """
+import copy
 import json
 import os
 import shutil
@@ -41,6 +42,11 @@ def _mpirun():
     if mpirun is None:
         pytest.skip("mpirun not found")
     return mpirun
+
+
+def _env() -> dict:
+    return dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
+                OMPI_MCA_rmaps_base_oversubscribe="1", NUMBA_DISABLE_ERROR_MESSAGE_HIGHLIGHTING="1")
 
 
 def _compare(serial: dict, par: dict, ranks: int) -> None:
@@ -94,8 +100,7 @@ def test_pulseform_run_on_two_ranks_matches_serial(tmp_path):
     mpirun = _mpirun()
     case = tmp_path / "case.toml"
     case.write_text(tomli_w.dumps(CASE))
-    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
-               OMPI_MCA_rmaps_base_oversubscribe="1", NUMBA_DISABLE_ERROR_MESSAGE_HIGHLIGHTING="1")
+    env = _env()
     runs = {}
     for name, prefix in (("serial", []), ("mpi", [mpirun, "-n", "2"])):
         out = tmp_path / name
@@ -117,3 +122,44 @@ def test_pulseform_run_on_two_ranks_matches_serial(tmp_path):
             print(f"metric {key}: serial {val!r} mpi {mp[key]!r}")
             assert mp[key] == pytest.approx(val, rel=1e-8, abs=1e-8 * work), key
     print(f"wall time: serial {ms['wall_time_s']:.2f} s, 2 ranks {mp['wall_time_s']:.2f} s")
+
+
+@pytest.mark.mpi
+def test_stops_are_one_line_on_every_rank():
+    """On 2 ranks every rank raises the same one-line stop and keeps the state at t = 0: a static step of an
+    unsupported plate (SingularSystemError naming the body and its free motions, from the gathered supports), a
+    plastic static step allowed one Newton iteration and one cut (ImplicitConvergenceError), a zero tangent in the
+    distributed LU (SingularSystemError from MUMPS)."""
+    par = _run([_mpirun(), "-n", "2", sys.executable, str(SCRIPT), "errors"])["errors"]
+    want = {"unsupported": ("SingularSystemError", "rotation z"), "newton": ("ImplicitConvergenceError", "after 1 cuts"),
+            "zero_pivot": ("SingularSystemError", "zero pivot")}
+    for name, (kind, part) in want.items():
+        msgs = par[name]["messages"]
+        print(name, msgs[0])
+        assert len(msgs) == 2 and msgs[0] == msgs[1] and msgs[0] is not None, name
+        assert msgs[0].startswith(kind) and part in msgs[0] and "\n" not in msgs[0], name
+        assert par[name]["time"] == 0.0 and par[name]["steps"] == 0, name
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("edit,key", [("springback", "springback:"), ("contact", "contact:")])
+def test_what_runs_on_one_process_is_refused_in_one_line_under_mpi(tmp_path, edit, key):
+    """``mpirun -n 2 pulseform run`` of the implicit case with [springback] or with a contact pair: exit 1, one
+    error line per rank naming the key (springback's release supports are chosen per process; the implicit
+    contact tangent is serial)."""
+    data = copy.deepcopy(CASE)
+    if edit == "springback":
+        data["springback"] = {"supports": "kept"}
+    else:
+        die = copy.deepcopy(data["bodies"][0])
+        die.update(name="die", shape={"type": "rectangle", "origin": [0.0, -0.006], "width": 0.1, "height": 0.005})
+        data["bodies"].append(die)
+        data["contact"] = [{"slave": "beam", "master": "die", "stiffness": 1e6, "h0": 1e-4}]
+    case = tmp_path / "case.toml"
+    case.write_text(tomli_w.dumps(data))
+    r = subprocess.run([_mpirun(), "-n", "2", EXE, "run", str(case), "--out", str(tmp_path / "out"), "--quiet",
+                        *COARSE], capture_output=True, text=True, env=_env(), timeout=900)
+    lines = [ln for ln in r.stderr.splitlines() if ln.startswith("pulseform: error:")]
+    print(lines[:1])
+    assert r.returncode == 1 and len(lines) == 2 and all(key in ln and "under MPI" in ln for ln in lines), r.stderr
+    assert "Traceback" not in r.stderr
