@@ -163,3 +163,43 @@ def test_what_runs_on_one_process_is_refused_in_one_line_under_mpi(tmp_path, edi
     print(lines[:1])
     assert r.returncode == 1 and len(lines) == 2 and all(key in ln and "under MPI" in ln for ln in lines), r.stderr
     assert "Traceback" not in r.stderr
+
+
+@pytest.mark.mpi
+def test_staged_preform_on_two_ranks_matches_serial(tmp_path):
+    """A staged run under ``mpirun -n 2``: test_stages.py's implicit static preform handed to an explicit stage (the
+    hand-over of :mod:`pulseform.solvers.dolfinx.handover` on a partitioned mesh). Every history column equals the
+    serial run's: displacements, stresses and the stage column to 1e-10 relative, ledger columns to 1e-10 of the
+    external work, the hold's speed and momentum (round-off of the static equilibrium, ~3e-7 m/s) to 1e-12 absolute
+    (the explicit MPI checks' bound, test_3d_mpi.py)."""
+    from test_stages import CASE as STAGED
+
+    data = copy.deepcopy(STAGED)
+    data["loads"] = [{"type": "pulse_exp", "body": "beam", "surface": {"ymin": 0.004999}, "amplitude": 2.0e4,
+                      "decay_time": 1000.0, "t_start": 0.0, "t_end": 1.0}]
+    data["time"]["end"] = 1.2e-3
+    data["output"]["history_every"] = 20
+    data["stages"] = [{"name": "preform", "kind": "quasi_static", "end": 1.0e-3, "dt": 2.5e-4},
+                      {"name": "hold", "kind": "pulse", "end": 1.2e-3, "field_interval": 1e-4}]
+    case = tmp_path / "case.toml"
+    case.write_text(tomli_w.dumps(data))
+    hist = {}
+    for name, prefix in (("serial", []), ("mpi", [_mpirun(), "-n", "2"])):
+        out = tmp_path / name
+        r = subprocess.run([*prefix, EXE, "run", str(case), "--out", str(out), "--quiet"], capture_output=True,
+                           text=True, env=_env(), timeout=900)
+        assert r.returncode == 0, r.stderr[-3000:]
+        hist[name] = np.genfromtxt(out / "history.csv", delimiter=",", names=True)
+    hs, hp = hist["serial"], hist["mpi"]
+    assert hs.dtype.names == hp.dtype.names and hs.shape == hp.shape and hs["stage"].max() == 2
+    work = float(np.abs(hs["energy_external_work_J"]).max())
+    for col in hs.dtype.names:
+        err = float(np.abs(hp[col] - hs[col]).max())
+        if col.startswith("energy_"):
+            bound = 1e-10 * work
+        elif col.endswith(("_speed_m_s", "_momentum_y_Ns", "_momentum_x_Ns")):
+            bound = 1e-12
+        else:
+            bound = 1e-10 * float(np.abs(hs[col]).max())
+        print(f"history {col}: largest |mpi - serial| {err:.3g} (bound {bound:.3g})")
+        assert err <= bound, col
