@@ -102,9 +102,9 @@ def refuse_under_mpi(case: Case, pairs, ranks: int) -> None:
             raise SchemaError(f"stages[{i}].kind", f"got 'springback' under MPI ({ranks} processes); springback runs "
                                                    "on one process for now: run without mpirun")
     if case.mechanics.integrator == "implicit" and pairs:
-        raise SchemaError("contact", f"{len(pairs)} pair(s) with integrator = 'implicit' under MPI ({ranks} processes); "
-                                     "implicit contact runs on one process for now: run without mpirun, use [[walls]] "
-                                     "or integrator = 'explicit'")
+        raise SchemaError("contact", f"{len(pairs)} pair(s) with integrator = 'implicit' under MPI ({ranks} "
+                                     "processes); implicit contact runs on one process for now: run without mpirun, "
+                                     "use [[walls]] or integrator = 'explicit'")
 
 
 def make_solver(case: Case, bodies, pairs, walls, comm: MPI.Comm, compiled_steps: bool = True):

@@ -287,7 +287,8 @@ class ImplicitSteps(ImplicitLedger):
 
     def _cells(self, n: str, b, du_cells: np.ndarray, dt: float):
         """The cell update of body ``n`` for cell increments ``du_cells`` (nc, nn, gdim); adds the
-        assembled nodal internal force as ``force_nodal`` (complete on every local row) and ``tangent()``, which computes the cell tangents."""
+        assembled nodal internal force as ``force_nodal`` (complete on every local row) and ``tangent()``, which
+        computes the cell tangents."""
         st = CellState(b.x[b.cells], b.cell_stress, b.eps_p, b.material, self.mode,
                        float(getattr(b, "thickness", 1.0)), dt)
         res = cell_update(st, du_cells)

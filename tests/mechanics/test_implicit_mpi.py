@@ -87,7 +87,8 @@ def test_ranks_match_serial(ranks):
     _compare(serial, par, ranks)
     rs, rp = serial["plate_restart"], par["plate_restart"]
     print(f"restart: serial dx {rs['restart_dx_max']:.3g} m dv {rs['restart_dv_max']:.3g} m/s; {ranks} ranks dx "
-          f"{rp['restart_dx_max']:.3g} m (of {rp['u_max']:.3g}) dv {rp['restart_dv_max']:.3g} m/s (of {rp['v_max']:.3g})")
+          f"{rp['restart_dx_max']:.3g} m (of {rp['u_max']:.3g}) dv {rp['restart_dv_max']:.3g} m/s "
+          f"(of {rp['v_max']:.3g})")
     assert rs["restart_dx_max"] == 0.0 and rs["restart_dv_max"] == 0.0 and rs["restart_same_energies"] == 1.0
     assert rp["restart_dx_max"] <= 1e-10 * rp["u_max"] and rp["restart_dv_max"] <= 1e-10 * rp["v_max"]
 
@@ -131,7 +132,8 @@ def test_stops_are_one_line_on_every_rank():
     plastic static step allowed one Newton iteration and one cut (ImplicitConvergenceError), a zero tangent in the
     distributed LU (SingularSystemError from MUMPS)."""
     par = _run([_mpirun(), "-n", "2", sys.executable, str(SCRIPT), "errors"])["errors"]
-    want = {"unsupported": ("SingularSystemError", "rotation z"), "newton": ("ImplicitConvergenceError", "after 1 cuts"),
+    want = {"unsupported": ("SingularSystemError", "rotation z"),
+            "newton": ("ImplicitConvergenceError", "after 1 cuts"),
             "zero_pivot": ("SingularSystemError", "zero pivot")}
     for name, (kind, part) in want.items():
         msgs = par[name]["messages"]
