@@ -37,9 +37,15 @@ work of the internal forces) and ``algorithmic_dissipation_J`` = external work -
 energy - internal work: zero to the Newton tolerance for the trapezoidal rule, the energy HHT removes.
 ``options.adaptive``: each step chosen from a local error estimate, :mod:`.implicit_adapt`.
 
-Contact pairs (eq. (5), elastic law) join the residual with their tangent (:mod:`.implicit_contact`); rigid walls
-are exact constraints on an active set (:mod:`.implicit_walls`). Not done yet (the solver refuses them in one line):
-contact friction and viscosity, soft planes, oblique sliding planes, MPI (one process), bulk viscosity (not needed).
+Contact pairs (eq. (5), elastic law) join the residual with their tangent (:mod:`.implicit_contact`);
+rigid walls are exact constraints on an active set (:mod:`.implicit_walls`).
+
+MPI (linear elements on a partitioned mesh, as the explicit solvers): each rank updates its owned cells, the
+nodal forces are summed into their owners and copied to the ghosts (:meth:`~.body.Body.complete_nodal`), the
+norms, sums of the ledger and every decision (convergence, cuts, walls, a singular system) are collective, and
+the Newton system is a distributed PETSc matrix solved by MUMPS (:mod:`.implicit_dist`). Not done yet (the
+solver refuses them in one line): contact friction and viscosity, contact pairs under MPI, soft planes, oblique
+sliding planes, bulk viscosity (not needed: HHT damps the high modes).
 """
 from __future__ import annotations
 
@@ -57,8 +63,9 @@ from .implicit_contact import ContactCrossed, check_pairs, evaluate_contact
 from .implicit_element import CellState, cell_tangent, cell_update
 from .implicit_flow import unsupported_material
 from .implicit_ledger import ImplicitLedger
-from .implicit_linear import SingularSystemError, solve_sparse
 from .implicit_adapt import AdaptiveSteps, StepRejected
+from .implicit_dist import DistributedSystem
+from .implicit_linear import SerialSystem, SingularSystemError
 from .implicit_options import SCHEMES, ImplicitConvergenceError, ImplicitOptions
 from .implicit_options import NotConverged as _NotConverged
 from .implicit_walls import WallSet, check_static_supports, reduced_basis
@@ -94,8 +101,9 @@ class ImplicitSteps(AdaptiveSteps, ImplicitLedger):
     options: ImplicitOptions
 
     def _implicit_init(self, options: ImplicitOptions) -> None:
-        if self.comm.size > 1:
-            raise ValueError("the implicit integrator runs on one process (MPI: not done yet); run without mpirun")
+        if self.comm.size > 1 and self.contact_pairs:
+            raise ValueError("the implicit integrator takes contact pairs on one process only (MPI: not done yet): "
+                             "run without mpirun, use a rigid wall, or mechanics.integrator = 'explicit'")
         if getattr(self, "soft_planes", ()):
             raise ValueError("the implicit integrator has no soft planes yet: use a contact pair with a body, "
                              "a rigid wall, or mechanics.integrator = 'explicit'")
@@ -117,6 +125,7 @@ class ImplicitSteps(AdaptiveSteps, ImplicitLedger):
             self._offsets[n] = off
             off += b.x.size
         self._ndof = off
+        self._linear = DistributedSystem(self) if self.comm.size > 1 else SerialSystem(self)
         self._mask = {n: b.constrained_mask() for n, b in self.bodies.items()}
         self._fint: Dict[str, np.ndarray] = {}
         self._fcon: Dict[str, np.ndarray] = {}
@@ -186,7 +195,8 @@ class ImplicitSteps(AdaptiveSteps, ImplicitLedger):
             Number of steps.
         external_forces : dict, optional
             Body name -> nodal forces (n_local_nodes, gdim), N (planar: for the thickness;
-            axisymmetric: the full ring), held constant over the steps; absent bodies: zero.
+            axisymmetric: the full ring), held constant over the steps; absent bodies: zero. Each
+            row is the complete force on its node; rows of ghost nodes (MPI) are ignored.
 
         Raises
         ------
@@ -212,7 +222,8 @@ class ImplicitSteps(AdaptiveSteps, ImplicitLedger):
                 arr = np.asarray(external_forces[n], dtype=float)
                 if arr.shape != b.x.shape:
                     raise ValueError(f"external_forces[{n!r}] must have shape {b.x.shape}")
-                f[...] = arr
+                f[:b.n_owned] = arr[:b.n_owned]   # each owned row is the complete force
+            b.complete_nodal(f)                       # MPI: the ghosts' rows from their owners
             if self.options.scheme != "static":   # the held force acts from now on: shift a^n
                 delta = (f - self._fext[n]) / b.mass[:, None]
                 delta[self._mask[n]] = 0.0
@@ -276,14 +287,15 @@ class ImplicitSteps(AdaptiveSteps, ImplicitLedger):
 
     def _cells(self, n: str, b, du_cells: np.ndarray, dt: float):
         """The cell update of body ``n`` for cell increments ``du_cells`` (nc, nn, gdim); adds the
-        assembled nodal internal force as ``force_nodal`` and ``tangent()``, which computes the cell tangents."""
+        assembled nodal internal force as ``force_nodal`` (complete on every local row) and ``tangent()``, which
+        computes the cell tangents."""
         st = CellState(b.x[b.cells], b.cell_stress, b.eps_p, b.material, self.mode,
                        float(getattr(b, "thickness", 1.0)), dt)
         res = cell_update(st, du_cells)
         f = np.zeros_like(b.x)
         for c in range(b.gdim):
             f[:, c] = np.bincount(b.cells.ravel(), weights=res.force[:, :, c].ravel(), minlength=len(b.x))
-        res.force_nodal = f
+        res.force_nodal = b.complete_nodal(f)      # MPI: the ghosts' shares summed into their owners
         res.tangent = lambda: cell_tangent(st, du_cells)
         return res
 
@@ -295,12 +307,13 @@ class ImplicitSteps(AdaptiveSteps, ImplicitLedger):
         trial.contact = evaluate_contact(self, {n: b.x + du[n] for n, b in self.bodies.items()}, self._offsets,
                                          getattr(self, "_last_pairs", None))
         self._last_pairs = trial.contact.active
-        R_parts, scale_parts = [], [0.0, 0.0, 0.0, 0.0]
+        R_parts, scale_parts, inverted = [], [0.0, 0.0, 0.0, 0.0], None
         for n, b in self.bodies.items():
             res = self._cells(n, b, du[n][b.cells], dt)
-            if res.inverted.any():
-                raise _NotConverged(f"cell {int(np.flatnonzero(res.inverted)[0])} of body {n!r} inverted",
-                                    self.last_residuals)
+            if res.inverted.any() and inverted is None:
+                inverted = f"cell {int(np.flatnonzero(res.inverted)[0])} of body {n!r} inverted"
+                if self.comm.size > 1:
+                    inverted += f" (rank {self.comm.rank})"
             inert = np.zeros_like(b.x)
             if c_m:
                 inert = b.mass[:, None] * c_m * (du[n] - dt * b.v - dt * dt * (0.5 - o.beta) * b.a)
@@ -309,15 +322,19 @@ class ImplicitSteps(AdaptiveSteps, ImplicitLedger):
             R = inert + c_k * (res.force_nodal - fc) - o.alpha * (self._fint[n] - self._fcon[n]) - F
             trial.reaction[n] = R
             R_parts.append(R.ravel())
-            free = ~self._mask[n]
-            scale_parts[0] += float(np.sum(inert[free] ** 2))
-            scale_parts[1] += float(np.sum(res.force_nodal ** 2))   # all components: the reactions too
-            scale_parts[2] += float(np.sum(F[free] ** 2))
+            no = b.n_owned   # MPI: the owned rows (summed over the ranks below)
+            free = ~self._mask[n][:no]
+            scale_parts[0] += float(np.sum(inert[:no][free] ** 2))
+            scale_parts[1] += float(np.sum(res.force_nodal[:no] ** 2))   # all components: the reactions too
+            scale_parts[2] += float(np.sum(F[:no][free] ** 2))
             # the force scale must not vanish with the solution (a static step back to zero load)
-            scale_parts[3] += float(np.sum(self._fint[n][free] ** 2))
+            scale_parts[3] += float(np.sum(self._fint[n][:no][free] ** 2))
             trial.results[n] = res
+        inverted = self._linear.first(inverted)
+        if inverted is not None:
+            raise _NotConverged(inverted, self.last_residuals)
         trial.R = np.concatenate(R_parts)
-        trial.scale = math.sqrt(max(scale_parts))
+        trial.scale = self._linear.agree(math.sqrt(max(self._linear.sums(scale_parts))))
         return trial
 
     def _newton(self, dt: float, s1: float) -> _Trial:
@@ -350,23 +367,22 @@ class ImplicitSteps(AdaptiveSteps, ImplicitLedger):
                     last[n] *= 0.5
                     du[n] -= last[n]
                 continue
-            if not np.all(np.isfinite(trial.R)):
+            lin = self._linear   # one process, or the ranks' distributed system (every decision collective)
+            if lin.any(not np.all(np.isfinite(trial.R))):
                 raise _NotConverged("non-finite residual", residuals)
             T, corr = reduced_basis(self, walls, du, self._mask, target, self._offsets, self._ndof)
-            Rr = T.T @ trial.R
-            rn = float(np.linalg.norm(Rr))
+            rn = lin.reduce(T, corr, trial.R)
             rel = rn / trial.scale if trial.scale > 0 else (0.0 if rn == 0 else math.inf)
             residuals.append(rel)
-            if rel <= o.newton_tol and not np.any(corr) and not walls.release(trial.reaction,
-                                                                            o.newton_tol * trial.scale):
+            if rel <= o.newton_tol and not lin.any(np.any(corr)) and not lin.any(
+                    walls.release(trial.reaction, o.newton_tol * trial.scale)):
                 self.newton_iterations += it
                 trial.walls = walls
                 return trial
             if it == o.newton_max:
                 break
-            K = self._assemble([(n, b, trial.results[n]) for n, b in self.bodies.items()], c_m, c_k, trial.contact)
-            delta = T @ solve_sparse((T.T @ K @ T).tocsr(), -(Rr + T.T @ (K @ corr)),
-                                     f"t = {self.time:.6e} s, Newton iteration {it + 1}") + corr
+            K = self._assemble([(n, b, trial.results[n]) for n, b in self.bodies.items()], 0.0, c_k, trial.contact)
+            delta = lin.solve(K, c_m, f"t = {self.time:.6e} s, Newton iteration {it + 1}")
             last = {}
             for n, b in self.bodies.items():
                 o0 = self._offsets[n]
@@ -400,63 +416,6 @@ class ImplicitSteps(AdaptiveSteps, ImplicitLedger):
             K = K + sp.diags(np.concatenate(diag))
         return K.tocsr()
 
-    def _commit(self, trial: _Trial, dt: float, s0: float, s1: float) -> None:
-        """Take the converged iterate: positions, velocities, accelerations, stresses, ledger."""
-        o = self.options
-        static = o.scheme == "static"
-        beta, gamma = o.beta, o.gamma
-        w_int = w_sup = w_ext = w_p = w_con = w_wall = 0.0
-        r_end, x_end = {}, {}
-        for n, b in self.bodies.items():
-            du = trial.du[n]
-            res = trial.results[n]
-            fint, fcon = res.force_nodal, trial.contact.force[n]
-            if static:
-                a_new = np.zeros_like(b.x)
-                v_new = np.zeros_like(b.x)
-            else:
-                a_new = (du - dt * b.v - dt * dt * (0.5 - beta) * b.a) / (beta * dt * dt)
-                v_new = b.v + dt * ((1.0 - gamma) * b.a + gamma * a_new)
-                ke = 0.5 * float(np.sum(b.mass[:, None] * v_new ** 2))
-                trial.walls.stop(n, v_new, a_new)
-                w_wall -= ke - 0.5 * float(np.sum(b.mass[:, None] * v_new ** 2))   # the wall's impact
-            m = self._mask[n]
-            # supports and walls: their reaction R = M a + f_int - f_c - F (trapezoidal average) works on the
-            # prescribed motion
-            F0, F1 = self._load(n, s0), self._load(n, s1)
-            r_old = b.mass[:, None] * b.a + self._fint[n] - self._fcon[n] - F0
-            r_end[n] = b.mass[:, None] * a_new + fint - fcon - F1
-            w_sup += float(np.sum((du * 0.5 * (r_old + r_end[n]))[m]))
-            w_int += float(np.sum(du * 0.5 * (self._fint[n] + fint)))
-            w_con += float(np.sum(du * 0.5 * (self._fcon[n] + fcon)))
-            w_ext += float(np.sum(du * 0.5 * (F0 + F1)))
-            w_p += float(np.sum(res.plastic_work))
-            b.x += du
-            x_end[n] = b.x
-            b.v[...] = v_new
-            b.a[...] = a_new
-            b.cell_stress[...] = np.real(res.stress)
-            b.eps_p += res.deps_p
-            self._fint[n] = fint
-            self._fcon[n] = fcon
-        fwall = trial.walls.wall_force(r_end)
-        for n in self.bodies:
-            w_wall += float(np.sum(trial.du[n] * 0.5 * (self._fwall[n] + fwall[n])))
-            self._fwall[n] = fwall[n]
-        self._wall_out = trial.walls.pressures(r_end, x_end)
-        self._active, self._contact_out = trial.contact.active, trial.contact.out
-        self._contact_stored = trial.contact.stored
-        self._contact_work += w_con
-        self._iacc["contact_work_J"] += w_con
-        self._iacc["wall_work_J"] += w_wall
-        self._acc["wall_dissipated_J"] -= w_wall
-        self._iacc["internal_work_J"] += w_int
-        self._iacc["support_work_J"] += w_sup
-        self._acc["external_work_J"] += w_ext + w_sup
-        self._acc["plastic_J"] += w_p
-        self.time += dt
-        self.step_count += 1
-
 
 class ImplicitSolver(ImplicitSteps, ExplicitSolver):
     """Implicit dynamics of 2D bodies (plane stress, plane strain, axisymmetric; P1 triangles).
@@ -472,9 +431,9 @@ class ImplicitSolver(ImplicitSteps, ExplicitSolver):
     thickness : float
         Out-of-plane thickness for planar formulations, m.
     comm : MPI communicator
-        One process.
+        The bodies' meshes' (one process, or the ranks of a partitioned mesh: every method is collective).
     contact_pairs, rigid_walls : sequence
-        Must be empty (not in the implicit integrator yet).
+        Contact pairs (elastic law of eq. (5); one process only) and rigid walls.
     """
 
     def __init__(self, bodies: Sequence[BodySpec], options: ImplicitOptions,

@@ -29,6 +29,7 @@ import math
 from typing import Dict, Tuple
 
 import numpy as np
+from mpi4py import MPI
 
 from .implicit_options import NotConverged
 
@@ -112,11 +113,14 @@ class AdaptiveSteps:
         e2 = u2 = 0.0
         count = 0
         for n, b in self.bodies.items():
-            free = ~self._mask[n]
-            a_new = (du[n] - dt * b.v - dt * dt * (0.5 - beta) * b.a) / (beta * dt * dt)
-            e2 += float(np.sum(local_error(beta, dt, a_new, b.a)[free] ** 2))
-            u2 += float(np.sum((b.x + du[n] - b.X0)[free] ** 2))
+            no = b.n_owned                    # owned rows: each node counted once over the ranks
+            free = ~self._mask[n][:no]
+            a_new = (du[n][:no] - dt * b.v[:no] - dt * dt * (0.5 - beta) * b.a[:no]) / (beta * dt * dt)
+            e2 += float(np.sum(local_error(beta, dt, a_new, b.a[:no])[free] ** 2))
+            u2 += float(np.sum((b.x[:no] + du[n][:no] - b.X0[:no])[free] ** 2))
             count += int(np.count_nonzero(free))
+        if self.comm.size > 1:                # every rank takes the same decision
+            e2, u2, count = (float(v) for v in self.comm.allreduce(np.array([e2, u2, count], float), op=MPI.SUM))
         e = math.sqrt(e2 / max(count, 1))
         s = max(math.sqrt(u2 / max(count, 1)), self._u_peak)
         accepted = o.error_tol * s + o.error_atol

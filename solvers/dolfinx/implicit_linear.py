@@ -1,6 +1,6 @@
 """The linear solves of the implicit solver: a sparse direct LU (PETSc KSP ``preonly`` + ``lu`` with
-MUMPS) on one process, and the check that a static system is not singular because a body can move
-as a rigid body."""
+MUMPS) on one process (:class:`SerialSystem`; under MPI :class:`.implicit_dist.DistributedSystem`), and the
+check that a static system is not singular because a body can move as a rigid body."""
 from __future__ import annotations
 
 from typing import List
@@ -9,7 +9,7 @@ import numpy as np
 import scipy.sparse as sp
 from petsc4py import PETSc
 
-__all__ = ["SingularSystemError", "solve_sparse", "free_rigid_modes"]
+__all__ = ["SingularSystemError", "solve_sparse", "free_rigid_modes", "SerialSystem"]
 
 
 class SingularSystemError(RuntimeError):
@@ -70,6 +70,46 @@ def solve_sparse(A: sp.csr_matrix, b: np.ndarray, what: str) -> np.ndarray:
     finally:
         for obj in (x, rhs, pc, ksp, M):
             obj.destroy()
+
+
+class SerialSystem:
+    """The Newton solves of one process (the interface of :class:`.implicit_dist.DistributedSystem`): the reduced
+    system T^T K T on the free unknowns by :func:`solve_sparse`."""
+
+    def __init__(self, solver):
+        self.mass = np.concatenate([np.repeat(b.mass, b.gdim) for b in solver.bodies.values()])
+        self._T = self._corr = self._Rr = None
+
+    def any(self, flag: bool) -> bool:
+        """``flag`` (one process)."""
+        return bool(flag)
+
+    def sums(self, values) -> np.ndarray:
+        """``values`` (one process)."""
+        return np.asarray(values, dtype=float)
+
+    def agree(self, value):
+        """``value`` (one process)."""
+        return value
+
+    def first(self, message):
+        """``message`` (one process)."""
+        return message
+
+    def reduce(self, T: sp.csr_matrix, corr: np.ndarray, R: np.ndarray) -> float:
+        """Keep the reduced basis ``T``, the correction ``corr`` (m) and T^T R (N); returns |T^T R|."""
+        self._T, self._corr = T, corr
+        self._Rr = T.T @ R
+        return float(np.linalg.norm(self._Rr))
+
+    def solve(self, K: sp.spmatrix, c_m: float, what: str) -> np.ndarray:
+        """delta = T x + corr with (T^T (K + c_m M) T) x = -T^T (R + (K + c_m M) corr) (m); ``K`` without the mass
+        (N/m), ``c_m`` the mass's factor (1/s^2)."""
+        if c_m:
+            K = K + sp.diags(c_m * self.mass)
+        K = K.tocsr()
+        T, corr = self._T, self._corr
+        return T @ solve_sparse((T.T @ K @ T).tocsr(), -(self._Rr + T.T @ (K @ corr)), what) + corr
 
 
 def rigid_modes(x: np.ndarray, axisymmetric: bool) -> tuple[np.ndarray, List[str]]:

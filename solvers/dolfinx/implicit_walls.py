@@ -77,7 +77,7 @@ class WallSet:
         for iw, w, n, b in self._walls():
             nrm = w.unit_normal()
             rows = np.array(sorted(r for r, h in self.held[n].items() if iw in h), dtype=np.int64)
-            if rows.size == 0:
+            if rows.size == 0 and self.solver.comm.size == 1:   # MPI: a collective (the areas' ghost exchange)
                 continue
             out[iw].setdefault("p", {})[n] = b.wall_pressures(rows, reaction[n][rows] @ nrm, x[n], nrm)
         return out
@@ -198,10 +198,15 @@ def check_static_supports(solver) -> bool:
     """
     walls = WallSet(solver)
     touching = {cp.slave for cp in solver.contact_pairs} | {cp.master for cp in solver.contact_pairs}
+    comm = solver.comm
     for n, b in solver.bodies.items():
         if n in touching:
             continue
-        free = free_rigid_modes(b.x, solver._mask[n] | walls.held_mask(n), bool(b.axisymmetric))
+        x, held = b.x, solver._mask[n] | walls.held_mask(n)
+        if comm.size > 1:   # the whole body's owned rows on every rank: every rank takes the same decision
+            x = np.concatenate(comm.allgather(x[:b.n_owned]))
+            held = np.concatenate(comm.allgather(held[:b.n_owned]))
+        free = free_rigid_modes(x, held, bool(b.axisymmetric))
         if free:
             raise SingularSystemError(
                 f"t={solver.time:.6g} s: body {n!r} can move rigidly ({', '.join(free)}) in a static step: singular "

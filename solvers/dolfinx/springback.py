@@ -14,7 +14,7 @@ Contact pairs between released bodies and rigid walls are kept (``contact="kept"
 fit's parts stay in contact and the residual contact pressure is that of the released equilibrium; a part stays
 in its die) or removed (the default: the shape out of the die). A kept pair keeps the elastic law of eq. (5) and
 loses its friction and viscosity (velocity-dependent: a static release has no velocity). Not done yet: friction
-in a kept contact, MPI (the implicit solver's limits).
+in a kept contact, MPI (refused in one line: the minimal supports are chosen on each process's nodes).
 """
 from __future__ import annotations
 
@@ -142,6 +142,9 @@ def springback(source, supports: str = "kept", steps: int = 1, newton_tol: float
     ImplicitConvergenceError
         Newton did not converge on the smallest step.
     """
+    if source.comm.size > 1:
+        raise ValueError("springback runs on one process (MPI: not done yet; its minimal supports and results are per "
+                         "process): run without mpirun")
     if supports not in SUPPORTS:
         raise ValueError(f"supports must be one of {SUPPORTS}, got {supports!r}")
     for key, val in (("contact", contact), ("walls", walls)):
