@@ -22,7 +22,7 @@ import scipy.sparse as sp
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from .implicit_linear import SingularSystemError
+from .implicit_linear import SingularSystemError, mumps_solve
 
 __all__ = ["DistributedSystem"]
 
@@ -176,18 +176,7 @@ class DistributedSystem:
             b.scale(-1.0)
             x, d = b.duplicate(), T.createVecLeft()
             objs += [x, d]
-            ksp = PETSc.KSP().create(self.comm)
-            pc = ksp.getPC()
-            objs += [pc, ksp]
-            ksp.setOperators(Ar)
-            ksp.setType("preonly")
-            pc.setType("lu")
-            pc.setFactorSolverType("mumps")
-            try:
-                ksp.solve(b, x)
-                failed = bool(ksp.getConvergedReason() < 0 or getattr(pc, "getFailedReason", lambda: 0)())
-            except PETSc.Error:
-                failed = True
+            failed = mumps_solve(Ar, b, x, self.comm) is not None
             T.mult(x, d)
             out = d.getArray() + self._corr
             if self.any(failed or not np.all(np.isfinite(out))):

@@ -3,13 +3,13 @@ MUMPS) on one process (:class:`SerialSystem`; under MPI :class:`.implicit_dist.D
 check that a static system is not singular because a body can move as a rigid body."""
 from __future__ import annotations
 
-from typing import List
+from typing import List, Optional
 
 import numpy as np
 import scipy.sparse as sp
 from petsc4py import PETSc
 
-__all__ = ["SingularSystemError", "solve_sparse", "free_rigid_modes", "SerialSystem"]
+__all__ = ["SingularSystemError", "solve_sparse", "mumps_solve", "free_rigid_modes", "SerialSystem"]
 
 
 class SingularSystemError(RuntimeError):
@@ -48,28 +48,41 @@ def solve_sparse(A: sp.csr_matrix, b: np.ndarray, what: str) -> np.ndarray:
                                                 A.indices.astype(PETSc.IntType), A.data),
                               comm=PETSc.COMM_SELF)
     M.assemble()
-    ksp = PETSc.KSP().create(PETSc.COMM_SELF)
-    pc = ksp.getPC()
     rhs = PETSc.Vec().createWithArray(np.ascontiguousarray(b, dtype=float), comm=PETSc.COMM_SELF)
     x = rhs.duplicate()
-    try:   # every PETSc object destroyed explicitly: the PC holds the factor (a leak of its size per solve)
-        ksp.setOperators(M)
+    try:
+        why = mumps_solve(M, rhs, x, PETSc.COMM_SELF)
+        out = x.getArray().copy()
+        if why is None and not np.all(np.isfinite(out)):
+            why = "found a zero pivot"
+        if why is not None:
+            raise SingularSystemError(f"{what}: the sparse LU {why}: the system is singular")
+        return out
+    finally:
+        for obj in (x, rhs, M):
+            obj.destroy()
+
+
+def mumps_solve(A: "PETSc.Mat", b: "PETSc.Vec", x: "PETSc.Vec", comm) -> Optional[str]:
+    """Solve ``A x = b`` by MUMPS's LU (``preonly``) on ``comm``, serial or distributed; the solver objects are
+    destroyed on return (the PC holds the factor: a leak of its size per solve otherwise). Returns None, or why it
+    failed ("failed (PETSc error N)", "found a zero pivot")."""
+    ksp = PETSc.KSP().create(comm)
+    pc = ksp.getPC()
+    try:
+        ksp.setOperators(A)
         ksp.setType("preonly")
         pc.setType("lu")
         pc.setFactorSolverType("mumps")
         try:
-            ksp.solve(rhs, x)
+            ksp.solve(b, x)
         except PETSc.Error as exc:
-            raise SingularSystemError(f"{what}: the sparse LU failed (PETSc error {exc.ierr}): the system is "
-                                      "singular") from None
+            return f"failed (PETSc error {exc.ierr})"
         failed = pc.getFailedReason() if hasattr(pc, "getFailedReason") else 0
-        out = x.getArray().copy()
-        if ksp.getConvergedReason() < 0 or failed or not np.all(np.isfinite(out)):
-            raise SingularSystemError(f"{what}: the sparse LU found a zero pivot: the system is singular")
-        return out
+        return "found a zero pivot" if ksp.getConvergedReason() < 0 or failed else None
     finally:
-        for obj in (x, rhs, pc, ksp, M):
-            obj.destroy()
+        pc.destroy()
+        ksp.destroy()
 
 
 class SerialSystem:

@@ -178,15 +178,9 @@ def test_staged_preform_on_two_ranks_matches_serial(tmp_path):
     serial run's: displacements, stresses and the stage column to 1e-10 relative, ledger columns to 1e-10 of the
     external work, the hold's speed and momentum (round-off of the static equilibrium, ~3e-7 m/s) to 1e-12 absolute
     (the explicit MPI checks' bound, test_3d_mpi.py)."""
-    from test_stages import CASE as STAGED
+    from test_stages import preform_case
 
-    data = copy.deepcopy(STAGED)
-    data["loads"] = [{"type": "pulse_exp", "body": "beam", "surface": {"ymin": 0.004999}, "amplitude": 2.0e4,
-                      "decay_time": 1000.0, "t_start": 0.0, "t_end": 1.0}]
-    data["time"]["end"] = 1.2e-3
-    data["output"]["history_every"] = 20
-    data["stages"] = [{"name": "preform", "kind": "quasi_static", "end": 1.0e-3, "dt": 2.5e-4},
-                      {"name": "hold", "kind": "pulse", "end": 1.2e-3, "field_interval": 1e-4}]
+    data = preform_case()
     case = tmp_path / "case.toml"
     case.write_text(tomli_w.dumps(data))
     hist = {}
