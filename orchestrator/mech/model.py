@@ -96,19 +96,19 @@ def rebuild_solver(case: Case, source) -> "mech.ExplicitSolver":
 
 
 def refuse_under_mpi(case: Case, pairs, ranks: int) -> None:
-    """What runs on one process only (:class:`SchemaError`, one line): springback (its release supports and metrics
-    are per process), contact pairs with the implicit integrator (the implicit contact tangent is serial)."""
-    if case.springback is not None:
-        raise SchemaError("springback", f"given under MPI ({ranks} processes); springback runs on one process for "
-                                        "now: run without mpirun or remove [springback]")
-    for i, s in enumerate(case.stages):
-        if s.kind == "springback":
-            raise SchemaError(f"stages[{i}].kind", f"got 'springback' under MPI ({ranks} processes); springback runs "
-                                                   "on one process for now: run without mpirun")
+    """What runs on one process only (:class:`SchemaError`, one line): contact pairs in implicit steps (the implicit
+    contact tangent is serial) — with the implicit integrator, or kept through a springback."""
     if case.mechanics.integrator == "implicit" and pairs:
         raise SchemaError("contact", f"{len(pairs)} pair(s) with integrator = 'implicit' under MPI ({ranks} "
                                      "processes); implicit contact runs on one process for now: run without mpirun, "
                                      "use [[walls]] or integrator = 'explicit'")
+    releases = [("springback", case.springback)] + [(f"stages[{i}].springback", s.springback)
+                                                   for i, s in enumerate(case.stages) if s.kind == "springback"]
+    for key, cfg in releases:
+        if cfg is not None and cfg.contact == "kept" and pairs:
+            raise SchemaError(f"{key}.contact", f"got 'kept' under MPI ({ranks} processes); a kept contact springs "
+                                                "back in implicit steps, whose contact runs on one process for now: "
+                                                "run without mpirun or set contact = 'removed'")
 
 
 def make_solver(case: Case, bodies, pairs, walls, comm: MPI.Comm, compiled_steps: bool = True):

@@ -26,7 +26,7 @@ class AttachedProbe:
     pair: int = -1  # contact pair whose slave surface holds a contact_pressure probe
 
 
-def _nearest_global(points: np.ndarray, target: tuple[float, ...], n_owned: int,
+def nearest_global(points: np.ndarray, target: tuple[float, ...], n_owned: int,
                     comm: MPI.Comm) -> int:
     """Local index of the owned point nearest ``target`` (2 or 3 coordinates, m) on the rank holding
     the global nearest, else -1."""
@@ -60,7 +60,7 @@ def attach(solver, probes: tuple[Probe, ...], comm: MPI.Comm) -> list[AttachedPr
         else:
             pts = body.X0
             n_owned = body.n_owned
-        idx = _nearest_global(pts, p.point, n_owned, comm)
+        idx = nearest_global(pts, p.point, n_owned, comm)
         if p.quantity == "wall_pressure" and not solver.rigid_walls:
             raise ValueError(f"probe {p.name!r}: wall_pressure needs a [[walls]] entry")
         if p.quantity in ("velocity", "displacement"):

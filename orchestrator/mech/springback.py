@@ -11,11 +11,13 @@ from pathlib import Path
 from typing import Sequence
 
 import numpy as np
+from mpi4py import MPI
 
 from pulseform.solvers import dolfinx as mech
 from pulseform.solvers.dolfinx.springback import springback
 
 from ..case.model import Case
+from .probes import nearest_global
 
 log = logging.getLogger(__name__)
 
@@ -74,14 +76,21 @@ def spring_back(case: Case, solver, folder: Path, name: str, cfg, analyses: Sequ
         writer.close()
     out: dict[str, float] = {"springback_newton_iterations": float(sb.newton_iterations)}
     comps = "xyz"
+    comm = sb.comm
+
+    def largest(a: np.ndarray) -> float:
+        """The largest value of ``a`` over every rank (0 where none has any)."""
+        local = float(a.max()) if len(a) else 0.0
+        return float(comm.allreduce(local, op=MPI.MAX)) if comm.size > 1 else local
+
     for n in names:
         b = sb.bodies[n]
         d = sb.springback_displacement[n][: b.n_owned]
-        out[f"{n}_springback_max_m"] = float(np.linalg.norm(d, axis=1).max()) if len(d) else 0.0
+        out[f"{n}_springback_max_m"] = largest(np.linalg.norm(d, axis=1))
         for c in range(b.gdim):
-            out[f"{n}_springback_max_{comps[c]}_m"] = float(np.abs(d[:, c]).max()) if len(d) else 0.0
-        out[f"{n}_residual_von_mises_max_Pa"] = float(b.von_mises.max()) if len(b.cells) else 0.0
-        out[f"{n}_residual_plastic_strain_max"] = float(b.eps_p.max()) if len(b.cells) else 0.0
+            out[f"{n}_springback_max_{comps[c]}_m"] = largest(np.abs(d[:, c]))
+        out[f"{n}_residual_von_mises_max_Pa"] = largest(b.von_mises)
+        out[f"{n}_residual_plastic_strain_max"] = largest(b.eps_p)
         log.info("springback of %s: largest displacement %.4g m, largest residual von Mises stress %.4g Pa",
                  n, out[f"{n}_springback_max_m"], out[f"{n}_residual_von_mises_max_Pa"])
     out.update(contact_metrics(sb))
@@ -91,10 +100,14 @@ def spring_back(case: Case, solver, folder: Path, name: str, cfg, analyses: Sequ
         if p.quantity != "displacement" or p.body not in names:
             continue
         b = sb.bodies[p.body]
-        point = np.asarray(p.point, float)[: b.gdim]
-        i = int(np.argmin(np.linalg.norm(b.X0 - point, axis=1)))
+        i = nearest_global(b.X0, tuple(p.point[: b.gdim]), b.n_owned, comm)
+        u = np.zeros(b.gdim)
+        if i >= 0:
+            u[:] = sb.springback_displacement[p.body][i]
+        if comm.size > 1:      # only the rank holding the nearest node has it: the others add zeros
+            u = comm.allreduce(u, op=MPI.SUM)
         for c in range(b.gdim):
-            out[f"{p.name}_springback_{comps[c]}_m"] = float(sb.springback_displacement[p.body][i, c])
+            out[f"{p.name}_springback_{comps[c]}_m"] = float(u[c])
     return sb, out
 
 

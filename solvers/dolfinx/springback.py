@@ -13,8 +13,10 @@ yielding is followed in increments.
 Contact pairs between released bodies and rigid walls are kept (``contact="kept"``, ``walls="kept"``: a press
 fit's parts stay in contact and the residual contact pressure is that of the released equilibrium; a part stays
 in its die) or removed (the default: the shape out of the die). A kept pair keeps the elastic law of eq. (5) and
-loses its friction and viscosity (velocity-dependent: a static release has no velocity). Not done yet: friction
-in a kept contact, MPI (refused in one line: the minimal supports are chosen on each process's nodes).
+loses its friction and viscosity (velocity-dependent: a static release has no velocity). Under MPI the minimal
+supports are chosen on the whole body (every rank's owned nodes gathered: the same nodes on every rank) and the
+static steps are the implicit solver's distributed ones. Not done yet: friction in a kept contact, kept contact
+pairs under MPI (the implicit contact is serial: refused in one line).
 """
 from __future__ import annotations
 
@@ -92,6 +94,13 @@ def _kept_walls(source, names: Sequence[str]) -> tuple:
     return tuple(out)
 
 
+def _whole_body(body, comm) -> np.ndarray:
+    """The reference positions (m) of all of ``body``'s nodes, each once (the owned rows of every rank, in rank
+    order): the same array on every rank."""
+    own = body.X0[: body.n_owned]
+    return np.concatenate(comm.allgather(own)) if comm.size > 1 else own
+
+
 def _node_marker(p: np.ndarray):
     """Marker of the node at ``p`` (m) in coordinates given as (3, N)."""
     p = np.asarray(p, float)
@@ -111,7 +120,7 @@ def springback(source, supports: str = "kept", steps: int = 1, newton_tol: float
     Parameters
     ----------
     source : ExplicitSolver, ExplicitSolver3D, ImplicitSolver or ImplicitSolver3D
-        The solver at the end of forming (one process).
+        The solver at the end of forming (serial or under MPI).
     supports : {"kept", "minimal"}
         The bodies' own fixed components, or statically determinate supports (:func:`minimal_supports`)
         applied in the reference configuration's node positions.
@@ -142,9 +151,6 @@ def springback(source, supports: str = "kept", steps: int = 1, newton_tol: float
     ImplicitConvergenceError
         Newton did not converge on the smallest step.
     """
-    if source.comm.size > 1:
-        raise ValueError("springback runs on one process (MPI: not done yet; its minimal supports and results are per "
-                         "process): run without mpirun")
     if supports not in SUPPORTS:
         raise ValueError(f"supports must be one of {SUPPORTS}, got {supports!r}")
     for key, val in (("contact", contact), ("walls", walls)):
@@ -160,7 +166,7 @@ def springback(source, supports: str = "kept", steps: int = 1, newton_tol: float
     for n in names:
         b = source.bodies[n]
         spec = b.spec
-        fixed = spec.fixed if supports == "kept" else minimal_supports(b.X0)
+        fixed = spec.fixed if supports == "kept" else minimal_supports(_whole_body(b, source.comm))
         zero = (0.0,) * b.gdim
         specs.append(replace(spec, fixed=fixed, motion=(), initial_velocity=zero, sliding=()))
     options = ImplicitOptions(dt=1.0, scheme="static", newton_tol=newton_tol, newton_max=newton_max,
