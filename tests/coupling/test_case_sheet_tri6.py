@@ -12,7 +12,10 @@ impulse's own discretisation error, -1.7 % on this mesh, is the EM mesh's, conve
 six-node run: force transfer at round-off, the mechanics' energy balance below 1e-3. (4) A short six-node run whose
 air is meshed again at every EM step (``em.remesh_quality`` near one; the free sheet moves), stopped by SIGINT after
 its first checkpoint (after the first remesh) and resumed, equals the uninterrupted run bit for bit (every metric but timers; the remesh and
-the checkpoint's EM mesh carry the six-node body: its cells' EM triangles matched again).
+the checkpoint's EM mesh carry the six-node body: its cells' EM triangles matched again). (5) The implicit
+integrator's run of the demo with the six-node sheet against the explicit one (the same physics, another time
+integrator), as the linear sheet's is checked in tests/coupling/test_implicit_coupled.py. (6) Planar: the forces
+scale with the depth exactly (cases/emf_corner_fill, a six-node blank).
 """
 from __future__ import annotations
 
@@ -71,6 +74,23 @@ def test_six_node_run_ledgers(runs):
     assert quad["energy_error_rel"] < 1e-3
 
 
+def test_six_node_sheet_implicit_matches_explicit(runs, tmp_path):
+    """The implicit integrator takes the six-node sheet in the coupled loop: one implicit step per EM step of 0.45 us
+    (as tests/coupling/test_implicit_coupled.py does with the linear sheet) against the explicit run (20 steps per
+    EM step of ~0.16 us here): deflection, plastic work and impulse within 0.5 % (measured -0.02 %, +0.11 %,
+    +0.01 %)."""
+    out = tmp_path / "implicit"
+    r = pulseform_cli(_args(out, "tri6", "output.plots=false", "mechanics.integrator=implicit", "coupling.n=1",
+                            "mechanics.implicit.dt=0.45e-6"))
+    assert r.returncode == 0, r.stderr[-3000:]
+    im, ex = json.loads((out / "metrics.json").read_text()), runs["tri6"]
+    print("\nsix-node sheet implicit vs explicit: " + ", ".join(
+        f"{k} {im[k]:.6g} / {ex[k]:.6g}" for k in ("max_deflection_mm", "plastic_work_J", "force_impulse_Ns")))
+    assert im["conservation_error_rel"] < 1e-12
+    for key in ("max_deflection_mm", "plastic_work_J", "force_impulse_Ns"):
+        assert im[key] == pytest.approx(ex[key], rel=0.005), key
+
+
 def test_six_node_run_remeshes_stops_and_resumes_bit_for_bit(tmp_path):
     # the air is meshed again at 3.4 us (measured), before the first checkpoint (4 us): the resume restores a
     # remeshed EM mesh and matches the six-node cells to it again
@@ -94,3 +114,28 @@ def test_six_node_run_remeshes_stops_and_resumes_bit_for_bit(tmp_path):
         if k.endswith("_s") and k != "end_time_s":   # wall-clock timings differ
             continue
         assert got[k] == v, k
+
+
+def test_planar_six_node_blank_forces_scale_with_the_depth(tmp_path):
+    """Plane strain (cases/emf_corner_fill: a six-node blank, a linear steel die, contact; 20 us, coarse): GetDP's
+    forces are per metre of depth and the mechanics' thickness multiplies them and the six-node masses alike, so the
+    blank's motion is the same and the impulse scales exactly (as tests/coupling/test_multibody.py checks for linear
+    bodies); the ledger at round-off."""
+    case = REPO / "cases" / "emf_corner_fill"
+    sets = ["bodies[0].element='tri6'", "time.end=20e-6", "geometry.mesh_size_coil=3e-3",
+            "geometry.mesh_size_die=5e-3", "geometry.mesh_size_air=0.05", "output.plots=false"]
+    m = {}
+    for depth in (1.0, 2.5):
+        out = tmp_path / f"d{depth}"
+        r = pulseform_cli(["run", str(case), "--out", str(out), "--quiet"]
+                          + [a for s in (*sets, f"mechanics.thickness={depth}") for a in ("--set", s)])
+        assert r.returncode == 0, r.stderr[-3000:]
+        m[depth] = json.loads((out / "metrics.json").read_text())
+    a, b = m[1.0], m[2.5]
+    print(f"\nplanar six-node blank: impulse {a['force_impulse_Ns']:.6g} / {b['force_impulse_Ns']:.6g} N s "
+          f"(ratio {b['force_impulse_Ns'] / a['force_impulse_Ns']:.12f}), max uy {a['blank_max_uy_mm']:.6g} / "
+          f"{b['blank_max_uy_mm']:.6g} mm, ledger {a['conservation_error_rel']:.1e}")
+    assert a["conservation_error_rel"] < 1e-12 and b["conservation_error_rel"] < 1e-12
+    assert a["blank_max_uy_mm"] > 0.0
+    assert b["force_impulse_Ns"] == pytest.approx(2.5 * a["force_impulse_Ns"], rel=1e-9)
+    assert b["blank_max_uy_mm"] == pytest.approx(a["blank_max_uy_mm"], rel=1e-9)
