@@ -32,7 +32,8 @@ from .face_pressure import read_face_pressures
 from .tet10 import step_factor
 
 __all__ = ["EDGES", "N_QP", "QP_WEIGHTS", "QP_DERIVATIVES", "QP_VALUES", "shape_values", "shape_derivatives",
-           "hrz_cell_masses", "hrz_lumped_mass", "hrz_shares", "three_node_edges", "split_edges", "edge_pressure_forces", "qp_measures",
+           "hrz_cell_masses", "hrz_lumped_mass", "hrz_shares",
+           "three_node_edges", "split_edges", "edge_pressure_forces", "qp_measures",
            "critical_step_factor"]
 
 #: corner pairs of the edge nodes 3..5

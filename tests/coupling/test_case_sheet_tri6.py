@@ -10,9 +10,10 @@ on the same mesh must deflect more than the linear one and lie nearer the extrap
 same mesh and load: the force impulse of both runs within 1 % (the sheet's motion feeds back only a little; the
 impulse's own discretisation error, -1.7 % on this mesh, is the EM mesh's, convergence.md). (3) The ledgers of the
 six-node run: force transfer at round-off, the mechanics' energy balance below 1e-3. (4) A short six-node run whose
-air is meshed again at every EM step (``em.remesh_quality`` near one; the free sheet moves), stopped by SIGINT after
-its first checkpoint (after the first remesh) and resumed, equals the uninterrupted run bit for bit (every metric but timers; the remesh and
-the checkpoint's EM mesh carry the six-node body: its cells' EM triangles matched again). (5) The implicit
+air is meshed again (forced by ``em.remesh_quality`` near one as the free sheet moves: once, at 3.4 us), stopped by
+SIGINT after its first checkpoint (after the remesh) and resumed, equals the uninterrupted run bit for bit (every
+metric but timers; the remesh and the checkpoint's EM mesh carry the six-node body: its cells' EM triangles matched
+again). (5) The implicit
 integrator's run of the demo with the six-node sheet against the explicit one (the same physics, another time
 integrator), as the linear sheet's is checked in tests/coupling/test_implicit_coupled.py. (6) Planar: the forces
 scale with the depth exactly (cases/emf_corner_fill, a six-node blank).
@@ -59,7 +60,8 @@ def test_six_node_sheet_deflects_more_and_nearer_the_converged_value(runs):
     lin, quad = runs["tet4"], runs["tri6"]
     print(f"\nemf_sheet_bulge, shipped mesh: max deflection linear {lin['max_deflection_mm']:.4f} mm, six-node "
           f"{quad['max_deflection_mm']:.4f} mm, converged {CONVERGED_MM} mm; impulse {lin['force_impulse_Ns']:.5f} / "
-          f"{quad['force_impulse_Ns']:.5f} N s; plastic work {lin['plastic_work_J']:.3f} / {quad['plastic_work_J']:.3f} J; "
+          f"{quad['force_impulse_Ns']:.5f} N s;\nplastic work {lin['plastic_work_J']:.3f} / "
+          f"{quad['plastic_work_J']:.3f} J; "
           f"energy error {lin['energy_error_rel']:.1e} / {quad['energy_error_rel']:.1e}; ledger "
           f"{quad['conservation_error_rel']:.1e}; mech steps {lin['mech_steps']:.0f} / {quad['mech_steps']:.0f}")
     assert quad["max_deflection_mm"] > lin["max_deflection_mm"]
@@ -107,7 +109,8 @@ def test_six_node_run_remeshes_stops_and_resumes_bit_for_bit(tmp_path):
     assert proc.returncode == 130 and "interrupted at t = " in err, err
     assert resumed.returncode == 0, resumed.stderr[-3000:]
     got = json.loads((out / "metrics.json").read_text())
-    print(f"\nsix-node free sheet, {want['em_steps']:.0f} EM steps, {remeshes[-1]:.0f} air remeshes (first at {t_remesh:.3g} s): stopped at {stopped['end_time_s']:.3g} s, resumed: "
+    print(f"\nsix-node free sheet, {want['em_steps']:.0f} EM steps, {remeshes[-1]:.0f} air remeshes (first at "
+          f"{t_remesh:.3g} s): stopped at {stopped['end_time_s']:.3g} s, resumed: "
           f"max deflection {got['max_deflection_mm']!r} mm (uninterrupted {want['max_deflection_mm']!r})")
     assert t_remesh < stopped["end_time_s"] < want["end_time_s"]
     for k, v in want.items():

@@ -69,7 +69,8 @@ def test_uniform_force_density_accelerates_every_node_alike(axisymmetric):
     body = solver.bodies["sheet"]
     assert cb.cells6 is body.cells and len(body.x) == cb.n_nodes > len(cb.body_to_em)
     # each cell's EM triangle has the cell's corners
-    assert np.array_equal(np.sort(mesh.triangles[cb.em_rows], axis=1), np.sort(cb.body_to_em[body.cells[:, :3]], axis=1))
+    corners = cb.body_to_em[body.cells[:, :3]]
+    assert np.array_equal(np.sort(mesh.triangles[cb.em_rows], axis=1), np.sort(corners, axis=1))
     rows = cb.sub.rows
     f0 = np.array([3e9, -7e9])   # N/m^3
     forces = tr.body_forces([cb], mesh.points, mesh.triangles, rows, np.tile(f0, (len(rows), 1)),
@@ -96,7 +97,8 @@ def test_hrz_shares_translate_a_free_body_the_consistent_weights_shake_it():
         solver.advance(solver.stable_time_step(), 60, {"sheet": nodal})
         e = solver.energies()
         energy[name] = e["elastic_J"] / e["kinetic_J"]
-    print(f"\nfree planar six-node sheet, uniform force: a_i / (f / rho) consistent {ratios['consistent'].min():.3f} .. "
+    print(f"\nfree planar six-node sheet, uniform force: a_i / (f / rho) consistent "
+          f"{ratios['consistent'].min():.3f} .. "
           f"{ratios['consistent'].max():.3f}; elastic / kinetic energy after 60 steps: HRZ {energy['hrz']:.1e}, "
           f"consistent {energy['consistent']:.1e}")
     # straight cells: a corner's consistent share 0 against its HRZ 1/19, an edge node's 1/3 against 16/57
@@ -167,7 +169,7 @@ def test_a_linear_and_a_six_node_body_together():
     """Two bodies on the same EM step (a sheet and a die): each gets its own transfer; the ledger of both holds."""
     mesh = em_mesh(20, 6)
     top = mesh.points[mesh.triangles, 1].min(axis=1) > 0.002 - 1e-9
-    mesh.tri_tags[top] = TAG + 1        # the air's upper half becomes a second conductor (no node shared with the sheet)
+    mesh.tri_tags[top] = TAG + 1   # the air's upper half: a second conductor (no node shared with the sheet)
     solver, cb = sheet(mesh, True)
     sub2 = conductor_submesh(mesh, TAG + 1)
     die = ConductorBody("die", TAG + 1, sub2, sub2.em_nodes)
