@@ -124,8 +124,8 @@ class BodyTable:
         "tet4", doc="the body's element: 'tet4' linear cells (tetrahedra in 3D, triangles in 2D); 'tet10' (3D) "
                     "ten-node tetrahedra, 'tri6' (2D) six-node triangles (a node mid-edge), which bend without "
                     "locking (thin parts; one process; 'tet10': mechanics-only and coupled 3D cases, walls and soft "
-                    "contact; 'tri6': mechanics-only cases, walls and contact too, no "
-                    "forming-limit check yet)")
+                    "contact; 'tri6': mechanics-only and coupled 2D cases, walls and contact too; the forming-limit "
+                    "check reads a quadratic cell's corners)")
     initial_velocity: Vec = spec((0.0, 0.0), unit="m/s", doc="uniform initial velocity ([vx, vy, vz] in 3D)")
     fixed: tuple[FixedBoundary, ...] = spec((), doc="clamped boundary parts")
     rigid: bool = spec(False, doc="a rigid body (coupled cases, with region): it translates without deforming "

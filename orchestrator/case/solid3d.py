@@ -191,18 +191,6 @@ def _check_plane_touches(case, i: int, plane: SymmetryPlane) -> None:
                       f"(box faces along {'xyz'[c]}: {'; '.join(faces)} m): move it onto a face or set its bodies")
 
 
-def _check_six_node(case, i: int, b) -> None:
-    """Six-node triangles run in 2D mechanics-only cases (walls and contact too) without a forming-limit check for
-    now (one line naming the key and what is allowed)."""
-    key = f"bodies[{i}].element"
-    if case.case.kind == "coupled":
-        raise SchemaError(key, "got 'tri6'; six-node triangles run in mechanics-only cases for now (a coupled case's "
-                          "bodies share their nodes with the EM mesh): allowed here: 'tet4'")
-    if case.materials[b.material].forming_limit is not None:
-        raise SchemaError(key, f"got 'tri6' for body {b.name!r}, whose material has a forming_limit; the forming-"
-                          "limit check reads linear triangles: allowed with it: 'tet4'")
-
-
 def _validate_2d(case) -> None:
     f = case.mechanics.formulation
     if case.symmetry:
@@ -217,8 +205,6 @@ def _validate_2d(case) -> None:
             raise SchemaError(f"bodies[{i}].element", f"got 'tet10', a 3D element; with mechanics.formulation = "
                               f"{f!r} allowed: 'tet4' (linear triangles), 'tri6' (six-node triangles) (or set "
                               "mechanics.formulation = '3d')")
-        if b.element == "tri6":
-            _check_six_node(case, i, b)
         if len(b.initial_velocity) != 2:
             raise SchemaError(f"bodies[{i}].initial_velocity", f"got 3 components, a 3D vector; with "
                               f"mechanics.formulation = {f!r} give [vx, vy] (m/s)")

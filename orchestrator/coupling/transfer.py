@@ -14,6 +14,18 @@ triangle of area A with nodal radii r_i, r_j, r_k:
 Summed over i, these give the cell volume exactly (partition of unity; Pappus for the ring), so
 Σ_i F_i = Σ_e f_e V_e to round-off: the transfer is conservative by construction and the ledger
 checks it every EM step.
+
+Six-node bodies (``element = "tri6"``, :mod:`pulseform.solvers.dolfinx.tri6`: the EM mesh's vertices first, then
+one node per edge; :func:`body_forces`): the force f_e V_e of each EM triangle goes to the six nodes of its
+mechanical cell in the proportions of their HRZ lumped masses (:func:`~pulseform.solvers.dolfinx.tri6.hrz_shares`:
+a straight planar cell 1/19 at a corner, 16/57 at an edge node; axisymmetric ones r-weighted, taken in the
+reference configuration as the masses are). A uniform force density then accelerates every node at f / rho, as
+it does the continuum; the consistent weights ∫ N_a w dA (a planar corner 0, an edge node 1/3) would leave the
+corners behind and shake the cells. The shares sum to one (the ledger holds to round-off). Their first moment
+is the cell's centroid in a planar cell (1/19 Σ corners + 16/57 Σ midpoints = Σ corners / 3): the force's moment
+is kept. In axisymmetry the HRZ masses' first moment is not the ring's (∫ r w dA / ∫ w dA): the shares move a
+cell's force's point of action by a small fraction of the cell (measured: tests/coupling/test_transfer_tri6.py),
+the price of the uniform acceleration (both cannot hold with these masses).
 """
 
 from __future__ import annotations
@@ -138,4 +150,71 @@ def project_cell_field(src_x: np.ndarray, src_cells: np.ndarray, f_src: np.ndarr
         owner = locate_cells(src_x, src_cells, pts)
         found = owner >= 0
         out[found] += f_src[owner[found]] / 3.0
+    return out
+
+
+def share_forces(cells: np.ndarray, cell_force: np.ndarray, shares: np.ndarray, n_nodes: int) -> np.ndarray:
+    """Nodal forces (N), shape (n_nodes, d), of quadratic cells ``cells`` (nc, k: body node rows) carrying the
+    forces ``cell_force`` (nc, d) N, shared out by ``shares``: (k,) for every cell alike or (nc, k) per cell."""
+    cells = np.asarray(cells)
+    shares = np.broadcast_to(shares, cells.shape)
+    out = np.zeros((n_nodes, cell_force.shape[1]))
+    idx = cells.ravel()
+    for d in range(cell_force.shape[1]):
+        out[:, d] = np.bincount(idx, weights=(cell_force[:, d, None] * shares).ravel(), minlength=n_nodes)
+    return out
+
+
+def density_on_cells(name: str, em_rows: np.ndarray, rows: np.ndarray, n_em_cells: int, f: np.ndarray) -> np.ndarray:
+    """The force density (N/m³), (nc, d), on the EM cells ``em_rows`` of quadratic body ``name``'s cells, from ``f``
+    (m, d) given on the EM cells ``rows`` of a mesh of ``n_em_cells``. ValueError if one of them has none."""
+    pos = np.full(n_em_cells, -1, dtype=np.int64)
+    pos[rows] = np.arange(len(rows))
+    k = pos[em_rows]
+    if np.any(k < 0):
+        raise ValueError(f"body {name!r}: {int((k < 0).sum())} of its cells carry no force density")
+    return f[k]
+
+
+def body_forces(bodies, x_em: np.ndarray, em_tris: np.ndarray, rows: np.ndarray, f: np.ndarray, *,
+                axisymmetric: bool, scale: float = 1.0) -> dict[str, np.ndarray]:
+    """Nodal forces (N) per body of a force density held on EM triangles (the 2D counterpart of
+    :func:`.transfer3d.body_forces`).
+
+    Parameters
+    ----------
+    bodies : sequence
+        The conductor bodies (:class:`~pulseform.orchestrator.mesh.shared.ConductorBody`: ``name``, ``body_to_em``;
+        a six-node body also ``cells6``, ``shares``, ``em_rows`` and ``n_nodes``).
+    x_em : ndarray (N, 2)
+        The EM mesh's (moved) nodes, m.
+    em_tris : int array (M, 3)
+        The EM mesh's triangles.
+    rows : int array (m,)
+        The rows of ``em_tris`` that carry the force density (every triangle of the bodies).
+    f : ndarray (m, 2)
+        The force density on them, N/m³.
+    axisymmetric : bool
+        Rings (weight 2πr) or planar (per metre of depth).
+    scale : float
+        Planar: the depth (m) that multiplies the per-metre forces; 1 in axisymmetry.
+
+    Returns
+    -------
+    dict
+        Body name -> (n, 2) nodal forces on its rows: the consistent ∫ N_i f w dA on a linear body's shared nodes
+        (:func:`cell_to_nodal_forces`), f V shared by a six-node cell's nodes as their HRZ masses (module
+        docstring).
+    """
+    out = {}
+    linear = [b for b in bodies if getattr(b, "cells6", None) is None]
+    if linear:
+        f_em = scale * cell_to_nodal_forces(x_em, em_tris[rows], f, axisymmetric=axisymmetric)
+        out.update({b.name: f_em[b.body_to_em] for b in linear})
+    for b in bodies:
+        if getattr(b, "cells6", None) is None:
+            continue
+        v = scale * cell_volumes(x_em, em_tris[b.em_rows], axisymmetric=axisymmetric)
+        force = density_on_cells(b.name, b.em_rows, rows, len(em_tris), f) * v[:, None]
+        out[b.name] = share_forces(b.cells6, force, b.shares, b.n_nodes)
     return out

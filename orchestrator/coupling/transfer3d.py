@@ -22,6 +22,8 @@ import numpy as np
 from pulseform.solvers.dolfinx.tet10 import HRZ_SHARES
 from pulseform.solvers.getdp.mesh3d import tet_volumes
 
+from .transfer import density_on_cells, share_forces
+
 #: the share of a ten-node cell's force on its nodes (corners 0-3, then edge nodes 4-9): the HRZ mass proportions
 TEN_NODE_SHARES = HRZ_SHARES
 
@@ -44,13 +46,9 @@ def tet_force_integral(x: np.ndarray, cells: np.ndarray, f_cell: np.ndarray) -> 
 def ten_node_forces(cells10: np.ndarray, cell_force: np.ndarray, n_nodes: int,
                     shares: np.ndarray = TEN_NODE_SHARES) -> np.ndarray:
     """Nodal forces (N), shape (n_nodes, 3), of ten-node cells that carry the forces ``cell_force`` (nc, 3) N
-    (f_e V_e), shared out by ``shares`` (10,) (default the HRZ mass proportions, module docstring)."""
-    cells10 = np.asarray(cells10)
-    out = np.zeros((n_nodes, 3))
-    idx = cells10.ravel()
-    for d in range(3):
-        out[:, d] = np.bincount(idx, weights=(cell_force[:, d, None] * shares).ravel(), minlength=n_nodes)
-    return out
+    (f_e V_e), shared out by ``shares`` (10,) (default the HRZ mass proportions, module docstring;
+    :func:`.transfer.share_forces`)."""
+    return share_forces(cells10, cell_force, shares, n_nodes)
 
 
 def body_forces(bodies, x_em: np.ndarray, em_tets: np.ndarray, rows: np.ndarray, f: np.ndarray) -> dict[str, np.ndarray]:
@@ -81,16 +79,10 @@ def body_forces(bodies, x_em: np.ndarray, em_tets: np.ndarray, rows: np.ndarray,
     if linear:
         f_em = tet_nodal_forces(x_em, em_tets[rows], f)
         out.update({b.name: f_em[b.body_to_em] for b in linear})
-    pos = None
     for b in bodies:
         if getattr(b, "cells10", None) is None:
             continue
-        if pos is None:
-            pos = np.full(len(em_tets), -1, dtype=np.int64)
-            pos[rows] = np.arange(len(rows))
-        k = pos[b.em_rows]
-        if np.any(k < 0):
-            raise ValueError(f"body {b.name!r}: {int((k < 0).sum())} of its cells carry no force density")
-        force = f[k] * tet_volumes(x_em, em_tets[b.em_rows])[:, None]
+        force = density_on_cells(b.name, b.em_rows, rows, len(em_tets), f) \
+            * tet_volumes(x_em, em_tets[b.em_rows])[:, None]
         out[b.name] = ten_node_forces(b.cells10, force, b.n_nodes)
     return out

@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..mesh.shared3d import ConductorMesh3D
-from .joule_heat import cell_of_elements
+from ..mesh.shared import em_rows_of_cells
 
 __all__ = ["ConductorBody3D"]
 
@@ -49,10 +49,5 @@ class ConductorBody3D:
         """A ten-node body: the row of the EM mesh's tetrahedra of each of its cells (``em_rows``), from ``sub``
         and ``body_to_em`` (again after the air is meshed again: the conductors' tetrahedra are kept node for node
         but renumbered). ValueError when a cell has none."""
-        if self.cells10 is None:
-            return
-        k = cell_of_elements(self.sub.em_nodes[self.sub.cells], self.body_to_em, self.cells10[:, :4])
-        if np.any(k < 0):
-            raise ValueError(f"body {self.name!r}: {int((k < 0).sum())} of its ten-node cells have no EM tetrahedron "
-                             "on their corners (the meshes must share their vertices)")
-        self.em_rows = self.sub.rows[k]
+        if self.cells10 is not None:
+            self.em_rows = em_rows_of_cells(self.name, self.sub, self.body_to_em, self.cells10)

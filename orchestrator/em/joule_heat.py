@@ -17,35 +17,11 @@ import logging
 
 import numpy as np
 
+from ..mesh.shared import cell_of_elements
+
 __all__ = ["cell_of_elements", "joule_heat", "JouleHeat", "element_temperatures"]
 
 log = logging.getLogger(__name__)
-
-
-def cell_of_elements(em_cells: np.ndarray, body_to_em: np.ndarray, cells: np.ndarray) -> np.ndarray:
-    """For each mechanical cell, the row of ``em_cells`` on the same nodes, or -1.
-
-    Parameters
-    ----------
-    em_cells : int array (m, k)
-        EM node indices of the body's EM elements (triangles k = 3, tetrahedra k = 4).
-    body_to_em : int array (n,)
-        The EM node of each of the body's node rows.
-    cells : int array (nc, k)
-        The mechanical cells' node rows.
-    """
-    em_cells = np.asarray(em_cells, dtype=np.int64)
-    body_to_em = np.asarray(body_to_em, dtype=np.int64)
-    em_to_body = np.full(int(max(body_to_em.max(initial=-1), em_cells.max(initial=-1))) + 1, -1, np.int64)
-    em_to_body[body_to_em] = np.arange(len(body_to_em))
-    rows = em_to_body[em_cells]
-    ok = np.flatnonzero(np.all(rows >= 0, axis=1))
-    both = np.vstack([np.sort(rows[ok], axis=1), np.sort(np.asarray(cells, dtype=np.int64), axis=1)])
-    _, ident = np.unique(both, axis=0, return_inverse=True)
-    ident = ident.reshape(-1)
-    element_of = np.full(int(ident.max(initial=-1)) + 1, -1, np.int64)
-    element_of[ident[:len(ok)]] = ok
-    return element_of[ident[len(ok):]]
 
 
 def joule_heat(joule_density: np.ndarray, duration: float, match: np.ndarray) -> np.ndarray:

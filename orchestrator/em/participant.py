@@ -11,8 +11,10 @@ Each EM step [t0, t1]:
    state (``time_scheme = "bdf2"``), or ``em_substeps`` implicit-Euler sub-steps restarting from
    the previous ``.res`` (``"euler"``);
 3. the per-element force density f = j × B (N/m³) of the conductors becomes consistent nodal forces
-   ∫ N_i f 2πr dA (planar: ∫ N_i f dA × the mechanics' thickness) on the shared nodes; the ledger
-   compares their sum with Σ f_e V_e.
+   ∫ N_i f 2πr dA (planar: ∫ N_i f dA × the mechanics' thickness) on the shared nodes, or on a six-node body
+   (``element = "tri6"``: the EM mesh moves with its vertex rows) f V shared by its cell's six nodes as their
+   HRZ masses (:func:`~pulseform.orchestrator.coupling.transfer.body_forces`); the ledger compares their sum
+   with Σ f_e V_e.
 
 The returned force is the impulse-consistent mean over the EM step (BDF2: trapezoid of the start
 and end values; implicit Euler: the mean of the sub-steps), held over the n mechanical substeps.
@@ -42,7 +44,7 @@ from pulseform.solvers.getdp.magnetic_force import model_magnetisation_forces
 from pulseform.solvers.getdp.persistent_process import FactorReuse
 
 from ..coupling.interfaces import LoadCapabilities, LoadStep
-from ..coupling.transfer import cell_force_integral, cell_to_nodal_forces
+from ..coupling.transfer import body_forces, cell_force_integral
 from ..mesh.em_geometry import EMGeometry
 from ..mesh.motion import MeshMover, MeshQualityError
 from ..mesh.remesh import remesh_around
@@ -174,7 +176,7 @@ class GetDPLoad(EMSnapshots, LoadCapabilities):
         parts = []
         for b in self.bodies:
             cur = np.zeros_like(self.x_ref)
-            cur[b.body_to_em] = positions[b.name][:, :2]
+            cur[b.body_to_em] = b.vertices(positions[b.name])
             parts.append((cur[b.sub.em_nodes], b.sub.cells, b.tag))
         g = self.solver.model
         mesh, indices = remesh_around(parts, self.geometry.coil_turns(), g.shell[0], g.shell[1], *self.sizes,
@@ -186,6 +188,7 @@ class GetDPLoad(EMSnapshots, LoadCapabilities):
             local[b.sub.em_nodes] = np.arange(len(b.sub.em_nodes))
             b.body_to_em = index[local[b.body_to_em]]
             b.sub = ConductorMesh(np.flatnonzero(mesh.tri_tags == b.tag), index, pts, b.sub.cells)
+            b.match_cells()   # a six-node body: its cells' EM triangles (renumbered, node for node the same)
             self.material[b.body_to_em] = self.X0[b.name]
         self._set_mesh(mesh)
         self.remeshes += 1
@@ -201,7 +204,7 @@ class GetDPLoad(EMSnapshots, LoadCapabilities):
         positions = mechanics.positions()
         u = np.zeros_like(self.x_ref)
         for b in self.bodies:
-            u[b.body_to_em] = positions[b.name][:, :2] - self.x_ref[b.body_to_em]
+            u[b.body_to_em] = b.vertices(positions[b.name]) - self.x_ref[b.body_to_em]
         try:
             x_em = self.mover.moved(u)  # checks quality: a degenerate or inverted element never reaches GetDP
         except MeshQualityError as exc:
@@ -241,12 +244,14 @@ class GetDPLoad(EMSnapshots, LoadCapabilities):
         keep = np.isin(result.element_tags, self.tags)
         f = result.force_density_mean[keep]  # impulse-consistent mean over the sub-steps
         tris = mesh_k.triangles[result.elements[keep]]
-        f_em = self.scale * cell_to_nodal_forces(x_em, tris, f, axisymmetric=self.axisymmetric)
+        forces = body_forces(self.bodies, x_em, mesh_k.triangles, result.elements[keep], f,
+                             axisymmetric=self.axisymmetric, scale=self.scale)
         integral = self.scale * cell_force_integral(x_em, tris, f, axisymmetric=self.axisymmetric)
         mag = model_magnetisation_forces(self.solver.model, x_em, mesh_k.triangles, result, mesh_k.lines)
-        if mag is not None:   # magnetised bodies: their surface force joins the Lorentz force
-            f_em, integral = f_em + self.scale * mag, integral + self.scale * mag.sum(axis=0)
-        forces = {b.name: f_em[b.body_to_em] for b in self.bodies}
+        if mag is not None:   # magnetised bodies: their surface force joins the Lorentz force (on the vertex rows)
+            integral = integral + self.scale * mag.sum(axis=0)
+            for b in self.bodies:
+                forces[b.name][:len(b.body_to_em)] += (self.scale * mag)[b.body_to_em]
         getdp_total = result.conductor_force[-1, 0]
         heat = self.joule.heat(mechanics, self.bodies, result, mesh_k.triangles, t1 - t0)
         c3 = time.perf_counter()
@@ -475,6 +480,7 @@ class GetDPLoad(EMSnapshots, LoadCapabilities):
                 b.body_to_em = np.array(d[f"body_to_em_{i}"])
                 b.sub = ConductorMesh(np.array(d[f"sub_rows_{i}"]), np.array(d[f"sub_em_nodes_{i}"]),
                                       np.array(d[f"sub_points_{i}"]), b.sub.cells)
+                b.match_cells()
             self._set_mesh(mesh)
         if "material" in d:
             self.material = np.array(d["material"])

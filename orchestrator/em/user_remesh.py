@@ -73,7 +73,7 @@ class UserDeckLoad(GetDPLoad):
                                     "em.remesh_quality or shorten time.end")
         u = np.zeros_like(self.x_ref)
         for b in self.bodies:
-            u[b.body_to_em] = positions[b.name][:, :2] - self.x_ref[b.body_to_em]
+            u[b.body_to_em] = b.vertices(positions[b.name]) - self.x_ref[b.body_to_em]
         moved = self.geometry.mesh.with_points(self.x_ref + self.mover.displace(u))
         try:
             mesh, node_map, row_map = retriangulate_air(moved, self.air_ids, time_limit=self.gmsh_time_limit,
@@ -91,6 +91,7 @@ class UserDeckLoad(GetDPLoad):
         for b in self.bodies:
             b.body_to_em = node_map[b.body_to_em]
             b.sub = ConductorMesh(row_map[b.sub.rows], node_map[b.sub.em_nodes], b.sub.points, b.sub.cells)
+            b.match_cells()   # a six-node body: its cells' EM triangles (renumbered)
         self.material = material
         self._set_mesh(mesh)
         self.remeshes += 1

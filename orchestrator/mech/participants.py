@@ -101,22 +101,22 @@ class DolfinxMechanics:
         return {n: b.x for n, b in self.solver.bodies.items()}
 
     def heated_cells(self) -> dict[str, np.ndarray]:
-        """The cells (vertex rows, (nc, 3) or (nc, 4): a ten-node cell's corners) of every body that carries a
-        temperature, by name."""
+        """The cells (vertex rows, (nc, 3) or (nc, 4): a six- or ten-node cell's corners) of every body that carries
+        a temperature, by name."""
         return {n: b.cells[:, :b.gdim + 1] for n, b in self.solver.bodies.items() if b.material.thermal}
 
     def cell_temperatures(self) -> dict[str, np.ndarray]:
         """The temperature per cell (K) of every body that carries one, by name (its cells in the order of
-        :meth:`heated_cells`; a ten-node cell's: the mean of its Gauss points')."""
+        :meth:`heated_cells`; a six- or ten-node cell's: the mean of its Gauss points')."""
         return {n: _cell_values(b, b.temperature) for n, b in self.solver.bodies.items() if b.material.thermal}
 
     def add_heat(self, heat: dict[str, np.ndarray]) -> None:
         """Heat the cells of bodies adiabatically: body name -> J/m^3 per cell (``ExplicitSolver.add_heat``; a
-        ten-node cell's heat goes to each of its Gauss points)."""
+        six- or ten-node cell's heat goes to each of its Gauss points)."""
         for name, e in heat.items():
             b = self.solver.bodies[name]
             e = np.asarray(e, dtype=float)
-            if getattr(b, "element", "tet4") == "tet10":
+            if getattr(b, "element", "tet4") in ("tet10", "tri6"):
                 e = np.repeat(e, len(b.temperature) // max(len(b.cells), 1))
             self.solver.add_heat(name, e)
 

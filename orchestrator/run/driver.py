@@ -35,7 +35,7 @@ from ..mech.participants import DolfinxMechanics, PressurePulses
 from ..mech.rigid import RigidMechanics
 from ..mech.springback import run_springback
 from ..mesh.em_geometry import PendingEMGeometry, build_em_geometry
-from ..mesh.shared import ConductorBody, conductor_submesh, match_nodes, to_dolfinx
+from ..mesh.shared import body_conductor, conductor_submesh, to_dolfinx
 from . import interrupt
 from .analyses import create as create_analysis
 from .checkpoint import CHECKPOINT_NAME, load_checkpoint, save_checkpoint
@@ -458,9 +458,9 @@ def _coupled_participants(case: Case, results: ResultsFolder, comm: MPI.Comm,
     bodies = []
     for role in roles:
         name = next(b.name for b in case.bodies if b.region == role)
-        nodes = subs[role].em_nodes if role in rigid_roles else \
-            match_nodes(solver.bodies[name].X0, geometry.mesh.points, 1e-12 * scale)
-        bodies.append(ConductorBody(name, geometry.regions[role], subs[role], nodes))
+        body = None if role in rigid_roles else solver.bodies[name]   # six-node: vertex rows on the EM nodes
+        bodies.append(body_conductor(name, geometry.regions[role], subs[role], body, geometry.mesh.points,
+                                     1e-12 * scale))
     g = case.geometry
     if user_deck:
 

@@ -32,7 +32,8 @@ from .face_pressure import read_face_pressures
 from .tet10 import step_factor
 
 __all__ = ["EDGES", "N_QP", "QP_WEIGHTS", "QP_DERIVATIVES", "QP_VALUES", "shape_values", "shape_derivatives",
-           "hrz_lumped_mass", "three_node_edges", "split_edges", "edge_pressure_forces", "qp_measures",
+           "hrz_cell_masses", "hrz_lumped_mass", "hrz_shares",
+           "three_node_edges", "split_edges", "edge_pressure_forces", "qp_measures",
            "critical_step_factor"]
 
 #: corner pairs of the edge nodes 3..5
@@ -97,19 +98,34 @@ def qp_measures(cells6: np.ndarray, x: np.ndarray, axisymmetric: bool, thickness
     return (QP_WEIGHTS * det * _weights(xe, QP_VALUES, axisymmetric, thickness)).ravel()
 
 
-def hrz_lumped_mass(cells6: np.ndarray, X: np.ndarray, density: float, axisymmetric: bool,
+def hrz_cell_masses(cells6: np.ndarray, X: np.ndarray, density: float, axisymmetric: bool,
                     thickness: float) -> np.ndarray:
-    """HRZ lumped nodal masses (kg) of six-node cells at ``X`` (m): each node's diagonal entry of the consistent
-    mass rho int N_a^2 w dA (w the thickness, or 2 pi r in axisymmetry; a degree-5 rule, exact for straight
-    cells), scaled so that the cell's entries sum to its mass rho int w dA. All positive; their sum is the body's
-    mass."""
+    """HRZ lumped masses (kg) of each node of each six-node cell at ``X`` (m), (nc, 6): the node's diagonal entry
+    of the consistent mass rho int N_a^2 w dA (w the thickness, or 2 pi r in axisymmetry; a degree-5 rule, exact
+    for straight cells), scaled so that the cell's entries sum to its mass rho int w dA. All positive."""
     xe = X[cells6]
     N = shape_values(_MASS_BARY)
     det = np.linalg.det(np.einsum("cai,qaj->cqij", xe, shape_derivatives(_MASS_BARY)))
     wv = _MASS_W * det * _weights(xe, N, axisymmetric, thickness)          # (nc, 7)
     diag = np.einsum("cq,qa->ca", wv, N * N)
-    m = density * diag * (wv.sum(axis=1) / diag.sum(axis=1))[:, None]
+    return density * diag * (wv.sum(axis=1) / diag.sum(axis=1))[:, None]
+
+
+def hrz_lumped_mass(cells6: np.ndarray, X: np.ndarray, density: float, axisymmetric: bool,
+                    thickness: float) -> np.ndarray:
+    """HRZ lumped nodal masses (kg) of six-node cells at ``X`` (m): :func:`hrz_cell_masses` summed on the nodes;
+    their sum is the body's mass."""
+    m = hrz_cell_masses(cells6, X, density, axisymmetric, thickness)
     return np.bincount(cells6.ravel(), weights=m.ravel(), minlength=len(X))
+
+
+def hrz_shares(cells6: np.ndarray, X: np.ndarray, axisymmetric: bool) -> np.ndarray:
+    """The part of its cell's mass each node of a six-node cell carries (HRZ, :func:`hrz_cell_masses`), (nc, 6),
+    each row summing to one: a straight planar cell 1/19 at a corner and 16/57 at an edge node; in axisymmetry
+    the nodes farther from the axis carry more. A volume force shared out in these proportions accelerates every
+    node alike when its density is uniform (the coupled force transfer's shares)."""
+    m = hrz_cell_masses(cells6, X, 1.0, axisymmetric, 1.0)
+    return m / m.sum(axis=1, keepdims=True)
 
 
 def three_node_edges(segments: np.ndarray, edge_node: dict) -> np.ndarray:
