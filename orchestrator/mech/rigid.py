@@ -9,6 +9,7 @@ step divided by the subcycling), e.g. a number of steps per period of an AC sour
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -67,6 +68,26 @@ class RigidMechanics:
             b.advance(dt, n_steps, f)
         self.time += dt * n_steps
         self.step_count += int(n_steps)
+
+    def rest(self) -> None:
+        """Every body at rest where it is (:meth:`RigidBody.rest`)."""
+        for b in self.bodies.values():
+            b.rest()
+
+    def use_scheme(self, held: bool) -> None:
+        """Step every body exactly under the force held over each step (``held``: implicit runs,
+        :class:`HeldRigidBody`) or by central differences (:class:`RigidBody`), from its present state: position,
+        force, totals and clock kept, the velocity at the present time kept (central differences keep the last
+        half step's, v − dt/2 a of it)."""
+        kind = HeldRigidBody if held else RigidBody
+        for name, b in list(self.bodies.items()):
+            if type(b) is kind:
+                continue
+            now, state = b.velocity_now(), b.state_dict()
+            new = kind(**{f.name: getattr(b, f.name) for f in dataclasses.fields(b) if f.init})
+            new.load_state_dict(state)
+            new.v = now if held else now - 0.5 * new._dt_prev * new._acceleration()
+            self.bodies[name] = new
 
     def positions(self) -> dict[str, np.ndarray]:
         """Node coordinates per body (m)."""

@@ -174,6 +174,14 @@ class RigidBody:
             self.time += dt
             self.step_count += 1
 
+    def rest(self) -> None:
+        """Set the body at rest where it is (a stage of a chained run that zeroes the velocities): velocity zero
+        at the present time, the next step starting as from an initial rest (central differences: its first half
+        step, dt/2 of acceleration); the force held and the ledger's totals kept."""
+        self.v = np.zeros(self.dim)
+        self._dt_prev = 0.0
+        self.a = self._acceleration()
+
     # ------------------------------------------------------------------ outputs
     def positions(self) -> np.ndarray:
         """Node coordinates (N, dim), m."""
