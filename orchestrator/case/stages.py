@@ -30,8 +30,8 @@ class StageTable:
     name: str = spec(doc="stage name (fields/<case>_<stage>_<body>.xdmf, stage_<stage>_* metrics): 1 to 100 ASCII "
                          "letters, digits, '.', '_', '-'")
     kind: Literal["pulse", "quasi_static", "springback"] = spec(
-        doc="'pulse': the case's loads (pressure [[loads]] or the EM discharge) over the stage with the dynamic "
-            "integrator; 'quasi_static': implicit static steps under the pressure [[loads]] (a preform); "
+        doc="'pulse': the case's loads (pressure [[loads]], the EM sources on the run's time axis, or the bank's "
+            "discharge: a fresh one from the second pulse on) over the stage with the dynamic integrator; 'quasi_static': implicit static steps under the pressure [[loads]] (a preform); "
             "'springback': a static release of the state the previous stage left (no time passes)")
     end: float | None = spec(None, unit="s", gt=0.0,
                              doc="end of a timed stage on the run's time axis (required for 'pulse' and "
@@ -42,8 +42,8 @@ class StageTable:
                             doc="implicit step of an implicit 'pulse' or a 'quasi_static' stage (default "
                                 "mechanics.implicit.dt)")
     velocities: Literal["kept", "zeroed"] | None = spec(
-        None, doc="'pulse' only: the velocities at its start, kept from the stage before (default) or set to rest "
-                  "(after a springback stage they are at rest either way)")
+        None, doc="'pulse' only: the velocities at its start (deformable and rigid bodies), kept from the stage "
+                  "before (default) or set to rest (after a springback stage they are at rest either way)")
     voltage: float | None = spec(None, unit="V", gt=0.0,
                                  doc="coupled cases with a capacitor bank, a 'pulse' stage after the first: its "
                                      "discharge's charging voltage (default: the bank's own)")

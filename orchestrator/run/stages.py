@@ -8,7 +8,13 @@ stress, plastic strain, temperature; the velocities too unless a stage sets its 
 they are at rest). Where the integrator changes (an implicit static preform, an explicit pulse) the next stage's
 solver is built on the same bodies and the state handed over (:mod:`pulseform.solvers.dolfinx.handover`); a
 springback stage releases the state with :func:`..mech.springback.spring_back` and hands the released state to the
-solver of the next timed stage. A second pulse of a GetDP-coupled case is a fresh discharge of the bank.
+solver of the next timed stage. A second pulse of a GetDP-coupled case (2D, or a 3D geometry file) with a capacitor
+bank is a fresh discharge of the bank; without a bank the sources go on on the run's time axis.
+
+Rigid bodies (:class:`~..mech.rigid.RigidMechanics`, one object for the whole run) go on from stage to stage as they
+are: position, velocity, end-stop state, the totals of their ledger; a hand-over steps them with the next stage's
+integrator's scheme (central differences, or the held force of implicit runs), and sets them at rest where it zeroes
+the velocities (after a springback too: the release leaves them where they are).
 
 The energy ledger of history.csv goes on across the stages: each stage's solver keeps its own ledger from its start,
 the earlier stages' totals are added, and what a hand-over takes out (the kinetic energy of zeroed velocities, the
