@@ -13,7 +13,8 @@ stage to stage with the deformable bodies' state.
   - implicit, the second stage with its velocities zeroed: the die is at rest where the first stage left it, and
     from there its momentum m v is the impulse of its own force since the hand-over, Σ F dt (the held force is
     exact: history.csv's 10 digits), the sheet's momentum likewise restarts from zero; the ledger, what the
-    hand-over took out counted, still closes.
+    hand-over took out counted, still closes;
+  - explicit to 3 us, then implicit: the die's position and velocity carried, then m v grows by Σ F dt.
 """
 from __future__ import annotations
 
@@ -154,3 +155,30 @@ def test_zeroed_velocities_restart_the_rigid_die_from_rest(tmp_path):
     assert sheet + mv == pytest.approx(delivered, rel=2e-9)
     assert col["energy_stage_released_J"][k] > 0.0 and col["energy_stage_released_J"][k - 1] == 0.0
     assert m["energy_error_rel"] < 1e-6
+
+
+@pytest.mark.slow
+@pytest.mark.getdp
+def test_rigid_die_goes_on_from_an_explicit_to_an_implicit_stage(tmp_path):
+    """Explicit to 3 us, implicit (0.2 us steps) to 6 us, one mechanical step per EM step: at the hand-over the die
+    keeps its position and its velocity at the present time (the central differences' v + dt/2 a becomes the held
+    force's full-step velocity), and from there, stepped under the held force, m v grows by the impulse of its own
+    force, Σ F dt (exact: history.csv's 10 digits)."""
+    case = _sheet_die([{"name": "a", "kind": "pulse", "end": 3e-6},
+                       {"name": "b", "kind": "pulse", "end": 6e-6, "integrator": "implicit"}], False)
+    case["mechanics"]["implicit"] = {"dt": 2e-7}
+    case["coupling"]["n"] = 1
+    out, m = _run(tmp_path, "switch", case)
+    cols, h = _history(out)
+    col = {c: h[:, i] for i, c in enumerate(cols)}
+    k = int(np.flatnonzero(col["stage"] == 2.0)[0])
+    v = col["die_velocity_y_m_s"]
+    assert col["time_s"][k] == pytest.approx(3e-6, rel=1e-12) and v[k - 1] > 0.0
+    assert v[k] == pytest.approx(v[k - 1], rel=1e-12) and col["die_position_y_m"][k] == col["die_position_y_m"][k - 1]
+    after = slice(k + 1, None)
+    assert col["dt_s"][after].sum() == pytest.approx(3e-6, rel=1e-12)     # a row per step (the loop's own steps)
+    impulse = float(col["die_force_y_N"][after] @ col["dt_s"][after])
+    mass = m["die_mass_kg"]
+    print(f"\ndie: m v at 3 us {mass * v[k]:.9g} N s + impulse {impulse:.9g} N s = {mass * (v[k]) + impulse:.9g}; "
+          f"m v at 6 us {mass * v[-1]:.9g} N s; energy_error_rel {m['energy_error_rel']:.2e}")
+    assert mass * v[-1] == pytest.approx(mass * v[k] + impulse, rel=2e-9)
