@@ -11,8 +11,9 @@ through the sheet; the EM step 0.5 us of tests/coupling/test_coil_shots3d.py), i
   time after its start (the circuit is linear; the sheet, elastic, moves 0.1 um in the first pulse and springs back,
   which changes the coupling at the 1e-6 level, as in the 2D test tests/coupling/test_stages_coupled.py: a charge
   or a time carried over would be off by order one; measured 9.3e-7, bound 1e-5 as in 2D); the energy ledger, what
-  the hand-overs take out counted, closes (measured 2.6e-7 of the scale, bound 1e-5); stopped by SIGINT in the second pulse and resumed, history, metrics (timers aside) and the EM snapshot at
-  the peak current equal the uninterrupted run's bit for bit.
+  the hand-overs take out counted, closes (measured 2.6e-7 of the scale, bound 1e-5); stopped by SIGINT in the
+  second pulse and resumed, history, metrics (timers aside) and the EM snapshot at the peak current equal the
+  uninterrupted run's bit for bit.
 """
 from __future__ import annotations
 
