@@ -19,6 +19,7 @@ stage to stage with the deformable bodies' state.
 from __future__ import annotations
 
 import json
+import sys
 import tomllib
 from pathlib import Path
 
@@ -31,7 +32,7 @@ from pulseform.solvers.dolfinx.rigid import EndStop, RigidBody
 from pulseform.solvers.dolfinx.rigid_held import HeldRigidBody
 from warm_cli import pulseform_cli
 
-from .resume_check import TIMER_PREFIXES_3D, TIMERS_3D
+from .resume_check import TIMER_PREFIXES_3D, TIMERS_3D, sigint_then_resume
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -200,7 +201,8 @@ def test_rigid_die_goes_on_from_an_explicit_to_an_implicit_stage(tmp_path):
     """Explicit to 3 us, implicit (0.2 us steps) to 6 us, one mechanical step per EM step: at the hand-over the die
     keeps its position and its velocity at the present time (the central differences' v + dt/2 a becomes the held
     force's full-step velocity), and from there, stepped under the held force, m v grows by the impulse of its own
-    force, Σ F dt (exact: history.csv's 10 digits)."""
+    force, Σ F dt (exact: history.csv's 10 digits). Stopped by SIGINT in the implicit stage and resumed: history
+    and metrics (timers aside) bit for bit."""
     case = _sheet_die([{"name": "a", "kind": "pulse", "end": 3e-6},
                        {"name": "b", "kind": "pulse", "end": 6e-6, "integrator": "implicit"}], False)
     case["mechanics"]["implicit"] = {"dt": 2e-7}
@@ -219,3 +221,16 @@ def test_rigid_die_goes_on_from_an_explicit_to_an_implicit_stage(tmp_path):
     print(f"\ndie: m v at 3 us {mass * v[k]:.9g} N s + impulse {impulse:.9g} N s = {mass * (v[k]) + impulse:.9g}; "
           f"m v at 6 us {mass * v[-1]:.9g} N s; energy_error_rel {m['energy_error_rel']:.2e}")
     assert mass * v[-1] == pytest.approx(mass * v[k] + impulse, rel=2e-9)
+
+    # stopped by SIGINT in the implicit stage and resumed: the die's scheme is the stage's again, bit for bit
+    cut = tmp_path / "switch" / "cut"
+    args = [str(Path(sys.executable).with_name("pulseform")), "run", str(tmp_path / "switch" / "case.toml"),
+            "--out", str(cut), "--quiet"]
+    proc, err, stopped, resumed = sigint_then_resume(args, cut, delay=1.0)
+    assert proc.returncode == 130, err[-2000:]
+    assert 3e-6 < stopped["end_time_s"] < 6e-6, stopped["end_time_s"]      # in the implicit stage
+    assert resumed.returncode == 0, resumed.stderr[-2000:]
+    assert np.array_equal(_history(cut)[1], h)
+    got = json.loads((cut / "metrics.json").read_text())
+    differ = [k for k, v in m.items() if k not in TIMERS_3D and not k.startswith(TIMER_PREFIXES_3D) and got[k] != v]
+    assert not differ, differ
