@@ -13,7 +13,9 @@ through the sheet; the EM step 0.5 us of tests/coupling/test_coil_shots3d.py), i
   or a time carried over would be off by order one; measured 9.3e-7, bound 1e-5 as in 2D); the energy ledger, what
   the hand-overs take out counted, closes (measured 2.6e-7 of the scale, bound 1e-5); stopped by SIGINT in the
   second pulse and resumed, history, metrics (timers aside) and the EM snapshot at the peak current equal the
-  uninterrupted run's bit for bit.
+  uninterrupted run's bit for bit;
+* with a rigid body (the user's geometry of tests/coupling/test_geometry3d.py, sine sources): two pulse stages equal
+  the unsplit run bit for bit, zeroed velocities set the slug at rest where it was.
 """
 from __future__ import annotations
 
@@ -27,7 +29,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from .resume_check import assert_coupled3d_outputs_bitwise
+from .resume_check import TIMER_PREFIXES_3D, TIMERS_3D, assert_coupled3d_outputs_bitwise
 from .sector_case import CASE, MESH, sets
 
 EXE = str(Path(sys.executable).with_name("pulseform"))
@@ -108,3 +110,53 @@ def test_3d_two_discharges_each_followed_by_springback_and_resume(tmp_path):
     resumed = subprocess.run(argv + ["--resume"], capture_output=True, text=True, timeout=1800)
     assert resumed.returncode == 0, resumed.stderr[-3000:]
     assert_coupled3d_outputs_bitwise(ref, out)
+
+
+@pytest.mark.slow
+@pytest.mark.getdp
+def test_3d_rigid_slug_split_in_two_pulse_stages(tmp_path):
+    """The user's 3D geometry of tests/coupling/test_geometry3d.py (two coils on sine sources, a deformable plate and
+    a rigid copper slug, 0.4 us): split into two pulse stages at 0.2 us it equals the unsplit run bit for bit (the
+    sources are functions of the run's time: no new discharge; the slug's position and velocity carried); with the
+    second stage's velocities zeroed the slug is at rest where the first left it."""
+    import shutil
+
+    from .test_geometry3d import CASE as GEO_CASE
+    from .test_geometry3d import DATA, GEO
+
+    def run(name: str, stages: str) -> tuple[Path, dict]:
+        d = tmp_path / name
+        d.mkdir()
+        shutil.copy(DATA / GEO, d / GEO)
+        (d / "case.toml").write_text(GEO_CASE + stages)
+        r = subprocess.run([EXE, "run", str(d), "--out", str(d / "out"), "--quiet"], capture_output=True, text=True,
+                           timeout=1800)
+        assert r.returncode == 0, r.stderr[-3000:]
+        return d / "out", json.loads((d / "out/metrics.json").read_text())
+
+    split = ('\n[[stages]]\nname = "a"\nkind = "pulse"\nend = 0.2e-6\n\n'
+             '[[stages]]\nname = "b"\nkind = "pulse"\nend = 0.4e-6\n')
+    ref, want = run("plain", "")
+    out, got = run("split", split)
+    cols_ref, h_ref = _history(ref)
+    cols, h = _history(out)
+    stage = h[:, cols.index("stage")]
+    k = int(np.flatnonzero(stage == 2.0)[0])
+    assert h[k, 0] == h[k - 1, 0] == pytest.approx(0.2e-6, rel=1e-12)
+    assert h_ref[k - 1, cols_ref.index("slug_velocity_z_m_s")] != 0.0
+    h = np.delete(np.delete(h, k, axis=0), [cols.index("stage"), cols.index("energy_stage_released_J")], axis=1)
+    assert [c for c in cols if c not in ("stage", "energy_stage_released_J")] == cols_ref
+    assert np.array_equal(h, h_ref)
+    differ = [k for k, v in want.items() if k not in TIMERS_3D and not k.startswith(TIMER_PREFIXES_3D) and got[k] != v]
+    assert not differ, differ
+
+    zeroed, m = run("zeroed", split.replace('end = 0.4e-6\n', 'end = 0.4e-6\nvelocities = "zeroed"\n'))
+    cols, h = _history(zeroed)
+    col = {c: h[:, i] for i, c in enumerate(cols)}
+    k = int(np.flatnonzero(col["stage"] == 2.0)[0])
+    for c in "xz":   # the slug's free components (the plane y = 0 holds y)
+        assert col[f"slug_velocity_{c}_m_s"][k] == 0.0 and col[f"slug_position_{c}_m"][k] == \
+            col[f"slug_position_{c}_m"][k - 1]
+    print(f"\nslug at 0.2 us: v_z {col['slug_velocity_z_m_s'][k - 1]:.6g} m/s, set at rest; released "
+          f"{col['energy_stage_released_J'][k]:.4g} J; energy_error_rel {m['energy_error_rel']:.2e}")
+    assert col["energy_stage_released_J"][k] > 0.0 and m["status"] == "ok"
