@@ -31,7 +31,8 @@ class StageTable:
                          "letters, digits, '.', '_', '-'")
     kind: Literal["pulse", "quasi_static", "springback"] = spec(
         doc="'pulse': the case's loads (pressure [[loads]], the EM sources on the run's time axis, or the bank's "
-            "discharge: a fresh one from the second pulse on) over the stage with the dynamic integrator; 'quasi_static': implicit static steps under the pressure [[loads]] (a preform); "
+            "discharge: a fresh one from the second pulse on) over the stage with the dynamic integrator; "
+            "'quasi_static': implicit static steps under the pressure [[loads]] (a preform); "
             "'springback': a static release of the state the previous stage left (no time passes)")
     end: float | None = spec(None, unit="s", gt=0.0,
                              doc="end of a timed stage on the run's time axis (required for 'pulse' and "

@@ -9,7 +9,6 @@ step divided by the subcycling), e.g. a number of steps per period of an AC sour
 
 from __future__ import annotations
 
-import dataclasses
 import math
 
 import numpy as np
@@ -81,13 +80,8 @@ class RigidMechanics:
         half step's, v − dt/2 a of it)."""
         kind = HeldRigidBody if held else RigidBody
         for name, b in list(self.bodies.items()):
-            if type(b) is kind:
-                continue
-            now, state = b.velocity_now(), b.state_dict()
-            new = kind(**{f.name: getattr(b, f.name) for f in dataclasses.fields(b) if f.init})
-            new.load_state_dict(state)
-            new.v = now if held else now - 0.5 * new._dt_prev * new._acceleration()
-            self.bodies[name] = new
+            if type(b) is not kind:
+                self.bodies[name] = b.recast(kind)
 
     def positions(self) -> dict[str, np.ndarray]:
         """Node coordinates per body (m)."""

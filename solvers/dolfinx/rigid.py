@@ -18,7 +18,7 @@ Units: m, m/s, m/s^2, kg, N, s, J.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 
@@ -181,6 +181,17 @@ class RigidBody:
         self.v = np.zeros(self.dim)
         self._dt_prev = 0.0
         self.a = self._acceleration()
+
+    def recast(self, kind: type) -> "RigidBody":
+        """This body stepped by ``kind`` (:class:`RigidBody` or a subclass with the same fields, e.g. the held force
+        of implicit runs) from its present state: position, force, totals and clock the same, and the same velocity
+        at the present time (:meth:`velocity_now`; central differences hold the last half step's, v − dt/2 a)."""
+        now = self.velocity_now()
+        new = kind(**{f.name: getattr(self, f.name) for f in fields(self) if f.init})
+        new.load_state_dict(self.state_dict())
+        new.v = now
+        new.v = now - (new.velocity_now() - now)
+        return new
 
     # ------------------------------------------------------------------ outputs
     def positions(self) -> np.ndarray:
