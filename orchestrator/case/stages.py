@@ -16,7 +16,8 @@ from .names import check_file_name
 from .schema import SchemaError, spec
 from .springback import SpringbackTable
 
-__all__ = ["StageTable", "check_stages", "check_implicit_reach", "check_adaptive", "stage_integrator", "TIMED"]
+__all__ = ["StageTable", "check_stages", "check_implicit_reach", "check_adaptive", "stage_integrator", "discharges",
+           "TIMED"]
 
 #: the stage kinds that take time
 TIMED = ("pulse", "quasi_static")
@@ -29,8 +30,9 @@ class StageTable:
     name: str = spec(doc="stage name (fields/<case>_<stage>_<body>.xdmf, stage_<stage>_* metrics): 1 to 100 ASCII "
                          "letters, digits, '.', '_', '-'")
     kind: Literal["pulse", "quasi_static", "springback"] = spec(
-        doc="'pulse': the case's loads (pressure [[loads]] or the EM discharge) over the stage with the dynamic "
-            "integrator; 'quasi_static': implicit static steps under the pressure [[loads]] (a preform); "
+        doc="'pulse': the case's loads (pressure [[loads]], the EM sources on the run's time axis, or the bank's "
+            "discharge: a fresh one from the second pulse on) over the stage with the dynamic integrator; "
+            "'quasi_static': implicit static steps under the pressure [[loads]] (a preform); "
             "'springback': a static release of the state the previous stage left (no time passes)")
     end: float | None = spec(None, unit="s", gt=0.0,
                              doc="end of a timed stage on the run's time axis (required for 'pulse' and "
@@ -41,8 +43,8 @@ class StageTable:
                             doc="implicit step of an implicit 'pulse' or a 'quasi_static' stage (default "
                                 "mechanics.implicit.dt)")
     velocities: Literal["kept", "zeroed"] | None = spec(
-        None, doc="'pulse' only: the velocities at its start, kept from the stage before (default) or set to rest "
-                  "(after a springback stage they are at rest either way)")
+        None, doc="'pulse' only: the velocities at its start (deformable and rigid bodies), kept from the stage "
+                  "before (default) or set to rest (after a springback stage they are at rest either way)")
     voltage: float | None = spec(None, unit="V", gt=0.0,
                                  doc="coupled cases with a capacitor bank, a 'pulse' stage after the first: its "
                                      "discharge's charging voltage (default: the bank's own)")
@@ -111,15 +113,7 @@ def check_stages(case) -> None:
                               + ("(kind = 'springback')" if key == "springback" else "(one 'pulse' stage per shot)"))
     if all(b.rigid for b in case.bodies):
         raise SchemaError("stages", "stages carry deformable bodies: this case has none")
-    if any(b.rigid for b in case.bodies):
-        i = next(i for i, b in enumerate(case.bodies) if b.rigid)
-        raise SchemaError(f"bodies[{i}].rigid", "stages carry deformable bodies only (for now): a rigid body's "
-                          "motion would not be carried; make it deformable or remove [[stages]]")
-    coupled = case.case.kind == "coupled"
-    if coupled and case.mechanics.formulation == "3d":
-        raise SchemaError("stages", "stages of a coupled 3D case are not done yet (mechanics-only 3D cases and "
-                          "coupled 2D cases take them)")
-    getdp = coupled and case.coupling.load == "getdp"
+    getdp = case.case.kind == "coupled" and case.coupling.load == "getdp"
     names: list[str] = []
     last_end, last_kind, pulses = 0.0, None, 0
     for i, s in enumerate(stages):
@@ -209,14 +203,22 @@ def _check_timed_stage(case, s: StageTable, path: str, i: int, last_end: float, 
         if pulses == 0:
             raise SchemaError(f"{path}.voltage", "the first pulse is the bank's own discharge: set its voltage "
                               "in the bank, and stage voltages from the second pulse on")
-    if getdp and s.kind == "pulse" and pulses >= 1:
+    if discharges(case) and s.kind == "pulse" and pulses >= 1:
         _check_new_discharge(case, path)
 
 
+def discharges(case) -> bool:
+    """Whether a later ``'pulse'`` stage of ``case`` is a new discharge of a capacitor bank: a GetDP-coupled case
+    with one (em.circuit, or a ``'bank'`` source). Without a bank the sources are functions of the run's time and a
+    later pulse goes on with them (the EM state carried, as the pressure [[loads]] go on with their times)."""
+    if case.case.kind != "coupled" or case.coupling.load != "getdp":
+        return False
+    return case.em.circuit is not None or any(src.type == "bank" for src in case.em.sources)
+
+
 def _check_new_discharge(case, path: str) -> None:
-    """A second pulse of a GetDP-coupled case is a fresh bank discharge: what ``[em.shots]`` needs."""
-    em, geo = case.em, case.geometry
-    bank = em.circuit is not None or any(src.type == "bank" for src in em.sources)
-    if not bank or geo.type == "user_deck" or getattr(geo, "library", None) == "getdp_template":
-        raise SchemaError(f"{path}.kind", "a second 'pulse' stage of a GetDP-coupled case is a new discharge of "
-                          "the capacitor bank: it needs the built-in deck with a bank (em.circuit or a 'bank' source)")
+    """A second pulse of a case with a bank is a fresh discharge: what ``[em.shots]`` needs, the built-in deck."""
+    geo = case.geometry
+    if geo.type == "user_deck" or getattr(geo, "library", None) == "getdp_template":
+        raise SchemaError(f"{path}.kind", "a second 'pulse' stage of a case with a capacitor bank is a new discharge "
+                          "of the bank: it needs the built-in deck (not a user deck or a GetDP template)")

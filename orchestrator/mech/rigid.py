@@ -68,6 +68,21 @@ class RigidMechanics:
         self.time += dt * n_steps
         self.step_count += int(n_steps)
 
+    def rest(self) -> None:
+        """Every body at rest where it is (:meth:`RigidBody.rest`)."""
+        for b in self.bodies.values():
+            b.rest()
+
+    def use_scheme(self, held: bool) -> None:
+        """Step every body exactly under the force held over each step (``held``: implicit runs,
+        :class:`HeldRigidBody`) or by central differences (:class:`RigidBody`), from its present state: position,
+        force, totals and clock kept, the velocity at the present time kept (central differences keep the last
+        half step's, v − dt/2 a of it)."""
+        kind = HeldRigidBody if held else RigidBody
+        for name, b in list(self.bodies.items()):
+            if type(b) is not kind:
+                self.bodies[name] = b.recast(kind)
+
     def positions(self) -> dict[str, np.ndarray]:
         """Node coordinates per body (m)."""
         return {n: b.positions() for n, b in self.bodies.items()}

@@ -22,20 +22,15 @@ from ..case.guards import check_steps_of_meshes
 from ..case.model import Case
 from ..coupling.interfaces import LoadProvider
 from ..coupling.loop import LoopOptions, StaggeredLoop
-from ..em.participant import GetDPLoad
-from ..em.solver import em_model, factor_reuse
 from ..em.skin_depth import mesh_advice
-from ..em.time_scale import rigid_mechanical_step
-from ..em.user_deck import build_user_geometry, user_deck_load
 from ..mech import probes as probe_mod
 from ..mech.forming_limit import forming_limit_monitor
 from ..mech.model import build_solver, stage_case
-from ..mech.mixed import MixedMechanics, rigid_bodies, rigid_metrics
-from ..mech.participants import DolfinxMechanics, PressurePulses
+from ..mech.mixed import MixedMechanics, rigid_metrics
+from ..mech.participants import DolfinxMechanics
 from ..mech.rigid import RigidMechanics
 from ..mech.springback import run_springback
-from ..mesh.em_geometry import PendingEMGeometry, build_em_geometry
-from ..mesh.shared import body_conductor, conductor_submesh, to_dolfinx
+from ..mesh.em_geometry import PendingEMGeometry
 from . import interrupt
 from .analyses import create as create_analysis
 from .checkpoint import CHECKPOINT_NAME, load_checkpoint, save_checkpoint
@@ -52,6 +47,7 @@ from .impulse import impulse_metrics
 from .mech_metrics import mech_metrics
 from .output_times import default_interval, fixed_em_step, landing_note, milestones
 from .progress import Progress
+from .participants2d import coupled_participants, pressure_pulses
 from .participants3d import participants_3d
 from .stages import StagedRun
 from .results import ResultsFolder
@@ -96,15 +92,15 @@ class CaseDriver:
         if case.stages:  # the solver of the first timed stage (its integrator); the stages hand the state on
             built = stage_case(case, next(s for s in case.stages if s.kind != "springback"))
         if self.three_d:
-            self.solver, self.rigid, load, options, _ = participants_3d(case, results.root / "em")
+            self.solver, self.rigid, load, options, _ = participants_3d(built, results.root / "em")
         elif case.case.kind == "coupled":
-            self.solver, load, self.rigid = _coupled_participants(built, results, comm, em_geometry)
+            self.solver, load, self.rigid = coupled_participants(built, results, comm, em_geometry)
             options = LoopOptions.from_coupling(cp)
         else:
             # the explicit mechanics alone has no step-ratio limit: full steps, one shorter step at a milestone
             self.solver, options = build_solver(built, comm), LoopOptions(n=1, n_max=1, landing="last",
                                                                        block=case.output.history_every)
-            load = _pressure_pulses(case)
+            load = pressure_pulses(case)
         deformable = DolfinxMechanics(self.solver) if self.solver is not None else None
         self.mechanics = deformable if self.rigid is None else MixedMechanics(deformable, self.rigid)
         check_steps_of_meshes(case, self.mechanics.stable_time_step())  # a user deck's mesh is known only now
@@ -134,9 +130,11 @@ class CaseDriver:
             self.staged = StagedRun(self)
 
     def set_solver(self, solver) -> None:
-        """Make ``solver`` (on the same bodies) the run's mechanics: a stage's own (:mod:`.stages`)."""
+        """Make ``solver`` (on the same bodies) the run's mechanics: a stage's own (:mod:`.stages`), stepped with the
+        rigid bodies if the case has any."""
         self.solver = solver
-        self.mechanics = DolfinxMechanics(solver)
+        self.mechanics = DolfinxMechanics(solver) if self.rigid is None else \
+            MixedMechanics(DolfinxMechanics(solver), self.rigid)
         self.loop.mech = self.mechanics
         if self.flc is not None:
             self.flc.solver = solver
@@ -165,10 +163,14 @@ class CaseDriver:
         self.history.record(row)
 
     def energies(self) -> dict[str, float]:
-        """The run's energy ledger (J): the explicit solver's, with the rigid bodies' added."""
-        e = self.solver.energies() if self.solver is not None else None
-        if self.staged is not None:  # the earlier stages' totals
-            return self.staged.ledger(e)
+        """The run's energy ledger (J): the solver's, with the rigid bodies' added (and a staged run's earlier
+        stages' totals, :meth:`.stages.StagedRun.ledger`)."""
+        e = self.own_energies(self.solver)
+        return e if self.staged is None else self.staged.ledger(e)
+
+    def own_energies(self, solver) -> dict[str, float]:
+        """The energy ledger (J) of ``solver`` (the run's, or a stage's new one) with the rigid bodies' added."""
+        e = solver.energies() if solver is not None else None
         return e if self.rigid is None else self.mechanics.energies(e)
 
     def initial_row(self) -> dict[str, float]:
@@ -317,11 +319,7 @@ class CaseDriver:
         prefix = self.results.fields / (case.case.name + (f"_part{self.part}" if self.part else ""))
         writer = mech.FieldWriter(self.solver, str(prefix), self.flc and self.flc.cell_fields) \
             if self.solver is not None else _NoFieldWriter()
-        em_writer = EMFieldWriter(self.results.fields / (f"em_part{self.part}" if self.part else "em")) \
-            if self.load.em_fields and self.comm.rank == 0 else None
-        if self.three_d and case.coupling.load == "getdp" and self.comm.rank == 0:  # the first body's force density
-            em_writer = EMFieldWriter(self.results.fields / (f"{EM3D_FOLDER}_part{self.part}" if self.part
-                                                             else EM3D_FOLDER), stem=EM3D_STEM)
+        em_writer = self.em_field_writer()
         if em_writer is not None:
             self.load.request_fields(np.array([t for _, t in self._shot_stops()]))  # whole-domain EM fields only on the snapshot steps
         if not self.history.rows:
@@ -376,6 +374,16 @@ class CaseDriver:
         self.load.close()  # old getdp run folders are deleted in the background: wait for them
         return self.finish(metrics)
 
+    def em_field_writer(self) -> EMFieldWriter | None:
+        """The writer of the EM field series (rank 0; None without one): ``fields/em`` of a 2D coupled case,
+        ``fields/em3d`` of a GetDP-coupled 3D case (the first body's force density); ``_part<n>`` when resumed."""
+        if self.comm.rank != 0:
+            return None
+        part = f"_part{self.part}" if self.part else ""
+        if self.three_d and self.case.coupling.load == "getdp":
+            return EMFieldWriter(self.results.fields / f"{EM3D_FOLDER}{part}", stem=EM3D_STEM)
+        return EMFieldWriter(self.results.fields / f"em{part}") if self.load.em_fields else None
+
     def finish(self, metrics: dict[str, float]) -> MechanicsRun:
         """What the run hands back to the runner, with its ``metrics``."""
         return MechanicsRun(self.solver, self.history, metrics, self.shapes, self.analyses, self.wall_before_s)
@@ -418,72 +426,6 @@ class _NoFieldWriter:
 
     def close(self) -> None:
         """Nothing."""
-
-
-def _pressure_pulses(case: Case) -> PressurePulses:
-    """The case's pressure pulses with its damping options."""
-    mo = case.mechanics
-    return PressurePulses(case.loads, mo.mass_damping, mo.mass_damping_until, mo.mass_damping_from,
-                          mo.kinetic_damping_until)
-
-
-def _coupled_participants(case: Case, results: ResultsFolder, comm: MPI.Comm,
-                          em_geometry: PendingEMGeometry | None = None):
-    """Mesh the EM setup (or take the mesh ``em_geometry`` started earlier, :func:`start_em_geometry`),
-    cut the conductor bodies' mechanical meshes from it, build solver and GetDP load."""
-
-    if comm.size > 1:
-        raise NotImplementedError("coupled runs are serial for now (the GetDP participant and the force transfer run on one process)")
-    user_deck = case.geometry.type == "user_deck"  # a user's own .geo/.msh + .pro (orchestrator/em/user_deck.py)
-    if user_deck:
-
-        geometry = build_user_geometry(case, results.root / "em_mesh", results.root / "em")
-    elif em_geometry is not None:
-        geometry = em_geometry.result()
-    else:
-        geometry = build_em_geometry(case.geometry, time_limit=case.limits.gmsh_time_limit_s)
-    roles = geometry.conductor_roles()
-    subs = {role: conductor_submesh(geometry.mesh, geometry.regions[role]) for role in roles}
-    rigid_roles = {b.region for b in case.bodies if b.rigid}
-    solver = None
-    if len(rigid_roles) < len(roles):
-        solver = build_solver(case, comm, {role: to_dolfinx(sub, comm) for role, sub in subs.items()
-                                           if role not in rigid_roles})
-    if case.coupling.load == "pressure":  # same meshes and loop, pressure pulses instead of GetDP
-        return solver, _pressure_pulses(case), None
-    rigid = None
-    if rigid_roles:
-        rigid = RigidMechanics(rigid_bodies(case, subs), _rigid_step(case, solver))
-    scale = float(np.abs(geometry.mesh.points).max())
-    bodies = []
-    for role in roles:
-        name = next(b.name for b in case.bodies if b.region == role)
-        body = None if role in rigid_roles else solver.bodies[name]   # six-node: vertex rows on the EM nodes
-        bodies.append(body_conductor(name, geometry.regions[role], subs[role], body, geometry.mesh.points,
-                                     1e-12 * scale))
-    g = case.geometry
-    if user_deck:
-
-        load = user_deck_load(case, geometry, results.root / "em", bodies, case.coupling.em_substeps)
-    else:
-        load = GetDPLoad(geometry, em_model(case, (g.air_radius, g.shell_radius)), results.root / "em", bodies,
-                         keep_runs=case.em.keep_runs, remesh_quality=case.em.remesh_quality,
-                         sizes=(g.mesh_size_coil, g.mesh_size_air), em_substeps=case.coupling.em_substeps,
-                         depth=case.mechanics.thickness, time_scheme=case.em.time_scheme,
-                         getdp_process=case.em.getdp_process, factor_reuse=factor_reuse(case))
-    load.solver.timeout = case.limits.getdp_time_limit_s
-    load.gmsh_time_limit = case.limits.gmsh_time_limit_s
-    return solver, load, rigid
-
-
-def _rigid_step(case: Case, solver) -> float:
-    """The rigid bodies' mechanical step (s): the deformable bodies' stable step when there are any;
-    without them a period of the source over ``coupling.steps_per_period`` EM steps of ``coupling.n``
-    mechanical steps each (:mod:`..em.time_scale`), capped by ``time.dt_max`` (which alone sets it
-    when no source has a period)."""
-    if solver is not None:
-        return solver.stable_time_step()
-    return rigid_mechanical_step(case)
 
 
 def run_case_loop(case: Case, results: ResultsFolder, *, quiet: bool = False, resume: bool = False,

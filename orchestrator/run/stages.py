@@ -8,7 +8,13 @@ stress, plastic strain, temperature; the velocities too unless a stage sets its 
 they are at rest). Where the integrator changes (an implicit static preform, an explicit pulse) the next stage's
 solver is built on the same bodies and the state handed over (:mod:`pulseform.solvers.dolfinx.handover`); a
 springback stage releases the state with :func:`..mech.springback.spring_back` and hands the released state to the
-solver of the next timed stage. A second pulse of a GetDP-coupled case is a fresh discharge of the bank.
+solver of the next timed stage. A second pulse of a GetDP-coupled case (2D, or a 3D geometry file) with a capacitor
+bank is a fresh discharge of the bank; without a bank the sources go on on the run's time axis.
+
+Rigid bodies (:class:`~..mech.rigid.RigidMechanics`, one object for the whole run) go on from stage to stage as they
+are: position, velocity, end-stop state, the totals of their ledger; a hand-over steps them with the next stage's
+integrator's scheme (central differences, or the held force of implicit runs), and sets them at rest where it zeroes
+the velocities (after a springback too: the release leaves them where they are).
 
 The energy ledger of history.csv goes on across the stages: each stage's solver keeps its own ledger from its start,
 the earlier stages' totals are added, and what a hand-over takes out (the kinetic energy of zeroed velocities, the
@@ -33,11 +39,10 @@ from pulseform.solvers.dolfinx.implicit_ledger import IACC_KEYS
 
 from ..case.model import Case
 from ..case.springback import SpringbackTable
-from ..case.stages import TIMED, StageTable
+from ..case.stages import TIMED, StageTable, discharges
 from ..mech.model import rebuild_solver, stage_case
 from ..mech.springback import spring_back
 from . import interrupt
-from .em_fields import EMFieldWriter
 from .output_times import default_interval, milestones
 from .progress import Progress
 
@@ -130,15 +135,20 @@ class StagedRun:
         out[RELEASED] = self.released
         return out
 
-    def _handover(self, new, velocities: str, sb=None, bodies=None) -> None:
-        """Carry the driver's solver state into ``new`` (and the springback ``sb``'s released ``bodies``), keep the
-        ledger going, make ``new`` the driver's solver."""
+    def _handover(self, new, velocities: str, implicit: bool, sb=None, bodies=None) -> None:
+        """Carry the driver's solver state into ``new`` (and the springback ``sb``'s released ``bodies``), the rigid
+        bodies' to the scheme of the ``implicit`` or explicit integrator (at rest too when the velocities are
+        zeroed), keep the ledger going, make ``new`` the driver's solver."""
         d = self.d
         before = d.energies()
         carry_state(d.solver, new, velocities)
         if sb is not None:
             carry_state(sb, new, "zeroed", bodies=bodies, clock=False)
-        after = new.energies()
+        if d.rigid is not None:
+            d.rigid.use_scheme(implicit)
+            if velocities == "zeroed":
+                d.rigid.rest()
+        after = d.own_energies(new)
         for k in self.keys or []:
             if k not in STATE_KEYS:
                 self.offsets[k] = before[k] - after.get(k, 0.0)
@@ -166,14 +176,15 @@ class StagedRun:
         case = self.stages[self.holder].case
         if case.mechanics != self.first_timed().case.mechanics:
             self.d.set_solver(rebuild_solver(case, self.d.solver))
+        if self.d.rigid is not None:   # the scheme of the stage's integrator (the checkpoint's state follows)
+            self.d.rigid.use_scheme(case.mechanics.integrator == "implicit")
 
     # ----------------------------------------------------------------- the run
     def run(self, quiet: bool):
         """Every stage in turn; returns the driver's :class:`~.driver.MechanicsRun`."""
         d, case = self.d, self.d.case
-        em_writer = None
-        if d.load.em_fields and d.comm.rank == 0:
-            em_writer = EMFieldWriter(d.results.fields / (f"em_part{d.part}" if d.part else "em"))
+        em_writer = d.em_field_writer()
+        if em_writer is not None:
             d.load.request_fields(np.concatenate([st.stops for st in self.stages]))
         if not d.history.rows:
             d.record(d.initial_row())
@@ -225,11 +236,10 @@ class StagedRun:
         zeroed = st.spec.velocities == "zeroed" and not self.at_rest
         if st.case.mechanics != self.stages[self.holder].case.mechanics or zeroed:
             velocities = "zeroed" if zeroed or self.at_rest else "kept"
-            self._handover(rebuild_solver(st.case, d.solver), velocities)
+            self._handover(rebuild_solver(st.case, d.solver), velocities, _implicit(st))
         self.holder = st.index
         pulses_before = sum(p.spec.kind == "pulse" for p in self.stages[: st.index])
-        if st.spec.kind == "pulse" and pulses_before and d.case.case.kind == "coupled" \
-                and d.case.coupling.load == "getdp":
+        if st.spec.kind == "pulse" and pulses_before and discharges(d.case):
             voltage = st.spec.voltage or _bank_voltage(d.case)
             d.load.begin_shot(st.t0, voltage, d.load.coil_temperatures())
             log.info("stage %s: a new discharge at t = %.6g s, %.6g V", st.spec.name, st.t0, voltage)
@@ -275,7 +285,8 @@ class StagedRun:
         self.metrics.update({f"stage_{st.spec.name}_{k}": v for k, v in m.items()})
         later = [x for x in self.stages[st.index + 1:] if x.timed]
         holder = later[0] if later else self.stages[self.holder]
-        self._handover(rebuild_solver(holder.case, d.solver), "zeroed", sb, list(cfg.bodies) or list(sb.bodies))
+        self._handover(rebuild_solver(holder.case, d.solver), "zeroed", _implicit(holder), sb,
+                       list(cfg.bodies) or list(sb.bodies))
         self.holder = holder.index
         d.record()
         d._keep_shape()
@@ -296,6 +307,11 @@ class StagedRun:
             if f"{b.name}_max_von_mises_Pa" in h.columns:
                 out[f"{key}_{b.name}_max_von_mises_MPa"] = float(h.column(f"{b.name}_max_von_mises_Pa")[rows].max()) / 1e6
         return out
+
+
+def _implicit(st: Stage) -> bool:
+    """Whether timed stage ``st`` runs the implicit integrator."""
+    return st.case.mechanics.integrator == "implicit"
 
 
 def _bank_voltage(case: Case) -> float:

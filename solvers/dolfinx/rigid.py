@@ -18,7 +18,7 @@ Units: m, m/s, m/s^2, kg, N, s, J.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 
@@ -173,6 +173,25 @@ class RigidBody:
             self._dt_prev = dt
             self.time += dt
             self.step_count += 1
+
+    def rest(self) -> None:
+        """Set the body at rest where it is (a stage of a chained run that zeroes the velocities): velocity zero
+        at the present time, the next step starting as from an initial rest (central differences: its first half
+        step, dt/2 of acceleration); the force held and the ledger's totals kept."""
+        self.v = np.zeros(self.dim)
+        self._dt_prev = 0.0
+        self.a = self._acceleration()
+
+    def recast(self, kind: type) -> "RigidBody":
+        """This body stepped by ``kind`` (:class:`RigidBody` or a subclass with the same fields, e.g. the held force
+        of implicit runs) from its present state: position, force, totals and clock the same, and the same velocity
+        at the present time (:meth:`velocity_now`; central differences hold the last half step's, v − dt/2 a)."""
+        now = self.velocity_now()
+        new = kind(**{f.name: getattr(self, f.name) for f in fields(self) if f.init})
+        new.load_state_dict(self.state_dict())
+        new.v = now
+        new.v = now - (new.velocity_now() - now)
+        return new
 
     # ------------------------------------------------------------------ outputs
     def positions(self) -> np.ndarray:
