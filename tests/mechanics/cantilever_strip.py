@@ -32,7 +32,7 @@ from pulseform.solvers.dolfinx.body import BodySpec
 from pulseform.solvers.dolfinx.material import Material
 
 __all__ = ["Strip", "strip_body", "tip_load", "tip_deflection", "beam_deflection", "hinge_load",
-           "beam_plastic_deflection", "plane_strip_body", "relax_to_rest", "runaway"]
+           "beam_plastic_deflection", "plane_strip_body", "relax_to_rest", "relaxed_levels", "runaway"]
 
 
 @dataclass(frozen=True)
@@ -172,6 +172,20 @@ def relax_to_rest(solver, strip: Strip, force: float, reference: float, rounds: 
         if abs(d - prev) < 1e-5 * reference and solver.energies()["kinetic_J"] < 1e-9:
             break
         prev = d
+    return d
+
+
+def relaxed_levels(solver, strip: Strip, force: float, fractions, reference: float, rounds: int,
+                   ratio: float = 10.0) -> list:
+    """The tip deflections (in units of ``reference``, m) of ``solver``'s strip under the tip forces
+    ``fractions`` x ``force`` (N) in order, each relaxed to rest (:func:`relax_to_rest`, at most ``rounds`` rounds)
+    from the previous level's state, up to the first level whose compliance (the difference quotient over the
+    fractions) reaches ``ratio``: the levels after it do not change :func:`runaway`."""
+    d = []
+    for f in fractions:
+        d.append(relax_to_rest(solver, strip, f * force, reference, rounds) / reference)
+        if len(d) > 1 and (d[-1] - d[-2]) / (f - fractions[len(d) - 2]) >= ratio:
+            break
     return d
 
 
