@@ -123,7 +123,7 @@ def run_tet10_steps(cells, x, v, a, m, fext, stress, eps_p, temp, prm, dN, wq, f
             for i in range(n):
                 for c in range(3):
                     f[i, c] += fext[i, c]
-        sc[_DTC] = min(np.inf, d)
+        sc[_DTC] = d if d < np.inf else np.inf       # Python's min(inf, d)
         for i in range(n):
             for c in range(3):
                 a[i, c] = f[i, c] / m[i]
@@ -151,6 +151,8 @@ def steps_supported(solver: "ExplicitSolver3D") -> str:
     for kind, _, _, val in b._constraints:
         if kind != "fix" or callable(val):
             return f"body {b.name!r}: time-dependent prescribed velocity (Python callable)"
+        if np.ndim(val) != 0:
+            return f"body {b.name!r}: a prescribed velocity that is not one number"
     return ""
 
 
