@@ -192,7 +192,7 @@ class ExplicitSolver3D(ExplicitSolver):
         self._block = None
         why = steps_supported(self) if compiled_steps else "compiled_steps=False"
         self._steps = None if why else Tet10Steps(self)
-        if why and any(b.element == "tet10" for b in self.bodies.values()):
+        if compiled_steps and why and any(b.element == "tet10" for b in self.bodies.values()):
             log.info("ExplicitSolver3D: ten-node steps in the Python step loop (%s)", why)
         log.info("ExplicitSolver3D: %d bodies, %d cells, %d walls, %d soft planes, %d contact "
                  "pairs, %d thread(s), stable dt %.4g s",
