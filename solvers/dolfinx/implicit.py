@@ -455,5 +455,5 @@ class ImplicitSolver3D(ImplicitSteps, ExplicitSolver3D):
         self.options = options
         check_pairs(contact_pairs)
         super().__init__(bodies, rigid_walls=rigid_walls, contact_pairs=contact_pairs, bulk_viscosity=False,
-                         comm=comm)
+                         comm=comm, compiled_steps=False)
         self._implicit_init(options)

@@ -270,6 +270,9 @@ class ExplicitSolver(PythonSteps):
         if self._block is not None:
             self._run_block(dt, int(n_steps))
             return
+        if self._steps is not None:
+            self._steps.run(dt, int(n_steps))
+            return
         done = False
         try:
             for _ in range(int(n_steps)):
@@ -278,6 +281,9 @@ class ExplicitSolver(PythonSteps):
         finally:
             if done or self.comm.size == 1:  # a collective under MPI (ghost exchange of areas)
                 self._wall_pressures()
+
+    #: the compiled steps of a 3D solver's ten-node body (:class:`~.tet10_steps.Tet10Steps`), or None
+    _steps = None
 
     @property
     def compiled(self):

@@ -25,6 +25,7 @@ from .soft_plane import SoftPlaneSpec, soft_plane_forces
 from .solver import ExplicitSolver
 from .tet10 import QP_DERIVATIVES, QP_WEIGHTS, critical_step_factor
 from .tet10_kernel import tet10_critical_dt, tet10_step
+from .tet10_steps import Tet10Steps, steps_supported
 from .tet_batch import TET_WORK_SIZE, batched_material, tet_step_batched
 from .tet_kernel import MODE_SOLID, tet_chunk_size, tet_critical_dt, tet_step
 from .tet_threads import TetThreadArrays, tet_step_threaded, tet_thread_arrays
@@ -88,7 +89,8 @@ class ExplicitSolver3D(ExplicitSolver):
     ``load_state_dict`` and ``kinetic_damping`` are those of :class:`~.solver.ExplicitSolver`, with
     (N, 3) nodal arrays (forces in N, positions in m, velocities in m/s) and stresses
     [xx, yy, zz, xy, yz, xz] in Pa. The steps run in the Python step loop around the compiled
-    element kernel (serial and MPI alike); the kernel may run on several threads (``threads``).
+    element kernel (serial and MPI alike); the kernel may run on several threads (``threads``). A single
+    ten-node body runs its steps in one compiled call (``compiled_steps``), with the same bits.
 
     Parameters
     ----------
@@ -113,13 +115,18 @@ class ExplicitSolver3D(ExplicitSolver):
         in fixed chunks, a chunk per task (:mod:`.tet_threads`; a body of one chunk, at most
         :data:`.tet_kernel.TET_CHUNK` cells, runs on one). The results do not depend on it: they
         are the one-thread results bit for bit. Under MPI each rank uses that many.
+    compiled_steps : bool
+        Run the steps of :meth:`advance` of a single ten-node body in one compiled call (:mod:`.tet10_steps`: one
+        process, constant prescribed velocities, no walls, soft planes, contact or sliding planes) instead of
+        the Python step loop; both give the same bits. Default on; other solvers run the Python loop.
     """
 
     def __init__(self, bodies: Sequence[BodySpec], rigid_walls: Sequence[RigidWallSpec] = (),
                  soft_planes: Sequence[SoftPlaneSpec] = (),
                  contact_pairs: Sequence[ContactPairSpec] = (), cfl: float = 0.5,
                  bulk_viscosity: bool = True, bulk_linear: float = 0.06,
-                 bulk_quadratic: float = 1.2, comm=MPI.COMM_WORLD, threads: int = 1):
+                 bulk_quadratic: float = 1.2, comm=MPI.COMM_WORLD, threads: int = 1,
+                 compiled_steps: bool = True):
         if not 0 < cfl <= 1:
             raise ValueError(f"cfl must be in (0, 1], got {cfl}")
         if bulk_linear < 0 or bulk_quadratic < 0:
@@ -183,6 +190,10 @@ class ExplicitSolver3D(ExplicitSolver):
                             if self.soft_planes or self.contact_pairs else {})
         self._init_start()
         self._block = None
+        why = steps_supported(self) if compiled_steps else "compiled_steps=False"
+        self._steps = None if why else Tet10Steps(self)
+        if compiled_steps and why and any(b.element == "tet10" for b in self.bodies.values()):
+            log.info("ExplicitSolver3D: ten-node steps in the Python step loop (%s)", why)
         log.info("ExplicitSolver3D: %d bodies, %d cells, %d walls, %d soft planes, %d contact "
                  "pairs, %d thread(s), stable dt %.4g s",
                  len(self.bodies), self.comm.allreduce(sum(len(b.cells) for b in self.bodies.values())),

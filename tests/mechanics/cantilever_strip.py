@@ -32,7 +32,7 @@ from pulseform.solvers.dolfinx.body import BodySpec
 from pulseform.solvers.dolfinx.material import Material
 
 __all__ = ["Strip", "strip_body", "tip_load", "tip_deflection", "beam_deflection", "hinge_load",
-           "beam_plastic_deflection", "plane_strip_body", "relax_to_rest", "runaway"]
+           "beam_plastic_deflection", "plane_strip_body", "relax_to_rest", "relaxed_levels", "runaway"]
 
 
 @dataclass(frozen=True)
@@ -158,10 +158,14 @@ def beam_plastic_deflection(strip: Strip, material: Material, force: float) -> f
     return quad(lambda x: kappa(x) * (L - x), 0.0, L, points=pts, limit=200)[0]
 
 
-def relax_to_rest(solver, strip: Strip, force: float, reference: float, rounds: int) -> float:
+def relax_to_rest(solver, strip: Strip, force: float, reference: float, rounds: int,
+                  residual: float | None = None) -> float:
     """The tip deflection (m) of ``solver``'s strip under the tip ``force`` (N), relaxed to rest by the explicit
     solver's kinetic damping: up to ``rounds`` rounds of 500 stable steps, until a round changes the deflection by
-    less than 1e-5 of ``reference`` (m) and the kinetic energy is below 1e-9 J (dynamic relaxation)."""
+    less than 1e-5 of ``reference`` (m) and the kinetic energy is below 1e-9 J (dynamic relaxation); with
+    ``residual``, also until the out-of-balance force (m a on the free components, N) is below ``residual`` times
+    the tip force in norm: a strip that kinetic damping has just stopped off its equilibrium starts from rest, and
+    its first round can change the deflection by less than the tolerance."""
     solver.kinetic_damping = True
     b = solver.bodies["strip"]
     f = {"strip": tip_load(b, strip, force)}
@@ -169,9 +173,30 @@ def relax_to_rest(solver, strip: Strip, force: float, reference: float, rounds: 
     for _ in range(rounds):
         solver.advance(solver.stable_time_step(), 500, f)
         d = tip_deflection(b, strip)
-        if abs(d - prev) < 1e-5 * reference and solver.energies()["kinetic_J"] < 1e-9:
+        if (abs(d - prev) < 1e-5 * reference and solver.energies()["kinetic_J"] < 1e-9
+                and (residual is None or np.linalg.norm(b.mass[:, None] * b.a)
+                     < residual * np.linalg.norm(f["strip"]))):
             break
         prev = d
+    return d
+
+
+def relaxed_levels(solver, strip: Strip, force: float, fractions, reference: float, rounds: int,
+                   ratio: float = 10.0, approach=(0.6, 0.8, 0.9), residual: float = 1e-3) -> list:
+    """The tip deflections (in units of ``reference``, m) of ``solver``'s strip under the tip forces
+    ``fractions`` x ``force`` (N) in order, each relaxed to rest (:func:`relax_to_rest` with ``residual``, at most
+    ``rounds`` rounds) from the previous level's state, up to the first level whose compliance (the difference
+    quotient over the fractions) reaches ``ratio``: the levels after it do not change :func:`runaway`. The strip
+    comes to the first level through the ``approach`` fractions (relaxed, not returned): a level applied at once
+    overshoots by part of its increment before kinetic damping stops it, plastically near the hinge (the 20 mm
+    strip jumped to 0.97 M_p / L ends 4.6 % beyond the static deflection, through 0.6, 0.8 and 0.9 within 0.1 %)."""
+    for f in approach:
+        relax_to_rest(solver, strip, f * force, reference, rounds, residual)
+    d = []
+    for f in fractions:
+        d.append(relax_to_rest(solver, strip, f * force, reference, rounds, residual) / reference)
+        if len(d) > 1 and (d[-1] - d[-2]) / (f - fractions[len(d) - 2]) >= ratio:
+            break
     return d
 
 

@@ -3,6 +3,7 @@ HRZ mass, the explicit kernel against the implicit update, the tangent, the crit
 largest frequency, the ledger of a free vibration) and the bending it was chosen for: a cantilever strip with
 three elements through its thickness against beam theory (tests/mechanics/cantilever_strip.py; the
 figures of linear tetrahedra and the reasons are in docs/mechanics.md and bench/cantilever_locking.py)."""
+import logging
 import math
 
 import numpy as np
@@ -10,8 +11,8 @@ import pytest
 import scipy.linalg as sla
 
 from pulseform.solvers.dolfinx import ExplicitSolver3D, ImplicitOptions, ImplicitSolver3D, Material
-from cantilever_strip import (Strip, beam_deflection, beam_plastic_deflection, hinge_load, relax_to_rest, runaway,
-                              strip_body, tip_deflection, tip_load)
+from cantilever_strip import (Strip, beam_deflection, beam_plastic_deflection, hinge_load, relax_to_rest,
+                              relaxed_levels, runaway, strip_body, tip_deflection, tip_load)
 from pulseform.solvers.dolfinx.implicit_element import CellState, cell_tangent, cell_update
 from pulseform.solvers.dolfinx.kernels import pack_parameters
 from pulseform.solvers.dolfinx.tet10 import (QP_DERIVATIVES, QP_WEIGHTS, hrz_lumped_mass, qp_volumes,
@@ -20,6 +21,8 @@ from pulseform.solvers.dolfinx.tet10_kernel import tet10_step
 from pulseform.solvers.dolfinx.tet_kernel import MODE_SOLID
 
 from mech_helpers import central_difference_tangent
+
+log = logging.getLogger(__name__)
 
 E, NU = 200e9, 0.3
 G, K = E / (2 * (1 + NU)), E / (3 * (1 - 2 * NU))
@@ -171,6 +174,49 @@ def test_cantilever_plastic_hinge_three_layers():
     beam = [beam_plastic_deflection(st, mat, f * Pp) / d_el for f in fb]
     assert d[2] == pytest.approx(beam_plastic_deflection(st, mat, 0.98 * Pp), rel=0.02)
     assert runaway(fr, np.array(d) / d_el) == pytest.approx(runaway(fb, beam), rel=0.02)
+
+
+@pytest.mark.slow
+def test_cantilever_explicit_plastic_hinge_three_layers():
+    """The explicit plastic hinge: the elastic-perfectly plastic square strip shortened to L / t = 10 (10 x 1 x 1 mm,
+    sigma_y 250 MPa, three ten-node tetrahedra through the thickness, 10 bricks along crowded towards the root,
+    x = L s^1.5) under load levels of 0.005 M_p / L from 0.97 M_p / L (reached through 0.6, 0.8 and 0.9), each relaxed
+    to rest by the explicit solver's kinetic damping from the previous level's state (:func:`relaxed_levels`, its
+    compiled steps; out-of-balance force below 1e-3 of the tip force): the load at which the tip deflection runs
+    away (the implicit test's runaway criterion) within 0.5 % of the implicit static load steps' on the same mesh
+    (an independent computation: Newton on the same element; measured 1.0271 and 1.0267 M_p / L), and every level's
+    tip deflection within 0.5 % of theirs (measured 0.15 % at most; the relaxation stops at 1e-5 of the elastic
+    deflection per 500 steps, at a compliance up to ten times the elastic one).
+
+    Beam theory's 0.9915 M_p / L (the implicit test's reference) is not asserted: on this short strip the
+    continuum's hinge is 3.6 % above it, the implicit one alike. The excess falls with t / L and with finer bricks
+    at the root (implicit: +2.2 to +3.4 % at L / t = 20, +2.0 to +3.0 % at 30, +1.9 % at 40: docs/mechanics.md), and
+    2 % needs both a long strip and root bricks far thinner than a layer, whose critical step is ten times shorter:
+    ~2e7 explicit steps at L / t = 40. Here: 154 500 steps, ~45 s of CPU (the implicit run ~12 s)."""
+    st = Strip(length=0.01, width=0.001, n_length=10, n_width=1, n_thick=3, grading=1.5)
+    mat = Material(7800.0, G, K, 250e6, 0.0)
+    Pp = hinge_load(st, mat)
+    d_el = beam_deflection(st, mat, Pp, shear=False)
+    fr = np.round(np.arange(0.97, 1.0451, 0.005), 4)
+    si = ImplicitSolver3D([strip_body(st, mat, "tet10")], ImplicitOptions(dt=1.0, scheme="static", max_cuts=4))
+    bi = si.bodies["strip"]
+    d_implicit = []
+    for f in fr:
+        si.advance(1.0, 1, {"strip": tip_load(bi, st, f * Pp)})
+        d_implicit.append(tip_deflection(bi, st) / d_el)
+    s = ExplicitSolver3D([strip_body(st, mat, "tet10")], cfl=0.8)
+    b = s.bodies["strip"]
+    d = relaxed_levels(s, st, Pp, fr, d_el, 60)
+    n = len(d)
+    explicit, implicit = runaway(fr[:n], d), runaway(fr, d_implicit)
+    fb = np.round(np.arange(0.97, 0.9976, 0.0005), 5)
+    beam = runaway(fb, [beam_plastic_deflection(st, mat, f * Pp) / d_el for f in fb])
+    log.info("explicit hinge %.4f M_p / L, implicit %.4f, beam theory %.4f; %d explicit steps", explicit, implicit,
+             beam, s.step_count)
+    log.info("tip deflections / elastic: explicit %s, implicit %s", np.round(d, 5), np.round(d_implicit[:n], 5))
+    assert b.eps_p.max() > 0
+    assert explicit == pytest.approx(implicit, rel=5e-3)
+    assert np.allclose(d, d_implicit[:n], rtol=5e-3, atol=0.0)
 
 
 def test_element_choice_is_checked_and_fields_are_written(tmp_path):
