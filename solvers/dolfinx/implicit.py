@@ -309,7 +309,8 @@ class ImplicitSteps(AdaptiveSteps, ImplicitLedger):
                                                       getattr(self, "_last_pairs", None)), None
         except ContactCrossed as exc:
             crossed = str(exc)
-        crossed = self._linear.first(crossed)
+        if self.contact_pairs:
+            crossed = self._linear.first(crossed)
         if crossed is not None:
             raise ContactCrossed(crossed)
         self._last_pairs = trial.contact.active
