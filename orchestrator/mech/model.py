@@ -95,29 +95,11 @@ def rebuild_solver(case: Case, source) -> "mech.ExplicitSolver":
     return make_solver(case, specs, source.contact_pairs, source.rigid_walls, source.comm)
 
 
-def refuse_under_mpi(case: Case, pairs, ranks: int) -> None:
-    """What runs on one process only (:class:`SchemaError`, one line): contact pairs in implicit steps (the implicit
-    contact tangent is serial) — with the implicit integrator, or kept through a springback."""
-    if case.mechanics.integrator == "implicit" and pairs:
-        raise SchemaError("contact", f"{len(pairs)} pair(s) with integrator = 'implicit' under MPI ({ranks} "
-                                     "processes); implicit contact runs on one process for now: run without mpirun, "
-                                     "use [[walls]] or integrator = 'explicit'")
-    releases = [("springback", case.springback)] + [(f"stages[{i}].springback", s.springback)
-                                                   for i, s in enumerate(case.stages) if s.kind == "springback"]
-    for key, cfg in releases:
-        if cfg is not None and cfg.contact == "kept" and pairs:
-            raise SchemaError(f"{key}.contact", f"got 'kept' under MPI ({ranks} processes); a kept contact springs "
-                                                "back in implicit steps, whose contact runs on one process for now: "
-                                                "run without mpirun or set contact = 'removed'")
-
-
 def make_solver(case: Case, bodies, pairs, walls, comm: MPI.Comm, compiled_steps: bool = True):
     """The solver of ``case``'s mechanics (2D or 3D, explicit or implicit) over the solver's ``bodies``
     (:class:`~pulseform.solvers.dolfinx.BodySpec`), contact ``pairs`` and rigid ``walls``."""
     mo = case.mechanics
     three = mo.formulation == "3d"
-    if comm.size > 1:
-        refuse_under_mpi(case, pairs, comm.size)
     if mo.integrator == "implicit":
         if three:
             return ImplicitSolver3D(bodies, implicit_options(case), comm=comm, contact_pairs=pairs, rigid_walls=walls)

@@ -34,7 +34,7 @@ def run_springback(case: Case, solver, fields_prefix: str, analyses: Sequence = 
     case : Case
         The case (its ``springback`` table and probes).
     solver : ExplicitSolver, ExplicitSolver3D, ImplicitSolver or ImplicitSolver3D
-        The run's deformable bodies at the end of the run (one process).
+        The run's deformable bodies at the end of the run (one process, or every rank of a partitioned run).
     fields_prefix : str
         Path prefix of the run's field files (``fields/<case name>[_partN]``): its folder holds ``springback/``.
     analyses : sequence

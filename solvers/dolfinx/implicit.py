@@ -43,9 +43,12 @@ rigid walls are exact constraints on an active set (:mod:`.implicit_walls`).
 MPI (linear elements on a partitioned mesh, as the explicit solvers): each rank updates its owned cells, the
 nodal forces are summed into their owners and copied to the ghosts (:meth:`~.body.Body.complete_nodal`), the
 norms, sums of the ledger and every decision (convergence, cuts, walls, a singular system) are collective, and
-the Newton system is a distributed PETSc matrix solved by MUMPS (:mod:`.implicit_dist`). Not done yet (the
-solver refuses them in one line): contact friction and viscosity, contact pairs under MPI, soft planes, oblique
-sliding planes, bulk viscosity (not needed: HHT damps the high modes).
+the Newton system is a distributed PETSc matrix solved by MUMPS (:mod:`.implicit_dist`). Contact pairs: every rank
+evaluates them on the gathered surfaces (the same forces, active pairs and stored energy on every rank; a crossed
+layer's backtracking decided alike) and each pair's tangent is assembled once, by the rank owning its slave node,
+in the global numbering (:func:`.implicit_contact.evaluate_contact`). Not done yet (the solver refuses them in
+one line): contact friction and viscosity, soft planes, oblique sliding planes, bulk viscosity (not needed: HHT
+damps the high modes).
 """
 from __future__ import annotations
 
@@ -101,9 +104,6 @@ class ImplicitSteps(AdaptiveSteps, ImplicitLedger):
     options: ImplicitOptions
 
     def _implicit_init(self, options: ImplicitOptions) -> None:
-        if self.comm.size > 1 and self.contact_pairs:
-            raise ValueError("the implicit integrator takes contact pairs on one process only (MPI: not done yet): "
-                             "run without mpirun, use a rigid wall, or mechanics.integrator = 'explicit'")
         if getattr(self, "soft_planes", ()):
             raise ValueError("the implicit integrator has no soft planes yet: use a contact pair with a body, "
                              "a rigid wall, or mechanics.integrator = 'explicit'")
@@ -144,7 +144,7 @@ class ImplicitSteps(AdaptiveSteps, ImplicitLedger):
         after they were copied from another solver: :mod:`.springback`): the internal forces, the acceleration
         (dynamic: M a = -f_int on the free components; static: zero, and zero velocity), the ledger's start."""
         self._active = {}
-        ev = evaluate_contact(self, {n: b.x for n, b in self.bodies.items()}, self._offsets)
+        ev = evaluate_contact(self, {n: b.x for n, b in self.bodies.items()})
         self._active, self._contact_out = ev.active, ev.out
         self._contact_stored = self._contact_stored0 = ev.stored
         self._contact_work = 0.0
@@ -304,8 +304,15 @@ class ImplicitSteps(AdaptiveSteps, ImplicitLedger):
         iterate ``du`` (all components; the wall and support reactions are R at their components)."""
         o = self.options
         trial = _Trial(du)
-        trial.contact = evaluate_contact(self, {n: b.x + du[n] for n, b in self.bodies.items()}, self._offsets,
-                                         getattr(self, "_last_pairs", None))
+        try:   # every rank evaluates the same passes on the gathered surfaces; the decision is made collective
+            trial.contact, crossed = evaluate_contact(self, {n: b.x + du[n] for n, b in self.bodies.items()},
+                                                      getattr(self, "_last_pairs", None)), None
+        except ContactCrossed as exc:
+            crossed = str(exc)
+        if self.contact_pairs:
+            crossed = self._linear.first(crossed)
+        if crossed is not None:
+            raise ContactCrossed(crossed)
         self._last_pairs = trial.contact.active
         R_parts, scale_parts, inverted = [], [0.0, 0.0, 0.0, 0.0], None
         for n, b in self.bodies.items():
@@ -381,8 +388,9 @@ class ImplicitSteps(AdaptiveSteps, ImplicitLedger):
                 return trial
             if it == o.newton_max:
                 break
-            K = self._assemble([(n, b, trial.results[n]) for n, b in self.bodies.items()], 0.0, c_k, trial.contact)
-            delta = lin.solve(K, c_m, f"t = {self.time:.6e} s, Newton iteration {it + 1}")
+            K = self._assemble([(n, b, trial.results[n]) for n, b in self.bodies.items()], 0.0, c_k)
+            r, c, v = trial.contact.tangent()   # this rank's pairs, in the system's numbering
+            delta = lin.solve(K, c_m, f"t = {self.time:.6e} s, Newton iteration {it + 1}", (r, c, c_k * v))
             last = {}
             for n, b in self.bodies.items():
                 o0 = self._offsets[n]
@@ -392,10 +400,10 @@ class ImplicitSteps(AdaptiveSteps, ImplicitLedger):
         raise _NotConverged(f"relative residual {residuals[-1]:.2g} > {o.newton_tol:.2g} after {o.newton_max} "
                             "iterations", residuals)
 
-    def _assemble(self, blocks, c_m: float, c_k: float, contact=None) -> sp.csr_matrix:
-        """The effective tangent c_m M + c_k (K_T + K_c) over all bodies' components (sparse, N/m) from the
-        ``(name, body, cell results)`` of ``blocks``; K_c that of ``contact``
-        (:meth:`.implicit_contact.ContactEval.tangent`, none if None)."""
+    def _assemble(self, blocks, c_m: float, c_k: float) -> sp.csr_matrix:
+        """The effective tangent c_m M + c_k K_T over all bodies' components on the local layout (sparse, N/m) from
+        the ``(name, body, cell results)`` of ``blocks`` (the contact's, c_k K_c, joins in the linear system's
+        ``solve``: :meth:`.implicit_contact.ContactEval.tangent`)."""
         rows, cols, vals, diag = [], [], [], []
         for n, b, res in blocks:
             d = b.gdim
@@ -405,11 +413,6 @@ class ImplicitSteps(AdaptiveSteps, ImplicitLedger):
             cols.append(np.tile(dofs, (1, nd)).ravel())
             vals.append((c_k * res.tangent()).ravel())
             diag.append(np.repeat(c_m * b.mass, d))
-        if contact is not None:
-            r, c, v = contact.tangent()
-            rows.append(r)
-            cols.append(c)
-            vals.append(c_k * v)
         K = sp.coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
                           shape=(self._ndof, self._ndof)).tocsr()
         if c_m:
@@ -433,7 +436,7 @@ class ImplicitSolver(ImplicitSteps, ExplicitSolver):
     comm : MPI communicator
         The bodies' meshes' (one process, or the ranks of a partitioned mesh: every method is collective).
     contact_pairs, rigid_walls : sequence
-        Contact pairs (elastic law of eq. (5); one process only) and rigid walls.
+        Contact pairs (elastic law of eq. (5)) and rigid walls.
     """
 
     def __init__(self, bodies: Sequence[BodySpec], options: ImplicitOptions,

@@ -12,6 +12,10 @@ converges linearly in that share. The barrier 1/h makes the contact smooth for
 Newton; an iterate that crosses it (h <= 0) is reported as :class:`ContactCrossed`, and the Newton loop
 halves its update (and, failing that, cuts the step).
 
+Under MPI (linear elements) every rank evaluates every pass on the gathered surfaces and keeps the forces of its
+local rows; the tangent's triplets are given by the rank owning each pair's slave node, in the global numbering of
+:class:`~.implicit_dist.DistributedSystem` (:func:`evaluate_contact`).
+
 Only the elastic law: the velocity-dependent friction and viscosity of :class:`~.contact.ContactPairSpec`
 are refused by the implicit solver (a static springback has no velocity).
 """
@@ -24,7 +28,7 @@ import numpy as np
 from .contact import ContactPairSpec, soft_contact_pass
 from .contact3d import _barycentric, soft_contact_pass_3d, triangle_contact_areas
 
-__all__ = ["ContactCrossed", "check_pairs", "pair_force", "ContactEval", "evaluate_contact"]
+__all__ = ["ContactCrossed", "check_pairs", "pair_force", "ContactEval", "surface_dofs", "evaluate_contact"]
 
 _CS = 1e-30   # complex-step size (relative to the coordinates' scale: exact to round-off for any size)
 
@@ -111,8 +115,9 @@ class ContactEval:
         self._pairs: List[tuple] = []
 
     def tangent(self) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(rows, cols, values) of -dF/dx, the contact's part of the tangent (N/m), in the solver's global
-        numbering (``offsets[body] + row * gdim + component``)."""
+        """(rows, cols, values) of -dF/dx, the contact's part of the tangent (N/m), in the Newton system's numbering
+        (:func:`surface_dofs`; one process: ``offsets[body] + row * gdim + component``): the pairs whose slave node
+        this rank owns."""
         R, C, V = [], [], []
         for xs, xm, area, spec, weight, fixed_w, free_w, dofs in self._pairs:
             P, d = xs.shape
@@ -133,33 +138,54 @@ class ContactEval:
 
 
 
-def evaluate_contact(solver, x: Mapping[str, np.ndarray], offsets: Mapping[str, int],
+def surface_dofs(solver) -> Dict[str, Tuple[np.ndarray, np.ndarray]]:
+    """Per contact surface (body name), the Newton system's numbers of its nodes' unknowns, (Ns, gdim) int in the
+    order of the gathered surface (:class:`~.contact.Surface`, every surface node on every rank: ``node_dofs`` of
+    ``solver._linear``, the global numbering under MPI), and (Ns,) bool: the nodes this rank owns (each node is owned
+    by one rank). Computed once (collective under MPI) and kept on the solver."""
+    cached = getattr(solver, "_surf_dofs", None)
+    if cached is not None:
+        return cached
+    out = {}
+    for n, s in solver._surf.items():
+        g = s.gather(np.asarray(solver._linear.node_dofs(n), dtype=float))   # < 2^53: exact in a float
+        mine = np.zeros(len(s.gids), dtype=bool)
+        mine[s.own_pos] = True
+        out[n] = (np.rint(g).astype(np.int64), mine)
+    solver._surf_dofs = out
+    return out
+
+
+def evaluate_contact(solver, x: Mapping[str, np.ndarray],
                      prefer: Optional[Mapping[tuple, tuple]] = None) -> ContactEval:
     """The contact forces of ``solver``'s pairs with the bodies at positions ``x`` (name -> (N, d), m);
     ``prefer``: the active pairs of the previous Newton iterate (:attr:`ContactEval.active`), kept by a node
     near an edge between two master faces (:func:`.contact.choose_faces`).
 
+    Every rank evaluates every pass on the gathered surfaces (the same arrays, hence the same active pairs, stored
+    energy and pressures on every rank, as the explicit solver's contact) and adds each surface node's force to
+    its local row, owned or ghost (complete rows: no further exchange). The tangent's triplets
+    (:meth:`ContactEval.tangent`) are those of the pairs whose slave node this rank owns, in the Newton system's
+    numbering (:func:`surface_dofs`): over the ranks, each pair once.
+
     Raises
     ------
     ContactCrossed
-        A slave node at h <= 0, or behind the master face it touched at the start of the step.
+        A slave node at h <= 0, or behind the master face it touched at the start of the step (on every rank).
     """
     ev = ContactEval()
     for n, b in solver.bodies.items():
         ev.force[n] = np.zeros_like(b.x)
     if not solver.contact_pairs:
         return ev
-    data = {}
-    for n, s in solver._surf.items():
-        X = s.gather(x[n])
-        rows = np.empty(len(s.gids), dtype=np.int64)
-        rows[s.loc_pos] = s.loc_rows
-        data[n] = (X, rows)
+    sdofs = surface_dofs(solver)
+    X = {n: s.gather(x[n]) for n, s in solver._surf.items()}
+    fsurf = {n: np.zeros_like(Xn) for n, Xn in X.items()}
     for ip, cp in enumerate(solver.contact_pairs):
         passes = [(cp.slave, cp.master)] + ([(cp.master, cp.slave)] if cp.two_pass else [])
         wgt = 0.5 if cp.two_pass else 1.0
         for kp, (sn, mn) in enumerate(passes):
-            (Xs, rs), (Xm, rm) = data[sn], data[mn]
+            Xs, Xm = X[sn], X[mn]
             ss, ms = solver._surf[sn], solver._surf[mn]
             zs, zm = np.zeros_like(Xs), np.zeros_like(Xm)
             prev = solver._active.get((ip, kp))
@@ -176,8 +202,8 @@ def evaluate_contact(solver, x: Mapping[str, np.ndarray], offsets: Mapping[str, 
                 raise ContactCrossed(f"node {int(ss.gids[i])} of body {sn!r} reached h={h:.3e} m <= 0 against body "
                                      f"{mn!r} (contact pair {ip})")
             ev.active[(ip, kp)] = res.active
-            np.add.at(ev.force[sn], rs, res.F_slave)
-            np.add.at(ev.force[mn], rm, res.F_master)
+            fsurf[sn] += res.F_slave
+            fsurf[mn] += res.F_master
             ev.stored += res.stored
             if kp == 0:
                 ev.out.append((res.pressure, res.gap, Xs))
@@ -201,9 +227,14 @@ def evaluate_contact(solver, x: Mapping[str, np.ndarray], offsets: Mapping[str, 
                 inside = np.all(wts >= 0.0, axis=1)
                 fixed_w = np.clip(wts, 0.0, None)
                 fixed_w /= fixed_w.sum(axis=1)[:, None]
-            nodes = [(sn, rs[si])] + [(mn, rm[corners[:, j]]) for j in range(corners.shape[1])]
-            dofs = np.concatenate([(offsets[b] + r[:, None] * d + np.arange(d)) for b, r in nodes], axis=1)
-            ev._pairs.append((xs, xm, area, cp, wgt, fixed_w, inside, dofs))
+            mine = sdofs[sn][1][si]          # the pairs of the slave nodes this rank owns
+            if not mine.any():
+                continue
+            dofs = np.concatenate([sdofs[sn][0][si]] + [sdofs[mn][0][corners[:, j]] for j in range(corners.shape[1])],
+                                  axis=1)
+            ev._pairs.append((xs[mine], xm[mine], area[mine], cp, wgt, fixed_w[mine], inside[mine], dofs[mine]))
+    for n, s in solver._surf.items():
+        s.scatter_add(fsurf[n], ev.force[n])
     return ev
 
 

@@ -6,7 +6,7 @@ bodies' unknowns are numbered globally with the owned components of rank 0 first
 body, node by node, component by component within a rank; a ghost takes its owner's number through
 :meth:`~.body.Body.complete_nodal`). The tangent of the owned cells is assembled locally on the local rows,
 ghost rows included, and the rows of other ranks are sent to their owners and summed there (the mass enters
-once, on the owned rows). The reduced basis of :func:`.implicit_walls.reduced_basis` (free components, the null
+once, on the owned rows; the contact pairs' entries come in the global numbering, each pair's from one rank). The reduced basis of :func:`.implicit_walls.reduced_basis` (free components, the null
 space of the constraints at a node on a wall) is built from the local arrays and kept on the owned rows: every
 column belongs to one node, so each rank keeps the columns of its owned nodes. The reduced system T^T K T is
 PETSc's PtAP, solved by MUMPS (``preonly`` + ``lu``); the update comes back on the owned rows and is copied to
@@ -64,6 +64,12 @@ class DistributedSystem:
         self._T = None
         self._corr = None
         self._R = None
+
+    def node_dofs(self, name: str) -> np.ndarray:
+        """(N, gdim) int: the global numbers of body ``name``'s unknowns on its local rows (ghosts: their owners')."""
+        s = self.solver
+        b = s.bodies[name]
+        return self.gdof[s._offsets[name]:s._offsets[name] + b.x.size].reshape(b.x.shape)
 
     # ------------------------------------------------------------------ collective decisions
     def any(self, flag: bool) -> bool:
@@ -135,7 +141,7 @@ class DistributedSystem:
         finally:
             rr.destroy()
 
-    def solve(self, K: sp.spmatrix, c_m: float, what: str) -> np.ndarray:
+    def solve(self, K: sp.spmatrix, c_m: float, what: str, extra=None) -> np.ndarray:
         """The Newton update of the last :meth:`reduce`: delta = T x + corr with (T^T (K + c_m M) T) x =
         -T^T (R + (K + c_m M) corr), by MUMPS on all ranks.
 
@@ -147,6 +153,10 @@ class DistributedSystem:
             The mass's factor (1/s^2; 0 for static steps).
         what : str
             Names the system in an error message.
+        extra : (rows, cols, values), optional
+            More entries of the tangent (N/m) in the global numbering (:meth:`node_dofs`), on any rank, each entry
+            given once over the ranks (the contact tangent: by the rank owning the pair's slave node); summed with
+            the cells' on the rows' owners.
 
         Returns
         -------
@@ -159,9 +169,10 @@ class DistributedSystem:
             On every rank: the factorisation failed or gave a non-finite solution.
         """
         K = K.tocoo()
-        rows = np.concatenate([self.gdof[K.row], self.start + np.arange(self.n_own)])
-        cols = np.concatenate([self.gdof[K.col], self.start + np.arange(self.n_own)])
-        vals = np.concatenate([K.data, c_m * self.mass])
+        er, ec, ev = extra if extra is not None else (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0))
+        rows = np.concatenate([self.gdof[K.row], self.start + np.arange(self.n_own), np.asarray(er, np.int64)])
+        cols = np.concatenate([self.gdof[K.col], self.start + np.arange(self.n_own), np.asarray(ec, np.int64)])
+        vals = np.concatenate([K.data, c_m * self.mass, np.asarray(ev, float)])
         A = self._aij(self._owned_csr(rows, cols, vals), self.n_own, self.N)
         T = self._T
         objs = [A]

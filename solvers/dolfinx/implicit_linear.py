@@ -91,7 +91,14 @@ class SerialSystem:
 
     def __init__(self, solver):
         self.mass = np.concatenate([np.repeat(b.mass, b.gdim) for b in solver.bodies.values()])
+        self._dofs = {n: (solver._offsets[n] + np.arange(b.x.size)).reshape(b.x.shape)
+                      for n, b in solver.bodies.items()}
         self._T = self._corr = self._Rr = None
+
+    def node_dofs(self, name: str) -> np.ndarray:
+        """(N, gdim) int: the system's numbers of body ``name``'s unknowns (the local layout: its offset + row * gdim
+        + component)."""
+        return self._dofs[name]
 
     def any(self, flag: bool) -> bool:
         """``flag`` (one process)."""
@@ -115,9 +122,12 @@ class SerialSystem:
         self._Rr = T.T @ R
         return float(np.linalg.norm(self._Rr))
 
-    def solve(self, K: sp.spmatrix, c_m: float, what: str) -> np.ndarray:
+    def solve(self, K: sp.spmatrix, c_m: float, what: str, extra=None) -> np.ndarray:
         """delta = T x + corr with (T^T (K + c_m M) T) x = -T^T (R + (K + c_m M) corr) (m); ``K`` without the mass
-        (N/m), ``c_m`` the mass's factor (1/s^2)."""
+        (N/m), ``c_m`` the mass's factor (1/s^2), ``extra`` more of K as triplets (rows, cols, values) in the numbers
+        of :meth:`node_dofs` (the contact tangent), or None."""
+        if extra is not None and len(extra[0]):
+            K = K + sp.coo_matrix((extra[2], (extra[0], extra[1])), shape=K.shape).tocsr()
         if c_m:
             K = K + sp.diags(c_m * self.mass)
         K = K.tocsr()

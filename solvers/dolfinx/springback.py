@@ -15,8 +15,8 @@ fit's parts stay in contact and the residual contact pressure is that of the rel
 in its die) or removed (the default: the shape out of the die). A kept pair keeps the elastic law of eq. (5) and
 loses its friction and viscosity (velocity-dependent: a static release has no velocity). Under MPI the minimal
 supports are chosen on the whole body (every rank's owned nodes gathered: the same nodes on every rank) and the
-static steps are the implicit solver's distributed ones. Not done yet: friction in a kept contact, kept contact
-pairs under MPI (the implicit contact is serial: refused in one line).
+static steps are the implicit solver's distributed ones (kept contact pairs included). Not done yet: friction in a
+kept contact.
 """
 from __future__ import annotations
 

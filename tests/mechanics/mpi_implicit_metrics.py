@@ -7,7 +7,9 @@ Cases: an elastic-plastic plane-strain plate (cantilever) under a pressure ramp 
 trapezoidal rule); an axisymmetric thick cylinder under a bore pressure ramp past yield (HHT, alpha = -0.1); a 3D
 tet4 cantilever under a pressure on its upper face in three static steps past yield; a 3D block pressed on a
 sliding rigid wall (static); a 2D bar pressed on a sliding wall and pulled back off it (trapezoidal: the wall's
-active set takes nodes and lets them go); a restart of the plate after 4 of its 8 steps.
+active set takes nodes and lets them go); a restart of the plate after 4 of its 8 steps. By name only: the
+one-line stops (``errors``), two 2D and two 3D bars pressed through the soft-contact layer of a contact pair
+(``bars_contact2d``, ``bars_contact3d``).
 """
 import json
 import sys
@@ -199,10 +201,92 @@ def errors() -> dict:
     return out
 
 
+def _by_position(X0: np.ndarray, values: np.ndarray) -> list:
+    """``values`` (owned rows of every rank) in the lexicographic order of the reference positions ``X0`` (m): the
+    same order serially and on any partition."""
+    X0 = np.concatenate(COMM.allgather(X0))
+    values = np.concatenate(COMM.allgather(values))
+    return values[np.lexsort(X0.T[::-1])].tolist()
+
+
+def _plates(dim: int, g0: float, d: float, k: float, h0: float):
+    """Two plates (L x H, 3D: L / 2 x H x H) stacked along y (3D: z), g0 apart, the upper one pushed down by d onto
+    the lower one through the contact layer (static): the chain of test_implicit_contact.py pressed across the
+    plates, whose contact face the partition cuts (a partition cuts the long direction; the bars' end faces lie
+    in one part). The lower face of the lower plate and the upper face of the upper one held along the press, one
+    corner of each in the other components and a second corner across (3D): uniaxial stress."""
+    from pulseform.solvers.dolfinx.contact import ContactPairSpec
+
+    ax = dim - 1
+    lo, top = 2 * H + g0, H + g0
+    near = lambda c, v: (lambda X: np.isclose(X[c], v))  # noqa: E731
+    if dim == 2:
+        def mesh(y0):
+            return dmesh.create_rectangle(COMM, [np.array([0.0, y0]), np.array([L, y0 + H])], [20, 2],
+                                          diagonal=dmesh.DiagonalType.crossed)
+
+        def corners(y):
+            return ((_at(0.0, y), (0,)),)
+        cls, kw = ImplicitSolver, dict(formulation="plane_stress", thickness=T)
+    else:
+        def mesh(z0):
+            return dmesh.create_box(COMM, [np.array([0.0, 0.0, z0]), np.array([L / 2, H, z0 + H])], [6, 2, 2])
+
+        def corners(z):
+            at = lambda x: (lambda X: np.isclose(X[0], x) & np.isclose(X[1], 0.0) & np.isclose(X[2], z))  # noqa
+            return ((at(0.0), (0, 1)), (at(L / 2), (1,)))
+        cls, kw = ImplicitSolver3D, {}
+    zero = (0.0,) * dim
+    a = BodySpec("a", mesh(0.0), ELASTIC, fixed=((near(ax, 0.0), (ax,)),) + corners(0.0), initial_velocity=zero)
+    b = BodySpec("b", mesh(top), ELASTIC, fixed=((near(ax, lo), (ax,), -d),) + corners(lo), initial_velocity=zero)
+    return cls([a, b], ImplicitOptions(dt=1.0, scheme="static"), comm=COMM,
+               contact_pairs=[ContactPairSpec("b", "a", k, h0)], **kw)
+
+
+def _bars_contact(dim: int, across: bool = False) -> dict:
+    """Two bars pressed through the soft-contact layer (tests/mechanics/test_implicit_contact.py's 2D and 3D tet4
+    chains, partitioned; ``across``: the plates of :func:`_plates`): the largest deviation of every cell's normal
+    stress along the press and every slave node's contact pressure from the chain's stress, of the gaps from the
+    chain's gap, the nodes in contact, the Newton residuals, the displacements of every node and the contact
+    pressures in the order of the reference positions, the active pairs and how many of them each rank gives the
+    tangent."""
+    from pulseform.solvers.dolfinx.implicit_contact import evaluate_contact
+    from test_implicit_contact import _press, _press_3d, chain_stress
+
+    t0 = time.perf_counter()
+    k, h0, d = 1e4, 1e-4, 1e-4
+    g0 = h0 if dim == 2 else 0.9e-4
+    if across:
+        s, comp, sig = _plates(dim, g0, d, k, h0), dim - 1, chain_stress(g0, d, k, h0, length=H)
+    else:
+        s = _press(g0, d, k, h0, comm=COMM) if dim == 2 else _press_3d("tet4", 2, g0, d, k, h0, comm=COMM)
+        comp, sig = 0, chain_stress(g0, d, k, h0)
+    s.advance(1.0, 1)
+    out = _metrics(s, {}, t0)
+    out["stress_err_max"] = COMM.allreduce(max(float(np.abs(b.cell_stress[:, comp] / -sig - 1).max())
+                                               for b in s.bodies.values()), op=MPI.MAX)
+    gids, _, p, h = s.contact_pressure(0)      # every slave node in contact, the same on every rank
+    X0 = s._surf["b"].X0[np.searchsorted(s._surf["b"].gids, gids)]
+    out["contact_nodes"] = int(p.size)
+    out["pressure_err_max"] = float(np.abs(p / sig - 1).max())
+    out["gap_err_max_over_h0"] = float(np.abs(h - 1.0 / (sig / k + 1.0 / h0)).max() / h0)
+    out["pressures_Pa"] = p[np.lexsort(X0.T[::-1])].tolist()
+    out["residuals"] = list(s.last_residuals)
+    ev = evaluate_contact(s, {n: b.x for n, b in s.bodies.items()})
+    out["active_pairs"] = int(sum(len(si) for si, _ in ev.active.values()))
+    out["tangent_pairs_per_rank"] = COMM.allgather(int(sum(len(pr[0]) for pr in ev._pairs)))
+    for n, b in s.bodies.items():
+        out[f"u_{n}_m"] = _by_position(b.X0[:b.n_owned], b.u[:b.n_owned])
+    return out
+
+
+CONTACT = {"bars_contact2d": lambda: _bars_contact(2), "bars_contact3d": lambda: _bars_contact(3),
+           "plates_contact2d": lambda: _bars_contact(2, True), "plates_contact3d": lambda: _bars_contact(3, True)}
+
 CASES = {"plate": plate, "plate_restart": plate_restart, "cylinder_hht": cylinder, "cantilever3d_static": cantilever3d,
          "block_on_wall3d": block_on_wall3d, "bar_off_wall2d": bar_off_wall2d}
 #: run by name only (not part of the default set)
-EXTRA = {"errors": errors}
+EXTRA = {"errors": errors, **CONTACT}
 
 if __name__ == "__main__":
     names = sys.argv[1:] or list(CASES)

@@ -29,8 +29,8 @@ L, H, T = 0.1, 0.01, 0.01
 STATIC = ImplicitOptions(dt=1.0, scheme="static")
 
 
-def _rect(x0, x1, nx=20, y0=0.0, y1=H):
-    return dmesh.create_rectangle(MPI.COMM_SELF, [np.array([x0, y0]), np.array([x1, y1])], [nx, 2],
+def _rect(x0, x1, nx=20, y0=0.0, y1=H, comm=MPI.COMM_SELF):
+    return dmesh.create_rectangle(comm, [np.array([x0, y0]), np.array([x1, y1])], [nx, 2],
                                   diagonal=dmesh.DiagonalType.crossed)
 
 
@@ -107,15 +107,21 @@ def test_a_bar_released_from_the_wall_leaves_it():
     assert s.bodies["bar"].x[:, 0].min() > 0.0
 
 
-def _press(g0, d, k, h0, nx=10, yb=(0.0, H)):
+def _press(g0, d, k, h0, nx=10, yb=(0.0, H), comm=MPI.COMM_SELF):
     """Two bars of length L / 2 in series, g0 apart, the second (spanning ``yb``) pushed by d onto the first
-    (contact pair)."""
+    (contact pair); on ``comm`` (tests/mechanics/mpi_implicit_metrics.py: partitioned)."""
     La = L / 2
-    a = BodySpec("a", _rect(0.0, La, nx), ELASTIC, fixed=((_at(0.0), (0,)), (_at(0.0, 0.0), (1,))))
-    b = BodySpec("b", _rect(La + g0, 2 * La + g0, nx, *yb), ELASTIC,
+    a = BodySpec("a", _rect(0.0, La, nx, comm=comm), ELASTIC, fixed=((_at(0.0), (0,)), (_at(0.0, 0.0), (1,))))
+    b = BodySpec("b", _rect(La + g0, 2 * La + g0, nx, *yb, comm=comm), ELASTIC,
                  fixed=((_at(2 * La + g0), (0,), -d), (_at(2 * La + g0, yb[0]), (1,))))
-    return ImplicitSolver([a, b], STATIC, formulation="plane_stress", thickness=T, comm=MPI.COMM_SELF,
+    return ImplicitSolver([a, b], STATIC, formulation="plane_stress", thickness=T, comm=comm,
                           contact_pairs=[ContactPairSpec("b", "a", k, h0)])
+
+
+def chain_stress(g0, d, k, h0, length=L / 2):
+    """The compressive stress (Pa) of the analytic chain: two bars of ``length`` (m), g0 apart, pressed by d
+    through the layer (module docstring)."""
+    return brentq(lambda sg: 2 * sg * length / (E + sg / 2) + g0 - 1.0 / (sg / k + 1.0 / h0) - d, 1.0, 1e9)
 
 
 def test_two_bars_pressed_through_the_soft_contact_layer():
@@ -123,14 +129,9 @@ def test_two_bars_pressed_through_the_soft_contact_layer():
     (measured ~3e-13), the contact pressure is -sigma_xx at the layer's analytic gap, and Newton converges
     quadratically (the pair tangent is exact but for the contact area's change)."""
     k, h0, d = 1e4, 1e-4, 1e-4
-    La = L / 2
     s = _press(h0, d, k, h0)
     s.advance(1.0, 1)
-
-    def mismatch(sig):
-        return 2 * sig * La / (E + sig / 2) + h0 - 1.0 / (sig / k + 1.0 / h0) - d
-
-    sig = brentq(mismatch, 1.0, 1e9)
+    sig = chain_stress(h0, d, k, h0)
     for n in ("a", "b"):
         sx = s.bodies[n].cell_stress[:, 0]
         assert np.abs(sx / -sig - 1).max() < 1e-9
@@ -144,14 +145,14 @@ def test_two_bars_pressed_through_the_soft_contact_layer():
     assert r[-1] < r[-2] ** 1.5
 
 
-def _press_3d(element, n_slave, g0, d, k, h0):
+def _press_3d(element, n_slave, g0, d, k, h0, comm=MPI.COMM_SELF):
     """Two 3D bars (L / 2 x H x H) in series, g0 apart, the second (``n_slave`` cells across, the first 2)
     pushed by d onto the first through the contact layer; each end face held in x, two of its nodes in y and z
     only as far as rigid motions need (the bars contract freely: uniaxial stress)."""
     La, v0 = L / 2, (0.0, 0.0, 0.0)
 
     def bar(x0, n):
-        return dmesh.create_box(MPI.COMM_SELF, [np.array([x0, 0.0, 0.0]), np.array([x0 + La, H, H])], [6, n, n])
+        return dmesh.create_box(comm, [np.array([x0, 0.0, 0.0]), np.array([x0 + La, H, H])], [6, n, n])
 
     def ends(x, dx=None):
         face = ((lambda X: np.isclose(X[0], x)), (0,)) + ((dx,) if dx is not None else ())
@@ -161,7 +162,7 @@ def _press_3d(element, n_slave, g0, d, k, h0):
 
     a = BodySpec("a", bar(0.0, 2), ELASTIC, fixed=ends(0.0), element=element, initial_velocity=v0)
     b = BodySpec("b", bar(La + g0, n_slave), ELASTIC, fixed=ends(L + g0, -d), element=element, initial_velocity=v0)
-    return ImplicitSolver3D([a, b], STATIC, comm=MPI.COMM_SELF, contact_pairs=[ContactPairSpec("b", "a", k, h0)])
+    return ImplicitSolver3D([a, b], STATIC, comm=comm, contact_pairs=[ContactPairSpec("b", "a", k, h0)])
 
 
 def _far_stress(body, lo, hi):
@@ -192,7 +193,7 @@ def test_two_3d_bars_pressed_through_the_soft_contact_layer(element):
     La = L / 2
     s = _press_3d(element, 2 if element == "tet4" else 3, g0, d, k, h0)
     s.advance(1.0, 1)
-    sig = brentq(lambda sg: 2 * sg * La / (E + sg / 2) + g0 - 1.0 / (sg / k + 1.0 / h0) - d, 1.0, 1e9)
+    sig = chain_stress(g0, d, k, h0)
     r = s.last_residuals
     print(element, "Newton residuals", ", ".join(f"{v:.2g}" for v in r))
     assert r[-1] < 1e-8 and len(r) <= 10
@@ -219,7 +220,7 @@ def test_contact_tangent_matches_finite_differences():
     k, h0 = 1e4, 1e-4
     s = _press(0.4 * h0, 0.0, k, h0, nx=4, yb=(0.001, 0.008))    # slave nodes inside the master's segments
     x = {n: b.x.copy() for n, b in s.bodies.items()}
-    ev = evaluate_contact(s, x, s._offsets)
+    ev = evaluate_contact(s, x)
     r, c, v = ev.tangent()
     K = sp.coo_matrix((v, (r, c)), shape=(s._ndof, s._ndof)).toarray()
     step = 1e-10
@@ -230,7 +231,7 @@ def test_contact_tangent_matches_finite_differences():
         for sgn in (1, -1):
             xx = {m: a.copy() for m, a in x.items()}
             xx["b"][row, comp] += sgn * step
-            e = evaluate_contact(s, xx, s._offsets)
+            e = evaluate_contact(s, xx)
             f.append(np.concatenate([e.force[m].ravel() for m in s.bodies]))
         fd = -(f[0] - f[1]) / (2 * step)
         worst[comp] = max(worst[comp], float(np.abs(fd - K[:, j]).max() / np.abs(K).max()))
