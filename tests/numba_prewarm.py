@@ -6,7 +6,9 @@ edit of a source that uses numba) the tier's two workers start with the same kin
 compiles the same kernels at the same time (~55 s of CPU for the 2D family), and so do the CLI runs they start
 before either has written the cache. Here, when the cache lacks the 2D or the 3D kernels, two processes (one per
 family, in parallel) run a few short cases in-process (``pulseform run``, no pictures) so that each family is
-compiled once; the tier's processes then load it. A warm cache: nothing is run (~1 s to find out).
+compiled once; the tier's processes then load it. A warm cache: nothing is run (~0.4 s of CPU to find out).
+"Cold" includes a cache whose index files are stale: numba keys them on each source file's modification time, so
+a fresh checkout of unchanged sources recompiles everything (the folder, named by the sources' contents, exists).
 
 ``python tests/numba_prewarm.py``: check and warm; ``--family 2d|3d``: run one family's cases (the children).
 """
@@ -40,9 +42,27 @@ FAMILIES: dict[str, list[list[str]]] = {
 }
 
 
+def _fresh(index: Path, source: Path, version: str) -> bool:
+    """Whether numba would use the index file ``index``: its numba version and its source stamp (the source file's
+    modification time and size, numba's ``IndexDataCacheFile._load_index``) are the current ones. A checkout
+    (a new worktree, a branch switched) gives the sources new times: the cache folder (named by their contents)
+    is the same, but numba recompiles every kernel of a file whose time changed."""
+    import pickle
+
+    try:
+        with open(index, "rb") as f:
+            if pickle.load(f) != version:
+                return False
+            stamp, _ = pickle.loads(f.read())
+        st = source.stat()
+    except Exception:  # unreadable or of another layout: treat as cold
+        return False
+    return tuple(stamp) == (st.st_mtime, st.st_size)
+
+
 def cold_families() -> list[str]:
-    """The families whose main kernel has no index file in numba's cache folder for this checkout (found the way
-    numba's cache locators name it, without importing the kernels: ~0.4 s)."""
+    """The families whose main kernel has no fresh index file in numba's cache folder for this checkout (found the
+    way numba's cache locators name it, without importing the kernels: ~0.4 s)."""
     import pulseform.solvers  # points NUMBA_CACHE_DIR at the current sources' folder (solvers/numba_cache.py)
     import numba
     from numba.core.caching import _CacheLocator
@@ -54,7 +74,7 @@ def cold_families() -> list[str]:
             folder = Path(numba.config.CACHE_DIR) / _CacheLocator.get_suitable_cache_subpath(str(py))
         else:  # numba's default: __pycache__ beside the sources
             folder = py.parent / "__pycache__"
-        if not any(folder.glob(f"{stem}.{fn}-*.nbi")):
+        if not any(_fresh(index, py, numba.__version__) for index in folder.glob(f"{stem}.{fn}-*.nbi")):
             out.append(family)
     return out
 
