@@ -12,6 +12,12 @@ export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
 # PYTHONDONTWRITEBYTECODE is set: the tier starts ~250 Python processes (workers, CLI runs, geometry scripts,
 # renderers), each of which would otherwise compile the project's ~1.7 MB of sources again (~0.6 s of CPU each).
 unset PYTHONDONTWRITEBYTECODE
+# numba's on-disk cache cold (a fresh clone, CI, an edited kernel source): compile the 2D and the 3D kernel families
+# once each, in parallel, before the workers start and each compile them at the same time (tests/numba_prewarm.py;
+# a warm cache: ~1 s to find out). PULSEFORM_NO_PREWARM=1 skips it.
+if [ "${PULSEFORM_NO_PREWARM:-0}" != 1 ]; then
+  .venv/bin/python tests/numba_prewarm.py || echo "pulseform: numba prewarm failed; the tests compile what they need" >&2
+fi
 set +e
 .venv/bin/python -m pytest -n auto --dist loadfile "$@"
 rc=$?
