@@ -93,6 +93,7 @@ def test_adaptive_bad_input_is_one_line(tmp_path, sets, key):
     assert r.returncode != 0 and len(lines) == 1 and "Traceback" not in r.stderr and key in lines[0]
 
 
+@pytest.mark.slow
 @pytest.mark.getdp
 def test_adaptive_slow_device_getdp(tmp_path):
     """The slow device of test_implicit_coupled (cases/two_coils_plate on 50 Hz sines, HHT, iterated) with adaptive
@@ -100,7 +101,9 @@ def test_adaptive_slow_device_getdp(tmp_path):
     re-stepped in getdp from its saved state, and the plate follows the force as in the fixed-step test (as far down
     in the second half-period as in the first, back near rest at 10 ms), the energy ledger closed. Measured: 127
     steps + 20 rejected of 1.4e-5 to 1.6e-4 s (the 1.5 kHz ringing of the plate sets them), 0.0951 mm in both
-    half-periods, 40 s."""
+    half-periods, 40 s. Slow tier (a validation-length run); the default tier keeps the loop's retry of a rejected
+    step (test_implicit_adaptive.py::test_rejected_step_leaves_the_state_and_the_loop_retries_it) and the getdp
+    participant's state restored within an EM step (the iterated fixed-step device, test_implicit_coupled.py)."""
     from .test_implicit_coupled import IMPLICIT, ITERATE, SLOW, _deflection, _run
 
     out = tmp_path / "out"
