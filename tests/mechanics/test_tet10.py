@@ -72,7 +72,8 @@ def test_explicit_kernel_is_the_implicit_update_and_the_tangent_is_exact():
     dt = 1e-6
     s0 = 1e8 * rng.standard_normal((8, 6))
     s, ep, f, acc = s0.copy(), np.zeros(8), np.zeros_like(X10), np.zeros(3)
-    tet10_step(c10, X10 + dt * v, v, dt, prm, s, ep, f, acc, np.empty(0), QP_DERIVATIVES, QP_WEIGHTS, 0.3)
+    tet10_step(c10, X10 + dt * v, v, dt, prm, s, ep, f, acc, np.empty(0), QP_DERIVATIVES, QP_WEIGHTS, 0.3,
+               np.empty(0))
     st = CellState(X10[c10], s0, np.zeros(8), STEEL, MODE_SOLID, 1.0, dt)
     du = (dt * v)[c10]
     r = cell_update(st, du)
