@@ -108,7 +108,7 @@ def main() -> None:
     ap.add_argument("--no-elastic", action="store_true")
     ap.add_argument("--rounds", type=int, default=400)
     a = ap.parse_args()
-    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s: %(message)s")
+    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s: %(message)s", force=True)
     for noisy in ("pulseform.solvers.dolfinx.body", "pulseform.solvers.dolfinx.implicit"):
         logging.getLogger(noisy).setLevel(logging.WARNING)
     global PLANE
