@@ -143,6 +143,27 @@ def test_compiled_steps_and_off_with_mass_scaling():
     assert not _same(s1, none)
 
 
+def test_restart_of_a_scaled_run_is_exact_and_checked():
+    """A scaled run's state loaded into a fresh solver of the same target continues as the uninterrupted run, bit for
+    bit; a solver without the scaling, or of another target, refuses it (its masses would differ)."""
+    s0 = ExplicitSolver3D([strip_body(ST, STEEL, "tet10")])
+    target = regular_step(s0, ST)
+    s1 = _driven(True, target)
+    saved = s1.state_dict()
+    s1.advance(s1.stable_time_step(), 300, {"strip": tip_load(s1.bodies["strip"], ST, 10.0)})
+    s2 = ExplicitSolver3D([strip_body(ST, STEEL, "tet10")], cfl=0.8, mass_scaling_dt=target)
+    s2.load_state_dict(saved)
+    s2.kinetic_damping = True                     # a setting, not state
+    s2.advance(s2.stable_time_step(), 300, {"strip": tip_load(s2.bodies["strip"], ST, 10.0)})
+    assert _same(s1, s2)
+    assert "strip/mass_scale" not in s0.state_dict()
+    for other in (None, 0.9 * target):
+        with pytest.raises(ValueError, match="selective mass scaling"):
+            ExplicitSolver3D([strip_body(ST, STEEL, "tet10")], mass_scaling_dt=other).load_state_dict(saved)
+    with pytest.raises(ValueError, match="selective mass scaling"):
+        ExplicitSolver3D([strip_body(ST, STEEL, "tet10")], mass_scaling_dt=target).load_state_dict(s0.state_dict())
+
+
 def test_mass_scaling_is_checked():
     """A non-positive target and a body of linear tetrahedra are refused."""
     with pytest.raises(ValueError, match="mass_scaling_dt must be > 0"):
