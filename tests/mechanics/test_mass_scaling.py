@@ -10,8 +10,10 @@ import scipy.linalg as sla
 
 from pulseform.solvers.dolfinx import ExplicitSolver3D, ImplicitOptions, ImplicitSolver3D, Material
 from cantilever_strip import Strip, regular_step, strip_body, tip_load
-from pulseform.solvers.dolfinx.tet10 import HRZ_SHARES
-from pulseform.solvers.dolfinx.tet10_kernel import tet10_cell_steps
+from pulseform.solvers.dolfinx.kernels import pack_parameters
+from pulseform.solvers.dolfinx.tet10 import HRZ_SHARES, QP_DERIVATIVES, QP_WEIGHTS
+from pulseform.solvers.dolfinx.tet10_kernel import tet10_cell_steps, tet10_step
+from pulseform.solvers.dolfinx.tet_kernel import MODE_SOLID
 from pulseform.solvers.dolfinx.tet_fields import tet_volumes
 
 E, NU = 200e9, 0.3
@@ -62,6 +64,33 @@ def test_every_cell_reaches_the_target_and_only_the_cells_below_it_gain_mass():
     assert ms["added_fraction"] == pytest.approx(added / b0.mass.sum(), rel=1e-9)
     assert s.stable_time_step() == pytest.approx(0.8 * target, rel=1e-12)
     assert s0.stable_time_step() < 0.5 * s.stable_time_step()
+
+
+def test_a_density_factor_is_a_denser_material_in_the_kernel():
+    """The kernel with every cell's density factor s equals the unscaled kernel of a material s times as dense
+    (rho enters the step only through the wave speed and the bulk viscosity): forces, stress, plastic strain, the
+    plastic and viscous work and the critical step to round-off, under a random velocity field (compression and
+    expansion, the quadratic bulk viscosity on), and differs from the unscaled material's (forces; a critical step
+    over twice as long, at most sqrt(s) times)."""
+    b = ExplicitSolver3D([strip_body(ST, STEEL, "tet10")]).bodies["strip"]
+    rng = np.random.default_rng(3)
+    v = 20.0 * rng.standard_normal(b.X0.shape)
+    dt, factor, s = 2e-9, 0.3, 7.5
+    dense = Material(STEEL.density * s, G, K, 250e6, 2e9)
+    out = []
+    for mat, scale in ((STEEL, np.full(len(b.cells), s)), (dense, np.empty(0)), (STEEL, np.empty(0))):
+        prm = pack_parameters(mat, MODE_SOLID, 1.0, 0.06, 1.2, True)
+        stress = 2e8 * np.tile([1.0, -0.5, 0.2, 0.3, 0.0, 0.1], (4 * len(b.cells), 1))
+        ep, f, acc = np.zeros(4 * len(b.cells)), np.zeros_like(b.X0), np.zeros(3)
+        d = tet10_step(b.cells, b.X0 + dt * v, v, dt, prm, stress, ep, f, acc, np.empty(0), QP_DERIVATIVES,
+                       QP_WEIGHTS, factor, scale)
+        out.append((f, stress, ep, acc[:2].copy(), d))
+    assert out[0][2].max() > 0 and out[0][3][1] > 0
+    for x, y in zip(out[0], out[1]):
+        assert np.allclose(x, y, rtol=1e-13, atol=0.0)
+    assert not np.allclose(out[0][0], out[2][0], rtol=1e-6, atol=0.0)
+    # the critical step: sqrt(s) times longer at most (the quadratic bulk viscosity's xi grows with le / c_e)
+    assert 2.0 * out[2][4] < out[0][4] <= math.sqrt(s) * out[2][4]
 
 
 def test_scaled_step_bounds_the_largest_frequency_of_the_scaled_mesh():
@@ -135,6 +164,7 @@ def test_compiled_steps_and_off_with_mass_scaling():
     e = s1.energies()
     assert s1.bodies["strip"].eps_p.max() > 0 and e["kinetic_damping_J"] > 0 and e["viscous_J"] > 0
     assert _same(s1, s2)
+    assert s1._dt_crit > 0.75 * target > 1.5 * float(_cell_steps(s0, False).min())   # the deformed mesh's, scaled
     low = 0.5 * float(_cell_steps(s0, False).min())
     off, none = _driven(True, low), _driven(True, None)
     assert off.mass_scaling["strip"] == {"cells": 0, "added_kg": 0.0, "added_fraction": 0.0}
