@@ -17,6 +17,11 @@ def _state_keys(body) -> tuple[str, ...]:
     return keys + ("temperature",) if body.material.thermal else keys
 
 
+def _mass_scale(solver, name: str) -> np.ndarray:
+    """Body ``name``'s density factors of selective mass scaling (:mod:`.mass_scaling`; empty: none)."""
+    return getattr(getattr(solver, "_kernels", {}).get(name), "rho_scale", np.empty(0))
+
+
 def state_dict(solver) -> Dict[str, np.ndarray]:
     """Complete solver state as arrays (exact restart with :meth:`load_state_dict`)."""
     d: Dict[str, np.ndarray] = {
@@ -36,6 +41,8 @@ def state_dict(solver) -> Dict[str, np.ndarray]:
         for key in _state_keys(b):
             d[f"{n}/{key}"] = getattr(b, key).copy()
         d[f"{n}/fext"] = solver._fext[n].copy()
+        if _mass_scale(solver, n).size:      # a scaled run only: the states of others keep their keys
+            d[f"{n}/mass_scale"] = _mass_scale(solver, n).copy()
     for i, out in enumerate(solver._contact_out):
         if out is not None:
             d[f"contact{i}/p"], d[f"contact{i}/h"], d[f"contact{i}/X"] = (a.copy() for a in out)
@@ -52,6 +59,10 @@ def load_state_dict(solver, d: Mapping[str, np.ndarray]) -> None:
             if arr.shape != cur.shape:
                 raise ValueError(f"state for {n}/{key} has shape {arr.shape}, need {cur.shape}")
             cur[...] = arr
+        scale = np.asarray(d.get(f"{n}/mass_scale", np.empty(0)), dtype=float)
+        if not np.array_equal(scale, _mass_scale(solver, n)):
+            raise ValueError(f"state for body {n!r} was written with other selective mass scaling "
+                             "(mass_scaling_dt) than the solver's")
         solver._fext[n][...] = np.asarray(d[f"{n}/fext"], dtype=float)
         solver._fext_nonzero[n] = bool(np.any(solver._fext[n]))
     solver.time = float(d["time"])

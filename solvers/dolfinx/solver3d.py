@@ -21,6 +21,7 @@ from .body3d import Body3D
 from .contact import ContactPairSpec, ContactPenetrationError, RigidWallSpec
 from .contact3d import soft_contact_pass_3d
 from .kernels import pack_parameters
+from .mass_scaling import scaled_body_mass, selective_scale
 from .soft_plane import SoftPlaneSpec, soft_plane_forces
 from .solver import ExplicitSolver
 from .tet10 import QP_DERIVATIVES, QP_WEIGHTS, critical_step_factor
@@ -62,19 +63,21 @@ class _ThreadedKernel:
 
 class _QuadraticKernel:
     """The element kernel of a ten-node body (:mod:`.tet10_kernel`, serial): the linear kernel's signature, with
-    the body's critical-step factor (:func:`.tet10.critical_step_factor`)."""
+    the body's critical-step factor (:func:`.tet10.critical_step_factor`) and its cells' density factors
+    ``rho_scale`` (selective mass scaling, :mod:`.mass_scaling`; empty: none)."""
 
     def __init__(self, factor: float):
         self.factor = float(factor)
+        self.rho_scale = np.empty(0)
 
     def __call__(self, cells, x, v, dt, prm, stress, eps_p, f_int, acc, work=None, temp=None) -> float:
         temp = _NO_TEMP if temp is None else temp
         return tet10_step(cells, x, v, dt, prm, stress, eps_p, f_int, acc, temp, QP_DERIVATIVES, QP_WEIGHTS,
-                          self.factor)
+                          self.factor, self.rho_scale)
 
     def critical_dt(self, cells, x, prm) -> float:
         """The cells' smallest critical step at rest (CFL 1), s; -1 if one is inverted."""
-        return tet10_critical_dt(cells, x, prm, self.factor)
+        return tet10_critical_dt(cells, x, prm, self.factor, self.rho_scale)
 
 
 class ExplicitSolver3D(ExplicitSolver):
@@ -119,6 +122,13 @@ class ExplicitSolver3D(ExplicitSolver):
         Run the steps of :meth:`advance` of a single ten-node body in one compiled call (:mod:`.tet10_steps`: one
         process, constant prescribed velocities, no walls, soft planes, contact or sliding planes) instead of
         the Python step loop; both give the same bits. Default on; other solvers run the Python loop.
+    mass_scaling_dt : float, optional
+        Selective mass scaling of the ten-node bodies (:mod:`.mass_scaling`), for quasi-static runs (dynamic
+        relaxation) only: every cell whose critical step (CFL 1, at rest, on the reference mesh) is below this
+        target, s, has its density multiplied by (target / its step)^2, so that its step is the target; the mass
+        added is logged and kept in :attr:`mass_scaling` (per body: cells scaled, kg added, fraction of the body's
+        mass). The lumped mass, hence the ledger's kinetic energy, the critical step and the bulk viscosity use the
+        scaled density. Default None: no scaling. Bodies of linear tetrahedra are refused (not done).
     """
 
     def __init__(self, bodies: Sequence[BodySpec], rigid_walls: Sequence[RigidWallSpec] = (),
@@ -126,7 +136,7 @@ class ExplicitSolver3D(ExplicitSolver):
                  contact_pairs: Sequence[ContactPairSpec] = (), cfl: float = 0.5,
                  bulk_viscosity: bool = True, bulk_linear: float = 0.06,
                  bulk_quadratic: float = 1.2, comm=MPI.COMM_WORLD, threads: int = 1,
-                 compiled_steps: bool = True):
+                 compiled_steps: bool = True, mass_scaling_dt: float | None = None):
         if not 0 < cfl <= 1:
             raise ValueError(f"cfl must be in (0, 1], got {cfl}")
         if bulk_linear < 0 or bulk_quadratic < 0:
@@ -161,6 +171,9 @@ class ExplicitSolver3D(ExplicitSolver):
             else _ThreadedKernel(tet_thread_arrays(b.cells, len(b.x)), self.threads)
             if self.threads > 1 and tet_chunk_size(len(b.cells)) < len(b.cells) else _tet_kernel
             for n, b in self.bodies.items()}
+        self.mass_scaling: dict[str, dict[str, float]] = {}
+        if mass_scaling_dt is not None:
+            self._scale_masses(float(mass_scaling_dt))
         self._cidx = {n: np.flatnonzero(b.constrained_mask().ravel())
                       for n, b in self.bodies.items()}
         self.contact_pairs = tuple(contact_pairs)
@@ -201,6 +214,23 @@ class ExplicitSolver3D(ExplicitSolver):
                  self.threads, self.stable_time_step())
 
     _element_dt = staticmethod(tet_critical_dt)
+
+    def _scale_masses(self, target_dt: float) -> None:
+        """Selective mass scaling of every ten-node body to the critical step ``target_dt`` (s,
+        :mod:`.mass_scaling`): the density factors into its kernel, the scaled HRZ mass into the body."""
+        linear = [n for n, b in self.bodies.items() if b.element != "tet10"]
+        if linear:
+            raise ValueError(f"mass_scaling_dt: bodies {linear} of linear tetrahedra (selective mass scaling is "
+                             "done for ten-node bodies only)")
+        for n, b in self.bodies.items():
+            k = self._kernels[n]
+            scale = selective_scale(b.cells, b.X0, self._prm[n], k.factor, target_dt)
+            added, frac = 0.0, 0.0
+            if np.any(scale > 1.0):
+                k.rho_scale = scale
+                b.mass, added, frac = scaled_body_mass(n, b.cells, b.X0, b.material.density, scale, b.n_local)
+            self.mass_scaling[n] = {"cells": int(np.count_nonzero(scale > 1.0)), "added_kg": added,
+                                    "added_fraction": frac}
 
     def _body_dt(self, name: str) -> float:
         """The smallest critical step of body ``name``'s cells at rest (CFL 1), s; -1 if one is inverted."""

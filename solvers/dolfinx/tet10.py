@@ -104,9 +104,11 @@ def quadratic_cells(cells: np.ndarray, X: np.ndarray,
     return cells10, X10, edges
 
 
-def hrz_lumped_mass(cells10: np.ndarray, volumes: np.ndarray, density: float, n_nodes: int) -> np.ndarray:
-    """HRZ lumped nodal masses (kg) of straight ten-node cells of ``volumes`` (m^3): a corner 1/36, an edge
-    node 4/27 of rho V (all positive; their sum is the body's mass)."""
+def hrz_lumped_mass(cells10: np.ndarray, volumes: np.ndarray, density: float | np.ndarray,
+                    n_nodes: int) -> np.ndarray:
+    """HRZ lumped nodal masses (kg) of straight ten-node cells of ``volumes`` (m^3) and ``density`` (kg/m^3, one
+    or per cell: selective mass scaling, :mod:`.mass_scaling`): a corner 1/36, an edge node 4/27 of rho V (all
+    positive; their sum is the body's mass)."""
     m = density * np.asarray(volumes, dtype=float)
     return np.bincount(cells10.ravel(), weights=(m[:, None] * HRZ_SHARES).ravel(), minlength=n_nodes)
 

@@ -8,6 +8,10 @@ Critical step: the element's largest frequency under the HRZ mass bounds the mes
 inequality); its ratio to the linear kernel's estimate (the corner tetrahedron's smallest altitude over the
 wave speed) is taken on the reference mesh by :func:`.tet10.critical_step_factor` and applied to that estimate
 on the deformed mesh at every step, with the bulk viscosity's reduction sqrt(1 + xi^2) - xi.
+
+Selective mass scaling (:mod:`.mass_scaling`): ``rho_scale`` (nc,) multiplies each cell's density in its wave speed
+c_e = sqrt((K + 4 G / 3) / (rho s_e)), hence its critical step (times sqrt(s_e)), and in its bulk viscosity (rho_e c_e
+and rho_e); an empty ``rho_scale`` is the unscaled kernel, operation for operation.
 """
 from __future__ import annotations
 
@@ -21,7 +25,7 @@ from .element_math import (FM, P_B1, P_B2, P_BULK, P_G, P_H, P_K, P_R1, P_R2, P_
 from .flow_curves import plastic_return
 from .kernel_layout import P_T0
 
-__all__ = ["tet10_step", "tet10_critical_dt"]
+__all__ = ["tet10_step", "tet10_critical_dt", "tet10_cell_steps"]
 
 
 @numba.njit(cache=True, error_model="numpy", fastmath=FM)
@@ -180,13 +184,15 @@ def _point(stress, eps_p, temp, r, Lg, dt, prm):
 
 
 @numba.njit(cache=True, error_model="numpy", fastmath=FM)
-def tet10_step(cells, x, v, dt, prm, stress, eps_p, f_int, acc, temp, dN, wq, factor):
+def tet10_step(cells, x, v, dt, prm, stress, eps_p, f_int, acc, temp, dN, wq, factor, rho_scale):
     """Explicit update of the ten-node tetrahedra ``cells`` (nc, 10): the arguments of
     :func:`.tet_kernel.tet_step` with ``stress`` (nc * 4, 6), ``eps_p`` and ``temp`` (nc * 4,) per Gauss point,
-    plus the Gauss rule (``dN`` (4, 10, 3) shape-function derivatives, ``wq`` (4,) weights) and the critical-step
-    ``factor`` of :func:`.tet10.critical_step_factor`. Returns the smallest element critical step (CFL 1), s."""
+    plus the Gauss rule (``dN`` (4, 10, 3) shape-function derivatives, ``wq`` (4,) weights), the critical-step
+    ``factor`` of :func:`.tet10.critical_step_factor` and the cells' density factors ``rho_scale`` (nc,), >= 1
+    (selective mass scaling; empty: none). Returns the smallest element critical step (CFL 1), s."""
     rho = prm[P_RHO]
     c = math.sqrt((prm[P_K] + 4.0 * prm[P_G] / 3.0) / rho)
+    scaled = rho_scale.shape[0] > 0
     b1, b2 = prm[P_B1], prm[P_B2]
     bulk = prm[P_BULK] > 0.0
     hdt = 0.5 * dt
@@ -222,6 +228,10 @@ def tet10_step(cells, x, v, dt, prm, stress, eps_p, f_int, acc, temp, dN, wq, fa
                 acc[2] = e
             continue
         le = _corner_length(xe)
+        rho_e, c_e = rho, c
+        if scaled:
+            rho_e = rho * rho_scale[e]
+            c_e = math.sqrt((prm[P_K] + 4.0 * prm[P_G] / 3.0) / rho_e)
         xi_max = 0.0
         for q in range(4):
             _nodal_gradient(ve, gm, q, Lg)
@@ -230,11 +240,11 @@ def tet10_step(cells, x, v, dt, prm, stress, eps_p, f_int, acc, temp, dN, wq, fa
             qb = 0.0
             xi = 0.0
             if bulk:
-                qb = b1 * rho * c * le * (-trd)
+                qb = b1 * rho_e * c_e * le * (-trd)
                 xi = b1
                 if trd < 0.0:
-                    qb += rho * (b2 * le * trd) ** 2
-                    xi += b2 * b2 * le / c * (-trd)
+                    qb += rho_e * (b2 * le * trd) ** 2
+                    xi += b2 * b2 * le / c_e * (-trd)
             xi_max = max(xi_max, xi)
             volm = wq[q] * detm[q]
             wp += (sy + hr * dep) * dep * volm
@@ -250,7 +260,7 @@ def tet10_step(cells, x, v, dt, prm, stress, eps_p, f_int, acc, temp, dN, wq, fa
                 f_int[n, 0] += w * (sxx * gx + sxy * gy + sxz * gz)
                 f_int[n, 1] += w * (sxy * gx + syy * gy + syz * gz)
                 f_int[n, 2] += w * (sxz * gx + syz * gy + szz * gz)
-        dte = factor * le / c * (math.sqrt(1.0 + xi_max * xi_max) - xi_max)
+        dte = factor * le / c_e * (math.sqrt(1.0 + xi_max * xi_max) - xi_max)
         if dte < dtmin:
             dtmin = dte
     acc[0] += wp
@@ -259,11 +269,35 @@ def tet10_step(cells, x, v, dt, prm, stress, eps_p, f_int, acc, temp, dN, wq, fa
 
 
 @numba.njit(cache=True, error_model="numpy", fastmath=FM)
-def tet10_critical_dt(cells, x, prm, factor):
+def tet10_cell_steps(cells, x, prm, factor, rho_scale, out):
+    """Each cell's critical step (CFL 1, at rest: the linear bulk-viscosity reduction only) into ``out`` (nc,), s:
+    ``factor`` times the corner tetrahedron's altitude over the wave speed of the cell's density (times
+    ``rho_scale[e]``, empty: none); returns False (``out`` partly set) if a corner tetrahedron is inverted."""
+    cm = prm[P_K] + 4.0 * prm[P_G] / 3.0
+    c = math.sqrt(cm / prm[P_RHO])
+    scaled = rho_scale.shape[0] > 0
+    xi = prm[P_B1] if prm[P_BULK] > 0.0 else 0.0
+    red = math.sqrt(1.0 + xi * xi) - xi
+    xe = np.empty((10, 3))
+    for e in range(cells.shape[0]):
+        for a in range(4):
+            for i in range(3):
+                xe[a, i] = x[cells[e, a], i]
+        le = _corner_length(xe)
+        if not le > 0.0:
+            return False
+        c_e = math.sqrt(cm / (prm[P_RHO] * rho_scale[e])) if scaled else c
+        out[e] = factor * le / c_e * red
+    return True
+
+
+@numba.njit(cache=True, error_model="numpy", fastmath=FM)
+def tet10_critical_dt(cells, x, prm, factor, rho_scale):
     """Smallest element critical step (CFL 1, at rest: the linear bulk-viscosity reduction only) of ten-node
-    cells, s: ``factor`` times the corner tetrahedron's altitude over the wave speed; -1.0 if a corner
-    tetrahedron is inverted."""
+    cells, s: ``factor`` times the corner tetrahedron's altitude over the wave speed (of each cell's density times
+    ``rho_scale``, (nc,) or empty: none); -1.0 if a corner tetrahedron is inverted."""
     c = math.sqrt((prm[P_K] + 4.0 * prm[P_G] / 3.0) / prm[P_RHO])
+    scaled = rho_scale.shape[0] > 0
     xi = prm[P_B1] if prm[P_BULK] > 0.0 else 0.0
     red = math.sqrt(1.0 + xi * xi) - xi
     xe = np.empty((10, 3))
@@ -275,5 +309,8 @@ def tet10_critical_dt(cells, x, prm, factor):
         le = _corner_length(xe)
         if not le > 0.0:
             return -1.0
-        dtmin = min(dtmin, factor * le / c * red)
+        c_e = c
+        if scaled:
+            c_e = math.sqrt((prm[P_K] + 4.0 * prm[P_G] / 3.0) / (prm[P_RHO] * rho_scale[e]))
+        dtmin = min(dtmin, factor * le / c_e * red)
     return dtmin

@@ -72,14 +72,14 @@ def _kinetic_peak(v, m, con_idx, con_val, tmp, sc):
 
 
 @numba.njit(cache=True)
-def run_tet10_steps(cells, x, v, a, m, fext, stress, eps_p, temp, prm, dN, wq, factor, con_idx, con_val, cidx,
-                    sc, f, acc, tmp, dt, n_steps, ev):
+def run_tet10_steps(cells, x, v, a, m, fext, stress, eps_p, temp, prm, dN, wq, factor, rho_scale, con_idx, con_val,
+                    cidx, sc, f, acc, tmp, dt, n_steps, ev):
     """``n_steps`` explicit steps of size ``dt`` (s) of one ten-node body (the arrays of
-    :class:`~.body3d.Body3D` and of :func:`.tet10_kernel.tet10_step`; ``con_idx`` / ``con_val`` the prescribed
-    velocity components as flat indices into ``v`` and values (m/s), ``cidx`` the flat indices of every prescribed
-    component, ``sc`` the scalar state, ``f`` (N, 3), ``acc`` (3,), ``tmp`` (3 N,) scratch). Stops at the first
-    event (``ev[0]``: 1 a step above the critical one, before anything is done; 2 an inverted cell, ``ev[1]`` its
-    index, after the kernel). Returns the steps done."""
+    :class:`~.body3d.Body3D` and of :func:`.tet10_kernel.tet10_step`, ``rho_scale`` its density factors;
+    ``con_idx`` / ``con_val`` the prescribed velocity components as flat indices into ``v`` and values (m/s),
+    ``cidx`` the flat indices of every prescribed component, ``sc`` the scalar state, ``f`` (N, 3), ``acc`` (3,),
+    ``tmp`` (3 N,) scratch). Stops at the first event (``ev[0]``: 1 a step above the critical one, before anything is
+    done; 2 an inverted cell, ``ev[1]`` its index, after the kernel). Returns the steps done."""
     n = x.shape[0]
     for k in range(n_steps):
         if dt > sc[_DTC] * (1 + 1e-12):
@@ -109,7 +109,7 @@ def run_tet10_steps(cells, x, v, a, m, fext, stress, eps_p, temp, prm, dN, wq, f
         sc[_T] = t_new
         f[:] = 0.0
         acc[:] = 0.0
-        d = tet10_step(cells, x, v, dt, prm, stress, eps_p, f, acc, temp, dN, wq, factor)
+        d = tet10_step(cells, x, v, dt, prm, stress, eps_p, f, acc, temp, dN, wq, factor, rho_scale)
         if acc[2] >= 0:
             ev[0] = EV_INVERTED
             ev[1] = int(acc[2])
@@ -178,6 +178,7 @@ class Tet10Steps:
         self.con_val = np.concatenate(val) if val else np.zeros(0)
         self.cidx = np.asarray(solver._cidx[self.name], np.int64)
         self.factor = float(solver._kernels[self.name].factor)
+        self.rho_scale = solver._kernels[self.name].rho_scale
         self.f = np.zeros_like(b.x)
         self.acc = np.zeros(3)
         self.tmp = np.zeros(b.x.size)
@@ -200,8 +201,8 @@ class Tet10Steps:
                  1.0 if s.kinetic_damping else 0.0, 1.0 if s._fext_nonzero[n] else 0.0)
         self.ev[:] = 0
         run_tet10_steps(b.cells, b.x, b.v, b.a, b.mass, s._fext[n], b.cell_stress, b.eps_p, b.temperature,
-                        s._prm[n], QP_DERIVATIVES, QP_WEIGHTS, self.factor, self.con_idx, self.con_val, self.cidx,
-                        sc, self.f, self.acc, self.tmp, float(dt), int(n_steps), self.ev)
+                        s._prm[n], QP_DERIVATIVES, QP_WEIGHTS, self.factor, self.rho_scale, self.con_idx, self.con_val,
+                        self.cidx, sc, self.f, self.acc, self.tmp, float(dt), int(n_steps), self.ev)
         s.time, s.step_count, s._dt_prev, s._dt_crit = float(sc[_T]), int(sc[_NSTEP]), float(sc[_DTP]), float(sc[_DTC])
         for key, i in (("plastic_J", _PL), ("viscous_J", _VI), ("external_work_J", _EXT),
                        ("kinetic_damping_J", _KD), ("wall_dissipated_J", _WALL)):

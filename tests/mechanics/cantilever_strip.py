@@ -21,6 +21,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import logging
 import math
 
 import numpy as np
@@ -30,9 +31,13 @@ from scipy.integrate import quad
 
 from pulseform.solvers.dolfinx.body import BodySpec
 from pulseform.solvers.dolfinx.material import Material
+from pulseform.solvers.dolfinx.tet10_kernel import tet10_cell_steps
 
 __all__ = ["Strip", "strip_body", "tip_load", "tip_deflection", "beam_deflection", "hinge_load",
-           "beam_plastic_deflection", "plane_strip_body", "relax_to_rest", "relaxed_levels", "runaway"]
+           "beam_plastic_deflection", "plane_strip_body", "relax_to_rest", "relaxed_levels", "runaway",
+           "regular_step"]
+
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -178,6 +183,7 @@ def relax_to_rest(solver, strip: Strip, force: float, reference: float, rounds: 
                      < residual * np.linalg.norm(f["strip"]))):
             break
         prev = d
+    log.info("tip force %.6g N: tip deflection %.6g m at rest, %d steps so far", force, d, solver.step_count)
     return d
 
 
@@ -198,6 +204,16 @@ def relaxed_levels(solver, strip: Strip, force: float, fractions, reference: flo
         if len(d) > 1 and (d[-1] - d[-2]) / (f - fractions[len(d) - 2]) >= ratio:
             break
     return d
+
+
+def regular_step(solver, strip: Strip) -> float:
+    """The critical step (CFL 1, at rest, s) of the regular bricks of ``solver``'s ten-node strip: the smallest of
+    its cells whose centroid is in the outer half (x > L / 2), away from the root bricks that grading thins
+    (selective mass scaling's target, ``ExplicitSolver3D(mass_scaling_dt=)``)."""
+    b = solver.bodies["strip"]
+    dts = np.empty(len(b.cells))
+    tet10_cell_steps(b.cells, b.X0, solver._prm["strip"], solver._kernels["strip"].factor, np.empty(0), dts)
+    return float(dts[b.X0[b.cells[:, :4], 0].mean(axis=1) > 0.5 * strip.length].min())
 
 
 def runaway(fractions, deflections, ratio: float = 10.0) -> float:
