@@ -88,7 +88,7 @@ def test_actuator_disk_implicit_matches_explicit(tmp_path):
         assert r.returncode == 0, r.stderr[-2000:]
         h = np.genfromtxt(out / "history.csv", delimiter=",", names=True)
         res[name] = (h, json.loads((out / "metrics.json").read_text()))
-    (he, me), (hi, mi) = res["explicit"], res["implicit"]
+    (he, _), (hi, mi) = res["explicit"], res["implicit"]
     assert np.allclose(he["dt_s"][1:], dt, rtol=1e-9) and np.allclose(hi["dt_s"][1:], dt, rtol=1e-9)
     v_e, v_i = he["disk_velocity_y_m_s"][-1], hi["disk_velocity_y_m_s"][-1]
     lead = he["disk_travel_y_m"][-1] - hi["disk_travel_y_m"][-1]
