@@ -202,9 +202,15 @@ def rigid_step_3d(case: Case) -> float:
 def loop_options_3d(case: Case, dt_mech: float | None) -> LoopOptions:
     """The loop's options: ``[coupling]``'s, with n = round(geometry.em_step / ``dt_mech``) when the EM step
     is given (then n_min 1 and n_max n unless adaptive); ``dt_mech`` None (rigid bodies only: their step is
-    already em_step / n) keeps coupling.n."""
+    already em_step / n) and adaptive implicit steps (one mechanical step per EM step, ``coupling.n`` = 1) keep
+    coupling.n."""
     cp, em_step = case.coupling, case.geometry.em_step
     if em_step is None or dt_mech is None:
+        return LoopOptions.from_coupling(cp)
+    implicit = case.mechanics.implicit if case.mechanics.integrator == "implicit" else None
+    if implicit is not None and implicit.adaptive:   # the adaptive step sets the EM step: one mechanical step each
+        log.info("geometry.em_step = %g s not used: adaptive implicit steps set the EM step (one mechanical step "
+                 "per EM step)", em_step)
         return LoopOptions.from_coupling(cp)
     n = max(1, round(em_step / dt_mech))
     if cp.adaptive:
