@@ -294,23 +294,11 @@ def tet10_cell_steps(cells, x, prm, factor, rho_scale, out):
 @numba.njit(cache=True, error_model="numpy", fastmath=FM)
 def tet10_critical_dt(cells, x, prm, factor, rho_scale):
     """Smallest element critical step (CFL 1, at rest: the linear bulk-viscosity reduction only) of ten-node
-    cells, s: ``factor`` times the corner tetrahedron's altitude over the wave speed (of each cell's density times
-    ``rho_scale``, (nc,) or empty: none); -1.0 if a corner tetrahedron is inverted."""
-    c = math.sqrt((prm[P_K] + 4.0 * prm[P_G] / 3.0) / prm[P_RHO])
-    scaled = rho_scale.shape[0] > 0
-    xi = prm[P_B1] if prm[P_BULK] > 0.0 else 0.0
-    red = math.sqrt(1.0 + xi * xi) - xi
-    xe = np.empty((10, 3))
+    cells, s: the least of :func:`tet10_cell_steps`; -1.0 if a corner tetrahedron is inverted."""
+    out = np.empty(cells.shape[0])
+    if not tet10_cell_steps(cells, x, prm, factor, rho_scale, out):
+        return -1.0
     dtmin = 1e300
-    for e in range(cells.shape[0]):
-        for a in range(4):
-            for i in range(3):
-                xe[a, i] = x[cells[e, a], i]
-        le = _corner_length(xe)
-        if not le > 0.0:
-            return -1.0
-        c_e = c
-        if scaled:
-            c_e = math.sqrt((prm[P_K] + 4.0 * prm[P_G] / 3.0) / (prm[P_RHO] * rho_scale[e]))
-        dtmin = min(dtmin, factor * le / c_e * red)
+    for e in range(out.shape[0]):
+        dtmin = min(dtmin, out[e])
     return dtmin

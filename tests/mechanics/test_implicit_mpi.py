@@ -70,6 +70,18 @@ def _compare(serial: dict, par: dict, ranks: int) -> None:
                 assert got == pytest.approx(val, rel=1e-10, abs=1e-300), (case, key)
 
 
+def _history_equal(hs, hp) -> float:
+    """Assert every column of the MPI run's history ``hp`` equals the serial ``hs`` to 1e-8 relative (ledger
+    columns: 1e-8 of the external work); returns that work (J)."""
+    work = float(np.abs(hs["energy_external_work_J"]).max())
+    for col in hs.dtype.names:
+        err = float(np.abs(hp[col] - hs[col]).max())
+        scale = work if col.startswith("energy_") else float(np.abs(hs[col]).max())
+        print(f"history {col}: largest |mpi - serial| {err:.3g} (scale {scale:.3g})")
+        assert err <= 1e-8 * scale, col
+    return work
+
+
 @pytest.mark.mpi
 @pytest.mark.parametrize("ranks", [2, 3])
 def test_ranks_match_serial(ranks):
@@ -118,12 +130,7 @@ def test_pulseform_run_on_two_ranks_matches_serial(tmp_path, steps):
     (hs, ms), (hp, mp) = runs["serial"], runs["mpi"]
     assert hs.dtype.names == hp.dtype.names and hs.shape == hp.shape
     assert hs.shape == (21,) if not steps else hs.shape[0] > 5
-    work = float(np.abs(hs["energy_external_work_J"]).max())
-    for col in hs.dtype.names:
-        err = float(np.abs(hp[col] - hs[col]).max())
-        scale = work if col.startswith("energy_") else float(np.abs(hs[col]).max())
-        print(f"history {col}: largest |mpi - serial| {err:.3g} (scale {scale:.3g})")
-        assert err <= 1e-8 * scale, col
+    work = _history_equal(hs, hp)
     for key, val in ms.items():
         if isinstance(val, float) and key not in TIMERS:
             print(f"metric {key}: serial {val!r} mpi {mp[key]!r}")
@@ -240,12 +247,7 @@ def test_press_fit_with_kept_contact_on_two_ranks_matches_serial(tmp_path):
             print(f"metric {key}: serial {val!r} mpi {mp[key]!r}")
             assert mp[key] == pytest.approx(val, rel=1e-8, abs=1e-15), key
     assert hs.dtype.names == hp.dtype.names and hs.shape == hp.shape
-    work = float(np.abs(hs["energy_external_work_J"]).max())
-    for col in hs.dtype.names:
-        err = float(np.abs(hp[col] - hs[col]).max())
-        scale = work if col.startswith("energy_") else float(np.abs(hs[col]).max())
-        print(f"history {col}: largest |mpi - serial| {err:.3g} (scale {scale:.3g})")
-        assert err <= 1e-8 * scale, col
+    _history_equal(hs, hp)
 
 
 @pytest.mark.mpi
