@@ -167,6 +167,12 @@ class MechanicsTable:
         0.0, unit="s", ge=0.0,
         doc="kinetic damping (dynamic relaxation) for t < this time: a body's velocities are set to zero "
             "whenever its kinetic energy has passed a peak (quasi-static loading; 0: off)")
+    mass_scaling_dt: float | None = spec(
+        None, unit="s", gt=0.0,
+        doc="selective mass scaling for quasi-static explicit 3D runs of ten-node bodies (with kinetic or mass "
+            "damping): every cell whose critical step is below this one gets the density that brings it there; "
+            "the added mass is logged. The static state dynamic relaxation reaches does not depend on the mass; "
+            "a pulse's dynamics would: mechanics-only cases only (docs/mechanics.md, Selective mass scaling)")
     gravity: Vec2 = spec((0.0, 0.0), unit="m/s^2", doc="acceleration of gravity on the rigid bodies, e.g. "
                          "[0, -9.81] (deformable bodies: not applied)")
     integrator: Literal["explicit", "implicit"] = spec(
@@ -181,6 +187,9 @@ class MechanicsTable:
                             "no other process uses; 2D mechanics-only pulse runs keep one thread)")
 
     def validate(self, path: str) -> None:
+        if self.mass_scaling_dt is not None and self.formulation != "3d":
+            raise SchemaError(f"{path}.mass_scaling_dt", f"given with formulation = {self.formulation!r}; selective mass "
+                              "scaling is done for ten-node bodies of 3D cases: formulation = '3d'")
         cores = os.cpu_count() or 1
         if self.threads > cores:
             raise SchemaError(f"{path}.threads", f"got {self.threads}; this machine has {cores} cores: 1 to {cores}")

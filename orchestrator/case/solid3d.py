@@ -134,6 +134,8 @@ def _validate_3d(case) -> None:
     mo = case.mechanics
     if tuple(mo.gravity) != (0.0, 0.0):
         raise SchemaError("mechanics.gravity", "a 2D-only key (rigid bodies of coupled cases); remove it")
+    if mo.mass_scaling_dt is not None:
+        _check_mass_scaling(case)
     if case.loads and case.case.kind != "coupled":  # a coupled 3D geometry file's: .geometry3d
         raise SchemaError("loads", "pressure pulses are 2D-only for now; a 3D case takes initial velocities, "
                           "rigid walls and symmetry planes")
@@ -167,6 +169,24 @@ def _validate_3d(case) -> None:
                 raise SchemaError(f"symmetry[{i}].bodies[{j}]", f"got {n!r}; allowed: "
                                   + ", ".join(repr(x) for x in names))
         _check_plane_touches(case, i, s)
+
+
+def _check_mass_scaling(case) -> None:
+    """Selective mass scaling (``mechanics.mass_scaling_dt``) is for quasi-static explicit runs of ten-node bodies
+    in mechanics-only cases (one line naming the key otherwise)."""
+    mo, key = case.mechanics, "mechanics.mass_scaling_dt"
+    if case.case.kind != "mechanics":
+        raise SchemaError(key, "given in a coupled case; added mass changes a pulse's dynamics: mechanics-only cases "
+                          "with kinetic or mass damping (quasi-static) take it")
+    if mo.integrator != "explicit":
+        raise SchemaError(key, "given with integrator = 'implicit', which has no stable step to lengthen; remove it")
+    if mo.kinetic_damping_until <= 0.0 and mo.mass_damping <= 0.0:
+        raise SchemaError(key, "given without mechanics.kinetic_damping_until or mechanics.mass_damping: added mass "
+                          "changes the dynamics; it is for quasi-static runs relaxed to rest")
+    for i, b in enumerate(case.bodies):
+        if not b.rigid and b.element != "tet10":
+            raise SchemaError(f"bodies[{i}].element", f"got {b.element!r} with mechanics.mass_scaling_dt; selective "
+                              "mass scaling is done for ten-node bodies: allowed 'tet10'")
 
 
 def _check_plane_touches(case, i: int, plane: SymmetryPlane) -> None:

@@ -108,7 +108,8 @@ def make_solver(case: Case, bodies, pairs, walls, comm: MPI.Comm, compiled_steps
     if three:
         return mech.ExplicitSolver3D(bodies, rigid_walls=walls, contact_pairs=pairs, cfl=case.time.cfl,
                                      bulk_viscosity=mo.bulk_viscosity, bulk_linear=mo.bulk_viscosity_linear,
-                                     bulk_quadratic=mo.bulk_viscosity_quadratic, comm=comm, threads=mo.threads)
+                                     bulk_quadratic=mo.bulk_viscosity_quadratic, comm=comm, threads=mo.threads,
+                                     mass_scaling_dt=mo.mass_scaling_dt)
     return mech.ExplicitSolver(bodies, formulation=mo.formulation, contact_pairs=pairs, rigid_walls=walls,
                                cfl=case.time.cfl, bulk_viscosity=mo.bulk_viscosity,
                                bulk_linear=mo.bulk_viscosity_linear, bulk_quadratic=mo.bulk_viscosity_quadratic,

@@ -200,3 +200,39 @@ def test_mass_scaling_is_checked():
         ExplicitSolver3D([strip_body(ST, STEEL, "tet10")], mass_scaling_dt=0.0)
     with pytest.raises(ValueError, match="linear tetrahedra"):
         ExplicitSolver3D([strip_body(ST, STEEL, "tet4")], mass_scaling_dt=1e-8)
+
+
+def test_case_key_reaches_the_solver_and_is_checked(tmp_path):
+    """``mechanics.mass_scaling_dt`` from a case file: the 3D bar of cases/bar_impact_3d on ten-node cells (coarse),
+    relaxed by kinetic damping against its wall, with a target of 2e-5 s above every cell's step: the run steps at
+    cfl x target (0.5 x 2e-5 s, to 1e-9; unscaled: 4.06e-6 s) and its log gives the added mass. Misuse is one line
+    naming the key: a 2D case, a linear body, no damping (the dynamics would change), a coupled case (checked in
+    tests/foundation/test_bad_input.py's style here with `pulseform check`)."""
+    import csv
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    exe = str(Path(sys.executable).with_name("pulseform"))
+    repo = Path(__file__).resolve().parents[2]
+    base = [exe, "run", str(repo / "cases/bar_impact_3d"), "--quiet", "--set", "output.plots=false",
+            "--set", "bodies[0].mesh_size=0.5", "--set", "mechanics.kinetic_damping_until=1",
+            "--set", "time.end=2e-4"]
+    out = tmp_path / "scaled"
+    r = subprocess.run([*base, "--out", str(out), "--set", "bodies[0].element='tet10'",
+                        "--set", "mechanics.mass_scaling_dt=2e-5"], capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr[-2000:]
+    rows = list(csv.DictReader(open(out / "history.csv")))
+    assert float(rows[1]["dt_s"]) == pytest.approx(0.5 * 2e-5, rel=1e-9)
+    assert "selective mass scaling of" in (out / "run.log").read_text()
+    for sets, key in ((["--set", "mechanics.kinetic_damping_until=1"], "bodies[0].element"),
+                      (["--set", "bodies[0].element='tet10'", "--set", "mechanics.kinetic_damping_until=0"],
+                       "mechanics.mass_scaling_dt")):
+        r = subprocess.run([exe, "check", str(repo / "cases/bar_impact_3d"), "--set", "mechanics.mass_scaling_dt=2e-5",
+                            *sets], capture_output=True, text=True, timeout=300)
+        lines = [ln for ln in r.stderr.splitlines() if ln.startswith("pulseform: error:")]
+        assert r.returncode == 2 and len(lines) == 1 and key in lines[0] and "Traceback" not in r.stderr, r.stderr
+    for case in ("bar_impact", "emf_sheet_bulge"):
+        r = subprocess.run([exe, "check", str(repo / "cases" / case), "--set", "mechanics.mass_scaling_dt=2e-5"],
+                           capture_output=True, text=True, timeout=300)
+        assert r.returncode == 2 and "mechanics.mass_scaling_dt" in r.stderr and "Traceback" not in r.stderr
