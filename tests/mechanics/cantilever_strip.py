@@ -216,6 +216,27 @@ def regular_step(solver, strip: Strip) -> float:
     return float(dts[b.X0[b.cells[:, :4], 0].mean(axis=1) > 0.5 * strip.length].min())
 
 
+def static_levels(solver, strip: Strip, forces) -> list:
+    """The tip deflections (m) of ``solver``'s strip (a static implicit solver) after one static step to each tip
+    force of ``forces`` (N), in order, each from the previous one's equilibrium."""
+    b = solver.bodies["strip"]
+    out = []
+    for P in forces:
+        solver.advance(1.0, 1, {"strip": tip_load(b, strip, P)})
+        out.append(tip_deflection(b, strip))
+    return out
+
+
+def beam_runaway(strip: Strip, material: Material) -> float:
+    """Beam theory's runaway load (a fraction of :func:`hinge_load`): :func:`runaway` of the rectangle's
+    moment-curvature deflection (:func:`beam_plastic_deflection`, in units of the elastic deflection at the hinge
+    load) on load steps of 0.0005 from 0.97 (0.9915 for the strips of the tests)."""
+    Pp = hinge_load(strip, material)
+    d_el = beam_deflection(strip, material, Pp, shear=False)
+    fb = np.round(np.arange(0.97, 0.9976, 0.0005), 5)
+    return runaway(fb, [beam_plastic_deflection(strip, material, f * Pp) / d_el for f in fb])
+
+
 def runaway(fractions, deflections, ratio: float = 10.0) -> float:
     """The load fraction at which the compliance (difference quotients of ``deflections`` over ``fractions``, in the
     units of their ratio) first reaches ``ratio``, interpolated linearly between interval midpoints."""

@@ -11,8 +11,8 @@ import pytest
 import scipy.linalg as sla
 
 from pulseform.solvers.dolfinx import ExplicitSolver3D, ImplicitOptions, ImplicitSolver3D, Material
-from cantilever_strip import (Strip, beam_deflection, beam_plastic_deflection, hinge_load, relax_to_rest,
-                              relaxed_levels, runaway, strip_body, tip_deflection, tip_load)
+from cantilever_strip import (Strip, beam_deflection, beam_plastic_deflection, beam_runaway, hinge_load, relax_to_rest,
+                              relaxed_levels, runaway, static_levels, strip_body, tip_deflection, tip_load)
 from pulseform.solvers.dolfinx.implicit_element import CellState, cell_tangent, cell_update
 from pulseform.solvers.dolfinx.kernels import pack_parameters
 from pulseform.solvers.dolfinx.tet10 import (QP_DERIVATIVES, QP_WEIGHTS, hrz_lumped_mass, qp_volumes,
@@ -164,17 +164,11 @@ def test_cantilever_plastic_hinge_three_layers():
     mat = Material(7800.0, G, K, 250e6, 0.0)
     Pp = hinge_load(st, mat)
     s = ImplicitSolver3D([strip_body(st, mat, "tet10")], ImplicitOptions(dt=1.0, scheme="static", max_cuts=4))
-    b = s.bodies["strip"]
     fr = np.round(np.arange(0.97, 1.0301, 0.005), 4)
-    d = []
-    for f in fr:
-        s.advance(1.0, 1, {"strip": tip_load(b, st, f * Pp)})
-        d.append(tip_deflection(b, st))
+    d = static_levels(s, st, fr * Pp)
     d_el = beam_deflection(st, mat, Pp, shear=False)
-    fb = np.round(np.arange(0.97, 0.9976, 0.0005), 5)
-    beam = [beam_plastic_deflection(st, mat, f * Pp) / d_el for f in fb]
     assert d[2] == pytest.approx(beam_plastic_deflection(st, mat, 0.98 * Pp), rel=0.02)
-    assert runaway(fr, np.array(d) / d_el) == pytest.approx(runaway(fb, beam), rel=0.02)
+    assert runaway(fr, np.array(d) / d_el) == pytest.approx(beam_runaway(st, mat), rel=0.02)
 
 
 @pytest.mark.slow
@@ -203,18 +197,13 @@ def test_cantilever_explicit_plastic_hinge_three_layers():
     d_el = beam_deflection(st, mat, Pp, shear=False)
     fr = np.round(np.arange(0.97, 1.0451, 0.005), 4)
     si = ImplicitSolver3D([strip_body(st, mat, "tet10")], ImplicitOptions(dt=1.0, scheme="static", max_cuts=4))
-    bi = si.bodies["strip"]
-    d_implicit = []
-    for f in fr:
-        si.advance(1.0, 1, {"strip": tip_load(bi, st, f * Pp)})
-        d_implicit.append(tip_deflection(bi, st) / d_el)
+    d_implicit = [d / d_el for d in static_levels(si, st, fr * Pp)]
     s = ExplicitSolver3D([strip_body(st, mat, "tet10")], cfl=0.8)
     b = s.bodies["strip"]
     d = relaxed_levels(s, st, Pp, fr, d_el, 60)
     n = len(d)
     explicit, implicit = runaway(fr[:n], d), runaway(fr, d_implicit)
-    fb = np.round(np.arange(0.97, 0.9976, 0.0005), 5)
-    beam = runaway(fb, [beam_plastic_deflection(st, mat, f * Pp) / d_el for f in fb])
+    beam = beam_runaway(st, mat)
     log.info("explicit hinge %.4f M_p / L, implicit %.4f, beam theory %.4f; %d explicit steps", explicit, implicit,
              beam, s.step_count)
     log.info("tip deflections / elastic: explicit %s, implicit %s", np.round(d, 5), np.round(d_implicit[:n], 5))
